@@ -1,0 +1,24 @@
+"""Errors raised by the calibration core.
+
+Every error carries a message written for the user: what is wrong, with the numbers that show
+it, and what to do. Front ends (offline tool, node) print the message; they never show a
+traceback for these.
+"""
+
+from __future__ import annotations
+
+
+class HandeyeError(Exception):
+    """Base class of every error the calibration reports to its user."""
+
+
+class InputError(HandeyeError):
+    """A trajectory is malformed: empty, unsorted, non-finite, bad quaternions, unknown format."""
+
+
+class TimeAlignmentError(HandeyeError):
+    """The time offset cannot be found: no overlap, no correlation peak inside the window."""
+
+
+class DegenerateMotionError(HandeyeError):
+    """The motion does not constrain the extrinsic: too little rotation, a single rotation axis."""

@@ -1,0 +1,105 @@
+"""Stacked rigid-body transforms and unit dual quaternions.
+
+A pose stack is a pair ``(R, p)``: rotation matrices of shape (N, 3, 3) and translations of
+shape (N, 3); a single pose is the same with N dropped. ``T_A_B = (R_AB, p_AB)`` maps B-coordinates
+into A: ``x_A = R_AB x_B + p_AB``, and ``T_A_C = T_A_B * T_B_C`` reads right to left.
+Quaternions are Hamilton, ``(x, y, z, w)``. Conversions go through ``scipy.spatial.transform``.
+
+A unit dual quaternion is stored as two quaternions ``(q, qd)``, both (..., 4) in x y z w order:
+``q`` the rotation, ``qd = 0.5 * (p, 0) (x) q`` the dual part (Daniilidis 1999).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+Pose = tuple[np.ndarray, np.ndarray]
+
+
+def matrix_from_quat(q_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation matrices, shape (..., 3, 3), from quaternions (..., 4) in x y z w order."""
+    q = np.asarray(q_xyzw, dtype=float)
+    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
+
+
+def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4), x y z w with w >= 0, from rotation matrices (..., 3, 3)."""
+    R = np.asarray(R, dtype=float)
+    q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
+    return np.where(q[..., 3:] < 0.0, -q, q)
+
+
+def apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R @ v`` for stacks: R (..., 3, 3), v (..., 3) -> (..., 3)."""
+    return np.matmul(R, v[..., None])[..., 0]
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """``T_a * T_b`` for broadcastable stacks."""
+    Ra, pa = a
+    Rb, pb = b
+    return np.matmul(Ra, Rb), apply(Ra, pb) + pa
+
+
+def inverse(a: Pose) -> Pose:
+    """``T_a^-1``."""
+    R, p = a
+    Rt = np.swapaxes(R, -1, -2)
+    return Rt, -apply(Rt, p)
+
+
+def relative(a: Pose, i: np.ndarray, j: np.ndarray) -> Pose:
+    """Relative motions ``T_i^-1 T_j`` (the pose of frame j expressed in frame i), stacked."""
+    R, p = a
+    return compose(inverse((R[i], p[i])), (R[j], p[j]))
+
+
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """Rotation angles in radians, [0, pi], of matrices (..., 3, 3), via the trace."""
+    cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a (x) b`` of x y z w quaternion stacks (broadcasting)."""
+    av, aw = a[..., :3], a[..., 3:]
+    bv, bw = b[..., :3], b[..., 3:]
+    vec = aw * bv + bw * av + np.cross(av, bv)
+    w = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
+    return np.concatenate((vec, w), axis=-1)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """Conjugate (the inverse, for unit quaternions) of x y z w quaternions."""
+    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+
+
+def dual_quat_from_pose(q_xyzw: np.ndarray, p_xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit dual quaternions ``(q, qd)`` of poses; ``qd = 0.5 * (p, 0) (x) q``."""
+    p_quat = np.concatenate((p_xyz, np.zeros(p_xyz.shape[:-1] + (1,))), axis=-1)
+    return q_xyzw, 0.5 * quat_multiply(p_quat, q_xyzw)
+
+
+def pose_from_dual_quat(q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quaternion (x y z w, w >= 0) and translation of unit dual quaternions.
+
+    The translation is ``p = 2 (qd (x) q*)_vec``; the dual quaternion is normalised first
+    (|q| = 1 and q . qd = 0) so that slightly non-unit solver outputs still give a rigid pose.
+    """
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    q = q / n
+    qd = qd / n
+    qd = qd - np.sum(q * qd, axis=-1, keepdims=True) * q
+    p = 2.0 * quat_multiply(qd, quat_conjugate(q))[..., :3]
+    sign = np.where(q[..., 3:] < 0.0, -1.0, 1.0)
+    return q * sign, p
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Skew-symmetric (cross-product) matrices, (..., 3, 3), of vectors (..., 3)."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    o = np.zeros_like(x)
+    return np.stack((np.stack((o, -z, y), -1),
+                     np.stack((z, o, -x), -1),
+                     np.stack((-y, x, o), -1)), -2)

@@ -1,0 +1,137 @@
+"""A validated, timestamped pose stream.
+
+A :class:`Trajectory` holds N poses ``T_AB(t_k)``: the pose of a moving frame B expressed in a
+fixed frame A (``p_xyz`` is the origin of B in A, ``q_xyzw`` rotates B-vectors into A).
+Stamps are int64 nanoseconds, exactly as they arrive from files and messages; float seconds are
+only made by :meth:`Trajectory.seconds` after subtracting an origin, because 1.7e9 s in float64
+keeps no sub-microsecond precision.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+#: A quaternion whose norm differs from 1 by more than this is refused rather than normalised:
+#: text files round to ~6 decimals (deviation ~1e-6); a larger deviation means a wrong column
+#: order or corrupted data, and silently normalising it would hide that.
+QUATERNION_NORM_TOLERANCE = 1e-2
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Poses T_AB(t) of a frame B in a frame A.
+
+    Attributes
+    ----------
+    t_ns : ndarray, shape (N,), int64
+        Strictly increasing stamps in nanoseconds.
+    p_xyz : ndarray, shape (N, 3)
+        Position of B in A, metres.
+    q_xyzw : ndarray, shape (N, 4)
+        Unit Hamilton quaternions (x, y, z, w), signs made continuous (q_k . q_k+1 >= 0).
+    name : str
+        Where the poses came from (a file or topic), used in messages.
+    """
+
+    t_ns: np.ndarray
+    p_xyz: np.ndarray
+    q_xyzw: np.ndarray
+    name: str = 'trajectory'
+
+    @classmethod
+    def from_arrays(cls, t_ns: np.ndarray, p_xyz: np.ndarray, q_xyzw: np.ndarray,
+                    name: str = 'trajectory', min_poses: int = 2) -> Trajectory:
+        """Validate raw arrays and build a trajectory.
+
+        Raises :class:`InputError` naming ``name`` and the first offending row for: too few
+        poses, non-integer or unsorted or duplicate stamps, NaN/inf, zero or non-unit quaternions.
+        Quaternion sign flips between samples are legal (q and -q are one rotation) and are
+        removed here so that later interpolation and differencing see a continuous signal.
+        """
+        t_ns = np.asarray(t_ns)
+        p_xyz = np.asarray(p_xyz, dtype=float)
+        q_xyzw = np.asarray(q_xyzw, dtype=float)
+        n = t_ns.shape[0] if t_ns.ndim == 1 else -1
+        if n < 0 or p_xyz.shape != (n, 3) or q_xyzw.shape != (n, 4):
+            msg = (f'{name}: expected stamps (N,), positions (N, 3) and quaternions (N, 4), '
+                   f'got {t_ns.shape}, {p_xyz.shape}, {q_xyzw.shape}')
+            raise InputError(msg)
+        if n < min_poses:
+            msg = f'{name}: holds {n} pose(s); at least {min_poses} are needed'
+            raise InputError(msg)
+        if not np.issubdtype(t_ns.dtype, np.integer):
+            msg = f'{name}: stamps must be integer nanoseconds, got dtype {t_ns.dtype}'
+            raise InputError(msg)
+        t_ns = t_ns.astype(np.int64)
+        _check_finite(name, p_xyz, 'position')
+        _check_finite(name, q_xyzw, 'quaternion')
+        steps = np.diff(t_ns)
+        bad = np.flatnonzero(steps <= 0)
+        if bad.size:
+            k = int(bad[0])
+            kind = 'duplicate' if steps[k] == 0 else 'unsorted (going backwards)'
+            msg = (f'{name}: {bad.size} {kind} stamp(s); first at row {k + 1}: '
+                   f'{t_ns[k]} ns then {t_ns[k + 1]} ns. Stamps must strictly increase')
+            raise InputError(msg)
+        norms = np.linalg.norm(q_xyzw, axis=1)
+        bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_NORM_TOLERANCE)
+        if bad.size:
+            k = int(bad[0])
+            what = 'zero' if norms[k] < 1e-9 else f'non-unit (norm {norms[k]:.6g})'
+            msg = (f'{name}: {bad.size} quaternion(s) not of unit norm; first at row {k}: '
+                   f'{what} quaternion {q_xyzw[k].tolist()} (order x y z w)')
+            raise InputError(msg)
+        q_xyzw = q_xyzw / norms[:, None]
+        return cls(t_ns, p_xyz, make_continuous(q_xyzw), name)
+
+    def __len__(self) -> int:
+        return int(self.t_ns.shape[0])
+
+    def seconds(self, origin_ns: int) -> np.ndarray:
+        """Stamps in float seconds relative to ``origin_ns`` (subtraction done in int64)."""
+        return (self.t_ns - np.int64(origin_ns)).astype(float) * 1e-9
+
+    @property
+    def duration_s(self) -> float:
+        """Time spanned by the stamps, seconds."""
+        return float(self.t_ns[-1] - self.t_ns[0]) * 1e-9
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sampling rate, Hz (robust to gaps and dropped samples)."""
+        return 1e9 / float(np.median(np.diff(self.t_ns)))
+
+    def select(self, mask_or_index: np.ndarray) -> Trajectory:
+        """A sub-trajectory (rows kept in order; no re-validation needed)."""
+        return Trajectory(self.t_ns[mask_or_index], self.p_xyz[mask_or_index],
+                          self.q_xyzw[mask_or_index], self.name)
+
+
+def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:
+    """Flip quaternion signs so that consecutive quaternions have a non-negative dot product.
+
+    Parameters
+    ----------
+    q_xyzw : ndarray, shape (N, 4)
+
+    Returns
+    -------
+    ndarray, shape (N, 4)
+        Same rotations; the sign of row k is the product of the flips up to k (vectorised).
+    """
+    dots = np.einsum('ij,ij->i', q_xyzw[1:], q_xyzw[:-1])
+    flips = np.concatenate(([1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))))
+    return q_xyzw * flips[:, None]
+
+
+def _check_finite(name: str, values: np.ndarray, what: str) -> None:
+    bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+    if bad.size:
+        k = int(bad[0])
+        msg = (f'{name}: {bad.size} row(s) with NaN or inf in the {what}; first at row {k}: '
+               f'{values[k].tolist()}')
+        raise InputError(msg)

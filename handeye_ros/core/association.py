@@ -1,0 +1,88 @@
+"""Pose pairs at common instants, given the time offset.
+
+For each sample of the sparser stream, the denser stream is interpolated at the same instant
+(positions linearly, orientations by SLERP), so no pair mixes two instants and the sparser
+stream, usually the noisier VIO, is never interpolated. Instants that fall outside the other
+stream or inside one of its gaps are dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from .errors import TimeAlignmentError
+from .geometry import matrix_from_quat
+from .time_align import GAP_FACTOR
+from .trajectory import Trajectory
+
+#: Fewer matched pairs than this cannot support keyframes, RANSAC and a world alignment.
+MIN_PAIRS = 20
+
+
+@dataclass(frozen=True)
+class PosePairs:
+    """Hand and eye poses at the same physical instants.
+
+    Attributes
+    ----------
+    t_eye_s : ndarray, shape (N,)
+        Instants on the eye clock, seconds from the eye origin ``origin_ns``.
+    R_GH, p_GH : ndarray, shapes (N, 3, 3), (N, 3)
+        Hand (marker) poses in the MoCap world G, at ``t_eye - dt`` on the hand clock.
+    R_WE, p_WE : ndarray, shapes (N, 3, 3), (N, 3)
+        Eye (body) poses in the VIO world W.
+    """
+
+    t_eye_s: np.ndarray
+    R_GH: np.ndarray
+    p_GH: np.ndarray
+    R_WE: np.ndarray
+    p_WE: np.ndarray
+
+
+def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses of ``traj`` at stamps ``t_ns`` (int64 ns, any order).
+
+    Returns rotation matrices (M, 3, 3), positions (M, 3) and a mask (M,) that is False outside
+    the trajectory's span or inside one of its gaps (an interval over GAP_FACTOR median periods).
+    """
+    origin = int(traj.t_ns[0])
+    ts = traj.seconds(origin)
+    tq = (np.asarray(t_ns, dtype=np.int64) - np.int64(origin)).astype(float) * 1e-9
+    k = np.searchsorted(ts, tq, side='right')
+    inside = (tq >= ts[0]) & (tq <= ts[-1])
+    kc = np.clip(k, 1, ts.size - 1)
+    gap = np.diff(ts)[kc - 1] > GAP_FACTOR * np.median(np.diff(ts))
+    ok = inside & ~gap
+    tq_ok = tq[ok]
+    R = np.tile(np.eye(3), (tq.size, 1, 1))
+    p = np.zeros((tq.size, 3))
+    R[ok] = Slerp(ts, Rotation.from_quat(traj.q_xyzw))(tq_ok).as_matrix()
+    p[ok] = np.stack([np.interp(tq_ok, ts, traj.p_xyz[:, i]) for i in range(3)], axis=1)
+    return R, p, ok
+
+
+def associate(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> PosePairs:
+    """Pairs ``(T_GH(t - dt), T_WE(t))`` at the stamps of the sparser stream.
+
+    Raises :class:`TimeAlignmentError` when fewer than MIN_PAIRS instants are covered by both.
+    """
+    dt_ns = np.int64(round(time_offset_s * 1e9))
+    if eye.rate_hz <= hand.rate_hz:
+        R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
+        R_WE, p_WE = matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok]
+        R_GH, p_GH, t_eye_ns = R_GH[ok], p_GH[ok], eye.t_ns[ok]
+    else:
+        R_WE, p_WE, ok = interpolate(eye, hand.t_ns + dt_ns)
+        R_GH, p_GH = matrix_from_quat(hand.q_xyzw[ok]), hand.p_xyz[ok]
+        R_WE, p_WE, t_eye_ns = R_WE[ok], p_WE[ok], hand.t_ns[ok] + dt_ns
+    if t_eye_ns.size < MIN_PAIRS:
+        msg = (f'after applying the time offset {time_offset_s:+.4f} s only {t_eye_ns.size} '
+               f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
+               'overlap too little in time')
+        raise TimeAlignmentError(msg)
+    t_eye_s = (t_eye_ns - t_eye_ns[0]).astype(float) * 1e-9
+    return PosePairs(t_eye_s, R_GH, p_GH, R_WE, p_WE)

@@ -1,0 +1,66 @@
+"""Which pose pairs (i, j) become the relative motions A_ij, B_ij (paper Section III-B.1).
+
+- ``rotation`` (the paper's choice): keyframes chosen so that each motion rotates by at least
+  eta (eq. 9). Every motion then constrains the extrinsic (a pure translation would not, and a
+  tiny rotation is drowned by noise), while staying short enough not to accumulate VIO drift.
+- ``global``: every frame against the first; drift couples into every equation.
+- ``interframe``: consecutive frames; short motions, low signal-to-noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import rotation_angle
+
+STRATEGIES = ('rotation', 'global', 'interframe')
+
+
+def motion_indices(R: np.ndarray, strategy: str = 'rotation',
+                   eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs ``(i, j)``, i < j, of the relative motions, for rotations R of shape (N, 3, 3).
+
+    ``eta_rad`` is used by the ``rotation`` strategy only.
+    """
+    n = R.shape[0]
+    if strategy == 'global':
+        j = np.arange(1, n)
+        return np.zeros_like(j), j
+    if strategy == 'interframe':
+        i = np.arange(n - 1)
+        return i, i + 1
+    if strategy == 'rotation':
+        return rotation_keyframes(R, eta_rad)
+    msg = f'relative_poses must be one of {STRATEGIES}, got {strategy!r}'
+    raise ValueError(msg)
+
+
+def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Chain of keyframes k_0 = 0, k_m+1 = first j > k_m with angle(R_k_m^T R_j) >= eta (eq. 9).
+
+    The loop runs once per keyframe, not per pose: the rotation path length s (cumulative sum of
+    inter-frame angles) bounds the angle from above, angle(i, j) <= s_j - s_i, so no j before
+    ``s_j >= s_i + eta`` can qualify, and candidates after it are tested in vectorised blocks.
+    """
+    n = R.shape[0]
+    step = rotation_angle(np.matmul(np.swapaxes(R[:-1], -1, -2), R[1:]))
+    s = np.concatenate(([0.0], np.cumsum(step)))
+    first, second = [], []
+    i = 0
+    while True:
+        start = int(np.searchsorted(s, s[i] + eta_rad * (1.0 - 1e-9)))
+        block = 32
+        found = -1
+        while start < n and found < 0:
+            js = np.arange(start, min(start + block, n))
+            hit = np.flatnonzero(rotation_angle(np.matmul(R[i].T, R[js])) >= eta_rad)
+            if hit.size:
+                found = int(js[hit[0]])
+            start += block
+            block *= 2
+        if found < 0:
+            break
+        first.append(i)
+        second.append(found)
+        i = found
+    return np.asarray(first, dtype=int), np.asarray(second, dtype=int)

@@ -1,0 +1,311 @@
+"""Stage 2: robust linear hand-eye calibration AX = XB with dual quaternions (Section III-B).
+
+For each motion i -> j, ``A = T_GH_i^-1 T_GH_j`` (hand), ``B = T_WE_i^-1 T_WE_j`` (eye) and
+``X = T_HE`` satisfy ``A X = X B`` (eq. 2-3). Written with unit dual quaternions this is linear
+in the 8 entries of X's dual quaternion: a 6x8 block per motion (eq. 5), stacked into M (eq. 6),
+whose two-dimensional null space holds X; the unit constraints ``|q| = 1, q . q' = 0`` pick it out
+(Daniilidis 1999). Robustness comes from the screw-congruence kernel (eq. 10-13) and RANSAC on
+2-motion subsets scored by ``sigma7 / sigma6`` (Algorithm 1).
+
+Layout: the unknown 8-vector is ``x = (q_v, q_w, q'_v, q'_w)``, i.e. the two x y z w quaternions
+of ``T_HE`` back to back, so no reordering is needed anywhere. Per-motion blocks are kept as
+their Gram matrices ``S_i^T S_i`` (n, 8, 8): a weighted, masked stack ``M`` then costs one
+matrix product, and its singular values are the square roots of the Gram eigenvalues.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .association import PosePairs
+from .errors import DegenerateMotionError
+from .geometry import (Pose, compose, dual_quat_from_pose, inverse, matrix_from_quat,
+                       pose_from_dual_quat, quat_from_matrix, relative, rotation_angle, skew)
+from .keyframes import motion_indices
+
+#: A RANSAC model is eligible only if its consensus holds at least this fraction of the largest
+#: consensus found: sigma7/sigma6 of a tiny subset is small by chance, not by quality.
+CONSENSUS_FRACTION = 0.5
+#: Rotation axes of the inlier motions spread less than this (degrees): the translation of T_HE
+#: along the common axis is unobservable, so no result is given.
+MIN_AXIS_SPREAD_DEG = 1.0
+#: Below this spread the result is given, with a warning that it is weakly constrained.
+WARN_AXIS_SPREAD_DEG = 10.0
+
+
+@dataclass(frozen=True)
+class Motions:
+    """Relative motions of hand (A) and eye (B) between pose pairs ``(i, j)``.
+
+    Rotations (n, 3, 3) and translations (n, 3) in the frame of the earlier pose; the dual
+    quaternions have their signs chosen so that both scalar parts are >= 0, as eq. 5 requires.
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    A: Pose
+    B: Pose
+    qa: np.ndarray
+    qad: np.ndarray
+    qb: np.ndarray
+    qbd: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.i.size)
+
+
+@dataclass(frozen=True)
+class LinearSolution:
+    """Result of stage 2.
+
+    Attributes
+    ----------
+    q_HE, p_HE : ndarray, shapes (4,), (3,)
+        Extrinsic T_HE: the eye frame E in the hand frame H (x y z w quaternion, metres).
+    sigma_ratio : float
+        sigma7 / sigma6 of the final robustified system (smaller is better, 0 without noise).
+    singular_values : ndarray, shape (8,)
+        Of the final system, descending.
+    n_motions, n_inliers : int
+    inliers : ndarray of bool, shape (n_motions,)
+    axis_spread_deg : float
+        How far apart the rotation axes of the inlier motions are (for two axes, their angle).
+    rotation_residual_deg, translation_residual_m : float
+        RMS of the inlier criteria (eq. 14) over the inliers at the solution.
+    warnings : tuple of str
+    """
+
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    sigma_ratio: float
+    singular_values: np.ndarray
+    n_motions: int
+    n_inliers: int
+    inliers: np.ndarray
+    axis_spread_deg: float
+    rotation_residual_deg: float
+    translation_residual_m: float
+    warnings: tuple[str, ...] = ()
+
+
+def build_motions(pairs: PosePairs, strategy: str = 'rotation',
+                  eta_rad: float = np.deg2rad(5.0)) -> Motions:
+    """Relative motions A (hand) and B (eye) from matched pose pairs.
+
+    Keyframes are chosen on the hand rotations (the MoCap side is the less noisy one).
+    """
+    i, j = motion_indices(pairs.R_GH, strategy, eta_rad)
+    A = relative((pairs.R_GH, pairs.p_GH), i, j)
+    B = relative((pairs.R_WE, pairs.p_WE), i, j)
+    qa, qad = dual_quat_from_pose(quat_from_matrix(A[0]), A[1])
+    qb, qbd = dual_quat_from_pose(quat_from_matrix(B[0]), B[1])
+    return Motions(i, j, A, B, qa, qad, qb, qbd)
+
+
+def constraint_gram(m: Motions) -> np.ndarray:
+    """Gram matrices ``S_i^T S_i``, (n, 8, 8), of the 6x8 blocks of eq. 5.
+
+    With r, r' (s, s') the vector parts of the hand (eye) dual quaternion, and our column order
+    ``(q_v, q_w, q'_v, q'_w)``::
+
+        S = [[ (r + s)^,   r - s,   0,         0     ],
+             [ (r' + s')^, r' - s', (r + s)^,  r - s ]]
+    """
+    r, rd, s, sd = m.qa[:, :3], m.qad[:, :3], m.qb[:, :3], m.qbd[:, :3]
+    n = r.shape[0]
+    S = np.zeros((n, 6, 8))
+    S[:, :3, :3] = skew(r + s)
+    S[:, :3, 3] = r - s
+    S[:, 3:, :3] = skew(rd + sd)
+    S[:, 3:, 3] = rd - sd
+    S[:, 3:, 4:7] = skew(r + s)
+    S[:, 3:, 7] = r - s
+    return np.matmul(np.swapaxes(S, -1, -2), S)
+
+
+def screw_log_weights(m: Motions, mu: float) -> np.ndarray:
+    """``log W_i = mu (1 - E_i^2)`` of the screw-congruence kernel (eq. 12-13).
+
+    E_i (eq. 12) compares the scalar parts of the hand and eye dual quaternions, which are equal
+    without noise (eq. 11): ``w = cos(theta/2)`` (rotation angle) and
+    ``w' = -d/2 sin(theta/2)`` (d: translation along the screw axis). E_i = 1 when they agree.
+    Logs are returned so that large E cannot underflow the weights to zero before normalising.
+    """
+    def ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        a, b = np.abs(a), np.abs(b)
+        return np.maximum(a, b) / np.maximum(np.minimum(a, b), 1e-15)
+
+    e = 0.5 * (ratio(m.qa[:, 3], m.qb[:, 3]) + ratio(m.qad[:, 3], m.qbd[:, 3]))
+    return mu * (1.0 - e * e)
+
+
+def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit dual quaternion in the 2-D null space of stacked systems with Gram matrices G.
+
+    Parameters
+    ----------
+    G : ndarray, shape (..., 8, 8)
+
+    Returns
+    -------
+    q, qd : ndarray, shape (..., 4)
+        Rotation and dual part (x y z w), |q| = 1 and q . qd = 0.
+    sigma : ndarray, shape (..., 8)
+        Singular values of the stacked system, descending (sigma[..., 6] is the paper's sigma7).
+    """
+    lam, V = np.linalg.eigh(G)
+    sigma = np.sqrt(np.clip(lam[..., ::-1], 0.0, None))
+    v1, v2 = V[..., :, 0], V[..., :, 1]
+    u1, u1d, u2, u2d = v1[..., :4], v1[..., 4:], v2[..., :4], v2[..., 4:]
+
+    def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.sum(a * b, axis=-1)
+
+    # x = l1 v1 + l2 v2 with q . qd = 0: a homogeneous quadratic in (l1, l2). In the eigenbasis
+    # of its 2x2 matrix Q it reads e1 m1^2 + e2 m2^2 = 0, solved by m = (sqrt(e2), +-sqrt(-e1)).
+    b = 0.5 * (dot(u1, u2d) + dot(u2, u1d))
+    Q = np.stack((np.stack((dot(u1, u1d), b), -1), np.stack((b, dot(u2, u2d)), -1)), -2)
+    e, P = np.linalg.eigh(Q)
+    mixed = (e[..., 0] <= 0.0) & (e[..., 1] >= 0.0)
+    m1 = np.where(mixed, np.sqrt(np.abs(e[..., 1])), np.where(np.abs(e[..., 0]) <
+                                                              np.abs(e[..., 1]), 1.0, 0.0))
+    m2 = np.where(mixed, np.sqrt(np.abs(e[..., 0])), 1.0 - m1)
+    best_q = best_qd = None
+    best_norm = None
+    for sign in (1.0, -1.0):
+        mu_vec = np.stack((m1, sign * m2), -1)
+        lam_vec = np.matmul(P, mu_vec[..., None])[..., 0]
+        q = lam_vec[..., :1] * u1 + lam_vec[..., 1:] * u2
+        qd = lam_vec[..., :1] * u1d + lam_vec[..., 1:] * u2d
+        # Of the two roots, the one with the larger real part is X; the other tends to (0, q).
+        norm = np.linalg.norm(q, axis=-1)
+        if best_norm is None:
+            best_q, best_qd, best_norm = q, qd, norm
+        else:
+            take = (norm > best_norm)[..., None]
+            best_q = np.where(take, q, best_q)
+            best_qd = np.where(take, qd, best_qd)
+            best_norm = np.maximum(norm, best_norm)
+    scale = 1.0 / np.maximum(best_norm, 1e-300)[..., None]
+    return best_q * scale, best_qd * scale, sigma
+
+
+def motion_errors(m: Motions, q_HE: np.ndarray, p_HE: np.ndarray,
+                  chunk: int = 2_000_000) -> tuple[np.ndarray, np.ndarray]:
+    """Inlier criteria of eq. 14 for K hypotheses against n motions.
+
+    ``E = X B X^-1 A^-1``; e1 = rotation angle of E (rad), e2 = norm of its translation (m).
+
+    Parameters
+    ----------
+    q_HE, p_HE : ndarray, shapes (K, 4), (K, 3)
+
+    Returns
+    -------
+    e_rot, e_trans : ndarray, shape (K, n)
+    """
+    RX = matrix_from_quat(q_HE)
+    K, n = RX.shape[0], len(m)
+    e_rot = np.empty((K, n))
+    e_trans = np.empty((K, n))
+    step = max(1, chunk // max(n, 1))
+    A_inv = inverse(m.A)
+    for k0 in range(0, K, step):
+        X = (RX[k0:k0 + step, None], p_HE[k0:k0 + step, None])
+        C = compose(compose(X, (m.B[0][None], m.B[1][None])), inverse(X))
+        E = compose(C, (A_inv[0][None], A_inv[1][None]))
+        e_rot[k0:k0 + step] = rotation_angle(E[0])
+        e_trans[k0:k0 + step] = np.linalg.norm(E[1], axis=-1)
+    return e_rot, e_trans
+
+
+def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
+    """Spread of the hand rotation axes of the selected motions, degrees.
+
+    From the eigenvalues l1 >= l2 of the axes' scatter matrix: ``2 atan(sqrt(l2 / l1))``, which
+    for two axes equals the angle between them and is 0 when all axes are parallel.
+    """
+    v = m.qa[mask, :3]
+    norms = np.linalg.norm(v, axis=1)
+    a = v[norms > 1e-12] / norms[norms > 1e-12, None]
+    if a.shape[0] < 2:
+        return 0.0
+    lam = np.linalg.eigvalsh(a.T @ a)[::-1]
+    return float(np.degrees(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[0]))))
+
+
+def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
+                     ransac_iterations: int = 200, inlier_rotation_rad: float = np.deg2rad(0.5),
+                     inlier_translation_m: float = 0.02, min_motions: int = 10,
+                     rng: np.random.Generator | None = None) -> LinearSolution:
+    """Algorithm 1: RANSAC over 2-motion subsets, robust refinement, best sigma7/sigma6.
+
+    Each iteration solves the 12x8 system of two random motions, collects the motions that agree
+    with it within the inlier thresholds (eq. 14), re-solves on them with the robust kernel
+    weights (eq. 15), and scores that refinement by sigma7/sigma6; the best-scoring refinement
+    wins. With ``ransac_iterations=0`` a single robust solve on all motions is returned.
+
+    Raises
+    ------
+    DegenerateMotionError
+        With fewer than ``min_motions`` motions or rotation axes that are all parallel.
+    """
+    n = len(m)
+    if n < max(min_motions, 2):
+        msg = (f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
+               'recording rotates too little for the keyframe rule. Rotate the rig more (about '
+               'several axes), or lower eta')
+        raise DegenerateMotionError(msg)
+    rng = rng if rng is not None else np.random.default_rng(0)
+    gram = constraint_gram(m).reshape(n, 64)
+    if robust_kernel:
+        log_w = screw_log_weights(m, mu)
+        w2 = np.exp(2.0 * (log_w - log_w.max()))
+    else:
+        w2 = np.ones(n)
+
+    if ransac_iterations > 0:
+        first = rng.integers(0, n, ransac_iterations)
+        second = (first + rng.integers(1, n, ransac_iterations)) % n
+        G2 = (gram[first] + gram[second]).reshape(-1, 8, 8)
+        q0, qd0, _ = solve_gram(G2)
+        q0, p0 = pose_from_dual_quat(q0, qd0)
+        e_rot, e_trans = motion_errors(m, q0, p0)
+        masks = (e_rot < inlier_rotation_rad) & (e_trans < inlier_translation_m)
+    else:
+        masks = np.ones((1, n), dtype=bool)
+    counts = masks.sum(axis=1)
+    G = (masks * w2) @ gram
+    q1, qd1, sigma = solve_gram(G.reshape(-1, 8, 8))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        ratio = sigma[:, 6] / sigma[:, 5]
+    eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
+    if not eligible.any():
+        msg = (f'RANSAC found no model that 2 or more of the {n} motions agree with within '
+               f'{np.degrees(inlier_rotation_rad):.2f} deg / {inlier_translation_m:.3f} m: the '
+               'eye poses are too noisy for these thresholds, or the time offset is wrong')
+        raise DegenerateMotionError(msg)
+    best = int(np.argmin(np.where(eligible, ratio, np.inf)))
+    q_HE, p_HE = pose_from_dual_quat(q1[best], qd1[best])
+    inliers = masks[best]
+
+    spread = axis_spread_deg(m, inliers)
+    if spread < MIN_AXIS_SPREAD_DEG:
+        msg = (f'the rotation axes of the {inliers.sum()} inlier motions are within '
+               f'{spread:.2f} deg of one direction: the translation of the extrinsic along that '
+               'axis cannot be observed. Rotate the rig about at least two different axes')
+        raise DegenerateMotionError(msg)
+    warnings = []
+    if spread < WARN_AXIS_SPREAD_DEG:
+        warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
+                        'constrained; rotate about more different axes')
+    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
+    return LinearSolution(
+        q_HE=q_HE, p_HE=p_HE, sigma_ratio=float(ratio[best]), singular_values=sigma[best],
+        n_motions=n, n_inliers=int(inliers.sum()), inliers=inliers, axis_spread_deg=spread,
+        rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
+        translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
+        warnings=tuple(warnings))
+

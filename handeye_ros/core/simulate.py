@@ -1,0 +1,142 @@
+"""Simulated recordings with known truth, following the paper's protocol (Section IV-A).
+
+A smooth random motion (cubic B-splines of position and rotation vector) is sampled as the hand
+``T_GH`` at ``hand_rate_hz`` (paper: 100 Hz) on the hand clock and as the eye
+``T_WE(t) = T_WG T_GH(t - dt) T_HE`` at ``eye_rate_hz`` (paper: 20 Hz) on the eye clock. The eye
+gets a frame-wise cumulative error, as a VIO drifts: every relative motion between consecutive
+eye frames is perturbed in the body frame by a rotation and a translation drawn with per-axis
+standard deviations ``noise_deg`` and ``noise_m``, and the poses are the running product.
+:func:`noise_level` gives the paper's ten levels (0.5 mm / 0.02 deg per level, up to 5 mm /
+0.2 deg).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.spatial.transform import Rotation
+
+from .geometry import Pose, compose, inverse, quat_from_matrix
+from .trajectory import Trajectory
+
+#: Hand clock origin of simulated stamps: a realistic epoch, so that the int64 ns handling
+#: of stamps is exercised as with real recordings.
+EPOCH_NS = 1_700_000_000_000_000_000
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The values a calibration should recover (conventions of the package docstring)."""
+
+    time_offset_s: float
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    q_WG: np.ndarray
+    p_WG: np.ndarray
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A simulated hand/eye recording and its truth."""
+
+    hand: Trajectory
+    eye: Trajectory
+    truth: Truth
+
+
+def noise_level(level: float) -> tuple[float, float]:
+    """Per-frame eye noise (metres, degrees) of the paper's level 0..10."""
+    return 0.0005 * level, 0.02 * level
+
+
+def random_truth(rng: np.random.Generator, max_time_offset_s: float = 0.1) -> Truth:
+    """A random extrinsic (~0.1 m lever arm), world alignment and time offset."""
+    return Truth(
+        time_offset_s=float(rng.uniform(-max_time_offset_s, max_time_offset_s)),
+        q_HE=Rotation.random(random_state=rng).as_quat(),
+        p_HE=rng.normal(0.0, 0.1, 3),
+        q_WG=Rotation.random(random_state=rng).as_quat(),
+        p_WG=rng.normal(0.0, 1.0, 3),
+    )
+
+
+def smooth_motion(rng: np.random.Generator, duration_s: float, knot_spacing_s: float = 0.5,
+                  position_std_m: float = 0.2,
+                  rotation_std_rad: float = 0.2) -> tuple[BSpline, BSpline]:
+    """Cubic B-splines (seconds -> position [m], rotation vector [rad]) of a hand-held motion.
+
+    The defaults give mean speeds of ~0.5 m/s and ~30 deg/s about all axes: between the EuRoC
+    flights (10-36 deg/s) and the hand-held TUM-VI room sequence (~80 deg/s).
+    """
+    k = 3
+    n_ctrl = int(np.ceil(duration_s / knot_spacing_s)) + k + 2
+    knots = (np.arange(n_ctrl + k + 1) - k) * knot_spacing_s - knot_spacing_s
+    pos = BSpline(knots, rng.normal(0.0, position_std_m, (n_ctrl, 3)), k)
+    rot = BSpline(knots, rng.normal(0.0, rotation_std_rad, (n_ctrl, 3)), k)
+    return pos, rot
+
+
+def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
+    """Prefix products ``T_0 T_1 ... T_k`` of a pose stack, by a parallel scan (log2 N passes)."""
+    R, p = R.copy(), p.copy()
+    s = 1
+    while s < R.shape[0]:
+        R_new, p_new = compose((R[:-s], p[:-s]), (R[s:], p[s:]))
+        R[s:], p[s:] = R_new, p_new
+        s *= 2
+    return R, p
+
+
+def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 100.0,
+             eye_rate_hz: float = 20.0, noise_m: float = 0.0, noise_deg: float = 0.0,
+             hand_noise_m: float = 0.0, hand_noise_deg: float = 0.0,
+             truth: Truth | None = None) -> Recording:
+    """Simulate one recording.
+
+    The eye stream covers the hand stream's span less 1 s at each end, so that every eye pose
+    has hand poses around it whatever the offset (|dt| < 1 s). ``hand_noise_*`` adds white MoCap
+    noise (the paper's protocol has none).
+    """
+    rng = np.random.default_rng(seed)
+    truth = truth if truth is not None else random_truth(rng)
+    pos, rot = smooth_motion(rng, duration_s + 2.0)
+
+    def hand_pose(t_s: np.ndarray) -> Pose:
+        return Rotation.from_rotvec(rot(t_s)).as_matrix(), pos(t_s)
+
+    n_hand = int(duration_s * hand_rate_hz) + 1
+    t_hand_ns = EPOCH_NS + np.rint(np.arange(n_hand) * 1e9 / hand_rate_hz).astype(np.int64)
+    R_GH, p_GH = hand_pose((t_hand_ns - EPOCH_NS) * 1e-9)
+    if hand_noise_m or hand_noise_deg:
+        R_GH = np.matmul(R_GH, Rotation.from_rotvec(
+            rng.normal(0.0, np.deg2rad(hand_noise_deg), (n_hand, 3))).as_matrix())
+        p_GH = p_GH + rng.normal(0.0, hand_noise_m, (n_hand, 3))
+
+    dt_ns = int(round(truth.time_offset_s * 1e9))
+    n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
+    t_eye_ns = (EPOCH_NS + 1_000_000_000 + dt_ns
+                + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64))
+    X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
+    T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
+    R_WE, p_WE = compose(compose(T_WG, hand_pose((t_eye_ns - dt_ns - EPOCH_NS) * 1e-9)), X)
+    if noise_m or noise_deg:
+        R_WE, p_WE = _add_cumulative_error(rng, R_WE, p_WE, noise_m, noise_deg)
+
+    hand = Trajectory.from_arrays(t_hand_ns, p_GH, quat_from_matrix(R_GH), 'simulated hand')
+    eye = Trajectory.from_arrays(t_eye_ns, p_WE, quat_from_matrix(R_WE), 'simulated eye')
+    return Recording(hand, eye, truth)
+
+
+def _add_cumulative_error(rng: np.random.Generator, R: np.ndarray, p: np.ndarray,
+                          noise_m: float, noise_deg: float) -> Pose:
+    """Perturb every consecutive relative motion in its body frame and re-chain the poses."""
+    n = R.shape[0]
+    rel = compose(inverse((R[:-1], p[:-1])), (R[1:], p[1:]))
+    err = (Rotation.from_rotvec(rng.normal(0.0, np.deg2rad(noise_deg), (n - 1, 3))).as_matrix(),
+           rng.normal(0.0, noise_m, (n - 1, 3)))
+    rel = compose(rel, err)
+    steps_R = np.concatenate((R[:1], rel[0]))
+    steps_p = np.concatenate((p[:1], rel[1]))
+    return cumulative_compose(steps_R, steps_p)

@@ -22,3 +22,7 @@ class TimeAlignmentError(HandeyeError):
 
 class DegenerateMotionError(HandeyeError):
     """The motion does not constrain the extrinsic: too little rotation, a single rotation axis."""
+
+
+class ConfigError(HandeyeError):
+    """An option is unknown or outside its valid range."""

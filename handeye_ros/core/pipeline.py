@@ -1,0 +1,82 @@
+"""The whole calibration: the one function every front end (offline tool, node) calls.
+
+Stages: time offset (Section III-A) -> pose pairs at common instants -> relative motions from
+keyframes -> robust linear AX = XB (Section III-B) -> world alignment and metrics.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from .association import associate
+from .config import CalibrationConfig
+from .linear import build_motions, calibrate_linear
+from .result import CalibrationResult
+from .time_align import TimeAlignment, align_time
+from .trajectory import Trajectory
+from .world import align_worlds, evaluate
+
+LOG = logging.getLogger('handeye_ros')
+
+#: A correlation peak below this means the two angular-speed profiles hardly agree.
+WEAK_PEAK_CORRELATION = 0.5
+#: A second peak this close to the main one means the offset is ambiguous (periodic motion).
+AMBIGUOUS_PEAK_RATIO = 0.9
+#: Fewer RANSAC inliers than this fraction of the motions: noisy eye or wrong offset.
+LOW_INLIER_FRACTION = 0.2
+
+
+def calibrate(hand: Trajectory, eye: Trajectory,
+              config: CalibrationConfig | None = None) -> CalibrationResult:
+    """Time offset and extrinsic T_HE of a hand (T_GH) and an eye (T_WE) trajectory.
+
+    Raises a :class:`~handeye_ros.core.errors.HandeyeError` subclass with a user-facing message
+    when the input cannot give a result; soft problems end up in ``result.warnings``.
+    """
+    cfg = config or CalibrationConfig()
+    warnings: list[str] = []
+    t0 = time.perf_counter()
+    if cfg.time_offset is not None:
+        ta = TimeAlignment(time_offset_s=cfg.time_offset, method='fixed')
+    else:
+        ta = align_time(hand, eye, max_time_offset=cfg.max_time_offset,
+                        time_offset_guess=cfg.time_offset_guess,
+                        resample_rate_hz=cfg.resample_rate_hz, peak_fit=cfg.peak_fit)
+        if ta.peak_correlation < WEAK_PEAK_CORRELATION:
+            warnings.append(f'weak angular-speed correlation peak ({ta.peak_correlation:.2f}): '
+                            'the time offset may be wrong; check that both streams show the '
+                            'same motion')
+        if ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO:
+            warnings.append(f'a second correlation peak reaches {ta.second_peak_ratio:.0%} of '
+                            'the main one: the time offset may be ambiguous (repetitive '
+                            'motion); narrow max_time_offset around the expected value')
+    t1 = time.perf_counter()
+    pairs = associate(hand, eye, ta.time_offset_s)
+    motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    linear = calibrate_linear(
+        motions, robust_kernel=cfg.robust_kernel, mu=cfg.mu,
+        ransac_iterations=cfg.ransac_iterations,
+        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
+        inlier_translation_m=cfg.inlier_translation, min_motions=cfg.min_motions,
+        rng=np.random.default_rng(cfg.seed))
+    warnings.extend(linear.warnings)
+    if linear.n_inliers < LOW_INLIER_FRACTION * linear.n_motions:
+        warnings.append(f'only {linear.n_inliers} of {linear.n_motions} motions are RANSAC '
+                        'inliers: the eye poses are noisier than the inlier thresholds '
+                        f'({cfg.inlier_rotation} deg / {cfg.inlier_translation} m) or the time '
+                        'offset is off')
+    t2 = time.perf_counter()
+    world = align_worlds(pairs, linear.q_HE, linear.p_HE)
+    if world.method != 'positions':
+        warnings.append('the positions do not span a plane; the world alignment T_WG was '
+                        'taken from the orientations')
+    metrics = evaluate(pairs, linear.q_HE, linear.p_HE, world)
+    LOG.info('time alignment %.3f s, linear calibration %.3f s, %d pairs, %d motions',
+             t1 - t0, t2 - t1, pairs.t_eye_s.size, linear.n_motions)
+    return CalibrationResult(
+        time_offset_s=ta.time_offset_s, q_HE=linear.q_HE, p_HE=linear.p_HE, world=world,
+        time_alignment=ta, linear=linear, metrics=metrics, n_pairs=int(pairs.t_eye_s.size),
+        hand=hand, eye=eye, config=cfg, warnings=tuple(warnings))

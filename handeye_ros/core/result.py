@@ -1,0 +1,126 @@
+"""The calibration result and its plain-data form (written as YAML/JSON, published by the node).
+
+Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
+
+- 1: time_offset, extrinsic (T_HE) and extrinsic_inverse (T_EH), world_alignment (T_WG),
+  time_alignment, association, linear, metrics, inputs, config, warnings.
+
+Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
+matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
+to guess the direction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .config import CalibrationConfig
+from .geometry import inverse, matrix_from_quat, quat_from_matrix
+from .linear import LinearSolution
+from .time_align import TimeAlignment
+from .trajectory import Trajectory
+from .world import Metrics, WorldAlignment
+
+SCHEMA_VERSION = 1
+CONVENTION = ('T_WE(t) = T_WG * T_GH(t - time_offset) * T_HE; time_offset = eye clock minus '
+              'hand clock (s); quaternions Hamilton, x y z w')
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Everything the calibration found, in the package conventions.
+
+    ``q_HE, p_HE`` is the extrinsic T_HE (eye frame E in hand frame H), ``time_offset_s`` is dt.
+    """
+
+    time_offset_s: float
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    world: WorldAlignment
+    time_alignment: TimeAlignment
+    linear: LinearSolution
+    metrics: Metrics
+    n_pairs: int
+    hand: Trajectory
+    eye: Trajectory
+    config: CalibrationConfig
+    warnings: tuple[str, ...] = field(default=())
+
+    def summary(self) -> str:
+        """One line: offset, translation, rotation, inliers, quality."""
+        t = ', '.join(f'{v:.4f}' for v in self.p_HE)
+        q = ', '.join(f'{v:.4f}' for v in self.q_HE)
+        return (f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
+                f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
+                f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
+                f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, ARE {self.metrics.are_rmse_deg:.2f} deg'
+                + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain Python data (floats, lists, strings) for YAML/JSON."""
+        ta, lin, m = self.time_alignment, self.linear, self.metrics
+        R_HE = matrix_from_quat(self.q_HE)
+        R_EH, p_EH = inverse((R_HE, self.p_HE))
+        return {
+            'schema_version': SCHEMA_VERSION,
+            'convention': CONVENTION,
+            'time_offset': float(self.time_offset_s),
+            'extrinsic': transform_dict(R_HE, self.p_HE, 'hand', 'eye'),
+            'extrinsic_inverse': transform_dict(R_EH, p_EH, 'eye', 'hand'),
+            'world_alignment': {**transform_dict(self.world.R_WG, self.world.p_WG,
+                                                 'eye_world', 'hand_world'),
+                                'method': self.world.method},
+            'time_alignment': {
+                'method': ta.method,
+                'peak_correlation': _num(ta.peak_correlation),
+                'second_peak_ratio': _num(ta.second_peak_ratio),
+                'step': _num(ta.step_s),
+                'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
+            },
+            'association': {'pairs': int(self.n_pairs)},
+            'linear': {
+                'relative_poses': self.config.relative_poses,
+                'motions': int(lin.n_motions),
+                'inliers': int(lin.n_inliers),
+                'sigma_ratio': _num(lin.sigma_ratio),
+                'singular_values': [float(v) for v in lin.singular_values],
+                'axis_spread_deg': _num(lin.axis_spread_deg),
+                'rotation_residual_deg': _num(lin.rotation_residual_deg),
+                'translation_residual_m': _num(lin.translation_residual_m),
+            },
+            'metrics': {
+                'ape_rmse': m.ape_rmse_m,
+                'are_rmse': m.are_rmse_deg,
+                'ape_max': m.ape_max_m,
+                'are_max': m.are_max_deg,
+                'poses': m.n_poses,
+                'units': {'ape': 'm', 'are': 'deg'},
+            },
+            'inputs': {name: _trajectory_info(traj)
+                       for name, traj in (('hand', self.hand), ('eye', self.eye))},
+            'config': self.config.to_dict(),
+            'warnings': list(self.warnings),
+        }
+
+
+def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dict[str, Any]:
+    """``{parent, child, translation, rotation (x y z w), matrix}`` of T_parent_child."""
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = R, p
+    return {'parent': parent, 'child': child,
+            'translation': [float(v) for v in p],
+            'rotation': [float(v) for v in quat_from_matrix(R)],
+            'matrix': [[float(v) for v in row] for row in M]}
+
+
+def _trajectory_info(traj: Trajectory) -> dict[str, Any]:
+    return {'source': traj.name, 'poses': len(traj), 'rate_hz': traj.rate_hz,
+            'duration_s': traj.duration_s, 'first_stamp_ns': int(traj.t_ns[0])}
+
+
+def _num(x: float) -> float | None:
+    """JSON has no NaN: unknown values become null."""
+    return float(x) if np.isfinite(x) else None

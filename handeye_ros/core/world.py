@@ -1,0 +1,85 @@
+"""World alignment T_WG and the accuracy metrics of the calibrated eye trajectory.
+
+Once T_HE and dt are known, the eye origin predicted from the MoCap is ``c_G = T_GH T_HE`` (in
+G) and the VIO gives the same point in W. T_WG is the rigid transform that best maps the one
+onto the other in the least-squares sense (Kabsch/Umeyama without scale, solved by
+``scipy.spatial.transform.Rotation.align_vectors``). When the positions do not span a plane
+(a rig turned in place), the positions cannot fix the rotation and it is taken from the
+orientations instead (the chordal mean of ``R_WE (R_GH R_HE)^T``).
+
+APE and ARE are the RMS of the translation (m) and rotation angle (deg) of
+``(T_WG T_GH T_HE)^-1 T_WE`` over all pairs: how well the calibrated MoCap explains the VIO,
+including the VIO's own drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .association import PosePairs
+from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle
+
+#: Positions whose second principal spread is below this (metres RMS) do not fix a rotation.
+MIN_PLANAR_SPREAD_M = 0.05
+
+
+@dataclass(frozen=True)
+class WorldAlignment:
+    """T_WG: the MoCap world G expressed in the VIO world W, and how it was found."""
+
+    R_WG: np.ndarray
+    p_WG: np.ndarray
+    method: str
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Residuals of the eye trajectory against the calibrated hand trajectory.
+
+    ape_rmse_m / are_rmse_deg: RMS position (m) and orientation (deg) error;
+    ape_max_m / are_max_deg: their maxima; n_poses: pairs evaluated.
+    """
+
+    ape_rmse_m: float
+    are_rmse_deg: float
+    ape_max_m: float
+    are_max_deg: float
+    n_poses: int
+
+
+def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
+    """``T_GH T_HE`` for every pair: the eye pose predicted in the MoCap world G."""
+    return compose((pairs.R_GH, pairs.p_GH), X)
+
+
+def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldAlignment:
+    """Least-squares T_WG from the calibrated pairs (see module docstring)."""
+    X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
+    R_GE, c_G = predicted_eye(pairs, X)
+    c_W = pairs.p_WE
+    mean_G, mean_W = c_G.mean(axis=0), c_W.mean(axis=0)
+    spread = np.sqrt(np.linalg.eigvalsh(np.cov((c_G - mean_G).T))[::-1])
+    if spread[1] >= MIN_PLANAR_SPREAD_M:
+        rot, _ = Rotation.align_vectors(c_W - mean_W, c_G - mean_G)
+        method = 'positions'
+    else:
+        rot = Rotation.from_matrix(np.matmul(pairs.R_WE, np.swapaxes(R_GE, -1, -2))).mean()
+        method = 'orientations'
+    R_WG = rot.as_matrix()
+    return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, method)
+
+
+def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
+             world: WorldAlignment) -> Metrics:
+    """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring)."""
+    X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
+    pred = compose((world.R_WG, world.p_WG), predicted_eye(pairs, X))
+    R_err, p_err = compose(inverse(pred), (pairs.R_WE, pairs.p_WE))
+    # Translation error measured in W (not in the predicted body frame): the usual APE.
+    e_t = np.linalg.norm(apply(pred[0], p_err), axis=-1)
+    e_r = np.degrees(rotation_angle(R_err))
+    return Metrics(float(np.sqrt(np.mean(e_t ** 2))), float(np.sqrt(np.mean(e_r ** 2))),
+                   float(e_t.max()), float(e_r.max()), int(e_t.size))

@@ -50,6 +50,9 @@ class CalibrationConfig:
         RANSAC inlier threshold on the rotation error of eq. 14, degrees (paper: 0.5).
     inlier_translation : float
         RANSAC inlier threshold on the translation error of eq. 14, metres (paper: 0.02).
+    adaptive_inliers : bool
+        Widen the inlier thresholds of the final consensus to the noise measured from the best
+        model's residuals (never narrower than the configured ones); see ``calibrate_linear``.
     min_motions : int
         Fewer relative motions than this is an error (too little rotation).
     seed : int
@@ -68,6 +71,7 @@ class CalibrationConfig:
     ransac_iterations: int = 200
     inlier_rotation: float = 0.5
     inlier_translation: float = 0.02
+    adaptive_inliers: bool = True
     min_motions: int = 10
     seed: int = 0
 

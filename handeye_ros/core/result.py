@@ -85,6 +85,8 @@ class CalibrationResult:
                 'relative_poses': self.config.relative_poses,
                 'motions': int(lin.n_motions),
                 'inliers': int(lin.n_inliers),
+                'inlier_thresholds': {'rotation_deg': lin.inlier_rotation_deg,
+                                      'translation_m': lin.inlier_translation_m},
                 'sigma_ratio': _num(lin.sigma_ratio),
                 'singular_values': [float(v) for v in lin.singular_values],
                 'axis_spread_deg': _num(lin.axis_spread_deg),

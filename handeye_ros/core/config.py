@@ -158,3 +158,11 @@ def _check_range(name: str, value: float, low: float | None, high: float | None,
         bound = f'{"(" if open_low else "["}{low}, {high if high is not None else "inf"}]'
         msg = f'option {name} must lie in {bound}; got {value!r}'
         raise ConfigError(msg)
+
+
+#: Node parameters that are not algorithm options: ignored when the offline tool reads the
+#: node's params file, so that one file configures both.
+NODE_ONLY_KEYS = frozenset({
+    'hand_topic', 'eye_topic', 'hand_type', 'eye_type', 'hand_frame_id', 'eye_frame_id',
+    'buffer_duration', 'buffer_size', 'output_file', 'calibrate_period', 'use_sim_time',
+})

@@ -74,7 +74,7 @@ class Trajectory:
         if bad.size:
             k = int(bad[0])
             kind = 'duplicate' if steps[k] == 0 else 'unsorted (going backwards)'
-            msg = (f'{name}: {bad.size} {kind} stamp(s); first at row {k + 1}: '
+            msg = (f'{name}: {bad.size} {kind} stamp(s); first at pose {k + 1} (from 0): '
                    f'{t_ns[k]} ns then {t_ns[k + 1]} ns. Stamps must strictly increase')
             raise InputError(msg)
         norms = np.linalg.norm(q_xyzw, axis=1)
@@ -82,7 +82,8 @@ class Trajectory:
         if bad.size:
             k = int(bad[0])
             what = 'zero' if norms[k] < 1e-9 else f'non-unit (norm {norms[k]:.6g})'
-            msg = (f'{name}: {bad.size} quaternion(s) not of unit norm; first at row {k}: '
+            msg = (f'{name}: {bad.size} quaternion(s) not of unit norm; first at pose {k} '
+                   '(from 0): '
                    f'{what} quaternion {q_xyzw[k].tolist()} (order x y z w)')
             raise InputError(msg)
         q_xyzw = q_xyzw / norms[:, None]
@@ -132,6 +133,7 @@ def _check_finite(name: str, values: np.ndarray, what: str) -> None:
     bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
     if bad.size:
         k = int(bad[0])
-        msg = (f'{name}: {bad.size} row(s) with NaN or inf in the {what}; first at row {k}: '
+        msg = (f'{name}: {bad.size} pose(s) with NaN or inf in the {what}; first at pose {k} '
+               '(from 0): '
                f'{values[k].tolist()}')
         raise InputError(msg)

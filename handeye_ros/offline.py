@@ -1,0 +1,145 @@
+"""Offline calibration of a hand (MoCap) and an eye (VO/VIO) trajectory file.
+
+Installed as ``offline_calibrate`` (``ros2 run handeye_ros offline_calibrate``) and runnable as
+``python -m handeye_ros.offline``. The result goes to stdout (a report, or one JSON document with
+``--json``) and optionally to a YAML/JSON file; logs go to stderr. Errors in the input give one
+line naming the file and the problem and exit code 1, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+LOG = logging.getLogger('handeye_ros')
+
+#: Command-line option -> configuration key, for the algorithm options (see CalibrationConfig).
+OPTION_KEYS = ('eta', 'mu', 'relative_poses', 'robust_kernel', 'peak_fit', 'time_offset',
+               'time_offset_guess', 'max_time_offset', 'resample_rate_hz', 'ransac_iterations',
+               'inlier_rotation', 'inlier_translation', 'adaptive_inliers', 'min_motions', 'seed')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser (kept apart from the heavy imports so --help is instant)."""
+    p = argparse.ArgumentParser(
+        prog='offline_calibrate',
+        description='Estimate the time offset dt and the extrinsic T_HE between a MoCap '
+                    'trajectory (hand, T_GH) and a VO/VIO trajectory (eye, T_WE), with '
+                    'T_WE(t) = T_WG * T_GH(t - dt) * T_HE.')
+    io = p.add_argument_group('input and output')
+    io.add_argument('--hand', required=True, metavar='FILE', help='MoCap trajectory (T_GH)')
+    io.add_argument('--eye', required=True, metavar='FILE', help='VO/VIO trajectory (T_WE)')
+    io.add_argument('--format', choices=('auto', 'tum', 'euroc'), default='auto',
+                    help='file format of both inputs (default: detected from the content)')
+    io.add_argument('-o', '--output', metavar='FILE',
+                    help='write the result to FILE (.json for JSON, otherwise YAML)')
+    io.add_argument('--json', action='store_true',
+                    help='print exactly one JSON document with the result on stdout')
+    io.add_argument('--config', metavar='YAML',
+                    help='options file: a flat mapping or the node\'s params file '
+                         '(<node>: ros__parameters: ...); command-line options override it')
+    io.add_argument('-v', '--verbose', action='store_true', help='log stage timings')
+    alg = p.add_argument_group('algorithm (defaults: the paper\'s)')
+    alg.add_argument('--time-offset', type=float, metavar='S',
+                     help='fix dt (s) instead of estimating it')
+    alg.add_argument('--time-offset-guess', type=float, metavar='S',
+                     help='centre of the dt search window (s, default 0)')
+    alg.add_argument('--max-time-offset', type=float, metavar='S',
+                     help='half-width of the dt search window (s, default 0.5)')
+    alg.add_argument('--resample-rate-hz', type=float, metavar='HZ',
+                     help='correlation grid rate (default: faster stream, at most 200 Hz)')
+    alg.add_argument('--peak-fit', choices=('quadratic', 'none'),
+                     help='sub-sample peak fit (default quadratic) or integer peak')
+    alg.add_argument('--relative-poses', choices=('rotation', 'global', 'interframe'),
+                     help='how motions are built (default rotation-constrained keyframes)')
+    alg.add_argument('--eta', type=float, metavar='DEG',
+                     help='minimum keyframe rotation, degrees (default 5)')
+    alg.add_argument('--no-robust-kernel', dest='robust_kernel', action='store_const',
+                     const=False, help='do not weight motions by the screw-congruence kernel')
+    alg.add_argument('--mu', type=float, help='robust kernel sharpness (default 5)')
+    alg.add_argument('--ransac-iterations', type=int, metavar='N',
+                     help='RANSAC hypotheses (default 200, 0 disables RANSAC)')
+    alg.add_argument('--inlier-rotation', type=float, metavar='DEG',
+                     help='RANSAC rotation threshold, degrees (default 0.5)')
+    alg.add_argument('--inlier-translation', type=float, metavar='M',
+                     help='RANSAC translation threshold, metres (default 0.02)')
+    alg.add_argument('--no-adaptive-inliers', dest='adaptive_inliers', action='store_const',
+                     const=False, help='keep the RANSAC thresholds fixed for the final '
+                                       'consensus instead of adapting them to the noise')
+    alg.add_argument('--min-motions', type=int, metavar='N',
+                     help='fewest relative motions accepted (default 10)')
+    alg.add_argument('--seed', type=int, help='RANSAC seed (default 0)')
+    return p
+
+
+def load_options(path: str | None) -> dict[str, Any]:
+    """Options from a YAML file: a flat mapping or a ROS 2 params file for the node."""
+    if path is None:
+        return {}
+    import yaml
+
+    from .core.errors import ConfigError
+    try:
+        data = yaml.safe_load(Path(path).read_text()) or {}
+    except OSError as err:
+        raise ConfigError(f'{path}: cannot read the options file ({err.strerror})') from None
+    except yaml.YAMLError as err:
+        raise ConfigError(f'{path}: not valid YAML ({err})') from None
+    if not isinstance(data, dict):
+        raise ConfigError(f'{path}: expected a mapping of option names to values')
+    nodes = [v['ros__parameters'] for v in data.values()
+             if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)]
+    if nodes:
+        from .core.config import NODE_ONLY_KEYS
+        return {k: v for k, v in nodes[0].items() if k not in NODE_ONLY_KEYS}
+    return data
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """Read, calibrate and return the result dictionary (raises HandeyeError on bad input)."""
+    from .core.config import CalibrationConfig
+    from .core.pipeline import calibrate
+    from .formats import read_trajectory
+
+    options = load_options(args.config)
+    options.update({k: getattr(args, k) for k in OPTION_KEYS if getattr(args, k) is not None})
+    config = CalibrationConfig.from_mapping(options, source=args.config or 'options')
+    hand = read_trajectory(args.hand, args.format)
+    eye = read_trajectory(args.eye, args.format)
+    LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name, len(hand),
+             hand.rate_hz, eye.name, len(eye), eye.rate_hz)
+    return calibrate(hand, eye, config).to_dict()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the process exit code."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format='%(name)s: %(message)s', stream=sys.stderr)
+    from .core.errors import HandeyeError
+    from .report import format_report, write_result
+    try:
+        result = run(args)
+        if args.output:
+            write_result(args.output, result)
+    except HandeyeError as err:
+        print(f'offline_calibrate: error: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    for w in result['warnings']:
+        LOG.warning('%s', w)
+    if args.json:
+        json.dump(result, sys.stdout, indent=2)
+        sys.stdout.write('\n')
+    else:
+        print(format_report(result))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

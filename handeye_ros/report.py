@@ -1,0 +1,65 @@
+"""Human-readable and file forms of a calibration result (YAML, JSON, a terminal report)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .core.errors import InputError
+
+
+def write_result(path: str | Path, data: dict[str, Any]) -> None:
+    """Write the result dictionary as JSON (``.json``) or YAML (anything else)."""
+    path = Path(path)
+    try:
+        with path.open('w') as f:
+            if path.suffix.lower() == '.json':
+                json.dump(data, f, indent=2)
+                f.write('\n')
+            else:
+                yaml.safe_dump(data, f, sort_keys=False, default_flow_style=None)
+    except OSError as err:
+        raise InputError(f'{path}: cannot write the result ({err.strerror})') from None
+
+
+def format_report(d: dict[str, Any]) -> str:
+    """A terminal report of a result dictionary (see :mod:`handeye_ros.core.result`)."""
+    ta, lin, m = d['time_alignment'], d['linear'], d['metrics']
+    lines = ['handeye_ros calibration', f'  convention: {d["convention"]}']
+    for name in ('hand', 'eye'):
+        info = d['inputs'][name]
+        lines.append(f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
+                     f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)')
+    peak = ta['peak_correlation']
+    lines += [
+        '',
+        f'time offset dt = {d["time_offset"] * 1e3:+.3f} ms  (eye clock minus hand clock; the '
+        'hand pose at hand time t - dt belongs to the eye pose at eye time t)',
+        f'  method {ta["method"]}' + (f', peak correlation {peak:.3f}, second peak '
+                                      f'{ta["second_peak_ratio"]:.2f} of it'
+                                      if peak is not None else ''),
+        '',
+        _transform('T_HE: eye frame in hand frame', d['extrinsic']),
+        _transform('T_EH: hand frame in eye frame', d['extrinsic_inverse']),
+        _transform('T_WG: hand (MoCap) world in eye (VIO) world', d['world_alignment']),
+        '',
+        f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
+        f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, rotation '
+        f'axes spread {lin["axis_spread_deg"]:.0f} deg',
+        f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
+        f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
+        f'(max {m["are_max"]:.3f})',
+    ]
+    for w in d['warnings']:
+        lines.append(f'WARNING: {w}')
+    return '\n'.join(lines)
+
+
+def _transform(title: str, t: dict[str, Any]) -> str:
+    tr = ' '.join(f'{v:+.5f}' for v in t['translation'])
+    q = ' '.join(f'{v:+.6f}' for v in t['rotation'])
+    rows = '\n'.join('    [' + ' '.join(f'{v:+.6f}' for v in row) + ']' for row in t['matrix'])
+    return f'{title}\n  translation [m]: {tr}\n  rotation [qx qy qz qw]: {q}\n{rows}'

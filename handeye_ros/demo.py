@@ -15,10 +15,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from . import offline
-from .core.simulate import noise_level, simulate
+from .core.simulate import calibration_error, noise_level, simulate
 from .formats import write_tum
 
 
@@ -52,15 +51,16 @@ def main(argv: list[str] | None = None) -> int:
     t = rec.truth
     q = np.asarray(result['extrinsic']['rotation'])
     p_he = np.asarray(result['extrinsic']['translation'])
-    rot_err = np.degrees((Rotation.from_quat(q).inv() * Rotation.from_quat(t.q_HE)).magnitude())
+    err = calibration_error(t, result['time_offset'], q, p_he)
     print('\nresult beside the truth')
     print(f'  {"":22s}{"estimated":>36s}{"true":>36s}{"error":>14s}')
     print(f'  {"time offset [ms]":22s}{result["time_offset"] * 1e3:36.3f}'
-          f'{t.time_offset_s * 1e3:36.3f}{(result["time_offset"] - t.time_offset_s) * 1e3:11.3f} ms')
+          f'{t.time_offset_s * 1e3:36.3f}{err.time_offset_s * 1e3:11.3f} ms')
     print(f'  {"T_HE translation [m]":22s}{_vec(p_he):>36s}{_vec(t.p_HE):>36s}'
-          f'{np.linalg.norm(p_he - t.p_HE) * 1e3:11.1f} mm')
+          f'{err.translation_m * 1e3:11.1f} mm')
     true_q = t.q_HE * (1.0 if np.dot(t.q_HE, q) >= 0 else -1.0)
-    print(f'  {"T_HE rotation [xyzw]":22s}{_vec(q):>36s}{_vec(true_q):>36s}{rot_err:10.3f} deg')
+    print(f'  {"T_HE rotation [xyzw]":22s}{_vec(q):>36s}{_vec(true_q):>36s}'
+          f'{err.rotation_deg:10.3f} deg')
     return 0
 
 

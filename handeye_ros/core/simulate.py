@@ -46,6 +46,26 @@ class Recording:
     truth: Truth
 
 
+@dataclass(frozen=True)
+class CalibrationError:
+    """How far an estimate is from the truth: |dt error| (s), translation (m), rotation (deg)."""
+
+    time_offset_s: float
+    translation_m: float
+    rotation_deg: float
+
+
+def calibration_error(truth: Truth, time_offset_s: float, q_HE: np.ndarray,
+                      p_HE: np.ndarray) -> CalibrationError:
+    """Errors of an estimated (dt, T_HE) against the truth (rotation: geodesic angle)."""
+    rot = Rotation.from_quat(q_HE).inv() * Rotation.from_quat(truth.q_HE)
+    return CalibrationError(
+        time_offset_s=abs(time_offset_s - truth.time_offset_s),
+        translation_m=float(np.linalg.norm(np.asarray(p_HE) - truth.p_HE)),
+        rotation_deg=float(np.degrees(rot.magnitude())),
+    )
+
+
 def noise_level(level: float) -> tuple[float, float]:
     """Per-frame eye noise (metres, degrees) of the paper's level 0..10."""
     return 0.0005 * level, 0.02 * level

@@ -1,0 +1,41 @@
+"""ament_python build of handeye_ros (colcon build, or pip for the core alone).
+
+Versions are pinned in one place, requirements.txt; here only the names.
+"""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'handeye_ros'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+    ],
+    python_requires='>=3.10',
+    install_requires=['numpy', 'scipy', 'pyyaml', 'rosbags'],
+    extras_require={
+        # the ROS 2 side (node, message conversion); from PyPI wheels or a Jazzy install
+        'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces', 'ros-jazzy-std-srvs'],
+        'test': ['pytest'],
+        # comparison baselines and plots, for bench/ only
+        'bench': ['opencv-python-headless', 'matplotlib'],
+    },
+    zip_safe=True,
+    maintainer='handeye_ros maintainers',
+    maintainer_email='maintainers@handeye-ros.invalid',
+    description='Time offset and hand-eye extrinsic between MoCap and VO/VIO trajectories',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'offline_calibrate = handeye_ros.offline:main',
+            'demo = handeye_ros.demo:main',
+        ],
+    },
+)

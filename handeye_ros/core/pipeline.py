@@ -15,6 +15,7 @@ from .association import associate
 from .config import CalibrationConfig
 from .linear import build_motions, calibrate_linear
 from .result import CalibrationResult
+from .errors import TimeAlignmentError
 from .time_align import TimeAlignment, align_time
 from .trajectory import Trajectory
 from .world import align_worlds, evaluate
@@ -41,6 +42,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     t0 = time.perf_counter()
     if cfg.time_offset is not None:
         ta = TimeAlignment(time_offset_s=cfg.time_offset, method='fixed')
+        warnings.extend(_check_fixed_offset(hand, eye, cfg))
     else:
         ta = align_time(hand, eye, max_time_offset=cfg.max_time_offset,
                         time_offset_guess=cfg.time_offset_guess,
@@ -81,3 +83,27 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         time_offset_s=ta.time_offset_s, q_HE=linear.q_HE, p_HE=linear.p_HE, world=world,
         time_alignment=ta, linear=linear, metrics=metrics, n_pairs=int(pairs.t_eye_s.size),
         hand=hand, eye=eye, config=cfg, warnings=tuple(warnings))
+
+
+#: A fixed offset further than this from the correlation peak is reported (s): a few grid
+#: steps, well above the peak's own error (< 2 ms on the paper's protocol).
+FIXED_OFFSET_DISAGREEMENT_S = 0.01
+
+
+def _check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> list[str]:
+    """Warn when a user-fixed offset disagrees with the angular-speed correlation.
+
+    Why: the linear stage cannot tell a wrong offset from a noisy eye (a 50 ms error still gives
+    most motions as inliers at moderate speed), so a wrong fixed value would pass silently.
+    """
+    try:
+        est = align_time(hand, eye, max_time_offset=cfg.max_time_offset,
+                         time_offset_guess=cfg.time_offset, resample_rate_hz=cfg.resample_rate_hz)
+    except TimeAlignmentError as err:
+        return [f'could not check the fixed time offset against the data: {err}']
+    if est.peak_correlation >= WEAK_PEAK_CORRELATION and \
+            abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S:
+        return [f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
+                f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
+                f'(correlation {est.peak_correlation:.2f}); check the fixed value']
+    return []

@@ -1,0 +1,57 @@
+"""Shared fixtures: simulated recordings, the offline tool as a real subprocess, real data."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from handeye_ros.core.simulate import Recording, noise_level, simulate
+from handeye_ros.formats import write_tum
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Read-only real recordings (../shared/data/real); tests using them skip when it is absent.
+REAL_DATA = ROOT.parent / 'shared' / 'data' / 'real'
+
+
+def recording(seed: int = 0, level: float = 0.0, **kwargs) -> Recording:
+    """A simulated recording of the paper's protocol at noise ``level`` (0..10)."""
+    noise_m, noise_deg = noise_level(level)
+    return simulate(seed, noise_m=noise_m, noise_deg=noise_deg, **kwargs)
+
+
+@dataclass
+class CliResult:
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def run_cli(*args: str, module: str = 'handeye_ros.offline', timeout: float = 120.0) -> CliResult:
+    """Run a package module in a fresh interpreter, as a user would, and capture its output."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+    proc = subprocess.run([sys.executable, '-m', module, *map(str, args)], capture_output=True,
+                          text=True, env=env, timeout=timeout, cwd=ROOT, check=False)
+    return CliResult(proc.returncode, proc.stdout, proc.stderr)
+
+
+@pytest.fixture(scope='session')
+def sim_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Recording]:
+    """A 60 s recording at noise level 3 written as TUM files (hand, eye, recording)."""
+    rec = recording(seed=3, level=3.0)
+    out = tmp_path_factory.mktemp('sim')
+    hand, eye = out / 'hand.txt', out / 'eye.txt'
+    write_tum(hand, rec.hand)
+    write_tum(eye, rec.eye)
+    return hand, eye, rec
+
+
+@pytest.fixture
+def real_data() -> Path:
+    if not (REAL_DATA / 'SOURCES.md').is_file():
+        pytest.skip(f'real data not present at {REAL_DATA}')
+    return REAL_DATA

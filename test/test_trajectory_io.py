@@ -1,0 +1,130 @@
+"""Trajectory validation and the TUM / EuRoC readers and writers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handeye_ros.core.errors import InputError
+from handeye_ros.core.trajectory import Trajectory
+from handeye_ros.formats import read_trajectory, write_euroc, write_tum
+from handeye_ros.formats.text import detect_format
+
+from conftest import recording
+
+EPOCH = 1_403_636_579_758_555_555  # a EuRoC-like stamp: float64 seconds cannot hold it exactly
+
+
+def _traj(n: int = 5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = EPOCH + np.arange(n, dtype=np.int64) * 5_000_000
+    p = np.arange(3 * n, dtype=float).reshape(n, 3)
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    return t, p, q
+
+
+@pytest.mark.parametrize(('mutate', 'message'), [
+    (lambda t, p, q: (t[:1], p[:1], q[:1]), 'holds 1 pose'),
+    (lambda t, p, q: (t[[0, 2, 1, 3, 4]], p, q), 'unsorted'),
+    (lambda t, p, q: (t[[0, 1, 1, 3, 4]], p, q), 'duplicate'),
+    (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 3, np.nan, p), q), 'NaN or inf'),
+    (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 2, np.inf, p), q), 'NaN or inf'),
+    (lambda t, p, q: (t, p, np.where(np.arange(5)[:, None] == 1, 0.0, q)), 'zero quaternion'),
+    (lambda t, p, q: (t, p, q * 1.5), 'non-unit'),
+    (lambda t, p, q: (t.astype(float), p, q), 'integer nanoseconds'),
+])
+def test_trajectory_refuses_bad_arrays(mutate, message: str) -> None:
+    with pytest.raises(InputError, match=message) as err:
+        Trajectory.from_arrays(*mutate(*_traj()), name='stream.txt')
+    assert 'stream.txt' in str(err.value)
+
+
+def test_quaternion_sign_flips_are_removed() -> None:
+    t, p, q = _traj(6)
+    q[:] = [0.0, 0.0, np.sin(0.1), np.cos(0.1)]
+    q[[1, 4]] *= -1.0
+    traj = Trajectory.from_arrays(t, p, q)
+    assert np.all(np.einsum('ij,ij->i', traj.q_xyzw[1:], traj.q_xyzw[:-1]) > 0.99)
+    np.testing.assert_allclose(np.abs(traj.q_xyzw), np.abs(q))
+
+
+def test_tum_round_trip_keeps_stamps_exact(tmp_path: Path) -> None:
+    rec = recording(seed=1, level=2.0, duration_s=10.0)
+    path = tmp_path / 'hand.txt'
+    write_tum(path, rec.hand)
+    back = read_trajectory(path)
+    assert detect_format(path) == 'tum'
+    np.testing.assert_array_equal(back.t_ns, rec.hand.t_ns)
+    np.testing.assert_allclose(back.p_xyz, rec.hand.p_xyz, atol=1e-9)
+    np.testing.assert_allclose(back.q_xyzw, rec.hand.q_xyzw, atol=1e-11)
+
+
+def test_euroc_round_trip_converts_wxyz(tmp_path: Path) -> None:
+    rec = recording(seed=2, duration_s=10.0)
+    path = tmp_path / 'gt.csv'
+    write_euroc(path, rec.eye)
+    first = path.read_text().splitlines()[1].split(',')
+    np.testing.assert_allclose([float(v) for v in first[4:8]],
+                               rec.eye.q_xyzw[0, [3, 0, 1, 2]], atol=1e-11)
+    back = read_trajectory(path)
+    assert detect_format(path) == 'euroc'
+    np.testing.assert_array_equal(back.t_ns, rec.eye.t_ns)
+    np.testing.assert_allclose(back.q_xyzw, rec.eye.q_xyzw, atol=1e-11)
+
+
+def test_euroc_extra_columns_are_ignored(tmp_path: Path) -> None:
+    path = tmp_path / 'gt.csv'
+    path.write_text('#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z,v_x,v_y,v_z\n'
+                    f'{EPOCH},1,2,3,1,0,0,0,9,9,9\n'
+                    f'{EPOCH + 5_000_000},1,2,3,0,1,0,0,9,9,9\n')
+    traj = read_trajectory(path)
+    np.testing.assert_array_equal(traj.t_ns, [EPOCH, EPOCH + 5_000_000])
+    np.testing.assert_allclose(traj.q_xyzw, [[0, 0, 0, 1], [1, 0, 0, 0]])
+
+
+@pytest.mark.parametrize(('token', 'ns'), [
+    ('1403636579.758555555', EPOCH),
+    ('1403636579.7585555', 1_403_636_579_758_555_500),
+    ('1403636579', 1_403_636_579_000_000_000),
+    ('1.403636579758555555e9', EPOCH),
+    (str(EPOCH), EPOCH),  # integer nanoseconds in a TUM file
+])
+def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> None:
+    path = tmp_path / 'traj.txt'
+    later = '1403636600.0' if 'e' in token or '.' in token else str(ns + 10 ** 9)
+    path.write_text(f'# comment\n{token} 0 0 0 0 0 0 1\n\n{later} 0 0 0 0 0 0 1\n')
+    assert read_trajectory(path).t_ns[0] == ns
+
+
+@pytest.mark.parametrize(('content', 'message'), [
+    ('', 'holds no poses'),
+    ('# only a comment\n', 'holds no poses'),
+    ('1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
+    ('1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n', 'unsorted'),
+    ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'duplicate'),
+    ('1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n', 'NaN or inf'),
+    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
+    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
+    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n', 'line 2: 7 columns'),
+    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number"),
+    ('hello world\n', 'unknown trajectory format'),
+    ('1,2,3\n', 'unknown trajectory format'),
+    ('1.5,0,0,0,1,0,0,0\n2.5,0,0,0,1,0,0,0\n', 'not an integer number of nanoseconds'),
+])
+def test_bad_files_name_the_file_and_problem(tmp_path: Path, content: str, message: str) -> None:
+    path = tmp_path / 'bad.txt'
+    path.write_text(content)
+    with pytest.raises(InputError, match=message) as err:
+        read_trajectory(path)
+    assert str(path) in str(err.value)
+
+
+def test_missing_file_and_unknown_format(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match='no such file'):
+        read_trajectory(tmp_path / 'absent.txt')
+    with pytest.raises(InputError, match='is a directory'):
+        read_trajectory(tmp_path)
+    (tmp_path / 'a.txt').write_text('1.0 0 0 0 0 0 0 1\n')
+    with pytest.raises(InputError, match='unknown format'):
+        read_trajectory(tmp_path / 'a.txt', 'kitti')

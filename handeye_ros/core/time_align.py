@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import correlate
+from scipy import fft
 
 from .errors import TimeAlignmentError
 from .geometry import matrix_from_quat, rotation_angle
@@ -132,14 +132,21 @@ def masked_normalised_correlation(y: np.ndarray, my: np.ndarray, x: np.ndarray,
     """
     fy, fx = my.astype(float), mx.astype(float)
     y, x = y * fy, x * fx
+    # One zero-padded FFT per signal, then every sum is a product of spectra: 6 forward and
+    # 5 inverse transforms for the whole masked correlation. (scipy.fft rather than
+    # scipy.signal, whose import alone takes a second.)
+    nfft = fft.next_fast_len(y.size + x.size - 1, real=True)
+    Y, FY, YY = (fft.rfft(v, nfft) for v in (y, fy, y * y))
+    X, FX, XX = (np.conj(fft.rfft(v, nfft)) for v in (x, fx, x * x))
 
-    def corr(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return correlate(a, b, mode='full', method='fft')
+    def corr(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        c = fft.irfft(A * B, nfft)  # c[L] = sum_m a[m + L] b[m], negative L wrapped to the end
+        return np.concatenate((c[nfft - (x.size - 1):], c[:y.size]))
 
-    n = np.rint(corr(fy, fx))
-    sy, sx = corr(y, fx), corr(fy, x)
-    syy, sxx = corr(y * y, fx), corr(fy, x * x)
-    sxy = corr(y, x)
+    n = np.rint(corr(FY, FX))
+    sy, sx = corr(Y, FX), corr(FY, X)
+    syy, sxx = corr(YY, FX), corr(FY, XX)
+    sxy = corr(Y, X)
     with np.errstate(divide='ignore', invalid='ignore'):
         cov = sxy - sy * sx / n
         var = (syy - sy * sy / n) * (sxx - sx * sx / n)

@@ -1,0 +1,57 @@
+"""Options: one set of names for the YAML file, the CLI and the node; bad values refused."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from handeye_ros.core.config import NODE_ONLY_KEYS, CalibrationConfig
+from handeye_ros.core.errors import ConfigError
+
+from conftest import ROOT
+
+
+def test_defaults_are_the_papers() -> None:
+    c = CalibrationConfig()
+    assert (c.eta, c.mu, c.inlier_rotation, c.inlier_translation) == (5.0, 5.0, 0.5, 0.02)
+    assert c.relative_poses == 'rotation' and c.robust_kernel and c.peak_fit == 'quadratic'
+
+
+def test_shipped_params_file_matches_the_defaults() -> None:
+    """config/calibrator.yaml documents every option at its default, and nothing unknown."""
+    params = yaml.safe_load((ROOT / 'config' / 'calibrator.yaml').read_text())
+    values = params['calibrator']['ros__parameters']
+    algorithm = {k: v for k, v in values.items() if k not in NODE_ONLY_KEYS}
+    assert set(algorithm) == set(CalibrationConfig().to_dict())
+    assert CalibrationConfig.from_mapping(algorithm) == CalibrationConfig()
+
+
+@pytest.mark.parametrize(('values', 'message'), [
+    ({'etaa': 5.0}, 'unknown option.*etaa'),
+    ({'eta': 'five'}, 'eta must be of type float'),
+    ({'eta': 0.0}, 'eta must lie in'),
+    ({'mu': -1.0}, 'mu must lie in'),
+    ({'ransac_iterations': 2.5}, 'ransac_iterations must be of type int'),
+    ({'robust_kernel': 1}, 'robust_kernel must be of type bool'),
+    ({'relative_poses': 'keyframes'}, 'relative_poses must be one of'),
+    ({'peak_fit': 'cubic'}, 'peak_fit must be one of'),
+    ({'max_time_offset': 0.0}, 'max_time_offset must lie in'),
+    ({'max_time_offset': float('inf')}, 'max_time_offset must be a finite number'),
+    ({'min_motions': 1}, 'min_motions must lie in'),
+])
+def test_bad_values_are_refused_by_name(values: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        CalibrationConfig.from_mapping(values, source='my.yaml')
+
+
+def test_nan_and_null_mean_estimate() -> None:
+    c = CalibrationConfig.from_mapping({'time_offset': float('nan'), 'resample_rate_hz': None})
+    assert c.time_offset is None and c.resample_rate_hz is None
+    assert CalibrationConfig.from_mapping({'time_offset': 0}).time_offset == 0.0
+
+
+def test_source_named_in_messages(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match='my.yaml'):
+        CalibrationConfig.from_mapping({'nope': 1}, source='my.yaml')

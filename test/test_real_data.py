@@ -1,0 +1,55 @@
+"""Real VIO against real ground truth (../shared/data/real; skipped when absent).
+
+Semi-synthetic as in bench/realdata.py: the hand is the EuRoC ground truth moved to the Vicon
+marker frame with the published T_BS and its clock shifted by a known amount; the eye is a real
+VIO estimate with its real noise and drift. The streams already differ by ~0.2-3 ms before the
+shift, and the estimates carry their own attitude bias against the ground truth (up to ~1.4 deg,
+the same in both halves of a flight), so the tolerances are 5 ms and 4 cm / 2 deg.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from handeye_ros.core.errors import InputError
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import Truth, calibration_error
+from handeye_ros.formats import read_trajectory
+
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / 'bench'))
+import realdata  # noqa: E402
+
+SHIFT_S = 0.1234
+
+
+@pytest.mark.parametrize('name', ['V2_01 stereo', 'V2_02 mono', 'MH_01 stereo'])
+def test_semi_synthetic_pair(real_data, name: str) -> None:
+    pair = next(p for p in realdata.PAIRS if p.name == name)
+    gt, est = realdata.load(pair, real_data)
+    res = calibrate(realdata.to_marker_frame(gt, SHIFT_S), est)
+    q, p = realdata.true_extrinsic()
+    err = calibration_error(Truth(SHIFT_S, q, p, q, p), res.time_offset_s, res.q_HE, res.p_HE)
+    assert err.time_offset_s < 5e-3
+    assert err.translation_m < 0.04 and err.rotation_deg < 2.0
+
+
+def test_real_file_with_repeated_stamps_is_refused_clearly(real_data) -> None:
+    """evo's V102.txt repeats four stamps: the reader says so instead of guessing."""
+    path = real_data / 'evo' / 'test' / 'data' / 'V102.txt'
+    with pytest.raises(InputError, match='duplicate') as err:
+        read_trajectory(path)
+    assert str(path) in str(err.value)
+
+
+def test_real_files_parse(real_data) -> None:
+    """EuRoC CSV with 17 columns, TUM with exponent stamps, TUM with plain decimals."""
+    gt = read_trajectory(real_data / 'evo' / 'test' / 'data' / 'V102_groundtruth.csv')
+    assert gt.rate_hz == pytest.approx(200.0, rel=1e-3) and gt.t_ns[0] == 1403715524907143168
+    vio = read_trajectory(real_data / 'evo' / 'test' / 'data' / 'V101_openvins.txt')
+    assert vio.rate_hz == pytest.approx(20.0, rel=1e-2)
+    mh = read_trajectory(real_data / 'open_vins' / 'ov_data' / 'euroc_mav' / 'MH_01_easy.txt')
+    assert mh.t_ns[0] == 1403636580838560000

@@ -1,0 +1,57 @@
+"""Helpers shared by the benchmarks: output folder, tables, plots, error summaries."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / 'bench' / 'out'
+if str(ROOT) not in sys.path:  # run as `python bench/x.py` from anywhere
+    sys.path.insert(0, str(ROOT))
+
+
+def table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A plain-text table (also written to bench/out/<title>.txt by :func:`emit`)."""
+    cells = [[str(c) for c in header]] + [[_fmt(c) for c in row] for row in rows]
+    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
+    lines = [title, '  '.join(h.rjust(w) for h, w in zip(cells[0], widths)),
+             '  '.join('-' * w for w in widths)]
+    lines += ['  '.join(c.rjust(w) for c, w in zip(r, widths)) for r in cells[1:]]
+    return '\n'.join(lines)
+
+
+def emit(name: str, text: str) -> None:
+    """Print a table and keep a copy in bench/out/."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / f'{name}.txt').write_text(text + '\n')
+    print(text + '\n', flush=True)
+
+
+def save_plot(fig, name: str) -> Path:
+    """Save a matplotlib figure as bench/out/<name>.png."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f'{name}.png'
+    fig.savefig(path, dpi=120, bbox_inches='tight')
+    return path
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend, or None when matplotlib is not installed."""
+    try:
+        import matplotlib
+    except ImportError:
+        print('(matplotlib not installed: no plots)', file=sys.stderr)
+        return None
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _fmt(c: object) -> str:
+    if isinstance(c, (float, np.floating)):
+        return f'{c:.3f}' if abs(c) < 1000 else f'{c:.0f}'
+    return str(c)

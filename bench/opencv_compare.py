@@ -42,6 +42,8 @@ def opencv_hand_eye(pairs: PosePairs, idx: np.ndarray, method: str) -> tuple[np.
     R_EW, p_EW = inverse((pairs.R_WE[idx], pairs.p_WE[idx]))
     R, t = cv2.calibrateHandEye(list(pairs.R_GH[idx]), list(pairs.p_GH[idx]), list(R_EW),
                                 list(p_EW), method=getattr(cv2, f'CALIB_HAND_EYE_{method}'))
+    if not (np.isfinite(R).all() and np.isfinite(t).all()):  # a failed method: NaN result
+        return np.array([0.0, 0.0, 0.0, 1.0]), np.full(3, np.inf)
     return quat_from_matrix(R), t.ravel()
 
 

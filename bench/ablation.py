@@ -3,8 +3,8 @@
 (1) Time alignment: |dt error| vs noise level, quadratic peak fit vs integer peak.
 (2) Linear calibration on the true offset: extrinsic error vs noise level for the global,
     inter-frame and rotation-constrained (eta 1, 5, 10 deg) relative poses, each with and
-    without the screw-congruence kernel, and with the paper's dual-quaternion translation or
-    our drift-weighted translation refit.
+    without the screw-congruence kernel, each with the paper's dual-quaternion solution and
+    with our decoupled refit of rotation and translation on the same consensus.
 (3) The whole linear pipeline (offset estimated, then linear), the figure users get.
 
 Usage: python bench/ablation.py [--seeds 20] [--levels 0 1 ... 10]
@@ -26,7 +26,7 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, noise_level, simulate
 from handeye_ros.core.time_align import align_time
 
-#: (label, relative poses, eta deg, robust kernel, refit translation)
+#: (label, relative poses, eta deg, robust kernel, decoupled refit)
 LINEAR_VARIANTS = [
     (f'{name} {"+" if kernel else "-"}kernel{suffix}', strategy, eta, kernel, refit)
     for name, strategy, eta in (('global', 'global', 5.0), ('interframe', 'interframe', 5.0),
@@ -63,7 +63,7 @@ def main() -> None:
                     motions[strategy, eta] = build_motions(pairs, strategy, np.deg2rad(eta))
                 try:
                     s = calibrate_linear(motions[strategy, eta], robust_kernel=kernel,
-                                         refit_translation=refit)
+                                         decoupled_refit=refit)
                 except HandeyeError:  # a failed variant counts as missing
                     continue
                 e = calibration_error(truth, truth.time_offset_s, s.q_HE, s.p_HE)

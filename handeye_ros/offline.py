@@ -20,7 +20,7 @@ LOG = logging.getLogger('handeye_ros')
 #: Command-line option -> configuration key, for the algorithm options (see CalibrationConfig).
 OPTION_KEYS = ('eta', 'mu', 'relative_poses', 'robust_kernel', 'peak_fit', 'time_offset',
                'time_offset_guess', 'max_time_offset', 'resample_rate_hz', 'ransac_iterations',
-               'inlier_rotation', 'inlier_translation', 'adaptive_inliers', 'refit_translation',
+               'inlier_rotation', 'inlier_translation', 'adaptive_inliers', 'decoupled_refit',
                'min_motions', 'seed')
 
 
@@ -71,9 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
     alg.add_argument('--no-adaptive-inliers', dest='adaptive_inliers', action='store_const',
                      const=False, help='keep the RANSAC thresholds fixed for the final '
                                        'consensus instead of adapting them to the noise')
-    alg.add_argument('--no-refit-translation', dest='refit_translation', action='store_const',
-                     const=False, help='keep the dual-quaternion translation instead of '
-                                       're-solving it with the rotation fixed')
+    alg.add_argument('--no-decoupled-refit', dest='decoupled_refit', action='store_const',
+                     const=False, help='keep the dual-quaternion solution instead of '
+                                       're-estimating rotation and translation apart on the '
+                                       'final consensus')
     alg.add_argument('--min-motions', type=int, metavar='N',
                      help='fewest relative motions accepted (default 10)')
     alg.add_argument('--seed', type=int, help='RANSAC seed (default 0)')

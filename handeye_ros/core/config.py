@@ -53,10 +53,10 @@ class CalibrationConfig:
     adaptive_inliers : bool
         Widen the inlier thresholds of the final consensus to the noise measured from the best
         model's residuals (never narrower than the configured ones); see ``calibrate_linear``.
-    refit_translation : bool
-        Re-solve the translation of T_HE with the dual-quaternion rotation fixed, weighted for
-        a drifting eye (see ``handeye_ros.core.linear``); False keeps the paper's
-        dual-quaternion translation.
+    decoupled_refit : bool
+        Re-estimate T_HE on the final consensus with rotation (rotation-vector alignment) and
+        translation (drift-weighted least squares) apart (see ``handeye_ros.core.linear``);
+        False keeps the paper's dual-quaternion solution.
     min_motions : int
         Fewer relative motions than this is an error (too little rotation).
     seed : int
@@ -76,7 +76,7 @@ class CalibrationConfig:
     inlier_rotation: float = 0.5
     inlier_translation: float = 0.02
     adaptive_inliers: bool = True
-    refit_translation: bool = True
+    decoupled_refit: bool = True
     min_motions: int = 10
     seed: int = 0
 

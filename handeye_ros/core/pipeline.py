@@ -63,7 +63,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         ransac_iterations=cfg.ransac_iterations,
         inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
         inlier_translation_m=cfg.inlier_translation, min_motions=cfg.min_motions,
-        adaptive_inliers=cfg.adaptive_inliers, refit_translation=cfg.refit_translation,
+        adaptive_inliers=cfg.adaptive_inliers, decoupled_refit=cfg.decoupled_refit,
         rng=np.random.default_rng(cfg.seed))
     warnings.extend(linear.warnings)
     if linear.n_inliers < LOW_INLIER_FRACTION * linear.n_motions:

@@ -87,6 +87,10 @@ class CalibrationResult:
                 'inliers': int(lin.n_inliers),
                 'inlier_thresholds': {'rotation_deg': lin.inlier_rotation_deg,
                                       'translation_m': lin.inlier_translation_m},
+                'decoupled_refit': self.config.decoupled_refit,
+                'dual_quaternion_solution': {
+                    'translation': [float(v) for v in lin.p_HE_dq],
+                    'rotation': [float(v) for v in lin.q_HE_dq]},
                 'sigma_ratio': _num(lin.sigma_ratio),
                 'singular_values': [float(v) for v in lin.singular_values],
                 'axis_spread_deg': _num(lin.axis_spread_deg),

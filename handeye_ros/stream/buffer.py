@@ -1,0 +1,135 @@
+"""A bounded, preallocated buffer of one pose stream, with the bookkeeping a live node needs.
+
+Messages are validated one by one as they arrive (a bad one is rejected and counted, never
+raised), stored in a ring of fixed capacity, and the oldest are dropped (and counted) when the
+buffer is full or spans more than its maximum duration. :meth:`PoseBuffer.trajectory` copies
+the content out in order for the calibration, so the stream can keep flowing meanwhile.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
+
+#: Reasons a message is rejected (keys of BufferStats.rejected).
+REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'stamp_not_increasing')
+
+
+@dataclass(frozen=True)
+class BufferStats:
+    """Counters of one stream (for diagnostics and tests).
+
+    received: messages offered; stored: currently held; dropped: oldest discarded to respect
+    the capacity or duration; rejected: per reason; span_s: buffered time span; rate_hz:
+    median rate of the held poses (0 with fewer than 2); last_stamp_ns: newest held stamp.
+    """
+
+    received: int
+    stored: int
+    dropped: int
+    rejected: dict[str, int]
+    span_s: float
+    rate_hz: float
+    last_stamp_ns: int | None
+
+
+class PoseBuffer:
+    """Ring buffer of stamped poses (int64 ns, position, x y z w quaternion). Thread-safe."""
+
+    def __init__(self, name: str, capacity: int = 1_000_000, max_duration_s: float = 3600.0):
+        if capacity < 2:
+            raise ValueError(f'{name}: buffer capacity must be at least 2, got {capacity}')
+        if not max_duration_s > 0.0:
+            raise ValueError(f'{name}: buffer duration must be positive, got {max_duration_s}')
+        self.name = name
+        self.capacity = int(capacity)
+        self.max_duration_ns = int(max_duration_s * 1e9)
+        self._t = np.empty(self.capacity, dtype=np.int64)
+        self._pq = np.empty((self.capacity, 7))
+        self._lock = threading.Lock()
+        self.clear()
+
+    def clear(self) -> None:
+        """Forget every pose and reset the counters."""
+        with self._lock:
+            self._head = 0   # index of the oldest pose
+            self._count = 0
+            self._last: int | None = None
+            self.received = 0
+            self.dropped = 0
+            self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+
+    def __len__(self) -> int:
+        return self._count
+
+    def add(self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float,
+            qw: float) -> str | None:
+        """Store one pose; returns None, or the reason it was rejected."""
+        with self._lock:
+            self.received += 1
+            reason = self._check(t_ns, x, y, z, qx, qy, qz, qw)
+            if reason is not None:
+                self.rejected[reason] += 1
+                return reason
+            if self._count == self.capacity:
+                self._drop(1)
+            tail = (self._head + self._count) % self.capacity
+            self._t[tail] = t_ns
+            self._pq[tail] = (x, y, z, qx, qy, qz, qw)
+            self._count += 1
+            self._last = t_ns
+            # keep the span within max_duration: drop from the oldest end
+            oldest_allowed = t_ns - self.max_duration_ns
+            n_old = 0
+            while n_old < self._count - 1 and \
+                    self._t[(self._head + n_old) % self.capacity] < oldest_allowed:
+                n_old += 1
+            if n_old:
+                self._drop(n_old)
+            return None
+
+    def _check(self, t_ns: int, *pq: float) -> str | None:
+        if not all(math.isfinite(v) for v in pq):
+            return 'non_finite'
+        norm = math.sqrt(pq[3] ** 2 + pq[4] ** 2 + pq[5] ** 2 + pq[6] ** 2)
+        if norm < 1e-9:
+            return 'zero_quaternion'
+        if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
+            return 'non_unit_quaternion'
+        if self._last is not None and t_ns <= self._last:
+            return 'stamp_not_increasing'
+        return None
+
+    def _drop(self, n: int) -> None:
+        self._head = (self._head + n) % self.capacity
+        self._count -= n
+        self.dropped += n
+
+    def _ordered(self) -> tuple[np.ndarray, np.ndarray]:
+        idx = (self._head + np.arange(self._count)) % self.capacity
+        return self._t[idx], self._pq[idx]
+
+    def trajectory(self) -> Trajectory:
+        """A validated copy of the buffered poses, oldest first (raises InputError when the
+        buffer holds fewer than 2 poses)."""
+        with self._lock:
+            t, pq = self._ordered()
+        return Trajectory.from_arrays(t, pq[:, :3], pq[:, 3:], name=self.name)
+
+    def stats(self) -> BufferStats:
+        """Current counters."""
+        with self._lock:
+            n = self._count
+            if n >= 2:
+                t, _ = self._ordered()
+                span = float(t[-1] - t[0]) * 1e-9
+                rate = 1e9 / float(np.median(np.diff(t)))
+            else:
+                span, rate = 0.0, 0.0
+            return BufferStats(self.received, n, self.dropped, dict(self.rejected), span, rate,
+                               self._last)

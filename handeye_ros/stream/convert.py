@@ -1,0 +1,71 @@
+"""Stamped poses out of ROS messages, by duck typing.
+
+The functions read attributes only, so they serve rclpy messages (live) and rosbags messages
+(replayed from a bag) alike: both carry the same field names. The stamp is always
+``header.stamp`` (the time the pose is valid at), never the arrival time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from ..core.errors import InputError
+
+#: A pose as plain numbers: (stamp ns, x, y, z, qx, qy, qz, qw).
+StampedPose = tuple[int, float, float, float, float, float, float, float]
+
+
+class UnsupportedTypeError(InputError):
+    """A topic's message type carries no pose we can read."""
+
+
+def _stamp(msg: Any) -> int:
+    s = msg.header.stamp
+    return int(s.sec) * 1_000_000_000 + int(s.nanosec)
+
+
+def _from_pose(t_ns: int, pose: Any) -> StampedPose:
+    p, q = pose.position, pose.orientation
+    return (t_ns, float(p.x), float(p.y), float(p.z), float(q.x), float(q.y), float(q.z),
+            float(q.w))
+
+
+def _from_transform(t_ns: int, tf: Any) -> StampedPose:
+    p, q = tf.translation, tf.rotation
+    return (t_ns, float(p.x), float(p.y), float(p.z), float(q.x), float(q.y), float(q.z),
+            float(q.w))
+
+
+_CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
+    'geometry_msgs/msg/PoseStamped': lambda m: _from_pose(_stamp(m), m.pose),
+    'geometry_msgs/msg/PoseWithCovarianceStamped': lambda m: _from_pose(_stamp(m), m.pose.pose),
+    'geometry_msgs/msg/TransformStamped': lambda m: _from_transform(_stamp(m), m.transform),
+    'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), m.pose.pose),
+}
+
+#: Message types a stream may carry, in ROS 2 'pkg/msg/Name' form.
+SUPPORTED_TYPES = tuple(_CONVERTERS)
+
+
+def normalise_type(name: str) -> str:
+    """'geometry_msgs/msg/PoseStamped' from that, 'geometry_msgs/PoseStamped' (ROS 1 bags) or
+    a bare 'PoseStamped' / 'Odometry'; raises UnsupportedTypeError for anything else."""
+    parts = name.strip().split('/')
+    if len(parts) == 2:
+        parts = [parts[0], 'msg', parts[1]]
+    if len(parts) == 1:
+        matches = [t for t in SUPPORTED_TYPES if t.endswith('/' + parts[0])]
+        if len(matches) == 1:
+            return matches[0]
+    full = '/'.join(parts)
+    if full in _CONVERTERS:
+        return full
+    msg = (f'message type {name!r} carries no pose this tool reads; supported: '
+           f'{", ".join(SUPPORTED_TYPES)}')
+    raise UnsupportedTypeError(msg)
+
+
+def pose_of(msgtype: str) -> Callable[[Any], StampedPose]:
+    """The converter for a (normalised) message type."""
+    return _CONVERTERS[normalise_type(msgtype)]

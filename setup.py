@@ -19,7 +19,7 @@ setup(
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
     ],
     python_requires='>=3.10',
-    install_requires=['numpy', 'scipy', 'pyyaml', 'rosbags'],
+    install_requires=['numpy', 'scipy', 'pyyaml', 'rosbags', 'tqdm'],
     extras_require={
         # the ROS 2 side (node, message conversion); from PyPI wheels or a Jazzy install
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces', 'ros-jazzy-std-srvs'],

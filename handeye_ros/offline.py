@@ -1,9 +1,12 @@
-"""Offline calibration of a hand (MoCap) and an eye (VO/VIO) trajectory file.
+"""Offline calibration of a hand (MoCap) and an eye (VO/VIO) trajectory: two files or one bag.
 
 Installed as ``offline_calibrate`` (``ros2 run handeye_ros offline_calibrate``) and runnable as
-``python -m handeye_ros.offline``. The result goes to stdout (a report, or one JSON document with
-``--json``) and optionally to a YAML/JSON file; logs go to stderr. Errors in the input give one
-line naming the file and the problem and exit code 1, never a traceback.
+``python -m handeye_ros.offline``. A bag (ROS 2 sqlite3/mcap or ROS 1) is replayed through the
+node's own conversion and buffering code (:class:`handeye_ros.stream.Recorder`), so it gives
+the answer the node would have given live. The result goes to stdout (a report, or one JSON
+document with ``--json``) and optionally to a YAML/JSON file and a bag; logs go to stderr.
+Errors in the input give one line naming the file and the problem and exit code 1, never a
+traceback.
 """
 
 from __future__ import annotations
@@ -17,8 +20,8 @@ from typing import Any
 
 LOG = logging.getLogger('handeye_ros')
 
-#: Command-line option -> configuration key, for the algorithm options (see CalibrationConfig).
-OPTION_KEYS = ('eta', 'mu', 'relative_poses', 'robust_kernel', 'peak_fit', 'time_offset',
+#: Command-line options that are configuration keys (CalibrationConfig and StreamConfig).
+OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id', 'eta', 'mu', 'relative_poses', 'robust_kernel', 'peak_fit', 'time_offset',
                'time_offset_guess', 'max_time_offset', 'resample_rate_hz', 'ransac_iterations',
                'inlier_rotation', 'inlier_translation', 'adaptive_inliers', 'decoupled_refit',
                'min_motions', 'seed')
@@ -31,19 +34,37 @@ def build_parser() -> argparse.ArgumentParser:
         description='Estimate the time offset dt and the extrinsic T_HE between a MoCap '
                     'trajectory (hand, T_GH) and a VO/VIO trajectory (eye, T_WE), with '
                     'T_WE(t) = T_WG * T_GH(t - dt) * T_HE.')
-    io = p.add_argument_group('input and output')
-    io.add_argument('--hand', required=True, metavar='FILE', help='MoCap trajectory (T_GH)')
-    io.add_argument('--eye', required=True, metavar='FILE', help='VO/VIO trajectory (T_WE)')
+    io = p.add_argument_group('input: two trajectory files, or one bag')
+    io.add_argument('--hand', metavar='FILE', help='MoCap trajectory (T_GH), TUM or EuRoC')
+    io.add_argument('--eye', metavar='FILE', help='VO/VIO trajectory (T_WE), TUM or EuRoC')
     io.add_argument('--format', choices=('auto', 'tum', 'euroc'), default='auto',
                     help='file format of both inputs (default: detected from the content)')
-    io.add_argument('-o', '--output', metavar='FILE',
-                    help='write the result to FILE (.json for JSON, otherwise YAML)')
-    io.add_argument('--json', action='store_true',
-                    help='print exactly one JSON document with the result on stdout')
-    io.add_argument('--config', metavar='YAML',
-                    help='options file: a flat mapping or the node\'s params file '
-                         '(<node>: ros__parameters: ...); command-line options override it')
-    io.add_argument('-v', '--verbose', action='store_true', help='log stage timings')
+    io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')
+    io.add_argument('--hand-topic', metavar='TOPIC',
+                    help='hand pose topic in the bag (default: /mocap/pose if present, else '
+                         'the one pose topic named like a MoCap)')
+    io.add_argument('--eye-topic', metavar='TOPIC',
+                    help='eye pose topic in the bag (default: /vio/odom if present, else the one '
+                         'pose topic named like a VIO)')
+    io.add_argument('--hand-frame-id', metavar='FRAME', help='parent frame of the extrinsic')
+    io.add_argument('--eye-frame-id', metavar='FRAME', help='child frame of the extrinsic')
+    io.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                    help='progress bar while replaying a bag (default: when stderr is a '
+                         'terminal)')
+    out = p.add_argument_group('output')
+    out.add_argument('-o', '--output', metavar='FILE',
+                     help='write the result to FILE (.json for JSON, otherwise YAML)')
+    out.add_argument('--json', action='store_true',
+                     help='print exactly one JSON document with the result on stdout')
+    out.add_argument('--output-bag', metavar='PATH',
+                     help='write the result to a new bag: /tf_static (tf2_msgs/TFMessage) and '
+                          '/handeye/time_offset (std_msgs/Float64)')
+    out.add_argument('--output-bag-storage', choices=('mcap', 'sqlite3', 'ros1'), default='mcap',
+                     help='storage of --output-bag (default mcap)')
+    out.add_argument('--config', metavar='YAML',
+                     help='options file: a flat mapping or the node\'s params file '
+                          '(<node>: ros__parameters: ...); command-line options override it')
+    out.add_argument('-v', '--verbose', action='store_true', help='log stage timings')
     alg = p.add_argument_group('algorithm (defaults: the paper\'s)')
     alg.add_argument('--time-offset', type=float, metavar='S',
                      help='fix dt (s) instead of estimating it')
@@ -82,12 +103,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def load_options(path: str | None) -> dict[str, Any]:
-    """Options from a YAML file: a flat mapping or a ROS 2 params file for the node."""
+    """Options from a YAML file: a flat mapping or a ROS 2 params file for the node.
+
+    Node-only parameters (services, QoS, ...) are dropped, so one file configures both.
+    """
     if path is None:
         return {}
     import yaml
 
     from .core.errors import ConfigError
+    from .ros.config import NODE_ONLY_KEYS
     try:
         data = yaml.safe_load(Path(path).read_text()) or {}
     except OSError as err:
@@ -99,25 +124,56 @@ def load_options(path: str | None) -> dict[str, Any]:
     nodes = [v['ros__parameters'] for v in data.values()
              if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)]
     if nodes:
-        from .core.config import NODE_ONLY_KEYS
-        return {k: v for k, v in nodes[0].items() if k not in NODE_ONLY_KEYS}
-    return data
+        data = nodes[0]
+    return {k: v for k, v in data.items() if k not in NODE_ONLY_KEYS}
+
+
+def split_options(options: dict[str, Any], source: str) -> tuple[Any, Any]:
+    """(CalibrationConfig, StreamConfig) from one flat mapping; unknown keys are refused."""
+    from .core.config import CalibrationConfig
+    from .core.errors import ConfigError
+    from .stream.config import StreamConfig
+    calib, stream = CalibrationConfig.specs(), StreamConfig.specs()
+    unknown = sorted(set(options) - set(calib) - set(stream))
+    if unknown:
+        raise ConfigError(f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+                          f'{", ".join([*calib, *stream])}')
+    return (CalibrationConfig.from_mapping({k: v for k, v in options.items() if k in calib},
+                                           source),
+            StreamConfig.from_mapping({k: v for k, v in options.items() if k in stream}, source))
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Read, calibrate and return the result dictionary (raises HandeyeError on bad input)."""
-    from .core.config import CalibrationConfig
-    from .core.pipeline import calibrate
-    from .formats import read_trajectory
-
+    from .core.errors import ConfigError
+    files = args.hand or args.eye
+    if (args.bag and files) or (not args.bag and not (args.hand and args.eye)):
+        raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
     options = load_options(args.config)
     options.update({k: getattr(args, k) for k in OPTION_KEYS if getattr(args, k) is not None})
-    config = CalibrationConfig.from_mapping(options, source=args.config or 'options')
-    hand = read_trajectory(args.hand, args.format)
-    eye = read_trajectory(args.eye, args.format)
-    LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name, len(hand),
-             hand.rate_hz, eye.name, len(eye), eye.rate_hz)
-    return calibrate(hand, eye, config).to_dict()
+    calib, streams = split_options(options, source=args.config or 'options')
+    frames = {'hand_frame': streams.hand_frame_id, 'eye_frame': streams.eye_frame_id}
+    if args.bag:
+        from .formats.bag import replay
+        rec = replay(args.bag, streams, given={s: f'{s}_topic' in options for s in ('hand', 'eye')},
+                     progress=args.progress)
+        result = rec.calibrate(calib)
+        out = result.to_dict(**frames)
+        out['streams'] = rec.stream_dict()
+        out['inputs']['bag'] = str(args.bag)
+    else:
+        from .core.pipeline import calibrate
+        from .formats import read_trajectory
+        hand = read_trajectory(args.hand, args.format)
+        eye = read_trajectory(args.eye, args.format)
+        LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name,
+                 len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
+        result = calibrate(hand, eye, calib)
+        out = result.to_dict(**frames)
+    if args.output_bag:
+        from .formats.bag import write_result_bag
+        write_result_bag(args.output_bag, out, int(result.eye.t_ns[-1]), args.output_bag_storage)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -133,6 +189,10 @@ def main(argv: list[str] | None = None) -> int:
             write_result(args.output, result)
     except HandeyeError as err:
         print(f'offline_calibrate: error: {err}', file=sys.stderr)
+        return 1
+    except ImportError as err:  # an optional dependency missing (rosbags, tqdm)
+        print(f'offline_calibrate: error: {err.name or err} is not installed: {err}',
+              file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         return 130

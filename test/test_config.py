@@ -7,8 +7,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from handeye_ros.core.config import NODE_ONLY_KEYS, CalibrationConfig
+from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
+from handeye_ros.ros.config import NodeConfig
+from handeye_ros.stream.config import StreamConfig
 
 from conftest import ROOT
 
@@ -20,12 +22,23 @@ def test_defaults_are_the_papers() -> None:
 
 
 def test_shipped_params_file_matches_the_defaults() -> None:
-    """config/calibrator.yaml documents every option at its default, and nothing unknown."""
+    """config/calibrator.yaml documents every parameter at its default, and nothing unknown."""
     params = yaml.safe_load((ROOT / 'config' / 'calibrator.yaml').read_text())
     values = params['calibrator']['ros__parameters']
-    algorithm = {k: v for k, v in values.items() if k not in NODE_ONLY_KEYS}
-    assert set(algorithm) == set(CalibrationConfig().to_dict())
-    assert CalibrationConfig.from_mapping(algorithm) == CalibrationConfig()
+    parts = (CalibrationConfig, StreamConfig, NodeConfig)
+    assert set(values) == {k for cls in parts for k in cls.specs()}
+    for cls in parts:
+        assert cls.from_mapping({k: values[k] for k in cls.specs()}) == cls()
+
+
+def test_stream_and_node_options() -> None:
+    with pytest.raises(ConfigError, match='hand_type.*Imu'):
+        StreamConfig(hand_type='Imu')
+    assert StreamConfig(eye_type='Odometry').eye_type == 'Odometry'
+    with pytest.raises(ConfigError, match='buffer_size must lie in'):
+        StreamConfig.from_mapping({'buffer_size': 1})
+    with pytest.raises(ConfigError, match='qos_reliability must be one of'):
+        NodeConfig(qos_reliability='sometimes')
 
 
 @pytest.mark.parametrize(('values', 'message'), [

@@ -59,8 +59,12 @@ class CalibrationResult:
                 f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, ARE {self.metrics.are_rmse_deg:.2f} deg'
                 + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
 
-    def to_dict(self) -> dict[str, Any]:
-        """Plain Python data (floats, lists, strings) for YAML/JSON."""
+    def to_dict(self, hand_frame: str = 'hand', eye_frame: str = 'eye',
+                hand_world: str = 'hand_world', eye_world: str = 'eye_world') -> dict[str, Any]:
+        """Plain Python data (floats, lists, strings) for YAML/JSON.
+
+        The frame names label the transforms' parent and child (H, E, G and W).
+        """
         ta, lin, m = self.time_alignment, self.linear, self.metrics
         R_HE = matrix_from_quat(self.q_HE)
         R_EH, p_EH = inverse((R_HE, self.p_HE))
@@ -68,10 +72,10 @@ class CalibrationResult:
             'schema_version': SCHEMA_VERSION,
             'convention': CONVENTION,
             'time_offset': float(self.time_offset_s),
-            'extrinsic': transform_dict(R_HE, self.p_HE, 'hand', 'eye'),
-            'extrinsic_inverse': transform_dict(R_EH, p_EH, 'eye', 'hand'),
+            'extrinsic': transform_dict(R_HE, self.p_HE, hand_frame, eye_frame),
+            'extrinsic_inverse': transform_dict(R_EH, p_EH, eye_frame, hand_frame),
             'world_alignment': {**transform_dict(self.world.R_WG, self.world.p_WG,
-                                                 'eye_world', 'hand_world'),
+                                                 eye_world, hand_world),
                                 'method': self.world.method},
             'time_alignment': {
                 'method': ta.method,

@@ -1,0 +1,131 @@
+"""Declarative option sets: one description, range and type per option, used everywhere.
+
+An option set is a frozen dataclass whose fields are made with :func:`option`. The same
+metadata validates values (:meth:`Options.validate`, run on construction), parses mappings
+from YAML files or node parameters (:meth:`Options.from_mapping`), documents command-line
+options, and gives the node its ParameterDescriptors (description and range), so a name, a
+bound or a sentence is written once.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, TypeVar
+
+from .errors import ConfigError
+
+T = TypeVar('T', bound='Options')
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What an option accepts.
+
+    kind: 'float', 'int', 'bool' or 'str'; optional: None (or NaN) is allowed and means
+    'automatic'; low/high: inclusive bounds, except low when open_low; choices: allowed strings.
+    """
+
+    kind: str
+    description: str
+    low: float | None = None
+    high: float | None = None
+    open_low: bool = False
+    optional: bool = False
+    choices: tuple[str, ...] = ()
+
+    def range_text(self) -> str:
+        """Human form of the bounds, e.g. '(0, 90]'."""
+        if self.choices:
+            return ' | '.join(self.choices)
+        if self.low is None and self.high is None:
+            return ''
+        lo = '-inf' if self.low is None else f'{self.low:g}'
+        hi = 'inf' if self.high is None else f'{self.high:g}'
+        return f'{"(" if self.open_low else "["}{lo}, {hi}{"]" if self.high is not None else ")"}'
+
+
+def option(default: Any, kind: str, description: str, **spec: Any) -> Any:
+    """A dataclass field carrying its :class:`Spec`."""
+    return field(default=default, metadata={'spec': Spec(kind, description, **spec)})
+
+
+class Options:
+    """Base of the option dataclasses (see the module docstring)."""
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    @classmethod
+    def specs(cls) -> dict[str, Spec]:
+        """Option name -> Spec, in declaration order."""
+        return {f.name: f.metadata['spec'] for f in fields(cls)}  # type: ignore[arg-type]
+
+    def validate(self) -> None:
+        """Raise ConfigError naming the first option whose value is out of its range."""
+        for name, spec in self.specs().items():
+            _check(name, getattr(self, name), spec)
+
+    @classmethod
+    def from_mapping(cls: type[T], values: dict[str, Any], source: str = 'config') -> T:
+        """Options from a mapping (a parsed YAML file or node parameters).
+
+        Unknown keys are refused (a typo must not silently fall back to a default); for an
+        optional option, null or NaN means 'automatic'. Errors name ``source`` and the option.
+        """
+        if not isinstance(values, dict):
+            msg = f'{source}: expected a mapping of option names to values'
+            raise ConfigError(msg)
+        specs = cls.specs()
+        unknown = sorted(set(values) - set(specs))
+        if unknown:
+            msg = (f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+                   f'{", ".join(specs)}')
+            raise ConfigError(msg)
+        clean = {k: _coerce(k, v, specs[k], source) for k, v in values.items()}
+        try:
+            return replace(cls(), **clean)  # type: ignore[call-arg]
+        except ConfigError as err:
+            raise ConfigError(f'{source}: {err}') from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values, the inverse of :meth:`from_mapping`."""
+        return asdict(self)  # type: ignore[call-overload]
+
+
+def _coerce(key: str, value: Any, spec: Spec, source: str) -> Any:
+    if spec.optional and (value is None or (isinstance(value, float) and math.isnan(value))):
+        return None
+    ok = {
+        'bool': isinstance(value, bool),
+        'int': isinstance(value, int) and not isinstance(value, bool),
+        'float': isinstance(value, (int, float)) and not isinstance(value, bool),
+        'str': isinstance(value, str),
+    }[spec.kind]
+    if not ok:
+        msg = f'{source}: option {key} must be of type {spec.kind}, got {value!r}'
+        raise ConfigError(msg)
+    return float(value) if spec.kind == 'float' else value
+
+
+def _check(name: str, value: Any, spec: Spec) -> None:
+    if value is None:
+        if spec.optional:
+            return
+        msg = f'option {name} must be set'
+        raise ConfigError(msg)
+    if spec.choices:
+        if value not in spec.choices:
+            msg = f'option {name} must be one of {", ".join(spec.choices)}; got {value!r}'
+            raise ConfigError(msg)
+        return
+    if spec.kind not in ('float', 'int'):
+        return
+    if not math.isfinite(value):
+        msg = f'option {name} must be a finite number; got {value!r}'
+        raise ConfigError(msg)
+    low, high = spec.low, spec.high
+    too_low = low is not None and (value <= low if spec.open_low else value < low)
+    if too_low or (high is not None and value > high):
+        msg = f'option {name} must lie in {spec.range_text()}; got {value!r}'
+        raise ConfigError(msg)

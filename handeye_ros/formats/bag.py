@@ -1,0 +1,270 @@
+"""ROS bags (ROS 2 sqlite3 and mcap, ROS 1) read and written with rosbags.
+
+Reading replays the pose messages of two topics, in the order they were recorded, through the
+node's own :class:`~handeye_ros.stream.Recorder` (conversion, validation, bounded buffers), so
+a bag gives the result the node would have given live. Writing covers simulated recordings
+(for the demo and the tests) and the result (``/tf_static`` as tf2_msgs/TFMessage).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..core.trajectory import Trajectory
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
+from ..stream.convert import UnsupportedTypeError, normalise_type
+
+#: Words that mark a topic as MoCap (hand) or VO/VIO (eye) when the topics are not given.
+HAND_WORDS = ('mocap', 'vicon', 'optitrack', 'qualisys', 'vrpn', 'motion_capture', 'natnet',
+              'ground_truth', 'groundtruth')
+EYE_WORDS = ('vio', 'odom', 'slam', 'vins', 'msckf', 'orb', 'okvis', 'estimate', 'camera',
+             'visual')
+STORAGES = ('mcap', 'sqlite3', 'ros1')
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str
+    msgtype: str
+    count: int
+
+
+def _typestore() -> Any:
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+class BagReader:
+    """An open bag (context manager) with errors turned into InputError naming the path."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise InputError(f'{self.path}: no such bag')
+
+    def __enter__(self) -> BagReader:
+        from rosbags.highlevel import AnyReader, AnyReaderError
+        try:
+            self.reader = AnyReader([self.path], default_typestore=_typestore())
+            self.reader.open()
+        except (AnyReaderError, OSError, ValueError) as err:
+            raise InputError(f'{self.path}: cannot be read as a ROS 1 or ROS 2 bag ({err})') \
+                from None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.reader.close()
+
+    def topics(self) -> list[Topic]:
+        """Every topic with its type and message count."""
+        seen: dict[str, Topic] = {}
+        for c in self.reader.connections:
+            old = seen.get(c.topic)
+            seen[c.topic] = Topic(c.topic, c.msgtype, c.msgcount + (old.count if old else 0))
+        return sorted(seen.values(), key=lambda t: t.name)
+
+    def pose_topics(self) -> list[Topic]:
+        """Topics whose type carries a pose we read."""
+        out = []
+        for t in self.topics():
+            try:
+                normalise_type(t.msgtype)
+            except UnsupportedTypeError:
+                continue
+            out.append(t)
+        return out
+
+    def messages(self, topics: list[str]) -> Iterator[tuple[str, Any]]:
+        """(topic, deserialised message) in recorded order."""
+        conns = [c for c in self.reader.connections if c.topic in topics]
+        for conn, _, raw in self.reader.messages(connections=conns):
+            yield conn.topic, self.reader.deserialize(raw, conn.msgtype)
+
+
+def choose_topics(bag: BagReader, config: StreamConfig,
+                  given: dict[str, bool]) -> dict[str, Topic]:
+    """The hand and eye topics: as given, else by name, else the one obvious pair.
+
+    ``given[stream]`` says whether the user named the topic (command line or config); a
+    topic not named is taken from the node's default name if the bag has it, else from the
+    pose topics whose names say MoCap or VIO. Raises InputError listing the candidates.
+    """
+    poses = bag.pose_topics()
+    by_name = {t.name: t for t in bag.topics()}
+    listing = ('; pose topics in the bag: ' + ', '.join(
+        f'{t.name} ({t.msgtype}, {t.count} msgs)' for t in poses)) if poses else \
+        '; the bag holds no pose topic (supported types: ' + ', '.join(SUPPORTED_TYPES) + ')'
+    chosen: dict[str, Topic] = {}
+    for stream, words in (('hand', HAND_WORDS), ('eye', EYE_WORDS)):
+        name = getattr(config, f'{stream}_topic')
+        if name in by_name or given[stream]:
+            if name not in by_name:
+                raise InputError(f'{bag.path}: no topic {name} (--{stream}-topic){listing}')
+            topic = by_name[name]
+            try:
+                normalise_type(topic.msgtype)
+            except UnsupportedTypeError as err:
+                raise InputError(f'{bag.path}: topic {name}: {err}') from None
+            chosen[stream] = topic
+            continue
+        matches = [t for t in poses if any(w in t.name.lower() for w in words)]
+        if len(matches) != 1:
+            why = 'no pose topic' if not matches else f'{len(matches)} pose topics'
+            raise InputError(f'{bag.path}: {why} looks like the {stream} stream; pass '
+                             f'--{stream}-topic{listing}')
+        chosen[stream] = matches[0]
+    if chosen['hand'].name == chosen['eye'].name:
+        raise InputError(f'{bag.path}: hand and eye are the same topic {chosen["hand"].name}')
+    for stream in STREAMS:
+        if chosen[stream].count == 0:
+            raise InputError(f'{bag.path}: topic {chosen[stream].name} holds no messages')
+    return chosen
+
+
+def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None = None,
+           progress: bool | None = None) -> Recorder:
+    """Feed the bag's hand and eye messages through a Recorder, as the node would receive them.
+
+    ``progress``: show a progress bar on stderr (None: only when stderr is a terminal).
+    """
+    from dataclasses import replace
+
+    from tqdm import tqdm
+
+    given = given or {s: False for s in STREAMS}
+    with BagReader(path) as bag:
+        chosen = choose_topics(bag, config, given)
+        config = replace(config, hand_topic=chosen['hand'].name, eye_topic=chosen['eye'].name)
+        rec = Recorder(config)
+        for stream in STREAMS:
+            declared = getattr(config, f'{stream}_type')
+            msgtype = chosen[stream].msgtype
+            if declared != 'auto' and normalise_type(declared) != normalise_type(msgtype):
+                raise InputError(f'{bag.path}: topic {chosen[stream].name} is {msgtype}, but '
+                                 f'{stream}_type is {declared}')
+            rec.set_type(stream, normalise_type(msgtype))
+        stream_of = {chosen[s].name: s for s in STREAMS}
+        total = sum(chosen[s].count for s in STREAMS)
+        bar = tqdm(total=total, unit='msg', desc=f'replaying {bag.path.name}', file=sys.stderr,
+                   disable=None if progress is None else not progress, mininterval=0.5)
+        with bar:
+            for k, (topic, msg) in enumerate(bag.messages(list(stream_of))):
+                rec.add(stream_of[topic], msg)
+                if k % 4096 == 4095:
+                    bar.update(4096)
+            bar.update(total - bar.n)
+    return rec
+
+
+# ----------------------------------------------------------------------------------- writing
+
+def _stamp(store: Any, t_ns: int) -> Any:
+    Time = store.types['builtin_interfaces/msg/Time']
+    return Time(sec=int(t_ns // 1_000_000_000), nanosec=int(t_ns % 1_000_000_000))
+
+
+def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
+                  child_frame_id: str) -> Iterator[tuple[int, Any]]:
+    """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes)."""
+    T = store.types
+    msgtype = normalise_type(msgtype)
+    for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist()):
+        header = T['std_msgs/msg/Header'](stamp=_stamp(store, t), frame_id=frame_id)
+        point = T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2])
+        quat = T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])
+        if msgtype == 'geometry_msgs/msg/TransformStamped':
+            vec = T['geometry_msgs/msg/Vector3'](x=p[0], y=p[1], z=p[2])
+            tf = T['geometry_msgs/msg/Transform'](translation=vec, rotation=quat)
+            yield t, T[msgtype](header=header, child_frame_id=child_frame_id, transform=tf)
+            continue
+        pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
+        if msgtype == 'geometry_msgs/msg/PoseStamped':
+            yield t, T[msgtype](header=header, pose=pose)
+            continue
+        pwc = T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=np.zeros(36))
+        if msgtype == 'geometry_msgs/msg/PoseWithCovarianceStamped':
+            yield t, T[msgtype](header=header, pose=pwc)
+            continue
+        zero = T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
+        twist = T['geometry_msgs/msg/TwistWithCovariance'](
+            twist=T['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36))
+        yield t, T[msgtype](header=header, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+
+
+class BagWriter:
+    """Write messages to a new bag: storage 'mcap' or 'sqlite3' (ROS 2), or 'ros1'."""
+
+    def __init__(self, path: str | Path, storage: str = 'mcap'):
+        if storage not in STORAGES:
+            raise InputError(f'unknown bag storage {storage!r}; use one of {", ".join(STORAGES)}')
+        self.path, self.storage, self.store = Path(path), storage, _typestore()
+        if self.path.exists():
+            raise InputError(f'{self.path}: exists already; choose a new path for the bag')
+        if storage == 'ros1':
+            from rosbags.rosbag1 import Writer as Writer1
+            self.writer = Writer1(self.path)
+        else:
+            from rosbags.rosbag2 import StoragePlugin, Writer
+            plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+            self.writer = Writer(self.path, version=9, storage_plugin=plugin)
+        self._conns: dict[str, Any] = {}
+
+    def __enter__(self) -> BagWriter:
+        self.writer.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.writer.close()
+
+    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any) -> None:
+        if topic not in self._conns:
+            self._conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.store)
+        if self.storage == 'ros1':
+            data = self.store.serialize_ros1(msg, msgtype)
+        else:
+            data = self.store.serialize_cdr(msg, msgtype)
+        self.writer.write(self._conns[topic], int(t_ns), data)
+
+
+def write_recording(path: str | Path, streams: list[tuple[str, str, Trajectory, str, str]],
+                    storage: str = 'mcap') -> None:
+    """Write trajectories as pose topics, interleaved by stamp as a recorder would log them.
+
+    ``streams``: (topic, message type, trajectory, frame_id, child_frame_id) each.
+    """
+    with BagWriter(path, storage) as w:
+        items = []
+        for k, (topic, msgtype, traj, frame, child) in enumerate(streams):
+            full = normalise_type(msgtype)
+            items += [(t, k, topic, full, m) for t, m in
+                      pose_messages(w.store, traj, full, frame, child)]
+        items.sort(key=lambda x: (x[0], x[1]))
+        for t, _, topic, full, msg in items:
+            w.write(topic, full, t, msg)
+
+
+def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
+                     storage: str = 'mcap') -> None:
+    """The extrinsic as a static transform (/tf_static, tf2_msgs/TFMessage, parent = hand
+    frame, child = eye frame) and the time offset (/handeye/time_offset, std_msgs/Float64)."""
+    with BagWriter(path, storage) as w:
+        T = w.store.types
+        e = result['extrinsic']
+        tf = T['geometry_msgs/msg/TransformStamped'](
+            header=T['std_msgs/msg/Header'](stamp=_stamp(w.store, stamp_ns),
+                                            frame_id=e['parent']),
+            child_frame_id=e['child'],
+            transform=T['geometry_msgs/msg/Transform'](
+                translation=T['geometry_msgs/msg/Vector3'](*e['translation']),
+                rotation=T['geometry_msgs/msg/Quaternion'](*e['rotation'])))
+        w.write('/tf_static', 'tf2_msgs/msg/TFMessage', stamp_ns,
+                T['tf2_msgs/msg/TFMessage'](transforms=[tf]))
+        w.write('/handeye/time_offset', 'std_msgs/msg/Float64', stamp_ns,
+                T['std_msgs/msg/Float64'](data=float(result['time_offset'])))

@@ -1,0 +1,52 @@
+"""Options of the two pose streams: topics, message types, frames and buffer bounds.
+
+Shared by the node (parameters) and the bag replay of the offline tool (``--config``, and
+``--hand-topic`` / ``--eye-topic``), so that a bag replays exactly as the node would buffer it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..core.errors import ConfigError
+from ..core.options import Options, option
+from .convert import SUPPORTED_TYPES, UnsupportedTypeError, normalise_type
+
+_TYPES = ', '.join(t.rsplit('/', 1)[1] for t in SUPPORTED_TYPES)
+
+
+@dataclass(frozen=True)
+class StreamConfig(Options):
+    """Where the hand and eye poses come from and how many are kept."""
+
+    hand_topic: str = option(
+        '/mocap/pose', 'str', 'topic of the MoCap pose of the marker frame H in the MoCap world G')
+    eye_topic: str = option(
+        '/vio/odom', 'str', 'topic of the VO/VIO pose of the body frame E in the VIO world W')
+    hand_type: str = option(
+        'auto', 'str', f'message type of hand_topic: auto (from the graph or the bag) or {_TYPES}')
+    eye_type: str = option(
+        'auto', 'str', f'message type of eye_topic: auto (from the graph or the bag) or {_TYPES}')
+    hand_frame_id: str = option(
+        'mocap_marker', 'str', 'frame id of H: parent of the published extrinsic T_HE')
+    eye_frame_id: str = option(
+        'imu', 'str', 'frame id of E: child of the published extrinsic T_HE')
+    buffer_size: int = option(
+        500_000, 'int', 'most poses buffered per stream (preallocated, 64 bytes each); the '
+        'oldest are dropped first', low=100, high=50_000_000)
+    buffer_duration: float = option(
+        1800.0, 'float', 'longest time span buffered per stream [s]; older poses are dropped',
+        low=1.0, high=86_400.0)
+
+    def validate(self) -> None:
+        super().validate()
+        for name in ('hand_type', 'eye_type'):
+            value = getattr(self, name)
+            if value != 'auto':
+                try:
+                    normalise_type(value)
+                except UnsupportedTypeError as err:
+                    raise ConfigError(f'option {name}: {err}') from None
+        for name in ('hand_topic', 'eye_topic'):
+            if not getattr(self, name).strip():
+                raise ConfigError(f'option {name} must not be empty')

@@ -34,6 +34,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'calibrator = handeye_ros.ros.node:main',
             'offline_calibrate = handeye_ros.offline:main',
             'demo = handeye_ros.demo:main',
         ],

@@ -98,6 +98,8 @@ def choose_topics(bag: BagReader, config: StreamConfig,
     """
     poses = bag.pose_topics()
     by_name = {t.name: t for t in bag.topics()}
+    if not any(t.count for t in by_name.values()):
+        raise InputError(f'{bag.path}: the bag holds no messages')
     listing = ('; pose topics in the bag: ' + ', '.join(
         f'{t.name} ({t.msgtype}, {t.count} msgs)' for t in poses)) if poses else \
         '; the bag holds no pose topic (supported types: ' + ', '.join(SUPPORTED_TYPES) + ')'

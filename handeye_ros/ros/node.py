@@ -1,0 +1,376 @@
+"""The ``calibrator`` node: buffer a MoCap and a VO/VIO pose stream, calibrate on request.
+
+``ros2 run handeye_ros calibrator [--ros-args --params-file config/calibrator.yaml]``
+
+Subscriptions feed a :class:`~handeye_ros.stream.Recorder` (the same conversion and buffers the
+offline bag replay uses). Services (std_srvs/Trigger): ``~/calibrate`` runs the core on a copy
+of the buffers in a service thread while the subscriptions keep flowing (a second call while
+one runs is refused), ``~/reset`` empties the buffers, ``~/save`` writes the last result.
+Results go out on latched topics ``~/extrinsic`` (TransformStamped, hand frame -> eye frame)
+and ``~/time_offset`` (Float64, s, eye clock minus hand clock), and as a static transform when
+tf2_ros is importable. Status goes to /diagnostics.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
+                              ParameterException)
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+from ..core.config import CalibrationConfig
+from ..core.errors import ConfigError, HandeyeError
+from ..core.options import Spec
+from ..report import write_result
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
+from ..stream.convert import UnsupportedTypeError
+from .config import NodeConfig, all_specs
+
+#: Latched result topics: late subscribers get the last result.
+LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Node parameters that may change while the node runs (the algorithm options); the others
+#: shape subscriptions and buffers and are read once.
+DYNAMIC = frozenset(CalibrationConfig.specs())
+#: Seconds between two warnings about rejected messages of one stream.
+REJECT_WARN_PERIOD_S = 5.0
+
+
+def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
+    """A ParameterDescriptor with the option's description and range."""
+    rng = spec.range_text()
+    d = ParameterDescriptor(name=name, description=spec.description + (
+        f' ({rng})' if rng and not spec.choices else ''),
+        read_only=name not in DYNAMIC)
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    if spec.low is not None and spec.high is not None and not spec.optional:
+        if spec.kind == 'float':
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+        elif spec.kind == 'int':
+            d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
+                                            step=1)]
+    return d
+
+
+def _default(value: Any) -> Any:
+    # ROS parameters have no null: an optional float is NaN when 'automatic'
+    return float('nan') if value is None else value
+
+
+class CalibratorNode(Node):
+    """See the module docstring."""
+
+    def __init__(self, **kwargs: Any):
+        super().__init__('calibrator', **kwargs)
+        self.calib_cfg, self.stream_cfg, self.node_cfg = self._declare_and_read()
+        self.recorder = Recorder(self.stream_cfg)
+        self._busy = threading.Lock()
+        self._last_result: dict[str, Any] | None = None
+        self._last_summary = 'no calibration yet'
+        self._last_ok: bool | None = None
+        self._reject_warned = dict.fromkeys(STREAMS, 0.0)
+        self._subs: dict[str, Any] = {}
+        self._started = time.monotonic()
+        self._type_warned = dict.fromkeys(STREAMS, self._started)
+
+        services = ReentrantCallbackGroup()
+        self.pub_extrinsic = self.create_publisher(TransformStamped, '~/extrinsic', LATCHED)
+        self.pub_offset = self.create_publisher(Float64, '~/time_offset', LATCHED)
+        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped,
+                                             '~/extrinsic_with_covariance', LATCHED)
+        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_service(Trigger, '~/calibrate', self._on_calibrate, callback_group=services)
+        self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
+        self.create_service(Trigger, '~/save', self._on_save, callback_group=services)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._static_tf = self._static_broadcaster()
+
+        for stream in STREAMS:
+            declared = getattr(self.stream_cfg, f'{stream}_type')
+            if declared != 'auto':
+                self._subscribe(stream, normalise_type(declared))
+        self._graph_timer = None
+        if len(self._subs) < len(STREAMS):
+            self._graph_timer = self.create_timer(0.2, self._discover_types)
+        self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
+        if self.node_cfg.calibrate_period > 0.0:
+            self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate,
+                              callback_group=services)
+        self.get_logger().info(
+            f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
+            f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved')
+
+    # ------------------------------------------------------------------ parameters
+
+    def _declare_and_read(self) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
+        values: dict[str, Any] = {}
+        defaults = {**CalibrationConfig().to_dict(), **StreamConfig().to_dict(),
+                    **NodeConfig().to_dict()}
+        for name, spec in all_specs().items():
+            try:
+                p = self.declare_parameter(name, _default(defaults[name]),
+                                           descriptor(name, spec))
+            except (InvalidParameterValueException, InvalidParameterTypeException,
+                    ParameterException) as err:
+                raise ConfigError(f'parameter {name}: {err}') from None
+            values[name] = p.value
+        return self._configs(values)
+
+    @staticmethod
+    def _configs(values: dict[str, Any]) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
+        def part(cls: Any) -> Any:
+            return cls.from_mapping({k: values[k] for k in cls.specs()}, source='parameters')
+        return part(CalibrationConfig), part(StreamConfig), part(NodeConfig)
+
+    def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
+        changes = {p.name: p.value for p in params if p.name in DYNAMIC}
+        if not changes:
+            return SetParametersResult(successful=True)
+        try:
+            merged = {**self.calib_cfg.to_dict(), **changes}
+            self.calib_cfg = CalibrationConfig.from_mapping(merged, source='parameters')
+        except ConfigError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    # ------------------------------------------------------------------ subscriptions
+
+    def _subscribe(self, stream: str, msgtype: str) -> None:
+        self.recorder.set_type(stream, msgtype)
+        pkg, _, name = msgtype.split('/')
+        cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
+        qos = QoSProfile(
+            depth=self.node_cfg.qos_depth, history=HistoryPolicy.KEEP_LAST,
+            reliability=(ReliabilityPolicy.BEST_EFFORT
+                         if self.node_cfg.qos_reliability == 'best_effort'
+                         else ReliabilityPolicy.RELIABLE),
+            durability=DurabilityPolicy.VOLATILE)
+        topic = getattr(self.stream_cfg, f'{stream}_topic')
+        self._subs[stream] = self.create_subscription(
+            cls, topic, lambda msg, s=stream: self._on_pose(s, msg), qos,
+            callback_group=MutuallyExclusiveCallbackGroup())
+        self.get_logger().info(f'{stream}: subscribed to {topic} ({msgtype})')
+
+    def _discover_types(self) -> None:
+        """Learn the message type of auto-typed topics from the graph."""
+        graph = dict(self.get_topic_names_and_types())
+        now = time.monotonic()
+        for stream in STREAMS:
+            if stream in self._subs:
+                continue
+            topic = getattr(self.stream_cfg, f'{stream}_topic')
+            types = graph.get(topic, [])
+            usable = []
+            for t in types:
+                try:
+                    usable.append(normalise_type(t))
+                except UnsupportedTypeError:
+                    pass
+            if len(usable) == 1:
+                self._subscribe(stream, usable[0])
+            elif now - self._type_warned[stream] > self.node_cfg.topic_wait:
+                self._type_warned[stream] = now
+                if types and not usable:
+                    why = (f'has type {", ".join(types)}, which carries no pose (supported: '
+                           f'{", ".join(SUPPORTED_TYPES)})')
+                elif usable:
+                    why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
+                else:
+                    why = 'has no publisher yet'
+                self.get_logger().warning(f'{stream} topic {topic} {why}')
+        if len(self._subs) == len(STREAMS) and self._graph_timer is not None:
+            self._graph_timer.cancel()
+
+    def _on_pose(self, stream: str, msg: Any) -> None:
+        reason = self.recorder.add(stream, msg)
+        if reason is not None:
+            now = time.monotonic()
+            if now - self._reject_warned[stream] >= REJECT_WARN_PERIOD_S:
+                self._reject_warned[stream] = now
+                rejected = self.recorder.buffers[stream].rejected
+                self.get_logger().warning(
+                    f'{stream}: rejected a message ({reason.replace("_", " ")}); rejected so '
+                    f'far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}')
+
+    # ------------------------------------------------------------------ services
+
+    def _why_no_data(self) -> str | None:
+        for stream in STREAMS:
+            if stream not in self._subs:
+                topic = getattr(self.stream_cfg, f'{stream}_topic')
+                types = dict(self.get_topic_names_and_types()).get(topic)
+                if types:
+                    return (f'{stream} topic {topic} has type {", ".join(types)}, which carries '
+                            f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})')
+                return (f'{stream} topic {topic} has no publisher yet: check {stream}_topic, or '
+                        f'set {stream}_type to subscribe before one appears')
+        return None
+
+    def _calibrate(self) -> tuple[bool, str]:
+        if not self._busy.acquire(blocking=False):
+            return False, 'a calibration is already running; call again when it has finished'
+        try:
+            why = self._why_no_data()
+            if why is not None:
+                return False, why
+            t0 = time.perf_counter()
+            result = self.recorder.calibrate(self.calib_cfg)
+        except HandeyeError as err:
+            self._last_ok, self._last_summary = False, str(err)
+            return False, str(err)
+        finally:
+            self._busy.release()
+        d = result.to_dict(hand_frame=self.stream_cfg.hand_frame_id,
+                           eye_frame=self.stream_cfg.eye_frame_id)
+        d['streams'] = self.recorder.stream_dict()
+        self._last_result = d
+        self._last_ok, self._last_summary = True, result.summary()
+        self._publish(d)
+        self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
+                               f'{result.summary()}')
+        for w in result.warnings:
+            self.get_logger().warning(w)
+        return True, result.summary()
+
+    def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        response.success, response.message = self._calibrate()
+        return response
+
+    def _periodic_calibrate(self) -> None:
+        if self._why_no_data() is None and not self._busy.locked():
+            self._calibrate()
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        self.recorder.reset()
+        response.success = True
+        response.message = ('buffers cleared' + (' (the running calibration works on its own '
+                                                 'copy and will still answer)'
+                                                 if self._busy.locked() else ''))
+        return response
+
+    def _on_save(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+        if self._last_result is None:
+            response.success, response.message = False, 'no result to save: call calibrate first'
+            return response
+        try:
+            write_result(self.node_cfg.output_file, self._last_result)
+        except HandeyeError as err:
+            response.success, response.message = False, str(err)
+            return response
+        response.success, response.message = True, f'wrote {self.node_cfg.output_file}'
+        return response
+
+    # ------------------------------------------------------------------ outputs
+
+    def _publish(self, d: dict[str, Any]) -> None:
+        e = d['extrinsic']
+        tf = TransformStamped()
+        tf.header.stamp = self.get_clock().now().to_msg()
+        tf.header.frame_id = e['parent']
+        tf.child_frame_id = e['child']
+        (tf.transform.translation.x, tf.transform.translation.y,
+         tf.transform.translation.z) = e['translation']
+        (tf.transform.rotation.x, tf.transform.rotation.y, tf.transform.rotation.z,
+         tf.transform.rotation.w) = e['rotation']
+        self.pub_extrinsic.publish(tf)
+        self.pub_offset.publish(Float64(data=float(d['time_offset'])))
+        if self._static_tf is not None:
+            self._static_tf.sendTransform(tf)
+
+    def _static_broadcaster(self) -> Any:
+        try:
+            from tf2_ros import StaticTransformBroadcaster
+        except ImportError:
+            self.get_logger().info('tf2_ros is not importable here: the extrinsic is published '
+                                   'on ~/extrinsic only, not as a static transform')
+            return None
+        return StaticTransformBroadcaster(self)
+
+    def _publish_diagnostics(self) -> None:
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        name = self.get_fully_qualified_name()
+        for stream, s in self.recorder.stats().items():
+            st = DiagnosticStatus(name=f'{name}: {stream} stream', hardware_id=name)
+            rejected = sum(s.rejected.values())
+            if s.stored < 2:
+                st.level, st.message = DiagnosticStatus.WARN, 'no data'
+            elif rejected:
+                st.level, st.message = DiagnosticStatus.WARN, f'{rejected} messages rejected'
+            else:
+                st.level, st.message = DiagnosticStatus.OK, f'{s.rate_hz:.1f} Hz'
+            st.values = [KeyValue(key=k, value=str(v)) for k, v in (
+                ('topic', getattr(self.stream_cfg, f'{stream}_topic')),
+                ('type', self.recorder.types[stream]),
+                ('rate_hz', f'{s.rate_hz:.2f}'), ('buffered_span_s', f'{s.span_s:.2f}'),
+                ('received', s.received), ('buffered', s.stored), ('dropped', s.dropped),
+                *((f'rejected_{k}', v) for k, v in s.rejected.items()))]
+            arr.status.append(st)
+        res = DiagnosticStatus(name=f'{name}: result', hardware_id=name,
+                               message=self._last_summary[:500])
+        if self._last_ok is None:
+            res.level = DiagnosticStatus.OK
+        elif not self._last_ok:
+            res.level = DiagnosticStatus.ERROR
+        else:
+            warned = bool(self._last_result and self._last_result['warnings'])
+            res.level = DiagnosticStatus.WARN if warned else DiagnosticStatus.OK
+        if self._last_result is not None:
+            d = self._last_result
+            res.values = [KeyValue(key=k, value=str(v)) for k, v in (
+                ('time_offset_s', d['time_offset']),
+                ('translation_m', d['extrinsic']['translation']),
+                ('rotation_xyzw', d['extrinsic']['rotation']),
+                ('inliers', f'{d["linear"]["inliers"]}/{d["linear"]["motions"]}'),
+                ('peak_correlation', d['time_alignment']['peak_correlation']),
+                ('ape_rmse_m', d['metrics']['ape_rmse']),
+                ('warnings', len(d['warnings'])))]
+        arr.status.append(res)
+        self.pub_diag.publish(arr)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run handeye_ros calibrator``; returns the exit code."""
+    rclpy.init(args=args)
+    try:
+        node = CalibratorNode()
+    except ConfigError as err:
+        print(f'calibrator: error: {err}', file=sys.stderr)
+        rclpy.try_shutdown()
+        return 1
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        # a second Ctrl-C (or a signal forwarded twice) must not break the clean-up
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,76 @@
+"""A client process: call Trigger services and read the node's latched topics; prints JSON.
+
+Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
+       ros_client.py concurrent SERVICE SERVICE ...  (all sent at once, answers in order)
+       ros_client.py latched                          (/calibrator/extrinsic and time_offset)
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import rclpy
+from geometry_msgs.msg import TransformStamped
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+TIMEOUT_S = 60.0
+
+
+def call(node: Node, names: list[str], concurrent: bool) -> list[dict]:
+    clients = [node.create_client(Trigger, n) for n in names]
+    for c, n in zip(clients, names):
+        if not c.wait_for_service(timeout_sec=TIMEOUT_S):
+            return [{'error': f'service {n} not available'}]
+    out = []
+    if concurrent:
+        futures = [c.call_async(Trigger.Request()) for c in clients]
+        for f in futures:
+            rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
+        return [{'success': f.result().success, 'message': f.result().message} for f in futures]
+    for c in clients:
+        f = c.call_async(Trigger.Request())
+        rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
+        out.append({'success': f.result().success, 'message': f.result().message})
+    return out
+
+
+def latched(node: Node) -> dict:
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    got: dict = {}
+    node.create_subscription(TransformStamped, '/calibrator/extrinsic',
+                             lambda m: got.__setitem__('extrinsic', m), qos)
+    node.create_subscription(Float64, '/calibrator/time_offset',
+                             lambda m: got.__setitem__('time_offset', m.data), qos)
+    deadline = time.monotonic() + 10.0
+    while len(got) < 2 and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    if 'extrinsic' in got:
+        m = got['extrinsic']
+        t, r = m.transform.translation, m.transform.rotation
+        got['extrinsic'] = {'parent': m.header.frame_id, 'child': m.child_frame_id,
+                            'translation': [t.x, t.y, t.z], 'rotation': [r.x, r.y, r.z, r.w]}
+    return got
+
+
+def main() -> int:
+    rclpy.init()
+    node = Node('test_client')
+    mode, names = sys.argv[1], sys.argv[2:]
+    if mode == 'latched':
+        out = latched(node)
+    else:
+        out = call(node, names, concurrent=(mode == 'concurrent'))
+    print(json.dumps(out), flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

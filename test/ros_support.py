@@ -1,0 +1,130 @@
+"""Real ROS 2 processes for the tests: a colcon build, `ros2 run`-style executables, cleanup.
+
+The package is built with colcon into a throw-away workspace once per session; executables
+are resolved exactly as `ros2 run` does (ament_index_python's package prefix + lib/<pkg>/,
+walked for the one executable of that name) and started as separate processes on a random
+ROS_DOMAIN_ID with discovery kept on localhost. Every process is stopped at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from conftest import ROOT
+
+SCRIPTS = Path(__file__).resolve().parent / 'ros_scripts'
+
+
+def ros_available() -> bool:
+    try:
+        import rclpy  # noqa: F401
+    except ImportError:
+        return False
+    return shutil.which('colcon', path=str(Path(sys.prefix) / 'bin')) is not None
+
+
+def build_workspace(ws: Path) -> Path:
+    """colcon build of this repository into ``ws``; returns the install folder."""
+    (ws / 'src').mkdir(parents=True)
+    (ws / 'src' / 'handeye_ros').symlink_to(ROOT)
+    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix,
+               PATH=str(Path(sys.prefix) / 'bin') + os.pathsep + os.environ['PATH'])
+    proc = subprocess.run([str(Path(sys.prefix) / 'bin' / 'colcon'), 'build',
+                           '--event-handlers', 'console_direct-'], cwd=ws, env=env,
+                          capture_output=True, text=True, timeout=300, check=False)
+    if proc.returncode:
+        raise RuntimeError(f'colcon build failed:\n{proc.stdout}\n{proc.stderr}')
+    return ws / 'install'
+
+
+def ros_env(install: Path) -> dict[str, str]:
+    """The environment `source install/setup.bash` gives, plus safe discovery settings."""
+    prefix = install / 'handeye_ros'
+    site = next((prefix / 'lib').glob('python3*/site-packages'))
+    env = dict(os.environ)
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    env.update(AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]),
+               PYTHONPATH=str(site), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(1, 101))),
+               PYTHONUNBUFFERED='1')
+    return env
+
+
+def resolve_executable(env: dict[str, str], package: str, executable: str) -> Path:
+    """What `ros2 run package executable` would start."""
+    code = ('import os, sys; from ament_index_python.packages import get_package_prefix; '
+            'base = os.path.join(get_package_prefix(sys.argv[1]), "lib", sys.argv[1]); '
+            'hits = [os.path.join(d, f) for d, ds, fs in os.walk(base) '
+            'for f in fs if f == sys.argv[2] and os.access(os.path.join(d, f), os.X_OK)]; '
+            'print(hits[0] if len(hits) == 1 else "")')
+    out = subprocess.run([sys.executable, '-c', code, package, executable], env=env,
+                         capture_output=True, text=True, check=True).stdout.strip()
+    if not out:
+        raise RuntimeError(f'{package}/{executable} not found as ros2 run would')
+    return Path(out)
+
+
+class Processes:
+    """Starts processes and guarantees none is left behind."""
+
+    def __init__(self, env: dict[str, str], logs: Path):
+        self.env, self.logs = env, logs
+        self.procs: list[tuple[subprocess.Popen, Path, Path]] = []
+
+    def start(self, cmd: list[str], name: str) -> subprocess.Popen:
+        out, err = self.logs / f'{name}.out', self.logs / f'{name}.err'
+        p = subprocess.Popen(cmd, env=self.env, stdout=out.open('w'), stderr=err.open('w'),
+                             start_new_session=True, cwd=self.logs)
+        self.procs.append((p, out, err))
+        return p
+
+    def output(self, p: subprocess.Popen) -> tuple[str, str]:
+        for q, out, err in self.procs:
+            if q is p:
+                return out.read_text(), err.read_text()
+        raise KeyError(p)
+
+    def run_json(self, cmd: list[str], name: str, timeout: float = 120.0) -> object:
+        """Run to completion and parse its last stdout line as JSON."""
+        p = self.start(cmd, name)
+        p.wait(timeout=timeout)
+        out, err = self.output(p)
+        assert p.returncode == 0, f'{name} failed ({p.returncode}):\n{out}\n{err}'
+        return json.loads(out.strip().splitlines()[-1])
+
+    def script(self, script: str, *args: str) -> list[str]:
+        return [sys.executable, str(SCRIPTS / script), *args]
+
+    def stop(self, p: subprocess.Popen, timeout: float = 10.0) -> int:
+        """SIGINT (a clean rclpy shutdown), then SIGKILL if it does not exit."""
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+            try:
+                p.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        return p.returncode
+
+    def stop_all(self) -> None:
+        for p, _, _ in self.procs:
+            self.stop(p)
+        left = [p.pid for p, _, _ in self.procs if p.poll() is None]
+        assert not left, f'processes left behind: {left}'
+
+
+def wait_for(predicate, timeout: float, step: float = 0.05) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step)
+    return predicate()

@@ -1,0 +1,160 @@
+"""offline_calibrate --bag: ROS 2 (mcap, sqlite3) and ROS 1 bags written with rosbags, replayed
+through the node's Recorder. No ROS processes needed here (see test_node.py for those)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handeye_ros.formats.bag import BagWriter, write_recording
+from handeye_ros.stream import PoseBuffer
+
+from conftest import recording, run_cli
+
+
+@pytest.fixture(scope='module')
+def rec():
+    return recording(seed=4, level=3.0, duration_s=40.0)
+
+
+def _bag(tmp_path: Path, rec, storage: str = 'mcap', hand=('/mocap/pose', 'PoseStamped'),
+         eye=('/vio/odom', 'Odometry'), name: str = 'rec') -> Path:
+    path = tmp_path / (name + ('.bag' if storage == 'ros1' else ''))
+    write_recording(path, [(hand[0], hand[1], rec.hand, 'mocap', 'marker'),
+                           (eye[0], eye[1], rec.eye, 'odom', 'imu')], storage)
+    return path
+
+
+def _ok(res) -> dict:
+    assert res.returncode == 0, res.stderr
+    assert 'Traceback' not in res.stderr
+    return json.loads(res.stdout)
+
+
+def _fails(res, *fragments: str) -> None:
+    assert res.returncode == 1, (res.stdout, res.stderr)
+    assert 'Traceback' not in res.stderr
+    for f in fragments:
+        assert f in res.stderr, res.stderr
+
+
+def test_every_storage_and_type_gives_the_same_result(tmp_path: Path, rec) -> None:
+    results = []
+    for storage, hand_type, eye_type in (('mcap', 'PoseStamped', 'Odometry'),
+                                         ('sqlite3', 'TransformStamped',
+                                          'PoseWithCovarianceStamped'),
+                                         ('ros1', 'PoseStamped', 'Odometry')):
+        bag = _bag(tmp_path, rec, storage, ('/mocap/pose', hand_type), ('/vio/odom', eye_type),
+                   name=storage)
+        d = _ok(run_cli('--bag', bag, '--json'))
+        assert d['streams']['hand']['received'] == len(rec.hand)
+        assert d['streams']['eye']['type'].endswith(eye_type)
+        results.append(d)
+    for d in results[1:]:
+        assert d['time_offset'] == results[0]['time_offset']
+        assert d['extrinsic'] == results[0]['extrinsic']
+    assert abs(results[0]['time_offset'] - rec.truth.time_offset_s) < 3e-3
+
+
+def test_bag_equals_text_files(tmp_path: Path, rec) -> None:
+    """The same poses through a bag or TUM files: the same numbers."""
+    from handeye_ros.formats import write_tum
+    write_tum(tmp_path / 'h.txt', rec.hand)
+    write_tum(tmp_path / 'e.txt', rec.eye)
+    a = _ok(run_cli('--hand', tmp_path / 'h.txt', '--eye', tmp_path / 'e.txt', '--json'))
+    b = _ok(run_cli('--bag', _bag(tmp_path, rec), '--json'))
+    assert a['time_offset'] == pytest.approx(b['time_offset'], abs=1e-12)
+    np.testing.assert_allclose(a['extrinsic']['translation'], b['extrinsic']['translation'],
+                               atol=1e-9)
+
+
+def test_topics_picked_by_name_or_listed(tmp_path: Path, rec) -> None:
+    bag = _bag(tmp_path, rec, hand=('/vicon/rig/pose', 'PoseStamped'),
+               eye=('/ov_msckf/odomimu', 'Odometry'))
+    d = _ok(run_cli('--bag', bag, '--json'))
+    assert d['streams']['hand']['topic'] == '/vicon/rig/pose'
+    unclear = _bag(tmp_path, rec, hand=('/a', 'PoseStamped'), eye=('/b', 'Odometry'),
+                   name='unclear')
+    _fails(run_cli('--bag', unclear), 'looks like the hand stream', '--hand-topic', '/a (',
+           '/b (')
+    d = _ok(run_cli('--bag', unclear, '--hand-topic', '/a', '--eye-topic', '/b', '--json'))
+    assert d['streams']['eye']['topic'] == '/b'
+
+
+def test_wrong_topic_empty_bag_unsupported_type(tmp_path: Path, rec) -> None:
+    bag = _bag(tmp_path, rec)
+    _fails(run_cli('--bag', bag, '--hand-topic', '/nope'), 'no topic /nope', '/mocap/pose (')
+    empty = tmp_path / 'empty'
+    with BagWriter(empty):
+        pass
+    _fails(run_cli('--bag', empty), 'holds no messages')
+    imu = tmp_path / 'imu'
+    with BagWriter(imu) as w:
+        T = w.store.types
+        for k in range(5):
+            msg = T['sensor_msgs/msg/Imu'](
+                header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](
+                    sec=k, nanosec=0), frame_id='imu'),
+                orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.zeros(9),
+                angular_velocity=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0),
+                angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0),
+                linear_acceleration_covariance=np.zeros(9))
+            w.write('/imu', 'sensor_msgs/msg/Imu', k * 10 ** 9, msg)
+    _fails(run_cli('--bag', imu, '--hand-topic', '/imu', '--eye-topic', '/imu'),
+           'sensor_msgs/msg/Imu', 'carries no pose')
+    _fails(run_cli('--bag', tmp_path / 'absent'), 'no such bag')
+    (tmp_path / 'junk.bag').write_text('not a bag')
+    _fails(run_cli('--bag', tmp_path / 'junk.bag'), 'cannot be read')
+    _fails(run_cli('--bag', bag, '--hand', 'x.txt'), '--bag PATH')
+
+
+def test_nan_poses_are_rejected_and_reported(tmp_path: Path, rec) -> None:
+    p = rec.eye.p_xyz.copy()
+    p[::25] = np.nan
+    from handeye_ros.core.trajectory import Trajectory
+    bad_eye = Trajectory(rec.eye.t_ns, p, rec.eye.q_xyzw, 'eye')
+    bag = tmp_path / 'nan'
+    write_recording(bag, [('/mocap/pose', 'PoseStamped', rec.hand, 'm', 'h'),
+                          ('/vio/odom', 'Odometry', bad_eye, 'o', 'e')])
+    d = _ok(run_cli('--bag', bag, '--json'))
+    n_bad = int(np.isnan(p[:, 0]).sum())
+    assert d['streams']['eye']['rejected']['non_finite'] == n_bad
+    assert any('rejected' in w and 'non finite' in w for w in d['warnings'])
+
+
+def test_output_bag_holds_the_result(tmp_path: Path, rec) -> None:
+    from rosbags.highlevel import AnyReader
+    out = tmp_path / 'result_bag'
+    d = _ok(run_cli('--bag', _bag(tmp_path, rec), '--json', '--output-bag', out,
+                    '--hand-frame-id', 'marker', '--eye-frame-id', 'body'))
+    with AnyReader([out]) as reader:
+        msgs = {c.topic: reader.deserialize(raw, c.msgtype)
+                for c, _, raw in reader.messages()}
+    tf = msgs['/tf_static'].transforms[0]
+    assert (tf.header.frame_id, tf.child_frame_id) == ('marker', 'body')
+    np.testing.assert_allclose([tf.transform.translation.x, tf.transform.translation.y,
+                                tf.transform.translation.z], d['extrinsic']['translation'])
+    assert msgs['/handeye/time_offset'].data == d['time_offset']
+
+
+def test_buffer_bounds_drop_oldest_and_count() -> None:
+    b = PoseBuffer('b', capacity=100, max_duration_s=2.0)
+    for k in range(1000):
+        assert b.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) is None
+    s = b.stats()
+    assert s.stored == 100 and s.dropped == 900 and s.received == 1000
+    assert b.trajectory().t_ns[0] == 900 * 10_000_000
+    b2 = PoseBuffer('b2', capacity=10_000, max_duration_s=2.0)
+    for k in range(1000):
+        b2.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    assert b2.stats().span_s <= 2.0 and b2.stats().dropped == 1000 - 201
+    assert b2.add(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_not_increasing'
+    assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) == 'zero_quaternion'
+    assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5) == 'non_unit_quaternion'
+    assert b2.stats().rejected == {'non_finite': 0, 'zero_quaternion': 1,
+                                   'non_unit_quaternion': 1, 'stamp_not_increasing': 1}

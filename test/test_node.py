@@ -1,0 +1,149 @@
+"""The calibrator node as users run it: built with colcon, started as `ros2 run` would, fed by
+a separate publisher process, queried by a separate client process, over DDS on localhost."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from handeye_ros.core.simulate import Truth, calibration_error
+
+from ros_support import (Processes, build_workspace, resolve_executable, ros_available,
+                         ros_env, wait_for)
+
+pytestmark = pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed')
+
+
+@pytest.fixture(scope='module')
+def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_workspace(tmp_path_factory.mktemp('ws'))
+
+
+@pytest.fixture
+def ros(install: Path, tmp_path: Path):
+    procs = Processes(ros_env(install), tmp_path)
+    yield procs
+    procs.stop_all()
+
+
+def _params(install: Path) -> Path:
+    return install / 'handeye_ros' / 'share' / 'handeye_ros' / 'config' / 'calibrator.yaml'
+
+
+def _start_node(ros: Processes, install: Path, *params: str, name: str = 'node'):
+    exe = resolve_executable(ros.env, 'handeye_ros', 'calibrator')
+    args = [str(exe), '--ros-args', '--params-file', str(_params(install))]
+    for p in params:
+        args += ['-p', p]
+    return ros.start(args, name)
+
+
+def _call(ros: Processes, *services: str, concurrent: bool = False, name: str = 'client'):
+    return ros.run_json(ros.script('ros_client.py', 'concurrent' if concurrent else 'call',
+                                   *services), name)
+
+
+def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: Path,
+                                                       tmp_path: Path) -> None:
+    saved_path = tmp_path / 'node_result.yaml'
+    node = _start_node(ros, install, f'output_file:={saved_path}')
+    bags = [f'{tmp_path / "rec_mcap"}:mcap', f'{tmp_path / "rec_sqlite"}:sqlite3',
+            f'{tmp_path / "rec.bag"}:ros1']
+    pub = ros.run_json(ros.script('publish_recording.py', '--seed', '3', '--level', '3',
+                                  *[a for b in bags for a in ('--bag', b)]), 'publisher')
+    answer = _call(ros, '/calibrator/calibrate', '/calibrator/save')
+    assert answer[0]['success'], answer
+    assert answer[1]['success'], answer
+    latched = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched')
+    saved = yaml.safe_load(saved_path.read_text())
+
+    # nothing lost on the way: every published message was buffered
+    for s in ('hand', 'eye'):
+        assert saved['streams'][s]['received'] == pub['sent'][s]
+        assert saved['streams'][s]['buffered'] == pub['sent'][s]
+        assert saved['streams'][s]['type'] == pub['types'][s]
+    # the truth, within the noise (level 3: see test_pipeline / test_offline_cli)
+    t = pub['truth']
+    truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
+    err = calibration_error(truth, latched['time_offset'], latched['extrinsic']['rotation'],
+                            latched['extrinsic']['translation'])
+    assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
+    # latched topics, saved file and service answer agree
+    assert latched['time_offset'] == saved['time_offset']
+    np.testing.assert_allclose(latched['extrinsic']['translation'],
+                               saved['extrinsic']['translation'], atol=1e-12)
+    assert (latched['extrinsic']['parent'], latched['extrinsic']['child']) == \
+        ('mocap_marker', 'imu')
+    assert f'time_offset {saved["time_offset"] * 1e3:+.2f} ms' in answer[0]['message']
+    # the bags replayed offline give the same answer as the node did live
+    offline = resolve_executable(ros.env, 'handeye_ros', 'offline_calibrate')
+    for spec in bags:
+        path = spec.rsplit(':', 1)[0]
+        proc = subprocess.run([str(offline), '--bag', path, '--json', '--config',
+                               str(_params(install))], env=ros.env, capture_output=True,
+                              text=True, timeout=120, check=False)
+        assert proc.returncode == 0, proc.stderr
+        d = json.loads(proc.stdout)
+        assert d['time_offset'] == saved['time_offset'], spec
+        assert d['extrinsic'] == saved['extrinsic'], spec
+    assert ros.stop(node) == 0
+
+
+def test_no_data_wrong_topic_and_unsupported_type(ros: Processes, install: Path) -> None:
+    _start_node(ros, install, 'hand_topic:=/wrong/pose')
+    first = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='before')
+    assert not first[0]['success'] and 'no publisher yet' in first[0]['message']
+    assert not first[1]['success'] and 'call calibrate first' in first[1]['message']
+    # an Imu on the hand topic: the node says what it sees instead of waiting forever
+    imu = ros.start([*ros.script('publish_recording.py')[:1], '-c', (
+        'import rclpy, time; from rclpy.node import Node; from sensor_msgs.msg import Imu; '
+        'rclpy.init(); n = Node("imu_pub"); p = n.create_publisher(Imu, "/wrong/pose", 10); '
+        'end = time.time() + 30\n'
+        'while time.time() < end: p.publish(Imu()); time.sleep(0.05)')], 'imu')
+    assert wait_for(lambda: 'sensor_msgs/msg/Imu' in _call(
+        ros, '/calibrator/calibrate', name='after')[0]['message'], timeout=10.0, step=0.5)
+    answer = _call(ros, '/calibrator/calibrate', name='last')[0]
+    assert not answer['success'] and 'carries no pose' in answer['message']
+    ros.stop(imu)
+
+
+def test_nan_on_the_wire_busy_refusal_and_reset(ros: Processes, install: Path,
+                                                tmp_path: Path) -> None:
+    # many RANSAC hypotheses make one calibration last seconds, so calls overlap for sure
+    saved_path = tmp_path / 'r.yaml'
+    _start_node(ros, install, 'ransac_iterations:=60000', f'output_file:={saved_path}')
+    pub = ros.run_json(ros.script('publish_recording.py', '--seed', '5', '--level', '2',
+                                  '--nan-every', '10'), 'publisher')
+    both = _call(ros, '/calibrator/calibrate', '/calibrator/calibrate', concurrent=True)
+    assert sorted(a['success'] for a in both) == [False, True], both
+    refused = next(a for a in both if not a['success'])
+    assert 'already running' in refused['message']
+    assert _call(ros, '/calibrator/save', name='save')[0]['success']
+    saved = yaml.safe_load(saved_path.read_text())
+    n_nan = pub['sent']['eye'] // 10
+    assert saved['streams']['eye']['rejected']['non_finite'] == n_nan
+    assert saved['streams']['eye']['buffered'] == pub['sent']['eye'] - n_nan
+    assert any('non finite' in w for w in saved['warnings'])
+    # reset while a calibration runs: both answer, the calibration on its own copy
+    calib_reset = _call(ros, '/calibrator/calibrate', '/calibrator/reset', concurrent=True,
+                        name='calib_reset')
+    assert calib_reset[0]['success'] and calib_reset[1]['success'], calib_reset
+    after = _call(ros, '/calibrator/calibrate', name='after_reset')[0]
+    assert not after['success'] and '0 pose(s) buffered' in after['message']
+
+
+@pytest.mark.parametrize(('param', 'fragment'), [
+    ('eta:=-1.0', 'eta'), ('eta:=five', 'eta'), ('qos_reliability:=sometimes', 'qos_reliability'),
+    ('hand_type:=Imu', 'hand_type'), ('buffer_size:=1', 'buffer_size')])
+def test_invalid_parameters_are_refused_at_start(ros: Processes, install: Path, param: str,
+                                                 fragment: str) -> None:
+    node = _start_node(ros, install, param)
+    node.wait(timeout=30)
+    out, err = ros.output(node)
+    assert node.returncode == 1, (out, err)
+    assert fragment in err and 'Traceback' not in err, err

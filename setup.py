@@ -36,6 +36,7 @@ setup(
         'console_scripts': [
             'calibrator = handeye_ros.ros.node:main',
             'offline_calibrate = handeye_ros.offline:main',
+            'sim_publisher = handeye_ros.ros.sim_publisher:main',
             'demo = handeye_ros.demo:main',
         ],
     },

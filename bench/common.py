@@ -18,9 +18,9 @@ def table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -
     """A plain-text table (also written to bench/out/<title>.txt by :func:`emit`)."""
     cells = [[str(c) for c in header]] + [[_fmt(c) for c in row] for row in rows]
     widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
-    lines = [title, '  '.join(h.rjust(w) for h, w in zip(cells[0], widths)),
+    lines = [title, '  '.join(h.rjust(w) for h, w in zip(cells[0], widths, strict=True)),
              '  '.join('-' * w for w in widths)]
-    lines += ['  '.join(c.rjust(w) for c, w in zip(r, widths)) for r in cells[1:]]
+    lines += ['  '.join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells[1:]]
     return '\n'.join(lines)
 
 

@@ -97,11 +97,13 @@ def main() -> None:
             ours = errs['ours (dt estimated)']
             bt = min(cv_rows, key=lambda r: r[1])
             br = min(cv_rows, key=lambda r: r[2])
+            def ratio(a: float, b: float) -> str:
+                return f'{a / b:.2f}' if b > 1e-6 else 'n/a (OpenCV exact)'
             lines += (f'\nbest OpenCV: translation {bt[1]:.1f} mm ({bt[0]}), rotation '
                       f'{br[2]:.3f} deg ({br[0]})\nours / best OpenCV: translation '
-                      f'{ours[:, 1].mean() * 1e3 / bt[1]:.2f}, rotation '
-                      f'{ours[:, 2].mean() / br[2]:.2f} (target <= 0.5 at level 10); ours |dt| '
-                      f'{ours[:, 0].mean() * 1e3:.3f} ms')
+                      f'{ratio(ours[:, 1].mean() * 1e3, bt[1])}, rotation '
+                      f'{ratio(ours[:, 2].mean(), br[2])} (target <= 0.5 at level 10); ours '
+                      f'|dt| {ours[:, 0].mean() * 1e3:.3f} ms')
         emit(f'opencv_level{level:g}', lines + f'\n({time.perf_counter() - t0:.1f} s)')
 
 

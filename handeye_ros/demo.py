@@ -2,14 +2,16 @@
 
 A 60 s hand-held motion is simulated with the paper's protocol (MoCap 100 Hz, VIO 20 Hz with
 frame-wise cumulative error at ``--level``, a random time offset, extrinsic and world alignment),
-written as TUM files, calibrated by the offline tool exactly as a user would run it, and the
-result printed beside the truth.
+written as a ROS 2 bag (mcap: geometry_msgs/PoseStamped on /mocap/pose, nav_msgs/Odometry on
+/vio/odom; or TUM files with ``--text``), calibrated by the offline tool exactly as a user would
+run it, and the result printed beside the truth.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -19,6 +21,7 @@ import numpy as np
 from . import offline
 from .core.simulate import calibration_error, noise_level, simulate
 from .formats import write_tum
+from .formats.bag import write_recording
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -29,6 +32,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="eye noise level of the paper's protocol, 0-10 (0.5 mm / 0.02 deg each)")
     p.add_argument('--duration', type=float, default=60.0, help='seconds of motion')
     p.add_argument('--keep', metavar='DIR', help='write the files into DIR and keep them')
+    p.add_argument('--text', action='store_true', help='TUM text files instead of a bag')
     args = p.parse_args(argv)
 
     noise_m, noise_deg = noise_level(args.level)
@@ -36,14 +40,26 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.keep or tmp)
         out.mkdir(parents=True, exist_ok=True)
-        hand, eye, res = out / 'hand_mocap.txt', out / 'eye_vio.txt', out / 'result.json'
-        write_tum(hand, rec.hand)
-        write_tum(eye, rec.eye)
-        print(f'simulated {args.duration:.0f} s: hand {len(rec.hand)} poses at 100 Hz, eye '
-              f'{len(rec.eye)} poses at 20 Hz with noise level {args.level:g} '
-              f'({noise_m * 1e3:.1f} mm / {noise_deg:.2f} deg per frame, cumulative)')
-        print(f'$ offline_calibrate --hand {hand} --eye {eye} -o {res}\n')
-        code = offline.main(['--hand', str(hand), '--eye', str(eye), '-o', str(res)])
+        res = out / 'result.json'
+        what = (f'hand {len(rec.hand)} poses at 100 Hz, eye {len(rec.eye)} poses at 20 Hz with '
+                f'noise level {args.level:g} ({noise_m * 1e3:.1f} mm / {noise_deg:.2f} deg per '
+                'frame, cumulative)')
+        if args.text:
+            hand, eye = out / 'hand_mocap.txt', out / 'eye_vio.txt'
+            write_tum(hand, rec.hand)
+            write_tum(eye, rec.eye)
+            cmd = ['--hand', str(hand), '--eye', str(eye), '-o', str(res)]
+        else:
+            bag = out / 'recording'
+            if bag.exists():
+                shutil.rmtree(bag)
+            write_recording(bag, [('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
+                                  ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')], 'mcap')
+            what += ' -> bag with /mocap/pose (PoseStamped) and /vio/odom (Odometry)'
+            cmd = ['--bag', str(bag), '-o', str(res)]
+        print(f'simulated {args.duration:.0f} s: {what}')
+        print(f'$ offline_calibrate {" ".join(cmd)}\n')
+        code = offline.main(cmd)
         if code:
             return code
         result = json.loads(res.read_text())

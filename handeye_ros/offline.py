@@ -20,15 +20,32 @@ from typing import Any
 
 LOG = logging.getLogger('handeye_ros')
 
-#: Command-line options that are configuration keys (CalibrationConfig and StreamConfig).
-OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id', 'eta', 'mu', 'relative_poses', 'robust_kernel', 'peak_fit', 'time_offset',
-               'time_offset_guess', 'max_time_offset', 'resample_rate_hz', 'ransac_iterations',
-               'inlier_rotation', 'inlier_translation', 'adaptive_inliers', 'decoupled_refit',
-               'min_motions', 'seed')
+#: Stream options given on the command line (the algorithm ones come from their specs).
+STREAM_OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id')
+
+
+def add_options(group: Any, cls: Any) -> None:
+    """Command-line options generated from an option set's specs (names, help, types)."""
+    defaults = cls().to_dict()
+    for name, spec in cls.specs().items():
+        flag = name.replace('_', '-')
+        if spec.kind == 'bool':
+            on = not defaults[name]
+            group.add_argument(f'--{flag}' if on else f'--no-{flag}', dest=name,
+                               action='store_const', const=on,
+                               help=f'{"" if on else "do not: "}{spec.description}')
+            continue
+        default = 'estimated/automatic' if defaults[name] is None else defaults[name]
+        rng = spec.range_text() if not spec.choices else ''
+        group.add_argument(f'--{flag}', dest=name, choices=spec.choices or None,
+                           type={'float': float, 'int': int, 'str': str}[spec.kind],
+                           metavar=None if spec.choices else name.split('_')[-1].upper(),
+                           help=f'{spec.description} (default {default}{", " + rng if rng else ""})')
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (kept apart from the heavy imports so --help is instant)."""
+    """The argument parser (kept apart from numpy and scipy so that --help is instant)."""
+    from .core.config import CalibrationConfig
     p = argparse.ArgumentParser(
         prog='offline_calibrate',
         description='Estimate the time offset dt and the extrinsic T_HE between a MoCap '
@@ -65,40 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help='options file: a flat mapping or the node\'s params file '
                           '(<node>: ros__parameters: ...); command-line options override it')
     out.add_argument('-v', '--verbose', action='store_true', help='log stage timings')
-    alg = p.add_argument_group('algorithm (defaults: the paper\'s)')
-    alg.add_argument('--time-offset', type=float, metavar='S',
-                     help='fix dt (s) instead of estimating it')
-    alg.add_argument('--time-offset-guess', type=float, metavar='S',
-                     help='centre of the dt search window (s, default 0)')
-    alg.add_argument('--max-time-offset', type=float, metavar='S',
-                     help='half-width of the dt search window (s, default 0.5)')
-    alg.add_argument('--resample-rate-hz', type=float, metavar='HZ',
-                     help='correlation grid rate (default: faster stream, at most 200 Hz)')
-    alg.add_argument('--peak-fit', choices=('quadratic', 'none'),
-                     help='sub-sample peak fit (default quadratic) or integer peak')
-    alg.add_argument('--relative-poses', choices=('rotation', 'global', 'interframe'),
-                     help='how motions are built (default rotation-constrained keyframes)')
-    alg.add_argument('--eta', type=float, metavar='DEG',
-                     help='minimum keyframe rotation, degrees (default 5)')
-    alg.add_argument('--no-robust-kernel', dest='robust_kernel', action='store_const',
-                     const=False, help='do not weight motions by the screw-congruence kernel')
-    alg.add_argument('--mu', type=float, help='robust kernel sharpness (default 5)')
-    alg.add_argument('--ransac-iterations', type=int, metavar='N',
-                     help='RANSAC hypotheses (default 200, 0 disables RANSAC)')
-    alg.add_argument('--inlier-rotation', type=float, metavar='DEG',
-                     help='RANSAC rotation threshold, degrees (default 0.5)')
-    alg.add_argument('--inlier-translation', type=float, metavar='M',
-                     help='RANSAC translation threshold, metres (default 0.02)')
-    alg.add_argument('--no-adaptive-inliers', dest='adaptive_inliers', action='store_const',
-                     const=False, help='keep the RANSAC thresholds fixed for the final '
-                                       'consensus instead of adapting them to the noise')
-    alg.add_argument('--no-decoupled-refit', dest='decoupled_refit', action='store_const',
-                     const=False, help='keep the dual-quaternion solution instead of '
-                                       're-estimating rotation and translation apart on the '
-                                       'final consensus')
-    alg.add_argument('--min-motions', type=int, metavar='N',
-                     help='fewest relative motions accepted (default 10)')
-    alg.add_argument('--seed', type=int, help='RANSAC seed (default 0)')
+    alg = p.add_argument_group('algorithm (defaults: the paper\'s; same names as the node\'s '
+                               'parameters)')
+    add_options(alg, CalibrationConfig)
     return p
 
 
@@ -150,7 +136,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if (args.bag and files) or (not args.bag and not (args.hand and args.eye)):
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
     options = load_options(args.config)
-    options.update({k: getattr(args, k) for k in OPTION_KEYS if getattr(args, k) is not None})
+    from .core.config import CalibrationConfig
+    keys = (*STREAM_OPTION_KEYS, *CalibrationConfig.specs())
+    options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
     calib, streams = split_options(options, source=args.config or 'options')
     frames = {'hand_frame': streams.hand_frame_id, 'eye_frame': streams.eye_frame_id}
     if args.bag:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -43,9 +44,12 @@ def _start_node(ros: Processes, install: Path, *params: str, name: str = 'node')
     return ros.start(args, name)
 
 
-def _call(ros: Processes, *services: str, concurrent: bool = False, name: str = 'client'):
-    return ros.run_json(ros.script('ros_client.py', 'concurrent' if concurrent else 'call',
-                                   *services), name)
+def _publisher(ros: Processes, *args: str) -> list[str]:
+    return [str(resolve_executable(ros.env, 'handeye_ros', 'sim_publisher')), *args]
+
+
+def _call(ros: Processes, *services: str, mode: str = 'call', name: str = 'client'):
+    return ros.run_json(ros.script('ros_client.py', mode, *services), name)
 
 
 def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: Path,
@@ -54,7 +58,7 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     node = _start_node(ros, install, f'output_file:={saved_path}')
     bags = [f'{tmp_path / "rec_mcap"}:mcap', f'{tmp_path / "rec_sqlite"}:sqlite3',
             f'{tmp_path / "rec.bag"}:ros1']
-    pub = ros.run_json(ros.script('publish_recording.py', '--seed', '3', '--level', '3',
+    pub = ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '500',
                                   *[a for b in bags for a in ('--bag', b)]), 'publisher')
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save')
     assert answer[0]['success'], answer
@@ -100,7 +104,7 @@ def test_no_data_wrong_topic_and_unsupported_type(ros: Processes, install: Path)
     assert not first[0]['success'] and 'no publisher yet' in first[0]['message']
     assert not first[1]['success'] and 'call calibrate first' in first[1]['message']
     # an Imu on the hand topic: the node says what it sees instead of waiting forever
-    imu = ros.start([*ros.script('publish_recording.py')[:1], '-c', (
+    imu = ros.start([sys.executable, '-c', (
         'import rclpy, time; from rclpy.node import Node; from sensor_msgs.msg import Imu; '
         'rclpy.init(); n = Node("imu_pub"); p = n.create_publisher(Imu, "/wrong/pose", 10); '
         'end = time.time() + 30\n'
@@ -116,21 +120,20 @@ def test_nan_on_the_wire_busy_refusal_and_reset(ros: Processes, install: Path,
                                                 tmp_path: Path) -> None:
     # many RANSAC hypotheses make one calibration last seconds, so calls overlap for sure
     saved_path = tmp_path / 'r.yaml'
-    _start_node(ros, install, 'ransac_iterations:=60000', f'output_file:={saved_path}')
-    pub = ros.run_json(ros.script('publish_recording.py', '--seed', '5', '--level', '2',
+    _start_node(ros, install, 'ransac_iterations:=100000', f'output_file:={saved_path}')
+    pub = ros.run_json(_publisher(ros, '--seed', '5', '--level', '2', '--rate', '500',
                                   '--nan-every', '10'), 'publisher')
-    both = _call(ros, '/calibrator/calibrate', '/calibrator/calibrate', concurrent=True)
-    assert sorted(a['success'] for a in both) == [False, True], both
-    refused = next(a for a in both if not a['success'])
-    assert 'already running' in refused['message']
+    both = _call(ros, '/calibrator/calibrate', '/calibrator/calibrate', mode='staggered')
+    assert both[0]['success'] and not both[1]['success'], both
+    assert 'already running' in both[1]['message']
     assert _call(ros, '/calibrator/save', name='save')[0]['success']
     saved = yaml.safe_load(saved_path.read_text())
     n_nan = pub['sent']['eye'] // 10
     assert saved['streams']['eye']['rejected']['non_finite'] == n_nan
     assert saved['streams']['eye']['buffered'] == pub['sent']['eye'] - n_nan
     assert any('non finite' in w for w in saved['warnings'])
-    # reset while a calibration runs: both answer, the calibration on its own copy
-    calib_reset = _call(ros, '/calibrator/calibrate', '/calibrator/reset', concurrent=True,
+    # reset while a calibration runs (0.3 s into it): both answer, the calibration on its copy
+    calib_reset = _call(ros, '/calibrator/calibrate', '/calibrator/reset', mode='staggered',
                         name='calib_reset')
     assert calib_reset[0]['success'] and calib_reset[1]['success'], calib_reset
     after = _call(ros, '/calibrator/calibrate', name='after_reset')[0]

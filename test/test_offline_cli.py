@@ -189,5 +189,6 @@ def test_help_and_module_entry() -> None:
     _ok(res)
     text = ' '.join(res.stdout.split())  # argparse wraps lines
     assert '--relative-poses' in text and 'T_WE(t) = T_WG * T_GH(t - dt) * T_HE' in text
-    res = run_cli('--hand', 'x')  # argparse usage errors exit 2, without a traceback
-    assert res.returncode == 2 and 'Traceback' not in res.stderr
+    _fails(run_cli('--hand', 'x'), '--hand FILE and --eye FILE, or --bag PATH')
+    res = run_cli('--hand', 'x', '--eta', 'five')  # argparse usage errors exit 2
+    assert res.returncode == 2 and 'Traceback' not in res.stderr and '--eta' in res.stderr

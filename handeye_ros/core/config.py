@@ -9,10 +9,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .keyframes import STRATEGIES
 from .options import Options, option
 
 PEAK_FITS = ('quadratic', 'none')
+#: Relative-pose strategies (see :mod:`.keyframes`); kept here so that reading the options
+#: does not import numpy and scipy (instant --help).
+STRATEGIES = ('rotation', 'global', 'interframe')
 
 
 @dataclass(frozen=True)

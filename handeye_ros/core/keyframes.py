@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .config import STRATEGIES
 from .geometry import rotation_angle
 
-STRATEGIES = ('rotation', 'global', 'interframe')
 
 
 def motion_indices(R: np.ndarray, strategy: str = 'rotation',

@@ -418,7 +418,8 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
                         'constrained; rotate about more different axes')
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
     return LinearSolution(
-        q_HE=q_HE, p_HE=p_HE, q_HE_dq=q_dq, p_HE_dq=p_dq, sigma_ratio=ratio_best, singular_values=sigma_best,
+        q_HE=q_HE, p_HE=p_HE, q_HE_dq=q_dq, p_HE_dq=p_dq, sigma_ratio=ratio_best,
+        singular_values=sigma_best,
         n_motions=n, n_inliers=int(inliers.sum()), inliers=inliers, axis_spread_deg=spread,
         rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),

@@ -40,8 +40,10 @@ class Spec:
             return ' | '.join(self.choices)
         if self.low is None and self.high is None:
             return ''
-        lo = '-inf' if self.low is None else f'{self.low:g}'
-        hi = 'inf' if self.high is None else f'{self.high:g}'
+        def num(v: float) -> str:
+            return f'{int(v):d}' if self.kind == 'int' else f'{v:g}'
+        lo = '-inf' if self.low is None else num(self.low)
+        hi = 'inf' if self.high is None else num(self.high)
         return f'{"(" if self.open_low else "["}{lo}, {hi}{"]" if self.high is not None else ")"}'
 
 

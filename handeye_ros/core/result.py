@@ -56,7 +56,8 @@ class CalibrationResult:
         return (f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
                 f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
                 f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
-                f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, ARE {self.metrics.are_rmse_deg:.2f} deg'
+                f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
+                f'ARE {self.metrics.are_rmse_deg:.2f} deg'
                 + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
 
     def to_dict(self, hand_frame: str = 'hand', eye_frame: str = 'eye',

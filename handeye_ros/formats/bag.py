@@ -177,7 +177,7 @@ def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
     """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes)."""
     T = store.types
     msgtype = normalise_type(msgtype)
-    for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist()):
+    for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
         header = T['std_msgs/msg/Header'](stamp=_stamp(store, t), frame_id=frame_id)
         point = T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2])
         quat = T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])

@@ -77,7 +77,7 @@ def write_tum(path: str | Path, traj: Trajectory) -> None:
     sec, nsec = np.divmod(traj.t_ns, 1_000_000_000)
     with Path(path).open('w') as f:
         f.write('# timestamp[s] tx ty tz qx qy qz qw\n')
-        for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw):
+        for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw, strict=True):
             f.write(f'{s}.{ns:09d} {p[0]:.9f} {p[1]:.9f} {p[2]:.9f} '
                     f'{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n')
 
@@ -86,7 +86,7 @@ def write_euroc(path: str | Path, traj: Trajectory) -> None:
     """Write a EuRoC ground-truth style CSV (quaternion ``w x y z``)."""
     with Path(path).open('w') as f:
         f.write('#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []\n')
-        for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw):
+        for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True):
             f.write(f'{t},{p[0]:.9f},{p[1]:.9f},{p[2]:.9f},'
                     f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n')
 
@@ -128,7 +128,7 @@ def _check_columns(path: Path, numbers: list[int], rows: list[str], sep: str | N
                    fmt: str) -> None:
     """Refuse the first line with too few columns (or, for TUM, a count other than 8)."""
     want = 8
-    for number, row in zip(numbers, rows):
+    for number, row in zip(numbers, rows, strict=True):
         n = len(row.split(sep))
         if n < want or (fmt == 'tum' and n != want):
             msg = (f'{path}, line {number}: {n} columns; a {fmt.upper()} line has '
@@ -142,7 +142,7 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
     """Find the first malformed line and raise an InputError naming it."""
     _check_columns(path, numbers, rows, sep, fmt)
     first = len(rows[0].split(sep))
-    for number, row in zip(numbers, rows):
+    for number, row in zip(numbers, rows, strict=True):
         tokens = [t.strip() for t in row.split(sep)]
         if len(tokens) != first:
             msg = (f'{path}, line {number}: {len(tokens)} columns where the first data line '

@@ -2,6 +2,7 @@
 
 Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
        ros_client.py concurrent SERVICE SERVICE ...  (all sent at once, answers in order)
+       ros_client.py staggered SERVICE SERVICE ...   (sent 0.3 s apart, without waiting)
        ros_client.py latched                          (/calibrator/extrinsic and time_offset)
 """
 
@@ -21,14 +22,20 @@ from std_srvs.srv import Trigger
 TIMEOUT_S = 60.0
 
 
-def call(node: Node, names: list[str], concurrent: bool) -> list[dict]:
+def call(node: Node, names: list[str], concurrent: bool, gap_s: float = 0.0) -> list[dict]:
     clients = [node.create_client(Trigger, n) for n in names]
-    for c, n in zip(clients, names):
+    for c, n in zip(clients, names, strict=True):
         if not c.wait_for_service(timeout_sec=TIMEOUT_S):
             return [{'error': f'service {n} not available'}]
     out = []
     if concurrent:
-        futures = [c.call_async(Trigger.Request()) for c in clients]
+        futures = []
+        for c in clients:
+            if futures and gap_s:
+                end = time.monotonic() + gap_s
+                while time.monotonic() < end:
+                    rclpy.spin_once(node, timeout_sec=0.05)
+            futures.append(c.call_async(Trigger.Request()))
         for f in futures:
             rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
         return [{'success': f.result().success, 'message': f.result().message} for f in futures]
@@ -65,7 +72,8 @@ def main() -> int:
     if mode == 'latched':
         out = latched(node)
     else:
-        out = call(node, names, concurrent=(mode == 'concurrent'))
+        out = call(node, names, concurrent=mode in ('concurrent', 'staggered'),
+                   gap_s=0.3 if mode == 'staggered' else 0.0)
     print(json.dumps(out), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()

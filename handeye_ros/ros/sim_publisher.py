@@ -1,7 +1,12 @@
-"""Publish a simulated recording on a hand and an eye topic (run as its own process).
+"""A simulated MoCap + VIO rig on two topics, to try the calibrator node without hardware.
 
-Prints one JSON line when done: the truth and how many messages went out per topic. With
---bag PATH[:storage] it first writes the very same messages to bags, for the offline tool.
+``ros2 run handeye_ros sim_publisher [--seed 3 --level 3 --duration 40 ...]``
+
+Simulates a recording with the paper's protocol (see ``handeye_ros.core.simulate``), waits for
+subscribers, publishes the hand and eye poses interleaved by stamp at ``--rate`` messages per
+second (stamps are the recording's, not the wall clock's), and prints one JSON line when done:
+the truth and how many messages went out per topic. ``--bag PATH[:mcap|sqlite3|ros1]`` also
+writes the very same messages to a bag, for ``offline_calibrate --bag``.
 """
 
 from __future__ import annotations
@@ -43,7 +48,7 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(prog='sim_publisher', description=__doc__.split('\n')[0])
     ap.add_argument('--seed', type=int, default=3)
     ap.add_argument('--level', type=float, default=3.0)
     ap.add_argument('--duration', type=float, default=40.0)

@@ -1,0 +1,199 @@
+"""The node and the bag replay under load (issue figures; printed, not asserted).
+
+(a) Ingest: a separate publisher process sends a 1 kHz hand and a 200 Hz eye for 60 s in real
+    time; the node's received counts against the published ones, and its resident memory over
+    time with buffer_duration 20 s (the buffers fill after 20 s, then drop the oldest).
+(b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while the publisher keeps sending: the
+    service round trip, and whether anything was lost meanwhile.
+(c) Offline: a 10-minute mcap bag (200 Hz + 30 Hz) calibrated end to end by offline_calibrate.
+
+Every rclpy process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST on a random domain.
+Usage: python bench/node_ingest.py [--skip a b c]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import common
+from common import emit, table
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.pop('ROS_LOCALHOST_ONLY', None)
+os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 101)))
+ENV = dict(os.environ, PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
+           PYTHONUNBUFFERED='1')
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024
+    return float('nan')
+
+
+class Probe:
+    """An rclpy node in this process: latest /diagnostics and Trigger calls."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from std_srvs.srv import Trigger
+        rclpy.init()
+        self.rclpy, self.Trigger = rclpy, Trigger
+        self.node = Node('bench_probe')
+        self.diag: dict[str, dict[str, str]] = {}
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
+        self.client = self.node.create_client(Trigger, '/calibrator/calibrate')
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _on_diag(self, msg) -> None:
+        for st in msg.status:
+            self.diag[st.name.rsplit(': ', 1)[-1]] = {kv.key: kv.value for kv in st.values}
+
+    def stream(self, name: str) -> dict[str, str]:
+        return self.diag.get(f'{name} stream', {})
+
+    def calibrate(self) -> tuple[float, bool, str]:
+        self.client.wait_for_service(timeout_sec=30.0)
+        t0 = time.perf_counter()
+        fut = self.client.call_async(self.Trigger.Request())
+        while not fut.done():
+            time.sleep(0.001)
+        return time.perf_counter() - t0, fut.result().success, fut.result().message
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.rclpy.try_shutdown()
+
+
+def start(module: str, *args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, '-m', module, *args], env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def stop(p: subprocess.Popen) -> None:
+    if p.poll() is None:
+        p.send_signal(signal.SIGINT)
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+
+
+def sent_counts(pub: subprocess.Popen) -> dict:
+    import json
+    out, err = pub.communicate(timeout=600)
+    return json.loads(out.strip().splitlines()[-1])['sent']
+
+
+def ingest(probe: Probe) -> None:
+    node = start('handeye_ros.ros.node', '--ros-args', '-p', 'buffer_duration:=20.0')
+    time.sleep(1.0)
+    pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '1000', '--eye-rate', '200',
+                '--duration', '60', '--rate', '1200', '--level', '2')
+    samples = []
+    t0 = time.monotonic()
+    while pub.poll() is None:
+        samples.append((time.monotonic() - t0, rss_mb(node.pid)))
+        time.sleep(1.0)
+    sent = sent_counts(pub)
+    time.sleep(2.0)  # a diagnostics period
+    rows = []
+    for s in ('hand', 'eye'):
+        d = probe.stream(s)
+        rows.append([s, sent[s], d.get('received'), sent[s] - int(d.get('received', 0)),
+                     d.get('buffered'), d.get('dropped'), d.get('rate_hz')])
+    stop(node)
+    emit('node_ingest', table(
+        '(a) Ingest 1 kHz hand + 200 Hz eye for 60 s from a separate process '
+        '(buffer_duration 20 s)', ['stream', 'published', 'received', 'lost', 'buffered',
+                                   'dropped (buffer)', 'rate Hz'], rows))
+    marks = [s for s in samples if int(s[0]) in (2, 10, 20, 30, 40, 50, 60)]
+    emit('node_memory', table('(a) Node resident memory during ingest',
+                              ['t s', 'RSS MB'], [[f'{t:.0f}', m] for t, m in marks]))
+
+
+def calibrate_while_ingesting(probe: Probe) -> None:
+    node = start('handeye_ros.ros.node')
+    time.sleep(1.0)
+    pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '200', '--eye-rate', '30',
+                '--duration', '400', '--rate', '1500', '--level', '3')
+    while pub.poll() is None and float(probe.stream('eye').get('buffered_span_s', 0)) < 300.0:
+        time.sleep(0.2)
+    before = {s: int(probe.stream(s).get('received', 0)) for s in ('hand', 'eye')}
+    took, ok, message = probe.calibrate()
+    time.sleep(1.5)
+    during = {s: int(probe.stream(s).get('received', 0)) - before[s] for s in ('hand', 'eye')}
+    sent = sent_counts(pub)
+    time.sleep(2.0)
+    lost = {s: sent[s] - int(probe.stream(s).get('received', 0)) for s in ('hand', 'eye')}
+    stop(node)
+    emit('node_calibrate', table(
+        '(b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while ingest continues '
+        '(1500 msg/s)', ['round trip s', 'success', 'msgs received meanwhile', 'lost overall',
+                         'answer'],
+        [[took, ok, f'{during["hand"]} + {during["eye"]}', f'{lost["hand"]} + {lost["eye"]}',
+          message[:60]]]))
+
+
+def offline_bag() -> None:
+    from handeye_ros.core.simulate import noise_level, simulate
+    from handeye_ros.formats.bag import write_recording
+    nm, nd = noise_level(3)
+    rec = simulate(2, duration_s=600, hand_rate_hz=200, eye_rate_hz=30, noise_m=nm,
+                   noise_deg=nd)
+    with tempfile.TemporaryDirectory() as tmp:
+        bag = Path(tmp) / 'ten_minutes'
+        write_recording(bag, [('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
+                              ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')], 'mcap')
+        size = sum(f.stat().st_size for f in bag.iterdir()) / 2 ** 20
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, '-m', 'handeye_ros.offline', '--bag', str(bag),
+                               '--json', '--no-progress'], env=ENV, capture_output=True,
+                              text=True, check=True)
+        took = time.perf_counter() - t0
+    import json
+    d = json.loads(proc.stdout)
+    emit('offline_bag', table(
+        '(c) offline_calibrate --bag on a 10-minute mcap bag (200 Hz + 30 Hz), end to end '
+        '(process start to result)', ['messages', 'bag MB', 'wall s', '|dt error| ms'],
+        [[len(rec.hand) + len(rec.eye), size, took,
+          abs(d['time_offset'] - rec.truth.time_offset_s) * 1e3]]))
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    p.add_argument('--skip', nargs='*', default=[], choices=['a', 'b', 'c'])
+    args = p.parse_args()
+    if 'c' not in args.skip:
+        offline_bag()
+    if {'a', 'b'} - set(args.skip):
+        probe = Probe()
+        try:
+            if 'a' not in args.skip:
+                ingest(probe)
+            if 'b' not in args.skip:
+                calibrate_while_ingesting(probe)
+        finally:
+            probe.close()
+
+
+if __name__ == '__main__':
+    main()

@@ -78,6 +78,7 @@ class Probe:
 
     def close(self) -> None:
         self.executor.shutdown()
+        self.thread.join(timeout=5.0)
         self.node.destroy_node()
         self.rclpy.try_shutdown()
 

@@ -40,7 +40,8 @@ def add_options(group: Any, cls: Any) -> None:
         group.add_argument(f'--{flag}', dest=name, choices=spec.choices or None,
                            type={'float': float, 'int': int, 'str': str}[spec.kind],
                            metavar=None if spec.choices else name.split('_')[-1].upper(),
-                           help=f'{spec.description} (default {default}{", " + rng if rng else ""})')
+                           help=f'{spec.description} (default {default}'
+                                f'{", " + rng if rng else ""})')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -145,9 +146,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         from .formats.bag import replay
         rec = replay(args.bag, streams, given={s: f'{s}_topic' in options for s in ('hand', 'eye')},
                      progress=args.progress)
-        result = rec.calibrate(calib)
-        out = result.to_dict(**frames)
-        out['streams'] = rec.stream_dict()
+        out = rec.calibrate(calib)
         out['inputs']['bag'] = str(args.bag)
     else:
         from .core.pipeline import calibrate
@@ -158,9 +157,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                  len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
         result = calibrate(hand, eye, calib)
         out = result.to_dict(**frames)
+        out['summary'] = result.summary()
     if args.output_bag:
         from .formats.bag import write_result_bag
-        write_result_bag(args.output_bag, out, int(result.eye.t_ns[-1]), args.output_bag_storage)
+        last_eye_ns = out['inputs']['eye']['first_stamp_ns'] + int(
+            out['inputs']['eye']['duration_s'] * 1e9)
+        write_result_bag(args.output_bag, out, last_eye_ns, args.output_bag_storage)
     return out
 
 

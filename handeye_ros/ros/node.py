@@ -4,8 +4,16 @@
 
 Subscriptions feed a :class:`~handeye_ros.stream.Recorder` (the same conversion and buffers the
 offline bag replay uses). Services (std_srvs/Trigger): ``~/calibrate`` runs the core on a copy
-of the buffers in a service thread while the subscriptions keep flowing (a second call while
+of the buffers in a worker thread while the subscriptions keep flowing (a second call while
 one runs is refused), ``~/reset`` empties the buffers, ``~/save`` writes the last result.
+
+Concurrency: one single-threaded executor runs every callback (rclpy's multi-threaded executor
+costs so much per callback that a 1 kHz stream overruns it). ``~/calibrate`` is a coroutine:
+it snapshots the buffers, hands the snapshot to a worker *process* and awaits the result, so
+the executor keeps taking messages meanwhile. A process rather than a thread: at 1 kHz the
+executor holds the GIL most of the time, and a calibration thread beside it ran ten times
+slower. The worker is forked from a forkserver that has the core imported, so a call pays
+no start-up.
 Results go out on latched topics ``~/extrinsic`` (TransformStamped, hand frame -> eye frame)
 and ``~/time_offset`` (Float64, s, eye clock minus hand clock), and as a static transform when
 tf2_ros is importable. Status goes to /diagnostics.
@@ -13,7 +21,9 @@ tf2_ros is importable. Status goes to /diagnostics.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import importlib
+import multiprocessing
 import signal
 import sys
 import threading
@@ -25,17 +35,18 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import (InvalidParameterTypeException, InvalidParameterValueException,
                               ParameterException)
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from ..core.config import CalibrationConfig
-from ..core.errors import ConfigError, HandeyeError
+from ..core.errors import ConfigError, HandeyeError, InputError
 from ..core.options import Spec
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
@@ -92,17 +103,20 @@ class CalibratorNode(Node):
         self._started = time.monotonic()
         self._type_warned = dict.fromkeys(STREAMS, self._started)
 
-        services = ReentrantCallbackGroup()
         self.pub_extrinsic = self.create_publisher(TransformStamped, '~/extrinsic', LATCHED)
         self.pub_offset = self.create_publisher(Float64, '~/time_offset', LATCHED)
         self.pub_cov = self.create_publisher(PoseWithCovarianceStamped,
                                              '~/extrinsic_with_covariance', LATCHED)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_service(Trigger, '~/calibrate', self._on_calibrate, callback_group=services)
-        self.create_service(Trigger, '~/reset', self._on_reset, callback_group=services)
-        self.create_service(Trigger, '~/save', self._on_save, callback_group=services)
+        # its own reentrant group: a callback group stays busy while a coroutine in it awaits,
+        # and the default (mutually exclusive) group would then hold back every subscription
+        self.create_service(Trigger, '~/calibrate', self._on_calibrate,
+                            callback_group=ReentrantCallbackGroup())
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(Trigger, '~/save', self._on_save)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._static_tf = self._static_broadcaster()
+        self._pool = self._new_pool()
 
         for stream in STREAMS:
             declared = getattr(self.stream_cfg, f'{stream}_type')
@@ -113,8 +127,7 @@ class CalibratorNode(Node):
             self._graph_timer = self.create_timer(0.2, self._discover_types)
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
-            self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate,
-                              callback_group=services)
+            self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved')
@@ -166,8 +179,7 @@ class CalibratorNode(Node):
             durability=DurabilityPolicy.VOLATILE)
         topic = getattr(self.stream_cfg, f'{stream}_topic')
         self._subs[stream] = self.create_subscription(
-            cls, topic, lambda msg, s=stream: self._on_pose(s, msg), qos,
-            callback_group=MutuallyExclusiveCallbackGroup())
+            cls, topic, lambda msg, s=stream: self._on_pose(s, msg), qos)
         self.get_logger().info(f'{stream}: subscribed to {topic} ({msgtype})')
 
     def _discover_types(self) -> None:
@@ -225,39 +237,76 @@ class CalibratorNode(Node):
                         f'set {stream}_type to subscribe before one appears')
         return None
 
-    def _calibrate(self) -> tuple[bool, str]:
-        if not self._busy.acquire(blocking=False):
-            return False, 'a calibration is already running; call again when it has finished'
-        try:
-            why = self._why_no_data()
-            if why is not None:
-                return False, why
-            t0 = time.perf_counter()
-            result = self.recorder.calibrate(self.calib_cfg)
-        except HandeyeError as err:
-            self._last_ok, self._last_summary = False, str(err)
-            return False, str(err)
-        finally:
-            self._busy.release()
-        d = result.to_dict(hand_frame=self.stream_cfg.hand_frame_id,
-                           eye_frame=self.stream_cfg.eye_frame_id)
-        d['streams'] = self.recorder.stream_dict()
-        self._last_result = d
-        self._last_ok, self._last_summary = True, result.summary()
-        self._publish(d)
-        self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
-                               f'{result.summary()}')
-        for w in result.warnings:
-            self.get_logger().warning(w)
-        return True, result.summary()
+    def _new_pool(self) -> cf.ProcessPoolExecutor:
+        ctx = multiprocessing.get_context('forkserver')
+        ctx.set_forkserver_preload(['handeye_ros.core.pipeline', 'handeye_ros.stream.recorder'])
+        pool = cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+        pool.submit(int)  # start the forkserver and the worker now, not on the first call
+        return pool
 
-    def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        response.success, response.message = self._calibrate()
+    def _start_worker(self) -> Future | None:
+        """Calibrate a snapshot of the buffers in the worker process, unless one runs.
+
+        Returns an rclpy Future that completes on the executor with (success, message), or
+        None when a calibration is already running.
+        """
+        if not self._busy.acquire(blocking=False):
+            return None
+        future = Future(executor=self.executor)
+        # a done callback makes the completion wake the executor (it schedules a task)
+        future.add_done_callback(lambda _: None)
+        why = self._why_no_data()
+        try:
+            if why is not None:
+                raise InputError(why)
+            snapshot = self.recorder.snapshot()
+            t0 = time.perf_counter()
+            job = self._pool.submit(snapshot.calibrate, self.calib_cfg)
+        except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
+            self._last_ok, self._last_summary = False, str(err)
+            future.set_result((False, str(err)))
+            self._busy.release()
+            return future
+
+        def done(job: cf.Future) -> None:  # in a pool thread
+            try:
+                d = job.result()
+            except HandeyeError as err:
+                self._last_ok, self._last_summary = False, str(err)
+                future.set_result((False, str(err)))
+            except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
+                self.get_logger().error(f'calibration worker failed: {err!r}')
+                if isinstance(err, cf.process.BrokenProcessPool):
+                    self._pool = self._new_pool()
+                self._last_ok, self._last_summary = False, f'internal error: {err!r}'
+                future.set_result((False, f'internal error: {err!r}'))
+            else:
+                self._last_result, self._last_ok, self._last_summary = d, True, d['summary']
+                self._publish(d)
+                self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
+                                       f'{d["summary"]}')
+                for w in d['warnings']:
+                    self.get_logger().warning(w)
+                future.set_result((True, d['summary']))
+            finally:
+                self._busy.release()
+
+        job.add_done_callback(done)
+        return future
+
+    async def _on_calibrate(self, request: Trigger.Request,
+                            response: Trigger.Response) -> Any:
+        future = self._start_worker()
+        if future is None:
+            response.success = False
+            response.message = 'a calibration is already running; call again when it has finished'
+            return response
+        response.success, response.message = await future
         return response
 
     def _periodic_calibrate(self) -> None:
-        if self._why_no_data() is None and not self._busy.locked():
-            self._calibrate()
+        if self._why_no_data() is None:
+            self._start_worker()
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self.recorder.reset()
@@ -278,6 +327,10 @@ class CalibratorNode(Node):
             return response
         response.success, response.message = True, f'wrote {self.node_cfg.output_file}'
         return response
+
+    def close(self) -> None:
+        """Stop the worker process (a running calibration is abandoned)."""
+        self._pool.shutdown(wait=False, cancel_futures=True)
 
     # ------------------------------------------------------------------ outputs
 
@@ -357,7 +410,7 @@ def main(args: list[str] | None = None) -> int:
         print(f'calibrator: error: {err}', file=sys.stderr)
         rclpy.try_shutdown()
         return 1
-    executor = MultiThreadedExecutor(num_threads=4)
+    executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
         executor.spin()
@@ -366,6 +419,7 @@ def main(args: list[str] | None = None) -> int:
     finally:
         # a second Ctrl-C (or a signal forwarded twice) must not break the clean-up
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        node.close()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

@@ -93,10 +93,12 @@ class PoseBuffer:
                 self._drop(n_old)
             return None
 
-    def _check(self, t_ns: int, *pq: float) -> str | None:
-        if not all(math.isfinite(v) for v in pq):
+    def _check(self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float,
+               qw: float) -> str | None:
+        # one sum is finite iff every term is (NaN and inf propagate): this runs per message
+        if not math.isfinite(x + y + z + qx + qy + qz + qw):
             return 'non_finite'
-        norm = math.sqrt(pq[3] ** 2 + pq[4] ** 2 + pq[5] ** 2 + pq[6] ** 2)
+        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
         if norm < 1e-9:
             return 'zero_quaternion'
         if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:

@@ -8,18 +8,40 @@ is therefore the same code live and offline.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from ..core.config import CalibrationConfig
 from ..core.errors import InputError
 from ..core.pipeline import calibrate
-from ..core.result import CalibrationResult
+from ..core.trajectory import Trajectory
 from .buffer import BufferStats, PoseBuffer
 from .config import StreamConfig
 from .convert import StampedPose, pose_of
 
 STREAMS = ('hand', 'eye')
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What a calibration needs from the buffers; plain data, so it can go to another process."""
+
+    hand: Trajectory
+    eye: Trajectory
+    hand_frame: str
+    eye_frame: str
+    streams: dict[str, Any]
+    warnings: tuple[str, ...]
+
+    def calibrate(self, config: CalibrationConfig) -> dict[str, Any]:
+        """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
+        one-line ``summary``), with the streams' dropped/rejected messages among the warnings."""
+        result = calibrate(self.hand, self.eye, config)
+        result = replace(result, warnings=result.warnings + self.warnings)
+        out = result.to_dict(hand_frame=self.hand_frame, eye_frame=self.eye_frame)
+        out['streams'] = self.streams
+        out['summary'] = result.summary()
+        return out
 
 
 class Recorder:
@@ -51,10 +73,10 @@ class Recorder:
     def stats(self) -> dict[str, BufferStats]:
         return {name: b.stats() for name, b in self.buffers.items()}
 
-    def calibrate(self, config: CalibrationConfig) -> CalibrationResult:
-        """Calibrate on a copy of the buffers (they keep filling meanwhile).
+    def snapshot(self) -> Snapshot:
+        """Copies of both buffers and their bookkeeping, to calibrate on while they keep filling.
 
-        Raises HandeyeError subclasses with a user-facing reason (e.g. too little data).
+        Raises InputError when a stream holds fewer than two poses.
         """
         trajectories = {}
         for name, buf in self.buffers.items():
@@ -65,8 +87,16 @@ class Recorder:
                        'need a recording of both streams first')
                 raise InputError(msg)
             trajectories[name] = buf.trajectory()
-        result = calibrate(trajectories['hand'], trajectories['eye'], config)
-        return replace(result, warnings=result.warnings + tuple(self.stream_warnings()))
+        return Snapshot(trajectories['hand'], trajectories['eye'], self.config.hand_frame_id,
+                        self.config.eye_frame_id, self.stream_dict(),
+                        tuple(self.stream_warnings()))
+
+    def calibrate(self, config: CalibrationConfig) -> dict[str, Any]:
+        """Calibrate on a snapshot of the buffers; the result dictionary (see Snapshot.calibrate).
+
+        Raises HandeyeError subclasses with a user-facing reason (e.g. too little data).
+        """
+        return self.snapshot().calibrate(config)
 
     def stream_warnings(self) -> list[str]:
         """Dropped or rejected messages, said in the result."""

@@ -29,18 +29,19 @@ def add_options(group: Any, cls: Any) -> None:
     defaults = cls().to_dict()
     for name, spec in cls.specs().items():
         flag = name.replace('_', '-')
+        text = spec.description.replace('%', '%%')  # argparse formats help with %
         if spec.kind == 'bool':
             on = not defaults[name]
             group.add_argument(f'--{flag}' if on else f'--no-{flag}', dest=name,
                                action='store_const', const=on,
-                               help=f'{"" if on else "do not: "}{spec.description}')
+                               help=f'{"" if on else "do not: "}{text}')
             continue
         default = 'estimated/automatic' if defaults[name] is None else defaults[name]
         rng = spec.range_text() if not spec.choices else ''
         group.add_argument(f'--{flag}', dest=name, choices=spec.choices or None,
                            type={'float': float, 'int': int, 'str': str}[spec.kind],
                            metavar=None if spec.choices else name.split('_')[-1].upper(),
-                           help=f'{spec.description} (default {default}'
+                           help=f'{text} (default {default}'
                                 f'{", " + rng if rng else ""})')
 
 

@@ -49,6 +49,7 @@ def format_report(d: dict[str, Any]) -> str:
         f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
         f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, rotation '
         f'axes spread {lin["axis_spread_deg"]:.0f} deg',
+        *_batch_lines(d),
         f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
         f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
         f'(max {m["are_max"]:.3f})',
@@ -63,3 +64,16 @@ def _transform(title: str, t: dict[str, Any]) -> str:
     q = ' '.join(f'{v:+.6f}' for v in t['rotation'])
     rows = '\n'.join('    [' + ' '.join(f'{v:+.6f}' for v in row) + ']' for row in t['matrix'])
     return f'{title}\n  translation [m]: {tr}\n  rotation [qx qy qz qw]: {q}\n{rows}'
+
+
+def _batch_lines(d: dict[str, Any]) -> list[str]:
+    b = d.get('batch') or {}
+    if not b.get('used'):
+        return ['batch stage: ' + ('off' if not b.get('enabled') else 'not used (see warnings)')]
+    s = d['std']
+    return [f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
+            f'{b["iterations"]} iterations ({b["termination"]}); dt moved '
+            f'{b["time_offset_change"] * 1e3:+.3f} ms from stage 1',
+            f'  1-sigma: time offset {s["time_offset"] * 1e3:.3f} ms, translation '
+            + ' '.join(f'{v * 1e3:.2f}' for v in s['translation']) + ' mm, rotation '
+            + ' '.join(f'{v * 57.29577951308232:.3f}' for v in s['rotation']) + ' deg']

@@ -66,6 +66,34 @@ class CalibrationConfig(Options):
         True, 'bool', 're-estimate rotation (rotation-vector alignment) and translation '
         '(drift-weighted least squares) apart on the final consensus; false keeps the '
         'dual-quaternion solution')
+    batch: bool = option(
+        True, 'bool', 'refine dt and T_HE by the continuous-time batch stage (Section III-C) and '
+        'report their covariance; the linear result is kept, with a warning, if it fails')
+    knot_spacing: float = option(
+        0.05, 'float', 'knot spacing of the hand B-spline [s]: 20 knots/s follow hand-held and '
+        'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz', low=0.005, high=1.0)
+    spline_order: int = option(
+        4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6)
+    batch_joint: bool = option(
+        False, 'bool', 'also free the spline control poses in the batch solve (the full joint '
+        'problem; far slower, the same result while the MoCap is much less noisy than the VIO)')
+    hand_noise_rotation: float | None = option(
+        None, 'float', 'hand relative-pose noise per axis [rad]; NaN/null estimates it from the '
+        'data', optional=True, low=0.0, high=1.0, open_low=True)
+    hand_noise_translation: float | None = option(
+        None, 'float', 'hand relative-pose noise per axis [m]; NaN/null estimates it',
+        optional=True, low=0.0, high=10.0, open_low=True)
+    eye_noise_rotation: float | None = option(
+        None, 'float', 'eye relative-pose noise per axis between consecutive poses [rad]; '
+        'NaN/null estimates it from the data', optional=True, low=0.0, high=1.0, open_low=True)
+    eye_noise_translation: float | None = option(
+        None, 'float', 'eye relative-pose noise per axis between consecutive poses [m]; '
+        'NaN/null estimates it', optional=True, low=0.0, high=10.0, open_low=True)
+    huber_delta: float = option(
+        1.345, 'float', 'Huber threshold of the batch stage, in noise standard deviations '
+        '(1.345: 95 % efficiency on Gaussian noise)', low=0.0, high=1000.0, open_low=True)
+    batch_max_iterations: int = option(
+        50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000)
     min_motions: int = option(
         10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000)
     seed: int = option(

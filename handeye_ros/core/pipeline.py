@@ -1,7 +1,9 @@
 """The whole calibration: the one function every front end (offline tool, node) calls.
 
 Stages: time offset (Section III-A) -> pose pairs at common instants -> relative motions from
-keyframes -> robust linear AX = XB (Section III-B) -> world alignment and metrics.
+keyframes -> robust linear AX = XB (Section III-B) -> continuous-time batch refinement with
+covariance (Section III-C, kept only if it converges and lowers the cost) -> world alignment
+and metrics at the final (dt, T_HE).
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ import time
 import numpy as np
 
 from .association import associate
+from .batch import BatchSolution, refine
 from .config import CalibrationConfig
 from .linear import build_motions, calibrate_linear
 from .result import CalibrationResult
-from .errors import TimeAlignmentError
+from .errors import HandeyeError, TimeAlignmentError
 from .time_align import TimeAlignment, align_time
 from .trajectory import Trajectory
 from .world import align_worlds, evaluate
@@ -72,17 +75,65 @@ def calibrate(hand: Trajectory, eye: Trajectory,
                         f'({cfg.inlier_rotation} deg / {cfg.inlier_translation} m) or the time '
                         'offset is off')
     t2 = time.perf_counter()
-    world = align_worlds(pairs, linear.q_HE, linear.p_HE)
+    dt, q_HE, p_HE = ta.time_offset_s, linear.q_HE, linear.p_HE
+    batch = None
+    if cfg.batch:
+        batch, why = _run_batch(hand, eye, dt, q_HE, p_HE, cfg)
+        if batch is not None:
+            dt, q_HE, p_HE = batch.time_offset_s, batch.q_HE, batch.p_HE
+            warnings.extend(batch.warnings)
+        else:
+            warnings.append(f'batch stage not used, the linear result is kept: {why}')
+    t3 = time.perf_counter()
+    if dt != ta.time_offset_s:
+        pairs = associate(hand, eye, dt)
+    world = align_worlds(pairs, q_HE, p_HE)
     if world.method != 'positions':
         warnings.append('the positions do not span a plane; the world alignment T_WG was '
                         'taken from the orientations')
-    metrics = evaluate(pairs, linear.q_HE, linear.p_HE, world)
-    LOG.info('time alignment %.3f s, linear calibration %.3f s, %d pairs, %d motions',
-             t1 - t0, t2 - t1, pairs.t_eye_s.size, linear.n_motions)
+    metrics = evaluate(pairs, q_HE, p_HE, world)
+    LOG.info('time alignment %.3f s, linear calibration %.3f s, batch %.3f s, %d pairs, '
+             '%d motions', t1 - t0, t2 - t1, t3 - t2, pairs.t_eye_s.size, linear.n_motions)
     return CalibrationResult(
-        time_offset_s=ta.time_offset_s, q_HE=linear.q_HE, p_HE=linear.p_HE, world=world,
+        time_offset_s=dt, q_HE=q_HE, p_HE=p_HE, world=world,
         time_alignment=ta, linear=linear, metrics=metrics, n_pairs=int(pairs.t_eye_s.size),
-        hand=hand, eye=eye, config=cfg, warnings=tuple(warnings))
+        hand=hand, eye=eye, config=cfg, warnings=tuple(warnings), batch=batch)
+
+
+#: The batch result is distrusted when it moves dt by more than this (s) or T_HE by more than
+#: these (m, deg) from the linear result: a local refinement that travels that far has
+#: diverged (the linear stage is within a few ms, cm and tenths of a degree on real data).
+MAX_BATCH_DT_CHANGE_S = 0.02
+MAX_BATCH_TRANSLATION_CHANGE_M = 0.10
+MAX_BATCH_ROTATION_CHANGE_DEG = 5.0
+
+
+def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
+               p_HE: np.ndarray, cfg: CalibrationConfig) -> tuple[BatchSolution | None, str]:
+    """The batch refinement, or None and why it was not used (never raises)."""
+    try:
+        sol = refine(hand, eye, dt, q_HE, p_HE, knot_spacing=cfg.knot_spacing,
+                     order=cfg.spline_order,
+                     hand_noise=(cfg.hand_noise_rotation, cfg.hand_noise_translation),
+                     eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
+                     huber_delta=cfg.huber_delta, max_iterations=cfg.batch_max_iterations,
+                     joint=cfg.batch_joint, fix_time_offset=cfg.time_offset is not None)
+    except HandeyeError as err:
+        return None, str(err)
+    except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:
+        return None, f'the solver failed ({err})'
+    moved_rot = float(np.degrees(2 * np.arccos(min(1.0, abs(float(np.dot(sol.q_HE, q_HE)))))))
+    moved = (abs(sol.time_offset_s - dt), float(np.linalg.norm(sol.p_HE - p_HE)), moved_rot)
+    if not np.all(np.isfinite(sol.covariance)):
+        return None, 'the solution has no finite covariance (degenerate motion)'
+    if sol.cost_after > sol.cost_before * (1 + 1e-9):
+        return None, (f'it made the cost worse ({sol.cost_before:.6g} -> '
+                      f'{sol.cost_after:.6g})')
+    if moved[0] > MAX_BATCH_DT_CHANGE_S or moved[1] > MAX_BATCH_TRANSLATION_CHANGE_M or \
+            moved[2] > MAX_BATCH_ROTATION_CHANGE_DEG:
+        return None, (f'it diverged from the linear result (moved dt by {moved[0] * 1e3:.1f} ms,'
+                      f' T_HE by {moved[1] * 1e3:.0f} mm and {moved[2]:.1f} deg)')
+    return sol, ''
 
 
 #: A fixed offset further than this from the correlation peak is reported (s): a few grid

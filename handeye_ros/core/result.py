@@ -3,7 +3,9 @@
 Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
 
 - 1: time_offset, extrinsic (T_HE) and extrinsic_inverse (T_EH), world_alignment (T_WG),
-  time_alignment, association, linear, metrics, inputs, config, warnings.
+  time_alignment, association, linear, std, covariance, batch, metrics, inputs, config,
+  warnings (and, from the front ends, summary and streams). ``linear`` holds the stage-2
+  extrinsic apart (``linear.extrinsic``) when the batch stage refined it.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -19,6 +21,7 @@ import numpy as np
 
 from .config import CalibrationConfig
 from .geometry import inverse, matrix_from_quat, quat_from_matrix
+from .batch import BatchSolution
 from .linear import LinearSolution
 from .time_align import TimeAlignment
 from .trajectory import Trajectory
@@ -48,17 +51,41 @@ class CalibrationResult:
     eye: Trajectory
     config: CalibrationConfig
     warnings: tuple[str, ...] = field(default=())
+    batch: BatchSolution | None = None
 
     def summary(self) -> str:
         """One line: offset, translation, rotation, inliers, quality."""
         t = ', '.join(f'{v:.4f}' for v in self.p_HE)
         q = ', '.join(f'{v:.4f}' for v in self.q_HE)
+        std = ''
+        if self.batch is not None:
+            s = self.batch.std
+            std = (f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
+                   f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)')
         return (f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
                 f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
                 f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
                 f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
                 f'ARE {self.metrics.are_rmse_deg:.2f} deg'
-                + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
+                + std + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
+
+    def _batch_dict(self) -> dict[str, Any]:
+        b, c = self.batch, self.config
+        out: dict[str, Any] = {'enabled': c.batch, 'used': b is not None}
+        if b is None:
+            return out
+        out.update({
+            'knot_spacing': c.knot_spacing, 'spline_order': c.spline_order,
+            'joint': c.batch_joint, 'control_points': b.n_control_points,
+            'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},
+            'noise': {'hand': _noise_dict(b.hand_noise), 'eye': _noise_dict(b.eye_noise)},
+            'iterations': b.iterations, 'evaluations': b.evaluations,
+            'cost_before': b.cost_before, 'cost_after': b.cost_after,
+            'reduced_chi2': b.reduced_chi2, 'termination': b.termination,
+            'converged': b.success, 'seconds': b.seconds,
+            'time_offset_change': float(self.time_offset_s - self.time_alignment.time_offset_s),
+        })
+        return out
 
     def to_dict(self, hand_frame: str = 'hand', eye_frame: str = 'eye',
                 hand_world: str = 'hand_world', eye_world: str = 'eye_world') -> dict[str, Any]:
@@ -92,6 +119,8 @@ class CalibrationResult:
                 'inliers': int(lin.n_inliers),
                 'inlier_thresholds': {'rotation_deg': lin.inlier_rotation_deg,
                                       'translation_m': lin.inlier_translation_m},
+                'extrinsic': {'translation': [float(v) for v in lin.p_HE],
+                              'rotation': [float(v) for v in lin.q_HE]},
                 'decoupled_refit': self.config.decoupled_refit,
                 'dual_quaternion_solution': {
                     'translation': [float(v) for v in lin.p_HE_dq],
@@ -102,6 +131,16 @@ class CalibrationResult:
                 'rotation_residual_deg': _num(lin.rotation_residual_deg),
                 'translation_residual_m': _num(lin.translation_residual_m),
             },
+            'std': None if self.batch is None else {
+                'time_offset': float(self.batch.std[0]),
+                'translation': [float(v) for v in self.batch.std[1:4]],
+                'rotation': [float(v) for v in self.batch.std[4:7]],
+                'units': {'time_offset': 's', 'translation': 'm',
+                          'rotation': 'rad, tangent of T_HE on the right (eye frame)'}},
+            'covariance': None if self.batch is None else {
+                'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz'],
+                'matrix': [[float(v) for v in row] for row in self.batch.covariance]},
+            'batch': self._batch_dict(),
             'metrics': {
                 'ape_rmse': m.ape_rmse_m,
                 'are_rmse': m.are_rmse_deg,
@@ -115,6 +154,11 @@ class CalibrationResult:
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
         }
+
+
+def _noise_dict(n: Any) -> dict[str, Any]:
+    return {'rotation_rad': float(n.rotation), 'translation_m': float(n.translation),
+            'estimated': bool(n.estimated)}
 
 
 def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dict[str, Any]:

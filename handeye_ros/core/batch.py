@@ -1,0 +1,366 @@
+"""Stage 3: continuous-time batch refinement of (dt, T_HE) with uncertainty (Section III-C).
+
+The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.spline`); the eye is predicted as
+``T_WE(t) = T_WG T_GH(t - dt) T_HE``. Residuals compare relative poses between consecutive
+observations of each stream (eq. 20), so T_WG drops out::
+
+    hand:  d(T_GH(t_h)^-1 T_GH(t_h+1),            Z_h^-1 Z_h+1)
+    eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
+
+with ``d = (Log(dR_pred dR_obs^T), dp_pred - dp_obs)`` (rotation and translation apart: the
+SE(3) Log of eq. 20 differs from it only at second order), each part divided by its stream's
+noise, a Huber loss, and a trust-region Levenberg-Marquardt (scipy's ``trf``, which takes the
+sparse Jacobian: a dense one does not scale) over the spline's control poses, dt and T_HE.
+
+Relative residuals leave the spline's absolute pose free (a rigid motion of the whole spline
+changes no residual); a weak prior on the first control pose fixes that gauge. The noise of
+each stream is estimated from its own residuals unless given. The covariance of (dt, T_HE) is
+the 7x7 block of ``s^2 (J^T J)^-1`` at the solution, by a Schur complement over the spline.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.sparse import coo_matrix, csc_matrix
+from scipy.sparse.linalg import splu
+from scipy.spatial.transform import Rotation
+
+from .errors import HandeyeError
+from .geometry import Pose, compose, inverse, matrix_from_quat, quat_from_matrix
+from .spline import PoseSpline, fit_spline
+from .trajectory import Trajectory
+
+#: Consecutive samples further apart than this many median periods are not paired (a gap).
+GAP_FACTOR = 3.5
+#: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
+MIN_SIGMA_ROT = 1e-6
+MIN_SIGMA_TRANS = 1e-6
+#: Weak prior (rad, m) on the first control pose, fixing the gauge of relative residuals.
+GAUGE_SIGMA = 1.0
+#: dt may move this far (s) from its start during the solve (sets the Jacobian pattern).
+DT_MARGIN_S = 0.05
+#: Fewest eye residuals the stage accepts.
+MIN_EYE_RESIDUALS = 20
+
+
+class BatchError(HandeyeError):
+    """The batch stage cannot run on this input (the linear result is kept)."""
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Standard deviations of one stream's relative-pose residuals per axis (rad, m)."""
+
+    rotation: float
+    translation: float
+    estimated: bool
+
+
+@dataclass(frozen=True)
+class BatchSolution:
+    """Result of stage 3.
+
+    time_offset_s, q_HE, p_HE: the refined dt and T_HE.
+    covariance: (7, 7), order (dt [s], translation [m] x3, rotation [rad] x3); the rotation is
+    the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame).
+    std: sqrt of its diagonal.
+    """
+
+    time_offset_s: float
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    covariance: np.ndarray
+    std: np.ndarray
+    cost_before: float
+    cost_after: float
+    iterations: int
+    evaluations: int
+    termination: str
+    success: bool
+    hand_noise: Noise
+    eye_noise: Noise
+    n_hand_residuals: int
+    n_eye_residuals: int
+    n_control_points: int
+    seconds: float
+    reduced_chi2: float
+    warnings: tuple[str, ...] = field(default=())
+
+
+def _relative(R: np.ndarray, p: np.ndarray, i: np.ndarray, j: np.ndarray) -> Pose:
+    return compose(inverse((R[i], p[i])), (R[j], p[j]))
+
+
+def _pairs(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive sample indices not spanning a gap."""
+    step = np.diff(t)
+    ok = step <= GAP_FACTOR * np.median(step)
+    i = np.flatnonzero(ok)
+    return i, i + 1
+
+
+def _residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
+    """(N, 6): rotation (rad) and translation (m) differences of relative poses."""
+    dR = np.matmul(pred[0], np.swapaxes(obs[0], -1, -2))
+    return np.concatenate((Rotation.from_matrix(dR).as_rotvec(), pred[1] - obs[1]), axis=1)
+
+
+def _robust_sigma(r: np.ndarray) -> float:
+    """Per-axis standard deviation from the median absolute deviation (robust to outliers)."""
+    return float(1.4826 * np.median(np.abs(r - np.median(r, axis=0))))
+
+
+class _Problem:
+    """The least-squares problem of the module docstring, with its Jacobian pattern."""
+
+    def __init__(self, hand: Trajectory, eye: Trajectory, dt0: float, q0: np.ndarray,
+                 p0: np.ndarray, knot_spacing: float, order: int):
+        self.origin = int(hand.t_ns[0])
+        self.th = hand.seconds(self.origin)
+        te = eye.seconds(self.origin)
+        Rh, ph = matrix_from_quat(hand.q_xyzw), hand.p_xyz
+        Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
+        self.spline0 = fit_spline(self.th, Rh, ph, knot_spacing, order)
+        self.M = self.spline0.R.shape[0]
+        self.hi, self.hj = _pairs(self.th)
+        self.hand_obs = _relative(Rh, ph, self.hi, self.hj)
+        # eye pairs whose both ends stay inside the spline for any dt within the margin
+        ei, ej = _pairs(te)
+        lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
+        inside = (te[ei] - dt0 >= lo) & (te[ej] - dt0 <= hi)
+        self.ei, self.ej = ei[inside], ej[inside]
+        if self.ei.size < MIN_EYE_RESIDUALS:
+            raise BatchError(f'only {self.ei.size} consecutive eye pose pairs fall inside the '
+                             f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
+                             'little for the batch stage')
+        self.te = te
+        self.eye_obs = _relative(Re, pe, self.ei, self.ej)
+        self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
+        self.n_spline = 6 * self.M
+        self.n = self.n_spline + 7
+        self.w = np.ones(4)  # 1/sigma: hand rot, hand trans, eye rot, eye trans
+
+    # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
+    def unpack(self, x: np.ndarray) -> tuple[PoseSpline, float, Pose]:
+        c = x[:self.n_spline].reshape(self.M, 6)
+        s0 = self.spline0
+        R = np.matmul(s0.R, Rotation.from_rotvec(c[:, :3]).as_matrix())
+        spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
+        d = x[self.n_spline:]
+        X = (self.RX0 @ Rotation.from_rotvec(d[1:4]).as_matrix(), self.pX0 + d[4:7])
+        return spline, self.dt0 + d[0], X
+
+    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals and the gauge prior (6,)."""
+        spline, dt, X = self.unpack(x)
+        Rh, ph = spline.evaluate(self.th)
+        r_h = _residual_parts(_relative(Rh, ph, self.hi, self.hj), self.hand_obs)
+        Rg, pg = spline.evaluate(self.te - dt)
+        Re, pe = compose((Rg, pg), X)
+        r_e = _residual_parts(_relative(Re, pe, self.ei, self.ej), self.eye_obs)
+        gauge = x[:6] / GAUGE_SIGMA
+        return r_h, r_e, gauge
+
+    def eye_raw(self, y: np.ndarray) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6) for (dt, dtheta_X, dp_X) with the spline fixed."""
+        dt = self.dt0 + y[0]
+        X = (self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7])
+        Rg, pg = self.spline0.evaluate(self.te - dt)
+        Re, pe = compose((Rg, pg), X)
+        return _residual_parts(_relative(Re, pe, self.ei, self.ej), self.eye_obs)
+
+    def eye_residuals(self, y: np.ndarray) -> np.ndarray:
+        return (self.eye_raw(y) * np.repeat(self.w[2:], 3)).ravel()
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        r_h, r_e, gauge = self.raw(x)
+        w = self.w
+        return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
+                               (r_e * np.repeat(w[2:], 3)).ravel(), gauge))
+
+    def sparsity(self) -> csc_matrix:
+        """Which parameters each residual row depends on."""
+        k = self.spline0.order
+        rows, cols = [], []
+
+        def spline_block(row0: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray) -> None:
+            first = np.minimum(seg_a, seg_b)
+            last = np.minimum(np.maximum(seg_a, seg_b) + k - 1, self.M - 1)
+            width = int((last - first).max()) + 1
+            cp = first[:, None] + np.arange(width)
+            cp_ok = cp <= last[:, None]
+            for a in range(6):  # residual component
+                r = (row0 + a)[:, None].repeat(width, axis=1)[cp_ok]
+                c = cp[cp_ok]
+                for b in range(6):  # control point component
+                    rows.append(r)
+                    cols.append(6 * c + b)
+
+        seg_h = self.spline0.segments(self.th)[0]
+        spline_block(6 * np.arange(self.hi.size), seg_h[self.hi], seg_h[self.hj])
+        base = 6 * self.hi.size
+        lo_a = self.spline0.segments(self.te[self.ei] - self.dt0 - DT_MARGIN_S)[0]
+        hi_b = self.spline0.segments(self.te[self.ej] - self.dt0 + DT_MARGIN_S)[0]
+        spline_block(base + 6 * np.arange(self.ei.size), lo_a, hi_b)
+        eye_rows = base + np.arange(6 * self.ei.size)
+        for c in range(7):
+            rows.append(eye_rows)
+            cols.append(np.full(eye_rows.size, self.n_spline + c))
+        g0 = base + 6 * self.ei.size
+        rows.append(g0 + np.arange(6))
+        cols.append(np.arange(6))
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        m = g0 + 6
+        return csc_matrix(coo_matrix((np.ones(r.size), (r, c)), shape=(m, self.n)))
+
+
+def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.ndarray,
+           p_HE: np.ndarray, *, knot_spacing: float = 0.05, order: int = 4,
+           hand_noise: tuple[float | None, float | None] = (None, None),
+           eye_noise: tuple[float | None, float | None] = (None, None),
+           huber_delta: float = 1.345, max_iterations: int = 50,
+           joint: bool = False, fix_time_offset: bool = False) -> BatchSolution:
+    """Refine dt and T_HE from the linear result (see the module docstring).
+
+    By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
+    residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 19,
+    with a sparse Jacobian; far slower, and the same answer while the MoCap is much less noisy
+    than the VIO).
+
+    ``hand_noise`` / ``eye_noise``: (rotation rad, translation m) per axis of the relative-pose
+    residuals; None estimates it from the data's own residuals.
+
+    Raises
+    ------
+    BatchError
+        When the input cannot support the stage (overlap too short, gaps in the hand stream).
+    """
+    t_start = time.perf_counter()
+    _check_hand_gaps(hand, knot_spacing, order)
+    prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
+    # the hand's noise, from the spline fit's own residuals (relative form, as in the joint cost)
+    r_h, _, _ = prob.raw(np.zeros(prob.n))
+    hn = Noise(*_sigmas(r_h, hand_noise))
+    huber = _huber(huber_delta)
+    if joint:
+        sol, cost_before, cost_after, en, jac_block = _solve_joint(prob, hn, eye_noise, huber,
+                                                                   max_iterations)
+        y = sol.x[prob.n_spline:]
+        cov_raw = _marginal_covariance(sol.jac, prob.n_spline)
+    else:
+        free = np.arange(1 if fix_time_offset else 0, 7)
+        sol, cost_before, cost_after, en = _solve_offset_extrinsic(prob, eye_noise, huber,
+                                                                   max_iterations, free)
+        y = np.zeros(7)
+        y[free] = sol.x
+        J = np.asarray(sol.jac)
+        cov_raw = np.zeros((7, 7))
+        cov_raw[np.ix_(free, free)] = np.linalg.inv(J.T @ J)
+    dof = max(sol.fun.size - sol.x.size, 1)
+    chi2 = 2.0 * cost_after / dof
+    cov = cov_raw * max(chi2, 1e-12)
+    # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
+    perm = np.array([0, 4, 5, 6, 1, 2, 3])
+    cov = cov[np.ix_(perm, perm)]
+    dt = prob.dt0 + y[0]
+    X = (prob.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), prob.pX0 + y[4:7])
+    warnings = []
+    if not sol.success:
+        warnings.append(f'batch solver stopped without converging: {sol.message}')
+    return BatchSolution(
+        time_offset_s=float(dt), q_HE=quat_from_matrix(X[0]), p_HE=X[1], covariance=cov,
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), cost_before=cost_before,
+        cost_after=cost_after, iterations=int(sol.njev or 0), evaluations=int(sol.nfev),
+        termination=str(sol.message), success=bool(sol.success), hand_noise=hn, eye_noise=en,
+        n_hand_residuals=int(prob.hi.size), n_eye_residuals=int(prob.ei.size),
+        n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
+        warnings=tuple(warnings))
+
+
+def _huber(delta: float):
+    def cost(r: np.ndarray) -> float:
+        a = np.abs(r)
+        return float(np.sum(np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta))))
+    cost.delta = delta  # type: ignore[attr-defined]
+    return cost
+
+
+def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: int,
+                            free: np.ndarray):
+    """(dt, T_HE) by a trust-region Levenberg-Marquardt on the eye residuals, the spline fixed
+    to the hand; ``free`` indexes the solved ones among (dt, dtheta_X, dp_X).
+
+    Two passes: the eye noise is estimated from the residuals at the linear result, then again
+    at the first solution (the linear result's residuals include its own error).
+    """
+    def full(z: np.ndarray) -> np.ndarray:
+        y = np.zeros(7)
+        y[free] = z
+        return y
+
+    def fun(z: np.ndarray) -> np.ndarray:
+        return prob.eye_residuals(full(z))
+
+    z = np.zeros(free.size)
+    en = Noise(*_sigmas(prob.eye_raw(full(z)), eye_noise))
+    for _ in range(2 if en.estimated else 1):
+        prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
+        sol = least_squares(fun, z, method='trf', loss='huber', f_scale=huber.delta,
+                            x_scale='jac', max_nfev=max_iterations, xtol=1e-12, ftol=1e-12,
+                            gtol=1e-12)
+        z = sol.x
+        if en.estimated:
+            en = Noise(*_sigmas(prob.eye_raw(full(z)), eye_noise))
+    prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
+    sol = least_squares(fun, z, method='trf', loss='huber', f_scale=huber.delta, x_scale='jac',
+                        max_nfev=max_iterations, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    # the cost at the start, in the final weights, for an honest before/after comparison
+    return sol, huber(fun(np.zeros(free.size))), huber(sol.fun), en
+
+
+def _solve_joint(prob: _Problem, hn: Noise, eye_noise, huber, max_iterations: int):
+    """Spline control poses, dt and T_HE together (sparse Jacobian; slower)."""
+    x0 = np.zeros(prob.n)
+    _, r_e, _ = prob.raw(x0)
+    en = Noise(*_sigmas(r_e, eye_noise))
+    prob.w = 1.0 / np.array([hn.rotation, hn.translation, en.rotation, en.translation])
+    cost_before = huber(prob.residuals(x0))
+    sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method='trf',
+                        loss='huber', f_scale=huber.delta, x_scale='jac', tr_solver='lsmr',
+                        max_nfev=max_iterations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    return sol, cost_before, huber(sol.fun), en, None
+
+
+def _sigmas(r: np.ndarray, given: tuple[float | None, float | None]) -> tuple[float, float,
+                                                                                bool]:
+    rot = given[0] if given[0] is not None else max(_robust_sigma(r[:, :3]), MIN_SIGMA_ROT)
+    trans = given[1] if given[1] is not None else max(_robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS)
+    return rot, trans, given[0] is None or given[1] is None
+
+
+def _marginal_covariance(J, n_spline: int) -> np.ndarray:
+    """(J^T J)^-1 block of the last 7 parameters, by the Schur complement over the spline."""
+    J = csc_matrix(J)
+    Js, Jc = J[:, :n_spline], J[:, n_spline:].toarray()
+    A = csc_matrix(Js.T @ Js)
+    B = np.asarray(Js.T @ Jc)
+    C = Jc.T @ Jc
+    lu = splu(A)
+    S = C - B.T @ lu.solve(B)
+    return np.linalg.inv(S)
+
+
+def _check_hand_gaps(hand: Trajectory, knot_spacing: float, order: int) -> None:
+    step = np.diff(hand.t_ns) * 1e-9
+    longest = float(step.max())
+    limit = max(knot_spacing * (order - 1), GAP_FACTOR * float(np.median(step)))
+    if longest > limit:
+        k = int(np.argmax(step))
+        raise BatchError(f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '
+                         f'spline (knots every {knot_spacing:g} s) would have control points '
+                         'without MoCap data there; the batch stage needs a continuous hand '
+                         'stream (or a larger knot_spacing)')

@@ -1,0 +1,126 @@
+"""Uniform cumulative B-splines of poses: R^3 for the position, SO(3) for the rotation.
+
+For order k (cubic: k = 4), knot spacing ``dt`` and control poses ``(R_m, p_m)``, m = 0..M-1,
+time t in segment i (``u = (t - t0) / dt``, ``i = floor(u)``, ``s = u - i``) is (paper eq. 18,
+Kim et al. 1995, Sommer et al. 2020)::
+
+    R(t) = R_i  prod_{j=1}^{k-1} Exp( Bc_j(s) Log(R_{i+j-1}^T R_{i+j}) )
+    p(t) = p_i + sum_{j=1}^{k-1} Bc_j(s) (p_{i+j} - p_{i+j-1})
+
+with ``Bc_j`` the cumulative uniform B-spline basis. Everything is vectorised over times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.sparse import csr_matrix
+from scipy.sparse.linalg import lsqr
+from scipy.spatial.transform import Rotation, Slerp
+
+from .geometry import Pose
+
+
+#: Passes of the rotation control-point correction in :func:`fit_spline`.
+ROTATION_FIT_ITERATIONS = 12
+
+
+@lru_cache(maxsize=8)
+def _cardinal(order: int) -> BSpline:
+    return BSpline.basis_element(np.arange(order + 1, dtype=float), extrapolate=False)
+
+
+def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
+    """``Bc_j(s)``, j = 0..k-1, for s in [0, 1): shape (N, k); column 0 is 1."""
+    s = np.asarray(s, dtype=float)
+    N = _cardinal(order)
+    # the basis function of control point i + j on segment i is the cardinal B-spline at
+    # s + k - 1 - j
+    b = np.stack([np.nan_to_num(N(s + order - 1 - j)) for j in range(order)], axis=-1)
+    return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+
+
+@dataclass(frozen=True)
+class PoseSpline:
+    """A uniform cumulative B-spline of poses (see the module docstring).
+
+    t0 : float, start of the first segment (s, relative to the caller's origin)
+    dt : float, knot spacing (s)
+    order : int, k (4: cubic)
+    R, p : control rotations (M, 3, 3) and positions (M, 3)
+    """
+
+    t0: float
+    dt: float
+    order: int
+    R: np.ndarray
+    p: np.ndarray
+
+    @property
+    def t_end(self) -> float:
+        """End of the last segment (exclusive), s."""
+        return self.t0 + (self.R.shape[0] - self.order + 1) * self.dt
+
+    def segments(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(segment index i, fraction s) of times t; times outside are clamped to the ends."""
+        u = (np.asarray(t, dtype=float) - self.t0) / self.dt
+        n_seg = self.R.shape[0] - self.order + 1
+        i = np.clip(np.floor(u).astype(int), 0, n_seg - 1)
+        return i, np.clip(u - i, 0.0, 1.0)
+
+    def evaluate(self, t: np.ndarray) -> Pose:
+        """Poses at times t (s): rotations (N, 3, 3), positions (N, 3)."""
+        i, s = self.segments(t)
+        Bc = cumulative_basis(s, self.order)
+        # Log of consecutive control rotations, once per control interval
+        omega = Rotation.from_matrix(
+            np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:])).as_rotvec()
+        dp = np.diff(self.p, axis=0)
+        R = self.R[i]
+        p = self.p[i].copy()
+        for j in range(1, self.order):
+            R = np.matmul(R, Rotation.from_rotvec(Bc[:, j, None] * omega[i + j - 1]).as_matrix())
+            p += Bc[:, j, None] * dp[i + j - 1]
+        return R, p
+
+
+def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
+               order: int = 4) -> PoseSpline:
+    """A spline through stamped poses: the initial guess of the batch stage.
+
+    Control poses are the poses interpolated where each control point weighs most (the
+    centre of its support); positions are then refined by linear least squares on the
+    samples. The rotation control points are left to the batch solve.
+    """
+    t = np.asarray(t, dtype=float)
+    n_seg = int(np.ceil((t[-1] - t[0]) / knot_spacing - 1e-9))
+    n_seg = max(n_seg, 1)
+    M = n_seg + order - 1
+    t0 = float(t[0])
+    # control point m has its support centred at t0 + (m - (k - 2) / 2) * dt
+    tc = np.clip(t0 + (np.arange(M) - (order - 2) / 2.0) * knot_spacing, t[0], t[-1])
+    R_at_c = Slerp(t, Rotation.from_matrix(R))(tc).as_matrix()
+    Rc = R_at_c.copy()
+    pc = np.stack([np.interp(tc, t, p[:, a]) for a in range(3)], axis=1)
+    spline = PoseSpline(t0, knot_spacing, order, Rc, pc)
+    # Rotations: make the spline pass through the data at the control centres by the classic
+    # iterative correction (control += data - spline there); the basis at the centres is
+    # diagonally dominant (1/6, 2/3, 1/6 for cubic), so it converges geometrically.
+    for _ in range(ROTATION_FIT_ITERATIONS):
+        R_s, _ = spline.evaluate(tc)
+        err = Rotation.from_matrix(np.matmul(np.swapaxes(R_s, -1, -2), R_at_c)).as_rotvec()
+        Rc = np.matmul(Rc, Rotation.from_rotvec(err).as_matrix())
+        spline = PoseSpline(t0, knot_spacing, order, Rc, pc)
+    # positions are linear in the control points: p(t) = A c, solved in one sparse LS
+    i, s = spline.segments(t)
+    Bc = cumulative_basis(s, order)
+    b = Bc - np.concatenate((Bc[:, 1:], np.zeros((Bc.shape[0], 1))), axis=1)  # plain basis
+    rows = np.repeat(np.arange(t.size), order)
+    cols = (i[:, None] + np.arange(order)).ravel()
+    A = csr_matrix((b.ravel(), (rows, cols)), shape=(t.size, M))
+    pc = np.stack([lsqr(A, p[:, a], x0=pc[:, a], atol=1e-12, btol=1e-12)[0]
+                   for a in range(3)], axis=1)
+    return PoseSpline(t0, knot_spacing, order, Rc, pc)

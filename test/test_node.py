@@ -84,6 +84,12 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     assert (latched['extrinsic']['parent'], latched['extrinsic']['child']) == \
         ('mocap_marker', 'imu')
     assert f'time_offset {saved["time_offset"] * 1e3:+.2f} ms' in answer[0]['message']
+    # the batch stage ran and its covariance went out: translation variances as in the file
+    assert saved['batch']['used']
+    cov6 = np.asarray(latched['covariance']).reshape(6, 6)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov6)[:3]), saved['std']['translation'],
+                               rtol=1e-9)
+    np.testing.assert_allclose(cov6, cov6.T, atol=1e-15)
     # the bags replayed offline give the same answer as the node did live
     offline = resolve_executable(ros.env, 'handeye_ros', 'offline_calibrate')
     for spec in bags:

@@ -346,6 +346,8 @@ class CalibratorNode(Node):
          tf.transform.rotation.w) = e['rotation']
         self.pub_extrinsic.publish(tf)
         self.pub_offset.publish(Float64(data=float(d['time_offset'])))
+        if d.get('covariance'):
+            self.pub_cov.publish(pose_with_covariance(tf, d))
         if self._static_tf is not None:
             self._static_tf.sendTransform(tf)
 
@@ -399,6 +401,26 @@ class CalibratorNode(Node):
                 ('warnings', len(d['warnings'])))]
         arr.status.append(res)
         self.pub_diag.publish(arr)
+
+
+def pose_with_covariance(tf: TransformStamped, d: dict[str, Any]) -> PoseWithCovarianceStamped:
+    """T_HE with its 6x6 covariance in ROS order (x, y, z, rotation about the parent's X, Y, Z).
+
+    The result's rotation covariance is in the tangent on the right of T_HE (eye frame);
+    ROS wants fixed (parent-frame) axes: dtheta_H = R_HE dtheta_E.
+    """
+    import numpy as np
+    msg = PoseWithCovarianceStamped()
+    msg.header = tf.header
+    t, r = tf.transform.translation, tf.transform.rotation
+    msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = t.x, t.y, t.z
+    msg.pose.pose.orientation = r
+    cov = np.asarray(d['covariance']['matrix'])[1:, 1:]
+    R = np.asarray(d['extrinsic']['matrix'])[:3, :3]
+    J = np.eye(6)
+    J[3:, 3:] = R
+    msg.pose.covariance = [float(v) for v in (J @ cov @ J.T).ravel()]
+    return msg
 
 
 def main(args: list[str] | None = None) -> int:

@@ -13,7 +13,7 @@ import sys
 import time
 
 import rclpy
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
@@ -54,8 +54,11 @@ def latched(node: Node) -> dict:
                              lambda m: got.__setitem__('extrinsic', m), qos)
     node.create_subscription(Float64, '/calibrator/time_offset',
                              lambda m: got.__setitem__('time_offset', m.data), qos)
+    node.create_subscription(PoseWithCovarianceStamped, '/calibrator/extrinsic_with_covariance',
+                             lambda m: got.__setitem__('covariance', list(m.pose.covariance)),
+                             qos)
     deadline = time.monotonic() + 10.0
-    while len(got) < 2 and time.monotonic() < deadline:
+    while len(got) < 3 and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     if 'extrinsic' in got:
         m = got['extrinsic']

@@ -1,0 +1,96 @@
+"""The batch stage against the linear stage on the paper's protocol, and its uncertainty.
+
+For each noise level, 20 seeds: the errors of the linear result (stage 1 offset + stage 2
+extrinsic) and of the batch refinement, and whether the truth lies inside the reported
+3-sigma: |dt error| <= 3 sigma_dt, and for translation and rotation the Mahalanobis distance
+of the 3-vector error within the 99.73 % quantile of chi2(3) (14.16), the 3-sigma of a
+3-vector.
+
+Usage: python bench/batch.py [--seeds 20] [--levels 0 1 ... 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+import common  # noqa: F401
+from common import emit, pyplot, save_plot, table
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import calibration_error, noise_level, simulate
+
+CHI2_3_9973 = 14.156
+
+
+def covered(res, truth) -> tuple[bool, bool, bool]:
+    cov = res.batch.covariance
+    e_dt = res.time_offset_s - truth.time_offset_s
+    e_t = truth.p_HE - res.p_HE
+    # rotation error in the tangent of the estimate: R_true = R_est Exp(e_r)
+    e_r = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
+    m_t = float(e_t @ np.linalg.solve(cov[1:4, 1:4], e_t))
+    m_r = float(e_r @ np.linalg.solve(cov[4:7, 4:7], e_r))
+    return abs(e_dt) <= 3 * np.sqrt(cov[0, 0]), m_t <= CHI2_3_9973, m_r <= CHI2_3_9973
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    p.add_argument('--seeds', type=int, default=20)
+    p.add_argument('--levels', type=float, nargs='+', default=list(range(11)))
+    args = p.parse_args()
+    rows, cov_rows, curves = [], [], []
+    t0 = time.perf_counter()
+    all_cov = []
+    for level in args.levels:
+        nm, nd = noise_level(level)
+        lin, bat, cov, secs, sig = [], [], [], [], []
+        for seed in range(args.seeds):
+            rec = simulate(seed, noise_m=nm, noise_deg=nd)
+            r0 = calibrate(rec.hand, rec.eye, CalibrationConfig(batch=False))
+            r1 = calibrate(rec.hand, rec.eye)
+            e0 = calibration_error(rec.truth, r0.time_offset_s, r0.q_HE, r0.p_HE)
+            e1 = calibration_error(rec.truth, r1.time_offset_s, r1.q_HE, r1.p_HE)
+            lin.append((e0.time_offset_s, e0.translation_m, e0.rotation_deg))
+            bat.append((e1.time_offset_s, e1.translation_m, e1.rotation_deg))
+            if r1.batch is not None:
+                cov.append(covered(r1, rec.truth))
+                secs.append(r1.batch.seconds)
+                sig.append(r1.batch.std[0])
+        lin_m, bat_m = np.mean(lin, axis=0), np.mean(bat, axis=0)
+        rows.append([f'{level:g}', lin_m[0] * 1e3, bat_m[0] * 1e3, lin_m[1] * 1e3,
+                     bat_m[1] * 1e3, lin_m[2], bat_m[2],
+                     float(np.mean(sig)) * 1e3 if sig else float('nan'), f'{len(cov)}/{args.seeds}',
+                     float(np.mean(secs)) if secs else float('nan')])
+        c = np.mean(cov, axis=0) * 100 if cov else [np.nan] * 3
+        cov_rows.append([f'{level:g}', *c])
+        all_cov += cov
+        curves.append((level, lin_m, bat_m))
+    emit('batch_accuracy', table(
+        f'Linear vs batch on the paper protocol, mean over {args.seeds} seeds (hand 100 Hz, '
+        'eye 20 Hz, 60 s)', ['level', 'dt lin ms', 'dt batch ms', 'trans lin mm',
+                             'trans batch mm', 'rot lin deg', 'rot batch deg',
+                             'reported 1-sigma dt ms', 'batch used', 'batch s'], rows))
+    c = np.mean(all_cov, axis=0) * 100
+    emit('batch_coverage', table(
+        'Truth inside the reported 3-sigma [% of seeds] (target >= 95)',
+        ['level', 'dt', 'translation', 'rotation'], cov_rows + [['all', *c]]))
+    print(f'({time.perf_counter() - t0:.0f} s)')
+    plt = pyplot()
+    if plt is not None:
+        fig, ax = plt.subplots(1, 3, figsize=(15, 4))
+        lv = [c[0] for c in curves]
+        for k, (name, scale) in enumerate((('|dt error| [ms]', 1e3), ('translation [mm]', 1e3),
+                                           ('rotation [deg]', 1.0))):
+            ax[k].plot(lv, [c[1][k] * scale for c in curves], 'o-', label='linear')
+            ax[k].plot(lv, [c[2][k] * scale for c in curves], 's-', label='batch')
+            ax[k].set(xlabel='noise level', ylabel=name)
+            ax[k].legend()
+        print('plot:', save_plot(fig, 'batch'))
+
+
+if __name__ == '__main__':
+    main()

@@ -54,3 +54,12 @@ def test_rotation_angle() -> None:
     rv *= (np.linspace(0.0, np.pi - 1e-6, 40) / np.linalg.norm(rv, axis=1))[:, None]
     np.testing.assert_allclose(g.rotation_angle(Rotation.from_rotvec(rv).as_matrix()),
                                np.linalg.norm(rv, axis=1), atol=1e-6)
+
+
+def test_log_and_exp_so3_match_scipy_at_every_angle() -> None:
+    from handeye_ros.core.spline import exp_so3
+    rng = np.random.default_rng(7)
+    v = rng.normal(size=(3000, 3)) * np.repeat([1e-9, 0.3, 1.0], 1000)[:, None]
+    R = Rotation.from_rotvec(v).as_matrix()
+    np.testing.assert_allclose(g.log_so3(R), Rotation.from_matrix(R).as_rotvec(), atol=1e-12)
+    np.testing.assert_allclose(exp_so3(v), R, atol=1e-12)

@@ -30,7 +30,7 @@ from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
 from .errors import HandeyeError
-from .geometry import Pose, compose, inverse, matrix_from_quat, quat_from_matrix
+from .geometry import Pose, compose, inverse, log_so3, matrix_from_quat, quat_from_matrix
 from .spline import PoseSpline, fit_spline
 from .trajectory import Trajectory
 
@@ -106,7 +106,7 @@ def _pairs(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
     """(N, 6): rotation (rad) and translation (m) differences of relative poses."""
     dR = np.matmul(pred[0], np.swapaxes(obs[0], -1, -2))
-    return np.concatenate((Rotation.from_matrix(dR).as_rotvec(), pred[1] - obs[1]), axis=1)
+    return np.concatenate((log_so3(dR), pred[1] - obs[1]), axis=1)
 
 
 def _robust_sigma(r: np.ndarray) -> float:
@@ -307,17 +307,15 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
 
     z = np.zeros(free.size)
     en = Noise(*_sigmas(prob.eye_raw(full(z)), eye_noise))
-    for _ in range(2 if en.estimated else 1):
+    passes = 2 if en.estimated else 1
+    for k in range(passes):
         prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
         sol = least_squares(fun, z, method='trf', loss='huber', f_scale=huber.delta,
                             x_scale='jac', max_nfev=max_iterations, xtol=1e-12, ftol=1e-12,
                             gtol=1e-12)
         z = sol.x
-        if en.estimated:
+        if k + 1 < passes:
             en = Noise(*_sigmas(prob.eye_raw(full(z)), eye_noise))
-    prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
-    sol = least_squares(fun, z, method='trf', loss='huber', f_scale=huber.delta, x_scale='jac',
-                        max_nfev=max_iterations, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     # the cost at the start, in the final weights, for an honest before/after comparison
     return sol, huber(fun(np.zeros(free.size))), huber(sol.fun), en
 

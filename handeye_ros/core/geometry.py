@@ -103,3 +103,25 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.stack((np.stack((o, -z, y), -1),
                      np.stack((z, o, -x), -1),
                      np.stack((-y, x, o), -1)), -2)
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vectors Log(R) of rotation matrices (N, 3, 3).
+
+    From the skew part ``w = sin(theta) axis`` and ``theta = atan2(|w|, cos theta)``, which is
+    accurate at small angles (unlike arccos of the trace); near pi, where the skew part
+    vanishes, scipy's conversion takes over.
+    """
+    w = 0.5 * np.stack((R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                        R[:, 1, 0] - R[:, 0, 1]), axis=1)
+    s = np.linalg.norm(w, axis=1)
+    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    theta = np.arctan2(s, c)
+    small = s < 1e-8
+    scale = np.where(small, 1.0 + theta * theta / 6.0, theta / np.where(small, 1.0, s))
+    out = w * scale[:, None]
+    near_pi = theta > 3.0
+    if near_pi.any():
+        from scipy.spatial.transform import Rotation
+        out[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
+    return out

@@ -21,7 +21,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
-from .geometry import Pose
+from .geometry import Pose, log_so3
 
 
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
@@ -41,6 +41,25 @@ def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
     # s + k - 1 - j
     b = np.stack([np.nan_to_num(N(s + order - 1 - j)) for j in range(order)], axis=-1)
     return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+
+
+def exp_so3(v: np.ndarray) -> np.ndarray:
+    """Rotation matrices Exp(v) of rotation vectors (N, 3), by Rodrigues' formula.
+
+    The hot path of the batch stage: several times faster than going through scipy's
+    Rotation for the small angles of spline segments; exact to round-off at any angle.
+    """
+    theta2 = np.einsum('ij,ij->i', v, v)
+    theta = np.sqrt(theta2)
+    small = theta < 1e-4
+    safe = np.where(small, 1.0, theta)
+    # sin(t)/t and (1 - cos t)/t^2, with their Taylor series near 0
+    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    K = np.zeros((v.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * np.matmul(K, K)
 
 
 @dataclass(frozen=True)
@@ -76,13 +95,12 @@ class PoseSpline:
         i, s = self.segments(t)
         Bc = cumulative_basis(s, self.order)
         # Log of consecutive control rotations, once per control interval
-        omega = Rotation.from_matrix(
-            np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:])).as_rotvec()
+        omega = log_so3(np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:]))
         dp = np.diff(self.p, axis=0)
         R = self.R[i]
         p = self.p[i].copy()
         for j in range(1, self.order):
-            R = np.matmul(R, Rotation.from_rotvec(Bc[:, j, None] * omega[i + j - 1]).as_matrix())
+            R = np.matmul(R, exp_so3(Bc[:, j, None] * omega[i + j - 1]))
             p += Bc[:, j, None] * dp[i + j - 1]
         return R, p
 

@@ -77,6 +77,11 @@ def main(argv: list[str] | None = None) -> int:
     true_q = t.q_HE * (1.0 if np.dot(t.q_HE, q) >= 0 else -1.0)
     print(f'  {"T_HE rotation [xyzw]":22s}{_vec(q):>36s}{_vec(true_q):>36s}'
           f'{err.rotation_deg:10.3f} deg')
+    if result.get('std'):
+        s = result['std']
+        print(f'\nreported 1-sigma (batch stage): time offset {s["time_offset"] * 1e3:.3f} ms, '
+              f'translation {np.linalg.norm(s["translation"]) * 1e3:.1f} mm, rotation '
+              f'{np.degrees(np.linalg.norm(s["rotation"])):.3f} deg (norms over the axes)')
     return 0
 
 

@@ -105,8 +105,8 @@ def main() -> None:
         'Runtime on one core (200 Hz hand + 30 Hz eye, noise level 5); targets for 10 min: time '
         'alignment + linear < 1 s, batch < 10 s and < 2 GB',
         ['minutes', 'poses', 'read files s', 'time align s', 'linear s', 'align+linear s',
-         'batch s', 'world+metrics s', 'calibrate() s (all stages)', 'calibrate peak MB', 'max RSS MB',
-         'motions'],
+         'batch s', 'world+metrics s', 'calibrate() s (all stages)', 'calibrate peak MB',
+         'max RSS MB', 'motions'],
         rows))
 
 

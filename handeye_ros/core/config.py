@@ -74,6 +74,9 @@ class CalibrationConfig(Options):
         'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz', low=0.005, high=1.0)
     spline_order: int = option(
         4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6)
+    batch_decoupled: bool = option(
+        True, 'bool', 'batch stage: the rotation of T_HE from the rotation residuals alone, then '
+        'dt and the translation from all residuals (false: all together)')
     batch_joint: bool = option(
         False, 'bool', 'also free the spline control poses in the batch solve (the full joint '
         'problem; far slower, the same result while the MoCap is much less noisy than the VIO)')

@@ -26,3 +26,7 @@ class DegenerateMotionError(HandeyeError):
 
 class ConfigError(HandeyeError):
     """An option is unknown or outside its valid range."""
+
+
+class BatchError(HandeyeError):
+    """The batch stage cannot run on this input (the linear result is kept)."""

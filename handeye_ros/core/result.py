@@ -76,7 +76,8 @@ class CalibrationResult:
             return out
         out.update({
             'knot_spacing': c.knot_spacing, 'spline_order': c.spline_order,
-            'joint': c.batch_joint, 'control_points': b.n_control_points,
+            'joint': c.batch_joint, 'decoupled': c.batch_decoupled,
+            'control_points': b.n_control_points,
             'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},
             'noise': {'hand': _noise_dict(b.hand_noise), 'eye': _noise_dict(b.eye_noise)},
             'iterations': b.iterations, 'evaluations': b.evaluations,

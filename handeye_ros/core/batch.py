@@ -12,6 +12,11 @@ SE(3) Log of eq. 20 differs from it only at second order), each part divided by 
 noise, a Huber loss, and a trust-region Levenberg-Marquardt (scipy's ``trf``, which takes the
 sparse Jacobian: a dense one does not scale) over the spline's control poses, dt and T_HE.
 
+By default the spline is fitted to the hand alone and (dt, T_HE) are solved on the eye
+residuals with it, in two steps: (dt, rotation of T_HE) on the rotation residuals, then
+(dt, translation) on all of them (:func:`_solve_offset_extrinsic` says why). ``joint`` frees
+the control poses as well (the whole problem above, sparse Jacobian); it is far slower.
+
 Relative residuals leave the spline's absolute pose free (a rigid motion of the whole spline
 changes no residual); a weak prior on the first control pose fixes that gauge. The noise of
 each stream is estimated from its own residuals unless given. The covariance of (dt, T_HE) is
@@ -251,14 +256,12 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         cov_raw = _marginal_covariance(sol.jac, prob.n_spline)
         n_free, n_res = sol.x.size, sol.fun.size
     else:
-        y, cost_before, cost_after, en, J, free, m, sol = _solve_offset_extrinsic(
+        y, cost_before, cost_after, en, cov, n_res, n_free, sol = _solve_offset_extrinsic(
             prob, eye_noise, huber, max_iterations, fix_time_offset, decoupled)
-        cov_raw = np.zeros((7, 7))
-        cov_raw[np.ix_(free, free)] = np.linalg.inv(J.T @ J)
-        n_free, n_res = free.size, m
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
-    cov = cov_raw * max(chi2, 1e-12)
+    if joint:
+        cov = cov_raw * max(chi2, 1e-12)
     # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
     perm = np.array([0, 4, 5, 6, 1, 2, 3])
     cov = cov[np.ix_(perm, perm)]
@@ -299,8 +302,8 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
 
     Two passes: the eye noise is estimated from the residuals at the linear result, then again
     at the first solution (the linear result's residuals include its own error).
-    Returns (y, cost before, cost after, noise, Jacobian of all residuals wrt the free
-    parameters at y, the free indices, the number of residuals).
+    Returns (y, cost before, cost after, noise, 7x7 covariance in the order of y, number of
+    residuals, number of free parameters, the last solver result).
     """
     y = np.zeros(7)
     dt_idx = [] if fix_time_offset else [0]
@@ -333,19 +336,66 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
             sols.append(solve(free_all, False))
         if k + 1 < passes:
             en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
-    # Jacobian of every residual wrt every free parameter at the solution (central
-    # differences), for the covariance
+    cost_before = huber(residuals(np.zeros(7)))
     r0 = residuals(y)
-    J = np.empty((r0.size, free_all.size))
-    for c, idx in enumerate(free_all):
+    cost_after = huber(r0)
+    J = _jacobian(residuals, y, free_all)
+    dof = max(r0.size - free_all.size, 1)
+    s2 = max(2.0 * cost_after / dof, 1e-12)
+    cov = np.zeros((7, 7))
+    if not decoupled:
+        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(J.T @ J)
+    else:
+        cov[np.ix_(free_all, free_all)] = _two_step_covariance(
+            residuals, y, np.array(dt_idx + [1, 2, 3]), np.array(dt_idx + [4, 5, 6]), s2)
+    return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1]
+
+
+def _jacobian(fun, y: np.ndarray, cols: np.ndarray, rotation_only: bool = False) -> np.ndarray:
+    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y."""
+    out = []
+    for idx in cols:
         h = 1e-7 if idx == 0 else 1e-6
         yp, ym = y.copy(), y.copy()
         yp[idx] += h
         ym[idx] -= h
-        J[:, c] = (residuals(yp) - residuals(ym)) / (2 * h)
-    cost_before = huber(residuals(np.zeros(7)))
-    last = sols[-1]
-    return y, cost_before, huber(r0), en, J, free_all, r0.size, last
+        out.append((fun(yp, rotation_only) - fun(ym, rotation_only)) / (2 * h))
+    return np.stack(out, axis=1)
+
+
+def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndarray,
+                         s2: float) -> np.ndarray:
+    """Covariance of the decoupled estimate, in the order of ``free_a`` then the rest of
+    ``free_b``'s translation (i.e. of free_all = (dt?, dtheta, dp)).
+
+    Step A gives dtheta (with dt) from the rotation residuals: Sigma_A = s2 (J_A^T J_A)^-1.
+    Step B gives (dt, dp) from all residuals with dtheta fixed; its own noise gives
+    Sigma_B = s2 (J_B^T J_B)^-1, and dtheta's error moves it by S = -(J_B^T J_B)^-1 J_B^T J_t
+    (J_t: all residuals wrt dtheta). The final dt is step B's.
+    """
+    theta = np.array([1, 2, 3])
+    J_A = _jacobian(fun, y, free_a, rotation_only=True)
+    cov_a = s2 * np.linalg.inv(J_A.T @ J_A)
+    k = free_a.size - 3  # 1 when dt is free
+    cov_tt = cov_a[k:, k:]
+    J_B = _jacobian(fun, y, free_b)
+    J_t = _jacobian(fun, y, theta)
+    N_B = np.linalg.inv(J_B.T @ J_B)
+    S = -N_B @ (J_B.T @ J_t)
+    cov_b = s2 * N_B + S @ cov_tt @ S.T
+    # assemble in the order (dt?, dtheta, dp)
+    n = free_b.size + 3
+    out = np.zeros((n, n))
+    b_dt = list(range(k))  # dt position in B (0) if free
+    pos_t = np.arange(k, k + 3)
+    pos_p = np.arange(k + 3, n)
+    out[np.ix_(pos_t, pos_t)] = cov_tt
+    idx_b = np.array(b_dt + list(pos_p))  # where B's parameters go
+    out[np.ix_(idx_b, idx_b)] = cov_b
+    cross = S @ cov_tt  # Cov(B params, dtheta)
+    out[np.ix_(idx_b, pos_t)] = cross
+    out[np.ix_(pos_t, idx_b)] = cross.T
+    return out
 
 
 def _solve_joint(prob: _Problem, hn: Noise, eye_noise, huber, max_iterations: int):

@@ -246,7 +246,9 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     _check_hand_gaps(hand, knot_spacing, order)
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
     # the hand's noise, from the spline fit's own residuals (relative form, as in the joint cost)
-    r_h, _, _ = prob.raw(np.zeros(prob.n))
+    spline = prob.spline0
+    Rh, ph = spline.evaluate(prob.th)
+    r_h = _residual_parts(_relative(Rh, ph, prob.hi, prob.hj), prob.hand_obs)
     hn = Noise(*_sigmas(r_h, hand_noise))
     huber = _huber(huber_delta)
     if joint:
@@ -318,9 +320,10 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
             yy = y.copy()
             yy[free] = z
             return residuals(yy, rotation_only)
+        # tolerances: 1e-10 relative is ~1e-10 s in dt and sub-micrometre in T_HE
         sol = least_squares(fun, y[free], method='trf', loss='huber', f_scale=huber.delta,
-                            x_scale='jac', max_nfev=max_iterations, xtol=1e-12, ftol=1e-12,
-                            gtol=1e-12)
+                            x_scale='jac', max_nfev=max_iterations, xtol=1e-10, ftol=1e-10,
+                            gtol=1e-10)
         y[free] = sol.x
         return sol
 

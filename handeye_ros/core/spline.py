@@ -90,13 +90,20 @@ class PoseSpline:
         i = np.clip(np.floor(u).astype(int), 0, n_seg - 1)
         return i, np.clip(u - i, 0.0, 1.0)
 
+    def _increments(self) -> tuple[np.ndarray, np.ndarray]:
+        """Log of consecutive control rotations and position differences, computed once."""
+        cached = self.__dict__.get('_inc')
+        if cached is None:
+            cached = (log_so3(np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:])),
+                      np.diff(self.p, axis=0))
+            object.__setattr__(self, '_inc', cached)  # frozen: the cache is not state
+        return cached
+
     def evaluate(self, t: np.ndarray) -> Pose:
         """Poses at times t (s): rotations (N, 3, 3), positions (N, 3)."""
         i, s = self.segments(t)
         Bc = cumulative_basis(s, self.order)
-        # Log of consecutive control rotations, once per control interval
-        omega = log_so3(np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:]))
-        dp = np.diff(self.p, axis=0)
+        omega, dp = self._increments()
         R = self.R[i]
         p = self.p[i].copy()
         for j in range(1, self.order):

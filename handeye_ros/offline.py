@@ -116,32 +116,20 @@ def load_options(path: str | None) -> dict[str, Any]:
     return {k: v for k, v in data.items() if k not in NODE_ONLY_KEYS}
 
 
-def split_options(options: dict[str, Any], source: str) -> tuple[Any, Any]:
-    """(CalibrationConfig, StreamConfig) from one flat mapping; unknown keys are refused."""
-    from .core.config import CalibrationConfig
-    from .core.errors import ConfigError
-    from .stream.config import StreamConfig
-    calib, stream = CalibrationConfig.specs(), StreamConfig.specs()
-    unknown = sorted(set(options) - set(calib) - set(stream))
-    if unknown:
-        raise ConfigError(f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
-                          f'{", ".join([*calib, *stream])}')
-    return (CalibrationConfig.from_mapping({k: v for k, v in options.items() if k in calib},
-                                           source),
-            StreamConfig.from_mapping({k: v for k, v in options.items() if k in stream}, source))
-
-
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Read, calibrate and return the result dictionary (raises HandeyeError on bad input)."""
+    from .core.config import CalibrationConfig
     from .core.errors import ConfigError
+    from .core.options import split_options
+    from .stream.config import StreamConfig
     files = args.hand or args.eye
     if (args.bag and files) or (not args.bag and not (args.hand and args.eye)):
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
     options = load_options(args.config)
-    from .core.config import CalibrationConfig
     keys = (*STREAM_OPTION_KEYS, *CalibrationConfig.specs())
     options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
-    calib, streams = split_options(options, source=args.config or 'options')
+    calib, streams = split_options(options, (CalibrationConfig, StreamConfig),
+                                   source=args.config or 'options')
     frames = {'hand_frame': streams.hand_frame_id, 'eye_frame': streams.eye_frame_id}
     if args.bag:
         from .formats.bag import replay

@@ -20,7 +20,9 @@ the control poses as well (the whole problem above, sparse Jacobian); it is far 
 Relative residuals leave the spline's absolute pose free (a rigid motion of the whole spline
 changes no residual); a weak prior on the first control pose fixes that gauge. The noise of
 each stream is estimated from its own residuals unless given. The covariance of (dt, T_HE) is
-the 7x7 block of ``s^2 (J^T J)^-1`` at the solution, by a Schur complement over the spline.
+``s^2 (J^T J)^-1`` at the solution; for the two-step solve it is that of the two-step estimate
+(:func:`_two_step_covariance`), for the joint one the 7x7 block by a Schur complement over the
+spline.
 """
 
 from __future__ import annotations
@@ -35,12 +37,10 @@ from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
 from .errors import BatchError
-from .geometry import Pose, compose, inverse, log_so3, matrix_from_quat, quat_from_matrix
+from .geometry import Pose, compose, log_so3, matrix_from_quat, quat_from_matrix, relative
 from .spline import PoseSpline, fit_spline
+from .time_align import GAP_FACTOR
 from .trajectory import Trajectory
-
-#: Consecutive samples further apart than this many median periods are not paired (a gap).
-GAP_FACTOR = 3.5
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
@@ -93,12 +93,8 @@ class BatchSolution:
     warnings: tuple[str, ...] = field(default=())
 
 
-def _relative(R: np.ndarray, p: np.ndarray, i: np.ndarray, j: np.ndarray) -> Pose:
-    return compose(inverse((R[i], p[i])), (R[j], p[j]))
-
-
 def _pairs(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Consecutive sample indices not spanning a gap."""
+    """Consecutive sample indices not spanning a gap (GAP_FACTOR median periods, as stage 1)."""
     step = np.diff(t)
     ok = step <= GAP_FACTOR * np.median(step)
     i = np.flatnonzero(ok)
@@ -129,7 +125,7 @@ class _Problem:
         self.spline0 = fit_spline(self.th, Rh, ph, knot_spacing, order)
         self.M = self.spline0.R.shape[0]
         self.hi, self.hj = _pairs(self.th)
-        self.hand_obs = _relative(Rh, ph, self.hi, self.hj)
+        self.hand_obs = relative((Rh, ph), self.hi, self.hj)
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(te)
         lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
@@ -140,11 +136,16 @@ class _Problem:
                              f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
                              'little for the batch stage')
         self.te = te
-        self.eye_obs = _relative(Re, pe, self.ei, self.ej)
+        self.eye_obs = relative((Re, pe), self.ei, self.ej)
         self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
         self.n_spline = 6 * self.M
         self.n = self.n_spline + 7
         self.w = np.ones(4)  # 1/sigma: hand rot, hand trans, eye rot, eye trans
+
+    def offset_extrinsic(self, y: np.ndarray) -> tuple[float, Pose]:
+        """(dt, T_HE) of the updates y = (ddt, dtheta_X, dp_X) to the start values."""
+        return (self.dt0 + y[0],
+                (self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]))
 
     # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
     def unpack(self, x: np.ndarray) -> tuple[PoseSpline, float, Pose]:
@@ -152,31 +153,26 @@ class _Problem:
         s0 = self.spline0
         R = np.matmul(s0.R, Rotation.from_rotvec(c[:, :3]).as_matrix())
         spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
-        d = x[self.n_spline:]
-        X = (self.RX0 @ Rotation.from_rotvec(d[1:4]).as_matrix(), self.pX0 + d[4:7])
-        return spline, self.dt0 + d[0], X
+        return (spline, *self.offset_extrinsic(x[self.n_spline:]))
+
+    def hand_raw(self, spline: PoseSpline) -> np.ndarray:
+        """Unweighted hand residuals (Nh, 6) against a spline."""
+        return _residual_parts(relative(spline.evaluate(self.th), self.hi, self.hj),
+                               self.hand_obs)
+
+    def eye_raw_at(self, spline: PoseSpline, dt: float, X: Pose) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6): the eye predicted from the spline, dt and X."""
+        pred = compose(spline.evaluate(self.te - dt), X)
+        return _residual_parts(relative(pred, self.ei, self.ej), self.eye_obs)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals and the gauge prior (6,)."""
         spline, dt, X = self.unpack(x)
-        Rh, ph = spline.evaluate(self.th)
-        r_h = _residual_parts(_relative(Rh, ph, self.hi, self.hj), self.hand_obs)
-        Rg, pg = spline.evaluate(self.te - dt)
-        Re, pe = compose((Rg, pg), X)
-        r_e = _residual_parts(_relative(Re, pe, self.ei, self.ej), self.eye_obs)
-        gauge = x[:6] / GAUGE_SIGMA
-        return r_h, r_e, gauge
+        return self.hand_raw(spline), self.eye_raw_at(spline, dt, X), x[:6] / GAUGE_SIGMA
 
     def eye_raw(self, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6) for (dt, dtheta_X, dp_X) with the spline fixed."""
-        dt = self.dt0 + y[0]
-        X = (self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7])
-        Rg, pg = self.spline0.evaluate(self.te - dt)
-        Re, pe = compose((Rg, pg), X)
-        return _residual_parts(_relative(Re, pe, self.ei, self.ej), self.eye_obs)
-
-    def eye_residuals(self, y: np.ndarray) -> np.ndarray:
-        return (self.eye_raw(y) * np.repeat(self.w[2:], 3)).ravel()
+        return self.eye_raw_at(self.spline0, *self.offset_extrinsic(y))
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r_h, r_e, gauge = self.raw(x)
@@ -246,14 +242,11 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     _check_hand_gaps(hand, knot_spacing, order)
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
     # the hand's noise, from the spline fit's own residuals (relative form, as in the joint cost)
-    spline = prob.spline0
-    Rh, ph = spline.evaluate(prob.th)
-    r_h = _residual_parts(_relative(Rh, ph, prob.hi, prob.hj), prob.hand_obs)
-    hn = Noise(*_sigmas(r_h, hand_noise))
+    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise))
     huber = _huber(huber_delta)
     if joint:
-        sol, cost_before, cost_after, en, jac_block = _solve_joint(prob, hn, eye_noise, huber,
-                                                                   max_iterations)
+        sol, cost_before, cost_after, en = _solve_joint(prob, hn, eye_noise, huber,
+                                                        max_iterations)
         y = sol.x[prob.n_spline:]
         cov_raw = _marginal_covariance(sol.jac, prob.n_spline)
         n_free, n_res = sol.x.size, sol.fun.size
@@ -267,8 +260,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
     perm = np.array([0, 4, 5, 6, 1, 2, 3])
     cov = cov[np.ix_(perm, perm)]
-    dt = prob.dt0 + y[0]
-    X = (prob.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), prob.pX0 + y[4:7])
+    dt, X = prob.offset_extrinsic(y)
     warnings = []
     if not sol.success:
         warnings.append(f'batch solver stopped without converging: {sol.message}')
@@ -342,11 +334,11 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
     cost_before = huber(residuals(np.zeros(7)))
     r0 = residuals(y)
     cost_after = huber(r0)
-    J = _jacobian(residuals, y, free_all)
     dof = max(r0.size - free_all.size, 1)
     s2 = max(2.0 * cost_after / dof, 1e-12)
     cov = np.zeros((7, 7))
     if not decoupled:
+        J = _jacobian(residuals, y, free_all)
         cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(J.T @ J)
     else:
         cov[np.ix_(free_all, free_all)] = _two_step_covariance(
@@ -368,8 +360,7 @@ def _jacobian(fun, y: np.ndarray, cols: np.ndarray, rotation_only: bool = False)
 
 def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndarray,
                          s2: float) -> np.ndarray:
-    """Covariance of the decoupled estimate, in the order of ``free_a`` then the rest of
-    ``free_b``'s translation (i.e. of free_all = (dt?, dtheta, dp)).
+    """Covariance of the decoupled estimate, in the order (dt if free, dtheta, dp).
 
     Step A gives dtheta (with dt) from the rotation residuals: Sigma_A = s2 (J_A^T J_A)^-1.
     Step B gives (dt, dp) from all residuals with dtheta fixed; its own noise gives
@@ -411,7 +402,7 @@ def _solve_joint(prob: _Problem, hn: Noise, eye_noise, huber, max_iterations: in
     sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method='trf',
                         loss='huber', f_scale=huber.delta, x_scale='jac', tr_solver='lsmr',
                         max_nfev=max_iterations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
-    return sol, cost_before, huber(sol.fun), en, None
+    return sol, cost_before, huber(sol.fun), en
 
 
 def _sigmas(r: np.ndarray, given: tuple[float | None, float | None]) -> tuple[float, float,

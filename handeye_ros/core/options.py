@@ -131,3 +131,18 @@ def _check(name: str, value: Any, spec: Spec) -> None:
     if too_low or (high is not None and value > high):
         msg = f'option {name} must lie in {spec.range_text()}; got {value!r}'
         raise ConfigError(msg)
+
+
+def split_options(values: dict[str, Any], classes: tuple[type[Options], ...],
+                  source: str = 'config') -> tuple[Options, ...]:
+    """One flat mapping (a params file, node parameters, command-line options) as one instance
+    of each option set in ``classes``; a key none of them knows is refused, naming ``source``.
+    """
+    known = [name for cls in classes for name in cls.specs()]
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        msg = (f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+               f'{", ".join(known)}')
+        raise ConfigError(msg)
+    return tuple(cls.from_mapping({k: v for k, v in values.items() if k in cls.specs()}, source)
+                 for cls in classes)

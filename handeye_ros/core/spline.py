@@ -114,11 +114,11 @@ class PoseSpline:
 
 def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
                order: int = 4) -> PoseSpline:
-    """A spline through stamped poses: the initial guess of the batch stage.
+    """A spline through stamped poses (the hand's spline of the batch stage).
 
-    Control poses are the poses interpolated where each control point weighs most (the
-    centre of its support); positions are then refined by linear least squares on the
-    samples. The rotation control points are left to the batch solve.
+    Control poses start as the poses interpolated where each control point weighs most (the
+    centre of its support); rotations are then corrected until the spline passes through the
+    data at those centres, and positions are solved by linear least squares on the samples.
     """
     t = np.asarray(t, dtype=float)
     n_seg = int(np.ceil((t[-1] - t[0]) / knot_spacing - 1e-9))
@@ -136,8 +136,8 @@ def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
     # diagonally dominant (1/6, 2/3, 1/6 for cubic), so it converges geometrically.
     for _ in range(ROTATION_FIT_ITERATIONS):
         R_s, _ = spline.evaluate(tc)
-        err = Rotation.from_matrix(np.matmul(np.swapaxes(R_s, -1, -2), R_at_c)).as_rotvec()
-        Rc = np.matmul(Rc, Rotation.from_rotvec(err).as_matrix())
+        err = log_so3(np.matmul(np.swapaxes(R_s, -1, -2), R_at_c))
+        Rc = np.matmul(Rc, exp_so3(err))
         spline = PoseSpline(t0, knot_spacing, order, Rc, pc)
     # positions are linear in the control points: p(t) = A c, solved in one sparse LS
     i, s = spline.segments(t)

@@ -47,7 +47,7 @@ from std_srvs.srv import Trigger
 
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError, HandeyeError, InputError
-from ..core.options import Spec
+from ..core.options import Spec, split_options
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
 from ..stream.convert import UnsupportedTypeError
@@ -146,13 +146,8 @@ class CalibratorNode(Node):
                     ParameterException) as err:
                 raise ConfigError(f'parameter {name}: {err}') from None
             values[name] = p.value
-        return self._configs(values)
-
-    @staticmethod
-    def _configs(values: dict[str, Any]) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
-        def part(cls: Any) -> Any:
-            return cls.from_mapping({k: values[k] for k in cls.specs()}, source='parameters')
-        return part(CalibrationConfig), part(StreamConfig), part(NodeConfig)
+        return split_options(values, (CalibrationConfig, StreamConfig, NodeConfig),
+                             source='parameters')
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
         changes = {p.name: p.value for p in params if p.name in DYNAMIC}

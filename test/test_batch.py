@@ -112,3 +112,31 @@ def test_given_noise_is_used() -> None:
     res = calibrate(rec.hand, rec.eye, cfg)
     assert res.batch is not None and not res.batch.eye_noise.estimated
     assert res.batch.eye_noise.translation == 0.002
+
+
+def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
+    # MoCap with white noise 0.1 mm / 0.0057 deg per axis, VIO at level 5: the full problem of
+    # eq. 19 (control poses free) converges in a few steps, measures the MoCap noise, and lands
+    # within a fraction of its own sigma of the default solve (fixed spline): the MoCap is 25x
+    # less noisy than the VIO, so the spline has little to learn from the eye.
+    rec = recording(seed=3, level=5.0, duration_s=30.0, hand_noise_m=1e-4,
+                    hand_noise_deg=np.degrees(1e-4))
+    default = calibrate(rec.hand, rec.eye)
+    joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True))
+    b = joint.batch
+    assert b is not None and b.success and not b.decoupled, joint.warnings
+    assert b.iterations <= 15 and b.cost_after <= b.cost_before
+    assert b.n_control_points > 500
+    assert b.hand_noise.translation == pytest.approx(1e-4, rel=0.15)
+    assert b.hand_noise.rotation == pytest.approx(1e-4, rel=0.15)
+    e_dt = joint.time_offset_s - rec.truth.time_offset_s
+    assert abs(e_dt) < 4 * b.std[0]
+    assert np.all(np.abs(rec.truth.p_HE - joint.p_HE) < 4 * b.std[1:4])
+    # same information, same uncertainty (the default splits rotation and translation, so its
+    # rotation sigma is somewhat larger)
+    assert b.std[0] == pytest.approx(default.batch.std[0], rel=0.2)
+    assert np.allclose(b.std[1:4], default.batch.std[1:4], rtol=0.2)
+    assert abs(joint.time_offset_s - default.time_offset_s) < b.std[0]
+    fixed = calibrate(rec.hand, rec.eye, CalibrationConfig(
+        batch_joint=True, time_offset=rec.truth.time_offset_s))
+    assert fixed.time_offset_s == rec.truth.time_offset_s and fixed.batch.std[0] == 0.0

@@ -1,28 +1,33 @@
 """Stage 3: continuous-time batch refinement of (dt, T_HE) with uncertainty (Section III-C).
 
 The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.spline`); the eye is predicted as
-``T_WE(t) = T_WG T_GH(t - dt) T_HE``. Residuals compare relative poses between consecutive
-observations of each stream (eq. 20), so T_WG drops out::
+``T_WE(t) = T_WG T_GH(t - dt) T_HE``. The eye residuals compare relative poses between
+consecutive observations (eq. 20), so T_WG drops out; the hand residuals compare the spline
+with each MoCap pose::
 
-    hand:  d(T_GH(t_h)^-1 T_GH(t_h+1),            Z_h^-1 Z_h+1)
+    hand:  d(T_GH(t_h),  Z_h)
     eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
 
-with ``d = (Log(dR_pred dR_obs^T), dp_pred - dp_obs)`` (rotation and translation apart: the
-SE(3) Log of eq. 20 differs from it only at second order), each part divided by its stream's
-noise, a Huber loss, and a trust-region Levenberg-Marquardt (scipy's ``trf``, which takes the
-sparse Jacobian: a dense one does not scale) over the spline's control poses, dt and T_HE.
+with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)`` (rotation and translation apart: the SE(3)
+Log of eq. 20 differs from it only at second order), each part divided by its stream's noise,
+and a Huber loss. Why the hand differs from eq. 19's relative form: the MoCap measures T_GH in
+G directly, so there is no unknown world frame to remove, and its noise is white per pose,
+which per-pose residuals model exactly; relative ones would be correlated between neighbours
+and leave a rigid motion of the whole spline free. (The VIO's error is a drift, white in its
+increments: there the relative form is the right one.)
 
 By default the spline is fitted to the hand alone and (dt, T_HE) are solved on the eye
-residuals with it, in two steps: (dt, rotation of T_HE) on the rotation residuals, then
-(dt, translation) on all of them (:func:`_solve_offset_extrinsic` says why). ``joint`` frees
-the control poses as well (the whole problem above, sparse Jacobian); it is far slower.
+residuals with it by scipy's trust-region least squares, in two steps: (dt, rotation of T_HE)
+on the rotation residuals, then (dt, translation) on all of them (:func:`_solve_offset_extrinsic`
+says why). ``joint`` solves the whole problem, control poses included, by Levenberg-Marquardt
+with a sparse Jacobian and a sparse direct solve (:func:`_levenberg_marquardt` says why not
+scipy's solver); it is slower and agrees with the default while the MoCap is much less noisy
+than the VIO.
 
-Relative residuals leave the spline's absolute pose free (a rigid motion of the whole spline
-changes no residual); a weak prior on the first control pose fixes that gauge. The noise of
-each stream is estimated from its own residuals unless given. The covariance of (dt, T_HE) is
-``s^2 (J^T J)^-1`` at the solution; for the two-step solve it is that of the two-step estimate
-(:func:`_two_step_covariance`), for the joint one the 7x7 block by a Schur complement over the
-spline.
+The noise of each stream is estimated from its own residuals unless given. The covariance of
+(dt, T_HE) is ``s^2 (J^T J)^-1`` at the solution; for the two-step solve it is that of the
+two-step estimate (:func:`_two_step_covariance`), for the joint one the 7x7 block by a Schur
+complement over the spline, each stream's rows scaled by its own reduced chi^2.
 """
 
 from __future__ import annotations
@@ -31,30 +36,40 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.sparse import coo_matrix, csc_matrix
+from scipy.optimize import OptimizeResult, least_squares
+from scipy.sparse import csc_matrix, csr_matrix, diags
 from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
 from .errors import BatchError
 from .geometry import Pose, compose, log_so3, matrix_from_quat, quat_from_matrix, relative
-from .spline import PoseSpline, fit_spline
+from .spline import PoseSpline, exp_so3, fit_spline
 from .time_align import GAP_FACTOR
 from .trajectory import Trajectory
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
-#: Weak prior (rad, m) on the first control pose, fixing the gauge of relative residuals.
-GAUGE_SIGMA = 1.0
-#: dt may move this far (s) from its start during the solve (sets the Jacobian pattern).
+#: Finite-difference steps of the joint solve's Jacobian: control poses and T_HE (rad, m), dt (s).
+FD_STEP = 1e-6
+FD_STEP_S = 1e-6
+#: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
+#: the spline's ends are left out, so that every eye pose keeps a spline segment.
 DT_MARGIN_S = 0.05
 #: Fewest eye residuals the stage accepts.
 MIN_EYE_RESIDUALS = 20
+#: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
+#: the normal matrix's diagonal) and the relative cost change that ends it.
+LM_LAMBDA0 = 1e-4
+LM_LAMBDA_MIN = 1e-9
+LM_LAMBDA_MAX = 1e8
+LM_FTOL = 1e-10
+LM_FTOL_FIRST_PASS = 1e-6
 
 
 @dataclass(frozen=True)
 class Noise:
-    """Standard deviations of one stream's relative-pose residuals per axis (rad, m)."""
+    """Standard deviations per axis (rad, m) of one stream's residuals: of each pose for the
+    hand, of the relative pose between consecutive poses for the eye."""
 
     rotation: float
     translation: float
@@ -124,8 +139,9 @@ class _Problem:
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
         self.spline0 = fit_spline(self.th, Rh, ph, knot_spacing, order)
         self.M = self.spline0.R.shape[0]
-        self.hi, self.hj = _pairs(self.th)
-        self.hand_obs = relative((Rh, ph), self.hi, self.hj)
+        self.hand_obs = (Rh, ph)
+        self.hand_basis = self.spline0.basis(self.th)  # the knots never move; the times neither
+        self._eye_basis: dict[float, tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(te)
         lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
@@ -151,44 +167,49 @@ class _Problem:
     def unpack(self, x: np.ndarray) -> tuple[PoseSpline, float, Pose]:
         c = x[:self.n_spline].reshape(self.M, 6)
         s0 = self.spline0
-        R = np.matmul(s0.R, Rotation.from_rotvec(c[:, :3]).as_matrix())
+        R = np.matmul(s0.R, exp_so3(c[:, :3]))
         spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
         return (spline, *self.offset_extrinsic(x[self.n_spline:]))
 
     def hand_raw(self, spline: PoseSpline) -> np.ndarray:
-        """Unweighted hand residuals (Nh, 6) against a spline."""
-        return _residual_parts(relative(spline.evaluate(self.th), self.hi, self.hj),
-                               self.hand_obs)
+        """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
+        return _residual_parts(spline.evaluate(self.th, self.hand_basis), self.hand_obs)
 
     def eye_raw_at(self, spline: PoseSpline, dt: float, X: Pose) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline, dt and X."""
-        pred = compose(spline.evaluate(self.te - dt), X)
+        basis = self._eye_basis.get(dt)
+        if basis is None:  # a few dt values recur many times in a Jacobian: keep the last ones
+            if len(self._eye_basis) > 4:
+                self._eye_basis.clear()
+            basis = self._eye_basis[dt] = self.spline0.basis(self.te - dt)
+        pred = compose(spline.evaluate(self.te - dt, basis), X)
         return _residual_parts(relative(pred, self.ei, self.ej), self.eye_obs)
 
-    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals and the gauge prior (6,)."""
+    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
         spline, dt, X = self.unpack(x)
-        return self.hand_raw(spline), self.eye_raw_at(spline, dt, X), x[:6] / GAUGE_SIGMA
+        return self.hand_raw(spline), self.eye_raw_at(spline, dt, X)
 
     def eye_raw(self, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6) for (dt, dtheta_X, dp_X) with the spline fixed."""
         return self.eye_raw_at(self.spline0, *self.offset_extrinsic(y))
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        r_h, r_e, gauge = self.raw(x)
+        r_h, r_e = self.raw(x)
         w = self.w
         return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
-                               (r_e * np.repeat(w[2:], 3)).ravel(), gauge))
+                               (r_e * np.repeat(w[2:], 3)).ravel()))
 
-    def sparsity(self) -> csc_matrix:
-        """Which parameters each residual row depends on."""
+    def pattern(self, dt: float, margin: float) -> tuple[np.ndarray, np.ndarray, int]:
+        """(rows, cols) of the Jacobian's non-zeros for any offset within ``margin`` (s) of
+        ``dt``, and the most control points one residual row depends on."""
         k = self.spline0.order
-        rows, cols = [], []
+        rows, cols, widths = [], [], []
 
-        def spline_block(row0: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray) -> None:
-            first = np.minimum(seg_a, seg_b)
-            last = np.minimum(np.maximum(seg_a, seg_b) + k - 1, self.M - 1)
+        def spline_block(row0: np.ndarray, first: np.ndarray, last: np.ndarray) -> None:
+            last = np.minimum(last, self.M - 1)
             width = int((last - first).max()) + 1
+            widths.append(width)
             cp = first[:, None] + np.arange(width)
             cp_ok = cp <= last[:, None]
             for a in range(6):  # residual component
@@ -199,21 +220,44 @@ class _Problem:
                     cols.append(6 * c + b)
 
         seg_h = self.spline0.segments(self.th)[0]
-        spline_block(6 * np.arange(self.hi.size), seg_h[self.hi], seg_h[self.hj])
-        base = 6 * self.hi.size
-        lo_a = self.spline0.segments(self.te[self.ei] - self.dt0 - DT_MARGIN_S)[0]
-        hi_b = self.spline0.segments(self.te[self.ej] - self.dt0 + DT_MARGIN_S)[0]
-        spline_block(base + 6 * np.arange(self.ei.size), lo_a, hi_b)
+        spline_block(6 * np.arange(self.th.size), seg_h, seg_h + k - 1)
+        base = 6 * self.th.size
+        seg_a = self.spline0.segments(self.te[self.ei] - dt - margin)[0]
+        seg_b = self.spline0.segments(self.te[self.ej] - dt + margin)[0]
+        spline_block(base + 6 * np.arange(self.ei.size), seg_a, seg_b + k - 1)
         eye_rows = base + np.arange(6 * self.ei.size)
         for c in range(7):
             rows.append(eye_rows)
             cols.append(np.full(eye_rows.size, self.n_spline + c))
-        g0 = base + 6 * self.ei.size
-        rows.append(g0 + np.arange(6))
-        cols.append(np.arange(6))
-        r, c = np.concatenate(rows), np.concatenate(cols)
-        m = g0 + 6
-        return csc_matrix(coo_matrix((np.ones(r.size), (r, c)), shape=(m, self.n)))
+        return np.concatenate(rows), np.concatenate(cols), max(widths)
+
+    def jacobian(self, x: np.ndarray, f0: np.ndarray) -> csr_matrix:
+        """Sparse Jacobian of :meth:`residuals` by grouped finite differences.
+
+        Control-point columns G apart (G: the most control points one residual touches) never
+        share a row, so one evaluation perturbs a whole group of them (Curtis-Powell-Reid);
+        forward differences there, central ones for the 7 (dt, T_HE) columns.
+        """
+        rows, cols, G = self.pattern(self.dt0 + x[self.n_spline], 2 * FD_STEP_S)
+        group = np.where(cols < self.n_spline, (cols // 6 % G) * 6 + cols % 6,
+                         6 * G + cols - self.n_spline)
+        vals = np.empty(rows.size)
+        for g in range(6 * G + 7):
+            in_g = group == g
+            if not in_g.any():
+                continue
+            idx = np.unique(cols[in_g])
+            h = FD_STEP_S if idx[0] == self.n_spline else FD_STEP
+            xp = x.copy()
+            xp[idx] += h
+            if g < 6 * G:
+                d = (self.residuals(xp) - f0) / h
+            else:
+                xm = x.copy()
+                xm[idx] -= h
+                d = (self.residuals(xp) - self.residuals(xm)) / (2 * h)
+            vals[in_g] = d[rows[in_g]]
+        return csr_matrix((vals, (rows, cols)), shape=(f0.size, self.n))
 
 
 def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.ndarray,
@@ -227,11 +271,12 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
 
     By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
     residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 19,
-    with a sparse Jacobian; far slower, and the same answer while the MoCap is much less noisy
-    than the VIO).
+    sparse Jacobian and sparse direct solve; ~10x slower, and the same answer while the MoCap
+    is much less noisy than the VIO).
 
-    ``hand_noise`` / ``eye_noise``: (rotation rad, translation m) per axis of the relative-pose
-    residuals; None estimates it from the data's own residuals.
+    ``hand_noise`` / ``eye_noise``: (rotation rad, translation m) per axis of each MoCap pose /
+    of the eye's relative poses between consecutive frames; None estimates it from the data's
+    own residuals.
 
     Raises
     ------
@@ -241,22 +286,18 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     t_start = time.perf_counter()
     _check_hand_gaps(hand, knot_spacing, order)
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
-    # the hand's noise, from the spline fit's own residuals (relative form, as in the joint cost)
-    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise))
+    # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
+    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise, prob.M))
     huber = _huber(huber_delta)
     if joint:
-        sol, cost_before, cost_after, en = _solve_joint(prob, hn, eye_noise, huber,
-                                                        max_iterations)
-        y = sol.x[prob.n_spline:]
-        cov_raw = _marginal_covariance(sol.jac, prob.n_spline)
-        n_free, n_res = sol.x.size, sol.fun.size
+        x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
+            prob, hn, hand_noise, eye_noise, huber, max_iterations, fix_time_offset)
+        y = x[prob.n_spline:]
     else:
         y, cost_before, cost_after, en, cov, n_res, n_free, sol = _solve_offset_extrinsic(
             prob, eye_noise, huber, max_iterations, fix_time_offset, decoupled)
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
-    if joint:
-        cov = cov_raw * max(chi2, 1e-12)
     # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
     perm = np.array([0, 4, 5, 6, 1, 2, 3])
     cov = cov[np.ix_(perm, perm)]
@@ -269,15 +310,14 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), cost_before=cost_before,
         cost_after=cost_after, iterations=int(sol.njev or 0), evaluations=int(sol.nfev),
         termination=str(sol.message), success=bool(sol.success), hand_noise=hn, eye_noise=en,
-        n_hand_residuals=int(prob.hi.size), n_eye_residuals=int(prob.ei.size),
+        n_hand_residuals=int(prob.th.size), n_eye_residuals=int(prob.ei.size),
         n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
         decoupled=decoupled and not joint, warnings=tuple(warnings))
 
 
 def _huber(delta: float):
     def cost(r: np.ndarray) -> float:
-        a = np.abs(r)
-        return float(np.sum(np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta))))
+        return _huber_cost(r, delta)
     cost.delta = delta  # type: ignore[attr-defined]
     return cost
 
@@ -392,23 +432,122 @@ def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndar
     return out
 
 
-def _solve_joint(prob: _Problem, hn: Noise, eye_noise, huber, max_iterations: int):
-    """Spline control poses, dt and T_HE together (sparse Jacobian; slower)."""
-    x0 = np.zeros(prob.n)
-    _, r_e, _ = prob.raw(x0)
-    en = Noise(*_sigmas(r_e, eye_noise))
-    prob.w = 1.0 / np.array([hn.rotation, hn.translation, en.rotation, en.translation])
-    cost_before = huber(prob.residuals(x0))
-    sol = least_squares(prob.residuals, x0, jac_sparsity=prob.sparsity(), method='trf',
-                        loss='huber', f_scale=huber.delta, x_scale='jac', tr_solver='lsmr',
-                        max_nfev=max_iterations, xtol=1e-10, ftol=1e-10, gtol=1e-10)
-    return sol, cost_before, huber(sol.fun), en
+def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_iterations: int,
+                 fix_time_offset: bool):
+    """Control poses, dt and T_HE together: the whole problem of eq. 19.
+
+    Two passes when a noise is estimated, as in :func:`_solve_offset_extrinsic`.
+    Returns (x, cost before, cost after, hand noise, eye noise, 7x7 covariance in the order of
+    y = (dt, dtheta_X, dp_X), number of residuals, number of free parameters, solver report).
+    """
+    free = np.ones(prob.n, bool)
+    if fix_time_offset:
+        free[prob.n_spline] = False
+    x = np.zeros(prob.n)
+    en = Noise(*_sigmas(prob.eye_raw(np.zeros(7)), eye_noise))
+    passes = 2 if (en.estimated or hn.estimated) else 1
+    for k in range(passes):
+        prob.w = 1.0 / np.array([hn.rotation, hn.translation, en.rotation, en.translation])
+        # A first pass only has to get near enough to measure the noise again: plain least
+        # squares does that in 2-3 steps, where Huber's switching between its quadratic and
+        # linear parts over thousands of MoCap rows takes 20-40 (measured, bench/RESULTS.md);
+        # the Huber pass then starts where its active set has settled.
+        last = k + 1 == passes
+        x, Jw, report = _levenberg_marquardt(
+            prob, x, free, huber.delta if last else np.inf, max_iterations,
+            LM_FTOL if last else LM_FTOL_FIRST_PASS)
+        if k + 1 < passes:
+            r_h, r_e = prob.raw(x)
+            hn, en = Noise(*_sigmas(r_h, hand_noise, prob.M)), Noise(*_sigmas(r_e, eye_noise))
+    f = prob.residuals(x)
+    # each stream's rows scaled by its own reduced chi^2 (its noise is estimated apart; the
+    # hand rows also pay for the control poses, the eye rows for dt and T_HE)
+    nh = 6 * prob.th.size
+    s2_h = 2.0 * huber(f[:nh]) / max(nh - prob.n_spline, 1)
+    s2_e = 2.0 * huber(f[nh:]) / max(f.size - nh - 7, 1)
+    scale = np.where(np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)),
+                     1.0 / np.sqrt(max(s2_e, 1e-12)))
+    cov = np.zeros((7, 7))
+    glob = np.flatnonzero(free[prob.n_spline:])
+    cov[np.ix_(glob, glob)] = _marginal_covariance(diags(scale) @ Jw, prob.n_spline)
+    cost_before = huber(prob.residuals(np.zeros(prob.n)))
+    return (x, cost_before, huber(f), hn, en, cov, f.size, int(free.sum()), report)
 
 
-def _sigmas(r: np.ndarray, given: tuple[float | None, float | None]) -> tuple[float, float,
-                                                                                bool]:
-    rot = given[0] if given[0] is not None else max(_robust_sigma(r[:, :3]), MIN_SIGMA_ROT)
-    trans = given[1] if given[1] is not None else max(_robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS)
+def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, delta: float,
+                         max_iterations: int, ftol: float
+                         ) -> tuple[np.ndarray, csr_matrix, OptimizeResult]:
+    """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
+
+    Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
+    solver, and the joint problem (stiff MoCap rows, weak VIO rows, a 6-wide band per control
+    pose plus 7 dense columns) is too ill-conditioned for it: on 8 s of data it crept from cost
+    1.98e4 to 1.85e4 in 50 evaluations, and its dense solver is no faster per step and does not
+    scale. A Gauss-Newton step solved exactly by sparse LU (the normal matrix is banded with a
+    7-wide border) converges in 3-5 steps. The Huber loss enters by iteratively reweighted least
+    squares (weights min(1, delta/|r|)), whose fixed points are the Huber optimum.
+    Returns (x, the weighted Jacobian of the free columns at the last linearisation, report).
+    """
+    f = prob.residuals(x)
+    cost = _huber_cost(f, delta)
+    lam, nu, nfev, njev = LM_LAMBDA0, 2.0, 1, 0
+    message, success = 'maximum number of iterations reached', False
+    for _ in range(max_iterations):
+        J = prob.jacobian(x, f)[:, free]
+        njev += 1
+        # Newton on the Huber cost: rows beyond delta add no curvature, only a clipped gradient
+        inner = (np.abs(f) <= delta).astype(float)
+        A = (J.T @ diags(inner) @ J).tocsc()
+        g = J.T @ np.clip(f, -delta, delta)
+        D = diags(np.maximum(np.asarray(J.multiply(J).sum(axis=0)).ravel(), 1e-12))
+        while True:
+            step = splu((A + lam * D).tocsc(), permc_spec='MMD_AT_PLUS_A').solve(-g)
+            x_new = x.copy()
+            x_new[free] += step
+            f_new = prob.residuals(x_new)
+            nfev += 1
+            cost_new = _huber_cost(f_new, delta)
+            predicted = -(g @ step + 0.5 * step @ (A @ step))
+            if cost_new <= cost or lam > LM_LAMBDA_MAX:
+                break
+            lam *= nu
+            nu *= 2.0
+        if cost_new > cost:  # no step lowers the cost: at the optimum to the Jacobian's accuracy
+            message, success = 'no step lowers the cost any further', True
+            break
+        # Nielsen's damping update from the gain ratio (actual over predicted decrease)
+        decrease = cost - cost_new
+        rho = decrease / predicted if predicted > 0 else 0.0
+        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN)
+        nu = 2.0
+        x, f, cost = x_new, f_new, cost_new
+        if decrease <= ftol * cost:
+            message, success = 'relative cost change below tolerance', True
+            break
+    # the Gauss-Newton Jacobian of the Huber cost (scipy's convention), for the covariance
+    Jw = diags(np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))) @ J
+    report = OptimizeResult(success=success, message=message, nfev=nfev, njev=njev)
+    return x, Jw, report
+
+
+def _huber_cost(r: np.ndarray, delta: float) -> float:
+    a = np.abs(r)
+    return float(np.sum(np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta))))
+
+
+def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
+            fitted: int = 0) -> tuple[float, float, bool]:
+    """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
+
+    ``fitted``: parameters per axis fitted to these same residuals (the spline's M control
+    poses for the hand), which shrink them by sqrt((N - fitted) / N): undone here.
+    """
+    n = r.shape[0]
+    inflate = float(np.sqrt(n / max(n - fitted, 1)))
+    rot = (given[0] if given[0] is not None
+           else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT))
+    trans = (given[1] if given[1] is not None
+             else max(inflate * _robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS))
     return rot, trans, given[0] is None or given[1] is None
 
 

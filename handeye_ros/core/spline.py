@@ -99,10 +99,17 @@ class PoseSpline:
             object.__setattr__(self, '_inc', cached)  # frozen: the cache is not state
         return cached
 
-    def evaluate(self, t: np.ndarray) -> Pose:
-        """Poses at times t (s): rotations (N, 3, 3), positions (N, 3)."""
+    def basis(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(segment index, cumulative basis (N, k)) of times t: all that :meth:`evaluate` needs
+        of the times, to reuse across splines with the same knots."""
         i, s = self.segments(t)
-        Bc = cumulative_basis(s, self.order)
+        return i, cumulative_basis(s, self.order)
+
+    def evaluate(self, t: np.ndarray,
+                 basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
+        """Poses at times t (s): rotations (N, 3, 3), positions (N, 3); ``basis``: the
+        :meth:`basis` of t, if already at hand."""
+        i, Bc = self.basis(t) if basis is None else basis
         omega, dp = self._increments()
         R = self.R[i]
         p = self.p[i].copy()

@@ -8,11 +8,13 @@ drift) are reported apart. "identity" is our rotation result on the unmodified p
 truth is the identity: it shows the estimate's own attitude bias against the ground truth,
 which bounds what any calibration can reach on that pair.
 
-Usage: python bench/real_cases.py
+Usage: python bench/real_cases.py [--joint] [--only V1_01 ...]
+(``--joint``: the batch columns from the joint solve, control poses free.)
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import numpy as np
@@ -29,7 +31,8 @@ from opencv_compare import METHODS, cv2, input_sets, opencv_hand_eye
 SHIFTS_S = (0.0873, -0.2315)
 
 
-def evaluate_pair(pair: realdata.RealPair) -> dict[str, float]:
+def evaluate_pair(pair: realdata.RealPair,
+                  config: CalibrationConfig | None = None) -> dict[str, float]:
     gt, est = realdata.load(pair)
     q, p = realdata.true_extrinsic()
     identity = calibrate(gt, est, CalibrationConfig(batch=False))
@@ -39,7 +42,7 @@ def evaluate_pair(pair: realdata.RealPair) -> dict[str, float]:
         truth = Truth(shift, q, p, q, p)
         hand = realdata.to_marker_frame(gt, shift)
         t0 = time.perf_counter()
-        res = calibrate(hand, est)
+        res = calibrate(hand, est, config)
         elapsed = max(elapsed, time.perf_counter() - t0)
         e = calibration_error(truth, res.time_offset_s, res.q_HE, res.p_HE)
         r0 = calibrate(hand, est, CalibrationConfig(batch=False))
@@ -71,6 +74,12 @@ def evaluate_pair(pair: realdata.RealPair) -> dict[str, float]:
 
 
 def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    p.add_argument('--joint', action='store_true', help='batch stage with the control poses free')
+    p.add_argument('--only', nargs='+', help='pair names (default: all)')
+    args = p.parse_args()
+    config = CalibrationConfig(batch_joint=args.joint)
+    suffix = '_joint' if args.joint else ''
     if not realdata.available():
         print(f'real data not found at {realdata.REAL_DATA}: nothing to do')
         return
@@ -80,14 +89,18 @@ def main() -> None:
     for title, room in (('Vicon room (V1_*, V2_*)', True), ('Machine Hall (MH_*)', False)):
         rows = []
         for pair in (p for p in realdata.PAIRS if p.vicon_room == room):
-            r = evaluate_pair(pair)
+            if args.only and pair.name not in args.only:
+                continue
+            r = evaluate_pair(pair, config)
             rows.append([pair.name, r['lin_dt_err_ms'], r['lin_trans_mm'], r['lin_rot_deg'],
                          r['dt_err_ms'], r['dt_bias_ms'], r['std_dt_ms'], r['trans_mm'],
                          r['rot_deg'], r['cv_trans_mm'], r['cv_rot_deg'], r['identity_deg'],
                          r['inliers'], r['seconds']])
+        if not rows:
+            continue
         mean = ['mean'] + [float(np.mean([row[k] for row in rows])) for k in range(1, 12)] + \
             ['', '']
-        emit(f'real_{"vicon" if room else "machine_hall"}', table(
+        emit(f'real_{"vicon" if room else "machine_hall"}{suffix}', table(
             f'{title}: offset estimated by us (shifts {", ".join(f"{s:+g}" for s in SHIFTS_S)} s'
             ' applied); lin = stages 1+2, then the batch stage; OpenCV given the applied shift '
             '(best method and input per column)',

@@ -6,7 +6,10 @@ TUM files, of time alignment, of the linear stage (association, keyframes, RANSA
 world alignment + metrics; the peak of numpy/Python allocations during calibrate()
 (tracemalloc) and the process's peak resident memory.
 
-Usage: python bench/runtime.py [--minutes 1 10 60]
+``--joint`` also times the joint batch solve (control poses free) and reports the process's
+peak resident memory right after it.
+
+Usage: python bench/runtime.py [--minutes 1 10 60] [--joint]
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from common import emit, table
 SINGLE_THREAD = {k: '1' for k in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')}
 
 
-def child(minutes: float) -> dict[str, float]:
+def child(minutes: float, joint: bool = False) -> dict[str, float]:
     """Runs inside the pinned child process."""
     import resource
     import time
@@ -67,6 +70,12 @@ def child(minutes: float) -> dict[str, float]:
     t0 = time.perf_counter()
     refine(hand, eye, ta.time_offset_s, lin.q_HE, lin.p_HE)
     out['batch_s'] = time.perf_counter() - t0
+    if joint:
+        t0 = time.perf_counter()
+        sol = refine(hand, eye, ta.time_offset_s, lin.q_HE, lin.p_HE, joint=True)
+        out['batch_joint_s'] = time.perf_counter() - t0
+        out['joint_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        out['joint_iterations'] = sol.iterations
     t0 = time.perf_counter()
     res = calibrate(hand, eye, cfg)
     out['calibrate_s'] = time.perf_counter() - t0
@@ -83,30 +92,32 @@ def child(minutes: float) -> dict[str, float]:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--minutes', type=float, nargs='+', default=[1, 10, 60])
+    p.add_argument('--joint', action='store_true', help='also time the joint batch solve')
     p.add_argument('--child', type=float, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.child is not None:
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-        print(json.dumps(child(args.child)))
+        print(json.dumps(child(args.child, args.joint)))
         return
     rows = []
     for minutes in args.minutes:
         env = dict(os.environ, **SINGLE_THREAD,
                    PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
-        proc = subprocess.run([sys.executable, __file__, '--child', str(minutes)], env=env,
-                              capture_output=True, text=True, check=True)
+        cmd = [sys.executable, __file__, '--child', str(minutes)] + ['--joint'] * args.joint
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
         r = json.loads(proc.stdout.strip().splitlines()[-1])
         rows.append([f'{minutes:g}', f'{r["hand_poses"]:.0f} + {r["eye_poses"]:.0f}',
                      r['read_s'], r['time_align_s'], r['linear_s'],
                      r['time_align_s'] + r['linear_s'], r['batch_s'], r['metrics_s'],
                      r['calibrate_s'],
-                     r['calibrate_peak_mb'], r['max_rss_mb'], f'{r["motions"]:.0f}'])
+                     r['calibrate_peak_mb'], r['max_rss_mb'], f'{r["motions"]:.0f}']
+                    + ([r['batch_joint_s'], r['joint_rss_mb']] if args.joint else []))
     emit('runtime', table(
         'Runtime on one core (200 Hz hand + 30 Hz eye, noise level 5); targets for 10 min: time '
         'alignment + linear < 1 s, batch < 10 s and < 2 GB',
         ['minutes', 'poses', 'read files s', 'time align s', 'linear s', 'align+linear s',
          'batch s', 'world+metrics s', 'calibrate() s (all stages)', 'calibrate peak MB',
-         'max RSS MB', 'motions'],
+         'max RSS MB', 'motions'] + (['joint batch s', 'RSS after joint MB'] if args.joint else []),
         rows))
 
 

@@ -117,26 +117,48 @@ def test_given_noise_is_used() -> None:
 def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     # MoCap with white noise 0.1 mm / 0.0057 deg per axis, VIO at level 5: the full problem of
     # eq. 19 (control poses free) converges in a few steps, measures the MoCap noise, and lands
-    # within a fraction of its own sigma of the default solve (fixed spline): the MoCap is 25x
-    # less noisy than the VIO, so the spline has little to learn from the eye.
+    # within a fraction of its own sigma of the default solve (fixed spline), in both the
+    # two-step and the all-together form: the MoCap is 25x less noisy than the VIO, so the
+    # spline has little to learn from the eye.
     rec = recording(seed=3, level=5.0, duration_s=30.0, hand_noise_m=1e-4,
                     hand_noise_deg=np.degrees(1e-4))
-    default = calibrate(rec.hand, rec.eye)
-    joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True))
-    b = joint.batch
-    assert b is not None and b.success and not b.decoupled, joint.warnings
-    assert b.iterations <= 15 and b.cost_after <= b.cost_before
-    assert b.n_control_points > 500
-    assert b.hand_noise.translation == pytest.approx(1e-4, rel=0.15)
-    assert b.hand_noise.rotation == pytest.approx(1e-4, rel=0.15)
-    e_dt = joint.time_offset_s - rec.truth.time_offset_s
-    assert abs(e_dt) < 4 * b.std[0]
-    assert np.all(np.abs(rec.truth.p_HE - joint.p_HE) < 4 * b.std[1:4])
-    # same information, same uncertainty (the default splits rotation and translation, so its
-    # rotation sigma is somewhat larger)
-    assert b.std[0] == pytest.approx(default.batch.std[0], rel=0.2)
-    assert np.allclose(b.std[1:4], default.batch.std[1:4], rtol=0.2)
-    assert abs(joint.time_offset_s - default.time_offset_s) < b.std[0]
+    for decoupled in (True, False):
+        default = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_decoupled=decoupled))
+        joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True,
+                                                               batch_decoupled=decoupled))
+        b, d = joint.batch, default.batch
+        assert b is not None and b.success and b.decoupled == decoupled, joint.warnings
+        assert b.iterations <= 15 and b.cost_after <= b.cost_before
+        assert b.n_control_points > 500
+        assert b.hand_noise.translation == pytest.approx(1e-4, rel=0.15)
+        assert b.hand_noise.rotation == pytest.approx(1e-4, rel=0.15)
+        e_dt = joint.time_offset_s - rec.truth.time_offset_s
+        assert abs(e_dt) < 4 * b.std[0]
+        assert np.all(np.abs(rec.truth.p_HE - joint.p_HE) < 4 * b.std[1:4])
+        # same information, same uncertainty, nearly the same estimate
+        assert np.allclose(b.std, d.std, rtol=0.1)
+        assert abs(joint.time_offset_s - default.time_offset_s) < 0.2 * b.std[0]
+        assert np.all(np.abs(joint.p_HE - default.p_HE) < 0.2 * b.std[1:4])
     fixed = calibrate(rec.hand, rec.eye, CalibrationConfig(
         batch_joint=True, time_offset=rec.truth.time_offset_s))
     assert fixed.time_offset_s == rec.truth.time_offset_s and fixed.batch.std[0] == 0.0
+    assert fixed.batch.success
+
+
+def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
+    # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)
+    # columns against dense central differences, away from the start values
+    from handeye_ros.core.batch import _Problem
+
+    rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4,
+                    hand_noise_deg=0.004)
+    t = rec.truth
+    prob = _Problem(rec.hand, rec.eye, t.time_offset_s + 3e-4, t.q_HE, t.p_HE + 0.003, 0.05, 4)
+    prob.w = np.array([1e3, 2e3, 500.0, 400.0])
+    x = np.random.default_rng(0).normal(size=prob.n) * 1e-3
+    J = prob.jacobian(x).toarray()
+    h = 1e-6
+    J_fd = np.stack([(prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
+                     for e in np.eye(prob.n)], axis=1)
+    # central differences with this step are good to ~1e-8 of the largest entry here
+    assert np.abs(J - J_fd).max() < 1e-7 * np.abs(J_fd).max()

@@ -19,10 +19,10 @@ increments: there the relative form is the right one.)
 By default the spline is fitted to the hand alone and (dt, T_HE) are solved on the eye
 residuals with it by scipy's trust-region least squares, in two steps: (dt, rotation of T_HE)
 on the rotation residuals, then (dt, translation) on all of them (:func:`_solve_offset_extrinsic`
-says why). ``joint`` solves the whole problem, control poses included, by Levenberg-Marquardt
-with a sparse Jacobian and a sparse direct solve (:func:`_levenberg_marquardt` says why not
-scipy's solver); it is slower and agrees with the default while the MoCap is much less noisy
-than the VIO.
+says why). ``joint`` solves the whole problem, control poses included (in the same two steps
+unless ``decoupled`` is off), by Levenberg-Marquardt with an analytic sparse Jacobian and a
+sparse direct solve (:func:`_levenberg_marquardt` says why not scipy's solver); it is slower
+and agrees with the default while the MoCap is much less noisy than the VIO.
 
 The noise of each stream is estimated from its own residuals unless given. The covariance of
 (dt, T_HE) is ``s^2 (J^T J)^-1`` at the solution; for the two-step solve it is that of the
@@ -42,14 +42,15 @@ from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
 from .errors import BatchError
-from .geometry import Pose, compose, log_so3, matrix_from_quat, quat_from_matrix, relative
+from .geometry import (Pose, compose, hat, log_so3, matrix_from_quat, quat_from_matrix,
+                       relative, right_jacobian)
 from .spline import PoseSpline, exp_so3, fit_spline
 from .time_align import GAP_FACTOR
 from .trajectory import Trajectory
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
-#: Finite-difference steps of the joint solve's Jacobian: control poses and T_HE (rad, m), dt (s).
+#: Central-difference steps of the joint solve's Jacobian in T_HE (rad, m) and dt (s).
 FD_STEP = 1e-6
 FD_STEP_S = 1e-6
 #: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
@@ -177,12 +178,7 @@ class _Problem:
 
     def eye_raw_at(self, spline: PoseSpline, dt: float, X: Pose) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline, dt and X."""
-        basis = self._eye_basis.get(dt)
-        if basis is None:  # a few dt values recur many times in a Jacobian: keep the last ones
-            if len(self._eye_basis) > 4:
-                self._eye_basis.clear()
-            basis = self._eye_basis[dt] = self.spline0.basis(self.te - dt)
-        pred = compose(spline.evaluate(self.te - dt, basis), X)
+        pred = compose(spline.evaluate(self.te - dt, self.eye_basis(dt)), X)
         return _residual_parts(relative(pred, self.ei, self.ej), self.eye_obs)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -200,64 +196,96 @@ class _Problem:
         return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
                                (r_e * np.repeat(w[2:], 3)).ravel()))
 
-    def pattern(self, dt: float, margin: float) -> tuple[np.ndarray, np.ndarray, int]:
-        """(rows, cols) of the Jacobian's non-zeros for any offset within ``margin`` (s) of
-        ``dt``, and the most control points one residual row depends on."""
-        k = self.spline0.order
-        rows, cols, widths = [], [], []
+    def eye_basis(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Spline basis at the eye times shifted by dt, kept for the few dt values that recur."""
+        basis = self._eye_basis.get(dt)
+        if basis is None:
+            if len(self._eye_basis) > 4:
+                self._eye_basis.clear()
+            basis = self._eye_basis[dt] = self.spline0.basis(self.te - dt)
+        return basis
 
-        def spline_block(row0: np.ndarray, first: np.ndarray, last: np.ndarray) -> None:
-            last = np.minimum(last, self.M - 1)
-            width = int((last - first).max()) + 1
-            widths.append(width)
-            cp = first[:, None] + np.arange(width)
-            cp_ok = cp <= last[:, None]
-            for a in range(6):  # residual component
-                r = (row0 + a)[:, None].repeat(width, axis=1)[cp_ok]
-                c = cp[cp_ok]
-                for b in range(6):  # control point component
-                    rows.append(r)
-                    cols.append(6 * c + b)
+    def jacobian(self, x: np.ndarray) -> csr_matrix:
+        """Sparse Jacobian of :meth:`residuals`: analytic in the control poses (through
+        :meth:`PoseSpline.evaluate_with_jacobian`), central differences in the 7 (dt, T_HE)
+        columns, which only the eye rows depend on.
 
-        seg_h = self.spline0.segments(self.th)[0]
-        spline_block(6 * np.arange(self.th.size), seg_h, seg_h + k - 1)
-        base = 6 * self.th.size
-        seg_a = self.spline0.segments(self.te[self.ei] - dt - margin)[0]
-        seg_b = self.spline0.segments(self.te[self.ej] - dt + margin)[0]
-        spline_block(base + 6 * np.arange(self.ei.size), seg_a, seg_b + k - 1)
-        eye_rows = base + np.arange(6 * self.ei.size)
-        for c in range(7):
-            rows.append(eye_rows)
-            cols.append(np.full(eye_rows.size, self.n_spline + c))
-        return np.concatenate(rows), np.concatenate(cols), max(widths)
-
-    def jacobian(self, x: np.ndarray, f0: np.ndarray) -> csr_matrix:
-        """Sparse Jacobian of :meth:`residuals` by grouped finite differences.
-
-        Control-point columns G apart (G: the most control points one residual touches) never
-        share a row, so one evaluation perturbs a whole group of them (Curtis-Powell-Reid);
-        forward differences there, central ones for the 7 (dt, T_HE) columns.
+        With ``r = Log(R_pred R_obs^T)`` and R_pred moved to ``R_pred Exp(v)``, r moves by
+        ``Jl^-1(r) R_pred v``. Hand row h: v is the spline's body perturbation. Eye pair (a, b)
+        with ``Q = R_a^T R_b`` (spline rotations at t_a - dt, t_b - dt), ``T_HE = (R_X, p_X)``:
+        the relative rotation ``R_X^T Q R_X`` has ``R_pred v = R_X^T (Q eps_b - eps_a)`` and the
+        relative translation ``R_X^T (Q p_X + R_a^T (p_b - p_a) - p_X)`` moves by
+        ``R_X^T ([u]x eps_a - Q [p_X]x eps_b + R_a^T (dp_b - dp_a))`` with
+        ``u = Q p_X + R_a^T (p_b - p_a)``.
         """
-        rows, cols, G = self.pattern(self.dt0 + x[self.n_spline], 2 * FD_STEP_S)
-        group = np.where(cols < self.n_spline, (cols // 6 % G) * 6 + cols % 6,
-                         6 * G + cols - self.n_spline)
-        vals = np.empty(rows.size)
-        for g in range(6 * G + 7):
-            in_g = group == g
-            if not in_g.any():
-                continue
-            idx = np.unique(cols[in_g])
-            h = FD_STEP_S if idx[0] == self.n_spline else FD_STEP
-            xp = x.copy()
-            xp[idx] += h
-            if g < 6 * G:
-                d = (self.residuals(xp) - f0) / h
-            else:
-                xm = x.copy()
-                xm[idx] -= h
-                d = (self.residuals(xp) - self.residuals(xm)) / (2 * h)
-            vals[in_g] = d[rows[in_g]]
-        return csr_matrix((vals, (rows, cols)), shape=(f0.size, self.n))
+        spline, dt, (RX, pX) = self.unpack(x)
+        k = spline.order
+        w = self.w
+        ent_r, ent_c, ent_v = [], [], []
+
+        # the parameters are R_m = R0_m Exp(c_m): a change dc is Exp(Jr(c_m) dc) on R_m
+        Jc = right_jacobian(x[:self.n_spline].reshape(self.M, 6)[:, :3])
+
+        def add(row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
+            """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2."""
+            if col_off == 0:
+                block = np.matmul(block, Jc[cp])
+            rr = row0[:, None, None, None] + np.arange(3)[:, None]
+            cc = 6 * cp[:, :, None, None] + col_off + np.arange(3)
+            rr, cc = np.broadcast_arrays(rr, cc)
+            ent_r.append(rr.ravel())
+            ent_c.append(cc.ravel())
+            ent_v.append(block.ravel())
+
+        # hand rows: rotation by the control rotations, position by the control positions
+        hb = self.hand_basis
+        R_s, p_s, JR, b = spline.evaluate_with_jacobian(hb)
+        r_rot = log_so3(np.matmul(R_s, np.swapaxes(self.hand_obs[0], -1, -2)))
+        cp = hb[0][:, None] + np.arange(k)
+        row = 6 * np.arange(self.th.size)
+        lead = np.matmul(right_jacobian(-r_rot, inverse=True), R_s)  # Jl^-1(r) R_s
+        add(row, cp, 0, w[0] * np.matmul(lead[:, None], JR))
+        add(row + 3, cp, 3, w[1] * b[..., None, None] * np.eye(3))
+        # eye rows
+        eb = self.eye_basis(dt)
+        R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
+        ia, ib = self.ei, self.ej
+        Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
+        Q = np.matmul(np.swapaxes(Ra, -1, -2), Rb)
+        RXt = RX.T
+        rel_R = np.matmul(np.matmul(RXt, Q), RX)
+        r_eye = log_so3(np.matmul(rel_R, np.swapaxes(self.eye_obs[0], -1, -2)))
+        Jl_inv = right_jacobian(-r_eye, inverse=True)
+        u = np.einsum('nij,j->ni', Q, pX) + np.einsum('nji,nj->ni', Ra, pb - pa)
+        RXtRat = np.matmul(RXt, np.swapaxes(Ra, -1, -2))
+        row = 6 * (self.th.size + np.arange(ia.size))
+        for idx, sign_rot, d_trans in (
+                (ia, -1.0, np.matmul(RXt, hat(u))),
+                (ib, 1.0, -np.matmul(np.matmul(RXt, Q), hat(pX)))):
+            cp = eb[0][idx][:, None] + np.arange(k)
+            JRi = JR_e[idx]
+            # d r_rot / d eps: Jl^-1 R_X^T (-I for a, Q for b)
+            d_rot = np.matmul(Jl_inv, RXt if sign_rot < 0 else np.matmul(RXt, Q)) * sign_rot
+            add(row, cp, 0, w[2] * np.matmul(d_rot[:, None], JRi))
+            add(row + 3, cp, 0, w[3] * np.matmul(d_trans[:, None], JRi))
+            add(row + 3, cp, 3, w[3] * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None])
+        # (dt, dtheta_X, dp_X): central differences of the eye rows
+        y = x[self.n_spline:]
+        base = 6 * self.th.size
+        for c in range(7):
+            h = FD_STEP_S if c == 0 else FD_STEP
+            yp, ym = y.copy(), y.copy()
+            yp[c] += h
+            ym[c] -= h
+            d = (self.eye_raw_at(spline, *self.offset_extrinsic(yp))
+                 - self.eye_raw_at(spline, *self.offset_extrinsic(ym))) / (2 * h)
+            d = (d * np.repeat(w[2:], 3)).ravel()
+            ent_r.append(base + np.arange(d.size))
+            ent_c.append(np.full(d.size, self.n_spline + c))
+            ent_v.append(d)
+        m = 6 * (self.th.size + ia.size)
+        return csr_matrix((np.concatenate(ent_v), (np.concatenate(ent_r),
+                                                   np.concatenate(ent_c))), shape=(m, self.n))
 
 
 def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.ndarray,
@@ -271,8 +299,8 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
 
     By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
     residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 19,
-    sparse Jacobian and sparse direct solve; ~10x slower, and the same answer while the MoCap
-    is much less noisy than the VIO).
+    analytic sparse Jacobian and sparse direct solve; slower, and the same answer while the
+    MoCap is much less noisy than the VIO).
 
     ``hand_noise`` / ``eye_noise``: (rotation rad, translation m) per axis of each MoCap pose /
     of the eye's relative poses between consecutive frames; None estimates it from the data's
@@ -291,7 +319,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     huber = _huber(huber_delta)
     if joint:
         x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
-            prob, hn, hand_noise, eye_noise, huber, max_iterations, fix_time_offset)
+            prob, hn, hand_noise, eye_noise, huber, max_iterations, fix_time_offset, decoupled)
         y = x[prob.n_spline:]
     else:
         y, cost_before, cost_after, en, cov, n_res, n_free, sol = _solve_offset_extrinsic(
@@ -312,7 +340,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         termination=str(sol.message), success=bool(sol.success), hand_noise=hn, eye_noise=en,
         n_hand_residuals=int(prob.th.size), n_eye_residuals=int(prob.ei.size),
         n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
-        decoupled=decoupled and not joint, warnings=tuple(warnings))
+        decoupled=decoupled, warnings=tuple(warnings))
 
 
 def _huber(delta: float):
@@ -416,33 +444,51 @@ def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndar
     J_t = _jacobian(fun, y, theta)
     N_B = np.linalg.inv(J_B.T @ J_B)
     S = -N_B @ (J_B.T @ J_t)
-    cov_b = s2 * N_B + S @ cov_tt @ S.T
-    # assemble in the order (dt?, dtheta, dp)
-    n = free_b.size + 3
+    return _assemble_two_step(cov_tt, s2 * N_B, S, k)
+
+
+def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
+                       k: int) -> np.ndarray:
+    """The two-step estimate's covariance in the order (dt if free, dtheta, dp).
+
+    cov_tt: dtheta from step A; cov_b: step B's (dt?, dp) from its own noise; S: how dtheta's
+    error moves step B's (dt?, dp); k: 1 when dt is free.
+    """
+    cov_b = cov_b + S @ cov_tt @ S.T
+    n = k + 6
     out = np.zeros((n, n))
-    b_dt = list(range(k))  # dt position in B (0) if free
     pos_t = np.arange(k, k + 3)
-    pos_p = np.arange(k + 3, n)
+    idx_b = np.array(list(range(k)) + list(range(k + 3, n)))  # where B's parameters go
     out[np.ix_(pos_t, pos_t)] = cov_tt
-    idx_b = np.array(b_dt + list(pos_p))  # where B's parameters go
     out[np.ix_(idx_b, idx_b)] = cov_b
-    cross = S @ cov_tt  # Cov(B params, dtheta)
+    cross = S @ cov_tt  # Cov(B's parameters, dtheta)
     out[np.ix_(idx_b, pos_t)] = cross
     out[np.ix_(pos_t, idx_b)] = cross.T
     return out
 
 
 def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_iterations: int,
-                 fix_time_offset: bool):
+                 fix_time_offset: bool, decoupled: bool):
     """Control poses, dt and T_HE together: the whole problem of eq. 19.
 
-    Two passes when a noise is estimated, as in :func:`_solve_offset_extrinsic`.
+    ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
+    steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,
+    then (control poses, dt, translation) on all rows. Two passes when a noise is estimated.
     Returns (x, cost before, cost after, hand noise, eye noise, 7x7 covariance in the order of
     y = (dt, dtheta_X, dp_X), number of residuals, number of free parameters, solver report).
     """
+    ns, nh = prob.n_spline, 6 * prob.th.size
     free = np.ones(prob.n, bool)
     if fix_time_offset:
-        free[prob.n_spline] = False
+        free[ns] = False
+    theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
+    theta[ns + 1:ns + 4], trans[ns + 4:] = True, True
+    m = nh + 6 * prob.ei.size
+    all_rows = np.ones(m, bool)
+    rot_rows = all_rows.copy()
+    rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
+    steps = ([(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled
+             else [(free, all_rows)])
     x = np.zeros(prob.n)
     en = Noise(*_sigmas(prob.eye_raw(np.zeros(7)), eye_noise))
     passes = 2 if (en.estimated or hn.estimated) else 1
@@ -450,33 +496,47 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_it
         prob.w = 1.0 / np.array([hn.rotation, hn.translation, en.rotation, en.translation])
         # A first pass only has to get near enough to measure the noise again: plain least
         # squares does that in 2-3 steps, where Huber's switching between its quadratic and
-        # linear parts over thousands of MoCap rows takes 20-40 (measured, bench/RESULTS.md);
+        # linear parts over thousands of MoCap rows takes 20-40 steps (measured on 20 s);
         # the Huber pass then starts where its active set has settled.
         last = k + 1 == passes
-        x, Jw, report = _levenberg_marquardt(
-            prob, x, free, huber.delta if last else np.inf, max_iterations,
-            LM_FTOL if last else LM_FTOL_FIRST_PASS)
-        if k + 1 < passes:
+        for cols, rows in steps:
+            x, report = _levenberg_marquardt(
+                prob, x, cols, rows, huber.delta if last else np.inf, max_iterations,
+                LM_FTOL if last else LM_FTOL_FIRST_PASS)
+        if not last:
             r_h, r_e = prob.raw(x)
             hn, en = Noise(*_sigmas(r_h, hand_noise, prob.M)), Noise(*_sigmas(r_e, eye_noise))
     f = prob.residuals(x)
-    # each stream's rows scaled by its own reduced chi^2 (its noise is estimated apart; the
-    # hand rows also pay for the control poses, the eye rows for dt and T_HE)
-    nh = 6 * prob.th.size
-    s2_h = 2.0 * huber(f[:nh]) / max(nh - prob.n_spline, 1)
+    # The Gauss-Newton Jacobian of the Huber cost (scipy's convention), each stream's rows
+    # scaled by its own reduced chi^2: its noise is estimated apart; the hand rows also pay
+    # for the control poses, the eye rows for dt and T_HE.
+    s2_h = 2.0 * huber(f[:nh]) / max(nh - ns, 1)
     s2_e = 2.0 * huber(f[nh:]) / max(f.size - nh - 7, 1)
     scale = np.where(np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)),
                      1.0 / np.sqrt(max(s2_e, 1e-12)))
+    scale *= np.sqrt(np.minimum(1.0, huber.delta / np.maximum(np.abs(f), 1e-300)))
+    J = diags(scale) @ prob.jacobian(x)
     cov = np.zeros((7, 7))
-    glob = np.flatnonzero(free[prob.n_spline:])
-    cov[np.ix_(glob, glob)] = _marginal_covariance(diags(scale) @ Jw, prob.n_spline)
+    glob = np.flatnonzero(free[ns:])  # y's free entries
+    if not decoupled:
+        cov[np.ix_(glob, glob)] = _marginal_covariance(J[:, free], ns)
+    else:
+        # as _two_step_covariance, with the control poses marginalised in each step
+        J_A = J[rot_rows][:, free & ~trans]
+        cov_tt = _marginal_covariance(J_A, J_A.shape[1] - 3)
+        J_B = csc_matrix(J[:, free & ~theta])
+        rhs = np.asarray((J_B.T @ J[:, theta]).todense())
+        S = -splu(csc_matrix(J_B.T @ J_B)).solve(rhs)[ns:]
+        k_dt = int(free[ns])
+        cov[np.ix_(glob, glob)] = _assemble_two_step(
+            cov_tt, _marginal_covariance(J_B, ns), S, k_dt)
     cost_before = huber(prob.residuals(np.zeros(prob.n)))
     return (x, cost_before, huber(f), hn, en, cov, f.size, int(free.sum()), report)
 
 
-def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, delta: float,
-                         max_iterations: int, ftol: float
-                         ) -> tuple[np.ndarray, csr_matrix, OptimizeResult]:
+def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: np.ndarray,
+                         delta: float, max_iterations: int,
+                         ftol: float) -> tuple[np.ndarray, OptimizeResult]:
     """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
 
     Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
@@ -484,16 +544,19 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, delta:
     pose plus 7 dense columns) is too ill-conditioned for it: on 8 s of data it crept from cost
     1.98e4 to 1.85e4 in 50 evaluations, and its dense solver is no faster per step and does not
     scale. A Gauss-Newton step solved exactly by sparse LU (the normal matrix is banded with a
-    7-wide border) converges in 3-5 steps. The Huber loss enters by iteratively reweighted least
-    squares (weights min(1, delta/|r|)), whose fixed points are the Huber optimum.
-    Returns (x, the weighted Jacobian of the free columns at the last linearisation, report).
+    7-wide border) converges in 3-5 steps. The Huber loss enters as its own Newton model: rows
+    within delta as in least squares, rows beyond it with their gradient clipped to +-delta and
+    no curvature; the damping follows the gain ratio (Nielsen), so a step the model mispredicts
+    is retried shorter.
+    ``free``: the parameters it moves; ``rows``: the residual rows it minimises.
+    Returns (x, report).
     """
-    f = prob.residuals(x)
+    f = prob.residuals(x)[rows]
     cost = _huber_cost(f, delta)
     lam, nu, nfev, njev = LM_LAMBDA0, 2.0, 1, 0
     message, success = 'maximum number of iterations reached', False
     for _ in range(max_iterations):
-        J = prob.jacobian(x, f)[:, free]
+        J = prob.jacobian(x)[rows][:, free]
         njev += 1
         # Newton on the Huber cost: rows beyond delta add no curvature, only a clipped gradient
         inner = (np.abs(f) <= delta).astype(float)
@@ -504,7 +567,7 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, delta:
             step = splu((A + lam * D).tocsc(), permc_spec='MMD_AT_PLUS_A').solve(-g)
             x_new = x.copy()
             x_new[free] += step
-            f_new = prob.residuals(x_new)
+            f_new = prob.residuals(x_new)[rows]
             nfev += 1
             cost_new = _huber_cost(f_new, delta)
             predicted = -(g @ step + 0.5 * step @ (A @ step))
@@ -524,10 +587,7 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, delta:
         if decrease <= ftol * cost:
             message, success = 'relative cost change below tolerance', True
             break
-    # the Gauss-Newton Jacobian of the Huber cost (scipy's convention), for the covariance
-    Jw = diags(np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))) @ J
-    report = OptimizeResult(success=success, message=message, nfev=nfev, njev=njev)
-    return x, Jw, report
+    return x, OptimizeResult(success=success, message=message, nfev=nfev, njev=njev)
 
 
 def _huber_cost(r: np.ndarray, delta: float) -> float:

@@ -79,7 +79,7 @@ class CalibrationConfig(Options):
         'dt and the translation from all residuals (false: all together)')
     batch_joint: bool = option(
         False, 'bool', 'also free the spline control poses in the batch solve (the full joint '
-        'problem; ~10x slower, the same result while the MoCap is much less noisy than the VIO)')
+        'problem; slower, the same result while the MoCap is much less noisy than the VIO)')
     hand_noise_rotation: float | None = option(
         None, 'float', 'hand (MoCap) noise of each pose per axis [rad]; NaN/null estimates it '
         'from the data', optional=True, low=0.0, high=1.0, open_low=True)

@@ -125,3 +125,33 @@ def log_so3(R: np.ndarray) -> np.ndarray:
         from scipy.spatial.transform import Rotation
         out[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
     return out
+
+
+def hat(v: np.ndarray) -> np.ndarray:
+    """Skew matrices [v]x (N, 3, 3) of vectors (N, 3): [v]x w = v x w."""
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
+    return K
+
+
+def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
+    """Right Jacobians Jr(v) of SO(3) (or their inverses), (N, 3, 3), for rotation vectors (N, 3).
+
+    ``Exp(v + dv) = Exp(v) Exp(Jr(v) dv)`` to first order; the left Jacobian is ``Jr(-v)``.
+    Closed forms with their Taylor series near 0 (Chirikjian 2011; Sola et al. 2018, eq. 143-146).
+    """
+    t2 = np.einsum('...i,...i->...', v, v)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    s = np.where(small, 1.0, t)
+    K = hat(v)
+    K2 = np.matmul(K, K)
+    if inverse:
+        a = np.full(t.shape, 0.5)
+        b = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                     1.0 / (s * s) - (1.0 + np.cos(s)) / (2.0 * s * np.sin(s)))
+    else:
+        a = -np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(s)) / (s * s))
+        b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (s - np.sin(s)) / (s * s * s))
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * K2

@@ -21,7 +21,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
-from .geometry import Pose, log_so3
+from .geometry import Pose, log_so3, right_jacobian
 
 
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
@@ -117,6 +117,39 @@ class PoseSpline:
             R = np.matmul(R, exp_so3(Bc[:, j, None] * omega[i + j - 1]))
             p += Bc[:, j, None] * dp[i + j - 1]
         return R, p
+
+    def evaluate_with_jacobian(self, basis: tuple[np.ndarray, np.ndarray]
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Poses at the times of ``basis`` (:meth:`basis`) and their derivatives with respect to
+        the k control poses of each time's segment, i + c (c = 0..k-1).
+
+        Returns R (N, 3, 3), p (N, 3), JR (N, k, 3, 3) and b (N, k): a change of control
+        rotation i + c to ``R_{i+c} Exp(phi)`` moves R(t) to ``R(t) Exp(JR[:, c] phi)`` (body
+        frame), a change of control position i + c by dp moves p(t) by ``b[:, c] dp``. From
+        eq. 18 by the chain rule through each factor ``Exp(Bc_j w_j)`` and each increment
+        ``w_j = Log(R_{i+j-1}^T R_{i+j})`` (Sommer et al. 2020, Section 4).
+        """
+        i, Bc = basis
+        k = self.order
+        omega, dp = self._increments()
+        N = i.size
+        A = [None] + [exp_so3(Bc[:, j, None] * omega[i + j - 1]) for j in range(1, k)]
+        P = [None] * k  # P_j = A_{j+1} ... A_{k-1}
+        P[k - 1] = np.broadcast_to(np.eye(3), (N, 3, 3))
+        for j in range(k - 1, 0, -1):
+            P[j - 1] = np.matmul(A[j], P[j])
+        R = np.matmul(self.R[i], P[0])
+        JR = np.zeros((N, k, 3, 3))
+        JR[:, 0] = np.swapaxes(P[0], -1, -2)
+        for j in range(1, k):
+            w = omega[i + j - 1]
+            G = np.matmul(np.swapaxes(P[j], -1, -2),
+                          Bc[:, j, None, None] * right_jacobian(Bc[:, j, None] * w))
+            JR[:, j] += np.matmul(G, right_jacobian(w, inverse=True))
+            JR[:, j - 1] -= np.matmul(G, right_jacobian(-w, inverse=True))
+        b = Bc - np.concatenate((Bc[:, 1:], np.zeros((N, 1))), axis=1)
+        p = np.einsum('nc,nca->na', b, self.p[i[:, None] + np.arange(k)])
+        return R, p, JR, b
 
 
 def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,

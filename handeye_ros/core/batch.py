@@ -564,7 +564,10 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: 
         g = J.T @ np.clip(f, -delta, delta)
         D = diags(np.maximum(np.asarray(J.multiply(J).sum(axis=0)).ravel(), 1e-12))
         while True:
-            step = splu((A + lam * D).tocsc(), permc_spec='MMD_AT_PLUS_A').solve(-g)
+            # the parameters are in time order with (dt, T_HE) last: the normal matrix is
+            # banded with a 7-wide border, which factors without fill outside them as it is
+            step = splu((A + lam * D).tocsc(), permc_spec='NATURAL',
+                        diag_pivot_thresh=0.0).solve(-g)
             x_new = x.copy()
             x_new[free] += step
             f_new = prob.residuals(x_new)[rows]
@@ -611,10 +614,11 @@ def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
     return rot, trans, given[0] is None or given[1] is None
 
 
-def _marginal_covariance(J, n_spline: int) -> np.ndarray:
-    """(J^T J)^-1 block of the last 7 parameters, by the Schur complement over the spline."""
+def _marginal_covariance(J, n_nuisance: int) -> np.ndarray:
+    """(J^T J)^-1 block of the parameters after the first ``n_nuisance`` (the control poses,
+    and dt where it is marginalised too), by the Schur complement over those."""
     J = csc_matrix(J)
-    Js, Jc = J[:, :n_spline], J[:, n_spline:].toarray()
+    Js, Jc = J[:, :n_nuisance], J[:, n_nuisance:].toarray()
     A = csc_matrix(Js.T @ Js)
     B = np.asarray(Js.T @ Jc)
     C = Jc.T @ Jc

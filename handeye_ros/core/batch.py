@@ -603,10 +603,13 @@ def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
     """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
 
     ``fitted``: parameters per axis fitted to these same residuals (the spline's M control
-    poses for the hand), which shrink them by sqrt((N - fitted) / N): undone here.
+    poses for the hand), which shrink them by sqrt((N - fitted) / N): undone here, up to a
+    factor sqrt(2). A spline with about as many control poses as MoCap poses (a sparse MoCap)
+    nearly interpolates it and its residuals say little about the noise; blowing them up
+    then would only turn interpolation round-off into noise.
     """
     n = r.shape[0]
-    inflate = float(np.sqrt(n / max(n - fitted, 1)))
+    inflate = float(np.sqrt(n / max(n - fitted, n / 2.0)))
     rot = (given[0] if given[0] is not None
            else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT))
     trans = (given[1] if given[1] is not None

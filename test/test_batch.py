@@ -162,3 +162,19 @@ def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
                      for e in np.eye(prob.n)], axis=1)
     # central differences with this step are good to ~1e-8 of the largest entry here
     assert np.abs(J - J_fd).max() < 1e-7 * np.abs(J_fd).max()
+
+
+def test_joint_solve_refuses_one_mocap_pose_per_knot() -> None:
+    # a 20 Hz MoCap has one pose per 0.05 s knot interval: the control poses outnumber what the
+    # MoCap determines, so the joint solve says so and the linear result is kept; the default
+    # solve (spline held to the MoCap fit) works on the same data
+    rec = recording(seed=9, level=5.0, hand_rate_hz=20.0, duration_s=30.0, hand_noise_m=1e-4,
+                    hand_noise_deg=np.degrees(1e-4))
+    joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True))
+    assert joint.batch is None
+    assert any('at least 2 MoCap poses per knot interval' in w and 'knot_spacing >= 0.1 s' in w
+               for w in joint.warnings), joint.warnings
+    default = calibrate(rec.hand, rec.eye)
+    assert default.batch is not None and default.batch.success
+    e_dt = default.time_offset_s - rec.truth.time_offset_s
+    assert abs(e_dt) < 4 * default.batch.std[0]

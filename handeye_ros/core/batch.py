@@ -58,6 +58,9 @@ FD_STEP_S = 1e-6
 DT_MARGIN_S = 0.05
 #: Fewest eye residuals the stage accepts.
 MIN_EYE_RESIDUALS = 20
+#: Fewest MoCap poses per knot interval the joint solve accepts: with fewer, the control poses
+#: outnumber what the MoCap determines and its normal matrix is singular.
+MIN_HAND_POSES_PER_KNOT_JOINT = 2.0
 #: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
 #: the normal matrix's diagonal) and the relative cost change that ends it.
 LM_LAMBDA0 = 1e-4
@@ -313,6 +316,14 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     """
     t_start = time.perf_counter()
     _check_hand_gaps(hand, knot_spacing, order)
+    period = float(np.median(np.diff(hand.t_ns))) * 1e-9
+    if joint and knot_spacing < MIN_HAND_POSES_PER_KNOT_JOINT * period:
+        raise BatchError(f'the joint solve needs at least {MIN_HAND_POSES_PER_KNOT_JOINT:g} '
+                         f'MoCap poses per knot interval; {hand.name} at '
+                         f'{1.0 / period:.3g} Hz gives {knot_spacing / period:.2g} with knots '
+                         f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
+                         f'holds the spline to the MoCap) or set knot_spacing >= '
+                         f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s')
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
     hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise, prob.M))

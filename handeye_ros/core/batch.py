@@ -242,7 +242,7 @@ class _Problem:
 
         # hand rows: rotation by the control rotations, position by the control positions
         hb = self.hand_basis
-        R_s, p_s, JR, b = spline.evaluate_with_jacobian(hb)
+        R_s, _, JR, b = spline.evaluate_with_jacobian(hb)
         r_rot = log_so3(np.matmul(R_s, np.swapaxes(self.hand_obs[0], -1, -2)))
         cp = hb[0][:, None] + np.arange(k)
         row = 6 * np.arange(self.th.size)

@@ -21,7 +21,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
-from .geometry import Pose, log_so3, right_jacobian
+from .geometry import Pose, hat, log_so3, right_jacobian
 
 
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
@@ -43,6 +43,11 @@ def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
     return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
 
 
+def plain_basis(Bc: np.ndarray) -> np.ndarray:
+    """The B-spline basis (N, k) of control points i..i+k-1 from the cumulative one."""
+    return Bc - np.concatenate((Bc[:, 1:], np.zeros((Bc.shape[0], 1))), axis=1)
+
+
 def exp_so3(v: np.ndarray) -> np.ndarray:
     """Rotation matrices Exp(v) of rotation vectors (N, 3), by Rodrigues' formula.
 
@@ -56,9 +61,7 @@ def exp_so3(v: np.ndarray) -> np.ndarray:
     # sin(t)/t and (1 - cos t)/t^2, with their Taylor series near 0
     a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    K = np.zeros((v.shape[0], 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    K = hat(v)
     return np.eye(3) + a[:, None, None] * K + b[:, None, None] * np.matmul(K, K)
 
 
@@ -127,7 +130,7 @@ class PoseSpline:
         rotation i + c to ``R_{i+c} Exp(phi)`` moves R(t) to ``R(t) Exp(JR[:, c] phi)`` (body
         frame), a change of control position i + c by dp moves p(t) by ``b[:, c] dp``. From
         eq. 18 by the chain rule through each factor ``Exp(Bc_j w_j)`` and each increment
-        ``w_j = Log(R_{i+j-1}^T R_{i+j})`` (Sommer et al. 2020, Section 4).
+        ``w_j = Log(R_{i+j-1}^T R_{i+j})`` (as in Sommer et al., CVPR 2020).
         """
         i, Bc = basis
         k = self.order
@@ -147,7 +150,7 @@ class PoseSpline:
                           Bc[:, j, None, None] * right_jacobian(Bc[:, j, None] * w))
             JR[:, j] += np.matmul(G, right_jacobian(w, inverse=True))
             JR[:, j - 1] -= np.matmul(G, right_jacobian(-w, inverse=True))
-        b = Bc - np.concatenate((Bc[:, 1:], np.zeros((N, 1))), axis=1)
+        b = plain_basis(Bc)
         p = np.einsum('nc,nca->na', b, self.p[i[:, None] + np.arange(k)])
         return R, p, JR, b
 
@@ -182,7 +185,7 @@ def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
     # positions are linear in the control points: p(t) = A c, solved in one sparse LS
     i, s = spline.segments(t)
     Bc = cumulative_basis(s, order)
-    b = Bc - np.concatenate((Bc[:, 1:], np.zeros((Bc.shape[0], 1))), axis=1)  # plain basis
+    b = plain_basis(Bc)
     rows = np.repeat(np.arange(t.size), order)
     cols = (i[:, None] + np.arange(order)).ravel()
     A = csr_matrix((b.ravel(), (rows, cols)), shape=(t.size, M))

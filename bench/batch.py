@@ -30,6 +30,14 @@ from handeye_ros.core.simulate import calibration_error, noise_level, simulate
 CHI2_3_9973 = 14.156
 
 
+def recording(level: float, seed: int, hand_noise: float):
+    """The paper protocol at ``level``, its own draw per (level, seed), MoCap noise per axis
+    ``hand_noise`` (m and rad)."""
+    nm, nd = noise_level(level)
+    return simulate(int(1000 * level) + seed, noise_m=nm, noise_deg=nd, hand_noise_m=hand_noise,
+                    hand_noise_deg=float(np.degrees(hand_noise)))
+
+
 def covered(res, truth) -> tuple[bool, bool, bool]:
     cov = res.batch.covariance
     e_dt = res.time_offset_s - truth.time_offset_s
@@ -54,12 +62,9 @@ def main() -> None:
     t0 = time.perf_counter()
     all_cov = []
     for level in args.levels:
-        nm, nd = noise_level(level)
         lin, bat, cov, secs, sig = [], [], [], [], []
         for seed in range(args.seeds):
-            rec = simulate(int(1000 * level) + seed, noise_m=nm, noise_deg=nd,
-                           hand_noise_m=args.hand_noise,
-                           hand_noise_deg=float(np.degrees(args.hand_noise)))
+            rec = recording(level, seed, args.hand_noise)
             r0 = calibrate(rec.hand, rec.eye, CalibrationConfig(batch=False))
             r1 = calibrate(rec.hand, rec.eye)
             e0 = calibration_error(rec.truth, r0.time_offset_s, r0.q_HE, r0.p_HE)
@@ -107,12 +112,9 @@ def joint_vs_default(args) -> None:
     rows, cov_rows = [], []
     t0 = time.perf_counter()
     for level in args.levels:
-        nm, nd = noise_level(level)
         err, cov, secs, sig = {'d': [], 'j': []}, [], {'d': [], 'j': []}, {'d': [], 'j': []}
         for seed in range(args.seeds):
-            rec = simulate(int(1000 * level) + seed, noise_m=nm, noise_deg=nd,
-                           hand_noise_m=args.hand_noise,
-                           hand_noise_deg=float(np.degrees(args.hand_noise)))
+            rec = recording(level, seed, args.hand_noise)
             for key, cfg in (('d', CalibrationConfig()),
                              ('j', CalibrationConfig(batch_joint=True))):
                 r = calibrate(rec.hand, rec.eye, cfg)

@@ -50,9 +50,9 @@ from .trajectory import Trajectory
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
-#: Central-difference steps of the joint solve's Jacobian in T_HE (rad, m) and dt (s).
+#: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
 FD_STEP = 1e-6
-FD_STEP_S = 1e-6
+FD_STEP_S = 1e-7
 #: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
 #: the spline's ends are left out, so that every eye pose keeps a spline segment.
 DT_MARGIN_S = 0.05
@@ -121,7 +121,8 @@ def _pairs(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
-    """(N, 6): rotation (rad) and translation (m) differences of relative poses."""
+    """(N, 6): rotation (rad) and translation (m) differences of predicted and observed poses
+    (the spline's and the MoCap's, or relative ones of the eye)."""
     dR = np.matmul(pred[0], np.swapaxes(obs[0], -1, -2))
     return np.concatenate((log_so3(dR), pred[1] - obs[1]), axis=1)
 
@@ -132,7 +133,7 @@ def _robust_sigma(r: np.ndarray) -> float:
 
 
 class _Problem:
-    """The least-squares problem of the module docstring, with its Jacobian pattern."""
+    """The least-squares problem of the module docstring, with its Jacobian."""
 
     def __init__(self, hand: Trajectory, eye: Trajectory, dt0: float, q0: np.ndarray,
                  p0: np.ndarray, knot_spacing: float, order: int):
@@ -273,19 +274,15 @@ class _Problem:
             add(row + 3, cp, 0, w[3] * np.matmul(d_trans[:, None], JRi))
             add(row + 3, cp, 3, w[3] * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None])
         # (dt, dtheta_X, dp_X): central differences of the eye rows
-        y = x[self.n_spline:]
-        base = 6 * self.th.size
-        for c in range(7):
-            h = FD_STEP_S if c == 0 else FD_STEP
-            yp, ym = y.copy(), y.copy()
-            yp[c] += h
-            ym[c] -= h
-            d = (self.eye_raw_at(spline, *self.offset_extrinsic(yp))
-                 - self.eye_raw_at(spline, *self.offset_extrinsic(ym))) / (2 * h)
-            d = (d * np.repeat(w[2:], 3)).ravel()
-            ent_r.append(base + np.arange(d.size))
-            ent_c.append(np.full(d.size, self.n_spline + c))
-            ent_v.append(d)
+        w_eye = np.repeat(w[2:], 3)
+
+        def eye_rows(y: np.ndarray) -> np.ndarray:
+            return (self.eye_raw_at(spline, *self.offset_extrinsic(y)) * w_eye).ravel()
+
+        d = _jacobian(eye_rows, x[self.n_spline:], np.arange(7))
+        ent_r.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
+        ent_c.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
+        ent_v.append(d.ravel())
         m = 6 * (self.th.size + ia.size)
         return csr_matrix((np.concatenate(ent_v), (np.concatenate(ent_r),
                                                    np.concatenate(ent_c))), shape=(m, self.n))
@@ -315,26 +312,18 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         When the input cannot support the stage (overlap too short, gaps in the hand stream).
     """
     t_start = time.perf_counter()
-    _check_hand_gaps(hand, knot_spacing, order)
-    period = float(np.median(np.diff(hand.t_ns))) * 1e-9
-    if joint and knot_spacing < MIN_HAND_POSES_PER_KNOT_JOINT * period:
-        raise BatchError(f'the joint solve needs at least {MIN_HAND_POSES_PER_KNOT_JOINT:g} '
-                         f'MoCap poses per knot interval; {hand.name} at '
-                         f'{1.0 / period:.3g} Hz gives {knot_spacing / period:.2g} with knots '
-                         f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
-                         f'holds the spline to the MoCap) or set knot_spacing >= '
-                         f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s')
+    _check_hand_stream(hand, knot_spacing, order, joint)
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
     hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise, prob.M))
-    huber = _huber(huber_delta)
     if joint:
         x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
-            prob, hn, hand_noise, eye_noise, huber, max_iterations, fix_time_offset, decoupled)
+            prob, hn, hand_noise, eye_noise, huber_delta, max_iterations, fix_time_offset,
+            decoupled)
         y = x[prob.n_spline:]
     else:
         y, cost_before, cost_after, en, cov, n_res, n_free, sol = _solve_offset_extrinsic(
-            prob, eye_noise, huber, max_iterations, fix_time_offset, decoupled)
+            prob, eye_noise, huber_delta, max_iterations, fix_time_offset, decoupled)
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
     # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
@@ -354,14 +343,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         decoupled=decoupled, warnings=tuple(warnings))
 
 
-def _huber(delta: float):
-    def cost(r: np.ndarray) -> float:
-        return _huber_cost(r, delta)
-    cost.delta = delta  # type: ignore[attr-defined]
-    return cost
-
-
-def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: int,
+def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterations: int,
                             fix_time_offset: bool, decoupled: bool):
     """(dt, T_HE) by trust-region Levenberg-Marquardt on the eye residuals, the spline fixed to
     the hand. Parameters y = (dt, dtheta_X, dp_X) from the start values.
@@ -392,7 +374,7 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
             yy[free] = z
             return residuals(yy, rotation_only)
         # tolerances: 1e-10 relative is ~1e-10 s in dt and sub-micrometre in T_HE
-        sol = least_squares(fun, y[free], method='trf', loss='huber', f_scale=huber.delta,
+        sol = least_squares(fun, y[free], method='trf', loss='huber', f_scale=delta,
                             x_scale='jac', max_nfev=max_iterations, xtol=1e-10, ftol=1e-10,
                             gtol=1e-10)
         y[free] = sol.x
@@ -410,9 +392,9 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
             sols.append(solve(free_all, False))
         if k + 1 < passes:
             en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
-    cost_before = huber(residuals(np.zeros(7)))
+    cost_before = _huber_cost(residuals(np.zeros(7)), delta)
     r0 = residuals(y)
-    cost_after = huber(r0)
+    cost_after = _huber_cost(r0, delta)
     dof = max(r0.size - free_all.size, 1)
     s2 = max(2.0 * cost_after / dof, 1e-12)
     cov = np.zeros((7, 7))
@@ -425,15 +407,16 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, huber, max_iterations: in
     return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1]
 
 
-def _jacobian(fun, y: np.ndarray, cols: np.ndarray, rotation_only: bool = False) -> np.ndarray:
-    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y."""
+def _jacobian(fun, y: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
+    dp_X)."""
     out = []
     for idx in cols:
-        h = 1e-7 if idx == 0 else 1e-6
+        h = FD_STEP_S if idx == 0 else FD_STEP
         yp, ym = y.copy(), y.copy()
         yp[idx] += h
         ym[idx] -= h
-        out.append((fun(yp, rotation_only) - fun(ym, rotation_only)) / (2 * h))
+        out.append((fun(yp) - fun(ym)) / (2 * h))
     return np.stack(out, axis=1)
 
 
@@ -447,7 +430,7 @@ def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndar
     (J_t: all residuals wrt dtheta). The final dt is step B's.
     """
     theta = np.array([1, 2, 3])
-    J_A = _jacobian(fun, y, free_a, rotation_only=True)
+    J_A = _jacobian(lambda yy: fun(yy, rotation_only=True), y, free_a)
     cov_a = s2 * np.linalg.inv(J_A.T @ J_A)
     k = free_a.size - 3  # 1 when dt is free
     cov_tt = cov_a[k:, k:]
@@ -478,8 +461,8 @@ def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
     return out
 
 
-def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_iterations: int,
-                 fix_time_offset: bool, decoupled: bool):
+def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
+                 max_iterations: int, fix_time_offset: bool, decoupled: bool):
     """Control poses, dt and T_HE together: the whole problem of eq. 19.
 
     ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
@@ -512,7 +495,7 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_it
         last = k + 1 == passes
         for cols, rows in steps:
             x, report = _levenberg_marquardt(
-                prob, x, cols, rows, huber.delta if last else np.inf, max_iterations,
+                prob, x, cols, rows, delta if last else np.inf, max_iterations,
                 LM_FTOL if last else LM_FTOL_FIRST_PASS)
         if not last:
             r_h, r_e = prob.raw(x)
@@ -521,11 +504,11 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_it
     # The Gauss-Newton Jacobian of the Huber cost (scipy's convention), each stream's rows
     # scaled by its own reduced chi^2: its noise is estimated apart; the hand rows also pay
     # for the control poses, the eye rows for dt and T_HE.
-    s2_h = 2.0 * huber(f[:nh]) / max(nh - ns, 1)
-    s2_e = 2.0 * huber(f[nh:]) / max(f.size - nh - 7, 1)
+    s2_h = 2.0 * _huber_cost(f[:nh], delta) / max(nh - ns, 1)
+    s2_e = 2.0 * _huber_cost(f[nh:], delta) / max(f.size - nh - 7, 1)
     scale = np.where(np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)),
                      1.0 / np.sqrt(max(s2_e, 1e-12)))
-    scale *= np.sqrt(np.minimum(1.0, huber.delta / np.maximum(np.abs(f), 1e-300)))
+    scale *= np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))
     J = diags(scale) @ prob.jacobian(x)
     cov = np.zeros((7, 7))
     glob = np.flatnonzero(free[ns:])  # y's free entries
@@ -541,8 +524,8 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, huber, max_it
         k_dt = int(free[ns])
         cov[np.ix_(glob, glob)] = _assemble_two_step(
             cov_tt, _marginal_covariance(J_B, ns), S, k_dt)
-    cost_before = huber(prob.residuals(np.zeros(prob.n)))
-    return (x, cost_before, huber(f), hn, en, cov, f.size, int(free.sum()), report)
+    cost_before = _huber_cost(prob.residuals(np.zeros(prob.n)), delta)
+    return (x, cost_before, _huber_cost(f, delta), hn, en, cov, f.size, int(free.sum()), report)
 
 
 def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: np.ndarray,
@@ -641,10 +624,21 @@ def _marginal_covariance(J, n_nuisance: int) -> np.ndarray:
     return np.linalg.inv(S)
 
 
-def _check_hand_gaps(hand: Trajectory, knot_spacing: float, order: int) -> None:
+def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int,
+                       joint: bool) -> None:
+    """Refuse a MoCap stream the spline cannot be fitted to: a gap longer than the spline
+    bridges, or (joint solve) fewer MoCap poses per knot interval than it needs."""
     step = np.diff(hand.t_ns) * 1e-9
+    period = float(np.median(step))
+    if joint and knot_spacing < MIN_HAND_POSES_PER_KNOT_JOINT * period:
+        raise BatchError(f'the joint solve needs at least {MIN_HAND_POSES_PER_KNOT_JOINT:g} '
+                         f'MoCap poses per knot interval; {hand.name} at '
+                         f'{1.0 / period:.3g} Hz gives {knot_spacing / period:.2g} with knots '
+                         f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
+                         f'holds the spline to the MoCap) or set knot_spacing >= '
+                         f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s')
     longest = float(step.max())
-    limit = max(knot_spacing * (order - 1), GAP_FACTOR * float(np.median(step)))
+    limit = max(knot_spacing * (order - 1), GAP_FACTOR * period)
     if longest > limit:
         k = int(np.argmax(step))
         raise BatchError(f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '

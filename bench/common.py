@@ -24,8 +24,31 @@ def table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -
     return '\n'.join(lines)
 
 
-def emit(name: str, text: str) -> None:
-    """Print a table and keep a copy in bench/out/."""
+def provenance(seeds: object = None) -> str:
+    """One line saying what produced a figure: commit (and whether the tree was dirty), the
+    versions of Python and the numerical packages, and the seeds."""
+    import platform
+    import subprocess
+
+    import scipy
+
+    def git(*args: str) -> str:
+        try:
+            return subprocess.run(['git', *args], cwd=ROOT, capture_output=True, text=True,
+                                  check=False, timeout=10).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return ''
+    commit = git('rev-parse', '--short=12', 'HEAD') or 'unknown'
+    dirty = ' +uncommitted changes' if git('status', '--porcelain', '--untracked-files=no') \
+        else ''
+    line = (f'commit {commit}{dirty}; python {platform.python_version()}, numpy '
+            f'{np.__version__}, scipy {scipy.__version__}')
+    return line + (f'; seeds {seeds}' if seeds is not None else '')
+
+
+def emit(name: str, text: str, seeds: object = None) -> None:
+    """Print a table with its provenance line and keep a copy in bench/out/."""
+    text = f'{text}\n({provenance(seeds)})'
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / f'{name}.txt').write_text(text + '\n')
     print(text + '\n', flush=True)

@@ -99,7 +99,9 @@ def test_euroc_input_and_sign_flips(sim_files, tmp_path: Path) -> None:
     _ok(b)
     da, db = json.loads(a.stdout), json.loads(b.stdout)
     assert db['inputs']['hand']['source'] == str(csv)
-    assert db['time_offset'] == pytest.approx(da['time_offset'], abs=1e-9)
+    # both files round quaternions to 12 decimals, in different column orders: the two
+    # readings differ by ~1e-12 per pose, which moves the sub-sample peak by ~1e-9 s
+    assert db['time_offset'] == pytest.approx(da['time_offset'], abs=1e-7)
     np.testing.assert_allclose(db['extrinsic']['translation'], da['extrinsic']['translation'],
                                atol=1e-6)
 

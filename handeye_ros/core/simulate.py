@@ -8,6 +8,13 @@ eye frames is perturbed in the body frame by a rotation and a translation drawn 
 standard deviations ``noise_deg`` and ``noise_m``, and the poses are the running product.
 :func:`noise_level` gives the paper's ten levels (0.5 mm / 0.02 deg per level, up to 5 mm /
 0.2 deg).
+
+``motion`` shapes the hand's path for the degenerate and hard cases users meet (see
+:data:`MOTIONS`): a ground robot (``planar``: rotation about the world z axis only, translation
+in the x-y plane), a turntable or pan unit (``one_axis``: rotation about one fixed axis, no
+translation), a periodic back-and-forth (``repetitive``: the same 2 s pattern over and over,
+whose angular speed repeats exactly), and a slow hand (``slow``: ~3 deg/s, a tenth of the
+default, turning through large angles nonetheless).
 """
 
 from __future__ import annotations
@@ -82,20 +89,51 @@ def random_truth(rng: np.random.Generator, max_time_offset_s: float = 0.1) -> Tr
     )
 
 
+#: Hand motion shapes of :func:`simulate` (see the module docstring).
+MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow')
+#: Period of the ``repetitive`` motion, seconds.
+REPETITIVE_PERIOD_S = 2.0
+
+
 def smooth_motion(rng: np.random.Generator, duration_s: float, knot_spacing_s: float = 0.5,
-                  position_std_m: float = 0.2,
-                  rotation_std_rad: float = 0.2) -> tuple[BSpline, BSpline]:
+                  position_std_m: float = 0.2, rotation_std_rad: float = 0.2,
+                  motion: str = 'random') -> tuple[BSpline, BSpline]:
     """Cubic B-splines (seconds -> position [m], rotation vector [rad]) of a hand-held motion.
 
     The defaults give mean speeds of ~0.5 m/s and ~30 deg/s about all axes: between the EuRoC
-    flights (10-36 deg/s) and the hand-held TUM-VI room sequence (~80 deg/s).
+    flights (10-36 deg/s) and the hand-held TUM-VI room sequence (~80 deg/s). ``motion``: one of
+    :data:`MOTIONS`.
     """
+    if motion not in MOTIONS:
+        msg = f'motion must be one of {", ".join(MOTIONS)}, got {motion!r}'
+        raise ValueError(msg)
     k = 3
     n_ctrl = int(np.ceil(duration_s / knot_spacing_s)) + k + 2
     knots = (np.arange(n_ctrl + k + 1) - k) * knot_spacing_s - knot_spacing_s
-    pos = BSpline(knots, rng.normal(0.0, position_std_m, (n_ctrl, 3)), k)
-    rot = BSpline(knots, rng.normal(0.0, rotation_std_rad, (n_ctrl, 3)), k)
-    return pos, rot
+    pos_ctrl = rng.normal(0.0, position_std_m, (n_ctrl, 3))
+    rot_ctrl = rng.normal(0.0, rotation_std_rad, (n_ctrl, 3))
+    if motion == 'planar':
+        pos_ctrl[:, 2] = 0.0
+        # yaw only, but with a larger swing: a ground robot turns through whole circles
+        rot_ctrl = np.zeros((n_ctrl, 3))
+        rot_ctrl[:, 2] = np.cumsum(rng.normal(0.0, 2.0 * rotation_std_rad, n_ctrl))
+    elif motion == 'one_axis':
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        pos_ctrl = np.zeros((n_ctrl, 3))
+        rot_ctrl = np.cumsum(rng.normal(0.0, 2.0 * rotation_std_rad, n_ctrl))[:, None] * axis
+    elif motion == 'repetitive':
+        # one period of random control points, tiled: the spline repeats exactly
+        per = int(round(REPETITIVE_PERIOD_S / knot_spacing_s))
+        reps = int(np.ceil(n_ctrl / per))
+        pos_ctrl = np.tile(pos_ctrl[:per], (reps, 1))[:n_ctrl]
+        rot_ctrl = np.tile(rot_ctrl[:per], (reps, 1))[:n_ctrl]
+    elif motion == 'slow':
+        # a slow drift of the orientation (~3 deg/s) rather than a small swing: the rig does
+        # turn through large angles, only slowly
+        rot_ctrl = np.cumsum(rng.normal(0.0, 0.1 * rotation_std_rad, (n_ctrl, 3)), axis=0)
+        pos_ctrl *= 0.3
+    return BSpline(knots, pos_ctrl, k), BSpline(knots, rot_ctrl, k)
 
 
 def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
@@ -112,16 +150,16 @@ def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
 def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 100.0,
              eye_rate_hz: float = 20.0, noise_m: float = 0.0, noise_deg: float = 0.0,
              hand_noise_m: float = 0.0, hand_noise_deg: float = 0.0,
-             truth: Truth | None = None) -> Recording:
+             truth: Truth | None = None, motion: str = 'random') -> Recording:
     """Simulate one recording.
 
     The eye stream covers the hand stream's span less 1 s at each end, so that every eye pose
     has hand poses around it whatever the offset (|dt| < 1 s). ``hand_noise_*`` adds white MoCap
-    noise (the paper's protocol has none).
+    noise (the paper's protocol has none). ``motion``: one of :data:`MOTIONS`.
     """
     rng = np.random.default_rng(seed)
     truth = truth if truth is not None else random_truth(rng)
-    pos, rot = smooth_motion(rng, duration_s + 2.0)
+    pos, rot = smooth_motion(rng, duration_s + 2.0, motion=motion)
 
     def hand_pose(t_s: np.ndarray) -> Pose:
         return Rotation.from_rotvec(rot(t_s)).as_matrix(), pos(t_s)

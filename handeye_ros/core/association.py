@@ -14,8 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from .errors import TimeAlignmentError
-from .geometry import matrix_from_quat
-from .time_align import GAP_FACTOR
+from .geometry import compose, inverse, matrix_from_quat, relative, rotation_angle
 from .trajectory import Trajectory
 
 #: Fewer matched pairs than this cannot support keyframes, RANSAC and a world alignment.
@@ -34,6 +33,9 @@ class PosePairs:
         Hand (marker) poses in the MoCap world G, at ``t_eye - dt`` on the hand clock.
     R_WE, p_WE : ndarray, shapes (N, 3, 3), (N, 3)
         Eye (body) poses in the VIO world W.
+    segment : ndarray of int, shape (N,)
+        The eye segment (between breaks) each pair belongs to: no relative pose may join two
+        segments, whose VIO worlds differ.
     """
 
     t_eye_s: np.ndarray
@@ -41,13 +43,14 @@ class PosePairs:
     p_GH: np.ndarray
     R_WE: np.ndarray
     p_WE: np.ndarray
+    segment: np.ndarray
 
 
 def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Poses of ``traj`` at stamps ``t_ns`` (int64 ns, any order).
 
     Returns rotation matrices (M, 3, 3), positions (M, 3) and a mask (M,) that is False outside
-    the trajectory's span or inside one of its gaps (an interval over GAP_FACTOR median periods).
+    the trajectory's span or inside one of its gaps or breaks (:meth:`Trajectory.interval_ok`).
     """
     origin = int(traj.t_ns[0])
     ts = traj.seconds(origin)
@@ -55,8 +58,7 @@ def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndar
     k = np.searchsorted(ts, tq, side='right')
     inside = (tq >= ts[0]) & (tq <= ts[-1])
     kc = np.clip(k, 1, ts.size - 1)
-    gap = np.diff(ts)[kc - 1] > GAP_FACTOR * np.median(np.diff(ts))
-    ok = inside & ~gap
+    ok = inside & traj.interval_ok()[kc - 1]
     tq_ok = tq[ok]
     R = np.tile(np.eye(3), (tq.size, 1, 1))
     p = np.zeros((tq.size, 3))
@@ -71,18 +73,52 @@ def associate(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> PosePa
     Raises :class:`TimeAlignmentError` when fewer than MIN_PAIRS instants are covered by both.
     """
     dt_ns = np.int64(round(time_offset_s * 1e9))
+    seg = eye.segment_ids()
     if eye.rate_hz <= hand.rate_hz:
         R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
         R_WE, p_WE = matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok]
-        R_GH, p_GH, t_eye_ns = R_GH[ok], p_GH[ok], eye.t_ns[ok]
+        R_GH, p_GH, t_eye_ns, seg = R_GH[ok], p_GH[ok], eye.t_ns[ok], seg[ok]
     else:
         R_WE, p_WE, ok = interpolate(eye, hand.t_ns + dt_ns)
         R_GH, p_GH = matrix_from_quat(hand.q_xyzw[ok]), hand.p_xyz[ok]
         R_WE, p_WE, t_eye_ns = R_WE[ok], p_WE[ok], hand.t_ns[ok] + dt_ns
+        # the segment of the eye pose before each instant (no instant lies inside a break)
+        seg = seg[np.clip(np.searchsorted(eye.t_ns, t_eye_ns, side='right') - 1, 0,
+                          len(eye) - 1)]
     if t_eye_ns.size < MIN_PAIRS:
         msg = (f'after applying the time offset {time_offset_s:+.4f} s only {t_eye_ns.size} '
                f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
                'overlap too little in time')
         raise TimeAlignmentError(msg)
     t_eye_s = (t_eye_ns - t_eye_ns[0]).astype(float) * 1e-9
-    return PosePairs(t_eye_s, R_GH, p_GH, R_WE, p_WE)
+    return PosePairs(t_eye_s, R_GH, p_GH, R_WE, p_WE, seg)
+
+
+def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
+                      time_offset_s: float, R_HE: np.ndarray,
+                      p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far each eye motion ``B = T_WE_i^-1 T_WE_j`` is from the hand's motion over the same
+    instants seen from the eye, ``T_HE^-1 A T_HE`` with ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)``
+    (AX = XB, eq. 2).
+
+    Parameters
+    ----------
+    i, j : ndarray of int, shape (M,)
+        Eye pose indices of the motions.
+
+    Returns
+    -------
+    e_rot : ndarray, shape (M,)
+        Rotation angle of ``(T_HE^-1 A T_HE)^-1 B``, rad.
+    e_trans : ndarray, shape (M,)
+        Norm of its translation, m.
+    covered : ndarray of bool, shape (M,)
+        Whether the hand covers both instants (the errors are meaningless elsewhere).
+    """
+    dt_ns = np.int64(round(time_offset_s * 1e9))
+    R_h, p_h, ok = interpolate(hand, eye.t_ns - dt_ns)
+    X = (np.asarray(R_HE, dtype=float), np.asarray(p_HE, dtype=float))
+    A = relative((R_h, p_h), i, j)
+    B = relative((matrix_from_quat(eye.q_xyzw), eye.p_xyz), i, j)
+    err_R, err_p = compose(inverse(compose(compose(inverse(X), A), X)), B)
+    return rotation_angle(err_R), np.linalg.norm(err_p, axis=1), ok[i] & ok[j]

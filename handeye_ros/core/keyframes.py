@@ -14,8 +14,6 @@ import numpy as np
 from .config import STRATEGIES
 from .geometry import rotation_angle
 
-
-
 def motion_indices(R: np.ndarray, strategy: str = 'rotation',
                    eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
     """Index pairs ``(i, j)``, i < j, of the relative motions, for rotations R of shape (N, 3, 3).
@@ -64,3 +62,22 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
         second.append(found)
         i = found
     return np.asarray(first, dtype=int), np.asarray(second, dtype=int)
+
+
+def segment_motion_indices(R: np.ndarray, segment: np.ndarray, strategy: str = 'rotation',
+                           eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`motion_indices` within each segment (``segment``: (N,) labels, non-decreasing),
+    so that no motion joins two segments."""
+    starts = np.flatnonzero(np.diff(segment, prepend=segment[:1] - 1))
+    if starts.size == 1:
+        return motion_indices(R, strategy, eta_rad)
+    firsts, seconds = [], []
+    for a, b in zip(starts, np.append(starts[1:], segment.size), strict=True):
+        if b - a < 2:
+            continue
+        i, j = motion_indices(R[a:b], strategy, eta_rad)
+        firsts.append(i + a)
+        seconds.append(j + a)
+    if not firsts:
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    return np.concatenate(firsts), np.concatenate(seconds)

@@ -5,16 +5,26 @@ fixed frame A (``p_xyz`` is the origin of B in A, ``q_xyzw`` rotates B-vectors i
 Stamps are int64 nanoseconds, exactly as they arrive from files and messages; float seconds are
 only made by :meth:`Trajectory.seconds` after subtracting an origin, because 1.7e9 s in float64
 keeps no sub-microsecond precision.
+
+Two kinds of interval between consecutive poses must never be bridged by a difference, an
+interpolation or a relative pose: a *gap* (longer than :data:`GAP_FACTOR` median periods: the
+stream stopped) and a *break* (the stream restarted in another world frame, e.g. a VIO reset:
+found by screening and stored in ``breaks``). :meth:`Trajectory.interval_ok` says which
+intervals may be used; :meth:`Trajectory.segment_ids` numbers the parts between breaks.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .errors import InputError
 
+#: An interval longer than this many median sample periods is a gap: nothing is interpolated or
+#: differenced across it. 3.5 tolerates two consecutive dropped samples, which still give a fair
+#: average.
+GAP_FACTOR = 3.5
 #: A quaternion whose norm differs from 1 by more than this is refused rather than normalised:
 #: text files round to ~6 decimals (deviation ~1e-6); a larger deviation means a wrong column
 #: order or corrupted data, and silently normalising it would hide that.
@@ -35,16 +45,25 @@ class Trajectory:
         Unit Hamilton quaternions (x, y, z, w), signs made continuous (q_k . q_k+1 >= 0).
     name : str
         Where the poses came from (a file or topic), used in messages.
+    breaks : ndarray of int, shape (B,)
+        Indices k such that the interval from pose k to pose k + 1 is a break (a restart of the
+        stream's world frame); sorted, unique.
+    notes : tuple of str
+        What was done to the poses on the way in (repeated stamps dropped, a stamp unit
+        assumed, ...), for the result's warnings.
     """
 
     t_ns: np.ndarray
     p_xyz: np.ndarray
     q_xyzw: np.ndarray
     name: str = 'trajectory'
+    breaks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    notes: tuple[str, ...] = ()
 
     @classmethod
     def from_arrays(cls, t_ns: np.ndarray, p_xyz: np.ndarray, q_xyzw: np.ndarray,
-                    name: str = 'trajectory', min_poses: int = 2) -> Trajectory:
+                    name: str = 'trajectory', min_poses: int = 2,
+                    notes: tuple[str, ...] = ()) -> Trajectory:
         """Validate raw arrays and build a trajectory.
 
         Raises :class:`InputError` naming ``name`` and the first offending row for: too few
@@ -87,7 +106,7 @@ class Trajectory:
                    f'{what} quaternion {q_xyzw[k].tolist()} (order x y z w)')
             raise InputError(msg)
         q_xyzw = q_xyzw / norms[:, None]
-        return cls(t_ns, p_xyz, make_continuous(q_xyzw), name)
+        return cls(t_ns, p_xyz, make_continuous(q_xyzw), name, notes=tuple(notes))
 
     def __len__(self) -> int:
         return int(self.t_ns.shape[0])
@@ -107,9 +126,48 @@ class Trajectory:
         return 1e9 / float(np.median(np.diff(self.t_ns)))
 
     def select(self, mask_or_index: np.ndarray) -> Trajectory:
-        """A sub-trajectory (rows kept in order; no re-validation needed)."""
-        return Trajectory(self.t_ns[mask_or_index], self.p_xyz[mask_or_index],
-                          self.q_xyzw[mask_or_index], self.name)
+        """A sub-trajectory (rows kept in order; no re-validation needed).
+
+        A break survives when both of its poses are kept; when poses around a break are
+        dropped, the break moves to the interval that now spans it.
+        """
+        idx = np.arange(len(self))[mask_or_index]
+        breaks = np.zeros(0, dtype=int)
+        if self.breaks.size and idx.size:
+            # kept pose m closes a break if some break lies between the previous kept pose and it
+            seg = np.zeros(len(self), dtype=int)
+            seg[self.breaks + 1] = 1
+            seg = np.cumsum(seg)[idx]
+            breaks = np.flatnonzero(np.diff(seg) > 0)
+        return Trajectory(self.t_ns[idx], self.p_xyz[idx], self.q_xyzw[idx], self.name,
+                          breaks, self.notes)
+
+    def with_breaks(self, breaks: np.ndarray) -> Trajectory:
+        """The same poses with these intervals (index of their first pose) marked as breaks,
+        in addition to the existing ones."""
+        b = np.union1d(self.breaks, np.asarray(breaks, dtype=int)).astype(int)
+        return replace(self, breaks=b[(b >= 0) & (b < len(self) - 1)])
+
+    def with_notes(self, *notes: str) -> Trajectory:
+        """The same poses with more notes."""
+        return replace(self, notes=self.notes + tuple(notes))
+
+    def shifted(self, delta_ns: int) -> Trajectory:
+        """The same poses with every stamp moved by ``delta_ns`` (int64 ns, exact)."""
+        return replace(self, t_ns=self.t_ns + np.int64(delta_ns))
+
+    def interval_ok(self) -> np.ndarray:
+        """(N - 1,) bool: intervals that are neither a gap nor a break (see module docstring)."""
+        step = np.diff(self.t_ns)
+        ok = step <= GAP_FACTOR * float(np.median(step))
+        ok[self.breaks] = False
+        return ok
+
+    def segment_ids(self) -> np.ndarray:
+        """(N,) int: 0 for the poses before the first break, 1 after it, ..."""
+        seg = np.zeros(len(self), dtype=int)
+        seg[self.breaks + 1] = 1
+        return np.cumsum(seg)
 
 
 def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:

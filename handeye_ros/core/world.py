@@ -10,6 +10,9 @@ orientations instead (the chordal mean of ``R_WE (R_GH R_HE)^T``).
 APE and ARE are the RMS of the translation (m) and rotation angle (deg) of
 ``(T_WG T_GH T_HE)^-1 T_WE`` over all pairs: how well the calibrated MoCap explains the VIO,
 including the VIO's own drift.
+
+When screening split the eye at VIO resets, each segment has its own VIO world: T_WG is found
+per segment; the result reports the longest segment's, and the metrics use each segment's own.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ class WorldAlignment:
     R_WG: np.ndarray
     p_WG: np.ndarray
     method: str
+    segment: int = 0
+    segments: int = 1
 
 
 @dataclass(frozen=True)
@@ -41,6 +46,9 @@ class Metrics:
 
     ape_rmse_m / are_rmse_deg: RMS position (m) and orientation (deg) error;
     ape_max_m / are_max_deg: their maxima; n_poses: pairs evaluated.
+    motion_rotation_deg / motion_translation_m: median AX = XB error over the eye's keyframe
+    motions (eq. 6; relative motions, so the VIO's drift does not enter);
+    motion_length_m: their median translation; n_motions: how many.
     """
 
     ape_rmse_m: float
@@ -48,6 +56,10 @@ class Metrics:
     ape_max_m: float
     are_max_deg: float
     n_poses: int
+    motion_rotation_deg: float = float('nan')
+    motion_translation_m: float = float('nan')
+    motion_length_m: float = float('nan')
+    n_motions: int = 0
 
 
 def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
@@ -56,17 +68,27 @@ def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
 
 
 def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldAlignment:
-    """Least-squares T_WG from the calibrated pairs (see module docstring)."""
+    """Least-squares T_WG from the calibrated pairs of the longest eye segment (see module
+    docstring)."""
+    labels, counts = np.unique(pairs.segment, return_counts=True)
+    longest = int(labels[np.argmax(counts)])
+    out = _align_segment(pairs, pairs.segment == longest, q_HE, p_HE)
+    return WorldAlignment(out.R_WG, out.p_WG, out.method, longest, int(labels.size))
+
+
+def _align_segment(pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray,
+                   p_HE: np.ndarray) -> WorldAlignment:
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
     R_GE, c_G = predicted_eye(pairs, X)
-    c_W = pairs.p_WE
+    R_GE, c_G = R_GE[sel], c_G[sel]
+    c_W = pairs.p_WE[sel]
     mean_G, mean_W = c_G.mean(axis=0), c_W.mean(axis=0)
-    spread = np.sqrt(np.linalg.eigvalsh(np.cov((c_G - mean_G).T))[::-1])
+    spread = np.sqrt(np.clip(np.linalg.eigvalsh(np.cov((c_G - mean_G).T))[::-1], 0.0, None))
     if spread[1] >= MIN_PLANAR_SPREAD_M:
         rot, _ = Rotation.align_vectors(c_W - mean_W, c_G - mean_G)
         method = 'positions'
     else:
-        rot = Rotation.from_matrix(np.matmul(pairs.R_WE, np.swapaxes(R_GE, -1, -2))).mean()
+        rot = Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2))).mean()
         method = 'orientations'
     R_WG = rot.as_matrix()
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, method)
@@ -74,9 +96,16 @@ def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldA
 
 def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
              world: WorldAlignment) -> Metrics:
-    """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring)."""
+    """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring), each eye
+    segment against its own T_WG (``world`` is the longest segment's)."""
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
-    pred = compose((world.R_WG, world.p_WG), predicted_eye(pairs, X))
+    R_WG = np.empty((pairs.segment.size, 3, 3))
+    p_WG = np.empty((pairs.segment.size, 3))
+    for label in np.unique(pairs.segment):
+        sel = pairs.segment == label
+        w = world if label == world.segment else _align_segment(pairs, sel, q_HE, p_HE)
+        R_WG[sel], p_WG[sel] = w.R_WG, w.p_WG
+    pred = compose((R_WG, p_WG), predicted_eye(pairs, X))
     R_err, p_err = compose(inverse(pred), (pairs.R_WE, pairs.p_WE))
     # Translation error measured in W (not in the predicted body frame): the usual APE.
     e_t = np.linalg.norm(apply(pred[0], p_err), axis=-1)

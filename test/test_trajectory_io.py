@@ -92,7 +92,7 @@ def test_euroc_extra_columns_are_ignored(tmp_path: Path) -> None:
 ])
 def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> None:
     path = tmp_path / 'traj.txt'
-    later = '1403636600.0' if 'e' in token or '.' in token else str(ns + 10 ** 9)
+    later = '1403636600.0' if 'e' in token or '.' in token else str(int(token) + 1)
     path.write_text(f'# comment\n{token} 0 0 0 0 0 0 1\n\n{later} 0 0 0 0 0 0 1\n')
     assert read_trajectory(path).t_ns[0] == ns
 
@@ -102,7 +102,8 @@ def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> N
     ('# only a comment\n', 'holds no poses'),
     ('1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
     ('1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n', 'unsorted'),
-    ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'duplicate'),
+    # a stamp written twice keeps its last row: here one pose is left
+    ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
     ('1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n', 'NaN or inf'),
     ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
     ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
@@ -110,7 +111,8 @@ def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> N
     ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number"),
     ('hello world\n', 'unknown trajectory format'),
     ('1,2,3\n', 'unknown trajectory format'),
-    ('1.5,0,0,0,1,0,0,0\n2.5,0,0,0,1,0,0,0\n', 'not an integer number of nanoseconds'),
+    ('1e300 0 0 0 0 0 0 1\n2e300 0 0 0 0 0 0 1\n', 'beyond what int64 nanoseconds'),
+    ('1,0,0,0,1,0,0,0\n99999999999999999999,0,0,0,1,0,0,0\n', 'beyond what int64'),
 ])
 def test_bad_files_name_the_file_and_problem(tmp_path: Path, content: str, message: str) -> None:
     path = tmp_path / 'bad.txt'
@@ -128,3 +130,43 @@ def test_missing_file_and_unknown_format(tmp_path: Path) -> None:
     (tmp_path / 'a.txt').write_text('1.0 0 0 0 0 0 0 1\n')
     with pytest.raises(InputError, match='unknown format'):
         read_trajectory(tmp_path / 'a.txt', 'kitti')
+
+
+def test_repeated_stamps_keep_the_last_row_with_a_note(tmp_path: Path) -> None:
+    """Estimators that correct a pose write it again under the same stamp: the later row
+    wins and the notes count the repeats."""
+    path = tmp_path / 'est.txt'
+    path.write_text('1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n2.0 2 0 0 0 0 0 1\n'
+                    '3.0 3 0 0 0 0 0 1\n')
+    traj = read_trajectory(path)
+    np.testing.assert_array_equal(traj.p_xyz[:, 0], [0.0, 2.0, 3.0])
+    assert any('1 stamp(s) written twice' in n for n in traj.notes)
+
+
+@pytest.mark.parametrize(('text', 'unit', 'ns', 'note'), [
+    # EuRoC with fractional stamps: they cannot be nanoseconds, so seconds
+    ('1.5,0,0,0,1,0,0,0\n2.5,0,0,0,1,0,0,0\n', 'auto', 1_500_000_000, 'fractional'),
+    # Unix milliseconds in a TUM file cannot be seconds (year 45 000 is beyond int64 ns)
+    ('1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n', 'auto',
+     1_403_636_579_758_555_000, 'read as ms'),
+    # stated explicitly: no note
+    ('1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n', 'ms',
+     1_403_636_579_758_555_000, None),
+    ('1000 0 0 0 0 0 0 1\n1005 0 0 0 0 0 0 1\n', 'us', 1_000_000, None),
+])
+def test_stamp_units(tmp_path: Path, text: str, unit: str, ns: int, note: str | None) -> None:
+    path = tmp_path / 'traj.txt'
+    path.write_text(text)
+    traj = read_trajectory(path, stamp_unit=unit)
+    assert traj.t_ns[0] == ns
+    assert (note is None and not traj.notes) or any(note in n for n in traj.notes)
+
+
+def test_quaternion_order_option(tmp_path: Path) -> None:
+    """The same rotation written x y z w (TUM's order) and w x y z, read with the option."""
+    q = [0.1, 0.2, 0.3, 0.9273618495495703]
+    a, b = tmp_path / 'a.txt', tmp_path / 'b.txt'
+    a.write_text(f'1.0 0 0 0 {q[0]} {q[1]} {q[2]} {q[3]}\n2.0 0 0 0 0 0 0 1\n')
+    b.write_text(f'1.0 0 0 0 {q[3]} {q[0]} {q[1]} {q[2]}\n2.0 0 0 0 1 0 0 0\n')
+    np.testing.assert_allclose(read_trajectory(a).q_xyzw,
+                               read_trajectory(b, quaternion_order='wxyz').q_xyzw, atol=1e-12)

@@ -9,7 +9,16 @@
 
 Stamps are parsed exactly into int64 nanoseconds: a TUM stamp such as ``1403636579.758555555``
 is split at the decimal point rather than going through float64, which would round it to
-~0.2 microseconds.
+~0.2 microseconds. ``stamp_unit`` says what the numbers count (default: the format's unit);
+when the format's unit cannot hold the values in int64 nanoseconds (Unix milliseconds in a TUM
+file, 1.4e12, would be year 45 000), the first of ms, us, ns that can is taken, and the
+trajectory's notes say so; the pipeline then checks the rates (see
+:mod:`handeye_ros.core.conventions`). ``quaternion_order`` says in which order the file's four
+quaternion columns are (default: the format's).
+
+A stamp written twice keeps its *last* row (estimators that correct a pose, e.g. after a loop
+closure, write the corrected one after the first), counted in the notes; stamps going
+backwards are refused.
 """
 
 from __future__ import annotations
@@ -24,8 +33,12 @@ from ..core.errors import InputError
 from ..core.trajectory import Trajectory
 
 FORMATS = ('auto', 'tum', 'euroc')
+#: Stamp units a file may use: nanoseconds per unit.
+STAMP_UNITS = {'s': 10 ** 9, 'ms': 10 ** 6, 'us': 10 ** 3, 'ns': 1}
+QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
 #: Integer TUM stamps above this are nanoseconds (1e14 s would be three million years).
 NANOSECOND_STAMP_THRESHOLD = 10 ** 14
+INT64_MAX = np.iinfo(np.int64).max
 
 
 def detect_format(path: str | Path) -> str:
@@ -34,19 +47,32 @@ def detect_format(path: str | Path) -> str:
     return _detect(Path(path), rows)
 
 
-def read_trajectory(path: str | Path, fmt: str = 'auto') -> Trajectory:
+def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto',
+                    quaternion_order: str = 'auto') -> Trajectory:
     """Read and validate a TUM or EuRoC trajectory file.
+
+    ``stamp_unit``: 'auto' (the format's: s for TUM, ns for EuRoC) or one of
+    :data:`STAMP_UNITS`; ``quaternion_order``: 'auto' (the format's: x y z w for TUM, w x y z
+    for EuRoC) or the order of the file's quaternion columns.
 
     Raises
     ------
     InputError
         Naming the file (and line) for: a missing or unreadable file, an unknown format, a line
-        with the wrong number of columns or a non-numeric value, and every problem
-        :meth:`Trajectory.from_arrays` checks (too few poses, unsorted stamps, NaN, quaternions).
+        with the wrong number of columns or a non-numeric value, a stamp no int64 nanosecond
+        count can hold, and every problem :meth:`Trajectory.from_arrays` checks (too few poses,
+        unsorted stamps, NaN, quaternions).
     """
     path = Path(path)
     if fmt not in FORMATS:
         msg = f'{path}: unknown format {fmt!r}; use one of {", ".join(FORMATS)}'
+        raise InputError(msg)
+    if stamp_unit != 'auto' and stamp_unit not in STAMP_UNITS:
+        msg = f'{path}: unknown stamp unit {stamp_unit!r}; use auto, {", ".join(STAMP_UNITS)}'
+        raise InputError(msg)
+    if quaternion_order not in QUATERNION_ORDERS:
+        msg = (f'{path}: unknown quaternion order {quaternion_order!r}; use '
+               f'{", ".join(QUATERNION_ORDERS)}')
         raise InputError(msg)
     numbers, rows = _data_lines(path)
     if not rows:
@@ -63,13 +89,22 @@ def read_trajectory(path: str | Path, fmt: str = 'auto') -> Trajectory:
     except ValueError as err:
         _diagnose(path, numbers, rows, sep, fmt)
         raise InputError(f'{path}: cannot be parsed as {fmt.upper()}: {err}') from None
-    if fmt == 'euroc':
-        t_ns = _integer_stamps(path, numbers, stamps)
-        q_xyzw = values[:, [4, 5, 6, 3]]
-    else:
-        t_ns = _decimal_seconds_to_ns(path, numbers, stamps)
-        q_xyzw = values[:, 3:7]
-    return Trajectory.from_arrays(t_ns, values[:, :3], q_xyzw, name=str(path))
+    order = quaternion_order if quaternion_order != 'auto' else (
+        'wxyz' if fmt == 'euroc' else 'xyzw')
+    # the file's four quaternion columns, in file order, to x y z w
+    q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
+    t_ns, notes = parse_stamps(path, numbers, stamps, fmt, stamp_unit)
+    keep = _last_of_repeated(t_ns)
+    if not keep.all():
+        notes.append(f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of '
+                     'each was kept')
+    return Trajectory.from_arrays(t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path),
+                                  notes=tuple(notes))
+
+
+def _last_of_repeated(t_ns: np.ndarray) -> np.ndarray:
+    """(N,) bool: every row but those followed by a row with the same stamp."""
+    return np.concatenate((t_ns[1:] != t_ns[:-1], [True]))
 
 
 def write_tum(path: str | Path, traj: Trajectory) -> None:
@@ -156,43 +191,100 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
                 raise InputError(msg) from None
 
 
-def _integer_stamps(path: Path, numbers: list[int], col: np.ndarray) -> np.ndarray:
-    ok = np.char.isdigit(np.char.lstrip(col, '-'))
-    if not ok.all():
-        k = int(np.flatnonzero(~ok)[0])
-        msg = (f'{path}, line {numbers[k]}: stamp {col[k]!r} is not an integer number of '
-               'nanoseconds, as EuRoC CSV requires')
-        raise InputError(msg)
-    return col.astype(np.int64)
+def parse_stamps(path: Path, numbers: list[int], col: np.ndarray, fmt: str,
+                 unit: str) -> tuple[np.ndarray, list[str]]:
+    """Exact int64 nanoseconds of a stamp column, and notes on the unit assumed.
+
+    Each stamp is split into its whole and fractional digits (no float64 round trip). With
+    ``unit`` 'auto': the format's unit (s for TUM, ns for EuRoC), plain TUM integers above
+    NANOSECOND_STAMP_THRESHOLD as ns, EuRoC stamps with a fractional part as s; when that
+    unit cannot hold the values in int64 ns, the first of ms, us, ns that can. Every unit
+    other than the format's comes with a note.
+    """
+    whole, frac, neg = _split_decimal(path, numbers, col)
+    notes: list[str] = []
+    if unit == 'auto':
+        unit = 'ns' if fmt == 'euroc' else 's'
+        fractional = (np.char.str_len(np.char.rstrip(frac, '0')) > 0).any()
+        if fmt == 'tum' and not fractional and whole.size and \
+                int(whole.min()) > NANOSECOND_STAMP_THRESHOLD and not neg.any():
+            unit = 'ns'
+        if fmt == 'euroc' and fractional:  # a fraction of a nanosecond means nothing
+            unit = 's'
+            notes.append(f'{path}: the stamps have fractional parts, so they cannot be '
+                         'nanoseconds; read as seconds')
+        largest = int(whole.max()) if whole.size else 0
+        if largest > INT64_MAX // STAMP_UNITS[unit]:
+            fits = [u for u in ('ms', 'us', 'ns') if largest <= INT64_MAX // STAMP_UNITS[u]]
+            if not fits:
+                _too_large(path, numbers, whole)
+            notes.append(f'{path}: stamps up to {largest} cannot be '
+                         f'{"seconds" if unit == "s" else unit}; read as {fits[0]}')
+            unit = fits[0]
+    scale = STAMP_UNITS[unit]
+    if int(whole.max()) > INT64_MAX // scale:
+        _too_large(path, numbers, whole, unit)
+    digits = 9 - {'s': 0, 'ms': 3, 'us': 6, 'ns': 9}[unit]  # fractional digits that are >= 1 ns
+    frac_ns = np.zeros(whole.size, dtype=np.int64)
+    if digits and (np.char.str_len(frac) > 0).any():
+        nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
+        frac_ns = nine.astype(np.int64) // 10 ** (9 - digits)
+    ns = whole * np.int64(scale) + frac_ns
+    return np.where(neg, -ns, ns), notes
 
 
-def _decimal_seconds_to_ns(path: Path, numbers: list[int], col: np.ndarray) -> np.ndarray:
-    """Exact decimal seconds -> int64 ns (vectorised; a Decimal fallback for exponents)."""
-    plain = np.char.isdigit(np.char.replace(np.char.lstrip(col, '-+'), '.', '', count=1))
+def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'ns') -> None:
+    k = int(np.argmax(whole))
+    msg = (f'{path}, line {numbers[k]}: stamp {int(whole[k])} {unit} is beyond what int64 '
+           'nanoseconds can hold (2^63 ns, the year 2262); check the stamp column and its unit '
+           '(--hand-stamp-unit / --eye-stamp-unit)')
+    raise InputError(msg)
+
+
+def _split_decimal(path: Path, numbers: list[int],
+                   col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whole parts (int64), fractional digit strings and signs of decimal stamps; exponent
+    forms (1.4e9) go through Decimal."""
+    body = np.char.lstrip(col, '-+')
+    plain = np.char.isdigit(np.char.replace(body, '.', '', count=1)) & (np.char.str_len(body) > 0)
     if not plain.all():
-        return _decimal_fallback(path, numbers, col)
-    if '.' not in ''.join(col[:1000]) and np.all(np.char.find(col, '.') < 0):
-        ints = col.astype(np.int64)
-        if ints.size and np.abs(ints).min() > NANOSECOND_STAMP_THRESHOLD:
-            return ints
+        return _split_decimal_fallback(path, numbers, col)
     neg = np.char.startswith(col, '-')
-    parts = np.char.partition(np.char.lstrip(col, '-+'), '.')
-    whole = np.where(parts[:, 0] == '', '0', parts[:, 0]).astype(np.int64)
-    frac = np.char.ljust(parts[:, 2], 9, '0').astype('U9')
-    frac = np.where(frac == '', '0', frac).astype(np.int64)
-    ns = whole * 1_000_000_000 + frac
-    return np.where(neg, -ns, ns)
+    parts = np.char.partition(body, '.')
+    whole_txt = np.where(parts[:, 0] == '', '0', parts[:, 0])
+    digits = np.char.lstrip(whole_txt, '0')
+    n = np.char.str_len(digits)
+    # beyond int64: more than 19 digits, or 19 that compare above 2^63 - 1 (same length:
+    # lexicographic order is numeric order)
+    long = (n > 19) | ((n == 19) & (digits > str(INT64_MAX)))
+    if long.any():
+        k = int(np.flatnonzero(long)[0])
+        msg = (f'{path}, line {numbers[k]}: stamp {col[k]!r} is beyond what int64 nanoseconds '
+               'can hold (2^63 ns, the year 2262); check the stamp column and its unit')
+        raise InputError(msg)
+    return whole_txt.astype(np.int64), parts[:, 2], neg
 
 
-def _decimal_fallback(path: Path, numbers: list[int], col: np.ndarray) -> np.ndarray:
-    out = np.empty(col.size, dtype=np.int64)
+def _split_decimal_fallback(path: Path, numbers: list[int],
+                            col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    whole = np.empty(col.size, dtype=np.int64)
+    frac = np.empty(col.size, dtype=object)
+    neg = np.zeros(col.size, dtype=bool)
     for k, token in enumerate(col):
         try:
-            value = Decimal(str(token)) * 1_000_000_000
+            value = Decimal(str(token))
             if not value.is_finite():
                 raise InvalidOperation
         except InvalidOperation:
-            msg = f'{path}, line {numbers[k]}: stamp {token!r} is not a number of seconds'
+            msg = f'{path}, line {numbers[k]}: stamp {token!r} is not a number'
             raise InputError(msg) from None
-        out[k] = int(value.to_integral_value())
-    return out
+        neg[k] = value < 0
+        whole_part = int(abs(value))
+        if whole_part > INT64_MAX:
+            msg = (f'{path}, line {numbers[k]}: stamp {token!r} is beyond what int64 '
+                   'nanoseconds can hold (2^63 ns, the year 2262); check the stamp column')
+            raise InputError(msg)
+        whole[k] = whole_part
+        text = format(abs(value) - whole_part, 'f')
+        frac[k] = text.split('.', 1)[1].rstrip('0') if '.' in text else ''
+    return whole, frac.astype(str), neg

@@ -85,12 +85,30 @@ def test_offset_outside_the_window_is_refused() -> None:
         align_time(rec.hand, rec.eye, max_time_offset=0.2)
 
 
-def test_no_overlap_is_refused() -> None:
+def test_every_lag_is_searched_by_default() -> None:
+    """Clocks 500 s apart (the streams do not overlap on their own clocks): found, and the
+    grids follow the recordings, not the offset."""
+    rec = recording(seed=9, level=2.0)
+    shifted = rec.eye.shifted(500 * 10 ** 9)
+    ta = align_time(rec.hand, shifted)
+    assert ta.time_offset_s == pytest.approx(rec.truth.time_offset_s + 500.0, abs=3e-3)
+    assert ta.time_offset_ns == pytest.approx((rec.truth.time_offset_s + 500.0) * 1e9, abs=3e6)
+
+
+def test_epochs_far_apart_cost_no_memory() -> None:
+    """An eye in boot time (3.6e3 s) and a hand in Unix time (1.7e9 s): exact in integer ns."""
+    rec = recording(seed=9, level=2.0)
+    boot = rec.eye.shifted(3_600_000_000_000 - int(rec.eye.t_ns[0]))
+    ta = align_time(rec.hand, boot)
+    expected_ns = int(boot.t_ns[0]) - int(rec.eye.t_ns[0]) + rec.truth.time_offset_s * 1e9
+    assert abs(ta.time_offset_ns - expected_ns) < 3e6
+
+
+def test_no_overlap_in_the_window_is_refused() -> None:
     rec = recording(seed=9)
-    late = rec.eye.select(slice(None))
-    shifted = type(late)(late.t_ns + 500 * 10 ** 9, late.p_xyz, late.q_xyzw, 'late eye')
+    shifted = rec.eye.shifted(500 * 10 ** 9)
     with pytest.raises(TimeAlignmentError, match='do not overlap'):
-        align_time(rec.hand, shifted)
+        align_time(rec.hand, shifted, max_time_offset=1.0)
 
 
 def test_motion_without_rotation_is_refused() -> None:

@@ -174,7 +174,10 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
 
     dt_ns = int(round(truth.time_offset_s * 1e9))
     n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
-    t_eye_ns = (EPOCH_NS + 1_000_000_000 + dt_ns
+    # the eye's first frame at an arbitrary phase of its period, as two free-running sensors
+    # are (drawn apart, so that a seed's other draws do not change)
+    phase_ns = int(np.random.default_rng([seed, 1]).integers(0, int(1e9 / eye_rate_hz)))
+    t_eye_ns = (EPOCH_NS + 1_000_000_000 + dt_ns + phase_ns
                 + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64))
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)

@@ -1,32 +1,47 @@
-"""Stage 1: the time offset from angular-speed correlation (paper Section III-A).
+"""Stage 1: the time offset from angular-velocity correlation (paper Section III-A).
 
 Why this works: a rigid hand-eye rig turns at one angular rate, so the body angular speed
 ``|w_H(t)|`` of the MoCap marker and ``|w_E(t)|`` of the VIO body are the same signal, whatever
 T_HE and T_WG are; only the clock differs. With the convention ``T_WE(t) = T_WG T_GH(t - dt) T_HE``
 the eye signal is the hand signal delayed by dt: ``|w_E|(t) = |w_H|(t - dt)``, so the
-cross-correlation ``c(tau) = sum_t |w_E|(t + tau) |w_H|(t)`` peaks at ``tau = dt`` (eq. 1).
+cross-correlation ``c(tau) = sum_t |w_E|(t + tau) |w_H|(t)`` peaks at ``tau = dt`` (eq. 1), and
+a parabola through the peak and its two neighbours gives the sub-sample offset (the paper's
+quadratic fit).
 
 Both speeds are computed on each stream's own stamps (rotation angle of consecutive poses over
-their interval, placed at the interval midpoint so the finite difference is unbiased in time),
-resampled onto one uniform grid, standardised, and correlated with a masked normalised
-cross-correlation (FFT), which stays correct across gaps and partial overlap. The integer peak is
-refined by a parabola through the peak and its two neighbours (the paper's quadratic fit).
+their interval, at the interval midpoint so the finite difference is unbiased in time; never
+across a gap or a break), resampled onto a uniform grid *of their own* (each anchored at its
+stream's first stamp, so that the grids, the FFT and the memory follow the recordings' lengths
+and never the size of the offset: two clocks 1.4e9 s apart cost nothing more), clipped at a
+robust level, standardised, and correlated with a masked normalised cross-correlation (FFT),
+which stays correct across gaps and partial overlap.
+
+Beyond the paper, three things make the offset hard to fool:
+
+- **Robust signals.** Each signal is clipped at ``median + 6 * 1.4826 * MAD`` of its own
+  values (winsorised): one spike that screening missed (a glitch the size of a whole turn) then
+  weighs like a fast turn, not like the whole recording.
+- **Every lag.** By default every lag at which the recordings overlap by at least half of the
+  shorter one (and 5 s) is searched, so offsets of seconds or minutes and clocks on different
+  epochs are found; ``max_time_offset`` / ``time_offset_guess`` narrow the search. The other
+  local maxima of the curve are kept as *candidates* for the self-check of the pipeline.
+- **A vector refinement** (:func:`align_time_vector`), once stage 2 knows the rotation of T_HE:
+  the eye's body angular velocity is matched with the hand's rotated into the eye frame,
+  ``w_E(t) = R_EH w_H(t - dt)``: three signed components instead of one magnitude, so a
+  repetitive speed profile or a noisy magnitude no longer ties two lags.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import fft
 
 from .errors import TimeAlignmentError
-from .geometry import matrix_from_quat, rotation_angle
+from .geometry import log_so3, matrix_from_quat, rotation_angle
 from .trajectory import Trajectory
 
-#: An interval longer than this many median sample periods is a gap: no speed is interpolated
-#: across it. 3.5 tolerates two consecutive dropped samples, which still give a fair average.
-GAP_FACTOR = 3.5
 #: A lag is only considered where the two signals overlap on at least this fraction of the
 #: shorter one: with little overlap a normalised correlation is high by chance.
 MIN_OVERLAP_FRACTION = 0.5
@@ -36,21 +51,33 @@ MIN_OVERLAP_S = 5.0
 #: any hand-held motion (whose angular speed has little content above ~10 Hz) and bounds the
 #: FFT length of long recordings.
 MAX_RESAMPLE_RATE_HZ = 200.0
+#: Most samples of one resampled signal (2^23: 11.6 h at 200 Hz). Longer streams are resampled
+#: more coarsely, down to MIN_RESAMPLE_RATE_HZ; beyond that the span is refused, which also
+#: bounds the memory whatever the stamps say.
+MAX_GRID_SAMPLES = 2 ** 23
+MIN_RESAMPLE_RATE_HZ = 20.0
+#: Signals are clipped at median + this many robust standard deviations (1.4826 MAD).
+CLIP_SIGMAS = 6.0
+#: Other local maxima of the correlation at least this fraction of the peak are candidates.
+CANDIDATE_RATIO = 0.7
+#: At most this many candidates besides the peak.
+MAX_CANDIDATES = 4
 
 
 @dataclass(frozen=True)
 class AngularSpeed:
-    """Body angular speed of one stream.
+    """Body angular speed (or velocity) of one stream.
 
     Attributes
     ----------
     t_s : ndarray, shape (M,)
-        Interval midpoints, seconds from the common origin, on the stream's own clock.
-    speed : ndarray, shape (M,)
-        Rotation angle over the interval divided by its length, rad/s (body or world frame
-        alike: the magnitude is frame-independent).
+        Interval midpoints, seconds from the stream's first stamp, on the stream's own clock.
+    speed : ndarray, shape (M,) or (M, 3)
+        Rotation angle over the interval divided by its length, rad/s (the magnitude is
+        frame-independent), or the body angular velocity ``Log(R_k^T R_k+1) / dt`` (rad/s, in
+        the body frame).
     valid : ndarray, shape (M,), bool
-        False for intervals that span a gap.
+        False for intervals that span a gap or a break.
     """
 
     t_s: np.ndarray
@@ -69,7 +96,7 @@ class TimeAlignment:
     method : str
         'quadratic' (sub-sample peak), 'none' (integer peak, the paper's baseline) or 'fixed'.
     peak_correlation : float
-        Normalised correlation at the peak, in [-1, 1]; 1 means the speed profiles agree exactly.
+        Normalised correlation at the peak, in [-1, 1]; 1 means the profiles agree exactly.
     second_peak_ratio : float
         Highest correlation outside the main lobe divided by the peak's; near 1 means an
         ambiguous (periodic) motion.
@@ -78,7 +105,13 @@ class TimeAlignment:
     window_s : tuple of float
         Searched offsets (min, max), seconds.
     lags_s, correlation : ndarray
-        The correlation curve over the window, for plots and diagnostics.
+        The correlation curve over the searched offsets, for plots and diagnostics.
+    candidates : tuple of (float, float)
+        Other local maxima (offset s, correlation) reaching CANDIDATE_RATIO of the peak, best
+        first.
+    time_offset_ns : int
+        ``time_offset_s`` in integer nanoseconds, exact where the float is not (clocks on
+        different epochs, 1e9 s apart).
     """
 
     time_offset_s: float
@@ -89,40 +122,49 @@ class TimeAlignment:
     window_s: tuple[float, float] = (float('nan'), float('nan'))
     lags_s: np.ndarray | None = None
     correlation: np.ndarray | None = None
+    candidates: tuple[tuple[float, float], ...] = field(default=())
+    time_offset_ns: int = 0
 
 
-def angular_speed(traj: Trajectory, origin_ns: int) -> AngularSpeed:
-    """Angular speed of a trajectory from consecutive orientations (see :class:`AngularSpeed`)."""
-    t = traj.seconds(origin_ns)
+def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
+    """Angular speed (or body angular velocity, ``vector``) from consecutive orientations, at
+    interval midpoints in seconds from the stream's first stamp (see :class:`AngularSpeed`)."""
+    t = traj.seconds(int(traj.t_ns[0]))
     R = matrix_from_quat(traj.q_xyzw)
     dR = np.matmul(np.swapaxes(R[:-1], -1, -2), R[1:])
     dt = np.diff(t)
-    valid = dt <= GAP_FACTOR * np.median(dt)
-    return AngularSpeed(0.5 * (t[1:] + t[:-1]), rotation_angle(dR) / dt, valid)
+    w = log_so3(dR) / dt[:, None] if vector else rotation_angle(dR) / dt
+    return AngularSpeed(0.5 * (t[1:] + t[:-1]), w, traj.interval_ok())
 
 
 def resample(sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0) -> tuple[np.ndarray,
                                                                                    np.ndarray]:
-    """Linear interpolation of a speed signal at ``grid_s + shift_s``.
+    """Linear interpolation of a signal at ``grid_s + shift_s``.
 
-    Returns values and a mask that is False outside the signal's support and between two
-    samples of which either lies in a gap.
+    Returns values (shape of the grid, with a trailing 3 for vectors) and a mask that is False
+    outside the signal's support and between two samples of which either lies in a gap.
     """
     t = grid_s + shift_s
     k = np.searchsorted(sig.t_s, t)
     inside = (k > 0) & (k < sig.t_s.size)
     kc = np.clip(k, 1, sig.t_s.size - 1)
     ok = inside & sig.valid[kc - 1] & sig.valid[kc]
-    values = np.interp(t, sig.t_s, sig.speed)
-    return np.where(ok, values, 0.0), ok
+    if sig.speed.ndim == 1:
+        values = np.where(ok, np.interp(t, sig.t_s, sig.speed), 0.0)
+    else:
+        values = np.stack([np.interp(t, sig.t_s, sig.speed[:, a]) for a in range(3)], axis=1)
+        values[~ok] = 0.0
+    return values, ok
 
 
 def masked_normalised_correlation(y: np.ndarray, my: np.ndarray, x: np.ndarray,
                                   mx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pearson correlation of ``y[k + lag]`` with ``x[k]`` over the samples valid in both.
 
-    For each lag the mean and variance are those of the overlapping valid samples only
-    (Padfield's masked normalised cross-correlation), all sums computed by FFT.
+    For each lag the means and variances are those of the overlapping valid samples only
+    (Padfield's masked normalised cross-correlation), all sums computed by FFT. Multichannel
+    signals (shape (n, C)) are correlated as vectors: ``sum_c cov_c / sqrt(sum_c var_y,c *
+    sum_c var_x,c)`` over the shared mask.
 
     Returns
     -------
@@ -130,94 +172,67 @@ def masked_normalised_correlation(y: np.ndarray, my: np.ndarray, x: np.ndarray,
     ncc : ndarray, same shape, NaN where the overlap has no variance
     overlap : ndarray, same shape, number of samples valid in both
     """
+    y2 = y.reshape(y.shape[0], -1) * my[:, None]
+    x2 = x.reshape(x.shape[0], -1) * mx[:, None]
     fy, fx = my.astype(float), mx.astype(float)
-    y, x = y * fy, x * fx
-    # One zero-padded FFT per signal, then every sum is a product of spectra: 6 forward and
-    # 5 inverse transforms for the whole masked correlation. (scipy.fft rather than
-    # scipy.signal, whose import alone takes a second.)
-    nfft = fft.next_fast_len(y.size + x.size - 1, real=True)
-    Y, FY, YY = (fft.rfft(v, nfft) for v in (y, fy, y * y))
-    X, FX, XX = (np.conj(fft.rfft(v, nfft)) for v in (x, fx, x * x))
+    ny, nx = y2.shape[0], x2.shape[0]
+    # One zero-padded FFT per signal, then every sum is a product of spectra. (scipy.fft
+    # rather than scipy.signal, whose import alone takes a second.)
+    nfft = fft.next_fast_len(ny + nx - 1, real=True)
+
+    def fwd(v: np.ndarray) -> np.ndarray:
+        return fft.rfft(v, nfft, axis=0)
 
     def corr(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        c = fft.irfft(A * B, nfft)  # c[L] = sum_m a[m + L] b[m], negative L wrapped to the end
-        return np.concatenate((c[nfft - (x.size - 1):], c[:y.size]))
+        c = fft.irfft(A * B, nfft, axis=0)  # c[L] = sum_m a[m + L] b[m], negative L wrapped
+        return np.concatenate((c[nfft - (nx - 1):], c[:ny]))
 
+    FY, FX = fwd(fy), np.conj(fwd(fx))
+    Y, X = fwd(y2), np.conj(fwd(x2))
+    YY = fwd(np.sum(y2 * y2, axis=1))
+    XX = np.conj(fwd(np.sum(x2 * x2, axis=1)))
     n = np.rint(corr(FY, FX))
-    sy, sx = corr(Y, FX), corr(FY, X)
+    sy = corr(Y, FX[:, None])
+    sx = corr(FY[:, None], X)
     syy, sxx = corr(YY, FX), corr(FY, XX)
-    sxy = corr(Y, X)
+    sxy = corr(np.sum(Y * X, axis=1), np.ones(1))
     with np.errstate(divide='ignore', invalid='ignore'):
-        cov = sxy - sy * sx / n
-        var = (syy - sy * sy / n) * (sxx - sx * sx / n)
+        cov = sxy - np.sum(sy * sx, axis=1) / n
+        var = (syy - np.sum(sy * sy, axis=1) / n) * (sxx - np.sum(sx * sx, axis=1) / n)
         ncc = np.where((n > 1) & (var > 0.0), cov / np.sqrt(np.abs(var)), np.nan)
-    lags = np.arange(-(x.size - 1), y.size)
+    lags = np.arange(-(nx - 1), ny)
     return lags, ncc, n
 
 
-def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float = 0.5,
-               time_offset_guess: float = 0.0, resample_rate_hz: float | None = None,
-               peak_fit: str = 'quadratic') -> TimeAlignment:
-    """Estimate dt (eye clock minus hand clock) within ``guess +- max_time_offset`` seconds.
+def _grid(traj: Trajectory, step: float) -> np.ndarray:
+    """Uniform grid over a stream's span, seconds from its first stamp."""
+    return step * np.arange(int(np.floor(traj.duration_s / step)) + 1)
 
-    Raises
-    ------
-    TimeAlignmentError
-        When the streams do not overlap enough at any searched offset, when the motion has no
-        variation in angular speed, or when the correlation peaks at the window's edge (the
-        offset is then most likely outside the window).
-    """
-    if peak_fit not in ('quadratic', 'none'):
-        msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
-        raise ValueError(msg)
-    origin = int(hand.t_ns[0])
-    w_h = angular_speed(hand, origin)
-    w_e = angular_speed(eye, origin)
+
+def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> float:
+    """Grid step: the faster stream's rate (at most 200 Hz), coarser for very long streams."""
     rate = resample_rate_hz or min(max(hand.rate_hz, eye.rate_hz), MAX_RESAMPLE_RATE_HZ)
-    step = 1.0 / rate
-    # Eye stamps are moved by the guess first, so the residual lag is searched around zero.
-    start = min(w_h.t_s[0], w_e.t_s[0] - time_offset_guess)
-    stop = max(w_h.t_s[-1], w_e.t_s[-1] - time_offset_guess)
-    grid = start + step * np.arange(int(np.floor((stop - start) / step)) + 1)
-    x, mx = resample(w_h, grid)
-    y, my = resample(w_e, grid, shift_s=time_offset_guess)
-    x = _standardise(x, mx, hand.name)
-    y = _standardise(y, my, eye.name)
+    longest = max(hand.duration_s, eye.duration_s)
+    if longest * rate > MAX_GRID_SAMPLES:
+        rate = MAX_GRID_SAMPLES / longest
+        if rate < MIN_RESAMPLE_RATE_HZ:
+            msg = (f'{hand.name} spans {hand.duration_s:.4g} s and {eye.name} '
+                   f'{eye.duration_s:.4g} s: too long to correlate at {MIN_RESAMPLE_RATE_HZ:g} '
+                   'Hz or more. Are the stamps in the unit the format expects (seconds for TUM, '
+                   'nanoseconds for EuRoC)? Otherwise cut the recording into parts')
+            raise TimeAlignmentError(msg)
+    return 1.0 / rate
 
-    lags, ncc, overlap = masked_normalised_correlation(y, my, x, mx)
-    half = int(np.ceil(max_time_offset / step))
-    need = max(MIN_OVERLAP_S / step, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()))
-    window = (np.abs(lags) <= half)
-    eligible = window & (overlap >= need) & np.isfinite(ncc)
-    lo, hi = time_offset_guess - half * step, time_offset_guess + half * step
-    if not eligible.any():
-        msg = (f'{hand.name} and {eye.name} do not overlap in time by at least '
-               f'{need * step:.1f} s at any offset in [{lo:+.3f}, {hi:+.3f}] s '
-               f'(hand covers {hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye starts '
-               f'{(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand). If the clocks differ '
-               'by more, pass a time_offset_guess near the difference')
-        raise TimeAlignmentError(msg)
-    scores = np.where(eligible, ncc, -np.inf)
-    k = int(np.argmax(scores))
-    win_idx = np.flatnonzero(eligible)
-    if k in (win_idx[0], win_idx[-1]) or not (eligible[k - 1] and eligible[k + 1]):
-        msg = (f'the angular-speed correlation peaks at the edge of the search window '
-               f'[{lo:+.3f}, {hi:+.3f}] s (at {time_offset_guess + lags[k] * step:+.3f} s): the '
-               'time offset is probably outside it. Widen max_time_offset or move '
-               'time_offset_guess')
-        raise TimeAlignmentError(msg)
-    frac = _parabola_vertex(*ncc[k - 1:k + 2]) if peak_fit == 'quadratic' else 0.0
-    sel = slice(win_idx[0], win_idx[-1] + 1)
-    return TimeAlignment(
-        time_offset_s=float(time_offset_guess + (lags[k] + frac) * step),
-        method=peak_fit,
-        peak_correlation=float(ncc[k]),
-        second_peak_ratio=_second_peak_ratio(scores[sel], k - win_idx[0]),
-        step_s=step,
-        window_s=(lo, hi),
-        lags_s=time_offset_guess + lags[sel] * step,
-        correlation=ncc[sel],
-    )
+
+def _clip(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Winsorise a signal at median + CLIP_SIGMAS robust deviations (vectors by their norm)."""
+    mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
+    med = np.median(mag[mask])
+    level = med + CLIP_SIGMAS * 1.4826 * np.median(np.abs(mag[mask] - med))
+    if not level > 0.0:
+        return v
+    scale = np.minimum(1.0, level / np.maximum(mag, 1e-300))
+    return v * (scale if v.ndim == 1 else scale[:, None])
 
 
 def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -225,13 +240,196 @@ def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
     if mask.sum() < 3:
         msg = f'{name}: too few samples to compute an angular speed signal'
         raise TimeAlignmentError(msg)
-    mean = v[mask].mean()
-    std = v[mask].std()
+    mean = v[mask].mean(axis=0)
+    std = np.sqrt(np.sum(v[mask].var(axis=0)))
     if not std > 1e-9:
-        msg = (f'{name}: the angular speed is constant ({mean:.3g} rad/s); the time offset '
-               'cannot be observed. Record a motion with varying rotation')
+        msg = (f'{name}: the angular speed is constant ({np.linalg.norm(mean):.3g} rad/s); the '
+               'time offset cannot be observed. Record a motion with varying rotation')
         raise TimeAlignmentError(msg)
-    return np.where(mask, (v - mean) / std, 0.0)
+    out = (v - mean) / std
+    out[~mask] = 0.0
+    return out
+
+
+@dataclass(frozen=True)
+class _Curve:
+    """A correlation over lags: offsets dt (s, from the epoch difference D plus the lag),
+    values, and which lags may be chosen."""
+
+    base_ns: int     # eye origin - hand origin (ns): dt = base + lag * step
+    step: float
+    lags: np.ndarray
+    ncc: np.ndarray
+    eligible: np.ndarray
+
+    def offset_s(self, lag: float) -> float:
+        return self.base_ns * 1e-9 + lag * self.step
+
+
+def _correlate(hand: Trajectory, eye: Trajectory, x: np.ndarray, mx: np.ndarray, y: np.ndarray,
+               my: np.ndarray, step: float, max_time_offset: float | None,
+               time_offset_guess: float | None) -> _Curve:
+    lags, ncc, overlap = masked_normalised_correlation(y, my, x, mx)
+    base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
+    need = max(MIN_OVERLAP_S / step, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()))
+    eligible = (overlap >= need) & np.isfinite(ncc)
+    if max_time_offset is not None:
+        guess = 0.0 if time_offset_guess is None else time_offset_guess
+        # offsets relative to the guess, computed without forming base + lag in float
+        rel = (base_ns - int(round(guess * 1e9))) * 1e-9 + lags * step
+        eligible &= np.abs(rel) <= max_time_offset + 0.5 * step
+    return _Curve(base_ns, step, lags, ncc, eligible)
+
+
+def _no_overlap(hand: Trajectory, eye: Trajectory, need_s: float,
+                window: tuple[float, float] | None) -> TimeAlignmentError:
+    where = ('at any offset' if window is None else
+             f'at any offset in [{window[0]:+.3f}, {window[1]:+.3f}] s')
+    msg = (f'{hand.name} and {eye.name} do not overlap in time by at least {need_s:.1f} s '
+           f'{where} (hand covers {hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye '
+           f'starts {(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own '
+           'clocks)' + ('' if window is None else '. Widen max_time_offset or move '
+                        'time_offset_guess, or leave both unset to search every lag'))
+    return TimeAlignmentError(msg)
+
+
+def _peak(curve: _Curve, peak_fit: str, hand: Trajectory, eye: Trajectory,
+          window: tuple[float, float] | None, need_s: float) -> tuple[int, float]:
+    """Index of the best eligible lag and its sub-sample fraction."""
+    if not curve.eligible.any():
+        raise _no_overlap(hand, eye, need_s, window)
+    scores = np.where(curve.eligible, curve.ncc, -np.inf)
+    k = int(np.argmax(scores))
+    idx = np.flatnonzero(curve.eligible)
+    if k in (idx[0], idx[-1]) or not (curve.eligible[k - 1] and curve.eligible[k + 1]):
+        where = ('the edge of the search window' if window is not None else
+                 'the edge of the lags at which the recordings overlap enough')
+        msg = (f'the angular-speed correlation peaks at {where} (at '
+               f'{curve.offset_s(curve.lags[k]):+.3f} s): the time offset is probably outside '
+               'it. ' + ('Widen max_time_offset or move time_offset_guess' if window is not None
+                         else 'Do the two recordings show the same motion?'))
+        raise TimeAlignmentError(msg)
+    frac = _parabola_vertex(*curve.ncc[k - 1:k + 2]) if peak_fit == 'quadratic' else 0.0
+    return k, frac
+
+
+def _window(max_time_offset: float | None,
+            time_offset_guess: float | None) -> tuple[float, float] | None:
+    if max_time_offset is None:
+        return None
+    g = 0.0 if time_offset_guess is None else time_offset_guess
+    return g - max_time_offset, g + max_time_offset
+
+
+def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | None = None,
+               time_offset_guess: float | None = None, resample_rate_hz: float | None = None,
+               peak_fit: str = 'quadratic') -> TimeAlignment:
+    """Estimate dt (eye clock minus hand clock) from the angular-speed magnitudes (eq. 1).
+
+    Every lag with enough overlap is searched unless ``max_time_offset`` is given (then
+    ``time_offset_guess +- max_time_offset``; the guess alone only matters with it).
+
+    Raises
+    ------
+    TimeAlignmentError
+        When the streams do not overlap enough at any searched offset, when the motion has no
+        variation in angular speed, or when the correlation peaks at the edge of the searched
+        offsets (the offset is then most likely outside them).
+    """
+    if peak_fit not in ('quadratic', 'none'):
+        msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
+        raise ValueError(msg)
+    step = _step(hand, eye, resample_rate_hz)
+    w_h, w_e = angular_speed(hand), angular_speed(eye)
+    x, mx = resample(w_h, _grid(hand, step))
+    y, my = resample(w_e, _grid(eye, step))
+    x = _standardise(_clip(x, mx), mx, hand.name)
+    y = _standardise(_clip(y, my), my, eye.name)
+    curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
+    window = _window(max_time_offset, time_offset_guess)
+    need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
+    k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
+    sel = np.flatnonzero(curve.eligible)
+    sel = slice(sel[0], sel[-1] + 1)
+    scores = np.where(curve.eligible, curve.ncc, -np.inf)
+    lag_ns = int(round((curve.lags[k] + frac) * step * 1e9))
+    return TimeAlignment(
+        time_offset_s=curve.offset_s(curve.lags[k] + frac),
+        method=peak_fit,
+        peak_correlation=float(curve.ncc[k]),
+        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start),
+        step_s=step,
+        window_s=window or (curve.offset_s(curve.lags[sel.start]),
+                            curve.offset_s(curve.lags[sel.stop - 1])),
+        lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
+        correlation=curve.ncc[sel],
+        candidates=_candidates(curve, k),
+        time_offset_ns=curve.base_ns + lag_ns,
+    )
+
+
+def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
+                      around_s: float, half_window_s: float,
+                      resample_rate_hz: float | None = None) -> TimeAlignment:
+    """dt from the body angular velocities: ``w_E(t) = R_HE^T w_H(t - dt)``.
+
+    Searches ``around_s +- half_window_s`` (seconds); the sub-sample peak by the same parabola.
+    ``method`` is 'vector'.
+
+    Raises
+    ------
+    TimeAlignmentError
+        As :func:`align_time`.
+    """
+    step = _step(hand, eye, resample_rate_hz)
+    w_h, w_e = angular_speed(hand, vector=True), angular_speed(eye, vector=True)
+    w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
+    x, mx = resample(w_h, _grid(hand, step))
+    y, my = resample(w_e, _grid(eye, step))
+    x = _standardise(_clip(x, mx), mx, hand.name)
+    y = _standardise(_clip(y, my), my, eye.name)
+    curve = _correlate(hand, eye, x, mx, y, my, step, half_window_s, around_s)
+    window = _window(half_window_s, around_s)
+    need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
+    k, frac = _peak(curve, 'quadratic', hand, eye, window, need_s)
+    scores = np.where(curve.eligible, curve.ncc, -np.inf)
+    sel = np.flatnonzero(curve.eligible)
+    sel = slice(sel[0], sel[-1] + 1)
+    lag_ns = int(round((curve.lags[k] + frac) * step * 1e9))
+    return TimeAlignment(
+        time_offset_s=curve.offset_s(curve.lags[k] + frac), method='vector',
+        peak_correlation=float(curve.ncc[k]),
+        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start), step_s=step,
+        window_s=window, lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
+        correlation=curve.ncc[sel], candidates=_candidates(curve, k),
+        time_offset_ns=curve.base_ns + lag_ns)
+
+
+def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
+    """Other local maxima outside the peak's lobe reaching CANDIDATE_RATIO of it (with their
+    sub-sample parabola): the MAX_CANDIDATES best, and the one nearest to a zero offset (on a
+    repetitive motion many peaks tie, and clocks started together are the likelier case)."""
+    s = np.where(curve.eligible, curve.ncc, -np.inf)
+    peak = s[k]
+    if not peak > 0.0:
+        return ()
+    inner = s[1:-1]
+    local = np.flatnonzero((inner >= s[:-2]) & (inner > s[2:]) &
+                           (inner >= CANDIDATE_RATIO * peak)) + 1
+    lo, hi = _lobe(s, k)
+    local = local[(local < lo) | (local > hi)]
+    if not local.size:
+        return ()
+    nearest = local[np.argmin(np.abs(curve.base_ns * 1e-9 + curve.lags[local] * curve.step))]
+    local = local[np.argsort(-s[local])][:MAX_CANDIDATES]
+    if nearest not in local:
+        local = np.append(local, nearest)
+    out = []
+    for m in local:
+        frac = _parabola_vertex(*curve.ncc[m - 1:m + 2]) if np.all(
+            np.isfinite(curve.ncc[m - 1:m + 2])) else 0.0
+        out.append((curve.offset_s(curve.lags[m] + frac), float(curve.ncc[m])))
+    return tuple(out)
 
 
 def _parabola_vertex(c_minus: float, c0: float, c_plus: float) -> float:
@@ -242,13 +440,19 @@ def _parabola_vertex(c_minus: float, c0: float, c_plus: float) -> float:
     return float(np.clip(0.5 * (c_minus - c_plus) / den, -0.5, 0.5))
 
 
-def _second_peak_ratio(scores: np.ndarray, k: int) -> float:
-    """Best correlation outside the main lobe (bounded by the nearest local minima) over peak."""
-    d = np.diff(scores)
+def _lobe(scores: np.ndarray, k: int) -> tuple[int, int]:
+    """First and last index of the peak's lobe (bounded by the nearest local minima)."""
+    d = np.diff(np.where(np.isfinite(scores), scores, -2.0))  # ineligible lags: below any NCC
     left = np.flatnonzero(d[:k] < 0.0)  # a rise towards the left of the peak ends the lobe
     right = np.flatnonzero(d[k:] > 0.0)
     lo = left[-1] + 1 if left.size else 0
     hi = k + right[0] if right.size else scores.size - 1
+    return int(lo), int(hi)
+
+
+def _second_peak_ratio(scores: np.ndarray, k: int) -> float:
+    """Best correlation outside the main lobe (bounded by the nearest local minima) over peak."""
+    lo, hi = _lobe(scores, k)
     outside = np.concatenate((scores[:lo], scores[hi + 1:]))
     outside = outside[np.isfinite(outside)]
     if not outside.size or scores[k] <= 0.0:

@@ -1,0 +1,306 @@
+"""Screening of one pose stream before stage 1: isolated pose outliers.
+
+Real recordings carry poses that no motion produced: an identity placeholder written before the
+first estimate, a MoCap marker swap (the rigid body fitted to the wrong markers for one frame),
+a MoCap dropout written as zeros, a VIO glitch. One such pose is enough to put a spike into the
+angular speed of stage 1 and a wrong motion into stages 2 and 3. They are found here, on each
+stream alone, and removed (and counted, with their stamps, in the result).
+
+The test (a Hampel test on the interpolation residual): each pose is compared with
+the interpolation of its two neighbours at its stamp (positions linearly, orientations by
+SLERP; at the two ends, the extrapolation of the two nearest poses): the residual is exact
+zero on a straight, steady motion and ``a dt^2 / 8`` on a curved one, so a pose no motion
+produced stands out. Its residual is tested against the stream's own spread: a running
+median ``m`` and median absolute deviation ``s`` of the residuals over about 2 s (at least
+31 poses); the pose is a candidate when its residual exceeds ``m + n_sigma * 1.4826 * s``
+(``outlier_threshold``, default 6: on Gaussian noise a good pose reaches this about once in
+10^7) and an absolute floor: 1 mm / 0.1 deg (below which a wrong pose cannot matter to the
+calibration), or what the file's own rounding can produce when it is coarser (positions
+written to the millimetre move a residual by up to sqrt(3) mm). A wild pose also
+lifts its neighbours' residuals (to about half its own), so a candidate is an outlier only
+if it disagrees with the extrapolations from *both* sides (from its two previous and from
+its two next poses, at three times the threshold: extrapolation errs more): a good pose
+beside a wild one agrees with its other side, and a pose next to a step (a reset) agrees
+with its own side, and both stay. The test runs again on what is left (up to five rounds),
+so that three wild poses in a row go middle first, then the other two; a run of
+placeholders (two identity rows) the same way. Poses repeated bit for bit are *not* removed: a slow rig written to the millimetre
+repeats its poses legitimately.
+
+Resets (a jump of the eye's world frame that persists) are not outliers and are not removed
+here; they are found after stage 2 against the hand (:func:`find_eye_breaks`), where the
+motion expected of the eye is known, and split the eye stream into segments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.ndimage import median_filter
+from scipy.spatial.transform import Rotation
+
+from .association import eye_motion_errors
+from .trajectory import Trajectory
+
+#: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
+SCALE_WINDOW_S = 2.0
+SCALE_WINDOW_MIN = 31
+#: Residuals below these never make an outlier (m, rad): 1 mm, 0.1 deg.
+FLOOR_TRANSLATION_M = 1e-3
+FLOOR_ROTATION_RAD = np.deg2rad(0.1)
+#: An extrapolation from two poses errs more than an interpolation between them (a curved
+#: motion: ``a dt^2`` against ``a dt^2 / 8`` at equal spacing, plus the noise of a lever).
+EXTRAPOLATION_FACTOR = 3.0
+#: Rounds of the test.
+HAMPEL_ROUNDS = 5
+#: The floors are at least this many times the worst residual the values' rounding can make.
+ROUNDING_MARGIN = 1.5
+
+#: Kinds of removed poses, as counted in :class:`Screening`.
+KINDS = ('outlier', 'short_segment')
+
+
+@dataclass(frozen=True)
+class Screening:
+    """What screening removed from one stream.
+
+    Attributes
+    ----------
+    stream : str
+        'hand' or 'eye'.
+    n_input : int
+        Poses before screening.
+    removed_ns : ndarray of int64, shape (R,)
+        Stamps (as read) of the removed poses, sorted.
+    removed_kind : tuple of str
+        The kind (one of :data:`KINDS`) of each removed pose, in the order of ``removed_ns``.
+    threshold_translation_m, threshold_rotation_rad : float
+        Median over the stream of the Hampel thresholds used (for the report).
+    breaks_ns : ndarray of int64
+        Stamps of the first pose after each break found later (:func:`find_eye_breaks`).
+    """
+
+    stream: str
+    n_input: int
+    removed_ns: np.ndarray
+    removed_kind: tuple[str, ...]
+    threshold_translation_m: float = float('nan')
+    threshold_rotation_rad: float = float('nan')
+    breaks_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Removed poses per kind."""
+        return {k: int(sum(1 for x in self.removed_kind if x == k)) for k in KINDS}
+
+    @property
+    def n_removed(self) -> int:
+        return int(self.removed_ns.size)
+
+    @property
+    def fraction(self) -> float:
+        """Removed poses over input poses."""
+        return self.n_removed / max(self.n_input, 1)
+
+    def merged(self, removed_ns: np.ndarray, kind: str,
+               breaks_ns: np.ndarray | None = None) -> Screening:
+        """This report with more removed poses (all of one kind) and breaks."""
+        ns = np.concatenate((self.removed_ns, np.asarray(removed_ns, dtype=np.int64)))
+        kinds = self.removed_kind + (kind,) * int(np.size(removed_ns))
+        order = np.argsort(ns, kind='stable')
+        br = self.breaks_ns if breaks_ns is None else np.union1d(self.breaks_ns, breaks_ns)
+        return Screening(self.stream, self.n_input, ns[order],
+                         tuple(kinds[i] for i in order), self.threshold_translation_m,
+                         self.threshold_rotation_rad, br.astype(np.int64))
+
+
+def resolution(values: np.ndarray) -> float:
+    """The step the values were rounded to: 10^-k for the fewest decimals k (0..9) that
+    represent them all (within 1e-3 of a step); 0 when they carry more than 9 decimals."""
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)][:20_000]
+    for k in range(10):
+        scaled = v * 10.0 ** k
+        if np.all(np.abs(scaled - np.rint(scaled)) < 1e-3):
+            return 10.0 ** -k
+    return 0.0
+
+
+def _predict(t: np.ndarray, p: np.ndarray, r: Rotation, a: np.ndarray, b: np.ndarray,
+             k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals (m, rad) of poses k against the line through poses a and b at t_k
+    (interpolation when a < k < b, extrapolation otherwise)."""
+    f = (t[k] - t[a]) / np.where(t[b] != t[a], t[b] - t[a], 1.0)
+    p_pred = p[a] + f[:, None] * (p[b] - p[a])
+    rel = (r[a].inv() * r[b]).as_rotvec()
+    r_pred = r[a] * Rotation.from_rotvec(f[:, None] * rel)
+    return (np.linalg.norm(p[k] - p_pred, axis=1), (r_pred.inv() * r[k]).magnitude())
+
+
+def interpolation_residuals(t: np.ndarray, p: np.ndarray,
+                            r: Rotation) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) position (m) and rotation (rad) residual of each pose against its neighbours'
+    interpolation (the end poses: against the extrapolation of the two nearest)."""
+    n = t.size
+    k = np.arange(n)
+    a = np.clip(k - 1, 0, n - 1)
+    b = np.clip(k + 1, 0, n - 1)
+    a[0], b[0] = 1, 2
+    a[-1], b[-1] = n - 3, n - 2
+    return _predict(t, p, r, a, b, k)
+
+
+def side_residuals(t: np.ndarray, p: np.ndarray, r: Rotation, k: np.ndarray,
+                   side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Residuals of poses k against the extrapolation from their two previous (side -1) or
+    next (side +1) poses, and whether that side exists."""
+    n = t.size
+    a = k + side
+    b = k + 2 * side
+    ok = (b >= 0) & (b < n)
+    a, b = np.clip(a, 0, n - 1), np.clip(b, 0, n - 1)
+    e_p, e_r = _predict(t, p, r, a, b, k)
+    return e_p, e_r, ok
+
+
+def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
+                      floor: float) -> np.ndarray:
+    """Per-pose threshold ``max(m + n_sigma * 1.4826 * s, floor)`` from the running median m
+    and median absolute deviation s of the residuals."""
+    # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
+    size = min(scale_window, 2 * (res.size // 2) - 1)
+    m = median_filter(res, size=size, mode='mirror')
+    s = median_filter(np.abs(res - m), size=size, mode='mirror')
+    return np.maximum(m + n_sigma * 1.4826 * s, floor)
+
+
+def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
+              floors: tuple[float, float]) -> tuple[np.ndarray, float, float]:
+    """(N,) bool outliers of one round, and the median thresholds (m, rad)."""
+    r = Rotation.from_quat(q)
+    rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
+    scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
+    e_p, e_r = interpolation_residuals(t, p, r)
+    tp = hampel_thresholds(e_p, scale_window, n_sigma, floors[0])
+    tr = hampel_thresholds(e_r, scale_window, n_sigma, floors[1])
+    z = np.maximum(e_p / tp, e_r / tr)
+    cand = np.flatnonzero(z > 1.0)
+    bad = np.zeros(t.size, dtype=bool)
+    if cand.size:
+        inconsistent = np.ones(cand.size, dtype=bool)
+        for side in (-1, 1):
+            sp, sr, ok = side_residuals(t, p, r, cand, side)
+            off = (sp > EXTRAPOLATION_FACTOR * tp[cand]) | \
+                (sr > EXTRAPOLATION_FACTOR * tr[cand])
+            inconsistent &= off | ~ok
+        bad[cand[inconsistent]] = True
+    return bad, float(np.median(tp)), float(np.median(tr))
+
+
+def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Trajectory, Screening]:
+    """Remove isolated outliers from one stream (see module docstring).
+
+    Returns the screened trajectory (breaks and notes kept) and what was removed.
+    """
+    n_input = len(traj)
+    kinds = np.full(n_input, '', dtype=object)
+    idx = np.arange(n_input)
+    # a residual the file's rounding can make is no outlier: positions rounded to r move it
+    # by up to sqrt(3) r; quaternion components rounded to r turn a pose by up to ~2 r
+    floors = (max(FLOOR_TRANSLATION_M, ROUNDING_MARGIN * np.sqrt(3.0) * resolution(traj.p_xyz)),
+              max(FLOOR_ROTATION_RAD, ROUNDING_MARGIN * 4.0 * resolution(traj.q_xyzw)))
+    thr_p = thr_r = float('nan')
+    for _ in range(HAMPEL_ROUNDS):
+        if idx.size < 8:
+            break
+        bad, tp, tr = _outliers(traj.seconds(int(traj.t_ns[0]))[idx], traj.p_xyz[idx],
+                                traj.q_xyzw[idx], n_sigma, floors)
+        if np.isnan(thr_p):
+            thr_p, thr_r = tp, tr
+        if not bad.any():
+            break
+        kinds[idx[bad]] = 'outlier'
+        idx = idx[~bad]
+    removed = kinds != ''
+    report = Screening(stream, n_input, traj.t_ns[removed].copy(),
+                       tuple(kinds[removed]), thr_p, thr_r)
+    return (traj.select(~removed) if removed.any() else traj), report
+
+
+#: Eye intervals whose error against the hand's motion exceeds median + this many robust
+#: standard deviations (and the floors) are inconsistent: 8, stricter than for poses, because
+#: a false break only costs the motions across it while the test runs on every interval.
+BREAK_SIGMAS = 8.0
+#: Interval errors below these never make a break (m, rad): a reset of the VIO's world moves it
+#: by decimetres and degrees, while consecutive VIO poses differ from the hand's motion by mm.
+BREAK_FLOOR_TRANSLATION_M = 0.02
+BREAK_FLOOR_ROTATION_RAD = np.deg2rad(1.0)
+#: A part of the eye stream between breaks shorter than this (s, poses) is dropped.
+MIN_SEGMENT_S = 1.0
+MIN_SEGMENT_POSES = 10
+
+
+@dataclass(frozen=True)
+class EyeBreaks:
+    """Result of :func:`find_eye_breaks`: the eye with its breaks, and the stamps of the poses
+    dropped (isolated outliers, parts too short to use) and of the first pose after each
+    break."""
+
+    eye: Trajectory
+    outliers_ns: np.ndarray
+    short_ns: np.ndarray
+    breaks_ns: np.ndarray
+
+
+def find_eye_breaks(hand: Trajectory, eye: Trajectory, time_offset_s: float, R_HE: np.ndarray,
+                    p_HE: np.ndarray) -> EyeBreaks:
+    """Breaks (resets of the VIO world) and leftover wild poses of the eye, found against the
+    hand's motion once stage 2 has an extrinsic.
+
+    Every consecutive eye interval, gaps included, is compared with the hand's motion over the
+    same instants (:func:`~handeye_ros.core.association.eye_motion_errors`). Its error is inconsistent above median +
+    BREAK_SIGMAS robust deviations of the errors of ordinary intervals (for a gap, scaled by
+    the square root of its length: a VIO's error grows like a random walk) and above the
+    floors. Two inconsistent intervals around one pose make that pose an outlier (dropped);
+    one inconsistent interval is a break. Parts between breaks shorter than MIN_SEGMENT_S or
+    MIN_SEGMENT_POSES are dropped.
+    """
+    k = np.arange(len(eye) - 1)
+    e_r, e_t, covered = eye_motion_errors(hand, eye, k, k + 1, time_offset_s, R_HE, p_HE)
+    step = np.diff(eye.t_ns).astype(float)
+    usual = eye.interval_ok() & covered
+    if usual.sum() < 20:
+        return EyeBreaks(eye, *(np.zeros(0, dtype=np.int64),) * 3)
+    scale = np.sqrt(np.maximum(step / np.median(step[usual]), 1.0))
+
+    def limit(e: np.ndarray, floor: float) -> np.ndarray:
+        m = np.median(e[usual])
+        s = 1.4826 * np.median(np.abs(e[usual] - m))
+        return np.maximum(m + BREAK_SIGMAS * s, floor) * scale
+
+    bad = covered & ((e_r > limit(e_r, BREAK_FLOOR_ROTATION_RAD)) |
+                     (e_t > limit(e_t, BREAK_FLOOR_TRANSLATION_M)))
+    bad[eye.breaks] = False  # known already
+    # a pose between two inconsistent intervals is a wild pose, not two breaks
+    wild = np.zeros(len(eye), dtype=bool)
+    wild[1:-1] = bad[:-1] & bad[1:]
+    k = np.flatnonzero(wild)
+    bad[k - 1] = False
+    bad[k] = False
+    new_breaks = np.flatnonzero(bad)
+    marked = eye.with_breaks(new_breaks)
+    # parts too short to use
+    seg = marked.segment_ids()
+    starts = np.flatnonzero(np.diff(seg, prepend=-1))
+    ends = np.append(starts[1:], len(eye))
+    short = np.zeros(len(eye), dtype=bool)
+    for a, b in zip(starts, ends, strict=True):
+        if b - a < MIN_SEGMENT_POSES or (eye.t_ns[b - 1] - eye.t_ns[a]) * 1e-9 < MIN_SEGMENT_S:
+            short[a:b] = True
+    if short.all():  # nothing would be left: keep the stream whole, the verdict will tell
+        return EyeBreaks(eye, *(np.zeros(0, dtype=np.int64),) * 3)
+    drop = wild | short
+    out = marked.select(~drop) if drop.any() else marked
+    breaks_ns = out.t_ns[out.breaks + 1] if out.breaks.size else np.zeros(0, dtype=np.int64)
+    new = np.setdiff1d(breaks_ns, eye.t_ns[eye.breaks + 1] if eye.breaks.size else [])
+    return EyeBreaks(out, eye.t_ns[wild & ~short], eye.t_ns[short], new.astype(np.int64))

@@ -98,7 +98,9 @@ class Stream:
     value_decimals: tuple[int, int] = (9, 12)
 
     def write(self, path: Path) -> None:
-        stamps = stamp_text(self.t_ns, self.unit, self.stamp_decimals)
+        # a CSV in another unit than ns holds whole numbers of it, as a logger writes them
+        decimals = 0 if self.fmt == 'euroc' else self.stamp_decimals
+        stamps = stamp_text(self.t_ns, self.unit, decimals)
         dp, dq = self.value_decimals
         if self.fmt == 'tum':
             qc = quat_columns(self.q, self.order)
@@ -325,7 +327,7 @@ def verdict_of(res) -> tuple[str, tuple[str, ...]]:
     quality = getattr(res, 'quality', None)
     if quality is None:
         return 'good', ()
-    return quality.verdict, tuple(quality.reasons)
+    return quality.verdict, tuple(f'{r.code}: {r.message}' for r in quality.reasons)
 
 
 def run_files(hand: Stream, eye: Stream, workdir: Path, config: CalibrationConfig):

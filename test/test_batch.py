@@ -7,6 +7,8 @@ tests allow 4 sigma per seed and compare means over a few seeds with the linear 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -14,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.batch import BatchError, refine
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.core.pipeline import _run_batch, calibrate
+from handeye_ros.core.pipeline import _check_batch, _Run, _run_batch, calibrate
 from handeye_ros.core.simulate import calibration_error
 
 from conftest import recording
@@ -87,12 +89,30 @@ def test_too_short_overlap_and_far_off_start() -> None:
     short = rec.eye.select(slice(0, 12))
     with pytest.raises(BatchError, match='overlap too little'):
         refine(rec.hand, short, rec.truth.time_offset_s, rec.truth.q_HE, rec.truth.p_HE)
-    # a start 30 cm and 20 deg away: either converges back far away from it, which is refused
-    # as a divergence, or stays: never silently replaces a sane linear result
+
+def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
+    """No cap on how far the batch stage may move: when it moves beyond its sigmas the
+    self-check scores both on one motion set. From a linear result 30 cm / 20 deg off, the
+    batch stage finds the truth back, and the self-check keeps it; the other way round, it
+    keeps the linear result and says the stages disagree."""
+    rec = recording(seed=7, level=2.0)
+    good = calibrate(rec.hand, rec.eye)
     q_bad = (Rotation.from_quat(rec.truth.q_HE) * Rotation.from_rotvec([0.35, 0, 0])).as_quat()
-    sol, why = _run_batch(rec.hand, rec.eye, rec.truth.time_offset_s, q_bad,
-                          rec.truth.p_HE + [0.3, 0.0, 0.0], CalibrationConfig())
-    assert sol is None and ('diverged' in why or 'worse' in why)
+    bad_lin = replace(good.linear, q_HE=q_bad, p_HE=rec.truth.p_HE + [0.3, 0.0, 0.0])
+    dt = rec.truth.time_offset_s
+    sol, _ = _run_batch(rec.hand, rec.eye, dt, q_bad, bad_lin.p_HE, CalibrationConfig())
+    assert sol is not None
+    assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m \
+        < 0.01
+    run = _Run()
+    assert _check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
+    assert not run.reasons and any('supports it' in n for n in run.notes)
+    # a batch solution far off a good linear result is refused
+    bad_sol = replace(sol, q_HE=q_bad, p_HE=bad_lin.p_HE)
+    run = _Run()
+    assert _check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(),
+                        run) is None
+    assert [r.code for r in run.reasons] == ['stages_disagree']
 
 
 @pytest.mark.parametrize(('values', 'message'), [
@@ -136,7 +156,9 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
         assert abs(e_dt) < 4 * b.std[0]
         assert np.all(np.abs(rec.truth.p_HE - joint.p_HE) < 4 * b.std[1:4])
         # same information, same uncertainty, nearly the same estimate
-        assert np.allclose(b.std, d.std, rtol=0.1)
+        # the two long-run corrections sit on different white forms (the joint one on the
+        # Schur complement, the default on the sandwich): within 15 %
+        assert np.allclose(b.std, d.std, rtol=0.15)
         assert abs(joint.time_offset_s - default.time_offset_s) < 0.2 * b.std[0]
         assert np.all(np.abs(joint.p_HE - default.p_HE) < 0.2 * b.std[1:4])
     fixed = calibrate(rec.hand, rec.eye, CalibrationConfig(

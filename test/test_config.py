@@ -9,7 +9,7 @@ import yaml
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.ros.config import NodeConfig
+from handeye_ros.ros.config import NodeConfig, params_yaml
 from handeye_ros.stream.config import StreamConfig
 
 from conftest import ROOT
@@ -22,8 +22,11 @@ def test_defaults_are_the_papers() -> None:
 
 
 def test_shipped_params_file_matches_the_defaults() -> None:
-    """config/calibrator.yaml documents every parameter at its default, and nothing unknown."""
-    params = yaml.safe_load((ROOT / 'config' / 'calibrator.yaml').read_text())
+    """config/calibrator.yaml documents every parameter at its default, and nothing unknown;
+    it is the generated text (regenerate with handeye_ros.ros.config.params_yaml())."""
+    text = (ROOT / 'config' / 'calibrator.yaml').read_text()
+    assert text == params_yaml(), 'regenerate config/calibrator.yaml from params_yaml()'
+    params = yaml.safe_load(text)
     values = params['calibrator']['ros__parameters']
     parts = (CalibrationConfig, StreamConfig, NodeConfig)
     assert set(values) == {k for cls in parts for k in cls.specs()}

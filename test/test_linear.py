@@ -32,11 +32,13 @@ def _error(rec, sol):
 
 
 def test_noise_free_is_exact() -> None:
+    """Exact up to the interpolation of the 100 Hz hand at the eye's stamps (the eye runs at an
+    arbitrary phase): a dt^2 / 8 ~ 25 um and ~3e-4 deg at these motions."""
     rec = recording(seed=1)
     sol = calibrate_linear(_motions(rec))
     err = _error(rec, sol)
-    assert err.translation_m < 1e-6 and err.rotation_deg < 1e-6
-    assert sol.sigma_ratio < 1e-6
+    assert err.translation_m < 1e-4 and err.rotation_deg < 2e-3
+    assert sol.sigma_ratio < 1e-3
     assert sol.n_inliers == sol.n_motions
 
 
@@ -107,11 +109,22 @@ def _single_axis_recording(n: int = 2000) -> tuple[Trajectory, Trajectory, float
     return hand, eye, 0.0
 
 
-def test_single_rotation_axis_is_degenerate() -> None:
+def test_single_rotation_axis_names_the_unobservable_part() -> None:
+    """A ground robot (rotation about z, translation in the plane): the rotation and the
+    in-plane translation of T_HE are determined, the translation along z is not; it is named
+    and set to 0 instead of the whole result being refused."""
     hand, eye, dt = _single_axis_recording()
     m = build_motions(associate(hand, eye, dt))
-    with pytest.raises(DegenerateMotionError, match='rotation axes'):
-        calibrate_linear(m)
+    lin = calibrate_linear(m)
+    truth = random_truth(np.random.default_rng(0))
+    assert len(lin.unobservable) == 1 and 'translation along the rotation axis' in \
+        lin.unobservable[0]
+    err = Rotation.from_quat(lin.q_HE).inv() * Rotation.from_quat(truth.q_HE)
+    assert np.degrees(err.magnitude()) < 1e-6
+    axis = np.array([0.0, 0.0, 1.0])  # the hand's rotation axis, in H
+    off = truth.p_HE - lin.p_HE
+    assert np.linalg.norm(off - (off @ axis) * axis) < 1e-6 and abs(lin.p_HE @ axis) < 1e-9
+    assert any('cannot be observed' in w for w in lin.warnings)
 
 
 def test_too_little_rotation() -> None:

@@ -45,8 +45,9 @@ from .errors import BatchError
 from .geometry import (Pose, compose, hat, log_so3, matrix_from_quat, quat_from_matrix,
                        relative, right_jacobian)
 from .spline import PoseSpline, exp_so3, fit_spline
-from .time_align import GAP_FACTOR
-from .trajectory import Trajectory
+from .trajectory import GAP_FACTOR, Trajectory
+from .uncertainty import (LongRunCovariance, influence, influence_two_step,
+                          long_run_covariance)
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
@@ -86,8 +87,11 @@ class BatchSolution:
 
     time_offset_s, q_HE, p_HE: the refined dt and T_HE.
     covariance: (7, 7), order (dt [s], translation [m] x3, rotation [rad] x3); the rotation is
-    the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame).
+    the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame). It is the long-run
+    covariance of :mod:`.uncertainty`, which holds for residuals correlated in time.
     std: sqrt of its diagonal.
+    covariance_white: the same under white residuals (``s^2 (J^T J)^-1``), for comparison.
+    bandwidth: the long-run covariance's bandwidth, in eye poses (0: the residuals look white).
     """
 
     time_offset_s: float
@@ -110,13 +114,19 @@ class BatchSolution:
     reduced_chi2: float
     decoupled: bool = False
     warnings: tuple[str, ...] = field(default=())
+    covariance_white: np.ndarray | None = None
+    bandwidth: int = 0
+
+    @property
+    def inflation(self) -> np.ndarray:
+        """(7,) long-run over white standard deviation (1: the residuals look white)."""
+        w = np.sqrt(np.clip(np.diag(self.covariance_white), 1e-300, None))
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
 
 
-def _pairs(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Consecutive sample indices not spanning a gap (GAP_FACTOR median periods, as stage 1)."""
-    step = np.diff(t)
-    ok = step <= GAP_FACTOR * np.median(step)
-    i = np.flatnonzero(ok)
+def _pairs(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive pose indices not spanning a gap or a break (as stage 1)."""
+    i = np.flatnonzero(traj.interval_ok())
     return i, i + 1
 
 
@@ -148,7 +158,7 @@ class _Problem:
         self.hand_basis = self.spline0.basis(self.th)  # the knots never move; the times neither
         self._eye_basis: dict[float, tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
-        ei, ej = _pairs(te)
+        ei, ej = _pairs(eye)
         lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
         inside = (te[ei] - dt0 >= lo) & (te[ej] - dt0 <= hi)
         self.ei, self.ej = ei[inside], ej[inside]
@@ -321,14 +331,28 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
             prob, hn, hand_noise, eye_noise, huber_delta, max_iterations, fix_time_offset,
             decoupled)
         y = x[prob.n_spline:]
+        spline = prob.unpack(x)[0]
+        w_eye = np.repeat(prob.w[2:], 3)
+
+        def eye_rows(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
+            r = prob.eye_raw_at(spline, *prob.offset_extrinsic(yy)) * w_eye
+            return (r[:, :3] if rotation_only else r).ravel()
+        # the eye's long-run correlation, added to the Schur covariance (which has the spline's
+        # share): the eye rows' long-run minus their white sandwich, at the joint solution
+        lr = _eye_long_run(eye_rows, y, fix_time_offset, huber_delta, decoupled)
+        extra = lr.covariance - lr.white
+        lam, V = np.linalg.eigh(0.5 * (cov + extra + (cov + extra).T))
+        cov_lr = (V * np.clip(lam, 0.0, None)) @ V.T
+        lr = LongRunCovariance(cov_lr, cov, lr.bandwidth, lr.samples)
     else:
-        y, cost_before, cost_after, en, cov, n_res, n_free, sol = _solve_offset_extrinsic(
+        y, cost_before, cost_after, en, cov, n_res, n_free, sol, lr = _solve_offset_extrinsic(
             prob, eye_noise, huber_delta, max_iterations, fix_time_offset, decoupled)
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
     # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
     perm = np.array([0, 4, 5, 6, 1, 2, 3])
-    cov = cov[np.ix_(perm, perm)]
+    cov_white = cov[np.ix_(perm, perm)]
+    cov = lr.covariance[np.ix_(perm, perm)]
     dt, X = prob.offset_extrinsic(y)
     warnings = []
     if not sol.success:
@@ -340,7 +364,8 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         termination=str(sol.message), success=bool(sol.success), hand_noise=hn, eye_noise=en,
         n_hand_residuals=int(prob.th.size), n_eye_residuals=int(prob.ei.size),
         n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
-        decoupled=decoupled, warnings=tuple(warnings))
+        decoupled=decoupled, warnings=tuple(warnings), covariance_white=cov_white,
+        bandwidth=lr.bandwidth)
 
 
 def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterations: int,
@@ -404,7 +429,37 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterati
     else:
         cov[np.ix_(free_all, free_all)] = _two_step_covariance(
             residuals, y, np.array(dt_idx + [1, 2, 3]), np.array(dt_idx + [4, 5, 6]), s2)
-    return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1]
+    lr = _eye_long_run(residuals, y, fix_time_offset, delta, decoupled)
+    return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1], lr
+
+
+def _eye_long_run(residuals, y: np.ndarray, fix_time_offset: bool, delta: float,
+                  decoupled: bool) -> LongRunCovariance:
+    """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X) from the eye
+    residuals at y, as 7x7 matrices in the order of y (zero rows for a fixed dt).
+
+    ``residuals(yy, rotation_only=False)``: the weighted eye residuals, 6 (or 3) rows per eye
+    pose pair in time order.
+    """
+    dt_idx = [] if fix_time_offset else [0]
+    free_all = np.array(dt_idx + [1, 2, 3, 4, 5, 6])
+    k = len(dt_idx)
+    if decoupled:
+        free_a, free_b = np.array(dt_idx + [1, 2, 3]), np.array(dt_idx + [4, 5, 6])
+        J_a = _jacobian(lambda yy: residuals(yy, rotation_only=True), y, free_a)
+        J_b = _jacobian(residuals, y, free_b)
+        J_t = _jacobian(residuals, y, np.array([1, 2, 3]))
+        psi_theta, psi_b = influence_two_step(
+            residuals(y, rotation_only=True), J_a, residuals(y), J_b, J_t, delta, 3, 6,
+            np.arange(k, k + 3))
+        psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
+    else:
+        psi, _ = influence(residuals(y), _jacobian(residuals, y, free_all), delta, 6)
+    lr = long_run_covariance(psi)
+    full, white = np.zeros((7, 7)), np.zeros((7, 7))
+    full[np.ix_(free_all, free_all)] = lr.covariance
+    white[np.ix_(free_all, free_all)] = lr.white
+    return LongRunCovariance(full, white, lr.bandwidth, lr.samples)
 
 
 def _jacobian(fun, y: np.ndarray, cols: np.ndarray) -> np.ndarray:

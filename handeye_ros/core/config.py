@@ -17,23 +17,32 @@ PEAK_FITS = ('quadratic', 'none')
 STRATEGIES = ('rotation', 'global', 'interframe')
 
 
+#: Offsets beyond this many seconds are refused as options (317 years: an epoch difference
+#: between boot time and Unix time is ~2e9 s; a value in nanoseconds typed as seconds is 1e18).
+MAX_OFFSET_S = 1e10
+
+
 @dataclass(frozen=True)
 class CalibrationConfig(Options):
-    """Every option of stages 1 and 2, with the paper's defaults.
+    """Every option of the calibration, with the paper's defaults where the paper has one.
 
-    ``max_time_offset`` = 0.5 s covers the latency between a MoCap system and a VIO recorded on
-    one machine (transport, exposure, filter delay: typically 5-200 ms) with margin, while a
-    narrower window makes a spurious peak on a repetitive motion less likely; clocks that
-    differ by more need ``time_offset_guess``.
+    By default stage 1 searches every lag at which the two recordings overlap, so offsets of
+    seconds or minutes and clocks on different epochs are found; ``max_time_offset`` (with
+    ``time_offset_guess``, default 0) narrows the search to a window when the offset is known
+    to lie in one (a narrower window makes a spurious peak on a repetitive motion less likely).
     """
 
     time_offset: float | None = option(
         None, 'float', 'fix the time offset dt = eye clock - hand clock [s] instead of '
-        'estimating it; NaN/null estimates it', optional=True)
-    time_offset_guess: float = option(
-        0.0, 'float', 'centre of the time offset search window [s]')
-    max_time_offset: float = option(
-        0.5, 'float', 'half-width of the time offset search window [s]', low=0.0, high=3600.0,
+        'estimating it; NaN/null estimates it', optional=True, low=-MAX_OFFSET_S,
+        high=MAX_OFFSET_S)
+    time_offset_guess: float | None = option(
+        None, 'float', 'centre of the time offset search window [s] (with max_time_offset; '
+        'alone it sets a window of +-0.5 s); NaN/null: no window', optional=True,
+        low=-MAX_OFFSET_S, high=MAX_OFFSET_S)
+    max_time_offset: float | None = option(
+        None, 'float', 'half-width of the time offset search window [s]; NaN/null searches '
+        'every lag at which the recordings overlap', optional=True, low=0.0, high=MAX_OFFSET_S,
         open_low=True)
     resample_rate_hz: float | None = option(
         None, 'float', 'rate of the correlation grid [Hz]; NaN/null: the faster stream, at most '
@@ -52,7 +61,8 @@ class CalibrationConfig(Options):
     mu: float = option(
         5.0, 'float', 'robust kernel sharpness (eq. 13)', low=0.0, high=1000.0)
     ransac_iterations: int = option(
-        200, 'int', 'RANSAC two-motion hypotheses; 0 disables RANSAC', low=0, high=1_000_000)
+        200, 'int', 'RANSAC two-motion hypotheses; 0 disables RANSAC (evaluated in chunks: '
+        'memory stays flat, time grows with the count)', low=0, high=100_000)
     inlier_rotation: float = option(
         0.5, 'float', 'RANSAC inlier threshold on the rotation error of eq. 14 [deg]', low=0.0,
         high=180.0, open_low=True)
@@ -97,6 +107,34 @@ class CalibrationConfig(Options):
         '(1.345: 95 % efficiency on Gaussian noise)', low=0.0, high=1000.0, open_low=True)
     batch_max_iterations: int = option(
         50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000)
+    screening: bool = option(
+        True, 'bool', 'remove isolated pose outliers (placeholders, marker swaps, glitches) '
+        'before stage 1 and split the eye at VIO resets found against the hand')
+    outlier_threshold: float = option(
+        6.0, 'float', 'screening: a pose is an outlier when its interpolation residual exceeds '
+        'the running median by this many robust standard deviations', low=3.0, high=1000.0)
+    max_outlier_fraction: float = option(
+        0.15, 'float', 'refuse a stream of which screening would remove more than this '
+        'fraction', low=0.0, high=1.0, open_low=True)
+    check_conventions: bool = option(
+        True, 'bool', 'detect stamp units and quaternion orders or inverted poses the data '
+        'contradict, and apply the reading the data support (the verdict then says so)')
+    invert_hand: bool = option(
+        False, 'bool', 'the hand poses are T_HG (marker to MoCap world), not T_GH')
+    invert_eye: bool = option(
+        False, 'bool', 'the eye poses are T_EW (VIO world in body), not T_WE')
+    vector_refinement: bool = option(
+        True, 'bool', 're-estimate dt from the body angular velocities once stage 2 gives '
+        'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2')
+    precision_time_offset: float = option(
+        1e-3, 'float', 'verdict: a 1-sigma of the time offset above this [s] makes the result '
+        'doubtful (reason imprecise)', low=0.0, high=3600.0, open_low=True)
+    precision_translation: float = option(
+        0.01, 'float', 'verdict: a 1-sigma of the translation of T_HE above this [m] makes '
+        'the result doubtful', low=0.0, high=100.0, open_low=True)
+    precision_rotation: float = option(
+        0.5, 'float', 'verdict: a 1-sigma of the rotation of T_HE above this [deg] makes the '
+        'result doubtful', low=0.0, high=180.0, open_low=True)
     min_motions: int = option(
         10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000)
     seed: int = option(

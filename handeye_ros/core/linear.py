@@ -21,6 +21,7 @@ sigma7/sigma6 model choice stay the paper's; the dual-quaternion solution is kep
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,14 +31,21 @@ from .association import PosePairs
 from .errors import DegenerateMotionError
 from .geometry import (Pose, dual_quat_from_pose, matrix_from_quat, pose_from_dual_quat,
                        quat_from_matrix, quat_multiply, relative, skew)
-from .keyframes import motion_indices
+from .keyframes import segment_motion_indices
 
 #: A RANSAC model is eligible only if its consensus holds at least this fraction of the largest
 #: consensus found: sigma7/sigma6 of a tiny subset is small by chance, not by quality.
 CONSENSUS_FRACTION = 0.5
-#: Rotation axes of the inlier motions spread less than this (degrees): the translation of T_HE
-#: along the common axis is unobservable, so no result is given.
+#: Rotation axes of the inlier motions spread less than this (degrees): one rotation axis
+#: (a ground robot, a turntable). The translation of T_HE along that axis is unobservable and
+#: the rest is solved for apart (:func:`degenerate_refit`), the unobservable part named.
 MIN_AXIS_SPREAD_DEG = 1.0
+#: With one rotation axis, the rotation about it is taken as determined when its standard
+#: deviation (from the translation equations) is below this, degrees.
+MAX_PHI_STD_DEG = 2.0
+#: Hypotheses scored at once by RANSAC (bounds its memory: a chunk's errors are this many
+#: hypotheses times the motions).
+RANSAC_CHUNK_ELEMENTS = 4_000_000
 #: Below this spread the result is given, with a warning that it is weakly constrained.
 WARN_AXIS_SPREAD_DEG = 10.0
 #: Ratio of the 99 % quantile to the median of a chi distribution with 3 degrees of freedom
@@ -93,6 +101,9 @@ class LinearSolution:
         Inlier thresholds of the final consensus (the configured ones, or wider when adapted to
         the measured noise).
     warnings : tuple of str
+    unobservable : tuple of str
+        Components of T_HE the motion cannot determine (one rotation axis), in words, with the
+        value they were given; empty when the motion determines all of them.
     """
 
     q_HE: np.ndarray
@@ -110,15 +121,18 @@ class LinearSolution:
     inlier_rotation_deg: float
     inlier_translation_m: float
     warnings: tuple[str, ...] = ()
+    unobservable: tuple[str, ...] = ()
 
 
 def build_motions(pairs: PosePairs, strategy: str = 'rotation',
                   eta_rad: float = np.deg2rad(5.0)) -> Motions:
     """Relative motions A (hand) and B (eye) from matched pose pairs.
 
-    Keyframes are chosen on the hand rotations (the MoCap side is the less noisy one).
+    Keyframes are chosen on the hand rotations (the MoCap side is the less noisy one), within
+    each eye segment: a motion across a break would compare the hand with a jump of the VIO
+    world.
     """
-    i, j = motion_indices(pairs.R_GH, strategy, eta_rad)
+    i, j = segment_motion_indices(pairs.R_GH, pairs.segment, strategy, eta_rad)
     A = relative((pairs.R_GH, pairs.p_GH), i, j)
     B = relative((pairs.R_WE, pairs.p_WE), i, j)
     qa, qad = dual_quat_from_pose(quat_from_matrix(A[0]), A[1])
@@ -322,6 +336,113 @@ def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
     return float(np.degrees(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[0]))))
 
 
+def common_axis(v: np.ndarray) -> np.ndarray:
+    """Unit principal direction of vectors (n, 3) (the eigenvector of their scatter matrix with
+    the largest eigenvalue), signed to agree with the first long vector."""
+    lam, V = np.linalg.eigh(v.T @ v)
+    a = V[:, -1]
+    k = int(np.argmax(np.linalg.norm(v, axis=1)))
+    return a if float(v[k] @ a) >= 0.0 else -a
+
+
+def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                              tuple[str, ...]]:
+    """T_HE when every motion rotates about one axis (a ground robot, a turntable).
+
+    The rotation axes fix R_X up to a rotation phi about the common axis a (hand frame):
+    ``R_X = R_phi R_0`` with R_0 the smallest rotation taking the eye's axis onto a. The
+    translation part of AX = XB, ``(R_A - I) t_X = R_phi R_0 t_B - t_A``, is linear in
+    ``(cos phi, sin phi, t_X)``: with ``u = R_0 t_B``, ``R_phi u = cos phi u_perp + sin phi
+    (a x u) + (a . u) a``. Solved by least squares with the drift weights of
+    :func:`refit_translation_gls`. The translation along a is never determined
+    ((R_A - I) a = 0); phi is determined when the motion translates across the axis (a ground
+    robot driving) and not when the rig only turns in place (any phi has its own t_X then):
+    it is taken when its standard deviation from the least squares is below MAX_PHI_STD_DEG.
+    Undetermined parts are given their smallest value (no translation along a; phi = 0).
+
+    Returns (q_HE x y z w, p_HE, the undetermined components in words).
+    """
+    a_h = Rotation.from_matrix(m.A[0][mask]).as_rotvec()
+    a_e = Rotation.from_matrix(m.B[0][mask]).as_rotvec()
+    a = common_axis(a_h)
+    e = common_axis(a_e)
+    if float(np.sum((a_h @ a) * (a_e @ e))) < 0.0:  # the same turns, the same sense
+        e = -e
+    with warnings.catch_warnings():  # one pair of vectors: the smallest rotation, as wanted
+        warnings.simplefilter('ignore', UserWarning)
+        R0 = Rotation.align_vectors(a[None], e[None])[0]
+    R_A, t_A = m.A[0][mask], m.A[1][mask]
+    u = R0.apply(m.B[1][mask])
+    w = (1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6)))[:, None, None]
+    # basis (e1, e2, a) of the hand frame; unknowns z = (cos phi, sin phi, t_e1, t_e2, t_a)
+    e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(a, e1)
+    basis = np.stack((e1, e2, a), axis=1)
+    u_perp = u - (u @ a)[:, None] * a
+    cols = np.concatenate((-u_perp[:, :, None], -np.cross(a, u)[:, :, None],
+                           np.matmul(R_A - np.eye(3), basis)), axis=2) * w
+    rhs = (((u @ a)[:, None] * a - t_A)[:, :, None] * w).reshape(-1)
+    lhs = cols.reshape(-1, 5)[:, :4]  # the t_a column is zero: (R_A - I) a = 0
+    unobservable = ['translation along the rotation axis '
+                    f'[{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand frame), set to 0']
+    phi = 0.0
+    z, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    # phi is determined when its own standard deviation is small and (cos, sin) came out a
+    # unit vector; noise alone lifts the singular values of a degenerate system, so their
+    # ratio cannot tell
+    dof = max(rhs.size - 4, 1)
+    s2 = float(np.sum((lhs @ z - rhs) ** 2)) / dof
+    cov = s2 * np.linalg.pinv(lhs.T @ lhs)
+    norm_cs = float(np.hypot(z[0], z[1]))
+    sd_phi = float(np.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))) / max(norm_cs, 1e-12)
+    if sd_phi < np.deg2rad(MAX_PHI_STD_DEG) and abs(norm_cs - 1.0) < 0.3:
+        phi = float(np.arctan2(z[1], z[0]))
+    else:
+        unobservable.append('rotation about that axis (and with it the translation across '
+                            'it), set to the smallest rotation that aligns the axes')
+    R_X = Rotation.from_rotvec(phi * a) * R0
+    # with phi fixed, the translation across the axis (along the axis stays 0)
+    lhs_t = (np.matmul(R_A - np.eye(3), basis[:, :2]) * w).reshape(-1, 2)
+    rhs_t = ((R_X.apply(m.B[1][mask]) - t_A)[:, :, None] * w).reshape(-1)
+    t2 = np.linalg.lstsq(lhs_t, rhs_t, rcond=None)[0]
+    q = R_X.as_quat()
+    return q * (1.0 if q[3] >= 0.0 else -1.0), basis[:, :2] @ t2, tuple(unobservable)
+
+
+def _ransac(m: Motions, gram: np.ndarray, w2: np.ndarray, iterations: int,
+            inlier_rotation_rad: float, inlier_translation_m: float,
+            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                               np.ndarray]:
+    """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
+    that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
+    with the number of hypotheses. Returns (counts, q1, qd1, ratio, hypotheses' (q0, p0))."""
+    n = len(m)
+    first = rng.integers(0, n, iterations)
+    second = (first + rng.integers(1, n, iterations)) % n
+    counts = np.empty(iterations, dtype=int)
+    q1 = np.empty((iterations, 4))
+    qd1 = np.empty((iterations, 4))
+    ratio = np.empty(iterations)
+    q0_all = np.empty((iterations, 4))
+    p0_all = np.empty((iterations, 3))
+    chunk = max(1, RANSAC_CHUNK_ELEMENTS // max(n, 1))
+    for a in range(0, iterations, chunk):
+        b = min(a + chunk, iterations)
+        G2 = (gram[first[a:b]] + gram[second[a:b]]).reshape(-1, 8, 8)
+        q0, qd0, _ = solve_gram(G2)
+        q0, p0 = pose_from_dual_quat(q0, qd0)
+        e_rot, e_trans = motion_errors(m, q0, p0)
+        masks = (e_rot < inlier_rotation_rad) & (e_trans < inlier_translation_m)
+        counts[a:b] = masks.sum(axis=1)
+        qa, qda, sigma = solve_gram(((masks * w2) @ gram).reshape(-1, 8, 8))
+        q1[a:b], qd1[a:b] = qa, qda
+        with np.errstate(divide='ignore', invalid='ignore'):
+            ratio[a:b] = sigma[:, 6] / sigma[:, 5]
+        q0_all[a:b], p0_all[a:b] = q0, p0
+    return counts, q1, qd1, ratio, (q0_all, p0_all)
+
+
 def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
                      ransac_iterations: int = 200, inlier_rotation_rad: float = np.deg2rad(0.5),
                      inlier_translation_m: float = 0.02, min_motions: int = 10,
@@ -346,10 +467,14 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     otherwise the dual-quaternion solution is the result. Either way the dual-quaternion
     solution is kept in ``q_HE_dq, p_HE_dq``.
 
+    When the rotation axes of the consensus are all parallel (one rotation axis), the
+    determined part of T_HE comes from :func:`degenerate_refit` and ``unobservable`` names the
+    rest.
+
     Raises
     ------
     DegenerateMotionError
-        With fewer than ``min_motions`` motions or rotation axes that are all parallel.
+        With fewer than ``min_motions`` motions, or when no hypothesis gathers a consensus.
     """
     n = len(m)
     if n < max(min_motions, 2):
@@ -366,20 +491,13 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         w2 = np.ones(n)
 
     if ransac_iterations > 0:
-        first = rng.integers(0, n, ransac_iterations)
-        second = (first + rng.integers(1, n, ransac_iterations)) % n
-        G2 = (gram[first] + gram[second]).reshape(-1, 8, 8)
-        q0, qd0, _ = solve_gram(G2)
-        q0, p0 = pose_from_dual_quat(q0, qd0)
-        e_rot, e_trans = motion_errors(m, q0, p0)
-        masks = (e_rot < inlier_rotation_rad) & (e_trans < inlier_translation_m)
+        counts, q1, qd1, ratio, (q0, p0) = _ransac(m, gram, w2, ransac_iterations,
+                                                   inlier_rotation_rad, inlier_translation_m, rng)
     else:
-        masks = np.ones((1, n), dtype=bool)
-    counts = masks.sum(axis=1)
-    G = (masks * w2) @ gram
-    q1, qd1, sigma = solve_gram(G.reshape(-1, 8, 8))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ratio = sigma[:, 6] / sigma[:, 5]
+        counts = np.array([n])
+        q1, qd1, sigma = solve_gram((w2 @ gram).reshape(1, 8, 8))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            ratio = sigma[:, 6] / sigma[:, 5]
     eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
     if not eligible.any():
         msg = (f'RANSAC found no model that 2 or more of the {n} motions agree with within '
@@ -388,8 +506,13 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         raise DegenerateMotionError(msg)
     best = int(np.argmin(np.where(eligible, ratio, np.inf)))
     q_HE, p_HE = pose_from_dual_quat(q1[best], qd1[best])
-    inliers = masks[best]
-    sigma_best, ratio_best = sigma[best], float(ratio[best])
+    if ransac_iterations > 0:
+        e_rot, e_trans = motion_errors(m, q0[best][None], p0[best][None])
+        inliers = (e_rot[0] < inlier_rotation_rad) & (e_trans[0] < inlier_translation_m)
+    else:
+        inliers = np.ones(n, dtype=bool)
+    sigma_best = solve_gram(((inliers * w2) @ gram).reshape(8, 8))[2]
+    ratio_best = float(ratio[best])
     thr_rot, thr_trans = inlier_rotation_rad, inlier_translation_m
     if adaptive_inliers:
         e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
@@ -402,18 +525,22 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
             inliers, sigma_best, ratio_best = wider, s2, float(s2[6] / s2[5])
 
     spread = axis_spread_deg(m, inliers)
-    if spread < MIN_AXIS_SPREAD_DEG:
-        msg = (f'the rotation axes of the {inliers.sum()} inlier motions are within '
-               f'{spread:.2f} deg of one direction: the translation of the extrinsic along that '
-               'axis cannot be observed. Rotate the rig about at least two different axes')
-        raise DegenerateMotionError(msg)
     q_dq, p_dq = q_HE, p_HE
-    if decoupled_refit:
+    unobservable: tuple[str, ...] = ()
+    warnings = []
+    if spread < MIN_AXIS_SPREAD_DEG:
+        # one rotation axis: the dual-quaternion system has a 3-D null space and picks an
+        # arbitrary point of it; the determined part is solved apart and the rest named
+        q_HE, p_HE, unobservable = degenerate_refit(m, inliers)
+        warnings.append(f'the rotation axes of the {inliers.sum()} inlier motions are within '
+                        f'{spread:.2f} deg of one direction, so part of the extrinsic cannot be '
+                        'observed: ' + '; '.join(unobservable) + '. Rotate the rig about at '
+                        'least two different axes to determine it')
+    elif decoupled_refit:
         q_HE = refit_rotation(m, inliers)
         q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
         p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
-    warnings = []
-    if spread < WARN_AXIS_SPREAD_DEG:
+    if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
         warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
                         'constrained; rotate about more different axes')
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
@@ -424,5 +551,5 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
         inlier_rotation_deg=float(np.degrees(thr_rot)), inlier_translation_m=float(thr_trans),
-        warnings=tuple(warnings))
+        warnings=tuple(warnings), unobservable=unobservable)
 

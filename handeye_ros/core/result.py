@@ -6,6 +6,12 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
   time_alignment, association, linear, std, covariance, batch, metrics, inputs, config,
   warnings (and, from the front ends, summary and streams). ``linear`` holds the stage-2
   extrinsic apart (``linear.extrinsic``) when the batch stage refined it.
+- 2: ``quality`` (verdict, reasons, notes); ``time_offset_ns`` (exact, for clocks on
+  different epochs); ``screening`` (per stream: removed poses by kind with their stamps,
+  breaks); ``conventions`` (readings applied); ``self_check`` (candidate offsets, scores, the
+  winner); ``time_alignment.candidates`` and ``time_alignment.vector``; ``linear.unobservable``
+  and ``linear.seed_check``; ``std.method`` (the long-run covariance) with
+  ``std.white_inflation``; ``world_alignment.segments``.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -19,15 +25,19 @@ from typing import Any
 
 import numpy as np
 
-from .config import CalibrationConfig
-from .geometry import inverse, matrix_from_quat, quat_from_matrix
 from .batch import BatchSolution
+from .config import CalibrationConfig
+from .conventions import Correction
+from .geometry import inverse, matrix_from_quat, quat_from_matrix
 from .linear import LinearSolution
+from .quality import Quality
+from .screening import Screening
+from .selfcheck import Candidate
 from .time_align import TimeAlignment
 from .trajectory import Trajectory
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 CONVENTION = ('T_WE(t) = T_WG * T_GH(t - time_offset) * T_HE; time_offset = eye clock minus '
               'hand clock (s); quaternions Hamilton, x y z w')
 
@@ -52,9 +62,16 @@ class CalibrationResult:
     config: CalibrationConfig
     warnings: tuple[str, ...] = field(default=())
     batch: BatchSolution | None = None
+    time_offset_ns: int = 0
+    vector_alignment: TimeAlignment | None = None
+    screening: tuple[Screening, Screening] | None = None
+    corrections: tuple[Correction, ...] = ()
+    candidates: tuple[Candidate, ...] = ()
+    quality: Quality = field(default_factory=lambda: Quality('good'))
+    seed_check: LinearSolution | None = None
 
     def summary(self) -> str:
-        """One line: offset, translation, rotation, inliers, quality."""
+        """One line: verdict, offset, translation, rotation, inliers, quality."""
         t = ', '.join(f'{v:.4f}' for v in self.p_HE)
         q = ', '.join(f'{v:.4f}' for v in self.q_HE)
         std = ''
@@ -62,7 +79,9 @@ class CalibrationResult:
             s = self.batch.std
             std = (f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
                    f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)')
-        return (f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
+        why = (' (' + ', '.join(self.quality.codes) + ')') if self.quality.reasons else ''
+        return (f'{self.quality.verdict}{why}: '
+                f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
                 f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
                 f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
                 f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
@@ -88,6 +107,33 @@ class CalibrationResult:
         })
         return out
 
+    def _screening_dict(self) -> dict[str, Any] | None:
+        if self.screening is None:
+            return None
+        return {s.stream: {
+            'poses_in': s.n_input, 'removed': s.counts, 'fraction': s.fraction,
+            'removed_stamps_ns': [int(t) for t in s.removed_ns],
+            'removed_kinds': list(s.removed_kind),
+            'breaks_ns': [int(t) for t in s.breaks_ns],
+            'thresholds': {'translation_m': _num(s.threshold_translation_m),
+                           'rotation_deg': _num(np.degrees(s.threshold_rotation_rad))},
+        } for s in self.screening}
+
+    def _std_dict(self) -> dict[str, Any] | None:
+        b = self.batch
+        if b is None:
+            return None
+        return {
+            'time_offset': float(b.std[0]),
+            'translation': [float(v) for v in b.std[1:4]],
+            'rotation': [float(v) for v in b.std[4:7]],
+            'units': {'time_offset': 's', 'translation': 'm',
+                      'rotation': 'rad, tangent of T_HE on the right (eye frame)'},
+            'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
+                      'poses) over the eye residuals',
+            'white_inflation': [float(v) for v in b.inflation],
+        }
+
     def to_dict(self, hand_frame: str = 'hand', eye_frame: str = 'eye',
                 hand_world: str = 'hand_world', eye_world: str = 'eye_world') -> dict[str, Any]:
         """Plain Python data (floats, lists, strings) for YAML/JSON.
@@ -97,22 +143,41 @@ class CalibrationResult:
         ta, lin, m = self.time_alignment, self.linear, self.metrics
         R_HE = matrix_from_quat(self.q_HE)
         R_EH, p_EH = inverse((R_HE, self.p_HE))
+        vec = self.vector_alignment
         return {
             'schema_version': SCHEMA_VERSION,
             'convention': CONVENTION,
+            'quality': self.quality.to_dict(),
             'time_offset': float(self.time_offset_s),
+            'time_offset_ns': int(self.time_offset_ns),
             'extrinsic': transform_dict(R_HE, self.p_HE, hand_frame, eye_frame),
             'extrinsic_inverse': transform_dict(R_EH, p_EH, eye_frame, hand_frame),
             'world_alignment': {**transform_dict(self.world.R_WG, self.world.p_WG,
                                                  eye_world, hand_world),
-                                'method': self.world.method},
+                                'method': self.world.method,
+                                'segments': self.world.segments},
             'time_alignment': {
                 'method': ta.method,
                 'peak_correlation': _num(ta.peak_correlation),
                 'second_peak_ratio': _num(ta.second_peak_ratio),
                 'step': _num(ta.step_s),
                 'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
+                'candidates': [{'time_offset': float(c), 'correlation': float(r)}
+                               for c, r in ta.candidates],
+                'vector': None if vec is None else {
+                    'time_offset': float(vec.time_offset_s),
+                    'peak_correlation': _num(vec.peak_correlation),
+                    'window': [_num(vec.window_s[0]), _num(vec.window_s[1])]},
             },
+            'screening': self._screening_dict(),
+            'conventions': [{'stream': c.stream, 'what': c.what, 'assumed': c.assumed,
+                             'option': c.option, 'message': c.message}
+                            for c in self.corrections],
+            'self_check': [{'time_offset': float(c.time_offset_s), 'source': c.source,
+                            'score': _num(c.score),
+                            'rotation_residual_deg': _num(c.rotation_residual_deg),
+                            'translation_residual_m': _num(c.translation_residual_m),
+                            'chosen': c.chosen} for c in self.candidates],
             'association': {'pairs': int(self.n_pairs)},
             'linear': {
                 'relative_poses': self.config.relative_poses,
@@ -131,13 +196,13 @@ class CalibrationResult:
                 'axis_spread_deg': _num(lin.axis_spread_deg),
                 'rotation_residual_deg': _num(lin.rotation_residual_deg),
                 'translation_residual_m': _num(lin.translation_residual_m),
+                'unobservable': list(lin.unobservable),
+                'seed_check': None if self.seed_check is None else {
+                    'seed': self.config.seed + 1,
+                    'translation': [float(v) for v in self.seed_check.p_HE],
+                    'rotation': [float(v) for v in self.seed_check.q_HE]},
             },
-            'std': None if self.batch is None else {
-                'time_offset': float(self.batch.std[0]),
-                'translation': [float(v) for v in self.batch.std[1:4]],
-                'rotation': [float(v) for v in self.batch.std[4:7]],
-                'units': {'time_offset': 's', 'translation': 'm',
-                          'rotation': 'rad, tangent of T_HE on the right (eye frame)'}},
+            'std': self._std_dict(),
             'covariance': None if self.batch is None else {
                 'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz'],
                 'matrix': [[float(v) for v in row] for row in self.batch.covariance]},

@@ -45,3 +45,34 @@ NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'}
 def all_specs() -> dict:
     """Every node parameter name -> Spec (algorithm, streams, node)."""
     return {**CalibrationConfig.specs(), **StreamConfig.specs(), **NodeConfig.specs()}
+
+
+PARAMS_HEADER = """\
+# Parameters of the calibrator node (ros2 run handeye_ros calibrator --ros-args
+# --params-file config/calibrator.yaml). offline_calibrate --config reads the same file and
+# ignores the node-only block. Every value is the default. Units: s, m, deg, Hz, rad.
+# Generated from the option specs by handeye_ros.ros.config.params_yaml(); do not edit.
+"""
+
+
+def params_yaml() -> str:
+    """The node's params file with every parameter at its default and its description (the
+    text of config/calibrator.yaml; a test checks that the shipped file is this)."""
+    import textwrap
+
+    import yaml
+    blocks = (('pose streams (node and bag replay)', StreamConfig),
+              ("algorithm (same names as offline_calibrate's options)", CalibrationConfig),
+              ('node only', NodeConfig))
+    lines = [PARAMS_HEADER.rstrip('\n'), 'calibrator:', '  ros__parameters:']
+    for title, cls in blocks:
+        lines.append(f'    # --- {title} '.ljust(99, '-'))
+        defaults = cls().to_dict()
+        for name, spec in cls.specs().items():
+            rng = spec.range_text() if not spec.choices else ''
+            text = spec.description + (f' {rng}' if rng else '')
+            lines += textwrap.wrap(text, 99, initial_indent='    # ', subsequent_indent='    # ')
+            value = defaults[name]
+            value = float('nan') if value is None else value
+            lines.append(f'    {yaml.safe_dump({name: value}, default_flow_style=True)[1:-2]}')
+    return '\n'.join(lines) + '\n'

@@ -1,0 +1,114 @@
+"""The self-check: when two stages propose different offsets, which one do the data support?
+
+Stage 1 can be misled (a periodic motion gives several correlation peaks; a noisy VIO biases
+the magnitude peak), and the batch stage is a local refinement. Instead of trusting one stage
+or capping how far another may move (a distance guard throws away a refinement that was
+right), every proposed offset is checked the same way: the linear stage (Section III-B) is run
+again at that offset, and its extrinsic and the offset are scored on *one* set of motions with
+*one* noise model, so that the scores compare:
+
+- the motions are keyframe motions chosen on the eye's own rotations (eq. 6 with eta), which
+  do not depend on the offset, restricted to those the hand covers at every candidate offset;
+- each motion's error is that of AX = XB, the rotation angle and the translation of
+  ``(T_HE^-1 A T_HE)^-1 B`` (:func:`~handeye_ros.core.association.eye_motion_errors`);
+- each error is divided by the smallest median of that error over the candidates, and the
+  score is the mean Huber loss (threshold 3) of the two: a wrong offset leaves every fast
+  motion with a large error and cannot win by a few good ones.
+
+The candidate with the lowest score wins; the result says which were tried, their scores, and
+which won.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .association import eye_motion_errors
+from .geometry import matrix_from_quat
+from .keyframes import segment_motion_indices
+from .trajectory import Trajectory
+
+#: Huber threshold of the score, in units of the best median error.
+SCORE_HUBER = 3.0
+#: Fewest common motions a comparison needs.
+MIN_COMMON_MOTIONS = 10
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One offset the self-check scored.
+
+    time_offset_s: dt of the candidate (s, on the clocks as the pipeline sees them); source:
+    where it came from ('correlation peak', 'correlation runner-up', 'vector refinement',
+    'batch stage', ...); score: lower is better (NaN: could not be scored); residuals: median
+    rotation (deg) and translation (m) error of the scored motions; q_HE, p_HE: the extrinsic
+    it was scored with; chosen: whether it won.
+    """
+
+    time_offset_s: float
+    source: str
+    score: float
+    rotation_residual_deg: float
+    translation_residual_m: float
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    chosen: bool = False
+
+
+def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Keyframe motions (eq. 6) chosen on the eye's own rotations, within its segments: they
+    do not depend on the offset, so every candidate is scored on the same ones."""
+    return segment_motion_indices(matrix_from_quat(eye.q_xyzw), eye.segment_ids(), 'rotation',
+                                  eta_rad)
+
+
+def motion_consistency(hand: Trajectory, eye: Trajectory, time_offset_s: float,
+                       q_HE: np.ndarray, p_HE: np.ndarray,
+                       eta_rad: float) -> tuple[float, float, float, int]:
+    """Median AX = XB rotation (deg) and translation (m) error over the eye's keyframe
+    motions at (dt, T_HE), the motions' median translation (m), and how many there are."""
+    i, j = eye_keyframes(eye, eta_rad)
+    e_r, e_t, covered = eye_motion_errors(hand, eye, i, j, time_offset_s, matrix_from_quat(q_HE),
+                                          p_HE)
+    if not covered.any():
+        return float('nan'), float('nan'), float('nan'), 0
+    length = np.linalg.norm(eye.p_xyz[j] - eye.p_xyz[i], axis=1)
+    return (float(np.degrees(np.median(e_r[covered]))), float(np.median(e_t[covered])),
+            float(np.median(length[covered])), int(covered.sum()))
+
+
+def score_candidates(hand: Trajectory, eye: Trajectory,
+                     hypotheses: list[tuple[float, str, np.ndarray, np.ndarray]],
+                     eta_rad: float) -> list[Candidate]:
+    """Score (dt, source, q_HE, p_HE) hypotheses on one motion set (see module docstring).
+
+    Returns the candidates in the given order, the best one marked ``chosen``; when fewer than
+    MIN_COMMON_MOTIONS motions are covered at every offset, every score is NaN and the first
+    hypothesis is marked chosen.
+    """
+    i, j = eye_keyframes(eye, eta_rad)
+    errors = []
+    common = np.ones(i.size, dtype=bool)
+    for dt, _, q, p in hypotheses:
+        e_r, e_t, covered = eye_motion_errors(hand, eye, i, j, dt, matrix_from_quat(q), p)
+        errors.append((e_r, e_t))
+        common &= covered
+    if common.sum() < MIN_COMMON_MOTIONS:
+        return [Candidate(dt, src, float('nan'), float('nan'), float('nan'), q, p, k == 0)
+                for k, (dt, src, q, p) in enumerate(hypotheses)]
+    s_r = max(min(float(np.median(e_r[common])) for e_r, _ in errors), 1e-9)
+    s_t = max(min(float(np.median(e_t[common])) for _, e_t in errors), 1e-9)
+    out = []
+    for (dt, src, q, p), (e_r, e_t) in zip(hypotheses, errors, strict=True):
+        score = float(np.mean(_huber(e_r[common] / s_r) + _huber(e_t[common] / s_t)))
+        out.append(Candidate(dt, src, score, float(np.degrees(np.median(e_r[common]))),
+                             float(np.median(e_t[common])), q, p))
+    best = int(np.argmin([c.score for c in out]))
+    return [Candidate(**{**c.__dict__, 'chosen': k == best}) for k, c in enumerate(out)]
+
+
+def _huber(z: np.ndarray) -> np.ndarray:
+    a = np.abs(z)
+    return np.where(a <= SCORE_HUBER, 0.5 * a * a, SCORE_HUBER * (a - 0.5 * SCORE_HUBER))

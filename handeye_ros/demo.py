@@ -82,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'\nreported 1-sigma (batch stage): time offset {s["time_offset"] * 1e3:.3f} ms, '
               f'translation {np.linalg.norm(s["translation"]) * 1e3:.1f} mm, rotation '
               f'{np.degrees(np.linalg.norm(s["rotation"])):.3f} deg (norms over the axes)')
+    q = result['quality']
+    print(f'verdict: {q["verdict"]}' + ''.join(f'\n  - {r["message"]}' for r in q['reasons']))
     return 0
 
 

@@ -6,7 +6,8 @@ node's own conversion and buffering code (:class:`handeye_ros.stream.Recorder`),
 the answer the node would have given live. The result goes to stdout (a report, or one JSON
 document with ``--json``) and optionally to a YAML/JSON file and a bag; logs go to stderr.
 Errors in the input give one line naming the file and the problem and exit code 1, never a
-traceback.
+traceback. Every result carries a verdict (``quality.verdict``: good, doubtful or failed, with
+its reasons); ``--strict`` makes any verdict but ``good`` exit with code 2.
 """
 
 from __future__ import annotations
@@ -58,6 +59,14 @@ def build_parser() -> argparse.ArgumentParser:
     io.add_argument('--eye', metavar='FILE', help='VO/VIO trajectory (T_WE), TUM or EuRoC')
     io.add_argument('--format', choices=('auto', 'tum', 'euroc'), default='auto',
                     help='file format of both inputs (default: detected from the content)')
+    for stream in ('hand', 'eye'):
+        io.add_argument(f'--{stream}-stamp-unit', choices=('auto', 's', 'ms', 'us', 'ns'),
+                        default='auto', help=f'unit of the {stream} file\'s stamps (default: '
+                        'the format\'s, seconds for TUM, nanoseconds for EuRoC; a unit the '
+                        'data contradict is detected and named)')
+        io.add_argument(f'--{stream}-quaternion-order', choices=('auto', 'xyzw', 'wxyz'),
+                        default='auto', help=f'order of the {stream} file\'s quaternion '
+                        'columns (default: the format\'s, x y z w for TUM, w x y z for EuRoC)')
     io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')
     io.add_argument('--hand-topic', metavar='TOPIC',
                     help='hand pose topic in the bag (default: /mocap/pose if present, else '
@@ -83,7 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument('--config', metavar='YAML',
                      help='options file: a flat mapping or the node\'s params file '
                           '(<node>: ros__parameters: ...); command-line options override it')
-    out.add_argument('-v', '--verbose', action='store_true', help='log stage timings')
+    out.add_argument('--strict', action='store_true',
+                     help='exit with code 2 unless the verdict is good (for scripts and CI)')
+    out.add_argument('-v', '--verbose', action='store_true',
+                     help='log stage timings (and show the traceback of an internal error)')
     alg = p.add_argument_group('algorithm (defaults: the paper\'s; same names as the node\'s '
                                'parameters)')
     add_options(alg, CalibrationConfig)
@@ -102,11 +114,15 @@ def load_options(path: str | None) -> dict[str, Any]:
     from .core.errors import ConfigError
     from .ros.config import NODE_ONLY_KEYS
     try:
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
     except OSError as err:
         raise ConfigError(f'{path}: cannot read the options file ({err.strerror})') from None
+    except UnicodeDecodeError:
+        raise ConfigError(f'{path}: not a text file; --config wants a YAML file of options') \
+            from None
     except yaml.YAMLError as err:
-        raise ConfigError(f'{path}: not valid YAML ({err})') from None
+        first = str(err).splitlines()[0] if str(err) else 'syntax error'
+        raise ConfigError(f'{path}: not valid YAML ({first})') from None
     if not isinstance(data, dict):
         raise ConfigError(f'{path}: expected a mapping of option names to values')
     nodes = [v['ros__parameters'] for v in data.values()
@@ -140,8 +156,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     else:
         from .core.pipeline import calibrate
         from .formats import read_trajectory
-        hand = read_trajectory(args.hand, args.format)
-        eye = read_trajectory(args.eye, args.format)
+        hand = read_trajectory(args.hand, args.format, args.hand_stamp_unit,
+                               args.hand_quaternion_order)
+        eye = read_trajectory(args.eye, args.format, args.eye_stamp_unit,
+                              args.eye_quaternion_order)
         LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name,
                  len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
         result = calibrate(hand, eye, calib)
@@ -149,9 +167,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         out['summary'] = result.summary()
     if args.output_bag:
         from .formats.bag import write_result_bag
-        last_eye_ns = out['inputs']['eye']['first_stamp_ns'] + int(
-            out['inputs']['eye']['duration_s'] * 1e9)
-        write_result_bag(args.output_bag, out, last_eye_ns, args.output_bag_storage)
+        write_result_bag(args.output_bag, out, out['inputs']['eye']['last_stamp_ns'],
+                         args.output_bag_storage)
     return out
 
 
@@ -175,6 +192,16 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except KeyboardInterrupt:
         return 130
+    except MemoryError:
+        print('offline_calibrate: error: out of memory; the inputs are larger than this '
+              'machine can hold (check the stamp units, or cut the recording)', file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001  (a bug of ours: one line, the traceback with -v)
+        if args.verbose:
+            raise
+        print(f'offline_calibrate: internal error: {type(err).__name__}: {err} (run with -v '
+              'for the traceback and please report it)', file=sys.stderr)
+        return 3
     for w in result['warnings']:
         LOG.warning('%s', w)
     if args.json:
@@ -182,6 +209,11 @@ def main(argv: list[str] | None = None) -> int:
         sys.stdout.write('\n')
     else:
         print(format_report(result))
+    verdict = result['quality']['verdict']
+    if args.strict and verdict != 'good':
+        print(f'offline_calibrate: verdict {verdict} (--strict): '
+              + '; '.join(r['code'] for r in result['quality']['reasons']), file=sys.stderr)
+        return 2
     return 0
 
 

@@ -27,8 +27,11 @@ def write_result(path: str | Path, data: dict[str, Any]) -> None:
 
 def format_report(d: dict[str, Any]) -> str:
     """A terminal report of a result dictionary (see :mod:`handeye_ros.core.result`)."""
-    ta, lin, m = d['time_alignment'], d['linear'], d['metrics']
-    lines = ['handeye_ros calibration', f'  convention: {d["convention"]}']
+    ta, lin, m, q = d['time_alignment'], d['linear'], d['metrics'], d['quality']
+    lines = ['handeye_ros calibration', f'  convention: {d["convention"]}',
+             '', f'VERDICT: {q["verdict"].upper()}']
+    lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
+    lines += [f'  note: {n}' for n in q['notes']]
     for name in ('hand', 'eye'):
         info = d['inputs'][name]
         lines.append(f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
@@ -53,6 +56,7 @@ def format_report(d: dict[str, Any]) -> str:
         f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
         f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
         f'(max {m["are_max"]:.3f})',
+        *_screening_lines(d),
     ]
     for w in d['warnings']:
         lines.append(f'WARNING: {w}')
@@ -77,3 +81,16 @@ def _batch_lines(d: dict[str, Any]) -> list[str]:
             f'  1-sigma: time offset {s["time_offset"] * 1e3:.3f} ms, translation '
             + ' '.join(f'{v * 1e3:.2f}' for v in s['translation']) + ' mm, rotation '
             + ' '.join(f'{v * 57.29577951308232:.3f}' for v in s['rotation']) + ' deg']
+
+
+def _screening_lines(d: dict[str, Any]) -> list[str]:
+    sc = d.get('screening') or {}
+    out = []
+    for name, rep in sc.items():
+        removed = {k: v for k, v in rep['removed'].items() if v}
+        if removed or rep['breaks_ns']:
+            out.append(f'screening {name}: removed ' + (', '.join(
+                f'{v} {k.replace("_", " ")}' for k, v in removed.items()) or 'nothing')
+                + (f'; {len(rep["breaks_ns"])} break(s)' if rep['breaks_ns'] else '')
+                + f' of {rep["poses_in"]} poses')
+    return out

@@ -54,8 +54,8 @@ class CalibrationConfig(Options):
         'rotation', 'str', 'relative motions: rotation (keyframes at least eta apart, the '
         'paper), global or interframe', choices=STRATEGIES)
     eta: float = option(
-        5.0, 'float', 'minimum rotation between keyframes [deg] (eq. 9)', low=0.0, high=90.0,
-        open_low=True)
+        5.0, 'float', 'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the '
+        'rotation is noise', low=0.01, high=90.0)
     robust_kernel: bool = option(
         True, 'bool', 'weight motions by the screw-congruence kernel (eq. 13)')
     mu: float = option(
@@ -104,7 +104,8 @@ class CalibrationConfig(Options):
         'NaN/null estimates it', optional=True, low=0.0, high=10.0, open_low=True)
     huber_delta: float = option(
         1.345, 'float', 'Huber threshold of the batch stage, in noise standard deviations '
-        '(1.345: 95 % efficiency on Gaussian noise)', low=0.0, high=1000.0, open_low=True)
+        '(1.345: 95 % efficiency on Gaussian noise; below 0.01 it is an L1 loss already)',
+        low=0.01, high=1000.0)
     batch_max_iterations: int = option(
         50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000)
     screening: bool = option(

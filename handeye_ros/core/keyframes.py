@@ -46,7 +46,8 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
     first, second = [], []
     i = 0
     while True:
-        start = int(np.searchsorted(s, s[i] + eta_rad * (1.0 - 1e-9)))
+        # never i itself: its angle to itself is float noise (~1e-8 rad), not zero
+        start = max(int(np.searchsorted(s, s[i] + eta_rad * (1.0 - 1e-9))), i + 1)
         block = 32
         found = -1
         while start < n and found < 0:

@@ -138,7 +138,16 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     shift_ns = ta.time_offset_ns
     eye_c = eye.shifted(-shift_ns)
     dt = 0.0
-    lin, pairs = _linear(hand, eye_c, dt, cfg)
+    try:
+        lin, pairs = _linear(hand, eye_c, dt, cfg)
+    except DegenerateMotionError as err:
+        if fixed or cfg.max_time_offset is None and cfg.time_offset_guess is None:
+            raise
+        lo, hi = ta.window_s
+        msg = (f'{err}. The time offset was searched in [{lo:+.3f}, {hi:+.3f}] s only: if it '
+               'lies outside, the correlation found a false peak there; widen max_time_offset '
+               'or move time_offset_guess (or leave both unset to search every lag)')
+        raise DegenerateMotionError(msg) from None
     if cfg.screening:
         eye_c, lin, pairs, screening = _split_eye(hand, eye_c, lin, pairs, cfg, screening,
                                                   shift_ns, run)

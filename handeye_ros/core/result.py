@@ -213,7 +213,12 @@ class CalibrationResult:
                 'ape_max': m.ape_max_m,
                 'are_max': m.are_max_deg,
                 'poses': m.n_poses,
-                'units': {'ape': 'm', 'are': 'deg'},
+                'motion_rotation_median': _num(m.motion_rotation_deg),
+                'motion_translation_median': _num(m.motion_translation_m),
+                'motion_length_median': _num(m.motion_length_m),
+                'motions': m.n_motions,
+                'units': {'ape': 'm', 'are': 'deg', 'motion_rotation': 'deg',
+                          'motion_translation': 'm', 'motion_length': 'm'},
             },
             'inputs': {name: _trajectory_info(traj)
                        for name, traj in (('hand', self.hand), ('eye', self.eye))},
@@ -239,7 +244,8 @@ def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dic
 
 def _trajectory_info(traj: Trajectory) -> dict[str, Any]:
     return {'source': traj.name, 'poses': len(traj), 'rate_hz': traj.rate_hz,
-            'duration_s': traj.duration_s, 'first_stamp_ns': int(traj.t_ns[0])}
+            'duration_s': traj.duration_s, 'first_stamp_ns': int(traj.t_ns[0]),
+            'last_stamp_ns': int(traj.t_ns[-1])}
 
 
 def _num(x: float) -> float | None:

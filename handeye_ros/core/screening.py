@@ -22,8 +22,13 @@ if it disagrees with the extrapolations from *both* sides (from its two previous
 its two next poses, at three times the threshold: extrapolation errs more): a good pose
 beside a wild one agrees with its other side, and a pose next to a step (a reset) agrees
 with its own side, and both stay. The test runs again on what is left (up to five rounds),
-so that three wild poses in a row go middle first, then the other two; a run of
-placeholders (two identity rows) the same way. Poses repeated bit for bit are *not* removed: a slow rig written to the millimetre
+so that wild poses in a row go one after the other. The test runs at three scales: against
+the poses 1, 2 and 3 away on each side, since the inner poses of a run of identical wild
+poses agree with each other at scale 1 (runs of up to five are found).
+
+Before it, rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a stream
+that is elsewhere are removed as placeholders, runs of any length: the convention of
+evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses repeated bit for bit are *not* removed: a slow rig written to the millimetre
 repeats its poses legitimately.
 
 Resets (a jump of the eye's world frame that persists) are not outliers and are not removed
@@ -53,11 +58,15 @@ FLOOR_ROTATION_RAD = np.deg2rad(0.1)
 EXTRAPOLATION_FACTOR = 3.0
 #: Rounds of the test.
 HAMPEL_ROUNDS = 5
+#: Neighbour distances the test runs at: a pose against the poses 1, 2 and 3 before and after
+#: it, so that a run of up to five wild poses (whose inner poses agree with each other) has a
+#: scale at which it disagrees with both sides.
+SCALES = (1, 2, 3)
 #: The floors are at least this many times the worst residual the values' rounding can make.
 ROUNDING_MARGIN = 1.5
 
 #: Kinds of removed poses, as counted in :class:`Screening`.
-KINDS = ('outlier', 'short_segment')
+KINDS = ('placeholder', 'outlier', 'short_segment')
 
 
 @dataclass(frozen=True)
@@ -137,26 +146,28 @@ def _predict(t: np.ndarray, p: np.ndarray, r: Rotation, a: np.ndarray, b: np.nda
     return (np.linalg.norm(p[k] - p_pred, axis=1), (r_pred.inv() * r[k]).magnitude())
 
 
-def interpolation_residuals(t: np.ndarray, p: np.ndarray,
-                            r: Rotation) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) position (m) and rotation (rad) residual of each pose against its neighbours'
-    interpolation (the end poses: against the extrapolation of the two nearest)."""
+def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: Rotation,
+                            d: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) position (m) and rotation (rad) residual of each pose against the interpolation of
+    the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
+    side that exists)."""
     n = t.size
     k = np.arange(n)
-    a = np.clip(k - 1, 0, n - 1)
-    b = np.clip(k + 1, 0, n - 1)
-    a[0], b[0] = 1, 2
-    a[-1], b[-1] = n - 3, n - 2
+    a, b = k - d, k + d
+    left_end, right_end = a < 0, b > n - 1
+    a = np.where(left_end, k + d, np.where(right_end, k - 2 * d, a))
+    b = np.where(left_end, k + 2 * d, np.where(right_end, k - d, b))
+    a, b = np.clip(a, 0, n - 1), np.clip(b, 0, n - 1)
     return _predict(t, p, r, a, b, k)
 
 
-def side_residuals(t: np.ndarray, p: np.ndarray, r: Rotation, k: np.ndarray,
-                   side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Residuals of poses k against the extrapolation from their two previous (side -1) or
-    next (side +1) poses, and whether that side exists."""
+def side_residuals(t: np.ndarray, p: np.ndarray, r: Rotation, k: np.ndarray, side: int,
+                   d: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Residuals of poses k against the extrapolation from the poses d and 2d before (side -1)
+    or after (side +1) them, and whether that side exists."""
     n = t.size
-    a = k + side
-    b = k + 2 * side
+    a = k + side * d
+    b = k + 2 * side * d
     ok = (b >= 0) & (b < n)
     a, b = np.clip(a, 0, n - 1), np.clip(b, 0, n - 1)
     e_p, e_r = _predict(t, p, r, a, b, k)
@@ -175,26 +186,44 @@ def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
 
 
 def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
-              floors: tuple[float, float]) -> tuple[np.ndarray, float, float]:
-    """(N,) bool outliers of one round, and the median thresholds (m, rad)."""
+              floors: tuple[float, float], d: int) -> tuple[np.ndarray, float, float]:
+    """(N,) bool outliers of one round at scale d, and the median thresholds (m, rad)."""
     r = Rotation.from_quat(q)
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
     scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
-    e_p, e_r = interpolation_residuals(t, p, r)
+    bad = np.zeros(t.size, dtype=bool)
+    e_p, e_r = interpolation_residuals(t, p, r, d)
     tp = hampel_thresholds(e_p, scale_window, n_sigma, floors[0])
     tr = hampel_thresholds(e_r, scale_window, n_sigma, floors[1])
-    z = np.maximum(e_p / tp, e_r / tr)
-    cand = np.flatnonzero(z > 1.0)
-    bad = np.zeros(t.size, dtype=bool)
+    cand = np.flatnonzero(np.maximum(e_p / tp, e_r / tr) > 1.0)
     if cand.size:
         inconsistent = np.ones(cand.size, dtype=bool)
         for side in (-1, 1):
-            sp, sr, ok = side_residuals(t, p, r, cand, side)
+            sp, sr, ok = side_residuals(t, p, r, cand, side, d)
             off = (sp > EXTRAPOLATION_FACTOR * tp[cand]) | \
                 (sr > EXTRAPOLATION_FACTOR * tr[cand])
             inconsistent &= off | ~ok
         bad[cand[inconsistent]] = True
     return bad, float(np.median(tp)), float(np.median(tr))
+
+
+def placeholders(traj: Trajectory, floors: tuple[float, float]) -> np.ndarray:
+    """(N,) bool: rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``: the
+    placeholder of evaluation toolboxes, the dropout of MoCap drivers) while the nearest other
+    rows are elsewhere (by more than the floors)."""
+    exact = np.all(traj.p_xyz == 0.0, axis=1) & np.all(traj.q_xyzw[:, :3] == 0.0, axis=1)
+    if not exact.any() or exact.all():
+        return np.zeros(len(traj), dtype=bool)
+    others = np.flatnonzero(~exact)
+    k = np.flatnonzero(exact)
+    j = np.clip(np.searchsorted(others, k), 0, others.size - 1)  # the next other row
+    i = np.clip(j - 1, 0, others.size - 1)                       # the previous one
+    out = np.zeros(len(traj), dtype=bool)
+    for nb in (others[i], others[j]):
+        far = (np.linalg.norm(traj.p_xyz[nb], axis=1) > floors[0]) | \
+            (2.0 * np.arccos(np.clip(np.abs(traj.q_xyzw[nb, 3]), 0.0, 1.0)) > floors[1])
+        out[k[far]] = True
+    return out
 
 
 def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Trajectory, Screening]:
@@ -210,17 +239,23 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     floors = (max(FLOOR_TRANSLATION_M, ROUNDING_MARGIN * np.sqrt(3.0) * resolution(traj.p_xyz)),
               max(FLOOR_ROTATION_RAD, ROUNDING_MARGIN * 4.0 * resolution(traj.q_xyzw)))
     thr_p = thr_r = float('nan')
-    for _ in range(HAMPEL_ROUNDS):
-        if idx.size < 8:
-            break
-        bad, tp, tr = _outliers(traj.seconds(int(traj.t_ns[0]))[idx], traj.p_xyz[idx],
-                                traj.q_xyzw[idx], n_sigma, floors)
-        if np.isnan(thr_p):
-            thr_p, thr_r = tp, tr
-        if not bad.any():
-            break
-        kinds[idx[bad]] = 'outlier'
-        idx = idx[~bad]
+    held = placeholders(traj, floors)
+    kinds[held] = 'placeholder'
+    idx = idx[~held]
+    # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so
+    # that isolated wild poses no longer spoil the wider extrapolations of good ones
+    for d in SCALES:
+        for _ in range(HAMPEL_ROUNDS):
+            if idx.size < 4 * d + 4:
+                break
+            bad, tp, tr = _outliers(traj.seconds(int(traj.t_ns[0]))[idx], traj.p_xyz[idx],
+                                    traj.q_xyzw[idx], n_sigma, floors, d)
+            if d == 1 and np.isnan(thr_p):
+                thr_p, thr_r = tp, tr
+            if not bad.any():
+                break
+            kinds[idx[bad]] = 'outlier'
+            idx = idx[~bad]
     removed = kinds != ''
     report = Screening(stream, n_input, traj.t_ns[removed].copy(),
                        tuple(kinds[removed]), thr_p, thr_r)

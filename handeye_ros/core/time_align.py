@@ -226,6 +226,8 @@ def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> 
 
 def _clip(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Winsorise a signal at median + CLIP_SIGMAS robust deviations (vectors by their norm)."""
+    if mask.sum() < 3:  # _standardise refuses it with its own message
+        return v
     mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
     med = np.median(mag[mask])
     level = med + CLIP_SIGMAS * 1.4826 * np.median(np.abs(mag[mask] - med))

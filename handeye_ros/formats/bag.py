@@ -167,6 +167,10 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
 
 # ----------------------------------------------------------------------------------- writing
 
+#: The latest stamp a ROS 2 message header holds (builtin_interfaces/Time: int32 seconds).
+ROS_TIME_MAX_NS = (2 ** 31 - 1) * 1_000_000_000 + 999_999_999
+
+
 def _stamp(store: Any, t_ns: int) -> Any:
     Time = store.types['builtin_interfaces/msg/Time']
     return Time(sec=int(t_ns // 1_000_000_000), nanosec=int(t_ns % 1_000_000_000))
@@ -255,7 +259,14 @@ def write_recording(path: str | Path, streams: list[tuple[str, str, Trajectory, 
 def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
                      storage: str = 'mcap') -> None:
     """The extrinsic as a static transform (/tf_static, tf2_msgs/TFMessage, parent = hand
-    frame, child = eye frame) and the time offset (/handeye/time_offset, std_msgs/Float64)."""
+    frame, child = eye frame) and the time offset (/handeye/time_offset, std_msgs/Float64).
+
+    Raises InputError when ``stamp_ns`` is no ROS time (builtin_interfaces/Time holds the
+    seconds in an int32: 1970 to 2038; ROS 1 in a uint32)."""
+    if not 0 <= stamp_ns <= ROS_TIME_MAX_NS:
+        msg = (f'{path}: cannot write the result bag: its stamp {stamp_ns} ns (the eye\'s last '
+               'stamp) is no ROS time, whose seconds are an int32 (1970 to 2038)')
+        raise InputError(msg)
     with BagWriter(path, storage) as w:
         T = w.store.types
         e = result['extrinsic']

@@ -382,11 +382,16 @@ class CalibratorNode(Node):
         elif not self._last_ok:
             res.level = DiagnosticStatus.ERROR
         else:
-            warned = bool(self._last_result and self._last_result['warnings'])
-            res.level = DiagnosticStatus.WARN if warned else DiagnosticStatus.OK
+            # the verdict: good OK, doubtful WARN, failed ERROR
+            verdict = self._last_result['quality']['verdict'] if self._last_result else 'good'
+            res.level = {'good': DiagnosticStatus.OK, 'doubtful': DiagnosticStatus.WARN,
+                         'failed': DiagnosticStatus.ERROR}[verdict]
         if self._last_result is not None:
             d = self._last_result
+            q = d['quality']
             res.values = [KeyValue(key=k, value=str(v)) for k, v in (
+                ('verdict', q['verdict']),
+                ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
                 ('time_offset_s', d['time_offset']),
                 ('translation_m', d['extrinsic']['translation']),
                 ('rotation_xyzw', d['extrinsic']['rotation']),

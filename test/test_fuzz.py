@@ -1,0 +1,155 @@
+"""Fuzzing: no input and no option value ends in anything but a result or a HandeyeError.
+
+The offline tool and the node turn a HandeyeError into one line for the user; any other
+exception would be a traceback. hypothesis generates the inputs (files of arbitrary text and
+bytes, option mappings of arbitrary values, small trajectories of arbitrary poses and stamps)
+and shrinks any failure to a minimal case.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import HandeyeError
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.trajectory import Trajectory
+from handeye_ros.formats import read_trajectory, write_tum
+from handeye_ros.offline import main as offline_main
+
+from conftest import recording
+
+SETTINGS = settings(max_examples=60, deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow])
+
+@functools.cache
+def _short_files() -> tuple[Path, Path]:
+    """A 15 s recording as TUM files, written once per session."""
+    rec = recording(seed=11, level=2.0, duration_s=15.0)
+    out = Path(tempfile.mkdtemp(prefix='fuzz-'))
+    write_tum(out / 'hand.txt', rec.hand)
+    write_tum(out / 'eye.txt', rec.eye)
+    return out / 'hand.txt', out / 'eye.txt'
+
+
+number = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.integers(min_value=-10 ** 25, max_value=10 ** 25),
+    st.sampled_from(['1e300', '-0', '1.403636579758555555e9', '0x10', 'nan', '', '1.2.3']))
+
+
+def _row(values: list, sep: str) -> str:
+    return sep.join(str(v) for v in values)
+
+
+@st.composite
+def text_files(draw) -> str:
+    sep = draw(st.sampled_from([' ', ',', '\t', ', ']))
+    rows = draw(st.lists(st.lists(number, min_size=0, max_size=19), min_size=0, max_size=12))
+    lines = [_row(r, sep) for r in rows]
+    if draw(st.booleans()):
+        lines.insert(0, '# t x y z qx qy qz qw')
+    return '\n'.join(lines) + draw(st.sampled_from(['', '\n', '\r\n']))
+
+
+@SETTINGS
+@given(content=text_files(), fmt=st.sampled_from(['auto', 'tum', 'euroc']),
+       unit=st.sampled_from(['auto', 's', 'ms', 'us', 'ns']),
+       order=st.sampled_from(['auto', 'xyzw', 'wxyz']))
+def test_reader_on_arbitrary_text(content: str, fmt: str, unit: str, order: str) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'traj.txt'
+        path.write_text(content)
+        try:
+            traj = read_trajectory(path, fmt, unit, order)
+        except HandeyeError:
+            return
+        assert np.all(np.diff(traj.t_ns) > 0) and np.isfinite(traj.p_xyz).all()
+        np.testing.assert_allclose(np.linalg.norm(traj.q_xyzw, axis=1), 1.0, atol=1e-9)
+
+
+@SETTINGS
+@given(data=st.binary(max_size=400))
+def test_reader_on_arbitrary_bytes(data: bytes) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'traj.csv'
+        path.write_bytes(data)
+        try:
+            read_trajectory(path)
+        except HandeyeError:
+            pass
+
+
+option_value = st.one_of(st.none(), st.booleans(), number, st.text(max_size=12),
+                         st.lists(st.integers(), max_size=2))
+
+
+@SETTINGS
+@given(values=st.dictionaries(st.sampled_from(list(CalibrationConfig.specs()) + ['typo']),
+                              option_value, max_size=6))
+def test_options_on_arbitrary_values(values: dict) -> None:
+    try:
+        cfg = CalibrationConfig.from_mapping(values)
+    except HandeyeError:
+        return
+    for name, spec in cfg.specs().items():
+        v = getattr(cfg, name)
+        if spec.kind in ('float', 'int') and v is not None:
+            assert math.isfinite(v)
+
+
+@st.composite
+def trajectories(draw, name: str) -> Trajectory:
+    n = draw(st.integers(min_value=2, max_value=60))
+    steps = draw(st.lists(st.integers(min_value=1, max_value=10 ** 9), min_size=n - 1,
+                          max_size=n - 1))
+    t0 = draw(st.integers(min_value=0, max_value=2 * 10 ** 18))
+    t = t0 + np.concatenate(([0], np.cumsum(steps)))
+    if t[-1] > 9 * 10 ** 18:
+        t = t - t[0]
+    p = np.array(draw(st.lists(st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3),
+                               min_size=n, max_size=n)))
+    q = np.array(draw(st.lists(st.lists(st.floats(-1, 1), min_size=4, max_size=4),
+                               min_size=n, max_size=n)))
+    norms = np.linalg.norm(q, axis=1, keepdims=True)
+    q = np.where(norms > 1e-3, q / np.where(norms > 0, norms, 1.0), [0.0, 0.0, 0.0, 1.0])
+    return Trajectory.from_arrays(t.astype(np.int64), p, q, name)
+
+
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(hand=trajectories('hand'), eye=trajectories('eye'))
+def test_calibrate_on_arbitrary_trajectories(hand: Trajectory, eye: Trajectory) -> None:
+    try:
+        calibrate(hand, eye)
+    except HandeyeError:
+        pass
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(option=st.sampled_from(['--time-offset', '--time-offset-guess', '--max-time-offset',
+                               '--resample-rate-hz', '--eta', '--mu', '--ransac-iterations',
+                               '--inlier-rotation', '--knot-spacing', '--huber-delta',
+                               '--outlier-threshold', '--max-outlier-fraction',
+                               '--batch-max-iterations', '--min-motions', '--seed']),
+       value=st.sampled_from(['0', '-1', '1e18', '1403636579758555555', 'nan', 'inf', '-inf',
+                              '1e-300', '100000', '0.0001', '3', 'x']))
+def test_offline_tool_on_absurd_option_values(option: str, value: str, capsys) -> None:
+    """Exit codes 0 (a result), 1 (a one-line error), 2 (argparse's usage error); never an
+    exception, a MemoryError or an internal error (3)."""
+    hand, eye = _short_files()
+    try:
+        code = offline_main(['--hand', str(hand), '--eye', str(eye), '--json', option, value])
+    except SystemExit as exc:  # argparse: a value of the wrong type
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code in (0, 1, 2), err
+    assert 'internal error' not in err and 'Traceback' not in err
+

@@ -74,11 +74,17 @@ def test_fixed_offset_stays_fixed() -> None:
     assert res.batch is not None and res.batch.std[0] == 0.0
 
 
-def test_gap_in_the_hand_keeps_the_linear_result_with_a_warning() -> None:
+def test_gap_in_the_hand_uses_the_longest_continuous_part() -> None:
+    """A spline cannot bridge a MoCap gap: the batch stage runs on the longest part without
+    one (40 of 60 s here) and says so; with gaps everywhere, the linear result is kept."""
     rec = recording(seed=6, level=2.0)
     t = rec.hand.seconds(int(rec.hand.t_ns[0]))
     hand = rec.hand.select(~((t > 20.0) & (t < 20.5)))
     res = calibrate(hand, rec.eye)
+    assert res.batch is not None and res.batch.n_hand_residuals < 0.7 * len(hand)
+    assert any('used its part from 20.5 to 60.0 s' in w for w in res.warnings)
+    holes = rec.hand.select(~np.isin(np.floor(t * 2) % 10, [3]))  # 0.5 s holes every 5 s
+    res = calibrate(holes, rec.eye)
     assert res.batch is None
     assert any('batch stage not used' in w and 'gap' in w for w in res.warnings)
     assert res.linear.q_HE is not None and np.allclose(res.p_HE, res.linear.p_HE)

@@ -322,6 +322,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         When the input cannot support the stage (overlap too short, gaps in the hand stream).
     """
     t_start = time.perf_counter()
+    hand, piece_note = _continuous_piece(hand, eye, time_offset_s, knot_spacing, order)
     _check_hand_stream(hand, knot_spacing, order, joint)
     prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
@@ -354,7 +355,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     cov_white = cov[np.ix_(perm, perm)]
     cov = lr.covariance[np.ix_(perm, perm)]
     dt, X = prob.offset_extrinsic(y)
-    warnings = []
+    warnings = [piece_note] if piece_note else []
     if not sol.success:
         warnings.append(f'batch solver stopped without converging: {sol.message}')
     return BatchSolution(
@@ -677,6 +678,44 @@ def _marginal_covariance(J, n_nuisance: int) -> np.ndarray:
     lu = splu(A)
     S = C - B.T @ lu.solve(B)
     return np.linalg.inv(S)
+
+
+#: The longest gap-free part of the MoCap is used when it covers at least this fraction of the
+#: eye poses the whole MoCap covers.
+MIN_PIECE_COVERAGE = 0.5
+
+
+def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
+                      knot_spacing: float, order: int) -> tuple[Trajectory, str]:
+    """The hand itself when it has no gap the spline cannot bridge; otherwise its gap-free part
+    that covers the most eye poses, with a note, when that part covers at least
+    MIN_PIECE_COVERAGE of them (a spline cannot bridge a gap, and eye residuals near one would
+    compare the VIO with an invented motion). Raises BatchError otherwise."""
+    step = np.diff(hand.t_ns) * 1e-9
+    limit = max(knot_spacing * (order - 1), GAP_FACTOR * float(np.median(step)))
+    cuts = np.flatnonzero(step > limit)
+    if not cuts.size:
+        return hand, ''
+    starts = np.concatenate(([0], cuts + 1))
+    ends = np.concatenate((cuts + 1, [len(hand)]))
+    te = eye.t_ns - np.int64(round(time_offset_s * 1e9))
+    covered = [int(np.sum((te >= hand.t_ns[a]) & (te <= hand.t_ns[b - 1])))
+               for a, b in zip(starts, ends, strict=True)]
+    total = int(np.sum((te >= hand.t_ns[0]) & (te <= hand.t_ns[-1])))
+    best = int(np.argmax(covered))
+    k = int(cuts[np.argmax(step[cuts])])
+    if covered[best] < MIN_PIECE_COVERAGE * max(total, 1):
+        raise BatchError(f'{hand.name} has a gap of {step[k]:.3f} s (after pose {k}) and no '
+                         'part without one covers half of the eye: the spline (knots every '
+                         f'{knot_spacing:g} s) cannot bridge a gap; the batch stage needs a '
+                         'continuous hand stream (or a larger knot_spacing)')
+    a, b = int(starts[best]), int(ends[best])
+    origin = int(hand.t_ns[0])
+    note = (f'{hand.name} has {cuts.size} gap(s) the spline cannot bridge (the longest '
+            f'{step[k]:.3f} s); the batch stage used its part from {(hand.t_ns[a] - origin) * 1e-9:.1f}'
+            f' to {(hand.t_ns[b - 1] - origin) * 1e-9:.1f} s, which covers {covered[best]} of '
+            f'the {total} eye poses')
+    return hand.select(slice(a, b)), note
 
 
 def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int,

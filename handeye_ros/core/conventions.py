@@ -41,6 +41,7 @@ both fixes named.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
 
@@ -243,7 +244,9 @@ def _fit(R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray,
     """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart, and |t_X|."""
     a = Rotation.from_matrix(R_A).as_rotvec()
     b = Rotation.from_matrix(R_B).as_rotvec()
-    rot, _ = Rotation.align_vectors(a, b)
+    with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should
+        warnings.simplefilter('ignore', UserWarning)
+        rot, _ = Rotation.align_vectors(a, b)
     res_r = np.linalg.norm(a - rot.apply(b), axis=1)
     lhs = (R_A - np.eye(3)).reshape(-1, 3)
     rhs = (rot.apply(t_B) - t_A).reshape(-1)

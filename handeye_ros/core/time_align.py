@@ -18,9 +18,10 @@ which stays correct across gaps and partial overlap.
 
 Beyond the paper, three things make the offset hard to fool:
 
-- **Robust signals.** Each signal is clipped at ``median + 6 * 1.4826 * MAD`` of its own
-  values (winsorised): one spike that screening missed (a glitch the size of a whole turn) then
-  weighs like a fast turn, not like the whole recording.
+- **Robust signals.** Samples of a signal beyond ``median + 8 * 1.4826 * MAD`` of its own
+  values are left out (like a gap) and the rest clipped at ``median + 4 * 1.4826 * MAD``: one
+  spike that screening missed (a glitch the size of a whole turn) is then not correlated at
+  all, and a fast turn weighs like a fast turn, not like the whole recording.
 - **Every lag.** By default every lag at which the recordings overlap by at least half of the
   shorter one (and 5 s) is searched, so offsets of seconds or minutes and clocks on different
   epochs are found; ``max_time_offset`` / ``time_offset_guess`` narrow the search. The other
@@ -56,8 +57,11 @@ MAX_RESAMPLE_RATE_HZ = 200.0
 #: bounds the memory whatever the stamps say.
 MAX_GRID_SAMPLES = 2 ** 23
 MIN_RESAMPLE_RATE_HZ = 20.0
-#: Signals are clipped at median + this many robust standard deviations (1.4826 MAD).
-CLIP_SIGMAS = 6.0
+#: Signal samples beyond median + MASK_SIGMAS robust standard deviations (1.4826 MAD) are
+#: left out like a gap (a spike no motion made: leaving it in, even clipped, puts a plateau
+#: into one signal only); the rest are clipped at median + CLIP_SIGMAS.
+MASK_SIGMAS = 8.0
+CLIP_SIGMAS = 4.0
 #: Other local maxima of the correlation at least this fraction of the peak are candidates.
 CANDIDATE_RATIO = 0.7
 #: At most this many candidates besides the peak.
@@ -224,17 +228,20 @@ def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> 
     return 1.0 / rate
 
 
-def _clip(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Winsorise a signal at median + CLIP_SIGMAS robust deviations (vectors by their norm)."""
+def _clip(v: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A robust signal: samples beyond median + MASK_SIGMAS robust deviations (1.4826 MAD) are
+    masked out like a gap, the others clipped at median + CLIP_SIGMAS (vectors by their
+    norm). Returns (values, mask)."""
     if mask.sum() < 3:  # _standardise refuses it with its own message
-        return v
+        return v, mask
     mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
     med = np.median(mag[mask])
-    level = med + CLIP_SIGMAS * 1.4826 * np.median(np.abs(mag[mask] - med))
-    if not level > 0.0:
-        return v
-    scale = np.minimum(1.0, level / np.maximum(mag, 1e-300))
-    return v * (scale if v.ndim == 1 else scale[:, None])
+    dev = 1.4826 * np.median(np.abs(mag[mask] - med))
+    if not dev > 0.0:
+        return v, mask
+    mask = mask & (mag <= med + MASK_SIGMAS * dev)
+    scale = np.minimum(1.0, (med + CLIP_SIGMAS * dev) / np.maximum(mag, 1e-300))
+    return v * (scale if v.ndim == 1 else scale[:, None]), mask
 
 
 def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -345,8 +352,10 @@ def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | No
     w_h, w_e = angular_speed(hand), angular_speed(eye)
     x, mx = resample(w_h, _grid(hand, step))
     y, my = resample(w_e, _grid(eye, step))
-    x = _standardise(_clip(x, mx), mx, hand.name)
-    y = _standardise(_clip(y, my), my, eye.name)
+    x, mx = _clip(x, mx)
+    y, my = _clip(y, my)
+    x = _standardise(x, mx, hand.name)
+    y = _standardise(y, my, eye.name)
     curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
     window = _window(max_time_offset, time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
@@ -388,8 +397,10 @@ def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
     w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
     x, mx = resample(w_h, _grid(hand, step))
     y, my = resample(w_e, _grid(eye, step))
-    x = _standardise(_clip(x, mx), mx, hand.name)
-    y = _standardise(_clip(y, my), my, eye.name)
+    x, mx = _clip(x, mx)
+    y, my = _clip(y, my)
+    x = _standardise(x, mx, hand.name)
+    y = _standardise(y, my, eye.name)
     curve = _correlate(hand, eye, x, mx, y, my, step, half_window_s, around_s)
     window = _window(half_window_s, around_s)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)

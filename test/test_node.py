@@ -84,6 +84,10 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     assert (latched['extrinsic']['parent'], latched['extrinsic']['child']) == \
         ('mocap_marker', 'imu')
     assert f'time_offset {saved["time_offset"] * 1e3:+.2f} ms' in answer[0]['message']
+    # the verdict goes with the answer and the file (a clean simulated rig: good)
+    assert answer[0]['message'].startswith(f'{saved["quality"]["verdict"]}')
+    assert saved['quality']['verdict'] == 'good', saved['quality']
+    assert latched['diagnostics'] == {'level': 0, 'verdict': 'good', 'reasons': ''}
     # the batch stage ran and its covariance went out: translation variances as in the file
     assert saved['batch']['used']
     cov6 = np.asarray(latched['covariance']).reshape(6, 6)

@@ -204,3 +204,34 @@ def test_help_and_module_entry() -> None:
     _fails(run_cli('--hand', 'x'), '--hand FILE and --eye FILE, or --bag PATH')
     res = run_cli('--hand', 'x', '--eta', 'five')  # argparse usage errors exit 2
     assert res.returncode == 2 and 'Traceback' not in res.stderr and '--eta' in res.stderr
+
+
+def test_strict_exits_2_unless_good(sim_files, tmp_path: Path) -> None:
+    """--strict: 0 for a good verdict; 2 (and the reason codes on stderr) for any other, here
+    an eye written w x y z in a TUM file (corrected, but the file still holds the mistake)."""
+    hand, eye, _ = sim_files
+    _ok(run_cli('--hand', hand, '--eye', eye, '--strict'))
+    traj = read_trajectory(eye)
+    swapped = tmp_path / 'eye_wxyz.txt'
+    swapped.write_text(''.join(
+        f'{t // 10**9}.{t % 10**9:09d} {p[0]} {p[1]} {p[2]} {q[3]} {q[0]} {q[1]} {q[2]}\n'
+        for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True)))
+    res = run_cli('--hand', hand, '--eye', swapped, '--strict')
+    assert res.returncode == 2 and 'convention_corrected' in res.stderr, res.stderr
+    assert 'VERDICT: DOUBTFUL' in res.stdout
+    # stating the file's order explicitly: nothing to correct, good again
+    _ok(run_cli('--hand', hand, '--eye', swapped, '--eye-quaternion-order', 'wxyz', '--strict'))
+
+
+def test_binary_config_and_unwritable_bag_stamps(sim_files, tmp_path: Path) -> None:
+    hand, eye, rec = sim_files
+    blob = tmp_path / 'options.bin'
+    blob.write_bytes(bytes(range(256)) * 4)
+    _fails(run_cli('--hand', hand, '--eye', eye, '--config', blob), 'not a text file')
+    # stamps in 2065: fine for int64 ns and the calibration, not for a ROS time (int32 s)
+    late = 3_000_000_000 * 10 ** 9 - rec.hand.t_ns[0]
+    h2, e2 = tmp_path / 'h.txt', tmp_path / 'e.txt'
+    write_tum(h2, rec.hand.shifted(late))
+    write_tum(e2, rec.eye.shifted(late))
+    _fails(run_cli('--hand', h2, '--eye', e2, '--output-bag', tmp_path / 'out'),
+           'no ROS time', 'int32')

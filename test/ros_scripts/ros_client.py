@@ -3,7 +3,8 @@
 Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
        ros_client.py concurrent SERVICE SERVICE ...  (all sent at once, answers in order)
        ros_client.py staggered SERVICE SERVICE ...   (sent 0.3 s apart, without waiting)
-       ros_client.py latched                          (/calibrator/extrinsic and time_offset)
+       ros_client.py latched                          (/calibrator/extrinsic and time_offset,
+                                                       the result's /diagnostics status)
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import sys
 import time
 
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -57,8 +59,18 @@ def latched(node: Node) -> dict:
     node.create_subscription(PoseWithCovarianceStamped, '/calibrator/extrinsic_with_covariance',
                              lambda m: got.__setitem__('covariance', list(m.pose.covariance)),
                              qos)
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            values = {kv.key: kv.value for kv in st.values}
+            if st.name.endswith(': result') and 'verdict' in values:
+                got['diagnostics'] = {'level': int.from_bytes(st.level, 'little')
+                                      if isinstance(st.level, bytes) else int(st.level),
+                                      'verdict': values['verdict'],
+                                      'reasons': values.get('reasons', '')}
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     deadline = time.monotonic() + 10.0
-    while len(got) < 3 and time.monotonic() < deadline:
+    while len(got) < 4 and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     if 'extrinsic' in got:
         m = got['extrinsic']

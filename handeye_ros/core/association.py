@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from .errors import TimeAlignmentError
-from .geometry import compose, inverse, matrix_from_quat, relative, rotation_angle
+from .geometry import (compose, inverse, matrix_from_quat, quat_slerp, relative,
+                       rotation_angle)
 from .trajectory import Trajectory
 
 #: Fewer matched pairs than this cannot support keyframes, RANSAC and a world alignment.
@@ -59,11 +59,12 @@ def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndar
     inside = (tq >= ts[0]) & (tq <= ts[-1])
     kc = np.clip(k, 1, ts.size - 1)
     ok = inside & traj.interval_ok()[kc - 1]
-    tq_ok = tq[ok]
+    a = kc[ok] - 1
+    f = (tq[ok] - ts[a]) / (ts[a + 1] - ts[a])
     R = np.tile(np.eye(3), (tq.size, 1, 1))
     p = np.zeros((tq.size, 3))
-    R[ok] = Slerp(ts, Rotation.from_quat(traj.q_xyzw))(tq_ok).as_matrix()
-    p[ok] = np.stack([np.interp(tq_ok, ts, traj.p_xyz[:, i]) for i in range(3)], axis=1)
+    R[ok] = matrix_from_quat(quat_slerp(traj.q_xyzw[a], traj.q_xyzw[a + 1], f))
+    p[ok] = traj.p_xyz[a] + f[:, None] * (traj.p_xyz[a + 1] - traj.p_xyz[a])
     return R, p, ok
 
 

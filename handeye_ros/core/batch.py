@@ -424,38 +424,52 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterati
     dof = max(r0.size - free_all.size, 1)
     s2 = max(2.0 * cost_after / dof, 1e-12)
     cov = np.zeros((7, 7))
+    jac = _eye_jacobians(residuals, y, fix_time_offset, decoupled)
     if not decoupled:
-        J = _jacobian(residuals, y, free_all)
-        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(J.T @ J)
+        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(jac['all'].T @ jac['all'])
     else:
         cov[np.ix_(free_all, free_all)] = _two_step_covariance(
-            residuals, y, np.array(dt_idx + [1, 2, 3]), np.array(dt_idx + [4, 5, 6]), s2)
-    lr = _eye_long_run(residuals, y, fix_time_offset, delta, decoupled)
+            jac['a'], jac['b'], jac['theta'], s2, len(dt_idx))
+    lr = _eye_long_run(residuals, y, fix_time_offset, delta, decoupled, jac)
     return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1], lr
 
 
+def _eye_jacobians(residuals, y: np.ndarray, fix_time_offset: bool,
+                   decoupled: bool) -> dict[str, np.ndarray]:
+    """Central-difference Jacobians of the eye residuals at y: for the two-step solve 'a'
+    (rotation rows; dt if free, dtheta), 'b' (all rows; dt if free, dp) and 'theta' (all rows;
+    dtheta); otherwise 'all' (all rows; every free parameter). Each costs two evaluations per
+    column, so the white and the long-run covariance share them."""
+    dt_idx = [] if fix_time_offset else [0]
+    if not decoupled:
+        return {'all': _jacobian(residuals, y, np.array(dt_idx + [1, 2, 3, 4, 5, 6]))}
+    return {'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y,
+                           np.array(dt_idx + [1, 2, 3])),
+            'b': _jacobian(residuals, y, np.array(dt_idx + [4, 5, 6])),
+            'theta': _jacobian(residuals, y, np.array([1, 2, 3]))}
+
+
 def _eye_long_run(residuals, y: np.ndarray, fix_time_offset: bool, delta: float,
-                  decoupled: bool) -> LongRunCovariance:
+                  decoupled: bool, jac: dict[str, np.ndarray] | None = None
+                  ) -> LongRunCovariance:
     """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X) from the eye
     residuals at y, as 7x7 matrices in the order of y (zero rows for a fixed dt).
 
     ``residuals(yy, rotation_only=False)``: the weighted eye residuals, 6 (or 3) rows per eye
-    pose pair in time order.
+    pose pair in time order; ``jac``: their Jacobians from :func:`_eye_jacobians`, computed
+    here when not given.
     """
     dt_idx = [] if fix_time_offset else [0]
     free_all = np.array(dt_idx + [1, 2, 3, 4, 5, 6])
     k = len(dt_idx)
+    jac = jac or _eye_jacobians(residuals, y, fix_time_offset, decoupled)
     if decoupled:
-        free_a, free_b = np.array(dt_idx + [1, 2, 3]), np.array(dt_idx + [4, 5, 6])
-        J_a = _jacobian(lambda yy: residuals(yy, rotation_only=True), y, free_a)
-        J_b = _jacobian(residuals, y, free_b)
-        J_t = _jacobian(residuals, y, np.array([1, 2, 3]))
         psi_theta, psi_b = influence_two_step(
-            residuals(y, rotation_only=True), J_a, residuals(y), J_b, J_t, delta, 3, 6,
-            np.arange(k, k + 3))
+            residuals(y, rotation_only=True), jac['a'], residuals(y), jac['b'], jac['theta'],
+            delta, 3, 6, np.arange(k, k + 3))
         psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
     else:
-        psi, _ = influence(residuals(y), _jacobian(residuals, y, free_all), delta, 6)
+        psi, _ = influence(residuals(y), jac['all'], delta, 6)
     lr = long_run_covariance(psi)
     full, white = np.zeros((7, 7)), np.zeros((7, 7))
     full[np.ix_(free_all, free_all)] = lr.covariance
@@ -476,22 +490,18 @@ def _jacobian(fun, y: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def _two_step_covariance(fun, y: np.ndarray, free_a: np.ndarray, free_b: np.ndarray,
-                         s2: float) -> np.ndarray:
-    """Covariance of the decoupled estimate, in the order (dt if free, dtheta, dp).
+def _two_step_covariance(J_A: np.ndarray, J_B: np.ndarray, J_t: np.ndarray, s2: float,
+                         k: int) -> np.ndarray:
+    """Covariance of the decoupled estimate under white residuals, in the order (dt if free,
+    dtheta, dp); k is 1 when dt is free.
 
     Step A gives dtheta (with dt) from the rotation residuals: Sigma_A = s2 (J_A^T J_A)^-1.
     Step B gives (dt, dp) from all residuals with dtheta fixed; its own noise gives
     Sigma_B = s2 (J_B^T J_B)^-1, and dtheta's error moves it by S = -(J_B^T J_B)^-1 J_B^T J_t
     (J_t: all residuals wrt dtheta). The final dt is step B's.
     """
-    theta = np.array([1, 2, 3])
-    J_A = _jacobian(lambda yy: fun(yy, rotation_only=True), y, free_a)
     cov_a = s2 * np.linalg.inv(J_A.T @ J_A)
-    k = free_a.size - 3  # 1 when dt is free
     cov_tt = cov_a[k:, k:]
-    J_B = _jacobian(fun, y, free_b)
-    J_t = _jacobian(fun, y, theta)
     N_B = np.linalg.inv(J_B.T @ J_B)
     S = -N_B @ (J_B.T @ J_t)
     return _assemble_two_step(cov_tt, s2 * N_B, S, k)

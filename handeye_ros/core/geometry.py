@@ -155,3 +155,23 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
         a = -np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(s)) / (s * s))
         b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (s - np.sin(s)) / (s * s * s))
     return np.eye(3) + a[..., None, None] * K + b[..., None, None] * K2
+
+
+def quat_slerp(q0: np.ndarray, q1: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Spherical interpolation ``q0 (q0^-1 q1)^f`` of x y z w quaternion stacks (..., 4) at
+    fractions f (...,): f in [0, 1] interpolates, outside extrapolates along the same
+    geodesic. The shorter way is taken (q1's sign is matched to q0's first).
+
+    Only the pairs asked for are computed (scipy's Slerp prepares every interval of the
+    trajectory, which costs more than the queries on long MoCap streams).
+    """
+    q1 = np.where(np.sum(q0 * q1, axis=-1, keepdims=True) < 0.0, -q1, q1)
+    d = quat_multiply(quat_conjugate(q0), q1)
+    s = np.linalg.norm(d[..., :3], axis=-1)
+    half = np.arctan2(s, d[..., 3])  # half the relative angle
+    f = np.asarray(f, dtype=float)
+    small = s < 1e-12
+    scale = np.where(small, f, np.sin(f * half) / np.where(small, 1.0, s))
+    df = np.concatenate((d[..., :3] * scale[..., None], np.cos(f * half)[..., None]), axis=-1)
+    out = quat_multiply(q0, df)
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)

@@ -42,9 +42,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import median_filter
-from scipy.spatial.transform import Rotation
 
 from .association import eye_motion_errors
+from .geometry import quat_conjugate, quat_multiply, quat_slerp
 from .trajectory import Trajectory
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
@@ -135,18 +135,18 @@ def resolution(values: np.ndarray) -> float:
     return 0.0
 
 
-def _predict(t: np.ndarray, p: np.ndarray, r: Rotation, a: np.ndarray, b: np.ndarray,
+def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray,
              k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Residuals (m, rad) of poses k against the line through poses a and b at t_k
-    (interpolation when a < k < b, extrapolation otherwise)."""
+    (interpolation when a < k < b, extrapolation otherwise; q: x y z w quaternions)."""
     f = (t[k] - t[a]) / np.where(t[b] != t[a], t[b] - t[a], 1.0)
     p_pred = p[a] + f[:, None] * (p[b] - p[a])
-    rel = (r[a].inv() * r[b]).as_rotvec()
-    r_pred = r[a] * Rotation.from_rotvec(f[:, None] * rel)
-    return (np.linalg.norm(p[k] - p_pred, axis=1), (r_pred.inv() * r[k]).magnitude())
+    d = quat_multiply(quat_conjugate(quat_slerp(q[a], q[b], f)), q[k])
+    angle = 2.0 * np.arctan2(np.linalg.norm(d[:, :3], axis=1), np.abs(d[:, 3]))
+    return np.linalg.norm(p[k] - p_pred, axis=1), angle
 
 
-def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: Rotation,
+def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray,
                             d: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(N,) position (m) and rotation (rad) residual of each pose against the interpolation of
     the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
@@ -161,7 +161,7 @@ def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: Rotation,
     return _predict(t, p, r, a, b, k)
 
 
-def side_residuals(t: np.ndarray, p: np.ndarray, r: Rotation, k: np.ndarray, side: int,
+def side_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray, k: np.ndarray, side: int,
                    d: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Residuals of poses k against the extrapolation from the poses d and 2d before (side -1)
     or after (side +1) them, and whether that side exists."""
@@ -188,7 +188,7 @@ def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
 def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
               floors: tuple[float, float], d: int) -> tuple[np.ndarray, float, float]:
     """(N,) bool outliers of one round at scale d, and the median thresholds (m, rad)."""
-    r = Rotation.from_quat(q)
+    r = q
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
     scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
     bad = np.zeros(t.size, dtype=bool)

@@ -338,6 +338,10 @@ def _self_check(hand: Trajectory, eye: Trajectory, ta: TimeAlignment, shift_ns: 
         except HandeyeError as err:
             run.notes.append(f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s '
                              f'({source}) rejected: {err}')
+            # counted in the result with the others, unscored
+            run.candidates.append(Candidate(offset, f'{source}: rejected, stage 2 fails there',
+                                            float('nan'), float('nan'), float('nan'),
+                                            lin.q_HE, lin.p_HE))
             continue
         if not any(abs(offset - h[0]) < same for h in hyps):
             hyps.append((offset, source, lin_c, pairs_c))

@@ -162,6 +162,27 @@ def placeholder(count: int) -> Inject:
     return f
 
 
+def scaled_first_row(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
+    """One extra first row with every value multiplied by 1e9 (seen in a published Basalt
+    estimate): its stamp fits no int64 ns, its quaternion is not unit."""
+    t = np.concatenate(([0], e.t_ns))  # the stamp is rewritten by the writer below
+    p = np.concatenate((e.p[:1] * 1e9, e.p))
+    q = np.concatenate((e.q[:1], e.q))
+    out = ScaledFirstRow(t, p, q, e.fmt, e.unit, e.order)
+    return Injected(h, out)
+
+
+class ScaledFirstRow(Stream):
+    """A stream whose first written row has every number multiplied by 1e9."""
+
+    def write(self, path: Path) -> None:
+        super().write(path)
+        lines = path.read_text().splitlines()
+        first = lines[2].split()  # the real first pose, below the header and the stand-in
+        lines[1] = ' '.join(f'{float(v) * 1e9:.18e}' for v in first)
+        path.write_text('\n'.join(lines) + '\n')
+
+
 def wild_poses(stream: str, frac: float, rot_deg: tuple[float, float], trans_m: float,
                zero: bool = False) -> Inject:
     """A fraction of one stream's poses replaced by a wild one: a marker swap (large rotation,
@@ -256,6 +277,7 @@ DEFECTS: dict[str, Inject] = {
     'clean (files)': lambda h, e, rng: Injected(h, e),
     'placeholder pose': placeholder(1),
     'placeholder x2': placeholder(2),
+    'scaled first row': scaled_first_row,
     'mocap swaps 1%': wild_poses('hand', 0.01, (30, 180), 0.05),
     'mocap swaps 5%': wild_poses('hand', 0.05, (30, 180), 0.05),
     'mocap zeros 1%': wild_poses('hand', 0.01, (0, 0), 0.0, zero=True),

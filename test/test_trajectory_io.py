@@ -170,3 +170,19 @@ def test_quaternion_order_option(tmp_path: Path) -> None:
     b.write_text(f'1.0 0 0 0 {q[3]} {q[0]} {q[1]} {q[2]}\n2.0 0 0 0 1 0 0 0\n')
     np.testing.assert_allclose(read_trajectory(a).q_xyzw,
                                read_trajectory(b, quaternion_order='wxyz').q_xyzw, atol=1e-12)
+
+
+def test_a_few_rows_no_stream_can_hold_are_dropped(tmp_path: Path) -> None:
+    """A first row with every value multiplied by 1e9 (seen in a published Basalt file): the
+    row is dropped and named, the unit is still seconds (chosen on the median stamp), and the
+    rest reads as it should. More such rows than 1 % and the file is refused."""
+    rows = [f'{100 + 0.05 * k:.2f} {0.01 * k} 0 0 0 0 0 1' for k in range(300)]
+    scaled = '1.0e11 1e7 0 0 0 0 0 1e9'
+    path = tmp_path / 'est.txt'
+    path.write_text('\n'.join([scaled] + rows) + '\n')
+    traj = read_trajectory(path)
+    assert len(traj) == 300 and traj.t_ns[0] == 100 * 10 ** 9
+    assert any('dropped 1 row(s)' in n and 'line(s) 1' in n for n in traj.notes)
+    path.write_text('\n'.join([scaled] * 5 + rows) + '\n')
+    with pytest.raises(InputError, match='line 1'):
+        read_trajectory(path)

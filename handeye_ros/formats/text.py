@@ -17,8 +17,10 @@ trajectory's notes say so; the pipeline then checks the rates (see
 quaternion columns are (default: the format's).
 
 A stamp written twice keeps its *last* row (estimators that correct a pose, e.g. after a loop
-closure, write the corrected one after the first), counted in the notes; stamps going
-backwards are refused.
+closure, write the corrected one after the first), counted in the notes. Up to 1 % of rows no
+pose stream can hold (a stamp that does not fit or is out of order with both neighbours, a
+non-finite value, a non-unit quaternion) are dropped and named in the notes; a file with more
+is refused, naming the first; an unsorted file is refused.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
-from ..core.trajectory import Trajectory
+from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 
 FORMATS = ('auto', 'tum', 'euroc')
 #: Stamp units a file may use: nanoseconds per unit.
@@ -39,6 +41,10 @@ QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
 #: Integer TUM stamps above this are nanoseconds (1e14 s would be three million years).
 NANOSECOND_STAMP_THRESHOLD = 10 ** 14
 INT64_MAX = np.iinfo(np.int64).max
+#: A file may hold up to this fraction of rows no pose stream can hold (a corrupt row, one
+#: written with every value scaled): they are dropped, and the notes name them; more, and the
+#: file is refused, naming the first.
+MAX_BAD_ROW_FRACTION = 0.01
 
 
 def detect_format(path: str | Path) -> str:
@@ -93,13 +99,52 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
         'wxyz' if fmt == 'euroc' else 'xyzw')
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
-    t_ns, notes = parse_stamps(path, numbers, stamps, fmt, stamp_unit)
+    t_ns, notes, fits = parse_stamps(path, numbers, stamps, fmt, stamp_unit)
+    bad = _bad_rows(t_ns, values, q_xyzw, fits)
+    if bad.any():
+        if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:
+            if not fits.all():  # refused with the stamp's own message
+                _too_large(path, numbers, np.where(fits, 0, np.abs(t_ns)), 'as read')
+        else:  # a few rows no pose stream holds: dropped, named (validation below refuses more)
+            lines = ', '.join(str(numbers[k]) for k in np.flatnonzero(bad)[:5])
+            notes.append(f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
+                         f'(a stamp out of range or order, a non-finite value or a non-unit '
+                         f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})')
+            keep = ~bad
+            t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
+            numbers = [n for n, k in zip(numbers, keep, strict=True) if k]
     keep = _last_of_repeated(t_ns)
     if not keep.all():
         notes.append(f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of '
                      'each was kept')
     return Trajectory.from_arrays(t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path),
                                   notes=tuple(notes))
+
+
+def _bad_rows(t_ns: np.ndarray, values: np.ndarray, q_xyzw: np.ndarray,
+              fits: np.ndarray) -> np.ndarray:
+    """(N,) bool: rows no pose stream can hold: a stamp that does not fit int64 ns, a
+    non-finite value, a quaternion whose norm is off by more than the tolerance, or a stamp
+    out of order with both neighbours while they are in order (one wild stamp, not an unsorted
+    file)."""
+    finite = np.isfinite(values).all(axis=1)
+    with np.errstate(invalid='ignore', over='ignore'):
+        norm = np.linalg.norm(np.where(finite[:, None], q_xyzw, 0.0), axis=1)
+    bad = ~fits | ~finite | (np.abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE)
+    good = np.flatnonzero(~bad)
+    if good.size >= 3:
+        t = t_ns[good]
+        prev = np.concatenate(([np.iinfo(np.int64).min], t[:-1]))
+        nxt = np.concatenate((t[1:], [np.iinfo(np.int64).max]))
+        prev2 = np.concatenate(([np.iinfo(np.int64).min] * 2, t[:-2]))
+        nxt2 = np.concatenate((t[2:], [np.iinfo(np.int64).max] * 2))
+        # k is out of order while k-1 and k+1 are in order with each other (or, at the ends,
+        # with the next ones); an equal stamp is a repeat, kept-last below, not disorder
+        out = ((t > nxt) | (t < prev)) & (prev < nxt)
+        out[0] = t[0] > t[1] and t[1] < nxt2[0]
+        out[-1] = t[-1] < t[-2] and prev2[-1] < t[-2]
+        bad[good[out]] = True
+    return bad
 
 
 def _last_of_repeated(t_ns: np.ndarray) -> np.ndarray:
@@ -192,51 +237,50 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
 
 
 def parse_stamps(path: Path, numbers: list[int], col: np.ndarray, fmt: str,
-                 unit: str) -> tuple[np.ndarray, list[str]]:
-    """Exact int64 nanoseconds of a stamp column, and notes on the unit assumed.
+                 unit: str) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Exact int64 nanoseconds of a stamp column, notes on the unit assumed, and which rows'
+    stamps fit int64 ns in that unit (the others are 0 here; the caller drops or refuses them).
 
     Each stamp is split into its whole and fractional digits (no float64 round trip). With
     ``unit`` 'auto': the format's unit (s for TUM, ns for EuRoC), plain TUM integers above
     NANOSECOND_STAMP_THRESHOLD as ns, EuRoC stamps with a fractional part as s; when that
-    unit cannot hold the values in int64 ns, the first of ms, us, ns that can. Every unit
-    other than the format's comes with a note.
+    unit cannot hold the values in int64 ns, the first of ms, us, ns that can. The unit is
+    chosen on the median stamp, so that one wild row cannot decide it for the file. Every
+    unit other than the format's comes with a note.
     """
     whole, frac, neg = _split_decimal(path, numbers, col)
     notes: list[str] = []
     if unit == 'auto':
         unit = 'ns' if fmt == 'euroc' else 's'
-        fractional = (np.char.str_len(np.char.rstrip(frac, '0')) > 0).any()
-        if fmt == 'tum' and not fractional and whole.size and \
-                int(whole.min()) > NANOSECOND_STAMP_THRESHOLD and not neg.any():
+        fractional = (np.char.str_len(np.char.rstrip(frac, '0')) > 0)
+        typical = int(np.median(whole)) if whole.size else 0
+        if fmt == 'tum' and not fractional.any() and whole.size and \
+                typical > NANOSECOND_STAMP_THRESHOLD and not neg.any():
             unit = 'ns'
-        if fmt == 'euroc' and fractional:  # a fraction of a nanosecond means nothing
+        if fmt == 'euroc' and fractional.mean() > 0.5:  # a fraction of a ns means nothing
             unit = 's'
             notes.append(f'{path}: the stamps have fractional parts, so they cannot be '
                          'nanoseconds; read as seconds')
-        largest = int(whole.max()) if whole.size else 0
-        if largest > INT64_MAX // STAMP_UNITS[unit]:
-            fits = [u for u in ('ms', 'us', 'ns') if largest <= INT64_MAX // STAMP_UNITS[u]]
-            if not fits:
-                _too_large(path, numbers, whole)
-            notes.append(f'{path}: stamps up to {largest} cannot be '
+        if typical > INT64_MAX // STAMP_UNITS[unit]:
+            fits = [u for u in ('ms', 'us', 'ns') if typical <= INT64_MAX // STAMP_UNITS[u]]
+            notes.append(f'{path}: stamps of {typical} cannot be '
                          f'{"seconds" if unit == "s" else unit}; read as {fits[0]}')
             unit = fits[0]
     scale = STAMP_UNITS[unit]
-    if int(whole.max()) > INT64_MAX // scale:
-        _too_large(path, numbers, whole, unit)
+    ok = whole <= INT64_MAX // scale
     digits = 9 - {'s': 0, 'ms': 3, 'us': 6, 'ns': 9}[unit]  # fractional digits that are >= 1 ns
     frac_ns = np.zeros(whole.size, dtype=np.int64)
     if digits and (np.char.str_len(frac) > 0).any():
         nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
         frac_ns = nine.astype(np.int64) // 10 ** (9 - digits)
-    ns = whole * np.int64(scale) + frac_ns
-    return np.where(neg, -ns, ns), notes
+    ns = np.where(ok, whole, 0) * np.int64(scale) + np.where(ok, frac_ns, 0)
+    return np.where(neg, -ns, ns), notes, ok
 
 
 def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'ns') -> None:
     k = int(np.argmax(whole))
-    msg = (f'{path}, line {numbers[k]}: stamp {int(whole[k])} {unit} is beyond what int64 '
-           'nanoseconds can hold (2^63 ns, the year 2262); check the stamp column and its unit '
+    msg = (f'{path}, line {numbers[k]}: a stamp ({unit}) is beyond what int64 nanoseconds can '
+           'hold (2^63 ns, the year 2262); check the stamp column and its unit '
            '(--hand-stamp-unit / --eye-stamp-unit)')
     raise InputError(msg)
 

@@ -19,16 +19,12 @@ import argparse
 import time
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 import common  # noqa: F401
-from common import emit, pyplot, save_plot, table
+from common import covered, emit, pyplot, save_plot, table
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, noise_level, simulate
-
-CHI2_3_9973 = 14.156
-
 
 def recording(level: float, seed: int, hand_noise: float):
     """The paper protocol at ``level``, its own draw per (level, seed), MoCap noise per axis
@@ -36,17 +32,6 @@ def recording(level: float, seed: int, hand_noise: float):
     nm, nd = noise_level(level)
     return simulate(int(1000 * level) + seed, noise_m=nm, noise_deg=nd, hand_noise_m=hand_noise,
                     hand_noise_deg=float(np.degrees(hand_noise)))
-
-
-def covered(res, truth) -> tuple[bool, bool, bool]:
-    cov = res.batch.covariance
-    e_dt = res.time_offset_s - truth.time_offset_s
-    e_t = truth.p_HE - res.p_HE
-    # rotation error in the tangent of the estimate: R_true = R_est Exp(e_r)
-    e_r = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    m_t = float(e_t @ np.linalg.solve(cov[1:4, 1:4], e_t))
-    m_r = float(e_r @ np.linalg.solve(cov[4:7, 4:7], e_r))
-    return abs(e_dt) <= 3 * np.sqrt(cov[0, 0]), m_t <= CHI2_3_9973, m_r <= CHI2_3_9973
 
 
 def main() -> None:

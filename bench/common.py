@@ -78,3 +78,23 @@ def _fmt(c: object) -> str:
     if isinstance(c, (float, np.floating)):
         return f'{c:.3f}' if abs(c) < 1000 else f'{c:.0f}'
     return str(c)
+
+
+#: chi^2 with 3 degrees of freedom at 99.73 %: the 3-sigma of a 3-vector.
+CHI2_3_9973 = 14.156
+
+
+def covered(res, truth, white: bool = False) -> tuple[bool, bool, bool]:
+    """Whether the truth lies inside the reported 3-sigma: ``|dt error| <= 3 sigma`` and the
+    Mahalanobis distances of the translation and rotation 3-vector errors within chi^2(3)'s
+    99.73 % quantile. ``white``: the batch stage's white covariance instead of the long-run
+    one."""
+    from scipy.spatial.transform import Rotation
+    cov = res.batch.covariance_white if white else res.batch.covariance
+    e_dt = res.time_offset_s - truth.time_offset_s
+    e_t = truth.p_HE - res.p_HE
+    # rotation error in the tangent of the estimate: R_true = R_est Exp(e_r)
+    e_r = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
+    m_t = float(e_t @ np.linalg.solve(cov[1:4, 1:4], e_t))
+    m_r = float(e_r @ np.linalg.solve(cov[4:7, 4:7], e_r))
+    return abs(e_dt) <= 3 * np.sqrt(cov[0, 0]), m_t <= CHI2_3_9973, m_r <= CHI2_3_9973

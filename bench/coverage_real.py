@@ -27,19 +27,16 @@ import argparse
 import time
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 import common  # noqa: F401
 import realdata
-from common import emit, table
+from common import covered, emit, table
 from handeye_ros.core.association import interpolate
 from handeye_ros.core.geometry import compose, inverse, matrix_from_quat, quat_from_matrix
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error
 from handeye_ros.core.trajectory import Trajectory
-
-CHI2_3_9973 = 14.156
-
 
 def world_error(gt: Trajectory, est: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t_ns, R, p) of ``est(t) gt(t)^-1`` at the estimate's stamps covered by the truth."""
@@ -69,17 +66,6 @@ def make_case(motion: Trajectory, err: tuple[np.ndarray, np.ndarray, np.ndarray]
     R, p = compose((R_E[keep], p_E[keep]), pred)
     eye = Trajectory.from_arrays(t_eye[keep], p, quat_from_matrix(R), 'eye')
     return eye, truth
-
-
-def covered(res, truth: Truth, white: bool = False) -> tuple[bool, bool, bool]:
-    b = res.batch
-    cov = b.covariance_white if white else b.covariance
-    e_dt = res.time_offset_s - truth.time_offset_s
-    e_t = truth.p_HE - res.p_HE
-    e_r = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    m_t = float(e_t @ np.linalg.solve(cov[1:4, 1:4], e_t))
-    m_r = float(e_r @ np.linalg.solve(cov[4:7, 4:7], e_r))
-    return abs(e_dt) <= 3 * np.sqrt(cov[0, 0]), m_t <= CHI2_3_9973, m_r <= CHI2_3_9973
 
 
 def main() -> None:

@@ -1,4 +1,4 @@
-"""Defect benchmark (issue 10): ordinary defects of real recordings, and zero confident wrong answers.
+"""Defect benchmark (issue 10): defects of real recordings, and zero confident wrong answers.
 
 Every case goes through the files a user would hand over: the hand is written as a EuRoC CSV
 (as MoCap ground truth usually is), the eye as a TUM file, each with the defect injected, then

@@ -149,8 +149,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     frames = {'hand_frame': streams.hand_frame_id, 'eye_frame': streams.eye_frame_id}
     if args.bag:
         from .formats.bag import replay
-        rec = replay(args.bag, streams, given={s: f'{s}_topic' in options for s in ('hand', 'eye')},
-                     progress=args.progress)
+        given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
+        rec = replay(args.bag, streams, given=given, progress=args.progress)
         out = rec.calibrate(calib)
         out['inputs']['bag'] = str(args.bag)
     else:

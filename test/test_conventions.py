@@ -15,7 +15,6 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.conventions import (PERMUTATIONS, check_stamp_units, epoch_note,
                                           reading_fits, reread)
-from handeye_ros.core.errors import InputError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory

@@ -721,10 +721,10 @@ def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
                          'continuous hand stream (or a larger knot_spacing)')
     a, b = int(starts[best]), int(ends[best])
     origin = int(hand.t_ns[0])
+    first, last = (hand.t_ns[a] - origin) * 1e-9, (hand.t_ns[b - 1] - origin) * 1e-9
     note = (f'{hand.name} has {cuts.size} gap(s) the spline cannot bridge (the longest '
-            f'{step[k]:.3f} s); the batch stage used its part from {(hand.t_ns[a] - origin) * 1e-9:.1f}'
-            f' to {(hand.t_ns[b - 1] - origin) * 1e-9:.1f} s, which covers {covered[best]} of '
-            f'the {total} eye poses')
+            f'{step[k]:.3f} s); the batch stage used its part from {first:.1f} to {last:.1f} s, '
+            f'which covers {covered[best]} of the {total} eye poses')
     return hand.select(slice(a, b)), note
 
 

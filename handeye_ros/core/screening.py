@@ -28,8 +28,9 @@ poses agree with each other at scale 1 (runs of up to five are found).
 
 Before it, rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a stream
 that is elsewhere are removed as placeholders, runs of any length: the convention of
-evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses repeated bit for bit are *not* removed: a slow rig written to the millimetre
-repeats its poses legitimately.
+evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses
+repeated bit for bit are *not* removed: a slow rig written to the millimetre repeats its poses
+legitimately.
 
 Resets (a jump of the eye's world frame that persists) are not outliers and are not removed
 here; they are found after stage 2 against the hand (:func:`find_eye_breaks`), where the
@@ -293,12 +294,12 @@ def find_eye_breaks(hand: Trajectory, eye: Trajectory, time_offset_s: float, R_H
     hand's motion once stage 2 has an extrinsic.
 
     Every consecutive eye interval, gaps included, is compared with the hand's motion over the
-    same instants (:func:`~handeye_ros.core.association.eye_motion_errors`). Its error is inconsistent above median +
-    BREAK_SIGMAS robust deviations of the errors of ordinary intervals (for a gap, scaled by
-    the square root of its length: a VIO's error grows like a random walk) and above the
-    floors. Two inconsistent intervals around one pose make that pose an outlier (dropped);
-    one inconsistent interval is a break. Parts between breaks shorter than MIN_SEGMENT_S or
-    MIN_SEGMENT_POSES are dropped.
+    same instants (:func:`~handeye_ros.core.association.eye_motion_errors`). Its error is
+    inconsistent above median + BREAK_SIGMAS robust deviations of the errors of ordinary
+    intervals (for a gap, scaled by the square root of its length: a VIO's error grows like a
+    random walk) and above the floors. Two inconsistent intervals around one pose make that
+    pose an outlier (dropped); one inconsistent interval is a break. Parts between breaks
+    shorter than MIN_SEGMENT_S or MIN_SEGMENT_POSES are dropped.
     """
     k = np.arange(len(eye) - 1)
     e_r, e_t, covered = eye_motion_errors(hand, eye, k, k + 1, time_offset_s, R_HE, p_HE)

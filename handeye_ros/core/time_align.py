@@ -349,34 +349,8 @@ def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | No
         msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
         raise ValueError(msg)
     step = _step(hand, eye, resample_rate_hz)
-    w_h, w_e = angular_speed(hand), angular_speed(eye)
-    x, mx = resample(w_h, _grid(hand, step))
-    y, my = resample(w_e, _grid(eye, step))
-    x, mx = _clip(x, mx)
-    y, my = _clip(y, my)
-    x = _standardise(x, mx, hand.name)
-    y = _standardise(y, my, eye.name)
-    curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
-    window = _window(max_time_offset, time_offset_guess)
-    need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
-    k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
-    sel = np.flatnonzero(curve.eligible)
-    sel = slice(sel[0], sel[-1] + 1)
-    scores = np.where(curve.eligible, curve.ncc, -np.inf)
-    lag_ns = int(round((curve.lags[k] + frac) * step * 1e9))
-    return TimeAlignment(
-        time_offset_s=curve.offset_s(curve.lags[k] + frac),
-        method=peak_fit,
-        peak_correlation=float(curve.ncc[k]),
-        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start),
-        step_s=step,
-        window_s=window or (curve.offset_s(curve.lags[sel.start]),
-                            curve.offset_s(curve.lags[sel.stop - 1])),
-        lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
-        correlation=curve.ncc[sel],
-        candidates=_candidates(curve, k),
-        time_offset_ns=curve.base_ns + lag_ns,
-    )
+    return _align(hand, eye, angular_speed(hand), angular_speed(eye), step, max_time_offset,
+                  time_offset_guess, peak_fit, peak_fit)
 
 
 def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
@@ -395,27 +369,41 @@ def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
     step = _step(hand, eye, resample_rate_hz)
     w_h, w_e = angular_speed(hand, vector=True), angular_speed(eye, vector=True)
     w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
+    return _align(hand, eye, w_h, w_e, step, half_window_s, around_s, 'quadratic', 'vector')
+
+
+def _align(hand: Trajectory, eye: Trajectory, w_h: AngularSpeed, w_e: AngularSpeed,
+           step: float, max_time_offset: float | None, time_offset_guess: float | None,
+           peak_fit: str, method: str) -> TimeAlignment:
+    """Stage 1 on two signals (magnitudes or vectors): each on its own grid, robust,
+    standardised, correlated over the searched lags, the peak and its candidates."""
     x, mx = resample(w_h, _grid(hand, step))
     y, my = resample(w_e, _grid(eye, step))
     x, mx = _clip(x, mx)
     y, my = _clip(y, my)
     x = _standardise(x, mx, hand.name)
     y = _standardise(y, my, eye.name)
-    curve = _correlate(hand, eye, x, mx, y, my, step, half_window_s, around_s)
-    window = _window(half_window_s, around_s)
+    curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
+    window = _window(max_time_offset, time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
-    k, frac = _peak(curve, 'quadratic', hand, eye, window, need_s)
-    scores = np.where(curve.eligible, curve.ncc, -np.inf)
+    k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
     sel = np.flatnonzero(curve.eligible)
     sel = slice(sel[0], sel[-1] + 1)
+    scores = np.where(curve.eligible, curve.ncc, -np.inf)
     lag_ns = int(round((curve.lags[k] + frac) * step * 1e9))
     return TimeAlignment(
-        time_offset_s=curve.offset_s(curve.lags[k] + frac), method='vector',
+        time_offset_s=curve.offset_s(curve.lags[k] + frac),
+        method=method,
         peak_correlation=float(curve.ncc[k]),
-        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start), step_s=step,
-        window_s=window, lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
-        correlation=curve.ncc[sel], candidates=_candidates(curve, k),
-        time_offset_ns=curve.base_ns + lag_ns)
+        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start),
+        step_s=step,
+        window_s=window or (curve.offset_s(curve.lags[sel.start]),
+                            curve.offset_s(curve.lags[sel.stop - 1])),
+        lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
+        correlation=curve.ncc[sel],
+        candidates=_candidates(curve, k),
+        time_offset_ns=curve.base_ns + lag_ns,
+    )
 
 
 def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:

@@ -53,7 +53,7 @@ from .screening import Screening, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
 from .time_align import TimeAlignment, align_time, align_time_vector
 from .trajectory import Trajectory
-from .world import align_worlds, evaluate
+from .world import Metrics, align_worlds, evaluate
 
 LOG = logging.getLogger('handeye_ros')
 
@@ -141,7 +141,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     try:
         lin, pairs = _linear(hand, eye_c, dt, cfg)
     except DegenerateMotionError as err:
-        if fixed or cfg.max_time_offset is None and cfg.time_offset_guess is None:
+        if fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
         lo, hi = ta.window_s
         msg = (f'{err}. The time offset was searched in [{lo:+.3f}, {hi:+.3f}] s only: if it '
@@ -183,7 +183,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     metrics = replace(metrics, motion_rotation_deg=m_rot, motion_translation_m=m_trans,
                       motion_length_m=m_len, n_motions=n_mot)
     seed_lin = _seed_check(hand, eye_c, dt, lin, batch, cfg, run)
-    _assess(ta, tv, lin, batch, screening, metrics, pairs, cfg, run)
+    _assess(ta, tv, lin, batch, screening, metrics, cfg, run)
     LOG.info('stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
              '%d motions', t1 - t0, t2 - t1, t3 - t2, pairs.t_eye_s.size, lin.n_motions)
     quality = Quality.from_reasons(run.reasons, run.notes)
@@ -514,8 +514,8 @@ def _absolute(tv: TimeAlignment | None, shift_ns: int) -> TimeAlignment | None:
 
 
 def _assess(ta: TimeAlignment, tv: TimeAlignment | None, lin: LinearSolution,
-            batch: BatchSolution | None, screening: tuple[Screening, Screening], metrics,
-            pairs: PosePairs, cfg: CalibrationConfig, run: _Run) -> None:
+            batch: BatchSolution | None, screening: tuple[Screening, Screening],
+            metrics: Metrics, cfg: CalibrationConfig, run: _Run) -> None:
     """The remaining reasons of :mod:`.quality` (the others were added where they arose)."""
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:

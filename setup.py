@@ -23,7 +23,7 @@ setup(
     extras_require={
         # the ROS 2 side (node, message conversion); from PyPI wheels or a Jazzy install
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces', 'ros-jazzy-std-srvs'],
-        'test': ['pytest', 'hypothesis'],
+        'test': ['pytest', 'hypothesis', 'ruff'],
         # comparison baselines and plots, for bench/ only
         'bench': ['opencv-python-headless', 'matplotlib'],
     },

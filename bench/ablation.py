@@ -15,10 +15,10 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
 import common  # noqa: F401  (puts the package on sys.path)
+import numpy as np
 from common import emit, pyplot, save_plot, table
+
 from handeye_ros.core.association import associate
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.linear import build_motions, calibrate_linear
@@ -53,9 +53,9 @@ def main() -> None:
         for b, seed in enumerate(seeds):
             rec = simulate(seed, noise_m=noise_m, noise_deg=noise_deg)
             truth = rec.truth
-            for fit in dt_err:
+            for fit, err in dt_err.items():
                 ta = align_time(rec.hand, rec.eye, peak_fit=fit)
-                dt_err[fit][a, b] = abs(ta.time_offset_s - truth.time_offset_s)
+                err[a, b] = abs(ta.time_offset_s - truth.time_offset_s)
             pairs = associate(rec.hand, rec.eye, truth.time_offset_s)
             motions = {}
             for c, (_, strategy, eta, kernel, refit) in enumerate(LINEAR_VARIANTS):

@@ -18,13 +18,14 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
 import common  # noqa: F401
+import numpy as np
 from common import covered, emit, pyplot, save_plot, table
+
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, noise_level, simulate
+
 
 def recording(level: float, seed: int, hand_noise: float):
     """The paper protocol at ``level``, its own draw per (level, seed), MoCap noise per axis

@@ -26,17 +26,18 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
 import common  # noqa: F401
+import numpy as np
 import realdata
 from common import covered, emit, table
+from scipy.spatial.transform import Rotation
+
 from handeye_ros.core.association import interpolate
 from handeye_ros.core.geometry import compose, inverse, matrix_from_quat, quat_from_matrix
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error
 from handeye_ros.core.trajectory import Trajectory
+
 
 def world_error(gt: Trajectory, est: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t_ns, R, p) of ``est(t) gt(t)^-1`` at the estimate's stamps covered by the truth."""
@@ -55,7 +56,7 @@ def make_case(motion: Trajectory, err: tuple[np.ndarray, np.ndarray, np.ndarray]
                   p_HE=axis / np.linalg.norm(axis) * rng.uniform(0.05, 0.25),
                   q_WG=Rotation.random(random_state=rng).as_quat(),
                   p_WG=rng.normal(0.0, 2.0, 3))
-    dt_ns = int(round(truth.time_offset_s * 1e9))
+    dt_ns = round(truth.time_offset_s * 1e9)
     # B's stamps onto A's clock: the eye starts 1 s into A's span (+ the offset)
     t_eye = t_err - t_err[0] + int(motion.t_ns[0]) + 1_000_000_000 + dt_ns
     R_h, p_h, ok = interpolate(motion, t_eye - dt_ns)

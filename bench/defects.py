@@ -39,12 +39,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
 import common  # noqa: F401
+import numpy as np
 import realdata
 from common import emit, table
+from scipy.spatial.transform import Rotation
+
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
@@ -146,7 +146,7 @@ def _random_rotations(rng: np.random.Generator, n: int, lo_deg: float,
 
 
 def _interior(rng: np.random.Generator, n: int, frac: float) -> np.ndarray:
-    k = max(1, int(round(frac * n)))
+    k = max(1, round(frac * n))
     return np.sort(rng.choice(np.arange(5, n - 5), size=k, replace=False))
 
 

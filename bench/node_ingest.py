@@ -100,7 +100,7 @@ def stop(p: subprocess.Popen) -> None:
 
 def sent_counts(pub: subprocess.Popen) -> dict:
     import json
-    out, err = pub.communicate(timeout=600)
+    out, _ = pub.communicate(timeout=600)
     return json.loads(out.strip().splitlines()[-1])['sent']
 
 

@@ -14,10 +14,10 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
 import common  # noqa: F401
+import numpy as np
 from common import emit, table
+
 from handeye_ros.core.association import PosePairs, associate
 from handeye_ros.core.geometry import inverse, quat_from_matrix
 from handeye_ros.core.keyframes import rotation_keyframes
@@ -49,7 +49,7 @@ def opencv_hand_eye(pairs: PosePairs, idx: np.ndarray, method: str) -> tuple[np.
 
 def input_sets(pairs: PosePairs) -> dict[str, np.ndarray]:
     i, j = rotation_keyframes(pairs.R_GH, np.deg2rad(5.0))
-    step = max(1, int(round(0.5 / np.median(np.diff(pairs.t_eye_s)))))
+    step = max(1, round(0.5 / np.median(np.diff(pairs.t_eye_s))))
     return {'keyframes': np.unique(np.concatenate((i, j))),
             'every 0.5 s': np.arange(0, pairs.t_eye_s.size, step)}
 

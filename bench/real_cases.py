@@ -17,16 +17,16 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
 import common  # noqa: F401
+import numpy as np
 import realdata
 from common import emit, table
+from opencv_compare import METHODS, cv2, input_sets, opencv_hand_eye
+
 from handeye_ros.core.association import associate
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error
-from opencv_compare import METHODS, cv2, input_sets, opencv_hand_eye
 
 SHIFTS_S = (0.0873, -0.2315)
 

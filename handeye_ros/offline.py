@@ -196,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         print('offline_calibrate: error: out of memory; the inputs are larger than this '
               'machine can hold (check the stamp units, or cut the recording)', file=sys.stderr)
         return 1
-    except Exception as err:  # noqa: BLE001  (a bug of ours: one line, the traceback with -v)
+    except Exception as err:
         if args.verbose:
             raise
         print(f'offline_calibrate: internal error: {type(err).__name__}: {err} (run with -v '

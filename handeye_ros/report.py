@@ -39,8 +39,8 @@ def format_report(d: dict[str, Any]) -> str:
     peak = ta['peak_correlation']
     lines += [
         '',
-        f'time offset dt = {d["time_offset"] * 1e3:+.3f} ms  (eye clock minus hand clock; the '
-        'hand pose at hand time t - dt belongs to the eye pose at eye time t)',
+        (f'time offset dt = {d["time_offset"] * 1e3:+.3f} ms  (eye clock minus hand clock; the '
+         'hand pose at hand time t - dt belongs to the eye pose at eye time t)'),
         f'  method {ta["method"]}' + (f', peak correlation {peak:.3f}, second peak '
                                       f'{ta["second_peak_ratio"]:.2f} of it'
                                       if peak is not None else ''),
@@ -49,13 +49,13 @@ def format_report(d: dict[str, Any]) -> str:
         _transform('T_EH: hand frame in eye frame', d['extrinsic_inverse']),
         _transform('T_WG: hand (MoCap) world in eye (VIO) world', d['world_alignment']),
         '',
-        f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
-        f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, rotation '
-        f'axes spread {lin["axis_spread_deg"]:.0f} deg',
+        (f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
+         f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, '
+         f'rotation axes spread {lin["axis_spread_deg"]:.0f} deg'),
         *_batch_lines(d),
-        f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
-        f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
-        f'(max {m["are_max"]:.3f})',
+        (f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
+         f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
+         f'(max {m["are_max"]:.3f})'),
         *_screening_lines(d),
     ]
     for w in d['warnings']:
@@ -75,9 +75,9 @@ def _batch_lines(d: dict[str, Any]) -> list[str]:
     if not b.get('used'):
         return ['batch stage: ' + ('off' if not b.get('enabled') else 'not used (see warnings)')]
     s = d['std']
-    return [f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
-            f'{b["iterations"]} iterations ({b["termination"]}); dt moved '
-            f'{b["time_offset_change"] * 1e3:+.3f} ms from stage 1',
+    return [(f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
+             f'{b["iterations"]} iterations ({b["termination"]}); dt moved '
+             f'{b["time_offset_change"] * 1e3:+.3f} ms from stage 1'),
             f'  1-sigma: time offset {s["time_offset"] * 1e3:.3f} ms, translation '
             + ' '.join(f'{v * 1e3:.2f}' for v in s['translation']) + ' mm, rotation '
             + ' '.join(f'{v * 57.29577951308232:.3f}' for v in s['rotation']) + ' deg']

@@ -8,11 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import recording, run_cli
 
 from handeye_ros.formats.bag import BagWriter, write_recording
 from handeye_ros.stream import PoseBuffer
-
-from conftest import recording, run_cli
 
 
 @pytest.fixture(scope='module')

@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch import BatchError, refine
@@ -18,8 +19,6 @@ from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.pipeline import _check_batch, _Run, _run_batch, calibrate
 from handeye_ros.core.simulate import calibration_error
-
-from conftest import recording
 
 
 def test_noise_free_is_exact() -> None:

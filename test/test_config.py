@@ -6,13 +6,12 @@ from pathlib import Path
 
 import pytest
 import yaml
+from conftest import ROOT
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.ros.config import NodeConfig, params_yaml
 from handeye_ros.stream.config import StreamConfig
-
-from conftest import ROOT
 
 
 def test_defaults_are_the_papers() -> None:

@@ -10,16 +10,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.core.conventions import (PERMUTATIONS, check_stamp_units, epoch_note,
-                                          reading_fits, reread)
+from handeye_ros.core.conventions import (
+    PERMUTATIONS,
+    check_stamp_units,
+    epoch_note,
+    reading_fits,
+    reread,
+)
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
-
-from conftest import recording
 
 
 def _stamps(traj: Trajectory, t_ns: np.ndarray) -> Trajectory:
@@ -47,7 +51,7 @@ def test_a_stream_in_another_unit_is_read_in_it(stream: str, factor: float, unit
         boot = traj.t_ns - int(traj.t_ns[0]) + 3_600 * 10 ** 9
         scaled = boot * np.int64(factor) // 10 ** 6 * 10 ** 6  # written to the microsecond
     else:
-        scaled = traj.t_ns // int(round(1 / factor))
+        scaled = traj.t_ns // round(1 / factor)
     wrong = _stamps(traj, scaled)
     hand, eye = (wrong, rec.eye) if stream == 'hand' else (rec.hand, wrong)
     fixed_h, fixed_e, found = check_stamp_units(hand, eye)
@@ -121,5 +125,5 @@ def test_rotation_misreading_is_an_inversion_up_to_fixed_frames() -> None:
     q = Rotation.random(50, random_state=rng).as_quat()
     p = q[:, PERMUTATIONS['wxyz']]
     # relative angles between any two are preserved
-    ang = lambda Q: Rotation.from_quat(Q[1:]).inv() * Rotation.from_quat(Q[:-1])  # noqa: E731
+    ang = lambda Q: Rotation.from_quat(Q[1:]).inv() * Rotation.from_quat(Q[:-1])
     np.testing.assert_allclose(ang(q).magnitude(), ang(p).magnitude(), atol=1e-9)

@@ -14,6 +14,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from conftest import recording
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -23,8 +24,6 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_tum
 from handeye_ros.offline import main as offline_main
-
-from conftest import recording
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.association import associate
@@ -18,8 +19,6 @@ from handeye_ros.core.geometry import compose
 from handeye_ros.core.linear import build_motions, calibrate_linear
 from handeye_ros.core.simulate import calibration_error, random_truth
 from handeye_ros.core.trajectory import Trajectory
-
-from conftest import recording
 
 
 def _motions(rec, strategy: str = 'rotation', eta_deg: float = 5.0):

@@ -11,11 +11,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from ros_support import (
+    Processes,
+    build_workspace,
+    resolve_executable,
+    ros_available,
+    ros_env,
+    wait_for,
+)
 
 from handeye_ros.core.simulate import Truth, calibration_error
-
-from ros_support import (Processes, build_workspace, resolve_executable, ros_available,
-                         ros_env, wait_for)
 
 pytestmark = pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed')
 

@@ -12,14 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import recording, run_cli
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.geometry import compose
 from handeye_ros.core.simulate import calibration_error, random_truth
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_euroc, write_tum
-
-from conftest import recording, run_cli
 
 
 def _ok(res) -> None:

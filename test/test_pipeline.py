@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
@@ -14,8 +15,6 @@ from handeye_ros.core.geometry import compose
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
-
-from conftest import recording
 
 
 def test_noise_free_recovers_the_truth() -> None:

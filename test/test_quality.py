@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
@@ -18,8 +19,6 @@ from handeye_ros.core.selfcheck import score_candidates
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.time_align import align_time, align_time_vector
 from handeye_ros.core.trajectory import Trajectory
-
-from conftest import recording
 
 
 def test_clean_recording_is_good_with_no_reasons() -> None:

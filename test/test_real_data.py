@@ -13,15 +13,14 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import ROOT
 
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error
 from handeye_ros.formats import read_trajectory
 
-from conftest import ROOT
-
 sys.path.insert(0, str(ROOT / 'bench'))
-import realdata  # noqa: E402
+import realdata
 
 SHIFT_S = 0.1234
 

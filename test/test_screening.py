@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
@@ -18,8 +19,6 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.screening import find_eye_breaks, resolution, screen
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
-
-from conftest import recording
 
 
 def _with(traj: Trajectory, idx: np.ndarray, p: np.ndarray | None = None,
@@ -65,7 +64,7 @@ def test_marker_swaps_and_zero_dropouts(frac: float) -> None:
     rot = Rotation.from_rotvec(rng.normal(size=(idx.size, 3)) * 1.5)
     q = (Rotation.from_quat(rec.hand.q_xyzw[idx]) * rot).as_quat()
     swapped = _with(rec.hand, idx, rec.hand.p_xyz[idx] + rng.normal(0, 0.05, (idx.size, 3)), q)
-    kept, rep = screen(swapped, 'hand')
+    _, rep = screen(swapped, 'hand')
     assert set(idx) <= set(np.searchsorted(swapped.t_ns, rep.removed_ns))
     assert rep.n_removed <= idx.size + 0.012 * n
     zeros = _with(rec.hand, idx, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import recording
 
 from handeye_ros.core.errors import TimeAlignmentError
 from handeye_ros.core.simulate import Truth, random_truth
 from handeye_ros.core.time_align import align_time
-
-from conftest import recording
 
 
 def _truth_with_offset(seed: int, dt: float) -> Truth:
@@ -52,9 +51,9 @@ def test_quadratic_fit_beats_integer_peak() -> None:
     errors = {'quadratic': [], 'none': []}
     for seed in range(6):
         rec = recording(seed=seed, level=1.0)
-        for fit in errors:
+        for fit, errs in errors.items():
             ta = align_time(rec.hand, rec.eye, peak_fit=fit)
-            errors[fit].append(abs(ta.time_offset_s - rec.truth.time_offset_s))
+            errs.append(abs(ta.time_offset_s - rec.truth.time_offset_s))
             assert ta.method == fit
     # an integer peak on a 10 ms grid errs by ~2.5 ms on average; the fit by far less
     assert np.mean(errors['quadratic']) < 0.5 * np.mean(errors['none'])

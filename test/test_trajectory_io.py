@@ -6,13 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import recording
 
 from handeye_ros.core.errors import InputError
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_euroc, write_tum
 from handeye_ros.formats.text import detect_format
-
-from conftest import recording
 
 EPOCH = 1_403_636_579_758_555_555  # a EuRoC-like stamp: float64 seconds cannot hold it exactly
 

@@ -10,8 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from handeye_ros.core.uncertainty import (andrews_bandwidth, huber_psi, influence,
-                                          influence_two_step, long_run_covariance)
+from handeye_ros.core.uncertainty import (
+    andrews_bandwidth,
+    huber_psi,
+    influence,
+    influence_two_step,
+    long_run_covariance,
+)
 
 
 def _ar1(rng: np.random.Generator, T: int, rho: float, p: int = 1) -> np.ndarray:

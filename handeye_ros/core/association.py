@@ -13,8 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import TimeAlignmentError
-from .geometry import (compose, inverse, matrix_from_quat, quat_slerp, relative,
-                       rotation_angle)
+from .geometry import compose, inverse, matrix_from_quat, quat_slerp, relative, rotation_angle
 from .trajectory import Trajectory
 
 #: Fewer matched pairs than this cannot support keyframes, RANSAC and a world alignment.

@@ -42,12 +42,20 @@ from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
 
 from .errors import BatchError
-from .geometry import (Pose, compose, hat, log_so3, matrix_from_quat, quat_from_matrix,
-                       relative, right_jacobian)
+from .geometry import (
+    Pose,
+    compose,
+    hat,
+    log_so3,
+    matrix_from_quat,
+    quat_from_matrix,
+    relative,
+    right_jacobian,
+)
 from .spline import PoseSpline, exp_so3, fit_spline
 from .trajectory import GAP_FACTOR, Trajectory
-from .uncertainty import (LongRunCovariance, influence, influence_two_step,
-                          long_run_covariance)
+from .uncertainty import LongRunCovariance, influence, influence_two_step, long_run_covariance
+
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6

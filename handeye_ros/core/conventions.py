@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -102,12 +102,12 @@ def _scaled(traj: Trajectory, factor: float) -> Trajectory:
     if factor == 1.0:
         return traj
     if factor > 1.0:
-        k = int(round(factor))
+        k = round(factor)
         if max(abs(int(traj.t_ns[0])), abs(int(traj.t_ns[-1]))) > INT64_MAX // k:
             raise OverflowError  # checked first: int64 products wrap silently
         t_ns = traj.t_ns * np.int64(k)
     else:
-        k = int(round(1.0 / factor))
+        k = round(1.0 / factor)
         t_ns = traj.t_ns // np.int64(k)
     if np.any(np.diff(t_ns) <= 0):  # a scale that merges stamps is no reading
         raise OverflowError
@@ -189,7 +189,7 @@ def epoch_note(hand: Trajectory, eye: Trajectory) -> str | None:
     def kind(t_ns: int) -> str | None:
         s = t_ns * 1e-9
         if s > EPOCH_ABSOLUTE_S:
-            day = datetime.fromtimestamp(s, tz=timezone.utc).strftime('%Y-%m-%d')
+            day = datetime.fromtimestamp(s, tz=UTC).strftime('%Y-%m-%d')
             return f'an absolute epoch (as Unix time: {day})'
         if 0 <= s < EPOCH_RELATIVE_S:
             return f'time since boot or since the start ({s:.1f} s)'

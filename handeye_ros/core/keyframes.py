@@ -14,6 +14,7 @@ import numpy as np
 from .config import STRATEGIES
 from .geometry import rotation_angle
 
+
 def motion_indices(R: np.ndarray, strategy: str = 'rotation',
                    eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
     """Index pairs ``(i, j)``, i < j, of the relative motions, for rotations R of shape (N, 3, 3).

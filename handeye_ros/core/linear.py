@@ -29,8 +29,16 @@ from scipy.spatial.transform import Rotation
 
 from .association import PosePairs
 from .errors import DegenerateMotionError
-from .geometry import (Pose, dual_quat_from_pose, matrix_from_quat, pose_from_dual_quat,
-                       quat_from_matrix, quat_multiply, relative, skew)
+from .geometry import (
+    Pose,
+    dual_quat_from_pose,
+    matrix_from_quat,
+    pose_from_dual_quat,
+    quat_from_matrix,
+    quat_multiply,
+    relative,
+    skew,
+)
 from .keyframes import segment_motion_indices
 
 #: A RANSAC model is eligible only if its consensus holds at least this fraction of the largest
@@ -339,7 +347,7 @@ def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
 def common_axis(v: np.ndarray) -> np.ndarray:
     """Unit principal direction of vectors (n, 3) (the eigenvector of their scatter matrix with
     the largest eigenvalue), signed to agree with the first long vector."""
-    lam, V = np.linalg.eigh(v.T @ v)
+    _, V = np.linalg.eigh(v.T @ v)
     a = V[:, -1]
     k = int(np.argmax(np.linalg.norm(v, axis=1)))
     return a if float(v[k] @ a) >= 0.0 else -a
@@ -384,8 +392,8 @@ def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
                            np.matmul(R_A - np.eye(3), basis)), axis=2) * w
     rhs = (((u @ a)[:, None] * a - t_A)[:, :, None] * w).reshape(-1)
     lhs = cols.reshape(-1, 5)[:, :4]  # the t_a column is zero: (R_A - I) a = 0
-    unobservable = ['translation along the rotation axis '
-                    f'[{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand frame), set to 0']
+    unobservable = [('translation along the rotation axis '
+                     f'[{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand frame), set to 0')]
     phi = 0.0
     z, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
     # phi is determined when its own standard deviation is small and (cos, sin) came out a

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any, TypeVar
+from typing import Any, Self, TypeVar
 
 from .errors import ConfigError
 
@@ -69,7 +69,7 @@ class Options:
             _check(name, getattr(self, name), spec)
 
     @classmethod
-    def from_mapping(cls: type[T], values: dict[str, Any], source: str = 'config') -> T:
+    def from_mapping(cls, values: dict[str, Any], source: str = 'config') -> Self:
         """Options from a mapping (a parsed YAML file or node parameters).
 
         Unknown keys are refused (a typo must not silently fall back to a default); for an

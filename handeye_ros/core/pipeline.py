@@ -39,15 +39,24 @@ import numpy as np
 from .association import PosePairs, associate
 from .batch import BatchSolution, refine
 from .config import CalibrationConfig
-from .conventions import (Correction, check_orientations, check_stamp_units, epoch_note,
-                          reread)
+from .conventions import Correction, check_orientations, check_stamp_units, epoch_note, reread
 from .errors import DegenerateMotionError, HandeyeError, InputError, TimeAlignmentError
 from .geometry import matrix_from_quat
 from .linear import LinearSolution, build_motions, calibrate_linear
-from .quality import (AMBIGUOUS_PEAK_RATIO, AMBIGUOUS_SCORE_RATIO, FAILED_MOTION_ROTATION_DEG,
-                      FAILED_MOTION_TRANSLATION_FRACTION, FAILED_MOTION_TRANSLATION_M,
-                      INFLATION_DOUBTFUL, LOW_INLIER_FRACTION, OUTLIER_FRACTION_DOUBTFUL,
-                      WEAK_CORRELATION, WEAK_EXCITATION_DEG, Quality, Reason)
+from .quality import (
+    AMBIGUOUS_PEAK_RATIO,
+    AMBIGUOUS_SCORE_RATIO,
+    FAILED_MOTION_ROTATION_DEG,
+    FAILED_MOTION_TRANSLATION_FRACTION,
+    FAILED_MOTION_TRANSLATION_M,
+    INFLATION_DOUBTFUL,
+    LOW_INLIER_FRACTION,
+    OUTLIER_FRACTION_DOUBTFUL,
+    WEAK_CORRELATION,
+    WEAK_EXCITATION_DEG,
+    Quality,
+    Reason,
+)
 from .result import CalibrationResult
 from .screening import Screening, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
@@ -123,7 +132,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     fixed = cfg.time_offset is not None
     if fixed:
         ta = TimeAlignment(time_offset_s=cfg.time_offset, method='fixed',
-                           time_offset_ns=int(round(cfg.time_offset * 1e9)))
+                           time_offset_ns=round(cfg.time_offset * 1e9))
         run.warnings += _check_fixed_offset(hand, eye, cfg)
     else:
         guess, half = _window(cfg)
@@ -192,7 +201,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         p_HE=p_HE, world=world,
         time_alignment=ta, linear=lin, metrics=metrics, n_pairs=int(pairs.t_eye_s.size),
         hand=hand_in, eye=eye_in, config=cfg, warnings=tuple(run.warnings), batch=batch,
-        time_offset_ns=shift_ns + int(round(dt * 1e9)), vector_alignment=_absolute(tv, shift_ns),
+        time_offset_ns=shift_ns + round(dt * 1e9), vector_alignment=_absolute(tv, shift_ns),
         screening=screening, corrections=tuple(run.corrections),
         candidates=tuple(replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s)
                          for c in run.candidates),
@@ -494,9 +503,9 @@ def _check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfi
         return [f'could not check the fixed time offset against the data: {err}']
     if est.peak_correlation >= WEAK_CORRELATION and \
             abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S:
-        return [f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
-                f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
-                f'(correlation {est.peak_correlation:.2f}); check the fixed value']
+        return [(f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
+                 f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
+                 f'(correlation {est.peak_correlation:.2f}); check the fixed value')]
     return []
 
 

@@ -124,7 +124,7 @@ def smooth_motion(rng: np.random.Generator, duration_s: float, knot_spacing_s: f
         rot_ctrl = np.cumsum(rng.normal(0.0, 2.0 * rotation_std_rad, n_ctrl))[:, None] * axis
     elif motion == 'repetitive':
         # one period of random control points, tiled: the spline repeats exactly
-        per = int(round(REPETITIVE_PERIOD_S / knot_spacing_s))
+        per = round(REPETITIVE_PERIOD_S / knot_spacing_s)
         reps = int(np.ceil(n_ctrl / per))
         pos_ctrl = np.tile(pos_ctrl[:per], (reps, 1))[:n_ctrl]
         rot_ctrl = np.tile(rot_ctrl[:per], (reps, 1))[:n_ctrl]
@@ -172,7 +172,7 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
             rng.normal(0.0, np.deg2rad(hand_noise_deg), (n_hand, 3))).as_matrix())
         p_GH = p_GH + rng.normal(0.0, hand_noise_m, (n_hand, 3))
 
-    dt_ns = int(round(truth.time_offset_s * 1e9))
+    dt_ns = round(truth.time_offset_s * 1e9)
     n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
     # the eye's first frame at an arbitrary phase of its period, as two free-running sensors
     # are (drawn apart, so that a seed's other draws do not change)

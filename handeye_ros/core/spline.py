@@ -23,7 +23,6 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from .geometry import Pose, hat, log_so3, right_jacobian
 
-
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
 ROTATION_FIT_ITERATIONS = 12
 
@@ -134,7 +133,7 @@ class PoseSpline:
         """
         i, Bc = basis
         k = self.order
-        omega, dp = self._increments()
+        omega, _ = self._increments()
         N = i.size
         A = [None] + [exp_so3(Bc[:, j, None] * omega[i + j - 1]) for j in range(1, k)]
         P = [None] * k  # P_j = A_{j+1} ... A_{k-1}

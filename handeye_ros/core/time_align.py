@@ -285,7 +285,7 @@ def _correlate(hand: Trajectory, eye: Trajectory, x: np.ndarray, mx: np.ndarray,
     if max_time_offset is not None:
         guess = 0.0 if time_offset_guess is None else time_offset_guess
         # offsets relative to the guess, computed without forming base + lag in float
-        rel = (base_ns - int(round(guess * 1e9))) * 1e-9 + lags * step
+        rel = (base_ns - round(guess * 1e9)) * 1e-9 + lags * step
         eligible &= np.abs(rel) <= max_time_offset + 0.5 * step
     return _Curve(base_ns, step, lags, ncc, eligible)
 
@@ -390,7 +390,7 @@ def _align(hand: Trajectory, eye: Trajectory, w_h: AngularSpeed, w_e: AngularSpe
     sel = np.flatnonzero(curve.eligible)
     sel = slice(sel[0], sel[-1] + 1)
     scores = np.where(curve.eligible, curve.ncc, -np.inf)
-    lag_ns = int(round((curve.lags[k] + frac) * step * 1e9))
+    lag_ns = round((curve.lags[k] + frac) * step * 1e9)
     return TimeAlignment(
         time_offset_s=curve.offset_s(curve.lags[k] + frac),
         method=method,

@@ -12,7 +12,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,6 +20,9 @@ from ..core.errors import InputError
 from ..core.trajectory import Trajectory
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
 from ..stream.convert import UnsupportedTypeError, normalise_type
+
+if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
+    from typing import Self
 
 #: Words that mark a topic as MoCap (hand) or VO/VIO (eye) when the topics are not given.
 HAND_WORDS = ('mocap', 'vicon', 'optitrack', 'qualisys', 'vrpn', 'motion_capture', 'natnet',
@@ -49,8 +52,9 @@ class BagReader:
         if not self.path.exists():
             raise InputError(f'{self.path}: no such bag')
 
-    def __enter__(self) -> BagReader:
+    def __enter__(self) -> Self:
         from rosbags.highlevel import AnyReader, AnyReaderError
+
         try:
             self.reader = AnyReader([self.path], default_typestore=_typestore())
             self.reader.open()
@@ -222,7 +226,7 @@ class BagWriter:
             self.writer = Writer(self.path, version=9, storage_plugin=plugin)
         self._conns: dict[str, Any] = {}
 
-    def __enter__(self) -> BagWriter:
+    def __enter__(self) -> Self:
         self.writer.open()
         return self
 

@@ -157,18 +157,16 @@ def write_tum(path: str | Path, traj: Trajectory) -> None:
     sec, nsec = np.divmod(traj.t_ns, 1_000_000_000)
     with Path(path).open('w') as f:
         f.write('# timestamp[s] tx ty tz qx qy qz qw\n')
-        for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw, strict=True):
-            f.write(f'{s}.{ns:09d} {p[0]:.9f} {p[1]:.9f} {p[2]:.9f} '
-                    f'{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n')
+        f.writelines(f'{s}.{ns:09d} {p[0]:.9f} {p[1]:.9f} {p[2]:.9f} '
+                    f'{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n' for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw, strict=True))
 
 
 def write_euroc(path: str | Path, traj: Trajectory) -> None:
     """Write a EuRoC ground-truth style CSV (quaternion ``w x y z``)."""
     with Path(path).open('w') as f:
         f.write('#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []\n')
-        for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True):
-            f.write(f'{t},{p[0]:.9f},{p[1]:.9f},{p[2]:.9f},'
-                    f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n')
+        f.writelines(f'{t},{p[0]:.9f},{p[1]:.9f},{p[2]:.9f},'
+                    f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n' for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True))
 
 
 def _data_lines(path: Path) -> tuple[list[int], list[str]]:

@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any, Self, TypeVar
+from typing import TYPE_CHECKING, Any
 
 from .errors import ConfigError
 
-T = TypeVar('T', bound='Options')
+if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
+    from typing import Self
+
 
 
 @dataclass(frozen=True)

@@ -54,7 +54,13 @@ from .geometry import (
 )
 from .spline import PoseSpline, exp_so3, fit_spline
 from .trajectory import GAP_FACTOR, Trajectory
-from .uncertainty import LongRunCovariance, influence, influence_two_step, long_run_covariance
+from .uncertainty import (
+    LongRunCovariance,
+    huber_rho,
+    influence,
+    influence_two_step,
+    long_run_covariance,
+)
 
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
@@ -662,8 +668,7 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: 
 
 
 def _huber_cost(r: np.ndarray, delta: float) -> float:
-    a = np.abs(r)
-    return float(np.sum(np.where(a <= delta, 0.5 * r * r, delta * (a - 0.5 * delta))))
+    return float(np.sum(huber_rho(r, delta)))
 
 
 def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],

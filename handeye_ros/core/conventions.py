@@ -52,6 +52,7 @@ from .association import associate
 from .errors import InputError, TimeAlignmentError
 from .geometry import relative
 from .keyframes import motion_indices
+from .linear import rotation_from_motions, translation_from_motions
 from .trajectory import Trajectory
 
 #: Rates a pose stream can have, Hz.
@@ -119,20 +120,17 @@ def _plausible_rate(traj: Trajectory, factor: float) -> bool:
     return PLAUSIBLE_RATE_HZ[0] <= rate <= PLAUSIBLE_RATE_HZ[1]
 
 
-def check_stamp_units(hand: Trajectory, eye: Trajectory, fixed: tuple[bool, bool] = (False, False)
-                      ) -> tuple[Trajectory, Trajectory, list[Correction]]:
-    """Both streams with plausible stamp units (see the module docstring).
-
-    ``fixed``: (hand, eye) units stated by the user, never changed.
+def check_stamp_units(hand: Trajectory,
+                      eye: Trajectory) -> tuple[Trajectory, Trajectory, list[Correction]]:
+    """Both streams with plausible stamp units (see the module docstring). A unit stated to
+    the reader is already applied; one that makes a plausible reading is kept.
 
     Raises
     ------
     InputError
         When no reading is plausible, or two are equally so.
     """
-    options = []
-    for traj, fix in ((hand, fixed[0]), (eye, fixed[1])):
-        options.append([1.0] if fix else [f for f in UNIT_FACTORS if _plausible_rate(traj, f)])
+    options = [[f for f in UNIT_FACTORS if _plausible_rate(traj, f)] for traj in (hand, eye)]
     spans = (hand.duration_s, eye.duration_s)
 
     def compatible(fh: float, fe: float) -> bool:
@@ -148,7 +146,7 @@ def check_stamp_units(hand: Trajectory, eye: Trajectory, fixed: tuple[bool, bool
         msg = ('no reading of the stamps gives both streams a plausible rate (0.5 Hz to 10 kHz): '
                f'{hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, {eye.name} '
                f'at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Check the stamp '
-               'units (set hand_stamp_unit / eye_stamp_unit)')
+               'units (set --hand-stamp-unit / --eye-stamp-unit)')
         raise InputError(msg)
     # fewest changed streams first; among equals, the closest spans
     readings.sort(key=lambda r: ((r[0] != 1.0) + (r[1] != 1.0),
@@ -160,7 +158,7 @@ def check_stamp_units(hand: Trajectory, eye: Trajectory, fixed: tuple[bool, bool
         msg = ('the stamps of one stream are in an unexpected unit, and the data do not say '
                f'which: {hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, '
                f'{eye.name} at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Set '
-               'hand_stamp_unit / eye_stamp_unit')
+               '--hand-stamp-unit / --eye-stamp-unit')
         raise InputError(msg)
     out, corrections = [hand, eye], []
     for k, (stream, factor) in enumerate(zip(('hand', 'eye'), best, strict=True)):
@@ -171,7 +169,7 @@ def check_stamp_units(hand: Trajectory, eye: Trajectory, fixed: tuple[bool, bool
             out[k] = _scaled(traj, factor)
         except OverflowError:
             msg = (f'{traj.name}: the stamps look like {UNIT_FACTORS[factor]} but cannot be '
-                   f'converted; set {stream}_stamp_unit')
+                   f'converted; set --{stream}-stamp-unit')
             raise InputError(msg) from None
         unit = UNIT_FACTORS[factor]
         corrections.append(Correction(
@@ -241,18 +239,15 @@ class ReadingFit:
 
 def _fit(R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray,
          t_B: np.ndarray) -> tuple[float, float, float]:
-    """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart, and |t_X|."""
-    a = Rotation.from_matrix(R_A).as_rotvec()
-    b = Rotation.from_matrix(R_B).as_rotvec()
+    """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart as the
+    linear stage's refit does (unweighted here), and |t_X|."""
     with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should
         warnings.simplefilter('ignore', UserWarning)
-        rot, _ = Rotation.align_vectors(a, b)
+        rot, a, b = rotation_from_motions(R_A, R_B)
     res_r = np.linalg.norm(a - rot.apply(b), axis=1)
-    lhs = (R_A - np.eye(3)).reshape(-1, 3)
-    rhs = (rot.apply(t_B) - t_A).reshape(-1)
-    t_X = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-    res_t = np.linalg.norm((lhs @ t_X - rhs).reshape(-1, 3), axis=1)
-    return float(np.median(res_r)), float(np.median(res_t)), float(np.linalg.norm(t_X))
+    t_X, res_t = translation_from_motions(R_A, t_A, t_B, rot.as_matrix())
+    return (float(np.median(res_r)), float(np.median(np.linalg.norm(res_t, axis=1))),
+            float(np.linalg.norm(t_X)))
 
 
 def reading_fits(hand: Trajectory, eye: Trajectory, time_offset_s: float,

@@ -61,6 +61,12 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
+def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in radians, [0, pi], of the rotation between unit x y z w quaternions a and b
+    (either sign of each stands for the same rotation)."""
+    return 2.0 * np.arccos(np.minimum(np.abs(np.sum(a * b, axis=-1)), 1.0))
+
+
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product ``a (x) b`` of x y z w quaternion stacks (broadcasting)."""
     av, aw = a[..., :3], a[..., 3:]

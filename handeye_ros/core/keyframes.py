@@ -13,6 +13,7 @@ import numpy as np
 
 from .config import STRATEGIES
 from .geometry import rotation_angle
+from .trajectory import segment_spans
 
 
 def motion_indices(R: np.ndarray, strategy: str = 'rotation',
@@ -70,11 +71,11 @@ def segment_motion_indices(R: np.ndarray, segment: np.ndarray, strategy: str = '
                            eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
     """:func:`motion_indices` within each segment (``segment``: (N,) labels, non-decreasing),
     so that no motion joins two segments."""
-    starts = np.flatnonzero(np.diff(segment, prepend=segment[:1] - 1))
-    if starts.size == 1:
+    spans = segment_spans(segment)
+    if len(spans) == 1:
         return motion_indices(R, strategy, eta_rad)
     firsts, seconds = [], []
-    for a, b in zip(starts, np.append(starts[1:], segment.size), strict=True):
+    for a, b in spans:
         if b - a < 2:
             continue
         i, j = motion_indices(R[a:b], strategy, eta_rad)

@@ -295,10 +295,35 @@ def refit_rotation(m: Motions, mask: np.ndarray) -> np.ndarray:
     1994), solved by ``Rotation.align_vectors``. Longer rotations, whose axes are better
     defined, weigh more by their length.
     """
-    a = Rotation.from_matrix(m.A[0][mask]).as_rotvec()
-    b = Rotation.from_matrix(m.B[0][mask]).as_rotvec()
-    rot, _ = Rotation.align_vectors(a, b)
-    return rot.as_quat()
+    return rotation_from_motions(m.A[0][mask], m.B[0][mask])[0].as_quat()
+
+
+def rotation_from_motions(R_A: np.ndarray,
+                          R_B: np.ndarray) -> tuple[Rotation, np.ndarray, np.ndarray]:
+    """The least-squares R_X of ``log R_A = R_X log R_B`` over motions (n, 3, 3), and the two
+    rotation-vector stacks (n, 3) it aligns (for residuals)."""
+    a = Rotation.from_matrix(R_A).as_rotvec()
+    b = Rotation.from_matrix(R_B).as_rotvec()
+    return Rotation.align_vectors(a, b)[0], a, b
+
+
+def translation_from_motions(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray,
+                             R_X: np.ndarray, w: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """The least-squares t_X of ``(R_A - I) t_X = R_X t_B - t_A`` over motions, each motion's
+    three rows weighted by w (n,) when given; returns t_X and the (n, 3) residuals (weighted
+    as solved)."""
+    w = np.ones(R_A.shape[0]) if w is None else w
+    lhs = ((R_A - np.eye(3)) * w[:, None, None]).reshape(-1, 3)
+    rhs = ((t_B @ R_X.T - t_A) * w[:, None]).reshape(-1)
+    t_X = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return t_X, (lhs @ t_X - rhs).reshape(-1, 3)
+
+
+def drift_weights(m: Motions, mask: np.ndarray) -> np.ndarray:
+    """``1 / sqrt(duration)`` of the selected motions: a drifting eye's error variance grows
+    with the motion's length (see :func:`refit_translation_gls`)."""
+    return 1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6))
 
 
 def refit_translation_gls(m: Motions, mask: np.ndarray, R_HE: np.ndarray) -> np.ndarray:
@@ -322,11 +347,8 @@ def refit_translation_gls(m: Motions, mask: np.ndarray, R_HE: np.ndarray) -> np.
     ndarray, shape (3,)
         t_HE, metres.
     """
-    R_A, t_A, t_B = m.A[0][mask], m.A[1][mask], m.B[1][mask]
-    w = 1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6))
-    lhs = ((R_A - np.eye(3)) * w[:, None, None]).reshape(-1, 3)
-    rhs = ((t_B @ R_HE.T - t_A) * w[:, None]).reshape(-1)
-    return np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return translation_from_motions(m.A[0][mask], m.A[1][mask], m.B[1][mask], R_HE,
+                                    drift_weights(m, mask))[0]
 
 
 def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
@@ -381,7 +403,7 @@ def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
         R0 = Rotation.align_vectors(a[None], e[None])[0]
     R_A, t_A = m.A[0][mask], m.A[1][mask]
     u = R0.apply(m.B[1][mask])
-    w = (1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6)))[:, None, None]
+    w = drift_weights(m, mask)[:, None, None]
     # basis (e1, e2, a) of the hand frame; unknowns z = (cos phi, sin phi, t_e1, t_e2, t_a)
     e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)

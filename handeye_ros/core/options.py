@@ -19,7 +19,6 @@ if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
     from typing import Self
 
 
-
 @dataclass(frozen=True)
 class Spec:
     """What an option accepts.

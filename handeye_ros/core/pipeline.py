@@ -41,7 +41,7 @@ from .batch import BatchSolution, refine
 from .config import CalibrationConfig
 from .conventions import Correction, check_orientations, check_stamp_units, epoch_note, reread
 from .errors import DegenerateMotionError, HandeyeError, InputError, TimeAlignmentError
-from .geometry import matrix_from_quat
+from .geometry import matrix_from_quat, quat_angle
 from .linear import LinearSolution, build_motions, calibrate_linear
 from .quality import (
     AMBIGUOUS_PEAK_RATIO,
@@ -403,7 +403,7 @@ def _seed_check(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolutio
         run.doubt('seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage fails '
                   f'({err})')
         return None
-    d_rot = float(np.degrees(2 * np.arccos(min(1.0, abs(float(np.dot(other.q_HE, lin.q_HE)))))))
+    d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
     lim_rot, lim_t = SEED_ROTATION_DEG, SEED_TRANSLATION_M
     if batch is not None:
@@ -450,7 +450,7 @@ def _check_batch(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSoluti
     s = sol.std
     moved_dt = abs(sol.time_offset_s - dt)
     moved_t = float(np.linalg.norm(sol.p_HE - lin.p_HE))
-    moved_r = float(np.degrees(2 * np.arccos(min(1.0, abs(float(np.dot(sol.q_HE, lin.q_HE)))))))
+    moved_r = float(np.degrees(quat_angle(sol.q_HE, lin.q_HE)))
     far_dt = moved_dt > max(BATCH_SIGMAS * s[0], BATCH_DT_MIN_S)
     far_x = (moved_t > max(BATCH_SIGMAS * float(np.linalg.norm(s[1:4])), BATCH_TRANSLATION_MIN_M)
              or moved_r > max(BATCH_SIGMAS * float(np.degrees(np.linalg.norm(s[4:]))),

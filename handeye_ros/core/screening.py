@@ -46,7 +46,7 @@ from scipy.ndimage import median_filter
 
 from .association import eye_motion_errors
 from .geometry import quat_conjugate, quat_multiply, quat_slerp
-from .trajectory import Trajectory
+from .trajectory import Trajectory, segment_spans
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
 SCALE_WINDOW_S = 2.0
@@ -147,7 +147,7 @@ def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.n
     return np.linalg.norm(p[k] - p_pred, axis=1), angle
 
 
-def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray,
+def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,
                             d: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """(N,) position (m) and rotation (rad) residual of each pose against the interpolation of
     the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
@@ -159,10 +159,10 @@ def interpolation_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray,
     a = np.where(left_end, k + d, np.where(right_end, k - 2 * d, a))
     b = np.where(left_end, k + 2 * d, np.where(right_end, k - d, b))
     a, b = np.clip(a, 0, n - 1), np.clip(b, 0, n - 1)
-    return _predict(t, p, r, a, b, k)
+    return _predict(t, p, q, a, b, k)
 
 
-def side_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray, k: np.ndarray, side: int,
+def side_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, side: int,
                    d: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Residuals of poses k against the extrapolation from the poses d and 2d before (side -1)
     or after (side +1) them, and whether that side exists."""
@@ -171,7 +171,7 @@ def side_residuals(t: np.ndarray, p: np.ndarray, r: np.ndarray, k: np.ndarray, s
     b = k + 2 * side * d
     ok = (b >= 0) & (b < n)
     a, b = np.clip(a, 0, n - 1), np.clip(b, 0, n - 1)
-    e_p, e_r = _predict(t, p, r, a, b, k)
+    e_p, e_r = _predict(t, p, q, a, b, k)
     return e_p, e_r, ok
 
 
@@ -189,18 +189,17 @@ def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
 def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
               floors: tuple[float, float], d: int) -> tuple[np.ndarray, float, float]:
     """(N,) bool outliers of one round at scale d, and the median thresholds (m, rad)."""
-    r = q
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
     scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
     bad = np.zeros(t.size, dtype=bool)
-    e_p, e_r = interpolation_residuals(t, p, r, d)
+    e_p, e_r = interpolation_residuals(t, p, q, d)
     tp = hampel_thresholds(e_p, scale_window, n_sigma, floors[0])
     tr = hampel_thresholds(e_r, scale_window, n_sigma, floors[1])
     cand = np.flatnonzero(np.maximum(e_p / tp, e_r / tr) > 1.0)
     if cand.size:
         inconsistent = np.ones(cand.size, dtype=bool)
         for side in (-1, 1):
-            sp, sr, ok = side_residuals(t, p, r, cand, side, d)
+            sp, sr, ok = side_residuals(t, p, q, cand, side, d)
             off = (sp > EXTRAPOLATION_FACTOR * tp[cand]) | \
                 (sr > EXTRAPOLATION_FACTOR * tr[cand])
             inconsistent &= off | ~ok
@@ -240,6 +239,7 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     floors = (max(FLOOR_TRANSLATION_M, ROUNDING_MARGIN * np.sqrt(3.0) * resolution(traj.p_xyz)),
               max(FLOOR_ROTATION_RAD, ROUNDING_MARGIN * 4.0 * resolution(traj.q_xyzw)))
     thr_p = thr_r = float('nan')
+    t = traj.seconds(int(traj.t_ns[0]))
     held = placeholders(traj, floors)
     kinds[held] = 'placeholder'
     idx = idx[~held]
@@ -249,8 +249,8 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
         for _ in range(HAMPEL_ROUNDS):
             if idx.size < 4 * d + 4:
                 break
-            bad, tp, tr = _outliers(traj.seconds(int(traj.t_ns[0]))[idx], traj.p_xyz[idx],
-                                    traj.q_xyzw[idx], n_sigma, floors, d)
+            bad, tp, tr = _outliers(t[idx], traj.p_xyz[idx], traj.q_xyzw[idx], n_sigma, floors,
+                                    d)
             if d == 1 and np.isnan(thr_p):
                 thr_p, thr_r = tp, tr
             if not bad.any():
@@ -326,11 +326,8 @@ def find_eye_breaks(hand: Trajectory, eye: Trajectory, time_offset_s: float, R_H
     new_breaks = np.flatnonzero(bad)
     marked = eye.with_breaks(new_breaks)
     # parts too short to use
-    seg = marked.segment_ids()
-    starts = np.flatnonzero(np.diff(seg, prepend=-1))
-    ends = np.append(starts[1:], len(eye))
     short = np.zeros(len(eye), dtype=bool)
-    for a, b in zip(starts, ends, strict=True):
+    for a, b in segment_spans(marked.segment_ids()):
         if b - a < MIN_SEGMENT_POSES or (eye.t_ns[b - 1] - eye.t_ns[a]) * 1e-9 < MIN_SEGMENT_S:
             short[a:b] = True
     if short.all():  # nothing would be left: keep the stream whole, the verdict will tell

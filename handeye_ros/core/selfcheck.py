@@ -21,7 +21,7 @@ which won.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from .association import eye_motion_errors
 from .geometry import matrix_from_quat
 from .keyframes import segment_motion_indices
 from .trajectory import Trajectory
+from .uncertainty import huber_rho
 
 #: Huber threshold of the score, in units of the best median error.
 SCORE_HUBER = 3.0
@@ -102,13 +103,9 @@ def score_candidates(hand: Trajectory, eye: Trajectory,
     s_t = max(min(float(np.median(e_t[common])) for _, e_t in errors), 1e-9)
     out = []
     for (dt, src, q, p), (e_r, e_t) in zip(hypotheses, errors, strict=True):
-        score = float(np.mean(_huber(e_r[common] / s_r) + _huber(e_t[common] / s_t)))
+        score = float(np.mean(huber_rho(e_r[common] / s_r, SCORE_HUBER)
+                              + huber_rho(e_t[common] / s_t, SCORE_HUBER)))
         out.append(Candidate(dt, src, score, float(np.degrees(np.median(e_r[common]))),
                              float(np.median(e_t[common])), q, p))
     best = int(np.argmin([c.score for c in out]))
-    return [Candidate(**{**c.__dict__, 'chosen': k == best}) for k, c in enumerate(out)]
-
-
-def _huber(z: np.ndarray) -> np.ndarray:
-    a = np.abs(z)
-    return np.where(a <= SCORE_HUBER, 0.5 * a * a, SCORE_HUBER * (a - 0.5 * SCORE_HUBER))
+    return [replace(c, chosen=k == best) for k, c in enumerate(out)]

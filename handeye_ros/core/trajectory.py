@@ -135,10 +135,7 @@ class Trajectory:
         breaks = np.zeros(0, dtype=int)
         if self.breaks.size and idx.size:
             # kept pose m closes a break if some break lies between the previous kept pose and it
-            seg = np.zeros(len(self), dtype=int)
-            seg[self.breaks + 1] = 1
-            seg = np.cumsum(seg)[idx]
-            breaks = np.flatnonzero(np.diff(seg) > 0)
+            breaks = np.flatnonzero(np.diff(self.segment_ids()[idx]) > 0)
         return Trajectory(self.t_ns[idx], self.p_xyz[idx], self.q_xyzw[idx], self.name,
                           breaks, self.notes)
 
@@ -168,6 +165,14 @@ class Trajectory:
         seg = np.zeros(len(self), dtype=int)
         seg[self.breaks + 1] = 1
         return np.cumsum(seg)
+
+
+def segment_spans(labels: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) index ranges of the runs of equal labels in a non-decreasing label array
+    (the segments of :meth:`Trajectory.segment_ids`, or of pose pairs)."""
+    starts = np.flatnonzero(np.diff(labels, prepend=labels[:1] - 1))
+    stops = np.append(starts[1:], labels.size)
+    return [(int(a), int(b)) for a, b in zip(starts, stops, strict=True)]
 
 
 def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:

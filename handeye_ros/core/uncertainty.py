@@ -58,6 +58,12 @@ class LongRunCovariance:
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
 
 
+def huber_rho(r: np.ndarray, delta: float) -> np.ndarray:
+    """Huber's loss per residual: r^2 / 2 within +-delta, linear beyond (continuous slope)."""
+    a = np.abs(r)
+    return np.where(a <= delta, 0.5 * a * a, delta * (a - 0.5 * delta))
+
+
 def huber_psi(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
     """Huber's psi (the residual clipped at +-delta) and psi' (1 inside, 0 beyond)."""
     return np.clip(r, -delta, delta), (np.abs(r) <= delta).astype(float)

@@ -33,7 +33,10 @@ def add_options(group: Any, cls: Any) -> None:
         text = spec.description.replace('%', '%%')  # argparse formats help with %
         if spec.kind == 'bool':
             on = not defaults[name]
-            group.add_argument(f'--{flag}' if on else f'--no-{flag}', dest=name,
+            names = [f'--{flag}' if on else f'--no-{flag}']
+            if spec.alias:
+                names.append(f'--{spec.alias}' if on else f'--no-{spec.alias}')
+            group.add_argument(*names, dest=name,
                                action='store_const', const=on,
                                help=f'{"" if on else "do not: "}{text}')
             continue

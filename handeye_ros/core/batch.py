@@ -68,6 +68,8 @@ MIN_SIGMA_TRANS = 1e-6
 #: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
 FD_STEP = 1e-6
 FD_STEP_S = 1e-7
+#: ... and in the clock drift (s/s): 1e-9 moves an eye pose 100 s from the reference by 1e-7 s.
+FD_STEP_DRIFT = 1e-9
 #: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
 #: the spline's ends are left out, so that every eye pose keeps a spline segment.
 DT_MARGIN_S = 0.05
@@ -101,8 +103,12 @@ class BatchSolution:
 
     time_offset_s, q_HE, p_HE: the refined dt and T_HE.
     covariance: (7, 7), order (dt [s], translation [m] x3, rotation [rad] x3); the rotation is
-    the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame). It is the long-run
+    the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame); then, when estimated,
+    the clock drift [s/s] and the scale correction (a row and column each). It is the long-run
     covariance of :mod:`.uncertainty`, which holds for residuals correlated in time.
+    clock_drift, time_offset_stamp_ns: the drift [s/s] the stage added to the eye's clock and
+    the eye stamp [ns] at which time_offset_s holds (None without a drift parameter).
+    scale: the factor the stage put on the eye's translations (None without one).
     std: sqrt of its diagonal.
     covariance_white: the same under white residuals (``s^2 (J^T J)^-1``), for comparison.
     bandwidth: the long-run covariance's bandwidth, in eye poses (0: the residuals look white).
@@ -130,6 +136,9 @@ class BatchSolution:
     warnings: tuple[str, ...] = field(default=())
     covariance_white: np.ndarray | None = None
     bandwidth: int = 0
+    clock_drift: float | None = None
+    time_offset_stamp_ns: int | None = None
+    scale: float | None = None
 
     @property
     def inflation(self) -> np.ndarray:
@@ -160,7 +169,8 @@ class _Problem:
     """The least-squares problem of the module docstring, with its Jacobian."""
 
     def __init__(self, hand: Trajectory, eye: Trajectory, dt0: float, q0: np.ndarray,
-                 p0: np.ndarray, knot_spacing: float, order: int):
+                 p0: np.ndarray, knot_spacing: float, order: int,
+                 drift_stamp_ns: int | None = None, scale: bool = False):
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
@@ -170,7 +180,7 @@ class _Problem:
         self.M = self.spline0.R.shape[0]
         self.hand_obs = (Rh, ph)
         self.hand_basis = self.spline0.basis(self.th)  # the knots never move; the times neither
-        self._eye_basis: dict[float, tuple] = {}
+        self._eye_basis: dict[tuple[float, float], tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(eye)
         lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
@@ -186,37 +196,63 @@ class _Problem:
         self.n_spline = 6 * self.M
         self.n = self.n_spline + 7
         self.w = np.ones(4)  # 1/sigma: hand rot, hand trans, eye rot, eye trans
+        # optional entries of y after (dt, dtheta_X, dp_X): the clock drift about the reference
+        # stamp t_ref (eye clock) and the eye's scale correction (1 + y_s)
+        self.i_drift = 7 if drift_stamp_ns is not None else None
+        self.i_scale = 7 + int(drift_stamp_ns is not None) if scale else None
+        self.n_y = 7 + int(drift_stamp_ns is not None) + int(scale)
+        self.t_ref = (0.0 if drift_stamp_ns is None
+                      else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9)
 
-    def offset_extrinsic(self, y: np.ndarray) -> tuple[float, Pose]:
-        """(dt, T_HE) of the updates y = (ddt, dtheta_X, dp_X) to the start values."""
-        return (self.dt0 + y[0],
-                (self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]))
+    def extrinsic(self, y: np.ndarray) -> Pose:
+        """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
+        return self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]
+
+    def clock(self, y: np.ndarray) -> tuple[float, float]:
+        """(dt at t_ref, clock drift) of y."""
+        return self.dt0 + y[0], (0.0 if self.i_drift is None else float(y[self.i_drift]))
+
+    def scale(self, y: np.ndarray) -> float:
+        """The factor on the eye's translations (1 without a scale parameter)."""
+        return 1.0 if self.i_scale is None else 1.0 + float(y[self.i_scale])
+
+    def eye_times(self, y: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
+        """((dt, drift), the hand-clock times of the eye stamps): ``t - dt - drift (t - t_ref)``
+        (the linear clock of :mod:`.clock`)."""
+        dt, drift = self.clock(y)
+        return (dt, drift), self.te - dt - drift * (self.te - self.t_ref)
 
     # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
-    def unpack(self, x: np.ndarray) -> tuple[PoseSpline, float, Pose]:
+    def unpack(self, x: np.ndarray) -> tuple[PoseSpline, np.ndarray]:
+        """(spline, y) of the full parameter vector (joint solve)."""
         c = x[:self.n_spline].reshape(self.M, 6)
         s0 = self.spline0
         R = np.matmul(s0.R, exp_so3(c[:, :3]))
         spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
-        return (spline, *self.offset_extrinsic(x[self.n_spline:]))
+        return spline, x[self.n_spline:]
 
     def hand_raw(self, spline: PoseSpline) -> np.ndarray:
         """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
         return _residual_parts(spline.evaluate(self.th, self.hand_basis), self.hand_obs)
 
-    def eye_raw_at(self, spline: PoseSpline, dt: float, X: Pose) -> np.ndarray:
-        """Unweighted eye residuals (Ne, 6): the eye predicted from the spline, dt and X."""
-        pred = compose(spline.evaluate(self.te - dt, self.eye_basis(dt)), X)
-        return _residual_parts(relative(pred, self.ei, self.ej), self.eye_obs)
+    def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
+        and X; with a scale, the observed relative translations times it)."""
+        key, times = self.eye_times(y)
+        pred = compose(spline.evaluate(times, self.eye_basis(key, times)), self.extrinsic(y))
+        obs = self.eye_obs if self.i_scale is None else (self.eye_obs[0],
+                                                        self.eye_obs[1] * self.scale(y))
+        return _residual_parts(relative(pred, self.ei, self.ej), obs)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
-        spline, dt, X = self.unpack(x)
-        return self.hand_raw(spline), self.eye_raw_at(spline, dt, X)
+        spline, y = self.unpack(x)
+        return self.hand_raw(spline), self.eye_raw_at(spline, y)
 
     def eye_raw(self, y: np.ndarray) -> np.ndarray:
-        """Unweighted eye residuals (Ne, 6) for (dt, dtheta_X, dp_X) with the spline fixed."""
-        return self.eye_raw_at(self.spline0, *self.offset_extrinsic(y))
+        """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
+        fixed to the hand."""
+        return self.eye_raw_at(self.spline0, y)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r_h, r_e = self.raw(x)
@@ -224,13 +260,15 @@ class _Problem:
         return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
                                (r_e * np.repeat(w[2:], 3)).ravel()))
 
-    def eye_basis(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Spline basis at the eye times shifted by dt, kept for the few dt values that recur."""
-        basis = self._eye_basis.get(dt)
+    def eye_basis(self, key: tuple[float, float],
+                  times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Spline basis at the eye times of clock ``key`` = (dt, drift), kept for the few
+        clocks that recur."""
+        basis = self._eye_basis.get(key)
         if basis is None:
             if len(self._eye_basis) > 4:
                 self._eye_basis.clear()
-            basis = self._eye_basis[dt] = self.spline0.basis(self.te - dt)
+            basis = self._eye_basis[key] = self.spline0.basis(times)
         return basis
 
     def jacobian(self, x: np.ndarray) -> csr_matrix:
@@ -246,7 +284,8 @@ class _Problem:
         ``R_X^T ([u]x eps_a - Q [p_X]x eps_b + R_a^T (dp_b - dp_a))`` with
         ``u = Q p_X + R_a^T (p_b - p_a)``.
         """
-        spline, dt, (RX, pX) = self.unpack(x)
+        spline, y = self.unpack(x)
+        RX, pX = self.extrinsic(y)
         k = spline.order
         w = self.w
         ent_r, ent_c, ent_v = [], [], []
@@ -275,7 +314,7 @@ class _Problem:
         add(row, cp, 0, w[0] * np.matmul(lead[:, None], JR))
         add(row + 3, cp, 3, w[1] * b[..., None, None] * np.eye(3))
         # eye rows
-        eb = self.eye_basis(dt)
+        eb = self.eye_basis(*self.eye_times(y))
         R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
         ia, ib = self.ei, self.ej
         Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
@@ -300,10 +339,10 @@ class _Problem:
         # (dt, dtheta_X, dp_X): central differences of the eye rows
         w_eye = np.repeat(w[2:], 3)
 
-        def eye_rows(y: np.ndarray) -> np.ndarray:
-            return (self.eye_raw_at(spline, *self.offset_extrinsic(y)) * w_eye).ravel()
+        def eye_rows(yy: np.ndarray) -> np.ndarray:
+            return (self.eye_raw_at(spline, yy) * w_eye).ravel()
 
-        d = _jacobian(eye_rows, x[self.n_spline:], np.arange(7))
+        d = _jacobian(eye_rows, y, np.arange(7))
         ent_r.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
         ent_c.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
         ent_v.append(d.ravel())
@@ -318,7 +357,8 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
            eye_noise: tuple[float | None, float | None] = (None, None),
            huber_delta: float = 1.345, max_iterations: int = 50,
            joint: bool = False, fix_time_offset: bool = False,
-           decoupled: bool = True) -> BatchSolution:
+           decoupled: bool = True, drift_stamp_ns: int | None = None,
+           scale: bool = False) -> BatchSolution:
     """Refine dt and T_HE from the linear result (see the module docstring).
 
     By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
@@ -330,45 +370,54 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     of the eye's relative poses between consecutive frames; None estimates it from the data's
     own residuals.
 
+    ``drift_stamp_ns``: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns)
+    with t the eye's stamps (:mod:`.clock`); ``scale``: also a factor on the eye's
+    translations. Both are corrections to what the eye already has (0 and 1 to start), and
+    only the default (not the joint) solve estimates them.
+
     Raises
     ------
     BatchError
         When the input cannot support the stage (overlap too short, gaps in the hand stream).
     """
     t_start = time.perf_counter()
+    if joint and (drift_stamp_ns is not None or scale):
+        raise BatchError('the joint solve (batch_joint) does not estimate a clock drift or a '
+                         'scale; leave batch_joint off to estimate them')
     hand, piece_note = _continuous_piece(hand, eye, time_offset_s, knot_spacing, order)
     _check_hand_stream(hand, knot_spacing, order, joint)
-    prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order)
+    prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order,
+                    drift_stamp_ns, scale)
+    layout = _Layout.of(prob, fix_time_offset)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
     hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise, prob.M))
     if joint:
         x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
             prob, hn, hand_noise, eye_noise, huber_delta, max_iterations, fix_time_offset,
             decoupled)
-        y = x[prob.n_spline:]
-        spline = prob.unpack(x)[0]
+        spline, y = prob.unpack(x)
         w_eye = np.repeat(prob.w[2:], 3)
 
         def eye_rows(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
-            r = prob.eye_raw_at(spline, *prob.offset_extrinsic(yy)) * w_eye
+            r = prob.eye_raw_at(spline, yy) * w_eye
             return (r[:, :3] if rotation_only else r).ravel()
         # the eye's long-run correlation, added to the Schur covariance (which has the spline's
         # share): the eye rows' long-run minus their white sandwich, at the joint solution
-        lr = _eye_long_run(eye_rows, y, fix_time_offset, huber_delta, decoupled)
+        lr = _eye_long_run(eye_rows, y, layout, huber_delta, decoupled)
         extra = lr.covariance - lr.white
         lam, V = np.linalg.eigh(0.5 * (cov + extra + (cov + extra).T))
         cov_lr = (V * np.clip(lam, 0.0, None)) @ V.T
         lr = LongRunCovariance(cov_lr, cov, lr.bandwidth, lr.samples)
     else:
         y, cost_before, cost_after, en, cov, n_res, n_free, sol, lr = _solve_offset_extrinsic(
-            prob, eye_noise, huber_delta, max_iterations, fix_time_offset, decoupled)
+            prob, layout, eye_noise, huber_delta, max_iterations, decoupled)
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
-    # parameter order (dt, dtheta, dp) -> reported order (dt, translation, rotation)
-    perm = np.array([0, 4, 5, 6, 1, 2, 3])
+    # parameter order (dt, dtheta, dp, ...) -> reported order (dt, translation, rotation, ...)
+    perm = np.array([0, 4, 5, 6, 1, 2, 3, *range(7, prob.n_y)])
     cov_white = cov[np.ix_(perm, perm)]
     cov = lr.covariance[np.ix_(perm, perm)]
-    dt, X = prob.offset_extrinsic(y)
+    (dt, drift), X = prob.clock(y), prob.extrinsic(y)
     warnings = [piece_note] if piece_note else []
     if not sol.success:
         warnings.append(f'batch solver stopped without converging: {sol.message}')
@@ -380,11 +429,53 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
         n_hand_residuals=int(prob.th.size), n_eye_residuals=int(prob.ei.size),
         n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
         decoupled=decoupled, warnings=tuple(warnings), covariance_white=cov_white,
-        bandwidth=lr.bandwidth)
+        bandwidth=lr.bandwidth,
+        clock_drift=None if prob.i_drift is None else drift,
+        time_offset_stamp_ns=drift_stamp_ns,
+        scale=None if prob.i_scale is None else prob.scale(y))
 
 
-def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterations: int,
-                            fix_time_offset: bool, decoupled: bool):
+@dataclass(frozen=True)
+class _Layout:
+    """Which entries of y = (dt, dtheta_X (3), dp_X (3), [drift], [scale]) each step frees.
+
+    time: dt (unless fixed) and the drift, free in both steps of the decoupled solve; scale:
+    with the translation (step B). Every covariance is in the order of :attr:`all`.
+    """
+
+    time: tuple[int, ...]
+    scale: tuple[int, ...]
+    size: int
+
+    @classmethod
+    def of(cls, prob: _Problem, fix_time_offset: bool) -> _Layout:
+        time_idx = (() if fix_time_offset else (0,)) + (
+            () if prob.i_drift is None else (prob.i_drift,))
+        return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
+
+    @property
+    def a(self) -> np.ndarray:
+        return np.array((*self.time, 1, 2, 3))
+
+    @property
+    def b(self) -> np.ndarray:
+        return np.array((*self.time, 4, 5, 6, *self.scale))
+
+    @property
+    def all(self) -> np.ndarray:
+        return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
+
+    def steps(self, y: np.ndarray) -> np.ndarray:
+        """Central-difference steps for the entries of y."""
+        h = np.full(self.size, FD_STEP)
+        h[0] = FD_STEP_S
+        if self.size > 7 and len(self.time) and self.time[-1] >= 7:
+            h[self.time[-1]] = FD_STEP_DRIFT
+        return h
+
+
+def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: float,
+                            max_iterations: int, decoupled: bool):
     """(dt, T_HE) by trust-region Levenberg-Marquardt on the eye residuals, the spline fixed to
     the hand. Parameters y = (dt, dtheta_X, dp_X) from the start values.
 
@@ -400,9 +491,8 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterati
     Returns (y, cost before, cost after, noise, 7x7 covariance in the order of y, number of
     residuals, number of free parameters, the last solver result).
     """
-    y = np.zeros(7)
-    dt_idx = [] if fix_time_offset else [0]
-    free_all = np.array(dt_idx + [1, 2, 3, 4, 5, 6])
+    y = np.zeros(layout.size)
+    free_all = layout.all
 
     def residuals(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
         r = prob.eye_raw(yy) * np.repeat(prob.w[2:], 3)
@@ -426,44 +516,43 @@ def _solve_offset_extrinsic(prob: _Problem, eye_noise, delta: float, max_iterati
     for k in range(passes):
         prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
         if decoupled:
-            sols.append(solve(np.array(dt_idx + [1, 2, 3]), True))
-            sols.append(solve(np.array(dt_idx + [4, 5, 6]), False))
+            sols.append(solve(layout.a, True))
+            sols.append(solve(layout.b, False))
         else:
             sols.append(solve(free_all, False))
         if k + 1 < passes:
             en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
-    cost_before = _huber_cost(residuals(np.zeros(7)), delta)
+    cost_before = _huber_cost(residuals(np.zeros(layout.size)), delta)
     r0 = residuals(y)
     cost_after = _huber_cost(r0, delta)
     dof = max(r0.size - free_all.size, 1)
     s2 = max(2.0 * cost_after / dof, 1e-12)
-    cov = np.zeros((7, 7))
-    jac = _eye_jacobians(residuals, y, fix_time_offset, decoupled)
+    cov = np.zeros((layout.size, layout.size))
+    jac = _eye_jacobians(residuals, y, layout, decoupled)
     if not decoupled:
         cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(jac['all'].T @ jac['all'])
     else:
         cov[np.ix_(free_all, free_all)] = _two_step_covariance(
-            jac['a'], jac['b'], jac['theta'], s2, len(dt_idx))
-    lr = _eye_long_run(residuals, y, fix_time_offset, delta, decoupled, jac)
+            jac['a'], jac['b'], jac['theta'], s2, len(layout.time))
+    lr = _eye_long_run(residuals, y, layout, delta, decoupled, jac)
     return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1], lr
 
 
-def _eye_jacobians(residuals, y: np.ndarray, fix_time_offset: bool,
+def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
                    decoupled: bool) -> dict[str, np.ndarray]:
     """Central-difference Jacobians of the eye residuals at y: for the two-step solve 'a'
     (rotation rows; dt if free, dtheta), 'b' (all rows; dt if free, dp) and 'theta' (all rows;
     dtheta); otherwise 'all' (all rows; every free parameter). Each costs two evaluations per
     column, so the white and the long-run covariance share them."""
-    dt_idx = [] if fix_time_offset else [0]
+    h = layout.steps(y)
     if not decoupled:
-        return {'all': _jacobian(residuals, y, np.array(dt_idx + [1, 2, 3, 4, 5, 6]))}
-    return {'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y,
-                           np.array(dt_idx + [1, 2, 3])),
-            'b': _jacobian(residuals, y, np.array(dt_idx + [4, 5, 6])),
-            'theta': _jacobian(residuals, y, np.array([1, 2, 3]))}
+        return {'all': _jacobian(residuals, y, layout.all, h)}
+    return {'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y, layout.a, h),
+            'b': _jacobian(residuals, y, layout.b, h),
+            'theta': _jacobian(residuals, y, np.array([1, 2, 3]), h)}
 
 
-def _eye_long_run(residuals, y: np.ndarray, fix_time_offset: bool, delta: float,
+def _eye_long_run(residuals, y: np.ndarray, layout: _Layout, delta: float,
                   decoupled: bool, jac: dict[str, np.ndarray] | None = None
                   ) -> LongRunCovariance:
     """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X) from the eye
@@ -473,10 +562,9 @@ def _eye_long_run(residuals, y: np.ndarray, fix_time_offset: bool, delta: float,
     pose pair in time order; ``jac``: their Jacobians from :func:`_eye_jacobians`, computed
     here when not given.
     """
-    dt_idx = [] if fix_time_offset else [0]
-    free_all = np.array(dt_idx + [1, 2, 3, 4, 5, 6])
-    k = len(dt_idx)
-    jac = jac or _eye_jacobians(residuals, y, fix_time_offset, decoupled)
+    free_all = layout.all
+    k = len(layout.time)
+    jac = jac or _eye_jacobians(residuals, y, layout, decoupled)
     if decoupled:
         psi_theta, psi_b = influence_two_step(
             residuals(y, rotation_only=True), jac['a'], residuals(y), jac['b'], jac['theta'],
@@ -485,18 +573,19 @@ def _eye_long_run(residuals, y: np.ndarray, fix_time_offset: bool, delta: float,
     else:
         psi, _ = influence(residuals(y), jac['all'], delta, 6)
     lr = long_run_covariance(psi)
-    full, white = np.zeros((7, 7)), np.zeros((7, 7))
+    full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
     full[np.ix_(free_all, free_all)] = lr.covariance
     white[np.ix_(free_all, free_all)] = lr.white
     return LongRunCovariance(full, white, lr.bandwidth, lr.samples)
 
 
-def _jacobian(fun, y: np.ndarray, cols: np.ndarray) -> np.ndarray:
+def _jacobian(fun, y: np.ndarray, cols: np.ndarray,
+              steps: np.ndarray | None = None) -> np.ndarray:
     """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
-    dp_X)."""
+    dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
     out = []
     for idx in cols:
-        h = FD_STEP_S if idx == 0 else FD_STEP
+        h = steps[idx] if steps is not None else (FD_STEP_S if idx == 0 else FD_STEP)
         yp, ym = y.copy(), y.copy()
         yp[idx] += h
         ym[idx] -= h
@@ -523,13 +612,13 @@ def _two_step_covariance(J_A: np.ndarray, J_B: np.ndarray, J_t: np.ndarray, s2: 
 
 def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
                        k: int) -> np.ndarray:
-    """The two-step estimate's covariance in the order (dt if free, dtheta, dp).
+    """The two-step estimate's covariance in the order (time parameters, dtheta, dp, scale?).
 
-    cov_tt: dtheta from step A; cov_b: step B's (dt?, dp) from its own noise; S: how dtheta's
-    error moves step B's (dt?, dp); k: 1 when dt is free.
+    cov_tt: dtheta from step A; cov_b: step B's (time, dp, scale?) from its own noise; S: how
+    dtheta's error moves step B's parameters; k: how many time parameters (dt, drift) are free.
     """
     cov_b = cov_b + S @ cov_tt @ S.T
-    n = k + 6
+    n = cov_tt.shape[0] + cov_b.shape[0]
     out = np.zeros((n, n))
     pos_t = np.arange(k, k + 3)
     idx_b = np.array(list(range(k)) + list(range(k + 3, n)))  # where B's parameters go
@@ -564,7 +653,7 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
     steps = ([(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled
              else [(free, all_rows)])
     x = np.zeros(prob.n)
-    en = Noise(*_sigmas(prob.eye_raw(np.zeros(7)), eye_noise))
+    en = Noise(*_sigmas(prob.eye_raw(np.zeros(prob.n_y)), eye_noise))
     passes = 2 if (en.estimated or hn.estimated) else 1
     for k in range(passes):
         prob.w = 1.0 / np.array([hn.rotation, hn.translation, en.rotation, en.translation])

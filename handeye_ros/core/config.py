@@ -47,6 +47,13 @@ class CalibrationConfig(Options):
     resample_rate_hz: float | None = option(
         None, 'float', 'rate of the correlation grid [Hz]; NaN/null: the faster stream, at most '
         '200 Hz', optional=True, low=0.0, high=10_000.0, open_low=True)
+    clock_drift: bool = option(
+        False, 'bool', 'estimate a linear clock, dt(t) = time_offset + clock_drift * (t - '
+        'time_offset_stamp), instead of one constant offset (without it the offset is still '
+        'measured along the recording and a drift is named)')
+    estimate_scale: bool = option(
+        False, 'bool', 'estimate the eye\'s scale s (s * eye positions are metric: a monocular '
+        'VO) in all stages (without it a scale the data show is named)', alias='scale')
     peak_fit: str = option(
         'quadratic', 'str', 'correlation peak: quadratic (sub-sample fit, the paper) or none '
         '(integer peak, the baseline)', choices=PEAK_FITS)

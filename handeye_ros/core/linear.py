@@ -22,7 +22,7 @@ sigma7/sigma6 model choice stay the paper's; the dual-quaternion solution is kep
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -40,6 +40,7 @@ from .geometry import (
     skew,
 )
 from .keyframes import segment_motion_indices
+from .scale import dual_quaternion_scale, translation_and_scale
 
 #: A RANSAC model is eligible only if its consensus holds at least this fraction of the largest
 #: consensus found: sigma7/sigma6 of a tiny subset is small by chance, not by quality.
@@ -112,6 +113,10 @@ class LinearSolution:
     unobservable : tuple of str
         Components of T_HE the motion cannot determine (one rotation axis), in words, with the
         value they were given; empty when the motion determines all of them.
+    scale, scale_std, scale_dq : float
+        With ``estimate_scale``: the factor s that makes the eye's translations metric (on top
+        of any the eye already had), its least-squares standard deviation, and the
+        dual-quaternion path's s (:mod:`.scale`); 1, NaN, 1 otherwise.
     """
 
     q_HE: np.ndarray
@@ -130,6 +135,9 @@ class LinearSolution:
     inlier_translation_m: float
     warnings: tuple[str, ...] = ()
     unobservable: tuple[str, ...] = ()
+    scale: float = 1.0
+    scale_std: float = float('nan')
+    scale_dq: float = 1.0
 
 
 def build_motions(pairs: PosePairs, strategy: str = 'rotation',
@@ -477,6 +485,7 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
                      ransac_iterations: int = 200, inlier_rotation_rad: float = np.deg2rad(0.5),
                      inlier_translation_m: float = 0.02, min_motions: int = 10,
                      adaptive_inliers: bool = True, decoupled_refit: bool = True,
+                     estimate_scale: bool = False,
                      rng: np.random.Generator | None = None) -> LinearSolution:
     """Algorithm 1: RANSAC over 2-motion subsets, robust refinement, best sigma7/sigma6.
 
@@ -500,6 +509,11 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     When the rotation axes of the consensus are all parallel (one rotation axis), the
     determined part of T_HE comes from :func:`degenerate_refit` and ``unobservable`` names the
     rest.
+
+    ``estimate_scale``: the eye's translations are metric only up to a factor s (a monocular
+    eye, :mod:`.scale`); both refits then solve for it: the translation refit in (t_X, s), the
+    dual-quaternion one in (q', s) with its rotation fixed. RANSAC's thresholds in metres need
+    the eye near metric already (the pipeline scales it by :func:`.scale.scale_prior` first).
 
     Raises
     ------
@@ -558,6 +572,15 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     q_dq, p_dq = q_HE, p_HE
     unobservable: tuple[str, ...] = ()
     warnings = []
+    scale = scale_dq = 1.0
+    scale_std = float('nan')
+    if estimate_scale and spread >= MIN_AXIS_SPREAD_DEG:
+        # the paper's baseline with a scale: the rotation of the dual-quaternion solution,
+        # then its dual part and s from the lower rows of eq. 5
+        p_dq, scale_dq = dual_quaternion_scale(m.qa[inliers], m.qad[inliers], m.qb[inliers],
+                                               m.qbd[inliers], q_dq, drift_weights(m, inliers))
+        if not decoupled_refit:
+            p_HE, scale = p_dq, scale_dq
     if spread < MIN_AXIS_SPREAD_DEG:
         # one rotation axis: the dual-quaternion system has a 3-D null space and picks an
         # arbitrary point of it; the determined part is solved apart and the rest named
@@ -569,10 +592,17 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     elif decoupled_refit:
         q_HE = refit_rotation(m, inliers)
         q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
-        p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
+        if estimate_scale:
+            fit = translation_and_scale(m.A[0][inliers], m.A[1][inliers], m.B[1][inliers],
+                                        matrix_from_quat(q_HE), drift_weights(m, inliers))
+            p_HE, scale, scale_std = fit.p_HE, fit.scale, fit.scale_std
+        else:
+            p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
         warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
                         'constrained; rotate about more different axes')
+    if scale != 1.0:  # the inlier criteria of eq. 14 with the eye made metric
+        m = scaled_motions(m, scale)
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
     return LinearSolution(
         q_HE=q_HE, p_HE=p_HE, q_HE_dq=q_dq, p_HE_dq=p_dq, sigma_ratio=ratio_best,
@@ -581,5 +611,11 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
         inlier_rotation_deg=float(np.degrees(thr_rot)), inlier_translation_m=float(thr_trans),
-        warnings=tuple(warnings), unobservable=unobservable)
+        warnings=tuple(warnings), unobservable=unobservable, scale=scale, scale_std=scale_std,
+        scale_dq=scale_dq)
+
+
+def scaled_motions(m: Motions, s: float) -> Motions:
+    """The motions with the eye's translations (and dual parts) times s."""
+    return replace(m, B=(m.B[0], m.B[1] * s), qbd=m.qbd * s)
 

@@ -24,7 +24,8 @@ class Spec:
     """What an option accepts.
 
     kind: 'float', 'int', 'bool' or 'str'; optional: None (or NaN) is allowed and means
-    'automatic'; low/high: inclusive bounds, except low when open_low; choices: allowed strings.
+    'automatic'; low/high: inclusive bounds, except low when open_low; choices: allowed strings;
+    alias: a second, shorter command-line flag.
     """
 
     kind: str
@@ -34,6 +35,7 @@ class Spec:
     open_low: bool = False
     optional: bool = False
     choices: tuple[str, ...] = ()
+    alias: str = ''  # a shorter command-line flag, e.g. 'scale' for --estimate-scale
 
     def range_text(self) -> str:
         """Human form of the bounds, e.g. '(0, 90]'."""

@@ -38,11 +38,19 @@ import numpy as np
 
 from .association import PosePairs, associate
 from .batch import BatchSolution, refine
+from .clock import DriftFit, covered_span, measure_drift
 from .config import CalibrationConfig
 from .conventions import Correction, check_orientations, check_stamp_units, epoch_note, reread
-from .errors import DegenerateMotionError, HandeyeError, InputError, TimeAlignmentError
+from .errors import (
+    ConfigError,
+    DegenerateMotionError,
+    HandeyeError,
+    InputError,
+    TimeAlignmentError,
+)
+from .eye_model import EyeModel
 from .geometry import matrix_from_quat, quat_angle
-from .linear import LinearSolution, build_motions, calibrate_linear
+from .linear import LinearSolution, build_motions, calibrate_linear, drift_weights
 from .quality import (
     AMBIGUOUS_PEAK_RATIO,
     AMBIGUOUS_SCORE_RATIO,
@@ -58,6 +66,7 @@ from .quality import (
     Reason,
 )
 from .result import CalibrationResult
+from .scale import MAX_SCALE_STD_FRACTION, ScaleFit, scale_prior, translation_and_scale
 from .screening import Screening, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
 from .time_align import TimeAlignment, align_time, align_time_vector
@@ -120,6 +129,9 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     verdict and its reasons) and ``result.warnings``.
     """
     cfg = config or CalibrationConfig()
+    if cfg.clock_drift and cfg.time_offset is not None:
+        raise ConfigError('time_offset fixes one constant offset and clock_drift estimates one '
+                          'that changes along the recording: give one of them')
     run = _Run()
     t0 = time.perf_counter()
     hand_in, eye_in = hand, eye
@@ -146,7 +158,12 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     # from here on the eye is on the hand's clock (up to stage 1's error): offsets are small
     shift_ns = ta.time_offset_ns
     eye_c = eye.shifted(-shift_ns)
+    model = EyeModel(shift_ns, stamp_ns=covered_span(hand, eye_c)[2])
     dt = 0.0
+    if cfg.clock_drift:
+        eye_c, model = _drift_from_windows(hand, eye_c, model, cfg)
+    if cfg.estimate_scale:
+        eye_c, model = _scale_from_rotations(hand, eye_c, model, cfg)
     try:
         lin, pairs = _linear(hand, eye_c, dt, cfg)
     except DegenerateMotionError as err:
@@ -157,13 +174,26 @@ def calibrate(hand: Trajectory, eye: Trajectory,
                'lies outside, the correlation found a false peak there; widen max_time_offset '
                'or move time_offset_guess (or leave both unset to search every lag)')
         raise DegenerateMotionError(msg) from None
-    if cfg.screening:
+    scaled = None if cfg.estimate_scale else _scale_check(pairs, lin, cfg)
+    if scaled is not None and scaled.significant:
+        # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
+        # it at "breaks" would only hide that
+        run.doubt('scale', _scale_message(scaled))
+    elif cfg.screening:
         eye_c, lin, pairs, screening = _split_eye(hand, eye_c, lin, pairs, cfg, screening,
                                                   shift_ns, run)
     tv = None
+    clock = None
     if not fixed:
         dt, lin, pairs, tv = _refine_vector(hand, eye_c, dt, lin, pairs, cfg, run)
         dt, lin, pairs = _self_check(hand, eye_c, ta, shift_ns, dt, lin, pairs, cfg, run)
+        # the offset along the recording, with stage 2's rotation
+        eye_c, model, clock, moved = _clock_along(hand, eye_c, model, dt, lin, cfg, run)
+        if moved is not None:
+            dt = moved
+            lin, pairs = _linear(hand, eye_c, dt, cfg)
+    if cfg.estimate_scale:
+        eye_c, model = _fold_linear_scale(eye_c, model, lin, run)
     t2 = time.perf_counter()
 
     q_HE, p_HE = lin.q_HE, lin.p_HE
@@ -171,12 +201,13 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     if cfg.batch and lin.unobservable:
         run.warnings.append('batch stage not used: part of the extrinsic is unobservable')
     elif cfg.batch:
-        batch, why = _run_batch(hand, eye_c, dt, q_HE, p_HE, cfg)
+        batch, why = _run_batch(hand, eye_c, dt, q_HE, p_HE, cfg, model)
         if batch is not None:
             batch = _check_batch(hand, eye_c, dt, lin, batch, cfg, run)
         if batch is not None:
             dt, q_HE, p_HE = batch.time_offset_s, batch.q_HE, batch.p_HE
             run.warnings.extend(batch.warnings)
+            eye_c, model = _fold_batch(eye_c, model, batch)
         else:
             why = why or 'the self-check sided with the linear result'
             run.warnings.append(f'batch stage not used, the linear result is kept: {why}')
@@ -193,6 +224,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
                       motion_length_m=m_len, n_motions=n_mot)
     seed_lin = _seed_check(hand, eye_c, dt, lin, batch, cfg, run)
     _assess(ta, tv, lin, batch, screening, metrics, cfg, run)
+    _assess_model(model, clock, cfg, run)
     LOG.info('stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
              '%d motions', t1 - t0, t2 - t1, t3 - t2, pairs.t_eye_s.size, lin.n_motions)
     quality = Quality.from_reasons(run.reasons, run.notes)
@@ -205,7 +237,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         screening=screening, corrections=tuple(run.corrections),
         candidates=tuple(replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s)
                          for c in run.candidates),
-        quality=quality, seed_check=seed_lin)
+        quality=quality, seed_check=seed_lin, eye_model=model, clock=clock)
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -416,11 +448,165 @@ def _seed_check(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolutio
     return other
 
 
+# ----------------------------------------------------------------------------- clock and scale
+
+def _drift_from_windows(hand: Trajectory, eye: Trajectory, model: EyeModel,
+                        cfg: CalibrationConfig) -> tuple[Trajectory, EyeModel]:
+    """With clock_drift, before stage 2: the drift from stage 1 in windows (magnitudes: no
+    rotation of T_HE yet), taken out of the eye's stamps so that stage 2 sees one offset.
+    When it cannot be measured here, :func:`_clock_along` says so."""
+    fit = measure_drift(hand, eye, None, cfg.resample_rate_hz)
+    if not fit.estimated:
+        return eye, model
+    return model.add_drift(eye, fit.drift, fit.drift_std)
+
+
+def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
+                 lin: LinearSolution, cfg: CalibrationConfig, run: _Run):
+    """The offset measured in windows along the recording with stage 2's rotation (the vector
+    form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
+    clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the
+    reference stamp when the stamps moved, else None)."""
+    R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
+    fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
+    before = model
+    if not cfg.clock_drift:
+        if fit.significant:
+            run.doubt('clock_drift', _drift_message(fit))
+        elif fit.estimated:
+            run.notes.append(f'the offset measured in {int(fit.inliers.sum())} windows along '
+                             f'the recording is constant within its uncertainty (drift '
+                             f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)')
+        return eye, model, _absolute_clock(fit, before), None
+    if not fit.estimated:
+        if model.drift_estimated:
+            run.warnings.append('the clock drift comes from the angular-speed magnitudes only: '
+                                + fit.why)
+            return eye, model, _absolute_clock(fit, before), None
+        run.doubt('unobservable', f'the clock drift cannot be observed: {fit.why}. One '
+                  'constant offset was estimated instead')
+        return eye, model, _absolute_clock(fit, before), None
+    eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
+    return eye, model, _absolute_clock(fit, before), float(fit.offset_at(model.stamp_ns))
+
+
+def _drift_message(fit: DriftFit) -> str:
+    n = int(fit.inliers.sum())
+    return (f'the time offset drifts: measured in {n} windows along the recording it changes '
+            f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
+            f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
+            'result holds one mean offset, so the ends are off by about '
+            f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
+            'parameter clock_drift)')
+
+
+def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:
+    """A window fit measured on an eye the model was applied to, on the eye's own clock:
+    the model's drift added back to the offsets and the rate."""
+    def back(t_ns: np.ndarray | int) -> np.ndarray:
+        return model.drift * (np.asarray(t_ns) - np.int64(model.stamp_ns)) * 1e-9
+    out = fit.shifted(model.shift_ns)
+    return replace(out, offsets_s=out.offsets_s + back(fit.centres_ns),
+                   offset_s=out.offset_s + float(back(fit.stamp_ns)),
+                   drift=fit.drift + model.drift * (1.0 - fit.drift))
+
+
+def _scale_from_rotations(hand: Trajectory, eye: Trajectory, model: EyeModel,
+                          cfg: CalibrationConfig) -> tuple[Trajectory, EyeModel]:
+    """With estimate_scale, before stage 2: a first scale (:func:`.scale.scale_prior`) from the
+    rotation of T_HE that the rotations alone give (RANSAC with no translation threshold), so
+    that stage 2's thresholds in metres mean metres."""
+    pairs = associate(hand, eye, 0.0)
+    m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    rot = calibrate_linear(
+        m, robust_kernel=False, ransac_iterations=cfg.ransac_iterations,
+        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation), inlier_translation_m=np.inf,
+        min_motions=cfg.min_motions, adaptive_inliers=False, decoupled_refit=True,
+        rng=np.random.default_rng(cfg.seed))
+    if rot.unobservable:
+        return eye, model
+    k = rot.inliers
+    fit = scale_prior(m.A[0][k], m.A[1][k], m.B[1][k], rot.q_HE, drift_weights(m, k))
+    return model.add_scale(eye, fit.scale, fit.scale_std)
+
+
+def _fold_linear_scale(eye: Trajectory, model: EyeModel, lin: LinearSolution,
+                       run: _Run) -> tuple[Trajectory, EyeModel]:
+    """Stage 2's scale (on top of the first one) into the eye, whose translations its T_HE
+    assumes."""
+    if not np.isfinite(lin.scale_std):
+        return eye, model
+    if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
+        run.notes.append(f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
+                         f'the translation refit\'s {lin.scale:.4f} (relative to the first '
+                         'estimate)')
+    return model.add_scale(eye, lin.scale, model.scale * lin.scale_std)
+
+
+def _fold_batch(eye: Trajectory, model: EyeModel,
+                batch: BatchSolution) -> tuple[Trajectory, EyeModel]:
+    """The batch stage's drift and scale corrections into the eye and the model."""
+    k = 7
+    if batch.clock_drift is not None:
+        eye, model = model.add_drift(eye, batch.clock_drift,
+                                     float(batch.std[k]) * (1.0 - model.drift))
+        k += 1
+    if batch.scale is not None:
+        eye, model = model.add_scale(eye, batch.scale,
+                                     float(batch.std[k]) * model.scale * batch.scale)
+    return eye, model
+
+
+def _scale_check(pairs: PosePairs, lin: LinearSolution,
+                 cfg: CalibrationConfig) -> ScaleFit | None:
+    """Without estimate_scale: the translation part of AX = XB fitted with and without a scale
+    (all motions, Huber loss), to name an eye whose translations a scale explains."""
+    if lin.unobservable:
+        return None
+    m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    if len(m) < cfg.min_motions:
+        return None
+    every = np.ones(len(m), bool)
+    return translation_and_scale(m.A[0], m.A[1], m.B[1], matrix_from_quat(lin.q_HE),
+                                 drift_weights(m, every), robust=True)
+
+
+def _scale_message(fit: ScaleFit) -> str:
+    return (f'the eye\'s translations look scaled: s = {fit.scale:.4g} +- '
+            f'{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand\'s '
+            f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
+            f'{fit.rms_without * 1e3:.0f} mm without): a monocular VO, or positions in other '
+            'units. Estimate it with --scale (node parameter estimate_scale)')
+
+
+def _assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig,
+                  run: _Run) -> None:
+    """Reasons about the clock drift and the scale, when they were estimated."""
+    if cfg.estimate_scale:
+        std = model.scale_std
+        if not model.scale_estimated or not np.isfinite(std) or \
+                std > MAX_SCALE_STD_FRACTION * model.scale:
+            sd = f' +- {std:.2g}' if np.isfinite(std) else ''
+            run.doubt('unobservable', f'the eye\'s scale cannot be observed (s = '
+                      f'{model.scale:.4g}{sd}): the hand translates too little for its '
+                      'translations to be told from a lever arm, so the translation of T_HE '
+                      'is as uncertain. Move the rig through space, not only about itself')
+    if cfg.clock_drift and model.drift_estimated and clock is not None:
+        half = 0.5 * clock.span_s * model.drift_std
+        if half > cfg.precision_time_offset:
+            run.doubt('imprecise', f'the clock drift is {model.drift * 1e6:+.1f} +- '
+                      f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
+                      f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
+                      f'(required {cfg.precision_time_offset * 1e3:.3g} ms)')
+
+
 # ----------------------------------------------------------------------------- stage 3
 
 def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
-               p_HE: np.ndarray, cfg: CalibrationConfig) -> tuple[BatchSolution | None, str]:
-    """The batch refinement, or None and why it was not used (never raises)."""
+               p_HE: np.ndarray, cfg: CalibrationConfig,
+               model: EyeModel | None = None) -> tuple[BatchSolution | None, str]:
+    """The batch refinement, or None and why it was not used (never raises). It estimates a
+    clock drift when one was estimated before it, and a scale when asked."""
     try:
         sol = refine(hand, eye, dt, q_HE, p_HE, knot_spacing=cfg.knot_spacing,
                      order=cfg.spline_order,
@@ -428,7 +614,10 @@ def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
                      eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
                      huber_delta=cfg.huber_delta, max_iterations=cfg.batch_max_iterations,
                      joint=cfg.batch_joint, fix_time_offset=cfg.time_offset is not None,
-                     decoupled=cfg.batch_decoupled)
+                     decoupled=cfg.batch_decoupled,
+                     drift_stamp_ns=(model.stamp_ns if model is not None and model.drift_estimated
+                                     else None),
+                     scale=cfg.estimate_scale)
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:

@@ -28,12 +28,18 @@ stages_disagree             doubtful   the batch stage moved the offset or the e
                                        beyond its sigmas and the self-check sided against it
 few_inliers                 doubtful   fewer than 20 % of the motions are RANSAC inliers
 weak_excitation             doubtful   the rotation axes spread less than 10 deg
-unobservable                doubtful   a component of T_HE cannot be determined (named)
+unobservable                doubtful   a component of T_HE, the clock drift or the scale
+                                       cannot be determined (named)
 seed_dependent              doubtful   the linear stage's answer moves with the RANSAC seed
 no_uncertainty              doubtful   the batch stage could not run: no sigmas
 imprecise                   doubtful   a 1-sigma exceeds the required precision
                                        (options precision_time_offset, _translation,
                                        _rotation; default 1 ms, 1 cm, 0.5 deg)
+clock_drift                 doubtful   without clock_drift: the offset measured in windows
+                                       changes along the recording by more than 2 ms and 3
+                                       of its sigmas (the rate is named)
+scale                       doubtful   without estimate_scale: a scale explains the eye's
+                                       translations (named with its value)
 residuals_not_white         doubtful   the long-run covariance is more than
                                        INFLATION_DOUBTFUL times the white one (an
                                        unmodelled effect: clock drift, scale, ...)

@@ -12,6 +12,12 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
   winner); ``time_alignment.candidates`` and ``time_alignment.vector``; ``linear.unobservable``
   and ``linear.seed_check``; ``std.method`` (the long-run covariance) with
   ``std.white_inflation``; ``world_alignment.segments``.
+- 3: ``clock_drift`` [s/s] and ``time_offset_stamp`` [s, eye clock] (with
+  ``time_offset_stamp_ns``): the linear clock ``dt(t) = time_offset + clock_drift (t -
+  time_offset_stamp)``, null without ``clock_drift``; ``scale`` (s * eye positions metric),
+  null without ``estimate_scale``; ``clock`` (the offset measured in windows along the
+  recording, and the drift it shows); ``std.clock_drift`` and ``std.scale``; the covariance's
+  ``order`` gains ``clock_drift`` and ``scale`` when they were estimated by the batch stage.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -26,8 +32,10 @@ from typing import Any
 import numpy as np
 
 from .batch import BatchSolution
+from .clock import DriftFit
 from .config import CalibrationConfig
 from .conventions import Correction
+from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, quat_from_matrix
 from .linear import LinearSolution
 from .quality import Quality
@@ -37,9 +45,11 @@ from .time_align import TimeAlignment
 from .trajectory import Trajectory
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 2
-CONVENTION = ('T_WE(t) = T_WG * T_GH(t - time_offset) * T_HE; time_offset = eye clock minus '
-              'hand clock (s); quaternions Hamilton, x y z w')
+SCHEMA_VERSION = 3
+CONVENTION = ('T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
+              '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
+              'estimated); with a scale s, s * eye positions are metric (T_WG then maps the '
+              'hand into that scaled eye world); quaternions Hamilton, x y z w')
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,28 @@ class CalibrationResult:
     candidates: tuple[Candidate, ...] = ()
     quality: Quality = field(default_factory=lambda: Quality('good'))
     seed_check: LinearSolution | None = None
+    eye_model: EyeModel | None = None
+    clock: DriftFit | None = None
+
+    @property
+    def clock_drift(self) -> float | None:
+        """The estimated drift [s/s] of the linear clock, None when not estimated."""
+        m = self.eye_model
+        return m.drift if m is not None and m.drift_estimated else None
+
+    @property
+    def scale(self) -> float | None:
+        """s with s * eye positions metric, None when not estimated."""
+        m = self.eye_model
+        return m.scale if m is not None and m.scale_estimated else None
+
+    def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
+        """dt(t) [s] at eye stamps [ns, eye clock]: the time offset with the drift, if any."""
+        t = np.asarray(t_eye_ns)
+        if self.clock_drift is None or self.eye_model is None:
+            return np.full(t.shape, self.time_offset_s)
+        rel = (t - np.int64(self.eye_model.time_offset_stamp_ns)) * 1e-9
+        return self.time_offset_s + self.clock_drift * rel
 
     def summary(self) -> str:
         """One line: verdict, offset, translation, rotation, inliers, quality."""
@@ -80,13 +112,18 @@ class CalibrationResult:
             std = (f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
                    f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)')
         why = (' (' + ', '.join(self.quality.codes) + ')') if self.quality.reasons else ''
+        extra = ''
+        if self.clock_drift is not None:
+            extra += f'; clock drift {self.clock_drift * 1e6:+.2f} ppm'
+        if self.scale is not None:
+            extra += f'; scale {self.scale:.4f}'
         return (f'{self.quality.verdict}{why}: '
                 f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
                 f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
                 f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
                 f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
                 f'ARE {self.metrics.are_rmse_deg:.2f} deg'
-                + std + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
+                + std + extra + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
 
     def _batch_dict(self) -> dict[str, Any]:
         b, c = self.batch, self.config
@@ -107,6 +144,24 @@ class CalibrationResult:
         })
         return out
 
+    def _clock_dict(self) -> dict[str, Any] | None:
+        """The offset measured in windows along the recording (eye clock) and the line through
+        them: the drift check of every run, the first estimate with clock_drift."""
+        c = self.clock
+        if c is None:
+            return None
+        return {
+            'windows': [{'stamp_ns': int(t), 'time_offset': _num(o), 'correlation': _num(r),
+                         'used': bool(u)} for t, o, r, u in zip(
+                             c.centres_ns, c.offsets_s, c.correlation, c.inliers, strict=True)],
+            'measured_drift': _num(c.drift), 'measured_drift_std': _num(c.drift_std),
+            'change_over_recording': _num(c.change_s) if c.estimated else None,
+            'drift_significant': bool(c.significant),
+            'not_estimated_because': c.why or None,
+            'units': {'time_offset': 's', 'measured_drift': 's/s',
+                      'change_over_recording': 's'},
+        }
+
     def _screening_dict(self) -> dict[str, Any] | None:
         if self.screening is None:
             return None
@@ -123,12 +178,17 @@ class CalibrationResult:
         b = self.batch
         if b is None:
             return None
+        m = self.eye_model
         return {
             'time_offset': float(b.std[0]),
             'translation': [float(v) for v in b.std[1:4]],
             'rotation': [float(v) for v in b.std[4:7]],
+            'clock_drift': (_num(m.drift_std) if m is not None and m.drift_estimated
+                            else None),
+            'scale': _num(m.scale_std) if m is not None and m.scale_estimated else None,
             'units': {'time_offset': 's', 'translation': 'm',
-                      'rotation': 'rad, tangent of T_HE on the right (eye frame)'},
+                      'rotation': 'rad, tangent of T_HE on the right (eye frame)',
+                      'clock_drift': 's/s', 'scale': '1'},
             'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
                       'poses) over the eye residuals',
             'white_inflation': [float(v) for v in b.inflation],
@@ -150,6 +210,13 @@ class CalibrationResult:
             'quality': self.quality.to_dict(),
             'time_offset': float(self.time_offset_s),
             'time_offset_ns': int(self.time_offset_ns),
+            'time_offset_stamp': (None if self.clock_drift is None
+                                  else self.eye_model.time_offset_stamp_ns * 1e-9),
+            'time_offset_stamp_ns': (None if self.clock_drift is None
+                                     else self.eye_model.time_offset_stamp_ns),
+            'clock_drift': self.clock_drift,
+            'scale': self.scale,
+            'clock': self._clock_dict(),
             'extrinsic': transform_dict(R_HE, self.p_HE, hand_frame, eye_frame),
             'extrinsic_inverse': transform_dict(R_EH, p_EH, eye_frame, hand_frame),
             'world_alignment': {**transform_dict(self.world.R_WG, self.world.p_WG,
@@ -204,7 +271,9 @@ class CalibrationResult:
             },
             'std': self._std_dict(),
             'covariance': None if self.batch is None else {
-                'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz'],
+                'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz']
+                + ['clock_drift'] * (self.batch.clock_drift is not None)
+                + ['scale'] * (self.batch.scale is not None),
                 'matrix': [[float(v) for v in row] for row in self.batch.covariance]},
             'batch': self._batch_dict(),
             'metrics': {

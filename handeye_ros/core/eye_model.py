@@ -1,0 +1,64 @@
+"""How the pipeline brings the eye onto the hand's clock and into metres.
+
+Every stage after stage 1 solves the paper's problem: one small constant offset and a metric
+eye. The pipeline gets there by moving the eye's stamps by stage 1's offset (integer ns),
+taking out a clock drift (:func:`.clock.retime`) and scaling its positions; this record keeps
+what was applied so that the result can be stated on the eye's own clock and scale::
+
+    hand time of eye stamp t  =  t - time_offset - clock_drift (t - time_offset_stamp)
+    metric eye positions      =  scale * eye positions
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .clock import retime
+from .trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class EyeModel:
+    """What was applied to the eye (see the module docstring).
+
+    shift_ns: stage 1's offset taken out of the stamps (eye clock minus hand clock, ns).
+    stamp_ns: the drift's reference stamp on the shifted clock (ns; add shift_ns for the eye's
+    own clock). drift, drift_std: [s/s]; scale, scale_std: the factor on the positions.
+    drift_estimated / scale_estimated: whether they were estimated (rather than left at 0 / 1).
+    """
+
+    shift_ns: int
+    stamp_ns: int = 0
+    drift: float = 0.0
+    drift_std: float = float('nan')
+    drift_estimated: bool = False
+    scale: float = 1.0
+    scale_std: float = float('nan')
+    scale_estimated: bool = False
+
+    def add_drift(self, eye: Trajectory, drift: float, std: float) -> tuple[Trajectory, EyeModel]:
+        """Take a further drift out of an eye this model was applied to (about the same
+        stamp: the drifts compose as ``d1 + d2 (1 - d1)``); ``std`` is that of the total."""
+        total = self.drift + drift * (1.0 - self.drift)
+        return (retime(eye, drift, self.stamp_ns),
+                replace(self, drift=total, drift_std=std, drift_estimated=True))
+
+    def add_scale(self, eye: Trajectory, factor: float,
+                  std: float) -> tuple[Trajectory, EyeModel]:
+        """Scale the positions of an eye this model was applied to by a further factor; ``std``
+        is that of the total scale."""
+        return (replace(eye, p_xyz=eye.p_xyz * factor),
+                replace(self, scale=self.scale * factor, scale_std=std, scale_estimated=True))
+
+    @property
+    def time_offset_stamp_ns(self) -> int:
+        """The reference stamp on the eye's own clock, ns."""
+        return int(self.shift_ns + self.stamp_ns)
+
+    def offset_at(self, dt_s: float, t_eye_ns: np.ndarray) -> np.ndarray:
+        """dt(t) [s] at eye stamps (eye clock) of the linear clock whose offset at the
+        reference stamp is ``shift + dt_s``."""
+        rel = (np.asarray(t_eye_ns) - np.int64(self.time_offset_stamp_ns)) * 1e-9
+        return self.shift_ns * 1e-9 + dt_s + self.drift * rel

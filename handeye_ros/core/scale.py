@@ -1,0 +1,138 @@
+"""Monocular scale: an eye whose positions are metric only after a factor s.
+
+A monocular VO (and a VIO before its scale converges) gives ``T_WE`` with positions s times too
+small: ``s p_WE`` is metric. In AX = XB (eq. 2-3) s multiplies the eye's relative translations
+only, so that, with the rotation R_X found from the rotations alone (scale-free), the
+translation part ``(R_A - I) t_X = R_X (s t_B) - t_A`` is linear in (t_X, s), as in the
+hand-eye-with-structure-from-motion literature (Andreff et al. 2001). In the dual-quaternion
+form (eq. 5) s multiplies the eye's dual part: with the rotation q fixed, the lower rows are
+linear in (q', s) (Schmidt et al. 2005) -- the paper's baseline with scale.
+
+The pipeline uses these three ways: :func:`scale_prior` (before stage 2, so that its
+thresholds in metres mean metres), the refits of stage 2 (:func:`translation_and_scale`,
+:func:`dual_quaternion_scale`), and :func:`scale_check`, which compares the translation fit
+with and without s when no scale is estimated, to name an eye that needs one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import null_space
+from scipy.optimize import least_squares
+
+from .geometry import matrix_from_quat, pose_from_dual_quat, skew
+
+#: The scale is not observable when its relative standard deviation exceeds this: the hand
+#: barely translates, and t_X and s trade against each other.
+MAX_SCALE_STD_FRACTION = 0.05
+#: A default run names the scale when it differs from 1 by more than this fraction, by more
+#: than SCALE_SIGMAS of its own uncertainty, and lowers the translation residuals by
+#: SCALE_RESIDUAL_DROP or more: a metric VIO is off by a few per cent at most.
+SCALE_NOTICE = 0.05
+SCALE_SIGMAS = 3.0
+SCALE_RESIDUAL_DROP = 0.2
+#: Robust loss of the scale fits: Huber at this many robust sigmas of a plain fit's residuals.
+HUBER_SIGMAS = 2.0
+#: The scale is searched within these bounds (a factor 1e4 either way covers any unit slip).
+SCALE_BOUNDS = (1e-4, 1e4)
+
+
+@dataclass(frozen=True)
+class ScaleFit:
+    """``s`` with ``s * eye positions`` metric, its standard deviation, the translation of T_HE
+    fitted with it (m), and the RMS translation residual with and without s (m; the latter
+    with s fixed to 1 and t_X refitted)."""
+
+    scale: float
+    scale_std: float
+    p_HE: np.ndarray
+    rms_with: float
+    rms_without: float
+
+    @property
+    def observable(self) -> bool:
+        return bool(np.isfinite(self.scale_std) and
+                    self.scale_std <= MAX_SCALE_STD_FRACTION * abs(self.scale))
+
+    @property
+    def significant(self) -> bool:
+        """Whether a default run (s = 1) should name this scale (see SCALE_NOTICE)."""
+        return (self.observable and abs(self.scale - 1.0) > SCALE_NOTICE
+                and abs(self.scale - 1.0) > SCALE_SIGMAS * self.scale_std
+                and self.rms_with < (1.0 - SCALE_RESIDUAL_DROP) * self.rms_without)
+
+
+def _system(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
+            w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of ``(R_A - I) t_X - s R_X t_B = -t_A`` over (t_X, s), three per motion, weighted."""
+    lhs = np.concatenate((R_A - np.eye(3), -(t_B @ R_X.T)[:, :, None]), axis=2)
+    return (lhs * w[:, None, None]).reshape(-1, 4), (-t_A * w[:, None]).reshape(-1)
+
+
+def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
+                          w: np.ndarray | None = None, robust: bool = False) -> ScaleFit:
+    """(t_X, s) by least squares from motions (n,) given R_X, each motion's rows weighted by w.
+
+    ``robust``: a Huber loss (scipy's least_squares) instead of plain least squares, for
+    motions that may hold outliers. The standard deviation of s is the least-squares one
+    ``s2 (J^T J)^-1`` (the residuals are not white for a drifting eye: a first figure; the
+    batch stage's is the one to trust).
+    """
+    w = np.ones(R_A.shape[0]) if w is None else w
+    lhs, rhs = _system(R_A, t_A, t_B, R_X, w)
+    z = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    if robust:
+        r0 = lhs @ z - rhs
+        f_scale = max(HUBER_SIGMAS * 1.4826 * float(np.median(np.abs(r0))), 1e-12)
+        z = least_squares(lambda v: lhs @ v - rhs, z, loss='huber', f_scale=f_scale,
+                          jac=lambda v: lhs).x
+    r = lhs @ z - rhs
+    dof = max(rhs.size - 4, 1)
+    s2 = float(r @ r) / dof
+    with np.errstate(divide='ignore', invalid='ignore'):
+        cov = s2 * np.linalg.pinv(lhs.T @ lhs)
+    # the fit without a scale, on the same rows
+    t1 = np.linalg.lstsq(lhs[:, :3], rhs - lhs[:, 3], rcond=None)[0]
+    r1 = lhs[:, :3] @ t1 - (rhs - lhs[:, 3])
+    return ScaleFit(float(z[3]), float(np.sqrt(max(cov[3, 3], 0.0))), z[:3],
+                    _rms(r, w), _rms(r1, w))
+
+
+def _rms(r: np.ndarray, w: np.ndarray) -> float:
+    """RMS of the unweighted residual norms per motion (m), robustly: the median norm."""
+    norms = np.linalg.norm(r.reshape(-1, 3), axis=1) / np.maximum(w, 1e-12)
+    return float(np.median(norms))
+
+
+def dual_quaternion_scale(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray,
+                          q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
+    """The dual part q' and the scale s of eq. 5 with the rotation q (x y z w) fixed.
+
+    The eye's dual part scales with its translation, so the lower rows of each 6x8 block read
+    ``[r' + s s']^ q_v + (r' - s s') q_w + (r + s)^ q'_v + (r - s) q'_w = 0`` (r, r': hand vector
+    parts; s, s' the eye's, s' before scaling): linear in (q', s). ``q . q' = 0`` holds by
+    writing q' in the orthogonal complement of q. Returns (p_HE in metres, s).
+    """
+    r, rd, e, ed = qa[:, :3], qad[:, :3], qb[:, :3], qbd[:, :3]
+    qv, qw = q[:3], q[3]
+    n = r.shape[0]
+    N = null_space(q[None, :])  # (4, 3): q' = N z
+    A_dual = np.concatenate((skew(r + e), (r - e)[:, :, None]), axis=2) @ N  # (n, 3, 3)
+    a_s = np.einsum('nij,j->ni', skew(ed), qv) - ed * qw
+    lhs = np.concatenate((A_dual, a_s[:, :, None]), axis=2) * w[:, None, None]
+    rhs = -(np.einsum('nij,j->ni', skew(rd), qv) + rd * qw) * w[:, None]
+    z = np.linalg.lstsq(lhs.reshape(n * 3, 4), rhs.reshape(-1), rcond=None)[0]
+    _, p = pose_from_dual_quat(q, N @ z[:3])
+    return p, float(z[3])
+
+
+def scale_prior(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, q_HE: np.ndarray,
+                w: np.ndarray) -> ScaleFit:
+    """A first scale for an eye of unknown scale, from motions and a rotation of T_HE found
+    from rotations alone (robust: a scale is needed before stage 2's thresholds in metres
+    mean anything)."""
+    fit = translation_and_scale(R_A, t_A, t_B, matrix_from_quat(q_HE), w, robust=True)
+    s = float(np.clip(abs(fit.scale), *SCALE_BOUNDS))
+    return ScaleFit(s, fit.scale_std, fit.p_HE, fit.rms_with, fit.rms_without)

@@ -1,124 +1,118 @@
-"""Runtime and peak memory of the core on long recordings, one core.
+"""Runtime and peak memory of the whole offline run on long recordings, one core.
 
-For 1, 10 and 60 minutes of a 200 Hz hand and a 30 Hz eye (simulated, noise level 5), each in
-a fresh child process pinned to one CPU with single-threaded BLAS: the time to read the two
-TUM files, of time alignment, of the linear stage (association, keyframes, RANSAC) and of the
-world alignment + metrics; the peak of numpy/Python allocations during calibrate()
-(tracemalloc) and the process's peak resident memory.
+For 1 to 60 minutes of a 1 kHz hand and a 200 Hz eye (simulated, noise level 5; issue 11's
+figure: an hour in under 60 s and 2 GB), the two TUM files are written once, then
+``python -m handeye_ros.offline --hand H --eye E -o result.yaml`` runs in a fresh process
+pinned to one CPU with single-threaded BLAS, as a user would run it: its wall time, its peak
+resident memory (the kernel's ru_maxrss of the child), and the stage times it logs with -v.
+The table and a log-log plot of time and memory against the length (bench/out/runtime.png)
+show how both grow.
 
-``--joint`` also times the joint batch solve (control poses free) and reports the process's
-peak resident memory right after it.
-
-Usage: python bench/runtime.py [--minutes 1 10 60] [--joint]
+Usage: python bench/runtime.py [--minutes 1 5 10 30 60] [--hand-rate 1000] [--eye-rate 200]
+       [--options --clock-drift ...]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
+import re
+import resource
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import common
-from common import emit, table
+from common import emit, save_plot, table
 
 SINGLE_THREAD = {k: '1' for k in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')}
+SEED = 1
+STAGES = re.compile(r'stage 1 \+ conventions ([\d.]+) s, stage 2 \+ checks ([\d.]+) s, '
+                    r'batch ([\d.]+) s')
 
 
-def child(minutes: float, joint: bool = False) -> dict[str, float]:
-    """Runs inside the pinned child process."""
-    import resource
-    import time
-    import tracemalloc
-
-    import numpy as np
-
-    from handeye_ros.core.association import associate
-    from handeye_ros.core.config import CalibrationConfig
-    from handeye_ros.core.linear import build_motions, calibrate_linear
-    from handeye_ros.core.pipeline import calibrate
+def write_recording(folder: Path, minutes: float, hand_hz: float, eye_hz: float) -> tuple[int, int]:
+    """Simulate and write h.txt / e.txt (TUM); returns the pose counts."""
     from handeye_ros.core.simulate import noise_level, simulate
-    from handeye_ros.core.time_align import align_time
-    from handeye_ros.core.world import align_worlds, evaluate
-    from handeye_ros.formats import read_trajectory, write_tum
-
+    from handeye_ros.formats import write_tum
     noise_m, noise_deg = noise_level(5)
-    rec = simulate(1, duration_s=minutes * 60, hand_rate_hz=200, eye_rate_hz=30,
+    rec = simulate(SEED, duration_s=minutes * 60, hand_rate_hz=hand_hz, eye_rate_hz=eye_hz,
                    noise_m=noise_m, noise_deg=noise_deg)
-    out: dict[str, float] = {'hand_poses': len(rec.hand), 'eye_poses': len(rec.eye)}
-    with tempfile.TemporaryDirectory() as tmp:
-        h, e = Path(tmp) / 'h.txt', Path(tmp) / 'e.txt'
-        write_tum(h, rec.hand)
-        write_tum(e, rec.eye)
-        t0 = time.perf_counter()
-        hand, eye = read_trajectory(h), read_trajectory(e)
-        out['read_s'] = time.perf_counter() - t0
-    cfg = CalibrationConfig()
+    write_tum(folder / 'h.txt', rec.hand)
+    write_tum(folder / 'e.txt', rec.eye)
+    return len(rec.hand), len(rec.eye)
+
+
+def pin_one_core() -> None:
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+
+
+def run_offline(folder: Path, options: list[str]) -> dict[str, float]:
+    """The offline tool on the files, in a pinned child; wall time, peak RSS, stage times."""
+    env = dict(os.environ, **SINGLE_THREAD,
+               PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+    cmd = [sys.executable, '-m', 'handeye_ros.offline', '--hand', str(folder / 'h.txt'),
+           '--eye', str(folder / 'e.txt'), '-o', str(folder / 'result.yaml'), '-v',
+           '--no-progress', *options]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     t0 = time.perf_counter()
-    ta = align_time(hand, eye)
-    t1 = time.perf_counter()
-    pairs = associate(hand, eye, ta.time_offset_s)
-    lin = calibrate_linear(build_motions(pairs), rng=np.random.default_rng(cfg.seed))
-    t2 = time.perf_counter()
-    evaluate(pairs, lin.q_HE, lin.p_HE, align_worlds(pairs, lin.q_HE, lin.p_HE))
-    t3 = time.perf_counter()
-    out.update(time_align_s=t1 - t0, linear_s=t2 - t1, metrics_s=t3 - t2)
-    from handeye_ros.core.batch import refine
-    t0 = time.perf_counter()
-    refine(hand, eye, ta.time_offset_s, lin.q_HE, lin.p_HE)
-    out['batch_s'] = time.perf_counter() - t0
-    if joint:
-        t0 = time.perf_counter()
-        sol = refine(hand, eye, ta.time_offset_s, lin.q_HE, lin.p_HE, joint=True)
-        out['batch_joint_s'] = time.perf_counter() - t0
-        out['joint_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        out['joint_iterations'] = sol.iterations
-    t0 = time.perf_counter()
-    res = calibrate(hand, eye, cfg)
-    out['calibrate_s'] = time.perf_counter() - t0
-    tracemalloc.start()  # a second run for the memory: tracing slows numpy down
-    calibrate(hand, eye, cfg)
-    out['calibrate_peak_mb'] = tracemalloc.get_traced_memory()[1] / 2 ** 20
-    tracemalloc.stop()
-    out['max_rss_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    out['dt_err_ms'] = abs(res.time_offset_s - rec.truth.time_offset_s) * 1e3
-    out['motions'] = lin.n_motions
-    return out
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False,
+                          preexec_fn=pin_one_core)
+    wall = time.perf_counter() - t0
+    rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    if proc.returncode not in (0, 2):
+        raise RuntimeError(proc.stderr[-2000:])
+    m = STAGES.search(proc.stderr)
+    stage = [float(v) for v in m.groups()] if m else [float('nan')] * 3
+    # ru_maxrss of children is the largest any child reached: valid because each run is
+    # larger than the one before
+    return {'wall_s': wall, 'rss_mb': max(rss, before) / 1024, 'stage1_s': stage[0],
+            'stage2_s': stage[1], 'batch_s': stage[2]}
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    p.add_argument('--minutes', type=float, nargs='+', default=[1, 10, 60])
-    p.add_argument('--joint', action='store_true', help='also time the joint batch solve')
-    p.add_argument('--child', type=float, help=argparse.SUPPRESS)
+    p.add_argument('--minutes', type=float, nargs='+', default=[1, 5, 10, 30, 60])
+    p.add_argument('--hand-rate', type=float, default=1000.0)
+    p.add_argument('--eye-rate', type=float, default=200.0)
+    p.add_argument('--options', nargs=argparse.REMAINDER, default=[],
+                   help='further offline_calibrate options (e.g. --clock-drift)')
     args = p.parse_args()
-    if args.child is not None:
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-        print(json.dumps(child(args.child, args.joint)))
-        return
-    rows = []
-    for minutes in args.minutes:
-        env = dict(os.environ, **SINGLE_THREAD,
-                   PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
-        cmd = [sys.executable, __file__, '--child', str(minutes)] + ['--joint'] * args.joint
-        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True)
-        r = json.loads(proc.stdout.strip().splitlines()[-1])
-        rows.append([f'{minutes:g}', f'{r["hand_poses"]:.0f} + {r["eye_poses"]:.0f}',
-                     r['read_s'], r['time_align_s'], r['linear_s'],
-                     r['time_align_s'] + r['linear_s'], r['batch_s'], r['metrics_s'],
-                     r['calibrate_s'],
-                     r['calibrate_peak_mb'], r['max_rss_mb'], f'{r["motions"]:.0f}']
-                    + ([r['batch_joint_s'], r['joint_rss_mb']] if args.joint else []))
+    rows, points = [], []
+    for minutes in sorted(args.minutes):
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate)
+            size = sum(f.stat().st_size for f in folder.iterdir()) / 2 ** 20
+            r = run_offline(folder, args.options)
+        points.append((minutes, r['wall_s'], r['rss_mb']))
+        rows.append([f'{minutes:g}', f'{n_h} + {n_e}', size, r['wall_s'], r['stage1_s'],
+                     r['stage2_s'], r['batch_s'],
+                     r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'], r['rss_mb']])
+        print(rows[-1], flush=True)
+    opts = ' '.join(args.options) or 'defaults'
     emit('runtime', table(
-        'Runtime on one core (200 Hz hand + 30 Hz eye, noise level 5); targets for 10 min: time '
-        'alignment + linear < 1 s, batch < 10 s and < 2 GB',
-        ['minutes', 'poses', 'read files s', 'time align s', 'linear s', 'align+linear s',
-         'batch s', 'world+metrics s', 'calibrate() s (all stages)', 'calibrate peak MB',
-         'max RSS MB', 'motions'] + (['joint batch s', 'RSS after joint MB'] if args.joint else []),
-        rows))
+        f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
+        f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
+        ['minutes', 'poses', 'files MB', 'offline run s', 'stage 1 + conventions s',
+         'stage 2 + checks s', 'batch s', 'reading, metrics, writing s', 'peak RSS MB'],
+        rows), SEED)
+    plt = common.pyplot()
+    if plt is not None and len(points) > 1:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        m = [q[0] for q in points]
+        ax.loglog(m, [q[1] for q in points], 'o-', label='time (s)')
+        ax.loglog(m, [q[2] for q in points], 's-', label='peak RSS (MB)')
+        ax.loglog(m, [points[0][1] * x / m[0] for x in m], ':', color='grey',
+                  label='linear in length')
+        ax.axhline(60, color='C0', lw=0.5)
+        ax.axhline(2048, color='C1', lw=0.5)
+        ax.set_xlabel('recording length (minutes)')
+        ax.set_title(f'offline run, {args.hand_rate:g} Hz + {args.eye_rate:g} Hz, one core')
+        ax.legend()
+        save_plot(fig, 'runtime')
 
 
 if __name__ == '__main__':

@@ -16,11 +16,14 @@ import argparse
 import json
 import logging
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 LOG = logging.getLogger('handeye_ros')
 
+#: A run shorter than this (s) shows no progress bar.
+PROGRESS_DELAY_S = 2.0
 #: Stream options given on the command line (the algorithm ones come from their specs).
 STREAM_OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id')
 
@@ -80,7 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     io.add_argument('--hand-frame-id', metavar='FRAME', help='parent frame of the extrinsic')
     io.add_argument('--eye-frame-id', metavar='FRAME', help='child frame of the extrinsic')
     io.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
-                    help='progress bar while replaying a bag (default: when stderr is a '
+                    help='progress bars while replaying a bag and calibrating, shown after '
+                         f'{PROGRESS_DELAY_S:g} s (default: when stderr is a '
                          'terminal)')
     out = p.add_argument_group('output')
     out.add_argument('-o', '--output', metavar='FILE',
@@ -153,19 +157,24 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.bag:
         from .formats.bag import replay
         given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
+        from .core.pipeline import STEPS
         rec = replay(args.bag, streams, given=given, progress=args.progress)
-        out = rec.calibrate(calib)
+        with _progress_bar(args.progress, len(STEPS)) as step:
+            out = rec.calibrate(calib, progress=step)
         out['inputs']['bag'] = str(args.bag)
     else:
-        from .core.pipeline import calibrate
+        from .core.pipeline import STEPS, calibrate
         from .formats import read_trajectory
-        hand = read_trajectory(args.hand, args.format, args.hand_stamp_unit,
-                               args.hand_quaternion_order)
-        eye = read_trajectory(args.eye, args.format, args.eye_stamp_unit,
-                              args.eye_quaternion_order)
-        LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name,
-                 len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
-        result = calibrate(hand, eye, calib)
+        with _progress_bar(args.progress, len(STEPS) + 2) as step:
+            step(f'reading {Path(args.hand).name}')
+            hand = read_trajectory(args.hand, args.format, args.hand_stamp_unit,
+                                   args.hand_quaternion_order)
+            step(f'reading {Path(args.eye).name}')
+            eye = read_trajectory(args.eye, args.format, args.eye_stamp_unit,
+                                  args.eye_quaternion_order)
+            LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name,
+                     len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
+            result = calibrate(hand, eye, calib, progress=step)
         out = result.to_dict(**frames)
         out['summary'] = result.summary()
     if args.output_bag:
@@ -173,6 +182,28 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         write_result_bag(args.output_bag, out, out['inputs']['eye']['last_stamp_ns'],
                          args.output_bag_storage)
     return out
+
+
+@contextmanager
+def _progress_bar(show: bool | None, steps: int):
+    """A step counter on stderr (tqdm) that appears only after PROGRESS_DELAY_S, so that short
+    runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``."""
+    from tqdm import tqdm
+    bar = tqdm(total=steps, desc='calibrating', unit='step', file=sys.stderr,
+               disable=None if show is None else not show, delay=PROGRESS_DELAY_S,
+               bar_format='{desc}: {n}/{total} {bar} {elapsed} {postfix}')
+    started = [False]
+
+    def step(name: str) -> None:
+        if started[0]:
+            bar.update(1)
+        started[0] = True
+        bar.set_postfix_str(name, refresh=True)
+    try:
+        yield step
+        bar.update(1)
+    finally:
+        bar.close()
 
 
 def main(argv: list[str] | None = None) -> int:

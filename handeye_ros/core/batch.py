@@ -237,12 +237,16 @@ class _Problem:
 
     def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
-        and X; with a scale, the observed relative translations times it)."""
+        and X; with a scale s, the predicted relative translations divided by it)."""
         key, times = self.eye_times(y)
         pred = compose(spline.evaluate(times, self.eye_basis(key, times)), self.extrinsic(y))
-        obs = self.eye_obs if self.i_scale is None else (self.eye_obs[0],
-                                                        self.eye_obs[1] * self.scale(y))
-        return _residual_parts(relative(pred, self.ei, self.ej), obs)
+        rel = relative(pred, self.ei, self.ej)
+        if self.i_scale is not None:
+            # the metric prediction brought to the eye's units, rather than the eye's noisy
+            # translations scaled: a scale on noisy observations shrinks towards zero by their
+            # noise-to-motion ratio (attenuation; -1 % at 1.5 mm per 25 mm frame step)
+            rel = (rel[0], rel[1] / self.scale(y))
+        return _residual_parts(rel, self.eye_obs)
 
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .clock import retime
+from .scale import observable
 from .trajectory import Trajectory
 
 
@@ -51,6 +52,11 @@ class EyeModel:
         is that of the total scale."""
         return (replace(eye, p_xyz=eye.p_xyz * factor),
                 replace(self, scale=self.scale * factor, scale_std=std, scale_estimated=True))
+
+    @property
+    def scale_observable(self) -> bool:
+        """Whether the estimated scale says anything (see :func:`.scale.observable`)."""
+        return self.scale_estimated and observable(self.scale, self.scale_std)
 
     @property
     def time_offset_stamp_ns(self) -> int:

@@ -579,6 +579,8 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         # then its dual part and s from the lower rows of eq. 5
         p_dq, scale_dq = dual_quaternion_scale(m.qa[inliers], m.qad[inliers], m.qb[inliers],
                                                m.qbd[inliers], q_dq, drift_weights(m, inliers))
+        if not (np.isfinite(scale_dq) and scale_dq > 0.0):
+            p_dq, scale_dq = p_HE, 1.0
         if not decoupled_refit:
             p_HE, scale = p_dq, scale_dq
     if spread < MIN_AXIS_SPREAD_DEG:
@@ -595,7 +597,11 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         if estimate_scale:
             fit = translation_and_scale(m.A[0][inliers], m.A[1][inliers], m.B[1][inliers],
                                         matrix_from_quat(q_HE), drift_weights(m, inliers))
-            p_HE, scale, scale_std = fit.p_HE, fit.scale, fit.scale_std
+            scale_std = fit.scale_std
+            if fit.observable:
+                p_HE, scale = fit.p_HE, fit.scale
+            else:  # the eye as it is; the pipeline's verdict names the unobservable scale
+                p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
         else:
             p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:

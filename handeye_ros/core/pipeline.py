@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -66,7 +67,7 @@ from .quality import (
     Reason,
 )
 from .result import CalibrationResult
-from .scale import MAX_SCALE_STD_FRACTION, ScaleFit, scale_prior, translation_and_scale
+from .scale import ScaleFit, observable, scale_prior, translation_and_scale
 from .screening import Screening, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
 from .time_align import TimeAlignment, align_time, align_time_vector
@@ -120,9 +121,17 @@ class _Run:
         self.reasons.append(Reason(code, 'failed', message))
 
 
-def calibrate(hand: Trajectory, eye: Trajectory,
-              config: CalibrationConfig | None = None) -> CalibrationResult:
+#: The steps :func:`calibrate` reports to its ``progress`` callback, in order.
+STEPS = ('screening', 'stage 1: time alignment', 'stage 2: linear calibration',
+         'stage 3: batch', 'world alignment and metrics')
+
+
+def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | None = None,
+              progress: Callable[[str], None] | None = None) -> CalibrationResult:
     """Time offset and extrinsic T_HE of a hand (T_GH) and an eye (T_WE) trajectory.
+
+    ``progress``: called with each name of :data:`STEPS` as that step starts (a front end's
+    progress bar; the core draws nothing itself).
 
     Raises a :class:`~handeye_ros.core.errors.HandeyeError` subclass with a user-facing message
     when the input cannot give a result; everything else ends in ``result.quality`` (the
@@ -133,12 +142,15 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         raise ConfigError('time_offset fixes one constant offset and clock_drift estimates one '
                           'that changes along the recording: give one of them')
     run = _Run()
+    step = progress or (lambda name: None)
+    step(STEPS[0])
     t0 = time.perf_counter()
     hand_in, eye_in = hand, eye
     run.warnings += [*hand.notes, *eye.notes]
     hand, eye = _prepare(hand, eye, cfg, run)
     hand, eye, screening = _screen(hand, eye, cfg, run)
     eta = np.deg2rad(cfg.eta)
+    step(STEPS[1])
 
     # stage 1 (or the fixed offset), then the orientation conventions at that offset
     fixed = cfg.time_offset is not None
@@ -154,6 +166,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
         hand, eye, found = check_orientations(hand, eye, ta.time_offset_s, eta)
         _corrected(found, run)
     t1 = time.perf_counter()
+    step(STEPS[2])
 
     # from here on the eye is on the hand's clock (up to stage 1's error): offsets are small
     shift_ns = ta.time_offset_ns
@@ -195,6 +208,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
     if cfg.estimate_scale:
         eye_c, model = _fold_linear_scale(eye_c, model, lin, run)
     t2 = time.perf_counter()
+    step(STEPS[3])
 
     q_HE, p_HE = lin.q_HE, lin.p_HE
     batch = None
@@ -212,6 +226,7 @@ def calibrate(hand: Trajectory, eye: Trajectory,
             why = why or 'the self-check sided with the linear result'
             run.warnings.append(f'batch stage not used, the linear result is kept: {why}')
     t3 = time.perf_counter()
+    step(STEPS[4])
 
     pairs = associate(hand, eye_c, dt)
     world = align_worlds(pairs, q_HE, p_HE)
@@ -312,6 +327,7 @@ def _linear(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig
         inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
         inlier_translation_m=cfg.inlier_translation, min_motions=cfg.min_motions,
         adaptive_inliers=cfg.adaptive_inliers, decoupled_refit=cfg.decoupled_refit,
+        estimate_scale=cfg.estimate_scale,
         rng=np.random.default_rng(cfg.seed if seed is None else seed))
     return lin, pairs
 
@@ -527,6 +543,8 @@ def _scale_from_rotations(hand: Trajectory, eye: Trajectory, model: EyeModel,
         return eye, model
     k = rot.inliers
     fit = scale_prior(m.A[0][k], m.A[1][k], m.B[1][k], rot.q_HE, drift_weights(m, k))
+    if not fit.observable:  # the eye stays as it is; the verdict will say why
+        return eye, replace(model, scale_std=fit.scale_std, scale_estimated=True)
     return model.add_scale(eye, fit.scale, fit.scale_std)
 
 
@@ -534,8 +552,9 @@ def _fold_linear_scale(eye: Trajectory, model: EyeModel, lin: LinearSolution,
                        run: _Run) -> tuple[Trajectory, EyeModel]:
     """Stage 2's scale (on top of the first one) into the eye, whose translations its T_HE
     assumes."""
-    if not np.isfinite(lin.scale_std):
-        return eye, model
+    if not model.scale_observable or not observable(lin.scale, lin.scale_std):
+        std = lin.scale_std * model.scale if np.isfinite(lin.scale_std) else np.inf
+        return eye, replace(model, scale_std=max(std, model.scale_std))
     if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
         run.notes.append(f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
                          f'the translation refit\'s {lin.scale:.4f} (relative to the first '
@@ -584,8 +603,7 @@ def _assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfi
     """Reasons about the clock drift and the scale, when they were estimated."""
     if cfg.estimate_scale:
         std = model.scale_std
-        if not model.scale_estimated or not np.isfinite(std) or \
-                std > MAX_SCALE_STD_FRACTION * model.scale:
+        if not model.scale_observable:
             sd = f' +- {std:.2g}' if np.isfinite(std) else ''
             run.doubt('unobservable', f'the eye\'s scale cannot be observed (s = '
                       f'{model.scale:.4g}{sd}): the hand translates too little for its '
@@ -617,7 +635,8 @@ def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
                      decoupled=cfg.batch_decoupled,
                      drift_stamp_ns=(model.stamp_ns if model is not None and model.drift_estimated
                                      else None),
-                     scale=cfg.estimate_scale)
+                     scale=cfg.estimate_scale and model is not None and
+                     model.scale_observable)
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:

@@ -35,15 +35,13 @@ SCALE_SIGMAS = 3.0
 SCALE_RESIDUAL_DROP = 0.2
 #: Robust loss of the scale fits: Huber at this many robust sigmas of a plain fit's residuals.
 HUBER_SIGMAS = 2.0
-#: The scale is searched within these bounds (a factor 1e4 either way covers any unit slip).
-SCALE_BOUNDS = (1e-4, 1e4)
 
 
 @dataclass(frozen=True)
 class ScaleFit:
     """``s`` with ``s * eye positions`` metric, its standard deviation, the translation of T_HE
-    fitted with it (m), and the RMS translation residual with and without s (m; the latter
-    with s fixed to 1 and t_X refitted)."""
+    fitted with it (m), and the median translation residual with and without s (in the eye's
+    units; the latter with s fixed to 1 and t_X refitted)."""
 
     scale: float
     scale_std: float
@@ -53,8 +51,7 @@ class ScaleFit:
 
     @property
     def observable(self) -> bool:
-        return bool(np.isfinite(self.scale_std) and
-                    self.scale_std <= MAX_SCALE_STD_FRACTION * abs(self.scale))
+        return observable(self.scale, self.scale_std)
 
     @property
     def significant(self) -> bool:
@@ -66,18 +63,24 @@ class ScaleFit:
 
 def _system(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
             w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rows of ``(R_A - I) t_X - s R_X t_B = -t_A`` over (t_X, s), three per motion, weighted."""
-    lhs = np.concatenate((R_A - np.eye(3), -(t_B @ R_X.T)[:, :, None]), axis=2)
-    return (lhs * w[:, None, None]).reshape(-1, 4), (-t_A * w[:, None]).reshape(-1)
+    """Rows of ``(R_A - I) v + u t_A = R_X t_B`` over (v, u) = (t_X / s, 1 / s), three per
+    motion, weighted: eq. 2's translation part divided by s, so that the noisy eye is on the
+    right and the exact MoCap on the left (with s on the left, a motion's eye noise would sit in
+    a regressor), and so that a hand that does not translate shows as a zero column for u
+    rather than as the exact but meaningless solution s = 0, t_X = 0."""
+    lhs = np.concatenate((R_A - np.eye(3), t_A[:, :, None]), axis=2)
+    return (lhs * w[:, None, None]).reshape(-1, 4), ((t_B @ R_X.T) * w[:, None]).reshape(-1)
 
 
 def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
                           w: np.ndarray | None = None, robust: bool = False) -> ScaleFit:
-    """(t_X, s) by least squares from motions (n,) given R_X, each motion's rows weighted by w.
+    """(t_X, s) by least squares from motions (n,) given R_X, each motion's rows weighted by w
+    (see :func:`_system` for the form solved).
 
     ``robust``: a Huber loss (scipy's least_squares) instead of plain least squares, for
-    motions that may hold outliers. The standard deviation of s is the least-squares one
-    ``s2 (J^T J)^-1`` (the residuals are not white for a drifting eye: a first figure; the
+    motions that may hold outliers. The standard deviation of s follows from that of u = 1/s,
+    ``s2 / |u's column with the others projected out|^2`` (infinite when the hand does not
+    translate); the residuals are not white for a drifting eye, so it is a first figure (the
     batch stage's is the one to trust).
     """
     w = np.ones(R_A.shape[0]) if w is None else w
@@ -89,15 +92,27 @@ def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X
         z = least_squares(lambda v: lhs @ v - rhs, z, loss='huber', f_scale=f_scale,
                           jac=lambda v: lhs).x
     r = lhs @ z - rhs
-    dof = max(rhs.size - 4, 1)
-    s2 = float(r @ r) / dof
-    with np.errstate(divide='ignore', invalid='ignore'):
-        cov = s2 * np.linalg.pinv(lhs.T @ lhs)
-    # the fit without a scale, on the same rows
-    t1 = np.linalg.lstsq(lhs[:, :3], rhs - lhs[:, 3], rcond=None)[0]
-    r1 = lhs[:, :3] @ t1 - (rhs - lhs[:, 3])
-    return ScaleFit(float(z[3]), float(np.sqrt(max(cov[3, 3], 0.0))), z[:3],
-                    _rms(r, w), _rms(r1, w))
+    s2 = float(r @ r) / max(rhs.size - 4, 1)
+    V, c = lhs[:, :3], lhs[:, 3]
+    c_perp = c - V @ np.linalg.lstsq(V, c, rcond=None)[0]
+    info = float(c_perp @ c_perp)
+    u = float(z[3])
+    u_std = np.sqrt(s2 / info) if info > 1e-12 * max(float(c @ c), 1e-300) else np.inf
+    scale = 1.0 / u if u != 0.0 else np.inf
+    scale_std = u_std / (u * u) if u != 0.0 else np.inf
+    # the fit without a scale (u = 1), on the same rows
+    v1 = np.linalg.lstsq(V, rhs - c, rcond=None)[0]
+    r1 = V @ v1 - (rhs - c)
+    with np.errstate(invalid='ignore', over='ignore'):
+        p_HE = z[:3] * scale if np.isfinite(scale) else np.full(3, np.nan)
+    return ScaleFit(float(scale), float(scale_std), p_HE, _rms(r, w), _rms(r1, w))
+
+
+def observable(scale: float, std: float) -> bool:
+    """Whether a scale estimate says anything: positive, finite, and with a relative standard
+    deviation within MAX_SCALE_STD_FRACTION."""
+    return bool(np.isfinite(scale) and scale > 0.0 and np.isfinite(std)
+                and std <= MAX_SCALE_STD_FRACTION * scale)
 
 
 def _rms(r: np.ndarray, w: np.ndarray) -> float:
@@ -133,6 +148,4 @@ def scale_prior(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, q_HE: np.ndar
     """A first scale for an eye of unknown scale, from motions and a rotation of T_HE found
     from rotations alone (robust: a scale is needed before stage 2's thresholds in metres
     mean anything)."""
-    fit = translation_and_scale(R_A, t_A, t_B, matrix_from_quat(q_HE), w, robust=True)
-    s = float(np.clip(abs(fit.scale), *SCALE_BOUNDS))
-    return ScaleFit(s, fit.scale_std, fit.p_HE, fit.rms_with, fit.rms_without)
+    return translation_and_scale(R_A, t_A, t_B, matrix_from_quat(q_HE), w, robust=True)

@@ -13,13 +13,14 @@ standard deviations ``noise_deg`` and ``noise_m``, and the poses are the running
 :data:`MOTIONS`): a ground robot (``planar``: rotation about the world z axis only, translation
 in the x-y plane), a turntable or pan unit (``one_axis``: rotation about one fixed axis, no
 translation), a periodic back-and-forth (``repetitive``: the same 2 s pattern over and over,
-whose angular speed repeats exactly), and a slow hand (``slow``: ~3 deg/s, a tenth of the
-default, turning through large angles nonetheless).
+whose angular speed repeats exactly), a slow hand (``slow``: ~3 deg/s, a tenth of the
+default, turning through large angles nonetheless), and a rig turned about all axes without
+moving through space (``in_place``: the marker stays put; a monocular scale is unobservable).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import BSpline
@@ -42,6 +43,14 @@ class Truth:
     p_HE: np.ndarray
     q_WG: np.ndarray
     p_WG: np.ndarray
+    clock_drift: float = 0.0
+    time_offset_stamp_ns: int = 0
+    scale: float = 1.0
+
+    def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
+        """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.clock`)."""
+        rel = (np.asarray(t_eye_ns) - np.int64(self.time_offset_stamp_ns)) * 1e-9
+        return self.time_offset_s + self.clock_drift * rel
 
 
 @dataclass(frozen=True)
@@ -90,7 +99,7 @@ def random_truth(rng: np.random.Generator, max_time_offset_s: float = 0.1) -> Tr
 
 
 #: Hand motion shapes of :func:`simulate` (see the module docstring).
-MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow')
+MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow', 'in_place')
 #: Period of the ``repetitive`` motion, seconds.
 REPETITIVE_PERIOD_S = 2.0
 
@@ -128,6 +137,8 @@ def smooth_motion(rng: np.random.Generator, duration_s: float, knot_spacing_s: f
         reps = int(np.ceil(n_ctrl / per))
         pos_ctrl = np.tile(pos_ctrl[:per], (reps, 1))[:n_ctrl]
         rot_ctrl = np.tile(rot_ctrl[:per], (reps, 1))[:n_ctrl]
+    elif motion == 'in_place':
+        pos_ctrl = np.zeros((n_ctrl, 3))
     elif motion == 'slow':
         # a slow drift of the orientation (~3 deg/s) rather than a small swing: the rig does
         # turn through large angles, only slowly
@@ -150,12 +161,17 @@ def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
 def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 100.0,
              eye_rate_hz: float = 20.0, noise_m: float = 0.0, noise_deg: float = 0.0,
              hand_noise_m: float = 0.0, hand_noise_deg: float = 0.0,
-             truth: Truth | None = None, motion: str = 'random') -> Recording:
+             truth: Truth | None = None, motion: str = 'random', clock_drift: float = 0.0,
+             scale: float = 1.0) -> Recording:
     """Simulate one recording.
 
     The eye stream covers the hand stream's span less 1 s at each end, so that every eye pose
-    has hand poses around it whatever the offset (|dt| < 1 s). ``hand_noise_*`` adds white MoCap
-    noise (the paper's protocol has none). ``motion``: one of :data:`MOTIONS`.
+    has hand poses around it whatever the offset (|dt| < 1 s, ends included). ``hand_noise_*``
+    adds white MoCap noise (the paper's protocol has none). ``motion``: one of :data:`MOTIONS`.
+    ``clock_drift`` [s/s]: the eye's clock runs at (1 + clock_drift) times the hand's, with
+    ``time_offset`` the offset at the eye's middle stamp (``truth.time_offset_stamp_ns``).
+    ``scale``: the eye's positions are metric times 1 / scale (a monocular VO), so that
+    ``scale`` is what a calibration should find.
     """
     rng = np.random.default_rng(seed)
     truth = truth if truth is not None else random_truth(rng)
@@ -181,9 +197,14 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
                 + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64))
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
-    R_WE, p_WE = compose(compose(T_WG, hand_pose((t_eye_ns - dt_ns - EPOCH_NS) * 1e-9)), X)
+    mid_ns = int(t_eye_ns[n_eye // 2])
+    # hand time of each eye stamp: t - dt(t), dt(t) = dt + drift (t - mid)
+    t_at_hand = (t_eye_ns - dt_ns - EPOCH_NS) * 1e-9 - clock_drift * (t_eye_ns - mid_ns) * 1e-9
+    R_WE, p_WE = compose(compose(T_WG, hand_pose(t_at_hand)), X)
     if noise_m or noise_deg:
         R_WE, p_WE = _add_cumulative_error(rng, R_WE, p_WE, noise_m, noise_deg)
+    p_WE = p_WE / scale
+    truth = replace(truth, clock_drift=clock_drift, time_offset_stamp_ns=mid_ns, scale=scale)
 
     hand = Trajectory.from_arrays(t_hand_ns, p_GH, quat_from_matrix(R_GH), 'simulated hand')
     eye = Trajectory.from_arrays(t_eye_ns, p_WE, quat_from_matrix(R_WE), 'simulated eye')

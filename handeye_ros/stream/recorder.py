@@ -33,10 +33,12 @@ class Snapshot:
     streams: dict[str, Any]
     warnings: tuple[str, ...]
 
-    def calibrate(self, config: CalibrationConfig) -> dict[str, Any]:
+    def calibrate(self, config: CalibrationConfig,
+                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
         """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
-        one-line ``summary``), with the streams' dropped/rejected messages among the warnings."""
-        result = calibrate(self.hand, self.eye, config)
+        one-line ``summary``), with the streams' dropped/rejected messages among the warnings.
+        ``progress``: as :func:`~handeye_ros.core.pipeline.calibrate`'s."""
+        result = calibrate(self.hand, self.eye, config, progress)
         result = replace(result, warnings=result.warnings + self.warnings)
         out = result.to_dict(hand_frame=self.hand_frame, eye_frame=self.eye_frame)
         out['streams'] = self.streams
@@ -91,12 +93,13 @@ class Recorder:
                         self.config.eye_frame_id, self.stream_dict(),
                         tuple(self.stream_warnings()))
 
-    def calibrate(self, config: CalibrationConfig) -> dict[str, Any]:
+    def calibrate(self, config: CalibrationConfig,
+                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
         """Calibrate on a snapshot of the buffers; the result dictionary (see Snapshot.calibrate).
 
         Raises HandeyeError subclasses with a user-facing reason (e.g. too little data).
         """
-        return self.snapshot().calibrate(config)
+        return self.snapshot().calibrate(config, progress)
 
     def stream_warnings(self) -> list[str]:
         """Dropped or rejected messages, said in the result."""

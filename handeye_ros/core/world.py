@@ -83,8 +83,12 @@ def _align_segment(pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray,
     R_GE, c_G = R_GE[sel], c_G[sel]
     c_W = pairs.p_WE[sel]
     mean_G, mean_W = c_G.mean(axis=0), c_W.mean(axis=0)
-    spread = np.sqrt(np.clip(np.linalg.eigvalsh(np.cov((c_G - mean_G).T))[::-1], 0.0, None))
-    if spread[1] >= MIN_PLANAR_SPREAD_M:
+    # a segment of one or two pairs (a short piece between two eye breaks) spans no plane:
+    # np.cov of one sample is NaN, so the spread is taken as the mean square directly
+    d = c_G - mean_G
+    spread = np.sqrt(np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0,
+                             None))
+    if d.shape[0] >= 3 and spread[1] >= MIN_PLANAR_SPREAD_M:
         rot, _ = Rotation.align_vectors(c_W - mean_W, c_G - mean_G)
         method = 'positions'
     else:

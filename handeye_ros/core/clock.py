@@ -58,6 +58,12 @@ DRIFT_NOTICE_S = 2e-3
 DRIFT_SIGMAS = 3.0
 
 
+def linear_clock(offset_s: float, drift: float, stamp_ns: int,
+                 t_ns: np.ndarray | int) -> np.ndarray:
+    """dt(t) = offset + drift (t - stamp) [s] at stamps t_ns [ns] (int64 differences first)."""
+    return offset_s + drift * (np.asarray(t_ns) - np.int64(stamp_ns)) * 1e-9
+
+
 @dataclass(frozen=True)
 class DriftFit:
     """A linear clock fitted to window offsets.
@@ -101,7 +107,7 @@ class DriftFit:
 
     def offset_at(self, t_ns: np.ndarray | int) -> np.ndarray | float:
         """dt [s] at eye stamps t_ns (the clock this fit was measured on)."""
-        return self.offset_s + self.drift * (np.asarray(t_ns) - self.stamp_ns) * 1e-9
+        return linear_clock(self.offset_s, self.drift, self.stamp_ns, t_ns)
 
     def shifted(self, delta_ns: int) -> DriftFit:
         """The same fit on an eye clock moved by ``delta_ns`` (stamps t + delta_ns), with the

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from .clock import retime
 from .scale import observable
 from .trajectory import Trajectory
@@ -62,9 +60,3 @@ class EyeModel:
     def time_offset_stamp_ns(self) -> int:
         """The reference stamp on the eye's own clock, ns."""
         return int(self.shift_ns + self.stamp_ns)
-
-    def offset_at(self, dt_s: float, t_eye_ns: np.ndarray) -> np.ndarray:
-        """dt(t) [s] at eye stamps (eye clock) of the linear clock whose offset at the
-        reference stamp is ``shift + dt_s``."""
-        rel = (np.asarray(t_eye_ns) - np.int64(self.time_offset_stamp_ns)) * 1e-9
-        return self.shift_ns * 1e-9 + dt_s + self.drift * rel

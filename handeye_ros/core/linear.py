@@ -594,15 +594,14 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     elif decoupled_refit:
         q_HE = refit_rotation(m, inliers)
         q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
-        if estimate_scale:
-            fit = translation_and_scale(m.A[0][inliers], m.A[1][inliers], m.B[1][inliers],
-                                        matrix_from_quat(q_HE), drift_weights(m, inliers))
+        fit = translation_and_scale(m.A[0][inliers], m.A[1][inliers], m.B[1][inliers],
+                                    matrix_from_quat(q_HE), drift_weights(m, inliers)) \
+            if estimate_scale else None
+        if fit is not None:
             scale_std = fit.scale_std
-            if fit.observable:
-                p_HE, scale = fit.p_HE, fit.scale
-            else:  # the eye as it is; the pipeline's verdict names the unobservable scale
-                p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
-        else:
+        if fit is not None and fit.observable:
+            p_HE, scale = fit.p_HE, fit.scale
+        else:  # no scale, or an unobservable one (the pipeline's verdict names it)
             p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
         warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '

@@ -485,7 +485,7 @@ def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
     reference stamp when the stamps moved, else None)."""
     R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
-    before = model
+    clock = _absolute_clock(fit, model)
     if not cfg.clock_drift:
         if fit.significant:
             run.doubt('clock_drift', _drift_message(fit))
@@ -493,17 +493,17 @@ def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
             run.notes.append(f'the offset measured in {int(fit.inliers.sum())} windows along '
                              f'the recording is constant within its uncertainty (drift '
                              f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)')
-        return eye, model, _absolute_clock(fit, before), None
+        return eye, model, clock, None
     if not fit.estimated:
         if model.drift_estimated:
             run.warnings.append('the clock drift comes from the angular-speed magnitudes only: '
                                 + fit.why)
-            return eye, model, _absolute_clock(fit, before), None
-        run.doubt('unobservable', f'the clock drift cannot be observed: {fit.why}. One '
-                  'constant offset was estimated instead')
-        return eye, model, _absolute_clock(fit, before), None
+        else:
+            run.doubt('unobservable', f'the clock drift cannot be observed: {fit.why}. One '
+                      'constant offset was estimated instead')
+        return eye, model, clock, None
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
-    return eye, model, _absolute_clock(fit, before), float(fit.offset_at(model.stamp_ns))
+    return eye, model, clock, float(fit.offset_at(model.stamp_ns))
 
 
 def _drift_message(fit: DriftFit) -> str:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from .batch import BatchSolution
-from .clock import DriftFit
+from .clock import DriftFit, linear_clock
 from .config import CalibrationConfig
 from .conventions import Correction
 from .eye_model import EyeModel
@@ -96,11 +96,10 @@ class CalibrationResult:
 
     def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
         """dt(t) [s] at eye stamps [ns, eye clock]: the time offset with the drift, if any."""
-        t = np.asarray(t_eye_ns)
         if self.clock_drift is None or self.eye_model is None:
-            return np.full(t.shape, self.time_offset_s)
-        rel = (t - np.int64(self.eye_model.time_offset_stamp_ns)) * 1e-9
-        return self.time_offset_s + self.clock_drift * rel
+            return np.full(np.shape(t_eye_ns), self.time_offset_s)
+        return linear_clock(self.time_offset_s, self.clock_drift,
+                            self.eye_model.time_offset_stamp_ns, t_eye_ns)
 
     def summary(self) -> str:
         """One line: verdict, offset, translation, rotation, inliers, quality."""

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
+from .clock import linear_clock
 from .geometry import Pose, compose, inverse, quat_from_matrix
 from .trajectory import Trajectory
 
@@ -49,8 +50,8 @@ class Truth:
 
     def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
         """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.clock`)."""
-        rel = (np.asarray(t_eye_ns) - np.int64(self.time_offset_stamp_ns)) * 1e-9
-        return self.time_offset_s + self.clock_drift * rel
+        return linear_clock(self.time_offset_s, self.clock_drift, self.time_offset_stamp_ns,
+                            t_eye_ns)
 
 
 @dataclass(frozen=True)

@@ -152,3 +152,41 @@ def test_offline_tool_on_absurd_option_values(option: str, value: str, capsys) -
     assert code in (0, 1, 2), err
     assert 'internal error' not in err and 'Traceback' not in err
 
+
+
+stamp_token = st.one_of(
+    st.integers(min_value=-10 ** 19, max_value=10 ** 19).map(str),
+    st.decimals(min_value=-10 ** 12, max_value=10 ** 12, allow_nan=False,
+                allow_infinity=False, places=12).map(lambda d: format(d, 'f')),
+    st.sampled_from(['+1.5', '-0.000000001', '.5', '5.', '00012.3400', '1.4e9', '1..2', '-',
+                     '٣.5', '1403636579.758555555123']))
+
+
+@SETTINGS
+@given(stamps=st.lists(stamp_token, min_size=1, max_size=30),
+       sep=st.sampled_from([' ', '\t', ',']), comment=st.booleans())
+def test_bulk_reader_agrees_with_the_line_by_line_one(stamps: list[str], sep: str,
+                                                      comment: bool) -> None:
+    """What formats/bulk.py reads from the bytes, it reads as the line-by-line reader does."""
+    from handeye_ros.formats import bulk, text
+    fmt = 'euroc' if sep == ',' else 'tum'
+    lines = ['# header'] if comment else []
+    lines += [sep.join([s, '0.5', '1', '2', '0', '0', '0', '1']) for s in stamps]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'traj.txt'
+        path.write_text('\n'.join(lines) + '\n', encoding='utf-8')
+        data = path.read_bytes()
+        fast = bulk.read_bulk(path, data, lambda n, row: (fmt, ',' if fmt == 'euroc' else None))
+        try:
+            numbers, values, split, _ = text._read_lines(path, data, fmt)
+        except HandeyeError:
+            assert fast is None
+            return
+    if fast is None:
+        return
+    table = fast[1]
+    np.testing.assert_array_equal(table.numbers, numbers)
+    np.testing.assert_array_equal(table.values, values)
+    for name in ('whole', 'frac9', 'fractional', 'neg'):
+        np.testing.assert_array_equal(getattr(table.stamps, name), getattr(split, name),
+                                      err_msg=name)

@@ -33,6 +33,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
+from .bulk import SplitStamps, read_bulk
 
 FORMATS = ('auto', 'tum', 'euroc')
 #: Stamp units a file may use: nanoseconds per unit.
@@ -80,26 +81,26 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
         msg = (f'{path}: unknown quaternion order {quaternion_order!r}; use '
                f'{", ".join(QUATERNION_ORDERS)}')
         raise InputError(msg)
-    numbers, rows = _data_lines(path)
-    if not rows:
-        msg = f'{path}: holds no poses (the file is empty or has only comments)'
-        raise InputError(msg)
-    fmt = _detect(path, rows) if fmt == 'auto' else fmt
-    sep = ',' if fmt == 'euroc' else None
-    _check_columns(path, numbers[:1], rows[:1], sep, fmt)
-    text = '\n'.join(rows)
-    try:  # numpy's C parser; the slow line-by-line diagnosis runs only when it fails
-        values = np.loadtxt(io.StringIO(text), delimiter=sep, usecols=range(1, 8), ndmin=2)
-        stamps = np.char.strip(np.loadtxt(io.StringIO(text), delimiter=sep, usecols=0,
-                                          dtype=str, ndmin=1))
-    except ValueError as err:
-        _diagnose(path, numbers, rows, sep, fmt)
-        raise InputError(f'{path}: cannot be parsed as {fmt.upper()}: {err}') from None
+    data = _read_bytes(path)
+
+    def format_of(number: int, first_row: str) -> tuple[str, str | None]:
+        chosen = _detect(path, [first_row]) if fmt == 'auto' else fmt
+        sep = ',' if chosen == 'euroc' else None
+        _check_columns(path, [number], [first_row], sep, chosen)
+        return chosen, sep
+
+    bulk = read_bulk(path, data, format_of)
+    if bulk is not None:
+        fmt, table = bulk
+        numbers, values, split = table.numbers, table.values, table.stamps
+    else:
+        numbers, values, split, fmt = _read_lines(path, data, fmt)
+    del data
     order = quaternion_order if quaternion_order != 'auto' else (
         'wxyz' if fmt == 'euroc' else 'xyzw')
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
-    t_ns, notes, fits = parse_stamps(path, numbers, stamps, fmt, stamp_unit)
+    t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
     bad = _bad_rows(t_ns, values, q_xyzw, fits)
     if bad.any():
         if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:
@@ -112,7 +113,7 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
                          f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})')
             keep = ~bad
             t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
-            numbers = [n for n, k in zip(numbers, keep, strict=True) if k]
+            numbers = np.asarray(numbers)[keep]
     keep = _last_of_repeated(t_ns)
     if not keep.all():
         notes.append(f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of '
@@ -169,16 +170,20 @@ def write_euroc(path: str | Path, traj: Trajectory) -> None:
                     f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n' for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True))
 
 
-def _data_lines(path: Path) -> tuple[list[int], list[str]]:
-    """(1-based line numbers, contents) of the non-blank, non-comment lines."""
+def _read_bytes(path: Path) -> bytes:
     try:
-        text = path.read_text(encoding='utf-8', errors='replace')
+        return path.read_bytes()
     except FileNotFoundError:
         raise InputError(f'{path}: no such file') from None
     except IsADirectoryError:
         raise InputError(f'{path}: is a directory, expected a trajectory file') from None
     except OSError as err:
         raise InputError(f'{path}: cannot be read ({err.strerror})') from None
+
+
+def _data_lines(path: Path, data: bytes | None = None) -> tuple[list[int], list[str]]:
+    """(1-based line numbers, contents) of the non-blank, non-comment lines."""
+    text = (_read_bytes(path) if data is None else data).decode('utf-8', errors='replace')
     numbers, rows = [], []
     for k, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
@@ -186,6 +191,28 @@ def _data_lines(path: Path) -> tuple[list[int], list[str]]:
             numbers.append(k)
             rows.append(s)
     return numbers, rows
+
+
+def _read_lines(path: Path, data: bytes,
+                fmt: str) -> tuple[list[int], np.ndarray, SplitStamps, str]:
+    """The file line by line (what :mod:`.bulk` leaves): (line numbers, the seven pose columns,
+    the split stamps, the format), or an InputError naming the line at fault."""
+    numbers, rows = _data_lines(path, data)
+    if not rows:
+        msg = f'{path}: holds no poses (the file is empty or has only comments)'
+        raise InputError(msg)
+    fmt = _detect(path, rows) if fmt == 'auto' else fmt
+    sep = ',' if fmt == 'euroc' else None
+    _check_columns(path, numbers[:1], rows[:1], sep, fmt)
+    text = '\n'.join(rows)
+    try:  # numpy's C parser; the slow line-by-line diagnosis runs only when it fails
+        values = np.loadtxt(io.StringIO(text), delimiter=sep, usecols=range(1, 8), ndmin=2)
+        stamps = np.char.strip(np.loadtxt(io.StringIO(text), delimiter=sep, usecols=0,
+                                          dtype=str, ndmin=1))
+    except ValueError as err:
+        _diagnose(path, numbers, rows, sep, fmt)
+        raise InputError(f'{path}: cannot be parsed as {fmt.upper()}: {err}') from None
+    return numbers, values, _split_decimal(path, numbers, stamps), fmt
 
 
 def _detect(path: Path, rows: list[str]) -> str:
@@ -234,7 +261,7 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
                 raise InputError(msg) from None
 
 
-def parse_stamps(path: Path, numbers: list[int], col: np.ndarray, fmt: str,
+def parse_stamps(path: Path, numbers, split: SplitStamps, fmt: str,
                  unit: str) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Exact int64 nanoseconds of a stamp column, notes on the unit assumed, and which rows'
     stamps fit int64 ns in that unit (the others are 0 here; the caller drops or refuses them).
@@ -246,11 +273,11 @@ def parse_stamps(path: Path, numbers: list[int], col: np.ndarray, fmt: str,
     chosen on the median stamp, so that one wild row cannot decide it for the file. Every
     unit other than the format's comes with a note.
     """
-    whole, frac, neg = _split_decimal(path, numbers, col)
+    whole, neg = split.whole, split.neg
     notes: list[str] = []
     if unit == 'auto':
         unit = 'ns' if fmt == 'euroc' else 's'
-        fractional = (np.char.str_len(np.char.rstrip(frac, '0')) > 0)
+        fractional = split.fractional
         typical = int(np.median(whole)) if whole.size else 0
         if fmt == 'tum' and not fractional.any() and whole.size and \
                 typical > NANOSECOND_STAMP_THRESHOLD and not neg.any():
@@ -267,10 +294,7 @@ def parse_stamps(path: Path, numbers: list[int], col: np.ndarray, fmt: str,
     scale = STAMP_UNITS[unit]
     ok = whole <= INT64_MAX // scale
     digits = 9 - {'s': 0, 'ms': 3, 'us': 6, 'ns': 9}[unit]  # fractional digits that are >= 1 ns
-    frac_ns = np.zeros(whole.size, dtype=np.int64)
-    if digits and (np.char.str_len(frac) > 0).any():
-        nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
-        frac_ns = nine.astype(np.int64) // 10 ** (9 - digits)
+    frac_ns = split.frac9 // 10 ** (9 - digits)  # billionths of the unit to ns
     ns = np.where(ok, whole, 0) * np.int64(scale) + np.where(ok, frac_ns, 0)
     return np.where(neg, -ns, ns), notes, ok
 
@@ -283,9 +307,16 @@ def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'n
     raise InputError(msg)
 
 
-def _split_decimal(path: Path, numbers: list[int],
-                   col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Whole parts (int64), fractional digit strings and signs of decimal stamps; exponent
+def _split_of(whole: np.ndarray, frac: np.ndarray, neg: np.ndarray) -> SplitStamps:
+    """SplitStamps of whole parts, fractional digit strings and signs."""
+    frac = frac.astype(str)
+    nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
+    return SplitStamps(whole, nine.astype(np.int64), np.char.str_len(np.char.rstrip(frac, '0')) > 0,
+                       neg)
+
+
+def _split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamps:
+    """Decimal stamps (strings) split into whole parts, fractional digits and signs; exponent
     forms (1.4e9) go through Decimal."""
     body = np.char.lstrip(col, '-+')
     plain = np.char.isdigit(np.char.replace(body, '.', '', count=1)) & (np.char.str_len(body) > 0)
@@ -304,11 +335,10 @@ def _split_decimal(path: Path, numbers: list[int],
         msg = (f'{path}, line {numbers[k]}: stamp {col[k]!r} is beyond what int64 nanoseconds '
                'can hold (2^63 ns, the year 2262); check the stamp column and its unit')
         raise InputError(msg)
-    return whole_txt.astype(np.int64), parts[:, 2], neg
+    return _split_of(whole_txt.astype(np.int64), parts[:, 2], neg)
 
 
-def _split_decimal_fallback(path: Path, numbers: list[int],
-                            col: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _split_decimal_fallback(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamps:
     whole = np.empty(col.size, dtype=np.int64)
     frac = np.empty(col.size, dtype=object)
     neg = np.zeros(col.size, dtype=bool)
@@ -329,4 +359,4 @@ def _split_decimal_fallback(path: Path, numbers: list[int],
         whole[k] = whole_part
         text = format(abs(value) - whole_part, 'f')
         frac[k] = text.split('.', 1)[1].rstrip('0') if '.' in text else ''
-    return whole, frac.astype(str), neg
+    return _split_of(whole, frac, neg)

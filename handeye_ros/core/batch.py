@@ -26,7 +26,7 @@ and agrees with the default while the MoCap is much less noisy than the VIO.
 
 The noise of each stream is estimated from its own residuals unless given. The covariance of
 (dt, T_HE) is ``s^2 (J^T J)^-1`` at the solution; for the two-step solve it is that of the
-two-step estimate (:func:`_two_step_covariance`), for the joint one the 7x7 block by a Schur
+two-step estimate (:func:`_two_step_from_normals`), for the joint one the 7x7 block by a Schur
 complement over the spline, each stream's rows scaled by its own reduced chi^2.
 """
 
@@ -36,7 +36,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import OptimizeResult, least_squares
+from scipy.optimize import OptimizeResult
 from scipy.sparse import csc_matrix, csr_matrix, diags
 from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
@@ -56,10 +56,14 @@ from .spline import PoseSpline, exp_so3, fit_spline
 from .trajectory import GAP_FACTOR, Trajectory
 from .uncertainty import (
     LongRunCovariance,
+    huber_psi,
     huber_rho,
     influence,
+    influence_from_sums,
+    influence_sums,
     influence_two_step,
     long_run_covariance,
+    two_step_from_sums,
 )
 
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
@@ -73,6 +77,11 @@ FD_STEP_DRIFT = 1e-9
 #: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
 #: the spline's ends are left out, so that every eye pose keeps a spline segment.
 DT_MARGIN_S = 0.05
+#: MoCap poses the default solve's hand noise is measured on (:meth:`_Problem.hand_noise_residuals`).
+HAND_NOISE_SAMPLES = 200_000
+#: Eye pose pairs evaluated at once (:meth:`_Problem.eye_chunk`): small enough that the arrays
+#: of a chunk stay in cache and memory stays flat, large enough for numpy's per-call cost.
+EYE_CHUNK_PAIRS = 1 << 15
 #: Fewest eye residuals the stage accepts.
 MIN_EYE_RESIDUALS = 20
 #: Fewest MoCap poses per knot interval the joint solve accepts: with fewer, the control poses
@@ -153,6 +162,17 @@ def _pairs(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
     return i, i + 1
 
 
+def _conjugate(C: np.ndarray, M: np.ndarray, right: bool = True) -> np.ndarray:
+    """``C M C^T`` (or ``C M`` with ``right`` False) for a constant C (3, 3) and a stack M
+    (N, 3, 3), as plain matrix products over the stack (numpy's stacked 3x3 matmul is several
+    times slower)."""
+    n = M.shape[0]
+    CM = (C @ np.swapaxes(M, 0, 1).reshape(3, 3 * n)).reshape(3, n, 3).swapaxes(0, 1)
+    if not right:
+        return CM
+    return (CM.reshape(3 * n, 3) @ C.T).reshape(n, 3, 3)
+
+
 def _residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
     """(N, 6): rotation (rad) and translation (m) differences of predicted and observed poses
     (the spline's and the MoCap's, or relative ones of the eye)."""
@@ -179,7 +199,6 @@ class _Problem:
         self.spline0 = fit_spline(self.th, Rh, ph, knot_spacing, order)
         self.M = self.spline0.R.shape[0]
         self.hand_obs = (Rh, ph)
-        self.hand_basis = self.spline0.basis(self.th)  # the knots never move; the times neither
         self._eye_basis: dict[tuple[float, float], tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(eye)
@@ -203,6 +222,24 @@ class _Problem:
         self.n_y = 7 + int(drift_stamp_ns is not None) + int(scale)
         self.t_ref = (0.0 if drift_stamp_ns is None
                       else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9)
+
+    @property
+    def hand_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """Spline basis at every MoCap stamp (the knots never move; the times neither): made
+        once, when the joint solve first asks."""
+        basis = self.__dict__.get('_hand_basis')
+        if basis is None:
+            basis = self.__dict__['_hand_basis'] = self.spline0.basis(self.th)
+        return basis
+
+    def hand_noise_residuals(self) -> np.ndarray:
+        """Hand residuals of the spline fit (n, 6) at up to HAND_NOISE_SAMPLES MoCap poses evenly
+        spread: what the default solve needs of the hand is its noise level, which a robust
+        sigma of 2e5 residuals gives to 0.3 %; an hour of 1 kHz MoCap would take 10 s more."""
+        pick = np.unique(np.linspace(0, self.th.size - 1,
+                                     min(self.th.size, HAND_NOISE_SAMPLES)).astype(int))
+        obs = (self.hand_obs[0][pick], self.hand_obs[1][pick])
+        return _residual_parts(self.spline0.evaluate(self.th[pick]), obs)
 
     def extrinsic(self, y: np.ndarray) -> Pose:
         """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
@@ -248,6 +285,89 @@ class _Problem:
             rel = (rel[0], rel[1] / self.scale(y))
         return _residual_parts(rel, self.eye_obs)
 
+    def eye_chunk(self, y: np.ndarray, k0: int, k1: int, jacobian: bool = True,
+                  rotation_only: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only), as
+        :meth:`eye_raw`, and with ``jacobian`` their Jacobian (n, 6 or 3, n_y) in y, analytic
+        (the spline fixed to the hand). The pairs are taken a chunk at a time so that no
+        array holds more than a chunk (an hour at 200 Hz is 720 000 pairs).
+
+        With ``Q = R_a^T R_b`` of the spline at the pair's hand times, ``u = Q p_X + R_a^T (p_b -
+        p_a)``, the predicted relative pose ``(R_X^T Q R_X, p = R_X^T (u - p_X))`` and r =
+        ``Log(R_rel R_obs^T) = R_X^T Log(Q R_X R_obs^T R_X^T)`` (left Jacobian J_l):
+
+        - X's rotation, ``R_X Exp(d)``: r by ``J_l^-1 (R_rel - I) d``, p by ``[p]x d``;
+        - X's position: p by ``R_X^T (Q - I) dp_X``;
+        - a hand time moving by dtau (dt: -1, drift: -(t - t_ref)) moves the spline by its body
+          rate w and velocity v: r by ``J_l^-1 R_X^T (Q w_b dtau_b - w_a dtau_a)``, p by
+          ``R_X^T ([u]x w_a dtau_a - Q [p_X]x w_b dtau_b + R_a^T (v_b dtau_b - v_a dtau_a))``;
+        - the scale s: the predicted translation p / s by ``-p / s^2``.
+        """
+        lo, hi = int(self.ei[k0]), int(self.ej[k1 - 1]) + 1
+        a, b = self.ei[k0:k1] - lo, self.ej[k0:k1] - lo
+        dt, drift = self.clock(y)
+        te = self.te[lo:hi]
+        times = te - dt - drift * (te - self.t_ref)
+        sp = self.spline0
+        basis = sp.basis(times)
+        if jacobian:
+            R, P, W, V = sp.evaluate_with_velocity(basis, sp.basis_derivative(times))
+        else:
+            R, P = sp.evaluate(times, basis)
+        RX, pX = self.extrinsic(y)
+        Ra_t = np.swapaxes(R[a], -1, -2)
+        Q = np.matmul(Ra_t, R[b])
+        # R_X^T Log(Q M) R_X-wise: M = R_X R_obs^T R_X^T needs only products with the constant
+        # R_X, which are one matrix product over all pairs at once
+        Robs_t = np.swapaxes(self.eye_obs[0][k0:k1], -1, -2)
+        M = _conjugate(RX, Robs_t)
+        r_rot = log_so3(np.matmul(Q, M)) @ RX  # (R_X^T v) row-wise
+        n = a.size
+        rows = 3 if rotation_only else 6
+        r = np.empty((n, rows))
+        r[:, :3] = r_rot
+        s = self.scale(y)
+        if not rotation_only:
+            u = Q @ pX + np.einsum('nij,nj->ni', Ra_t, P[b] - P[a])
+            p_rel = (u - pX) @ RX  # R_X^T (u - p_X), row-wise
+            r[:, 3:] = p_rel / s - self.eye_obs[1][k0:k1]
+        if not jacobian:
+            return r, None
+        J = np.zeros((n, rows, self.n_y))
+        Jl_inv = right_jacobian(-r_rot, inverse=True)
+        Jr_theta = right_jacobian(y[None, 1:4])[0]
+        rel_R = _conjugate(RX.T, Q)
+        J[:, :3, 1:4] = np.matmul(Jl_inv, rel_R - np.eye(3)) @ Jr_theta
+        time_cols = [(0, -1.0, -1.0)]
+        if self.i_drift is not None:
+            time_cols.append((self.i_drift, -(te[a] - self.t_ref)[:, None],
+                              -(te[b] - self.t_ref)[:, None]))
+        Wa, Wb = W[a], W[b]
+        QWb = np.einsum('nij,nj->ni', Q, Wb)
+        for col, fa, fb in time_cols:
+            J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
+        if rotation_only:
+            return r, J
+        J[:, 3:, 1:4] = hat(p_rel) @ Jr_theta / s
+        J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
+        if self.i_scale is not None:
+            J[:, 3:, self.i_scale] = -p_rel / s ** 2
+        dp_a = np.cross(u, Wa) - np.einsum('nij,nj->ni', Ra_t, V[a])
+        dp_b = np.einsum('nij,nj->ni', Ra_t, V[b]) - \
+            np.einsum('nij,nj->ni', Q, np.cross(pX, Wb))
+        for col, fa, fb in time_cols:
+            J[:, 3:, col] = (dp_a * fa + dp_b * fb) @ RX / s
+        return r, J
+
+    def chunks(self) -> range:
+        """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
+        return range(0, self.ei.size, EYE_CHUNK_PAIRS)
+
+    def eye_residuals(self, y: np.ndarray) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6), a chunk at a time (the spline fixed to the hand)."""
+        return np.concatenate([self.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size),
+                                              jacobian=False)[0] for k in self.chunks()])
+
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
         spline, y = self.unpack(x)
@@ -256,7 +376,7 @@ class _Problem:
     def eye_raw(self, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
         fixed to the hand."""
-        return self.eye_raw_at(self.spline0, y)
+        return self.eye_residuals(y)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r_h, r_e = self.raw(x)
@@ -394,7 +514,8 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
                     drift_stamp_ns, scale)
     layout = _Layout.of(prob, fix_time_offset)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
-    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0), hand_noise, prob.M))
+    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals(),
+                        hand_noise, prob.M, prob.th.size))
     if joint:
         x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
             prob, hn, hand_noise, eye_noise, huber_delta, max_iterations, fix_time_offset,
@@ -407,7 +528,8 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
             return (r[:, :3] if rotation_only else r).ravel()
         # the eye's long-run correlation, added to the Schur covariance (which has the spline's
         # share): the eye rows' long-run minus their white sandwich, at the joint solution
-        lr = _eye_long_run(eye_rows, y, layout, huber_delta, decoupled)
+        lr = _eye_long_run(eye_rows(y), _eye_jacobians(eye_rows, y, layout, decoupled), layout,
+                           huber_delta, decoupled)
         extra = lr.covariance - lr.white
         lam, V = np.linalg.eigh(0.5 * (cov + extra + (cov + extra).T))
         cov_lr = (V * np.clip(lam, 0.0, None)) @ V.T
@@ -480,8 +602,10 @@ class _Layout:
 
 def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: float,
                             max_iterations: int, decoupled: bool):
-    """(dt, T_HE) by trust-region Levenberg-Marquardt on the eye residuals, the spline fixed to
-    the hand. Parameters y = (dt, dtheta_X, dp_X) from the start values.
+    """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
+    hand, with the analytic Jacobian of :meth:`_Problem.eye_with_jacobian`
+    (:func:`_levenberg_marquardt_small`). Parameters y = (dt, dtheta_X, dp_X, ...) from the
+    start values.
 
     ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
     all residuals with the rotation fixed. Why: as in the linear stage's decoupled refit, a
@@ -492,62 +616,189 @@ def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: f
 
     Two passes: the eye noise is estimated from the residuals at the linear result, then again
     at the first solution (the linear result's residuals include its own error).
-    Returns (y, cost before, cost after, noise, 7x7 covariance in the order of y, number of
-    residuals, number of free parameters, the last solver result).
+    Returns (y, cost before, cost after, noise, covariance in the order of y, number of
+    residuals, number of free parameters, the last solver report, the long-run covariance).
     """
     y = np.zeros(layout.size)
     free_all = layout.all
-
-    def residuals(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
-        r = prob.eye_raw(yy) * np.repeat(prob.w[2:], 3)
-        return (r[:, :3] if rotation_only else r).ravel()
-
-    def solve(free: np.ndarray, rotation_only: bool):
-        def fun(z: np.ndarray) -> np.ndarray:
-            yy = y.copy()
-            yy[free] = z
-            return residuals(yy, rotation_only)
-        # tolerances: 1e-10 relative is ~1e-10 s in dt and sub-micrometre in T_HE
-        sol = least_squares(fun, y[free], method='trf', loss='huber', f_scale=delta,
-                            x_scale='jac', max_nfev=max_iterations, xtol=1e-10, ftol=1e-10,
-                            gtol=1e-10)
-        y[free] = sol.x
-        return sol
-
     en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
     passes = 2 if en.estimated else 1
     sols = []
     for k in range(passes):
         prob.w[2:] = 1.0 / np.array([en.rotation, en.translation])
-        if decoupled:
-            sols.append(solve(layout.a, True))
-            sols.append(solve(layout.b, False))
-        else:
-            sols.append(solve(free_all, False))
+        steps = [(layout.a, True), (layout.b, False)] if decoupled else [(free_all, False)]
+        # the first pass only has to get near enough to measure the noise again: from the
+        # linear result one Gauss-Newton step does (the second pass starts within a fraction
+        # of a sigma and converges in one or two)
+        iterations = max_iterations if k + 1 == passes else 1
+        for free, rotation_only in steps:
+            y, sol = _levenberg_marquardt_small(
+                lambda yy, f=free, ro=rotation_only: _eye_sums(prob, yy, f, ro, delta),
+                y, free, iterations)
+            sols.append(sol)
         if k + 1 < passes:
             en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
-    cost_before = _huber_cost(residuals(np.zeros(layout.size)), delta)
-    r0 = residuals(y)
-    cost_after = _huber_cost(r0, delta)
-    dof = max(r0.size - free_all.size, 1)
-    s2 = max(2.0 * cost_after / dof, 1e-12)
+    w = np.repeat(prob.w[2:], 3)
+    cost_before = _huber_cost((prob.eye_raw(np.zeros(layout.size)) * w).ravel(), delta)
+    cov, lr, cost_after, n_res = _eye_covariance(prob, y, layout, delta, decoupled)
+    return y, cost_before, cost_after, en, cov, n_res, free_all.size, sols[-1], lr
+
+
+@dataclass(frozen=True)
+class _EyeSums:
+    """One evaluation of the weighted eye residuals over the free columns of y, summed over
+    the pairs: the Huber cost, ``A = J^T psi' J``, ``g = J^T psi`` and the column sums of J^2
+    (the damping's scale)."""
+
+    cost: float
+    A: np.ndarray
+    g: np.ndarray
+    D: np.ndarray
+
+
+def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False):
+    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs, weighted by 1/sigma."""
+    rows = 3 if rotation_only else 6
+    w = np.repeat(prob.w[2:], 3)[:rows]
+    for k in prob.chunks():
+        r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True,
+                              rotation_only)
+        yield r * w, J * w[None, :, None]
+
+
+def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bool,
+              delta: float) -> _EyeSums:
+    p = free.size
+    cost, A, g, D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
+    for r, J in _weighted_chunks(prob, y, rotation_only):
+        r = r.ravel()
+        Jf = J[:, :, free].reshape(r.size, p)
+        psi, dpsi = huber_psi(r, delta)
+        cost += _huber_cost(r, delta)
+        A += Jf.T @ (Jf * dpsi[:, None])
+        g += Jf.T @ psi
+        D += np.einsum('ij,ij->j', Jf, Jf)
+    return _EyeSums(cost, A, g, D)
+
+
+def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float,
+                    decoupled: bool) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+    """(white covariance, long-run covariance (:mod:`.uncertainty`), Huber cost, number of
+    residuals) of the default solve at y, in the order of y (zero rows for a fixed dt), from
+    one pass over the eye pairs with their analytic Jacobian.
+
+    The white covariance is ``s^2 (J^T J)^-1`` (for the two-step solve that of the two-step
+    estimate, :func:`_two_step_from_normals`); the long-run one comes from the per-pair
+    influences, whose sums are gathered a chunk at a time."""
+    free_all = layout.all
+    k = len(layout.time)
+    cost, n_res = 0.0, 0
+    g_parts: dict[str, list[np.ndarray]] = {'a': [], 'b': [], 'all': []}
+    sums: dict[str, np.ndarray] = {}
+
+    def add(name: str, value: np.ndarray) -> None:
+        sums[name] = sums[name] + value if name in sums else value
+
+    for r, J in _weighted_chunks(prob, y):
+        cost += _huber_cost(r, delta)
+        n_res += r.size
+        if decoupled:
+            J_a, J_b, J_t = J[:, :3][:, :, layout.a], J[:, :, layout.b], J[:, :, 1:4]
+            g_a, H_a = influence_sums(r[:, :3], J_a, delta)
+            g_b, H_b, C = influence_sums(r, J_b, delta, J_t)
+            g_parts['a'].append(g_a)
+            g_parts['b'].append(g_b)
+            for name, value in (('H_a', H_a), ('H_b', H_b), ('C', C)):
+                add(name, value)
+            fa, fb, ft = (x.reshape(-1, x.shape[-1]) for x in (J_a, J_b, J_t))
+            add('N_a', fa.T @ fa)
+            add('N_b', fb.T @ fb)
+            add('N_bt', fb.T @ ft)
+        else:
+            J_f = J[:, :, free_all]
+            g, H = influence_sums(r, J_f, delta)
+            g_parts['all'].append(g)
+            add('H', H)
+            f = J_f.reshape(-1, J_f.shape[-1])
+            add('N', f.T @ f)
+    s2 = max(2.0 * cost / max(n_res - free_all.size, 1), 1e-12)
     cov = np.zeros((layout.size, layout.size))
-    jac = _eye_jacobians(residuals, y, layout, decoupled)
-    if not decoupled:
-        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(jac['all'].T @ jac['all'])
+    if decoupled:
+        cov[np.ix_(free_all, free_all)] = _two_step_from_normals(
+            sums['N_a'], sums['N_b'], sums['N_bt'], s2, k)
+        psi_theta, psi_b = two_step_from_sums(
+            np.concatenate(g_parts['a']), sums['H_a'], np.concatenate(g_parts['b']),
+            sums['H_b'], sums['C'], np.arange(k, k + 3))
+        psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
     else:
-        cov[np.ix_(free_all, free_all)] = _two_step_covariance(
-            jac['a'], jac['b'], jac['theta'], s2, len(layout.time))
-    lr = _eye_long_run(residuals, y, layout, delta, decoupled, jac)
-    return y, cost_before, cost_after, en, cov, r0.size, free_all.size, sols[-1], lr
+        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
+        psi, _ = influence_from_sums(np.concatenate(g_parts['all']), sums['H'])
+    lr = long_run_covariance(psi)
+    full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
+    full[np.ix_(free_all, free_all)] = lr.covariance
+    white[np.ix_(free_all, free_all)] = lr.white
+    return cov, LongRunCovariance(full, white, lr.bandwidth, lr.samples), cost, n_res
+
+
+#: The small solve ends when a step moves no parameter by more than this fraction of its
+#: standard deviation (from the Gauss-Newton normal matrix), or lowers the cost by less than
+#: LM_FTOL relative.
+STEP_TOL_SIGMA = 1e-3
+
+
+def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray,
+                               max_iterations: int) -> tuple[np.ndarray, OptimizeResult]:
+    """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with the
+    analytic Jacobian: the Newton model of :func:`_levenberg_marquardt` (rows beyond delta
+    add a clipped gradient and no curvature) solved densely. ``sums_at(y) -> _EyeSums``.
+
+    Why not scipy's least_squares: with a finite-difference Jacobian each of its iterations
+    re-evaluated the spline at every eye pose once per parameter (on an hour of 200 Hz VIO,
+    10 minutes of the stage), and it needs the whole Jacobian in memory. Here an iteration is
+    one pass over the eye pairs with their Jacobian, summed as it goes, and the step from the
+    linear result converges in 2-4 of them.
+    """
+    y = y.copy()
+    cur = sums_at(y)
+    lam, nu, nfev = LM_LAMBDA0, 2.0, 1
+    message, success = 'maximum number of iterations reached', False
+    for _ in range(max_iterations):
+        sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(cur.A)), 1e-300, None))
+        D = np.diag(np.maximum(cur.D, 1e-12))
+        while True:
+            step = np.linalg.solve(cur.A + lam * D, -cur.g)
+            y_new = y.copy()
+            y_new[free] += step
+            new = sums_at(y_new)
+            nfev += 1
+            predicted = -(cur.g @ step + 0.5 * step @ (cur.A @ step))
+            if new.cost <= cur.cost or lam > LM_LAMBDA_MAX:
+                break
+            lam *= nu
+            nu *= 2.0
+        if new.cost > cur.cost:
+            message, success = 'no step lowers the cost any further', True
+            break
+        decrease = cur.cost - new.cost
+        rho = decrease / predicted if predicted > 0 else 0.0
+        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN)
+        nu = 2.0
+        y, cur = y_new, new
+        if np.all(np.abs(step) <= STEP_TOL_SIGMA * sigma):
+            message, success = "step below 1e-3 of every parameter's sigma", True
+            break
+        if decrease <= LM_FTOL * cur.cost:
+            message, success = 'relative cost change below tolerance', True
+            break
+    return y, OptimizeResult(success=success, message=message, nfev=nfev, njev=nfev)
 
 
 def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
                    decoupled: bool) -> dict[str, np.ndarray]:
-    """Central-difference Jacobians of the eye residuals at y: for the two-step solve 'a'
-    (rotation rows; dt if free, dtheta), 'b' (all rows; dt if free, dp) and 'theta' (all rows;
-    dtheta); otherwise 'all' (all rows; every free parameter). Each costs two evaluations per
-    column, so the white and the long-run covariance share them."""
+    """Central-difference Jacobians of the eye residuals at y (the joint solve's, where the
+    spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
+    rows; dt if free, dp) and 'theta' (all rows; dtheta); otherwise 'all' (all rows; every
+    free parameter)."""
     h = layout.steps(y)
     if not decoupled:
         return {'all': _jacobian(residuals, y, layout.all, h)}
@@ -556,26 +807,23 @@ def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
             'theta': _jacobian(residuals, y, np.array([1, 2, 3]), h)}
 
 
-def _eye_long_run(residuals, y: np.ndarray, layout: _Layout, delta: float,
-                  decoupled: bool, jac: dict[str, np.ndarray] | None = None
-                  ) -> LongRunCovariance:
-    """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X) from the eye
-    residuals at y, as 7x7 matrices in the order of y (zero rows for a fixed dt).
+def _eye_long_run(r: np.ndarray, jac: dict[str, np.ndarray], layout: _Layout, delta: float,
+                  decoupled: bool) -> LongRunCovariance:
+    """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X, ...) from the eye
+    residuals at the solution, as matrices in the order of y (zero rows for a fixed dt).
 
-    ``residuals(yy, rotation_only=False)``: the weighted eye residuals, 6 (or 3) rows per eye
-    pose pair in time order; ``jac``: their Jacobians from :func:`_eye_jacobians`, computed
-    here when not given.
+    ``r``: the weighted eye residuals, 6 rows per eye pose pair in time order; ``jac``: their
+    Jacobians as :func:`_eye_jacobians` names them.
     """
     free_all = layout.all
     k = len(layout.time)
-    jac = jac or _eye_jacobians(residuals, y, layout, decoupled)
     if decoupled:
         psi_theta, psi_b = influence_two_step(
-            residuals(y, rotation_only=True), jac['a'], residuals(y), jac['b'], jac['theta'],
+            r.reshape(-1, 6)[:, :3].ravel(), jac['a'], r, jac['b'], jac['theta'],
             delta, 3, 6, np.arange(k, k + 3))
         psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
     else:
-        psi, _ = influence(residuals(y), jac['all'], delta, 6)
+        psi, _ = influence(r, jac['all'], delta, 6)
     lr = long_run_covariance(psi)
     full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
     full[np.ix_(free_all, free_all)] = lr.covariance
@@ -597,21 +845,22 @@ def _jacobian(fun, y: np.ndarray, cols: np.ndarray,
     return np.stack(out, axis=1)
 
 
-def _two_step_covariance(J_A: np.ndarray, J_B: np.ndarray, J_t: np.ndarray, s2: float,
-                         k: int) -> np.ndarray:
+def _two_step_from_normals(N_A: np.ndarray, N_B: np.ndarray, N_Bt: np.ndarray, s2: float,
+                           k: int) -> np.ndarray:
     """Covariance of the decoupled estimate under white residuals, in the order (dt if free,
     dtheta, dp); k is 1 when dt is free.
 
     Step A gives dtheta (with dt) from the rotation residuals: Sigma_A = s2 (J_A^T J_A)^-1.
     Step B gives (dt, dp) from all residuals with dtheta fixed; its own noise gives
     Sigma_B = s2 (J_B^T J_B)^-1, and dtheta's error moves it by S = -(J_B^T J_B)^-1 J_B^T J_t
-    (J_t: all residuals wrt dtheta). The final dt is step B's.
+    (J_t: all residuals wrt dtheta). The final dt is step B's. N_A, N_B, N_Bt: J_A^T J_A,
+    J_B^T J_B and J_B^T J_t, summed over the eye pairs.
     """
-    cov_a = s2 * np.linalg.inv(J_A.T @ J_A)
+    cov_a = s2 * np.linalg.inv(N_A)
     cov_tt = cov_a[k:, k:]
-    N_B = np.linalg.inv(J_B.T @ J_B)
-    S = -N_B @ (J_B.T @ J_t)
-    return _assemble_two_step(cov_tt, s2 * N_B, S, k)
+    N_B_inv = np.linalg.inv(N_B)
+    S = -N_B_inv @ N_Bt
+    return _assemble_two_step(cov_tt, s2 * N_B_inv, S, k)
 
 
 def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
@@ -688,7 +937,7 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
     if not decoupled:
         cov[np.ix_(glob, glob)] = _marginal_covariance(J[:, free], ns)
     else:
-        # as _two_step_covariance, with the control poses marginalised in each step
+        # as _two_step_from_normals, with the control poses marginalised in each step
         J_A = J[rot_rows][:, free & ~trans]
         cov_tt = _marginal_covariance(J_A, J_A.shape[1] - 3)
         J_B = csc_matrix(J[:, free & ~theta])
@@ -765,16 +1014,17 @@ def _huber_cost(r: np.ndarray, delta: float) -> float:
 
 
 def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
-            fitted: int = 0) -> tuple[float, float, bool]:
+            fitted: int = 0, n: int | None = None) -> tuple[float, float, bool]:
     """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
 
     ``fitted``: parameters per axis fitted to these same residuals (the spline's M control
     poses for the hand), which shrink them by sqrt((N - fitted) / N): undone here, up to a
     factor sqrt(2). A spline with about as many control poses as MoCap poses (a sparse MoCap)
     nearly interpolates it and its residuals say little about the noise; blowing them up
-    then would only turn interpolation round-off into noise.
+    then would only turn interpolation round-off into noise. ``n``: how many residuals the fit
+    had, when r is a sample of them.
     """
-    n = r.shape[0]
+    n = r.shape[0] if n is None else n
     inflate = float(np.sqrt(n / max(n - fitted, n / 2.0)))
     rot = (given[0] if given[0] is not None
            else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT))

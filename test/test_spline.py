@@ -1,4 +1,4 @@
-"""The hand's B-spline (core/spline.py, eq. 12): its basis, its rates and its fit."""
+"""The hand's B-spline (core/spline.py, eq. 14): its basis, its rates and its fit."""
 
 from __future__ import annotations
 

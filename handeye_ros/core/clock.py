@@ -26,7 +26,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import stats
 
 from .errors import TimeAlignmentError
 from .time_align import align_time, align_time_vector
@@ -190,6 +189,8 @@ def fit_drift(centres_ns: np.ndarray, offsets_s: np.ndarray, correlation: np.nda
         return none(f'only {int(ok.sum())} window(s) of at least {MIN_WINDOW_S:g} s gave an '
                     f'offset (need {MIN_WINDOWS}): the overlap of the recordings '
                     f'({span_s:.0f} s) is too short, or moves too little, to observe a drift')
+    from scipy import stats  # here: its import alone takes 1.3 s of every run
+
     slope, icpt = stats.siegelslopes(offsets_s[ok], x[ok])
     resid = offsets_s - (icpt + slope * x)
     sigma = 1.4826 * float(np.median(np.abs(resid[ok])))

@@ -63,17 +63,46 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
 
 def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle in radians, [0, pi], of the rotation between unit x y z w quaternions a and b
-    (either sign of each stands for the same rotation)."""
-    return 2.0 * np.arccos(np.minimum(np.abs(np.sum(a * b, axis=-1)), 1.0))
+    (either sign of each stands for the same rotation).
+
+    Four times the angle between the two as unit vectors of R^4, by atan2 of the chord and
+    its complement: exact at small angles, where arccos of the dot product loses half the
+    digits."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
+    return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a (x) b`` of x y z w quaternion stacks (broadcasting)."""
-    av, aw = a[..., :3], a[..., 3:]
-    bv, bw = b[..., :3], b[..., 3:]
-    vec = aw * bv + bw * av + np.cross(av, bv)
-    w = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
-    return np.concatenate((vec, w), axis=-1)
+    """Hamilton product ``a (x) b`` of x y z w quaternion stacks (broadcasting).
+
+    Written out per component: twice as fast as through np.cross on long stacks (screening
+    an hour of 1 kHz MoCap multiplies some 40 million quaternions)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    ax, ay, az, aw = np.moveaxis(a, -1, 0)
+    bx, by, bz, bw = np.moveaxis(b, -1, 0)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 1] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 2] = aw * bz + ax * by - ay * bx + az * bw
+    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    return out
+
+
+def consecutive_rotvecs(q_xyzw: np.ndarray) -> np.ndarray:
+    """Rotation vectors (N-1, 3) of ``R_k^T R_k+1`` (body frame) for consecutive x y z w
+    quaternions (N, 4), the shorter way, from ``q_k* (x) q_k+1`` with the angle by atan2 (exact
+    at small angles; no rotation matrices for a stream of millions of poses)."""
+    d = quat_multiply(quat_conjugate(q_xyzw[:-1]), q_xyzw[1:])
+    d *= np.where(d[:, 3:] < 0.0, -1.0, 1.0)
+    s = np.linalg.norm(d[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(s, d[:, 3])
+    small = s < 1e-12
+    scale = np.where(small, 2.0 / np.where(d[:, 3] > 0.0, d[:, 3], 1.0),
+                     angle / np.where(small, 1.0, s))
+    return d[:, :3] * scale[:, None]
 
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
@@ -168,16 +197,17 @@ def quat_slerp(q0: np.ndarray, q1: np.ndarray, f: np.ndarray) -> np.ndarray:
     fractions f (...,): f in [0, 1] interpolates, outside extrapolates along the same
     geodesic. The shorter way is taken (q1's sign is matched to q0's first).
 
-    Only the pairs asked for are computed (scipy's Slerp prepares every interval of the
-    trajectory, which costs more than the queries on long MoCap streams).
+    On the great circle of R^4 through q0 and q1 (the same curve as the product form, without
+    its two quaternion products), with the angle between them by atan2 as in
+    :func:`quat_angle`. Only the pairs asked for are computed (scipy's Slerp prepares every
+    interval of the trajectory, which costs more than the queries on long MoCap streams).
     """
     q1 = np.where(np.sum(q0 * q1, axis=-1, keepdims=True) < 0.0, -q1, q1)
-    d = quat_multiply(quat_conjugate(q0), q1)
-    s = np.linalg.norm(d[..., :3], axis=-1)
-    half = np.arctan2(s, d[..., 3])  # half the relative angle
+    omega = 2.0 * np.arctan2(np.linalg.norm(q0 - q1, axis=-1), np.linalg.norm(q0 + q1, axis=-1))
     f = np.asarray(f, dtype=float)
-    small = s < 1e-12
-    scale = np.where(small, f, np.sin(f * half) / np.where(small, 1.0, s))
-    df = np.concatenate((d[..., :3] * scale[..., None], np.cos(f * half)[..., None]), axis=-1)
-    out = quat_multiply(q0, df)
+    small = omega < 1e-9
+    sin_omega = np.where(small, 1.0, np.sin(omega))
+    w0 = np.where(small, 1.0 - f, np.sin((1.0 - f) * omega) / sin_omega)
+    w1 = np.where(small, f, np.sin(f * omega) / sin_omega)
+    out = w0[..., None] * q0 + w1[..., None] * q1
     return out / np.linalg.norm(out, axis=-1, keepdims=True)

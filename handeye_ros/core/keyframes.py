@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .config import STRATEGIES
-from .geometry import rotation_angle
+from .geometry import consecutive_rotvecs, quat_from_matrix
 from .trajectory import segment_spans
 
 
@@ -43,8 +43,11 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
     ``s_j >= s_i + eta`` can qualify, and candidates after it are tested in vectorised blocks.
     """
     n = R.shape[0]
-    step = rotation_angle(np.matmul(np.swapaxes(R[:-1], -1, -2), R[1:]))
-    s = np.concatenate(([0.0], np.cumsum(step)))
+    # in quaternions: angle(R_i^T R_j) >= eta  <=>  |q_i . q_j| <= cos(eta / 2), one dot
+    # product per candidate (an hour at 200 Hz has some 20 000 keyframes)
+    q = quat_from_matrix(R)
+    s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(consecutive_rotvecs(q), axis=1))))
+    cos_half = np.cos(0.5 * eta_rad)
     first, second = [], []
     i = 0
     while True:
@@ -52,12 +55,13 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
         start = max(int(np.searchsorted(s, s[i] + eta_rad * (1.0 - 1e-9))), i + 1)
         block = 32
         found = -1
-        while start < n and found < 0:
-            js = np.arange(start, min(start + block, n))
-            hit = np.flatnonzero(rotation_angle(np.matmul(R[i].T, R[js])) >= eta_rad)
+        while start < n:
+            stop = min(start + block, n)
+            hit = np.flatnonzero(np.abs(q[start:stop] @ q[i]) <= cos_half)
             if hit.size:
-                found = int(js[hit[0]])
-            start += block
+                found = start + int(hit[0])
+                break
+            start = stop
             block *= 2
         if found < 0:
             break

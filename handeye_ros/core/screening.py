@@ -45,7 +45,7 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 from .association import eye_motion_errors
-from .geometry import quat_conjugate, quat_multiply, quat_slerp
+from .geometry import quat_angle, quat_slerp
 from .trajectory import Trajectory, segment_spans
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
@@ -142,9 +142,7 @@ def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.n
     (interpolation when a < k < b, extrapolation otherwise; q: x y z w quaternions)."""
     f = (t[k] - t[a]) / np.where(t[b] != t[a], t[b] - t[a], 1.0)
     p_pred = p[a] + f[:, None] * (p[b] - p[a])
-    d = quat_multiply(quat_conjugate(quat_slerp(q[a], q[b], f)), q[k])
-    angle = 2.0 * np.arctan2(np.linalg.norm(d[:, :3], axis=1), np.abs(d[:, 3]))
-    return np.linalg.norm(p[k] - p_pred, axis=1), angle
+    return np.linalg.norm(p[k] - p_pred, axis=1), quat_angle(quat_slerp(q[a], q[b], f), q[k])
 
 
 def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,

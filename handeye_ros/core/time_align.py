@@ -40,7 +40,7 @@ import numpy as np
 from scipy import fft
 
 from .errors import TimeAlignmentError
-from .geometry import log_so3, matrix_from_quat, rotation_angle
+from .geometry import consecutive_rotvecs
 from .trajectory import Trajectory
 
 #: A lag is only considered where the two signals overlap on at least this fraction of the
@@ -134,10 +134,9 @@ def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
     """Angular speed (or body angular velocity, ``vector``) from consecutive orientations, at
     interval midpoints in seconds from the stream's first stamp (see :class:`AngularSpeed`)."""
     t = traj.seconds(int(traj.t_ns[0]))
-    R = matrix_from_quat(traj.q_xyzw)
-    dR = np.matmul(np.swapaxes(R[:-1], -1, -2), R[1:])
+    rotvec = consecutive_rotvecs(traj.q_xyzw)
     dt = np.diff(t)
-    w = log_so3(dR) / dt[:, None] if vector else rotation_angle(dR) / dt
+    w = rotvec / dt[:, None] if vector else np.linalg.norm(rotvec, axis=1) / dt
     return AngularSpeed(0.5 * (t[1:] + t[:-1]), w, traj.interval_ok())
 
 

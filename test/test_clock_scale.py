@@ -12,7 +12,14 @@ from conftest import REAL_DATA, ROOT, recording, run_cli
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch import refine
-from handeye_ros.core.clock import DRIFT_NOTICE_S, fit_drift, retime
+from handeye_ros.core.clock import (
+    DRIFT_NOTICE_S,
+    DriftFit,
+    fit_drift,
+    least_squares_line,
+    repeated_medians_line,
+    retime,
+)
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
@@ -36,6 +43,39 @@ def test_fit_drift_recovers_a_line_and_ignores_a_wrong_window() -> None:
     assert not fit.inliers[3] and fit.inliers.sum() == 11
     assert float(fit.offset_at(centres[6])) == pytest.approx(0.05, abs=1e-9)
     assert fit.significant  # 66 ms over the recording
+
+
+def test_line_fits_match_scipy_stats() -> None:
+    """The two line fits written out in core/clock.py (to spare every run scipy.stats' 1.3 s
+    import) give scipy's numbers, wild points included."""
+    from scipy import stats
+    rng = np.random.default_rng(4)
+    for n in (4, 7, 16):
+        x = np.sort(rng.uniform(-300, 300, n))
+        y = 2e-3 + 5e-5 * x + rng.normal(scale=5e-4, size=n)
+        y[n // 3] += 0.05  # a window on a wrong peak
+        ref = stats.siegelslopes(y, x)
+        np.testing.assert_allclose(repeated_medians_line(x, y), (ref.slope, ref.intercept),
+                                   rtol=1e-12, atol=1e-15)
+        lr = stats.linregress(x, y)
+        np.testing.assert_allclose(least_squares_line(x, y),
+                                   (lr.slope, lr.intercept, lr.stderr), rtol=1e-10)
+
+
+def test_drift_significance_uses_the_t_quantile_of_its_windows() -> None:
+    """A drift's sigma comes from a few windows' scatter: the bar is Student's t at the false
+    alarm rate of 3 Gaussian sigmas, higher the fewer the windows."""
+    from scipy import stats
+
+    def fit(n: int, drift: float) -> DriftFit:
+        return DriftFit(drift, 1e-6, 0.0, 1e-4, 0, 6000.0, np.zeros(n, np.int64), np.zeros(n),
+                        np.ones(n), np.ones(n, bool))
+    for n in (4, 6, 15):
+        bar = stats.t.ppf(stats.norm.cdf(3.0), n - 2)
+        assert fit(n, 1e-6).threshold_sigmas == pytest.approx(bar)
+        assert fit(n, 1.01 * bar * 1e-6).significant
+        assert not fit(n, 0.99 * bar * 1e-6).significant
+    assert fit(15, 3.6e-6).threshold_sigmas > 3.6  # the false alarm of a 10-min simulation
 
 
 def test_fit_drift_refuses_too_few_windows() -> None:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .chunked import chunked
 from .errors import TimeAlignmentError
 from .geometry import compose, inverse, matrix_from_quat, quat_slerp, relative, rotation_angle
 from .trajectory import Trajectory
@@ -62,7 +63,8 @@ def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndar
     f = (tq[ok] - ts[a]) / (ts[a + 1] - ts[a])
     R = np.tile(np.eye(3), (tq.size, 1, 1))
     p = np.zeros((tq.size, 3))
-    R[ok] = matrix_from_quat(quat_slerp(traj.q_xyzw[a], traj.q_xyzw[a + 1], f))
+    q = traj.q_xyzw
+    R[ok] = chunked(lambda s: matrix_from_quat(quat_slerp(q[a[s]], q[a[s] + 1], f[s])), a.size)
     p[ok] = traj.p_xyz[a] + f[:, None] * (traj.p_xyz[a + 1] - traj.p_xyz[a])
     return R, p, ok
 

@@ -621,7 +621,8 @@ def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: f
     """
     y = np.zeros(layout.size)
     free_all = layout.all
-    en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
+    r_start = prob.eye_raw(y)  # kept: the cost before, at the final weights
+    en = Noise(*_sigmas(r_start, eye_noise))
     passes = 2 if en.estimated else 1
     sols = []
     for k in range(passes):
@@ -632,14 +633,15 @@ def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: f
         # of a sigma and converges in one or two)
         iterations = max_iterations if k + 1 == passes else 1
         for free, rotation_only in steps:
-            y, sol = _levenberg_marquardt_small(
+            y, sol, last = _levenberg_marquardt_small(
                 lambda yy, f=free, ro=rotation_only: _eye_sums(prob, yy, f, ro, delta),
                 y, free, iterations)
             sols.append(sol)
-        if k + 1 < passes:
-            en = Noise(*_sigmas(prob.eye_raw(y), eye_noise))
+        if k + 1 < passes:  # the last step's residuals (all rows) are those at y
+            en = Noise(*_sigmas(last.raw, eye_noise))
     w = np.repeat(prob.w[2:], 3)
-    cost_before = _huber_cost((prob.eye_raw(np.zeros(layout.size)) * w).ravel(), delta)
+    cost_before = _huber_cost((r_start * w).ravel(), delta)
+    del r_start
     cov, lr, cost_after, n_res = _eye_covariance(prob, y, layout, delta, decoupled)
     return y, cost_before, cost_after, en, cov, n_res, free_all.size, sols[-1], lr
 
@@ -654,15 +656,20 @@ class _EyeSums:
     A: np.ndarray
     g: np.ndarray
     D: np.ndarray
+    raw: np.ndarray | None = None
 
 
-def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False):
-    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs, weighted by 1/sigma."""
+def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False,
+                     raw: list[np.ndarray] | None = None):
+    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs, weighted by 1/sigma; the
+    unweighted residuals of each chunk are appended to ``raw`` when given."""
     rows = 3 if rotation_only else 6
     w = np.repeat(prob.w[2:], 3)[:rows]
     for k in prob.chunks():
         r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True,
                               rotation_only)
+        if raw is not None:
+            raw.append(r)
         yield r * w, J * w[None, :, None]
 
 
@@ -670,7 +677,8 @@ def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bo
               delta: float) -> _EyeSums:
     p = free.size
     cost, A, g, D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
-    for r, J in _weighted_chunks(prob, y, rotation_only):
+    raw: list[np.ndarray] | None = None if rotation_only else []
+    for r, J in _weighted_chunks(prob, y, rotation_only, raw):
         r = r.ravel()
         Jf = J[:, :, free].reshape(r.size, p)
         psi, dpsi = huber_psi(r, delta)
@@ -678,7 +686,7 @@ def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bo
         A += Jf.T @ (Jf * dpsi[:, None])
         g += Jf.T @ psi
         D += np.einsum('ij,ij->j', Jf, Jf)
-    return _EyeSums(cost, A, g, D)
+    return _EyeSums(cost, A, g, D, None if raw is None else np.concatenate(raw))
 
 
 def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float,
@@ -746,8 +754,8 @@ def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float
 STEP_TOL_SIGMA = 1e-3
 
 
-def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray,
-                               max_iterations: int) -> tuple[np.ndarray, OptimizeResult]:
+def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_iterations: int
+                               ) -> tuple[np.ndarray, OptimizeResult, _EyeSums]:
     """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with the
     analytic Jacobian: the Newton model of :func:`_levenberg_marquardt` (rows beyond delta
     add a clipped gradient and no curvature) solved densely. ``sums_at(y) -> _EyeSums``.
@@ -756,7 +764,7 @@ def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray,
     re-evaluated the spline at every eye pose once per parameter (on an hour of 200 Hz VIO,
     10 minutes of the stage), and it needs the whole Jacobian in memory. Here an iteration is
     one pass over the eye pairs with their Jacobian, summed as it goes, and the step from the
-    linear result converges in 2-4 of them.
+    linear result converges in 2-4 of them. Returns (y, report, the sums at y).
     """
     y = y.copy()
     cur = sums_at(y)
@@ -790,7 +798,7 @@ def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray,
         if decrease <= LM_FTOL * cur.cost:
             message, success = 'relative cost change below tolerance', True
             break
-    return y, OptimizeResult(success=success, message=message, nfev=nfev, njev=nfev)
+    return y, OptimizeResult(success=success, message=message, nfev=nfev, njev=nfev), cur
 
 
 def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.special import ndtr, stdtrit
 
 from .errors import TimeAlignmentError
 from .time_align import align_time, align_time_vector
@@ -100,9 +101,18 @@ class DriftFit:
     @property
     def significant(self) -> bool:
         """Whether the drift moves the offset by more than DRIFT_NOTICE_S over the recording
-        and by more than DRIFT_SIGMAS of its own uncertainty."""
+        and is further from zero than its own uncertainty explains: beyond the Student-t
+        quantile (n - 2 degrees of freedom, n the windows fitted) at the false-alarm rate of
+        DRIFT_SIGMAS Gaussian sigmas. The sigma is itself estimated from a few windows' scatter;
+        at 3 Gaussian sigmas 15 windows need 3.8, 6 windows 6.4."""
         return (self.estimated and abs(self.change_s) > DRIFT_NOTICE_S
-                and abs(self.drift) > DRIFT_SIGMAS * self.drift_std)
+                and abs(self.drift) > self.threshold_sigmas * self.drift_std)
+
+    @property
+    def threshold_sigmas(self) -> float:
+        """How many of its sigmas a drift must reach to be :attr:`significant`."""
+        dof = int(np.sum(self.inliers)) - 2
+        return float(stdtrit(dof, ndtr(DRIFT_SIGMAS))) if dof > 0 else float('inf')
 
     def offset_at(self, t_ns: np.ndarray | int) -> np.ndarray | float:
         """dt [s] at eye stamps t_ns (the clock this fit was measured on)."""
@@ -189,29 +199,54 @@ def fit_drift(centres_ns: np.ndarray, offsets_s: np.ndarray, correlation: np.nda
         return none(f'only {int(ok.sum())} window(s) of at least {MIN_WINDOW_S:g} s gave an '
                     f'offset (need {MIN_WINDOWS}): the overlap of the recordings '
                     f'({span_s:.0f} s) is too short, or moves too little, to observe a drift')
-    from scipy import stats  # here: its import alone takes 1.3 s of every run
-
-    slope, icpt = stats.siegelslopes(offsets_s[ok], x[ok])
+    slope, icpt = repeated_medians_line(x[ok], offsets_s[ok])
     resid = offsets_s - (icpt + slope * x)
     sigma = 1.4826 * float(np.median(np.abs(resid[ok])))
     inl = ok & (np.abs(resid) <= max(INLIER_SIGMAS * sigma, INLIER_FLOOR_S))
     if inl.sum() < MIN_WINDOWS or np.ptp(x[inl]) <= 0.0:
         return none(f'only {int(inl.sum())} window offsets agree with one line (need '
                     f'{MIN_WINDOWS}): the offset does not change linearly along the recording')
-    lr = stats.linregress(x[inl], offsets_s[inl])
-    if inl.sum() == 2 or not np.isfinite(lr.stderr):
+    slope, icpt, stderr = least_squares_line(x[inl], offsets_s[inl])
+    if inl.sum() == 2 or not np.isfinite(stderr):
         return none('the window offsets cannot give an uncertainty')
     # the fit's own scatter, but never below what a window can resolve: windows that agree
     # exactly (a noise-free simulation) would otherwise claim a zero uncertainty
     floor = INLIER_FLOOR_S / np.sqrt(inl.sum())
     xc = x[inl] - x[inl].mean()
-    slope_std = max(float(lr.stderr), floor / max(float(np.sqrt(np.mean(xc ** 2))), 1e-9))
-    off = float(lr.intercept + lr.slope * x[inl].mean())
+    slope_std = max(stderr, floor / max(float(np.sqrt(np.mean(xc ** 2))), 1e-9))
+    off = float(icpt + slope * x[inl].mean())
     ref = int(stamp_ns + np.int64(round(float(x[inl].mean()) * 1e9)))
-    off_std = max(float(np.std(offsets_s[inl] - (lr.intercept + lr.slope * x[inl]), ddof=2))
+    off_std = max(float(np.std(offsets_s[inl] - (icpt + slope * x[inl]), ddof=2))
                   / np.sqrt(inl.sum()), floor)
-    return DriftFit(float(lr.slope), slope_std, off, off_std, ref, span_s, centres_ns,
+    return DriftFit(slope, slope_std, off, off_std, ref, span_s, centres_ns,
                     offsets_s, correlation, inl)
+
+
+def repeated_medians_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """(slope, intercept) of Siegel's repeated-medians line, as scipy.stats.siegelslopes
+    (hierarchical): the median over i of the median over j != i of the slopes through points
+    i and j, and the median of y - slope x. Robust to nearly half the points being wild.
+    (Written out for the few windows here: importing scipy.stats would take 1.3 s of every
+    run; test_clock_scale.py checks it against scipy's.)"""
+    dx = x[None, :] - x[:, None]
+    dy = y[None, :] - y[:, None]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        slopes = np.where(dx != 0.0, dy / np.where(dx != 0.0, dx, 1.0), np.nan)
+    slope = float(np.median(np.nanmedian(slopes, axis=1)))
+    return slope, float(np.median(y - slope * x))
+
+
+def least_squares_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """(slope, intercept, the slope's standard error) of the least-squares line, as
+    scipy.stats.linregress (n - 2 degrees of freedom)."""
+    xm, ym = float(np.mean(x)), float(np.mean(y))
+    sxx = float(np.sum((x - xm) ** 2))
+    if not sxx > 0.0 or x.size < 3:
+        return float('nan'), float('nan'), float('nan')
+    slope = float(np.sum((x - xm) * (y - ym)) / sxx)
+    icpt = ym - slope * xm
+    resid = y - (icpt + slope * x)
+    return slope, icpt, float(np.sqrt(np.sum(resid ** 2) / (x.size - 2) / sxx))
 
 
 def measure_drift(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None = None,

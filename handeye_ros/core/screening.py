@@ -45,6 +45,7 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 from .association import eye_motion_errors
+from .chunked import chunked
 from .geometry import quat_angle, quat_slerp
 from .trajectory import Trajectory, segment_spans
 
@@ -140,6 +141,11 @@ def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.n
              k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Residuals (m, rad) of poses k against the line through poses a and b at t_k
     (interpolation when a < k < b, extrapolation otherwise; q: x y z w quaternions)."""
+    return chunked(lambda s: _predict_rows(t, p, q, a[s], b[s], k[s]), k.size)
+
+
+def _predict_rows(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray,
+                  k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     f = (t[k] - t[a]) / np.where(t[b] != t[a], t[b] - t[a], 1.0)
     p_pred = p[a] + f[:, None] * (p[b] - p[a])
     return np.linalg.norm(p[k] - p_pred, axis=1), quat_angle(quat_slerp(q[a], q[b], f), q[k])

@@ -82,6 +82,9 @@ HAND_NOISE_SAMPLES = 200_000
 #: Eye pose pairs evaluated at once (:meth:`_Problem.eye_chunk`): small enough that the arrays
 #: of a chunk stay in cache and memory stays flat, large enough for numpy's per-call cost.
 EYE_CHUNK_PAIRS = 1 << 15
+#: Chunks of eye pairs the first of the two noise passes uses on a long recording (spread
+#: over it); the second pass and the covariance use every pair.
+FIRST_PASS_CHUNKS = 4
 #: Fewest eye residuals the stage accepts.
 MIN_EYE_RESIDUALS = 20
 #: Fewest MoCap poses per knot interval the joint solve accepts: with fewer, the control poses
@@ -160,6 +163,11 @@ def _pairs(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
     """Consecutive pose indices not spanning a gap or a break (as stage 1)."""
     i = np.flatnonzero(traj.interval_ok())
     return i, i + 1
+
+
+def _times(M: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``M C`` for a stack M (N, 3, 3) and a constant C (3, 3), as one matrix product."""
+    return (M.reshape(-1, 3) @ C).reshape(M.shape)
 
 
 def _conjugate(C: np.ndarray, M: np.ndarray, right: bool = True) -> np.ndarray:
@@ -337,7 +345,7 @@ class _Problem:
         Jl_inv = right_jacobian(-r_rot, inverse=True)
         Jr_theta = right_jacobian(y[None, 1:4])[0]
         rel_R = _conjugate(RX.T, Q)
-        J[:, :3, 1:4] = np.matmul(Jl_inv, rel_R - np.eye(3)) @ Jr_theta
+        J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
         time_cols = [(0, -1.0, -1.0)]
         if self.i_drift is not None:
             time_cols.append((self.i_drift, -(te[a] - self.t_ref)[:, None],
@@ -348,7 +356,7 @@ class _Problem:
             J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
         if rotation_only:
             return r, J
-        J[:, 3:, 1:4] = hat(p_rel) @ Jr_theta / s
+        J[:, 3:, 1:4] = _times(hat(p_rel), Jr_theta / s)
         J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
         if self.i_scale is not None:
             J[:, 3:, self.i_scale] = -p_rel / s ** 2
@@ -631,10 +639,15 @@ def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: f
         # the first pass only has to get near enough to measure the noise again: from the
         # linear result one Gauss-Newton step does (the second pass starts within a fraction
         # of a sigma and converges in one or two)
-        iterations = max_iterations if k + 1 == passes else 1
+        # (and on a long recording from every few chunks of pairs only: FIRST_PASS_CHUNKS
+        # chunks spread over the recording hold some 130 000 pairs, enough for both)
+        last_pass = k + 1 == passes
+        iterations = max_iterations if last_pass else 1
+        every = 1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS)
         for free, rotation_only in steps:
             y, sol, last = _levenberg_marquardt_small(
-                lambda yy, f=free, ro=rotation_only: _eye_sums(prob, yy, f, ro, delta),
+                lambda yy, f=free, ro=rotation_only, e=every: _eye_sums(prob, yy, f, ro, delta,
+                                                                        e),
                 y, free, iterations)
             sols.append(sol)
         if k + 1 < passes:  # the last step's residuals (all rows) are those at y
@@ -660,12 +673,13 @@ class _EyeSums:
 
 
 def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False,
-                     raw: list[np.ndarray] | None = None):
-    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs, weighted by 1/sigma; the
-    unweighted residuals of each chunk are appended to ``raw`` when given."""
+                     raw: list[np.ndarray] | None = None, every: int = 1):
+    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
+    chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
+    ``raw`` when given."""
     rows = 3 if rotation_only else 6
     w = np.repeat(prob.w[2:], 3)[:rows]
-    for k in prob.chunks():
+    for k in prob.chunks()[::every]:
         r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True,
                               rotation_only)
         if raw is not None:
@@ -674,11 +688,11 @@ def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False,
 
 
 def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bool,
-              delta: float) -> _EyeSums:
+              delta: float, every: int = 1) -> _EyeSums:
     p = free.size
     cost, A, g, D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
     raw: list[np.ndarray] | None = None if rotation_only else []
-    for r, J in _weighted_chunks(prob, y, rotation_only, raw):
+    for r, J in _weighted_chunks(prob, y, rotation_only, raw, every):
         r = r.ravel()
         Jf = J[:, :, free].reshape(r.size, p)
         psi, dpsi = huber_psi(r, delta)

@@ -190,7 +190,8 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     small = t < 1e-4
     s = np.where(small, 1.0, t)
     K = hat(v)
-    K2 = np.matmul(K, K)
+    K2 = v[..., :, None] * v[..., None, :]  # K^2 = v v^T - |v|^2 I (no stacked matmul)
+    K2[..., [0, 1, 2], [0, 1, 2]] -= t2[..., None]
     if inverse:
         a = np.full(t.shape, 0.5)
         b = np.where(small, 1.0 / 12.0 + t2 / 720.0,

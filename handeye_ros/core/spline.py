@@ -106,8 +106,17 @@ def exp_quat(v: np.ndarray) -> np.ndarray:
 def _rotate_back(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """``R(q)^T v`` for unit quaternions q (N, 4) and vectors v (N, 3)."""
     u, w = -q[:, :3], q[:, 3:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    t = 2.0 * _cross(u, v)
+    return v + w * t + _cross(u, t)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b row-wise for (N, 3) arrays (np.cross's generality costs it twice the time)."""
+    out = np.empty_like(b)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.special import ndtr, stdtrit
 
 from .errors import TimeAlignmentError
-from .time_align import align_time, align_time_vector
+from .time_align import AngularSpeed, align_time, align_time_vector, angular_speed
 from .trajectory import Trajectory
 
 #: Shortest window (s): stage 1 needs a few seconds of varied angular speed per window.
@@ -151,37 +151,51 @@ def window_bounds(first_ns: int, last_ns: int) -> np.ndarray:
 def window_offsets(hand: Trajectory, eye: Trajectory, bounds: np.ndarray,
                    predicted_s: np.ndarray, half_window_s: float | np.ndarray,
                    R_HE: np.ndarray | None = None,
-                   resample_rate_hz: float | None = None
+                   resample_rate_hz: float | None = None,
+                   signals: tuple[AngularSpeed, AngularSpeed] | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stage 1 in each window of the eye, searched ``predicted_s +- half_window_s``.
 
     With ``R_HE`` the vector form (``w_E = R_HE^T w_H(t - dt)``), otherwise the angular-speed
-    magnitudes. Returns (centres ns, offsets s, peak correlation), NaN where a window gives
+    magnitudes; ``signals``: :func:`stream_signals` of the two streams, when already made. Returns (centres ns, offsets s, peak correlation), NaN where a window gives
     no offset (too little motion, the peak at the edge of the search).
     """
     n = bounds.shape[0]
     half = np.broadcast_to(np.asarray(half_window_s, float), (n,))
     centres = (bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) // 2).astype(np.int64)
     offsets, corr = np.full(n, np.nan), np.full(n, np.nan)
+    w_h, w_e = signals or stream_signals(hand, eye, R_HE)
     for k, (a, b) in enumerate(bounds):
-        e = (eye.t_ns >= a) & (eye.t_ns <= b)
+        e0 = np.searchsorted(eye.t_ns, a, side='left')
+        e1 = np.searchsorted(eye.t_ns, b, side='right')
         reach = np.int64(round((abs(predicted_s[k]) + half[k] + SEARCH_MARGIN_S) * 1e9))
-        h = (hand.t_ns >= a - reach) & (hand.t_ns <= b + reach)
-        if e.sum() < 10 or h.sum() < 10:
+        h0 = np.searchsorted(hand.t_ns, a - reach, side='left')
+        h1 = np.searchsorted(hand.t_ns, b + reach, side='right')
+        if e1 - e0 < 10 or h1 - h0 < 10:
             continue
+        parts = (w_h.part(hand, h0, h1), w_e.part(eye, e0, e1))
+        hand_k, eye_k = hand.select(slice(h0, h1)), eye.select(slice(e0, e1))
         try:
             if R_HE is None:
-                ta = align_time(hand.select(h), eye.select(e), max_time_offset=half[k],
+                ta = align_time(hand_k, eye_k, max_time_offset=half[k],
                                 time_offset_guess=float(predicted_s[k]),
-                                resample_rate_hz=resample_rate_hz)
+                                resample_rate_hz=resample_rate_hz, signals=parts)
             else:
-                ta = align_time_vector(hand.select(h), eye.select(e), R_HE,
-                                       around_s=float(predicted_s[k]), half_window_s=half[k],
-                                       resample_rate_hz=resample_rate_hz)
+                ta = align_time_vector(hand_k, eye_k, R_HE, around_s=float(predicted_s[k]),
+                                       half_window_s=half[k],
+                                       resample_rate_hz=resample_rate_hz, signals=parts)
         except TimeAlignmentError:
             continue
         offsets[k], corr[k] = ta.time_offset_s, ta.peak_correlation
     return centres, offsets, corr
+
+
+def stream_signals(hand: Trajectory, eye: Trajectory,
+                   R_HE: np.ndarray | None) -> tuple[AngularSpeed, AngularSpeed]:
+    """The angular signals of the whole streams that :func:`window_offsets` cuts into windows:
+    body angular velocities with ``R_HE``, angular speeds without."""
+    vector = R_HE is not None
+    return angular_speed(hand, vector=vector), angular_speed(eye, vector=vector)
 
 
 def fit_drift(centres_ns: np.ndarray, offsets_s: np.ndarray, correlation: np.ndarray,
@@ -270,15 +284,16 @@ def measure_drift(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None = N
     else:
         pred = np.full(centres.size, around_s)
         half = MAX_DRIFT * np.abs((centres - mean) * 1e-9) + SEARCH_MARGIN_S
-    fit = fit_drift(*window_offsets(hand, eye, bounds, pred, half, R_HE, resample_rate_hz),
-                    mean, span)
+    signals = stream_signals(hand, eye, R_HE)
+    fit = fit_drift(*window_offsets(hand, eye, bounds, pred, half, R_HE, resample_rate_hz,
+                                    signals), mean, span)
     if not fit.estimated:
         return fit
     resid = fit.offsets_s[fit.inliers] - np.asarray(fit.offset_at(fit.centres_ns[fit.inliers]))
     sigma = 1.4826 * float(np.median(np.abs(resid)))
     half2 = max(SECOND_PASS_MIN_S, SECOND_PASS_SIGMAS * sigma)
     again = fit_drift(*window_offsets(hand, eye, bounds, np.asarray(fit.offset_at(centres)),
-                                      half2, R_HE, resample_rate_hz), mean, span)
+                                      half2, R_HE, resample_rate_hz, signals), mean, span)
     return again if again.estimated else fit
 
 

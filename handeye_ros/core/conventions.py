@@ -225,17 +225,15 @@ def reread(traj: Trajectory, reading: str) -> Trajectory:
                                   ).with_breaks(traj.breaks).with_notes(*traj.notes)
 
 
-def _reread_poses(pose: tuple[np.ndarray, np.ndarray],
+def _reread_poses(pose: tuple[np.ndarray, np.ndarray], q_xyzw: np.ndarray,
                   reading: str) -> tuple[np.ndarray, np.ndarray]:
-    """Poses (R (N, 3, 3), p (N, 3)) under another reading, as :func:`reread` does to a
-    stream."""
+    """Poses (R (N, 3, 3), p (N, 3); q_xyzw: R's quaternions) under another reading than as
+    given, as :func:`reread` does to a stream."""
     R, p = pose
-    if reading == 'as given':
-        return R, p
     if reading == 'inverse':
         Rt = np.swapaxes(R, -1, -2)
         return Rt, -np.einsum('nij,nj->ni', Rt, p)
-    return matrix_from_quat(quat_from_matrix(R)[:, PERMUTATIONS[reading]]), p
+    return matrix_from_quat(q_xyzw[:, PERMUTATIONS[reading]]), p
 
 
 @dataclass(frozen=True)
@@ -275,8 +273,10 @@ def reading_fits(hand: Trajectory, eye: Trajectory, time_offset_s: float,
     if i.size < MIN_MOTIONS:
         return []
     fits = []
-    hand_pose, eye_pose = (base.R_GH, base.p_GH), (base.R_WE, base.p_WE)
+    poses = {'hand': (base.R_GH, base.p_GH), 'eye': (base.R_WE, base.p_WE)}
+    given = {name: relative(pose, i, j) for name, pose in poses.items()}
     for stream in ('hand', 'eye'):
+        q = quat_from_matrix(poses[stream][0])
         for reading in READINGS:
             if stream == 'hand' and reading == 'as given':
                 continue  # the same as the eye as given
@@ -284,10 +284,10 @@ def reading_fits(hand: Trajectory, eye: Trajectory, time_offset_s: float,
             # commutes with a permutation or conjugation of the quaternion's numbers (both
             # keep dot products), so only the inverse's interpolated positions differ, at
             # second order in the sampling interval (an hour of 1 kHz MoCap is not re-read)
-            A = relative(_reread_poses(hand_pose, reading if stream == 'hand' else 'as given'),
-                         i, j)
-            B = relative(_reread_poses(eye_pose, reading if stream == 'eye' else 'as given'),
-                         i, j)
+            moved = given[stream] if reading == 'as given' else relative(
+                _reread_poses(poses[stream], q, reading), i, j)
+            A = moved if stream == 'hand' else given['hand']
+            B = moved if stream == 'eye' else given['eye']
             fits.append(ReadingFit(stream if reading != 'as given' else 'both', reading,
                                    *_fit(A[0], A[1], B[0], B[1])))
     best_r = max(min(f.rotation_rad for f in fits), 1e-12)

@@ -88,6 +88,14 @@ class AngularSpeed:
     speed: np.ndarray
     valid: np.ndarray
 
+    def part(self, traj: Trajectory, first: int, stop: int) -> AngularSpeed:
+        """The signal of the poses ``first..stop-1`` of the stream ``traj`` it was computed
+        from, with times from the first of them: what :func:`angular_speed` gives for that part
+        (a stream measured in windows is differenced once, not once per window)."""
+        shift = (int(traj.t_ns[first]) - int(traj.t_ns[0])) * 1e-9
+        k = slice(first, max(stop - 1, first))
+        return AngularSpeed(self.t_s[k] - shift, self.speed[k], self.valid[k])
+
 
 @dataclass(frozen=True)
 class TimeAlignment:
@@ -331,11 +339,13 @@ def _window(max_time_offset: float | None,
 
 def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | None = None,
                time_offset_guess: float | None = None, resample_rate_hz: float | None = None,
-               peak_fit: str = 'quadratic') -> TimeAlignment:
+               peak_fit: str = 'quadratic',
+               signals: tuple[AngularSpeed, AngularSpeed] | None = None) -> TimeAlignment:
     """Estimate dt (eye clock minus hand clock) from the angular-speed magnitudes (eq. 1).
 
     Every lag with enough overlap is searched unless ``max_time_offset`` is given (then
     ``time_offset_guess +- max_time_offset``; the guess alone only matters with it).
+    ``signals``: the streams' angular speeds when already at hand (:meth:`AngularSpeed.part`).
 
     Raises
     ------
@@ -348,17 +358,20 @@ def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | No
         msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
         raise ValueError(msg)
     step = _step(hand, eye, resample_rate_hz)
-    return _align(hand, eye, angular_speed(hand), angular_speed(eye), step, max_time_offset,
+    w_h, w_e = signals or (angular_speed(hand), angular_speed(eye))
+    return _align(hand, eye, w_h, w_e, step, max_time_offset,
                   time_offset_guess, peak_fit, peak_fit)
 
 
 def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
                       around_s: float, half_window_s: float,
-                      resample_rate_hz: float | None = None) -> TimeAlignment:
+                      resample_rate_hz: float | None = None,
+                      signals: tuple[AngularSpeed, AngularSpeed] | None = None) -> TimeAlignment:
     """dt from the body angular velocities: ``w_E(t) = R_HE^T w_H(t - dt)``.
 
     Searches ``around_s +- half_window_s`` (seconds); the sub-sample peak by the same parabola.
-    ``method`` is 'vector'.
+    ``method`` is 'vector'. ``signals``: the streams' body angular velocities when already at
+    hand (:meth:`AngularSpeed.part` of longer streams).
 
     Raises
     ------
@@ -366,7 +379,7 @@ def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
         As :func:`align_time`.
     """
     step = _step(hand, eye, resample_rate_hz)
-    w_h, w_e = angular_speed(hand, vector=True), angular_speed(eye, vector=True)
+    w_h, w_e = signals or (angular_speed(hand, vector=True), angular_speed(eye, vector=True))
     w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
     return _align(hand, eye, w_h, w_e, step, half_window_s, around_s, 'quadratic', 'vector')
 

@@ -36,7 +36,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import OptimizeResult
 from scipy.sparse import csc_matrix, csr_matrix, diags
 from scipy.sparse.linalg import splu
 from scipy.spatial.transform import Rotation
@@ -107,6 +106,16 @@ class Noise:
     rotation: float
     translation: float
     estimated: bool
+
+
+@dataclass(frozen=True)
+class SolverReport:
+    """How a solve ended: success, why (message), residual passes (nfev) and Jacobians (njev)."""
+
+    success: bool
+    message: str
+    nfev: int
+    njev: int
 
 
 @dataclass(frozen=True)
@@ -769,7 +778,7 @@ STEP_TOL_SIGMA = 1e-3
 
 
 def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_iterations: int
-                               ) -> tuple[np.ndarray, OptimizeResult, _EyeSums]:
+                               ) -> tuple[np.ndarray, SolverReport, _EyeSums]:
     """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with the
     analytic Jacobian: the Newton model of :func:`_levenberg_marquardt` (rows beyond delta
     add a clipped gradient and no curvature) solved densely. ``sums_at(y) -> _EyeSums``.
@@ -787,6 +796,11 @@ def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_ite
     for _ in range(max_iterations):
         sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(cur.A)), 1e-300, None))
         D = np.diag(np.maximum(cur.D, 1e-12))
+        if np.all(np.abs(np.linalg.solve(cur.A, -cur.g)) <= STEP_TOL_SIGMA * sigma):
+            # the Gauss-Newton step from here is below tolerance: y is the solution, and
+            # the step is not worth a pass over the eye (it would change y by 1e-3 sigma)
+            message, success = "Gauss-Newton step below 1e-3 of every parameter's sigma", True
+            break
         while True:
             step = np.linalg.solve(cur.A + lam * D, -cur.g)
             y_new = y.copy()
@@ -812,7 +826,7 @@ def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_ite
         if decrease <= LM_FTOL * cur.cost:
             message, success = 'relative cost change below tolerance', True
             break
-    return y, OptimizeResult(success=success, message=message, nfev=nfev, njev=nfev), cur
+    return y, SolverReport(success=success, message=message, nfev=nfev, njev=nfev), cur
 
 
 def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
@@ -974,7 +988,7 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
 
 def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: np.ndarray,
                          delta: float, max_iterations: int,
-                         ftol: float) -> tuple[np.ndarray, OptimizeResult]:
+                         ftol: float) -> tuple[np.ndarray, SolverReport]:
     """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
 
     Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
@@ -1028,7 +1042,7 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: 
         if decrease <= ftol * cost:
             message, success = 'relative cost change below tolerance', True
             break
-    return x, OptimizeResult(success=success, message=message, nfev=nfev, njev=njev)
+    return x, SolverReport(success=success, message=message, nfev=nfev, njev=njev)
 
 
 def _huber_cost(r: np.ndarray, delta: float) -> float:

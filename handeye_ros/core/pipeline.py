@@ -237,7 +237,7 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
     m_rot, m_trans, m_len, n_mot = motion_consistency(hand, eye_c, dt, q_HE, p_HE, eta)
     metrics = replace(metrics, motion_rotation_deg=m_rot, motion_translation_m=m_trans,
                       motion_length_m=m_len, n_motions=n_mot)
-    seed_lin = _seed_check(hand, eye_c, dt, lin, batch, cfg, run)
+    seed_lin = _seed_check(hand, eye_c, dt, lin, batch, cfg, run, pairs)
     _assess(ta, tv, lin, batch, screening, metrics, cfg, run)
     _assess_model(model, clock, cfg, run)
     LOG.info('stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
@@ -318,8 +318,10 @@ def _window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
 # ----------------------------------------------------------------------------- stage 2 and checks
 
 def _linear(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig,
-            seed: int | None = None) -> tuple[LinearSolution, PosePairs]:
-    pairs = associate(hand, eye, dt)
+            seed: int | None = None,
+            pairs: PosePairs | None = None) -> tuple[LinearSolution, PosePairs]:
+    """Stage 2 at offset dt (``pairs``: the streams associated at dt, when already made)."""
+    pairs = associate(hand, eye, dt) if pairs is None else pairs
     motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
     lin = calibrate_linear(
         motions, robust_kernel=cfg.robust_kernel, mu=cfg.mu,
@@ -439,14 +441,14 @@ def _judge_tie(scored: list[Candidate], shift_ns: int, run: _Run) -> int:
 
 def _seed_check(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolution,
                 batch: BatchSolution | None, cfg: CalibrationConfig,
-                run: _Run) -> LinearSolution | None:
+                run: _Run, pairs: PosePairs | None = None) -> LinearSolution | None:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
     uncertainty (3 sigmas of the batch stage, and at least SEED_ROTATION_DEG /
-    SEED_TRANSLATION_M)."""
+    SEED_TRANSLATION_M). ``pairs``: the streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
         return None
     try:
-        other, _ = _linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2 ** 31)
+        other, _ = _linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2 ** 31, pairs=pairs)
     except HandeyeError as err:
         run.doubt('seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage fails '
                   f'({err})')

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import BSpline
 from scipy.linalg import LinAlgError, solveh_banded
 from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
@@ -29,7 +28,11 @@ ROTATION_FIT_ITERATIONS = 12
 
 
 @lru_cache(maxsize=8)
-def _cardinal(order: int) -> BSpline:
+def _cardinal(order: int):
+    """The cardinal B-spline of an order (scipy's BSpline): the cubic has a closed form
+    below, and scipy.interpolate's import (0.6 s, with scipy.optimize) is left to other
+    orders."""
+    from scipy.interpolate import BSpline
     return BSpline.basis_element(np.arange(order + 1, dtype=float), extrapolate=False)
 
 

@@ -141,11 +141,18 @@ class TimeAlignment:
 def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
     """Angular speed (or body angular velocity, ``vector``) from consecutive orientations, at
     interval midpoints in seconds from the stream's first stamp (see :class:`AngularSpeed`)."""
-    t = traj.seconds(int(traj.t_ns[0]))
-    rotvec = consecutive_rotvecs(traj.q_xyzw)
-    dt = np.diff(t)
-    w = rotvec / dt[:, None] if vector else np.linalg.norm(rotvec, axis=1) / dt
-    return AngularSpeed(0.5 * (t[1:] + t[:-1]), w, traj.interval_ok())
+    # kept with the trajectory: stages 1 and 2 and the clock windows ask for the same stream's
+    # (an hour of 1 kHz MoCap is a second to difference)
+    cached = traj.__dict__.get('_angular_velocity')
+    if cached is None:
+        t = traj.seconds(int(traj.t_ns[0]))
+        dt = np.diff(t)
+        cached = AngularSpeed(0.5 * (t[1:] + t[:-1]),
+                              consecutive_rotvecs(traj.q_xyzw) / dt[:, None], traj.interval_ok())
+        object.__setattr__(traj, '_angular_velocity', cached)  # frozen: a cache, not state
+    if vector:
+        return cached
+    return AngularSpeed(cached.t_s, np.linalg.norm(cached.speed, axis=1), cached.valid)
 
 
 def resample(sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0) -> tuple[np.ndarray,

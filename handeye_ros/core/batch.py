@@ -211,11 +211,13 @@ class _Problem:
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
-        Rh, ph = matrix_from_quat(hand.q_xyzw), hand.p_xyz
+        # the MoCap's rotations stay quaternions: an hour at 1 kHz as matrices is 260 MB, and
+        # only the joint solve needs them all (:attr:`hand_obs`)
+        qh, ph = hand.q_xyzw, hand.p_xyz
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
-        self.spline0 = fit_spline(self.th, Rh, ph, knot_spacing, order)
+        self.spline0 = fit_spline(self.th, qh, ph, knot_spacing, order)
         self.M = self.spline0.R.shape[0]
-        self.hand_obs = (Rh, ph)
+        self.hand_q, self.hand_p = qh, ph
         self._eye_basis: dict[tuple[float, float], tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(eye)
@@ -241,6 +243,14 @@ class _Problem:
                       else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9)
 
     @property
+    def hand_obs(self) -> Pose:
+        """The MoCap poses as (R (N, 3, 3), p (N, 3)): made once, when the joint solve asks."""
+        obs = self.__dict__.get('_hand_obs')
+        if obs is None:
+            obs = self.__dict__['_hand_obs'] = (matrix_from_quat(self.hand_q), self.hand_p)
+        return obs
+
+    @property
     def hand_basis(self) -> tuple[np.ndarray, np.ndarray]:
         """Spline basis at every MoCap stamp (the knots never move; the times neither): made
         once, when the joint solve first asks."""
@@ -255,7 +265,7 @@ class _Problem:
         sigma of 2e5 residuals gives to 0.3 %; an hour of 1 kHz MoCap would take 10 s more."""
         pick = np.unique(np.linspace(0, self.th.size - 1,
                                      min(self.th.size, HAND_NOISE_SAMPLES)).astype(int))
-        obs = (self.hand_obs[0][pick], self.hand_obs[1][pick])
+        obs = (matrix_from_quat(self.hand_q[pick]), self.hand_p[pick])
         return _residual_parts(self.spline0.evaluate(self.th[pick]), obs)
 
     def extrinsic(self, y: np.ndarray) -> Pose:

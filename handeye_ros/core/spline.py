@@ -257,6 +257,8 @@ def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
     Control poses start as the poses interpolated where each control point weighs most (the
     centre of its support); rotations are then corrected until the spline passes through the
     data at those centres, and positions are solved by linear least squares on the samples.
+    ``R``: rotation matrices (N, 3, 3) or x y z w quaternions (N, 4) of the poses at times t
+    (s); ``p``: positions (N, 3).
     """
     t = np.asarray(t, dtype=float)
     n_seg = int(np.ceil((t[-1] - t[0]) / knot_spacing - 1e-9))
@@ -269,7 +271,8 @@ def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
     # hour of 1 kHz MoCap is 3.6 million samples for some 72 000 centres)
     right = np.clip(np.searchsorted(t, tc), 1, t.size - 1)
     near = np.unique(np.concatenate((right - 1, right)))
-    R_at_c = Slerp(t[near], Rotation.from_matrix(R[near]))(tc).as_matrix()
+    rotations = Rotation.from_quat(R[near]) if R.shape[-1] == 4 else Rotation.from_matrix(R[near])
+    R_at_c = Slerp(t[near], rotations)(tc).as_matrix()
     Rc = R_at_c.copy()
     pc = np.stack([np.interp(tc, t, p[:, a]) for a in range(3)], axis=1)
     spline = PoseSpline(t0, knot_spacing, order, Rc, pc)

@@ -5,11 +5,12 @@ figure: an hour in under 60 s and 2 GB), the two TUM files are written once, the
 ``python -m handeye_ros.offline --hand H --eye E -o result.yaml`` runs in a fresh process
 pinned to one CPU with single-threaded BLAS, as a user would run it: its wall time, its peak
 resident memory (the kernel's ru_maxrss of the child), and the stage times it logs with -v.
-The table and a log-log plot of time and memory against the length (bench/out/runtime.png)
+Each length runs --repeat times (the table shows the median run and the range). The table
+and a log-log plot of time and memory against the length (bench/out/runtime.png)
 show how both grow.
 
 Usage: python bench/runtime.py [--minutes 1 5 10 30 60] [--hand-rate 1000] [--eye-rate 200]
-       [--options --clock-drift ...]
+       [--repeat 3] [--options --clock-drift ...]
 """
 
 from __future__ import annotations
@@ -77,6 +78,10 @@ def main() -> None:
     p.add_argument('--minutes', type=float, nargs='+', default=[1, 5, 10, 30, 60])
     p.add_argument('--hand-rate', type=float, default=1000.0)
     p.add_argument('--eye-rate', type=float, default=200.0)
+    p.add_argument('--repeat', type=int, default=3,
+                   help='runs per length: the table gives the median run (by wall time) and '
+                        'the range of the wall times (the machine is shared; one run can be '
+                        'some 10 %% off)')
     p.add_argument('--options', nargs=argparse.REMAINDER, default=[],
                    help='further offline_calibrate options (e.g. --clock-drift)')
     args = p.parse_args()
@@ -86,9 +91,12 @@ def main() -> None:
             folder = Path(tmp)
             n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate)
             size = sum(f.stat().st_size for f in folder.iterdir()) / 2 ** 20
-            r = run_offline(folder, args.options)
+            runs = sorted((run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
+                          key=lambda run: run['wall_s'])
+        r = runs[len(runs) // 2]
         points.append((minutes, r['wall_s'], r['rss_mb']))
-        rows.append([f'{minutes:g}', f'{n_h} + {n_e}', size, r['wall_s'], r['stage1_s'],
+        rows.append([f'{minutes:g}', f'{n_h} + {n_e}', size, r['wall_s'],
+                     f'{runs[0]["wall_s"]:.1f}-{runs[-1]["wall_s"]:.1f}', r['stage1_s'],
                      r['stage2_s'], r['batch_s'],
                      r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'], r['rss_mb']])
         print(rows[-1], flush=True)
@@ -96,8 +104,9 @@ def main() -> None:
     emit('runtime', table(
         f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
         f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
-        ['minutes', 'poses', 'files MB', 'offline run s', 'stage 1 + conventions s',
-         'stage 2 + checks s', 'batch s', 'reading, metrics, writing s', 'peak RSS MB'],
+        ['minutes', 'poses', 'files MB', 'offline run s (median)', f'range of {args.repeat}',
+         'stage 1 + conventions s', 'stage 2 + checks s', 'batch s',
+         'reading, metrics, writing s', 'peak RSS MB'],
         rows), SEED)
     plt = common.pyplot()
     if plt is not None and len(points) > 1:

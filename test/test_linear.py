@@ -131,3 +131,14 @@ def test_too_little_rotation() -> None:
     m = _motions(rec, eta_deg=60.0)
     with pytest.raises(DegenerateMotionError, match='rotates too little'):
         calibrate_linear(m)
+
+
+def test_sigma_ratio_scores_a_degenerate_system_last_not_never() -> None:
+    """sigma7 / sigma6 (Algorithm 1's score); a null space wider than two dimensions (exact
+    one-axis motions) scores 1, the worst, instead of 0 / 0; an empty system is NaN."""
+    from handeye_ros.core.linear import sigma_ratio
+    s = np.array([[4.0, 3, 2, 2, 1, 0.5, 0.01, 0.0],
+                  [4.0, 3, 2, 2, 1, 1e-17, 0.0, 0.0],
+                  [0.0] * 8])
+    np.testing.assert_allclose(sigma_ratio(s)[:2], [0.02, 1.0])
+    assert np.isnan(sigma_ratio(s)[2])

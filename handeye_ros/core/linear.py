@@ -448,6 +448,19 @@ def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return q * (1.0 if q[3] >= 0.0 else -1.0), basis[:, :2] @ t2, tuple(unobservable)
 
 
+def sigma_ratio(sigma: np.ndarray) -> np.ndarray:
+    """Algorithm 1's score sigma7 / sigma6 of singular values (..., 8), descending.
+
+    When sigma6 too is zero to round-off (exact motions about one axis: the null space has more
+    than the two dimensions the unit constraints resolve) the ratio means nothing: it is 1,
+    the worst score, so that any well-posed consensus wins and an all-degenerate one still goes
+    on to :func:`degenerate_refit` (0 / 0 here had made it depend on the last bit of rounding
+    whether RANSAC found anything). NaN for an empty system."""
+    s6, s7, s1 = sigma[..., 5], sigma[..., 6], sigma[..., 0]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return np.where(s6 > 1e-12 * s1, s7 / s6, np.where(s1 > 0.0, 1.0, np.nan))
+
+
 def _ransac(m: Motions, gram: np.ndarray, w2: np.ndarray, iterations: int,
             inlier_rotation_rad: float, inlier_translation_m: float,
             rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -475,8 +488,7 @@ def _ransac(m: Motions, gram: np.ndarray, w2: np.ndarray, iterations: int,
         counts[a:b] = masks.sum(axis=1)
         qa, qda, sigma = solve_gram(((masks * w2) @ gram).reshape(-1, 8, 8))
         q1[a:b], qd1[a:b] = qa, qda
-        with np.errstate(divide='ignore', invalid='ignore'):
-            ratio[a:b] = sigma[:, 6] / sigma[:, 5]
+        ratio[a:b] = sigma_ratio(sigma)
         q0_all[a:b], p0_all[a:b] = q0, p0
     return counts, q1, qd1, ratio, (q0_all, p0_all)
 
@@ -540,8 +552,7 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     else:
         counts = np.array([n])
         q1, qd1, sigma = solve_gram((w2 @ gram).reshape(1, 8, 8))
-        with np.errstate(divide='ignore', invalid='ignore'):
-            ratio = sigma[:, 6] / sigma[:, 5]
+        ratio = sigma_ratio(sigma)
     eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
     if not eligible.any():
         msg = (f'RANSAC found no model that 2 or more of the {n} motions agree with within '

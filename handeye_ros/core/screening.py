@@ -146,9 +146,16 @@ def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.n
 
 def _predict_rows(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray,
                   k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    f = (t[k] - t[a]) / np.where(t[b] != t[a], t[b] - t[a], 1.0)
-    p_pred = p[a] + f[:, None] * (p[b] - p[a])
-    return np.linalg.norm(p[k] - p_pred, axis=1), quat_angle(quat_slerp(q[a], q[b], f), q[k])
+    return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
+
+
+def _predict_poses(ta: np.ndarray, tb: np.ndarray, tk: np.ndarray, pa: np.ndarray,
+                   pb: np.ndarray, pk: np.ndarray, qa: np.ndarray, qb: np.ndarray,
+                   qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_predict` on the poses themselves (stamps s, positions m, x y z w quaternions)."""
+    f = (tk - ta) / np.where(tb != ta, tb - ta, 1.0)
+    p_pred = pa + f[:, None] * (pb - pa)
+    return np.linalg.norm(pk - p_pred, axis=1), quat_angle(quat_slerp(qa, qb, f), qk)
 
 
 def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,
@@ -157,7 +164,28 @@ def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,
     the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
     side that exists)."""
     n = t.size
-    k = np.arange(n)
+    if n <= 4 * d:
+        return _end_residuals(t, p, q, np.arange(n), d)
+    # the inner poses by slices of the arrays (views: a stream of millions of poses is not
+    # gathered three times), a chunk at a time; the 2d poses at the ends by index
+    e_p, e_r = np.empty(n), np.empty(n)
+
+    def inner(s: slice) -> tuple[np.ndarray, np.ndarray]:
+        a, k, b = slice(s.start, s.stop), slice(s.start + d, s.stop + d), \
+            slice(s.start + 2 * d, s.stop + 2 * d)
+        return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
+
+    e_p[d:n - d], e_r[d:n - d] = chunked(inner, n - 2 * d)
+    ends = np.concatenate((np.arange(d), np.arange(n - d, n)))
+    e_p[ends], e_r[ends] = _end_residuals(t, p, q, ends, d)
+    return e_p, e_r
+
+
+def _end_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray,
+                   d: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`interpolation_residuals` of the poses k, each against its neighbours d away, or
+    near an end the extrapolation of the two on the side that exists."""
+    n = t.size
     a, b = k - d, k + d
     left_end, right_end = a < 0, b > n - 1
     a = np.where(left_end, k + d, np.where(right_end, k - 2 * d, a))

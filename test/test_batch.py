@@ -221,7 +221,14 @@ def test_analytic_eye_jacobian_matches_central_differences() -> None:
     y = np.array([1e-4, 0.01, -0.02, 0.005, 0.003, 0.0, -0.01, 2e-5, 0.1])
     n = prob.ei.size
     r, J = prob.eye_chunk(y, 0, n)
-    np.testing.assert_allclose(r, prob.eye_raw_at(prob.spline0, y), atol=1e-14)
+    # the residuals against the model written directly: T_GH(tau) T_HE between consecutive
+    # eye stamps, its translation divided by the scale, against the eye's relative poses
+    from handeye_ros.core.geometry import compose, log_so3, relative
+    pred = relative(compose(prob.spline0.evaluate(prob.eye_times(y)), prob.extrinsic(y)),
+                    prob.ei, prob.ej)
+    dR = np.matmul(pred[0], np.swapaxes(prob.eye_obs[0], -1, -2))
+    direct = np.concatenate((log_so3(dR), pred[1] / prob.scale(y) - prob.eye_obs[1]), axis=1)
+    np.testing.assert_allclose(r, direct, atol=1e-12)
     r3, J3 = prob.eye_chunk(y, 0, n, rotation_only=True)
     np.testing.assert_allclose(r3, r[:, :3], atol=1e-14)
     np.testing.assert_allclose(J3, J[:, :3], atol=1e-12)

@@ -20,8 +20,9 @@ By default the spline is fitted to the hand alone and (dt, T_HE) are solved on t
 residuals with it by a Huber Levenberg-Marquardt with the analytic Jacobian
 (:meth:`_Problem.eye_chunk`), the eye pairs taken in chunks and their normal equations summed
 (an hour of 200 Hz VIO is 720 000 pairs), in two steps: (dt, rotation of T_HE) on the rotation
-residuals, then (dt, translation) on all of them (:func:`_solve_offset_extrinsic` says why). ``joint`` solves the whole problem, control poses included (in the same two steps
-unless ``decoupled`` is off), by Levenberg-Marquardt with an analytic sparse Jacobian and a
+residuals, then (dt, translation) on all of them (:func:`_solve_offset_extrinsic` says why).
+``joint`` solves the whole problem, control poses included (in the same two steps unless
+``decoupled`` is off), by Levenberg-Marquardt with an analytic sparse Jacobian and a
 sparse direct solve (:func:`_levenberg_marquardt` says why not scipy's solver); it is slower
 and agrees with the default while the MoCap is much less noisy than the VIO.
 
@@ -44,7 +45,6 @@ from scipy.spatial.transform import Rotation
 from .errors import BatchError
 from .geometry import (
     Pose,
-    compose,
     hat,
     log_so3,
     matrix_from_quat,
@@ -219,7 +219,6 @@ class _Problem:
         self.spline0 = fit_spline(self.th, qh, ph, knot_spacing, order)
         self.M = self.spline0.R.shape[0]
         self.hand_q, self.hand_p = qh, ph
-        self._eye_basis: dict[tuple[float, float], tuple] = {}
         # eye pairs whose both ends stay inside the spline for any dt within the margin
         ei, ej = _pairs(eye)
         lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
@@ -281,11 +280,12 @@ class _Problem:
         """The factor on the eye's translations (1 without a scale parameter)."""
         return 1.0 if self.i_scale is None else 1.0 + float(y[self.i_scale])
 
-    def eye_times(self, y: np.ndarray) -> tuple[tuple[float, float], np.ndarray]:
-        """((dt, drift), the hand-clock times of the eye stamps): ``t - dt - drift (t - t_ref)``
+    def eye_times(self, y: np.ndarray, first: int = 0, stop: int | None = None) -> np.ndarray:
+        """The hand-clock times of the eye stamps first..stop-1: ``t - dt - drift (t - t_ref)``
         (the linear clock of :mod:`.clock`)."""
         dt, drift = self.clock(y)
-        return (dt, drift), self.te - dt - drift * (self.te - self.t_ref)
+        te = self.te[first:stop]
+        return te - dt - drift * (te - self.t_ref)
 
     # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
     def unpack(self, x: np.ndarray) -> tuple[PoseSpline, np.ndarray]:
@@ -302,23 +302,25 @@ class _Problem:
 
     def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
-        and X; with a scale s, the predicted relative translations divided by it)."""
-        key, times = self.eye_times(y)
-        pred = compose(spline.evaluate(times, self.eye_basis(key, times)), self.extrinsic(y))
-        rel = relative(pred, self.ei, self.ej)
-        if self.i_scale is not None:
-            # the metric prediction brought to the eye's units, rather than the eye's noisy
-            # translations scaled: a scale on noisy observations shrinks towards zero by their
-            # noise-to-motion ratio (attenuation; -1 % at 1.5 mm per 25 mm frame step)
-            rel = (rel[0], rel[1] / self.scale(y))
-        return _residual_parts(rel, self.eye_obs)
+        and X; with a scale s, the predicted relative translations divided by it), a chunk
+        of pairs at a time (:meth:`eye_chunk`)."""
+        return np.concatenate([self.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size),
+                                              jacobian=False, spline=spline)[0]
+                               for k in self.chunks()])
 
     def eye_chunk(self, y: np.ndarray, k0: int, k1: int, jacobian: bool = True,
-                  rotation_only: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only), as
-        :meth:`eye_raw`, and with ``jacobian`` their Jacobian (n, 6 or 3, n_y) in y, analytic
-        (the spline fixed to the hand). The pairs are taken a chunk at a time so that no
-        array holds more than a chunk (an hour at 200 Hz is 720 000 pairs).
+                  rotation_only: bool = False,
+                  spline: PoseSpline | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only)
+        predicted from ``spline`` (default: the hand's fit) and y, and with ``jacobian`` their
+        Jacobian (n, 6 or 3, n_y) in y, analytic (the spline held fixed). The pairs are taken a
+        chunk at a time so that no array holds more than a chunk (an hour at 200 Hz is 720 000
+        pairs).
+
+        With a scale s the metric prediction is brought to the eye's units (divided by s)
+        rather than the eye's noisy translations scaled: a scale on noisy observations shrinks
+        towards zero by their noise-to-motion ratio (attenuation; -1 % at 1.5 mm per 25 mm
+        frame step).
 
         With ``Q = R_a^T R_b`` of the spline at the pair's hand times, ``u = Q p_X + R_a^T (p_b -
         p_a)``, the predicted relative pose ``(R_X^T Q R_X, p = R_X^T (u - p_X))`` and r =
@@ -333,10 +335,9 @@ class _Problem:
         """
         lo, hi = int(self.ei[k0]), int(self.ej[k1 - 1]) + 1
         a, b = self.ei[k0:k1] - lo, self.ej[k0:k1] - lo
-        dt, drift = self.clock(y)
         te = self.te[lo:hi]
-        times = te - dt - drift * (te - self.t_ref)
-        sp = self.spline0
+        times = self.eye_times(y, lo, hi)
+        sp = self.spline0 if spline is None else spline
         basis = sp.basis(times)
         if jacobian:
             R, P, W, V = sp.evaluate_with_velocity(basis, sp.basis_derivative(times))
@@ -391,11 +392,6 @@ class _Problem:
         """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
         return range(0, self.ei.size, EYE_CHUNK_PAIRS)
 
-    def eye_residuals(self, y: np.ndarray) -> np.ndarray:
-        """Unweighted eye residuals (Ne, 6), a chunk at a time (the spline fixed to the hand)."""
-        return np.concatenate([self.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size),
-                                              jacobian=False)[0] for k in self.chunks()])
-
     def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
         spline, y = self.unpack(x)
@@ -404,24 +400,13 @@ class _Problem:
     def eye_raw(self, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
         fixed to the hand."""
-        return self.eye_residuals(y)
+        return self.eye_raw_at(self.spline0, y)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r_h, r_e = self.raw(x)
         w = self.w
         return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
                                (r_e * np.repeat(w[2:], 3)).ravel()))
-
-    def eye_basis(self, key: tuple[float, float],
-                  times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Spline basis at the eye times of clock ``key`` = (dt, drift), kept for the few
-        clocks that recur."""
-        basis = self._eye_basis.get(key)
-        if basis is None:
-            if len(self._eye_basis) > 4:
-                self._eye_basis.clear()
-            basis = self._eye_basis[key] = self.spline0.basis(times)
-        return basis
 
     def jacobian(self, x: np.ndarray) -> csr_matrix:
         """Sparse Jacobian of :meth:`residuals`: analytic in the control poses (through
@@ -466,7 +451,7 @@ class _Problem:
         add(row, cp, 0, w[0] * np.matmul(lead[:, None], JR))
         add(row + 3, cp, 3, w[1] * b[..., None, None] * np.eye(3))
         # eye rows
-        eb = self.eye_basis(*self.eye_times(y))
+        eb = self.spline0.basis(self.eye_times(y))
         R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
         ia, ib = self.ei, self.ej
         Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
@@ -619,7 +604,8 @@ class _Layout:
     def all(self) -> np.ndarray:
         return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
 
-    def steps(self, y: np.ndarray) -> np.ndarray:
+    @property
+    def steps(self) -> np.ndarray:
         """Central-difference steps for the entries of y."""
         h = np.full(self.size, FD_STEP)
         h[0] = FD_STEP_S
@@ -631,7 +617,7 @@ class _Layout:
 def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: float,
                             max_iterations: int, decoupled: bool):
     """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
-    hand, with the analytic Jacobian of :meth:`_Problem.eye_with_jacobian`
+    hand, with the analytic Jacobian of :meth:`_Problem.eye_chunk`
     (:func:`_levenberg_marquardt_small`). Parameters y = (dt, dtheta_X, dp_X, ...) from the
     start values.
 
@@ -768,18 +754,29 @@ def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float
     if decoupled:
         cov[np.ix_(free_all, free_all)] = _two_step_from_normals(
             sums['N_a'], sums['N_b'], sums['N_bt'], s2, k)
-        psi_theta, psi_b = two_step_from_sums(
+        psi = _two_step_influences(*two_step_from_sums(
             np.concatenate(g_parts['a']), sums['H_a'], np.concatenate(g_parts['b']),
-            sums['H_b'], sums['C'], np.arange(k, k + 3))
-        psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
+            sums['H_b'], sums['C'], np.arange(k, k + 3)), k)
     else:
         cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
         psi, _ = influence_from_sums(np.concatenate(g_parts['all']), sums['H'])
+    return cov, _long_run_in_y(psi, layout), cost, n_res
+
+
+def _two_step_influences(psi_theta: np.ndarray, psi_b: np.ndarray, k: int) -> np.ndarray:
+    """The two-step estimate's influences (T, free) in the order of :attr:`_Layout.all`:
+    step B's k time parameters, step A's dtheta, then step B's others."""
+    return np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
+
+
+def _long_run_in_y(psi: np.ndarray, layout: _Layout) -> LongRunCovariance:
+    """Long-run covariance (:mod:`.uncertainty`) of influences psi (T, free), as matrices in
+    the order of y (zero rows and columns for the entries held fixed)."""
     lr = long_run_covariance(psi)
     full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
-    full[np.ix_(free_all, free_all)] = lr.covariance
-    white[np.ix_(free_all, free_all)] = lr.white
-    return cov, LongRunCovariance(full, white, lr.bandwidth, lr.samples), cost, n_res
+    idx = np.ix_(layout.all, layout.all)
+    full[idx], white[idx] = lr.covariance, lr.white
+    return LongRunCovariance(full, white, lr.bandwidth, lr.samples)
 
 
 #: The small solve ends when a step moves no parameter by more than this fraction of its
@@ -847,7 +844,7 @@ def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
     spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
     rows; dt if free, dp) and 'theta' (all rows; dtheta); otherwise 'all' (all rows; every
     free parameter)."""
-    h = layout.steps(y)
+    h = layout.steps
     if not decoupled:
         return {'all': _jacobian(residuals, y, layout.all, h)}
     return {'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y, layout.a, h),
@@ -863,20 +860,14 @@ def _eye_long_run(r: np.ndarray, jac: dict[str, np.ndarray], layout: _Layout, de
     ``r``: the weighted eye residuals, 6 rows per eye pose pair in time order; ``jac``: their
     Jacobians as :func:`_eye_jacobians` names them.
     """
-    free_all = layout.all
     k = len(layout.time)
     if decoupled:
-        psi_theta, psi_b = influence_two_step(
+        psi = _two_step_influences(*influence_two_step(
             r.reshape(-1, 6)[:, :3].ravel(), jac['a'], r, jac['b'], jac['theta'],
-            delta, 3, 6, np.arange(k, k + 3))
-        psi = np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
+            delta, 3, 6, np.arange(k, k + 3)), k)
     else:
         psi, _ = influence(r, jac['all'], delta, 6)
-    lr = long_run_covariance(psi)
-    full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
-    full[np.ix_(free_all, free_all)] = lr.covariance
-    white[np.ix_(free_all, free_all)] = lr.white
-    return LongRunCovariance(full, white, lr.bandwidth, lr.samples)
+    return _long_run_in_y(psi, layout)
 
 
 def _jacobian(fun, y: np.ndarray, cols: np.ndarray,

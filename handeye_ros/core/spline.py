@@ -185,38 +185,39 @@ class PoseSpline:
                  basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
         """Poses at times t (s): rotations (N, 3, 3), positions (N, 3); ``basis``: the
         :meth:`basis` of t, if already at hand."""
-        i, Bc = self.basis(t) if basis is None else basis
-        omega, dp = self._increments()
-        # eq. 14's product in quaternions (a product is 16 multiplications where numpy's
-        # stacked 3x3 matmul is several times slower), one conversion to matrices at the end
-        q = self._control_quats()[i]
-        p = self.p[i].copy()
-        for j in range(1, self.order):
-            q = quat_multiply(q, exp_quat(Bc[:, j, None] * omega[i + j - 1]))
-            p += Bc[:, j, None] * dp[i + j - 1]
-        return Rotation.from_quat(q).as_matrix(), p
+        R, p, _, _ = self._product(self.basis(t) if basis is None else basis)
+        return R, p
 
     def evaluate_with_velocity(self, basis: tuple[np.ndarray, np.ndarray],
                                dbasis: np.ndarray) -> tuple[np.ndarray, ...]:
         """Poses at the times of ``basis`` and their rates: R (N, 3, 3), p (N, 3), the body
         angular velocity w (N, 3) with ``dR/dt = R [w]x`` [rad/s], and dp/dt (N, 3) [m/s].
-        ``dbasis``: :meth:`basis_derivative` at the same times.
+        ``dbasis``: :meth:`basis_derivative` at the same times."""
+        return self._product(basis, dbasis)
 
-        Through the product of eq. 14 factor by factor: with ``A_j = Exp(Bc_j w_j)``, the rate
-        after factor j is ``A_j^T (rate before) + dBc_j w_j`` (Sommer et al., CVPR 2020).
+    def _product(self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Eq. 14's product factor by factor: (R, p) and, with ``dbasis``, the rates (w, v).
+
+        In quaternions (a product is 16 multiplications where numpy's stacked 3x3 matmul is
+        several times slower), one conversion to matrices at the end. With ``A_j = Exp(Bc_j
+        w_j)`` the body rate after factor j is ``A_j^T (rate before) + dBc_j w_j`` (Sommer et
+        al., CVPR 2020).
         """
         i, Bc = basis
         omega, dp = self._increments()
         q = self._control_quats()[i]
         p = self.p[i].copy()
-        w = np.zeros((i.size, 3))
-        v = np.zeros((i.size, 3))
+        w = v = None
+        if dbasis is not None:
+            w, v = np.zeros((i.size, 3)), np.zeros((i.size, 3))
         for j in range(1, self.order):
             a = exp_quat(Bc[:, j, None] * omega[i + j - 1])
             q = quat_multiply(q, a)
-            w = _rotate_back(a, w) + dbasis[:, j, None] * omega[i + j - 1]
             p += Bc[:, j, None] * dp[i + j - 1]
-            v += dbasis[:, j, None] * dp[i + j - 1]
+            if dbasis is not None:
+                w = _rotate_back(a, w) + dbasis[:, j, None] * omega[i + j - 1]
+                v += dbasis[:, j, None] * dp[i + j - 1]
         return Rotation.from_quat(q).as_matrix(), p, w, v
 
     def evaluate_with_jacobian(self, basis: tuple[np.ndarray, np.ndarray]

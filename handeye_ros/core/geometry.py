@@ -109,8 +109,9 @@ def _rotvecs_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     s = np.linalg.norm(d[:, :3], axis=1)
     angle = 2.0 * np.arctan2(s, d[:, 3])
     small = s < 1e-12
-    scale = np.where(small, 2.0 / np.where(d[:, 3] > 0.0, d[:, 3], 1.0),
-                     angle / np.where(small, 1.0, s))
+    # near zero angle / s -> 2 / w, w ~ 1 for unit quaternions; the floor only keeps a
+    # degenerate (near-zero) input from overflowing in the branch np.where discards
+    scale = np.where(small, 2.0 / np.maximum(d[:, 3], 1e-12), angle / np.where(small, 1.0, s))
     return d[:, :3] * scale[:, None]
 
 

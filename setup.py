@@ -23,8 +23,13 @@ setup(
     extras_require={
         # the ROS 2 side (node, message conversion); from PyPI wheels or a Jazzy install
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces', 'ros-jazzy-std-srvs'],
-        'test': ['pytest', 'hypothesis', 'ruff'],
-        # comparison baselines and plots, for bench/ only
+        # the report's plots
+        'report': ['matplotlib'],
+        # many recordings (handeye_ros.evaluate)
+        'evaluate': ['dask', 'distributed', 'matplotlib'],
+        # evo (GPLv3) only checks our exports in the tests; the package never imports it
+        'test': ['pytest', 'hypothesis', 'ruff', 'evo'],
+        # comparison baselines, for bench/ only
         'bench': ['opencv-python-headless', 'matplotlib'],
     },
     zip_safe=True,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -94,6 +95,17 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument('--output-bag', metavar='PATH',
                      help='write the result to a new bag: /tf_static (tf2_msgs/TFMessage) and '
                           '/handeye/time_offset (std_msgs/Float64)')
+    out.add_argument('--export', metavar='DIR',
+                     help='write evo-ready files into DIR: groundtruth.tum (the MoCap mapped '
+                          'into the eye\'s frame, world and clock), estimate.tum, T_HE.json and '
+                          'T_EH.json (evo transform JSON), export.json')
+    out.add_argument('--report', metavar='DIR',
+                     help='write report.html (one page that opens offline) and its PNG plots '
+                          'into DIR')
+    out.add_argument('--rpe-delta', metavar='SECONDS', type=float, default=1.0,
+                     help='time step of the RPE per time (default 1 s)')
+    out.add_argument('--rpe-distance', metavar='METRES', type=float, default=1.0,
+                     help='path length of the RPE per distance (default 1 m)')
     out.add_argument('--output-bag-storage', choices=('mcap', 'sqlite3', 'ros1'), default='mcap',
                      help='storage of --output-bag (default mcap)')
     out.add_argument('--config', metavar='YAML',
@@ -141,6 +153,12 @@ def load_options(path: str | None) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """Read, calibrate and return the result dictionary (raises HandeyeError on bad input)."""
+    return calibrate_args(args)[0]
+
+
+def calibrate_args(args: argparse.Namespace) -> tuple[dict[str, Any], Any]:
+    """Read, calibrate, evaluate, export and report; the result dictionary (with its
+    ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
     from .core.config import CalibrationConfig
     from .core.errors import ConfigError
     from .core.options import split_options
@@ -148,6 +166,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     files = args.hand or args.eye
     if (args.bag and files) or (not args.bag and not (args.hand and args.eye)):
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
+    _check_outputs(args)
     options = load_options(args.config)
     keys = (*STREAM_OPTION_KEYS, *CalibrationConfig.specs())
     options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
@@ -159,8 +178,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
         from .core.pipeline import STEPS
         rec = replay(args.bag, streams, given=given, progress=args.progress)
+        snap = rec.snapshot()
         with _progress_bar(args.progress, len(STEPS)) as step:
-            out = rec.calibrate(calib, progress=step)
+            result = snap.result(calib, progress=step)
+        out = snap.describe(result)
         out['inputs']['bag'] = str(args.bag)
     else:
         from .core.pipeline import STEPS, calibrate
@@ -177,11 +198,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             result = calibrate(hand, eye, calib, progress=step)
         out = result.to_dict(**frames)
         out['summary'] = result.summary()
+    from .evaluation.outputs import evaluate_and_write
+    evaluate_and_write(result, out, export_dir=args.export, report_dir=args.report,
+                       delta_s=args.rpe_delta, delta_m=args.rpe_distance)
     if args.output_bag:
         from .formats.bag import write_result_bag
         write_result_bag(args.output_bag, out, out['inputs']['eye']['last_stamp_ns'],
                          args.output_bag_storage)
-    return out
+    return out, result
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse absurd RPE steps and unwritable output directories before the calibration."""
+    from .core.errors import ConfigError
+    from .evaluation.outputs import check_directory
+    for name, value in (('--rpe-delta', args.rpe_delta), ('--rpe-distance', args.rpe_distance)):
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(f'{name} must be a positive number, got {value:g}')
+    for flag, path in (('--export', args.export), ('--report', args.report)):
+        if path:
+            check_directory(path, flag)
 
 
 @contextmanager

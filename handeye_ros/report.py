@@ -56,8 +56,15 @@ def format_report(d: dict[str, Any]) -> str:
         (f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
          f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
          f'(max {m["are_max"]:.3f})'),
+        *_evaluation_lines(d),
         *_screening_lines(d),
     ]
+    files = d.get('files') or {}
+    if files.get('export'):
+        lines.append(f'exports: {Path(files["export"][0]).parent}/ (evo_ape tum groundtruth.tum '
+                     'estimate.tum, no -a)')
+    if files.get('report'):
+        lines.append(f'report: {files["report"]}')
     for w in d['warnings']:
         lines.append(f'WARNING: {w}')
     return '\n'.join(lines)
@@ -94,3 +101,30 @@ def _screening_lines(d: dict[str, Any]) -> list[str]:
                 + (f'; {len(rep["breaks_ns"])} break(s)' if rep['breaks_ns'] else '')
                 + f' of {rep["poses_in"]} poses')
     return out
+
+
+def _evaluation_lines(d: dict[str, Any]) -> list[str]:
+    ev = d.get('evaluation')
+    if not ev:
+        return []
+    out = []
+    for side in ('calibrated', 'uncalibrated'):
+        pe = ev.get(side)
+        if pe is None:
+            continue
+        out.append(f'  {pe["what"]}: APE {_mm(pe["ape_translation"])} mm / '
+                   f'{_deg(pe["ape_rotation"])} deg, RPE per {ev["rpe_delta_s"]:g} s '
+                   f'{_mm(pe["rpe_time_translation"])} mm / {_deg(pe["rpe_time_rotation"])} deg, '
+                   f'per {ev["rpe_delta_m"]:g} m {_mm(pe["rpe_distance_translation"])} mm / '
+                   f'{_deg(pe["rpe_distance_rotation"])} deg (RMSE)')
+    if ev.get('uncalibrated_why'):
+        out.append(f'  without the calibration: {ev["uncalibrated_why"]}')
+    return ['evaluation of the eye against the MoCap:', *out] if out else []
+
+
+def _mm(st: dict[str, Any]) -> str:
+    return 'n/a' if st['rmse'] is None else f'{st["rmse"] * 1e3:.1f}'
+
+
+def _deg(st: dict[str, Any]) -> str:
+    return 'n/a' if st['rmse'] is None else f'{st["rmse"]:.2f}'

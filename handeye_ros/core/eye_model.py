@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from .clock import retime
 from .scale import observable
 from .trajectory import Trajectory
@@ -60,3 +62,25 @@ class EyeModel:
     def time_offset_stamp_ns(self) -> int:
         """The reference stamp on the eye's own clock, ns."""
         return int(self.shift_ns + self.stamp_ns)
+
+    def own_clock_ns(self, t_ns: np.ndarray, eye_stamps_ns: np.ndarray | None = None) -> np.ndarray:
+        """Stamps [int64 ns] of an eye this model was applied to, back on the eye's own clock.
+
+        Inverts the shift and the drift (``u = v - drift (v - stamp)`` with ``v = t - shift``);
+        the integer rounding of each retiming leaves a few ns, so when the eye's own stamps
+        ``eye_stamps_ns`` are given each result is snapped to the nearest of them within 1 us.
+        """
+        u = np.asarray(t_ns, dtype=np.int64)
+        v = u.copy()
+        if self.drift != 0.0:
+            rel = (u - np.int64(self.stamp_ns)).astype(float)
+            v = u + np.rint(self.drift * rel / (1.0 - self.drift)).astype(np.int64)
+        out = v + np.int64(self.shift_ns)
+        if eye_stamps_ns is None or out.size == 0 or np.size(eye_stamps_ns) == 0:
+            return out
+        own = np.asarray(eye_stamps_ns, dtype=np.int64)
+        k = np.clip(np.searchsorted(own, out), 1, own.size - 1) if own.size > 1 else \
+            np.zeros(out.shape, dtype=int)
+        near = own[k] if own.size == 1 else np.where(
+            np.abs(own[k - 1] - out) <= np.abs(own[k] - out), own[k - 1], own[k])
+        return np.where(np.abs(near - out) <= 1000, near, out)

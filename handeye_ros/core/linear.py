@@ -22,7 +22,7 @@ sigma7/sigma6 model choice stay the paper's; the dual-quaternion solution is kep
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -117,6 +117,9 @@ class LinearSolution:
         With ``estimate_scale``: the factor s that makes the eye's translations metric (on top
         of any the eye already had), its least-squares standard deviation, and the
         dual-quaternion path's s (:mod:`.scale`); 1, NaN, 1 otherwise.
+    motions : Motions or None
+        The motions the solution was found on (eye made metric by ``scale``), in the order of
+        ``inliers``: for plots and diagnostics.
     """
 
     q_HE: np.ndarray
@@ -138,6 +141,7 @@ class LinearSolution:
     scale: float = 1.0
     scale_std: float = float('nan')
     scale_dq: float = 1.0
+    motions: Motions | None = field(default=None, repr=False, compare=False)
 
 
 def build_motions(pairs: PosePairs, strategy: str = 'rotation',
@@ -628,7 +632,7 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
         inlier_rotation_deg=float(np.degrees(thr_rot)), inlier_translation_m=float(thr_trans),
         warnings=tuple(warnings), unobservable=unobservable, scale=scale, scale_std=scale_std,
-        scale_dq=scale_dq)
+        scale_dq=scale_dq, motions=m)
 
 
 def scaled_motions(m: Motions, s: float) -> Motions:

@@ -66,7 +66,7 @@ from .quality import (
     Quality,
     Reason,
 )
-from .result import CalibrationResult
+from .result import CalibrationResult, UsedStreams
 from .scale import ScaleFit, observable, scale_prior, translation_and_scale
 from .screening import Screening, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
@@ -252,7 +252,8 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
         screening=screening, corrections=tuple(run.corrections),
         candidates=tuple(replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s)
                          for c in run.candidates),
-        quality=quality, seed_check=seed_lin, eye_model=model, clock=clock)
+        quality=quality, seed_check=seed_lin, eye_model=model, clock=clock,
+        used=UsedStreams(hand, eye_c, model.own_clock_ns(eye_c.t_ns, eye.t_ns), dt))
 
 
 # ----------------------------------------------------------------------------- inputs

@@ -53,6 +53,23 @@ CONVENTION = ('T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + cl
 
 
 @dataclass(frozen=True)
+class UsedStreams:
+    """The poses the calibration ended on, for evaluation, exports and plots.
+
+    hand: the hand (T_GH) after unit and convention corrections and screening, on its own
+    clock. eye: the eye (T_WE) likewise, moved onto the hand's clock up to ``time_offset``
+    (stage 1's shift and any drift taken out) and made metric by the scale; its breaks split
+    it into segments with their own VIO worlds. eye_stamps_ns: the eye's poses' stamps on the
+    eye's own clock (int64 ns, as in its file or bag).
+    """
+
+    hand: Trajectory
+    eye: Trajectory
+    eye_stamps_ns: np.ndarray
+    time_offset_s: float
+
+
+@dataclass(frozen=True)
 class CalibrationResult:
     """Everything the calibration found, in the package conventions.
 
@@ -81,6 +98,7 @@ class CalibrationResult:
     seed_check: LinearSolution | None = None
     eye_model: EyeModel | None = None
     clock: DriftFit | None = None
+    used: UsedStreams | None = field(default=None, repr=False, compare=False)
 
     @property
     def clock_drift(self) -> float | None:

@@ -103,16 +103,23 @@ def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
     """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring), each eye
     segment against its own T_WG (``world`` is the longest segment's)."""
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
-    R_WG = np.empty((pairs.segment.size, 3, 3))
-    p_WG = np.empty((pairs.segment.size, 3))
-    for label in np.unique(pairs.segment):
-        sel = pairs.segment == label
-        w = world if label == world.segment else _align_segment(pairs, sel, q_HE, p_HE)
-        R_WG[sel], p_WG[sel] = w.R_WG, w.p_WG
-    pred = compose((R_WG, p_WG), predicted_eye(pairs, X))
+    pred = compose(worlds_per_pair(pairs, q_HE, p_HE, world), predicted_eye(pairs, X))
     R_err, p_err = compose(inverse(pred), (pairs.R_WE, pairs.p_WE))
     # Translation error measured in W (not in the predicted body frame): the usual APE.
     e_t = np.linalg.norm(apply(pred[0], p_err), axis=-1)
     e_r = np.degrees(rotation_angle(R_err))
     return Metrics(float(np.sqrt(np.mean(e_t ** 2))), float(np.sqrt(np.mean(e_r ** 2))),
                    float(e_t.max()), float(e_r.max()), int(e_t.size))
+
+
+def worlds_per_pair(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
+                    world: WorldAlignment) -> Pose:
+    """T_WG for every pair: ``world`` on its own segment, each other eye segment aligned on its
+    own pairs (a VIO reset starts a new world W). Shapes (N, 3, 3), (N, 3)."""
+    R_WG = np.empty((pairs.segment.size, 3, 3))
+    p_WG = np.empty((pairs.segment.size, 3))
+    for label in np.unique(pairs.segment):
+        sel = pairs.segment == label
+        w = world if label == world.segment else _align_segment(pairs, sel, q_HE, p_HE)
+        R_WG[sel], p_WG[sel] = w.R_WG, w.p_WG
+    return R_WG, p_WG

@@ -14,6 +14,7 @@ from typing import Any
 from ..core.config import CalibrationConfig
 from ..core.errors import InputError
 from ..core.pipeline import calibrate
+from ..core.result import CalibrationResult
 from ..core.trajectory import Trajectory
 from .buffer import BufferStats, PoseBuffer
 from .config import StreamConfig
@@ -33,17 +34,25 @@ class Snapshot:
     streams: dict[str, Any]
     warnings: tuple[str, ...]
 
-    def calibrate(self, config: CalibrationConfig,
-                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-        """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
-        one-line ``summary``), with the streams' dropped/rejected messages among the warnings.
+    def result(self, config: CalibrationConfig,
+               progress: Callable[[str], None] | None = None) -> CalibrationResult:
+        """Calibrate the snapshot; the streams' dropped/rejected messages join the warnings.
         ``progress``: as :func:`~handeye_ros.core.pipeline.calibrate`'s."""
         result = calibrate(self.hand, self.eye, config, progress)
-        result = replace(result, warnings=result.warnings + self.warnings)
+        return replace(result, warnings=result.warnings + self.warnings)
+
+    def describe(self, result: CalibrationResult) -> dict[str, Any]:
+        """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
+        one-line ``summary``) with this snapshot's frame names."""
         out = result.to_dict(hand_frame=self.hand_frame, eye_frame=self.eye_frame)
         out['streams'] = self.streams
         out['summary'] = result.summary()
         return out
+
+    def calibrate(self, config: CalibrationConfig,
+                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+        """:meth:`result` as :meth:`describe`'s dictionary."""
+        return self.describe(self.result(config, progress))
 
 
 class Recorder:

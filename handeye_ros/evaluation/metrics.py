@@ -1,0 +1,149 @@
+"""APE and RPE of an estimate against a reference at the same stamps (both in one world).
+
+- APE (absolute pose error): per pose ``E_i = Q_i^-1 P_i``; the translation error is
+  ``|t(E_i)| = |p_P - p_Q|`` (m), the rotation error the angle of ``R(E_i)`` (deg). No alignment
+  is done here: the reference is already in the estimate's world (the calibration put it there).
+- RPE (relative pose error, Sturm et al. 2012, as evo and the KITTI benchmark use it): for pose
+  pairs (i, j) a fixed time or distance apart, ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``. j is the
+  pose whose time (or path length along the reference) from i is nearest to delta, and the pair
+  is kept when that misses delta by at most :data:`RPE_TOLERANCE` of it: evo's rule for
+  ``--all_pairs --pairs_from_reference`` (evo measures the path on the estimate by default; the
+  reference's is the one without VIO noise). Pairs never join two eye segments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..core.geometry import compose, inverse, rotation_angle
+from .aligned import AlignedTrajectories
+
+#: An RPE pair may miss the time or distance step by this fraction of it (evo's default).
+RPE_TOLERANCE = 0.1
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Summary of a set of errors (translation in m, rotation in deg)."""
+
+    rmse: float
+    mean: float
+    median: float
+    max: float
+    n: int
+
+    @classmethod
+    def of(cls, e: np.ndarray) -> ErrorStats:
+        e = np.asarray(e, dtype=float)
+        if e.size == 0:
+            nan = float('nan')
+            return cls(nan, nan, nan, nan, 0)
+        return cls(float(np.sqrt(np.mean(e ** 2))), float(e.mean()), float(np.median(e)),
+                   float(e.max()), int(e.size))
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+                for k, v in asdict(self).items()}
+
+
+def ape(al: AlignedTrajectories) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pose translation (m) and rotation (deg) errors (module docstring)."""
+    R_err, _ = compose(inverse((al.R_ref, al.p_ref)), (al.R_est, al.p_est))
+    return np.linalg.norm(al.p_est - al.p_ref, axis=1), np.degrees(rotation_angle(R_err))
+
+
+def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j) for the RPE per ``unit`` 's' (time) or 'm' (reference path length)."""
+    if not delta > 0:
+        msg = f'the RPE delta must be positive, got {delta!r}'
+        raise ValueError(msg)
+    n = len(al)
+    if n < 2:
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    if unit == 's':
+        axis = al.seconds()
+    elif unit == 'm':
+        step = np.linalg.norm(np.diff(al.p_ref, axis=0), axis=1)
+        step[np.diff(al.segment) != 0] = 0.0
+        axis = np.concatenate([[0.0], np.cumsum(step)])
+    else:
+        msg = f"the RPE unit is 's' or 'm', got {unit!r}"
+        raise ValueError(msg)
+    i = np.arange(n - 1)
+    # the nearest j > i to axis[i] + delta: axis is non-decreasing, so it is k or k - 1
+    k = np.searchsorted(axis, axis[i] + delta, side='left')
+    hi = np.minimum(k, n - 1)
+    lo = np.maximum(k - 1, i + 1)
+    take_lo = np.abs(axis[lo] - axis[i] - delta) <= np.abs(axis[hi] - axis[i] - delta)
+    j = np.where(take_lo, lo, hi)
+    keep = (j > i) & (np.abs(axis[j] - axis[i] - delta) <= RPE_TOLERANCE * delta)
+    keep &= al.segment[i] == al.segment[j]
+    return i[keep], j[keep]
+
+
+def rpe(al: AlignedTrajectories, delta: float, unit: str = 's') -> tuple[np.ndarray, np.ndarray,
+                                                                         np.ndarray]:
+    """Per-pair translation (m) and rotation (deg) errors and the pairs' first indices."""
+    i, j = rpe_pairs(al, delta, unit)
+    Q = (al.R_ref, al.p_ref)
+    P = (al.R_est, al.p_est)
+    dQ = compose(inverse((Q[0][i], Q[1][i])), (Q[0][j], Q[1][j]))
+    dP = compose(inverse((P[0][i], P[1][i])), (P[0][j], P[1][j]))
+    R_err, p_err = compose(inverse(dQ), dP)
+    return np.linalg.norm(p_err, axis=1), np.degrees(rotation_angle(R_err)), i
+
+
+@dataclass(frozen=True)
+class PoseErrors:
+    """APE and RPE of one estimate against one reference."""
+
+    what: str
+    ape_translation: ErrorStats
+    ape_rotation: ErrorStats
+    rpe_time_translation: ErrorStats
+    rpe_time_rotation: ErrorStats
+    rpe_distance_translation: ErrorStats
+    rpe_distance_rotation: ErrorStats
+
+    @classmethod
+    def of(cls, al: AlignedTrajectories, delta_s: float, delta_m: float) -> PoseErrors:
+        a_t, a_r = ape(al)
+        rt_t, rt_r, _ = rpe(al, delta_s, 's')
+        rd_t, rd_r, _ = rpe(al, delta_m, 'm')
+        return cls(al.what, *(ErrorStats.of(e) for e in (a_t, a_r, rt_t, rt_r, rd_t, rd_r)))
+
+    def to_dict(self) -> dict:
+        return {'what': self.what, **{k: v.to_dict() for k, v in vars(self).items()
+                                      if isinstance(v, ErrorStats)}}
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """APE/RPE with our calibration and, where the clocks allow, without it.
+
+    delta_s / delta_m: the RPE's time and distance steps. uncalibrated is None when the
+    baseline cannot be computed, and ``uncalibrated_why`` says why.
+    """
+
+    delta_s: float
+    delta_m: float
+    calibrated: PoseErrors
+    uncalibrated: PoseErrors | None
+    uncalibrated_why: str = ''
+
+    def to_dict(self) -> dict:
+        return {'rpe_delta_s': self.delta_s, 'rpe_delta_m': self.delta_m,
+                'units': {'translation': 'm', 'rotation': 'deg'},
+                'calibrated': self.calibrated.to_dict(),
+                'uncalibrated': None if self.uncalibrated is None else
+                self.uncalibrated.to_dict(),
+                'uncalibrated_why': self.uncalibrated_why or None}
+
+
+def evaluate(cal: AlignedTrajectories, base: AlignedTrajectories | None, *,
+             delta_s: float = 1.0, delta_m: float = 1.0, why: str = '') -> Evaluation:
+    """APE/RPE of the eye with the calibration (``cal``) and without it (``base``)."""
+    return Evaluation(delta_s, delta_m, PoseErrors.of(cal, delta_s, delta_m),
+                      None if base is None else PoseErrors.of(base, delta_s, delta_m), why)

@@ -43,6 +43,7 @@ setup(
             'offline_calibrate = handeye_ros.offline:main',
             'sim_publisher = handeye_ros.ros.sim_publisher:main',
             'demo = handeye_ros.demo:main',
+            'evaluate = handeye_ros.evaluate:main',
         ],
     },
 )

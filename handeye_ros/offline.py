@@ -156,9 +156,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     return calibrate_args(args)[0]
 
 
-def calibrate_args(args: argparse.Namespace) -> tuple[dict[str, Any], Any]:
+def calibrate_args(args: argparse.Namespace,
+                   extra_options: dict[str, Any] | None = None) -> tuple[dict[str, Any], Any]:
     """Read, calibrate, evaluate, export and report; the result dictionary (with its
-    ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
+    ``evaluation``) and the CalibrationResult. ``extra_options`` (a manifest's) override the
+    ``--config`` file and are overridden by the command line. Raises HandeyeError on bad
+    input."""
     from .core.config import CalibrationConfig
     from .core.errors import ConfigError
     from .core.options import split_options
@@ -168,6 +171,7 @@ def calibrate_args(args: argparse.Namespace) -> tuple[dict[str, Any], Any]:
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
     _check_outputs(args)
     options = load_options(args.config)
+    options.update(extra_options or {})
     keys = (*STREAM_OPTION_KEYS, *CalibrationConfig.specs())
     options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
     calib, streams = split_options(options, (CalibrationConfig, StreamConfig),

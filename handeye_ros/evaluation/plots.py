@@ -270,3 +270,28 @@ def trajectories(al: AlignedTrajectories, path: Path, ape_t: np.ndarray,
             '(T_WG T_GH(t - dt) T_HE): top view, x/y/z over time, and the position error over '
             'time with and without the calibration.')
 
+
+
+def summary(rows: list[dict], path: Path) -> str:
+    """Box plots of the successful runs' APE and RPE per algorithm and per sequence."""
+    ok = [r for r in rows if r.get('status') == 'ok' and r.get('ape_mm') is not None]
+    metrics = (('ape_mm', 'APE [mm], calibrated'), ('rpe_1s_mm', 'RPE per 1 s [mm]'),
+               ('ape_uncalibrated_mm', 'APE [mm], dt = 0, no T_HE, SE(3) fit'))
+    fig, ax = _figure(len(metrics), 2, height=2.8, width=11.0)
+    for row, (key, label) in enumerate(metrics):
+        for col, group in enumerate(('algorithm', 'sequence')):
+            a = ax[row, col]
+            names = sorted({str(r.get(group) or '-') for r in ok})
+            data = [[r[key] for r in ok if str(r.get(group) or '-') == n and
+                     r.get(key) is not None] for n in names]
+            shown = [(n, d) for n, d in zip(names, data, strict=True) if d]
+            if shown:
+                a.boxplot([d for _, d in shown], tick_labels=[n for n, _ in shown])
+                a.tick_params(axis='x', labelrotation=30)
+            else:
+                a.text(0.5, 0.5, 'no successful runs', ha='center', va='center',
+                       transform=a.transAxes)
+            a.set_ylabel(label, fontsize='small')
+            a.set_title(f'per {group} ({len(ok)} of {len(rows)} runs)', fontsize='small')
+    _save(fig, path)
+    return 'APE and RPE of the successful runs per algorithm and per sequence.'

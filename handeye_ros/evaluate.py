@@ -1,0 +1,184 @@
+"""Calibrate and evaluate many recordings on Dask: ``python -m handeye_ros.evaluate MANIFEST
+--output DIR`` (also ``ros2 run handeye_ros evaluate``).
+
+Each run of the manifest (see :mod:`handeye_ros.evaluation.runs`) is calibrated, exported
+(evo-ready files) and evaluated (APE/RPE with and without the calibration) as one Dask task.
+By default a LocalCluster with one single-threaded worker process per core runs them on this
+machine (nothing to install beyond the pinned requirements); ``--scheduler ADDRESS`` sends them
+to a running cluster instead. Every finished run is cached by the content hash of its inputs
+and options, so an interrupted evaluation resumes; a worker that dies costs only a retry of
+its task (Dask reschedules it), never a lost or a duplicated row.
+
+Writes ``DIR/results.csv`` and ``DIR/results.md`` (one row per run, failures with their
+reason), the box plots ``DIR/summary.png``, and per run ``DIR/runs/<name>/`` (result.yaml,
+export/, report/ when asked). Exit code: the number of failed runs (at most 100); 101 when the
+manifest or the options cannot be used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+LOG = logging.getLogger('handeye_ros.evaluate')
+#: Exit code when nothing could be run (a bad manifest or option).
+EXIT_UNUSABLE = 101
+MAX_EXIT_FAILED = 100
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog='evaluate', description=__doc__.split('\n\n')[0].replace('``', ''),
+        epilog='Exit code: the number of failed runs (capped at 100); 101 when the manifest or '
+               'the options cannot be used.')
+    p.add_argument('manifest', help='a YAML manifest (runs: [{name, hand, eye | bag, ...}]) or '
+                                    'a directory laid out as ALGORITHM/SEQUENCE/TRIAL/')
+    p.add_argument('-o', '--output', required=True, metavar='DIR',
+                   help='where the table, the summary plots and each run\'s files go')
+    p.add_argument('--scheduler', metavar='ADDRESS',
+                   help='a running Dask scheduler (tcp://host:port); default: a LocalCluster on '
+                        'this machine')
+    p.add_argument('--workers', type=int, default=None,
+                   help='LocalCluster worker processes (default: one per core)')
+    p.add_argument('--sequential', action='store_true',
+                   help='run every recording in this process, without Dask (for comparison)')
+    p.add_argument('--reports', action='store_true',
+                   help='write every run\'s report.html (a run can also ask with report: true)')
+    p.add_argument('--no-cache', action='store_true',
+                   help='calibrate every run again even when its inputs did not change')
+    p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                   help='a progress bar on stderr (default: when stderr is a terminal)')
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format='%(name)s: %(message)s', stream=sys.stderr)
+    from dataclasses import replace
+
+    from .core.errors import HandeyeError
+    from .evaluation.outputs import check_directory
+    from .evaluation.runs import read_manifest
+    try:
+        if args.workers is not None and not 1 <= args.workers <= 256:
+            raise HandeyeError(f'--workers must be 1-256, got {args.workers}')
+        runs = read_manifest(args.manifest)
+        output = check_directory(args.output, '--output')
+    except HandeyeError as err:
+        print(f'evaluate: error: {err}', file=sys.stderr)
+        return EXIT_UNUSABLE
+    if args.reports:
+        runs = [replace(r, report=True) for r in runs]
+    try:
+        rows = evaluate_runs(runs, output, args)
+    except KeyboardInterrupt:
+        print('evaluate: interrupted; finished runs are cached and will not run again',
+              file=sys.stderr)
+        return 130
+    except OSError as err:  # a scheduler that cannot be reached, a full disk
+        print(f'evaluate: error: {err}', file=sys.stderr)
+        return EXIT_UNUSABLE
+    failed = [r for r in rows if r['status'] != 'ok']
+    for r in failed:
+        print(f'evaluate: {r["name"]}: failed: {r["reason"]}', file=sys.stderr)
+    cached = sum(bool(r.get('cached')) for r in rows)
+    print(f'{len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed'
+          + (f', {cached} from the cache' if cached else '')
+          + f'; table: {output / "results.csv"}')
+    return min(len(failed), MAX_EXIT_FAILED)
+
+
+def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Every run's row, in manifest order (cached rows reused); writes the tables and plots."""
+    from tqdm import tqdm
+
+    from .evaluation.runs import (
+        cache_key,
+        calibrate_run,
+        code_fingerprint,
+        read_cached,
+        write_cached,
+        write_tables,
+    )
+    cache = output / 'cache'
+    code = code_fingerprint()
+    keys = {r.name: cache_key(r, code) for r in runs}
+    rows: dict[str, dict[str, Any]] = {}
+    todo = []
+    for r in runs:
+        hit = None if args.no_cache else read_cached(cache, keys[r.name])
+        if hit is not None:
+            rows[r.name] = {**hit, 'name': r.name, 'cached': True}
+        else:
+            todo.append(r)
+    bar = tqdm(total=len(runs), initial=len(runs) - len(todo), unit='run', desc='evaluating',
+               file=sys.stderr, disable=None if args.progress is None else not args.progress)
+
+    def done(run, row: dict[str, Any]) -> None:
+        row['cached'] = False
+        if row['status'] == 'ok' or not row['reason'].startswith('internal error'):
+            write_cached(cache, keys[run.name], row)
+        rows[run.name] = row
+        bar.update(1)
+
+    with bar:
+        if args.sequential or not todo:
+            for r in todo:
+                done(r, calibrate_run(r, str(output)))
+        else:
+            _on_dask(todo, output, args, done)
+    ordered = [rows[r.name] for r in runs]
+    write_tables(output, ordered)
+    try:
+        from .evaluation.plots import summary
+        summary(ordered, output / 'summary.png')
+    except Exception as err:  # noqa: BLE001  (the table matters more than the picture)
+        LOG.warning('summary plot not written: %s', err)
+    return ordered
+
+
+def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
+    """Run ``todo`` on a LocalCluster (or ``args.scheduler``); ``done(run, row)`` as each ends.
+
+    A task whose worker died is rescheduled by Dask itself (the scheduler's allowed-failures);
+    if it keeps killing workers its row says so. Rows arrive once per future, whatever the
+    retries, so none is lost or duplicated.
+    """
+    from distributed import Client, LocalCluster, as_completed
+
+    from .evaluation.runs import calibrate_run
+    # the scheduler runs in this process: its INFO lines would bury the table's summary
+    logging.getLogger('distributed').setLevel(logging.ERROR)
+    cluster = None
+    if args.scheduler:
+        client = Client(args.scheduler, timeout='20s')
+    else:
+        n = args.workers or os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               host='127.0.0.1', dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        client = Client(cluster)
+    try:
+        futures = {client.submit(calibrate_run, r, str(output), key=f'calibrate-{k}-{r.slug()}',
+                                 pure=False): r for k, r in enumerate(todo)}
+        for fut in as_completed(futures):
+            run = futures[fut]
+            try:
+                row = fut.result()
+            except Exception as err:  # noqa: BLE001  (KilledWorker after repeated deaths)
+                row = {'name': run.name, 'algorithm': run.algorithm, 'sequence': run.sequence,
+                       'trial': run.trial, 'status': 'failed',
+                       'reason': f'internal error: {type(err).__name__}: {err}'}
+            done(run, row)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

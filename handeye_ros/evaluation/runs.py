@@ -1,0 +1,289 @@
+"""Many recordings: the manifest, one run (calibrate, export, evaluate) and the results table.
+
+A manifest is YAML::
+
+    defaults: {clock_drift: true}           # options for every run (optional)
+    runs:
+      - name: V1_01/openvins/0              # unique; default: algorithm/sequence/trial
+        algorithm: openvins                 # for grouping (optional)
+        sequence: V1_01
+        trial: 0
+        hand: gt/V1_01.csv                  # MoCap file, or bag: PATH (with hand_topic, ...)
+        eye: openvins/V1_01/0.txt
+        options: {scale: true}              # this run's options (optional)
+
+or a directory laid out as ``ALGORITHM/SEQUENCE/TRIAL/`` holding ``hand.*`` and ``eye.*`` files
+(or one bag). Relative paths are taken from the manifest's folder.
+
+Every run is keyed by the content hash of its inputs and options (and this package's version):
+its row is cached under ``OUTPUT/cache/`` when it ends, so an interrupted evaluation resumes
+where it stopped and a changed file is calibrated again.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..core.errors import ConfigError
+
+#: Keys of a manifest run that are not calibration options.
+RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options',
+            'report')
+#: Columns of results.csv, in order.
+COLUMNS = ('name', 'algorithm', 'sequence', 'trial', 'status', 'reason', 'verdict',
+           'verdict_reasons', 'time_offset_ms', 'time_offset_std_ms', 'clock_drift_ppm', 'scale',
+           'tx_m', 'ty_m', 'tz_m', 'qx', 'qy', 'qz', 'qw', 'translation_std_mm',
+           'rotation_std_deg', 'ape_mm', 'ape_deg', 'rpe_1s_mm', 'rpe_1s_deg', 'rpe_1m_mm',
+           'rpe_1m_deg', 'ape_uncalibrated_mm', 'ape_uncalibrated_deg',
+           'rpe_1s_uncalibrated_mm', 'pairs', 'seconds', 'cached')
+#: Bumped when a row's meaning changes, so that old cache entries are not reused.
+CACHE_VERSION = 1
+HASH_CHUNK = 1 << 20
+BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One recording to calibrate: inputs (absolute paths), grouping labels and options."""
+
+    name: str
+    hand: str | None = None
+    eye: str | None = None
+    bag: str | None = None
+    algorithm: str = ''
+    sequence: str = ''
+    trial: str = ''
+    options: dict[str, Any] = field(default_factory=dict)
+    report: bool = False
+
+    def inputs(self) -> list[str]:
+        return [p for p in (self.hand, self.eye, self.bag) if p]
+
+    def slug(self) -> str:
+        """A file-system name for the run's output folder."""
+        keep = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in self.name)
+        return keep.strip('._') or 'run'
+
+
+def read_manifest(path: str | Path) -> list[RunSpec]:
+    """The runs of a manifest file or directory layout (module docstring).
+
+    Raises ConfigError when the manifest itself cannot be used (unreadable, not YAML, no runs,
+    duplicate names); a run whose files are missing is kept and fails on its own.
+    """
+    path = Path(path)
+    if path.is_dir():
+        runs = _from_layout(path)
+    else:
+        runs = _from_yaml(path)
+    if not runs:
+        raise ConfigError(f'{path}: no runs found')
+    names = [r.name for r in runs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ConfigError(f'{path}: run names must be unique; repeated: {", ".join(dup)}')
+    return runs
+
+
+def _from_yaml(path: Path) -> list[RunSpec]:
+    import yaml
+    try:
+        data = yaml.safe_load(path.read_text(encoding='utf-8'))
+    except FileNotFoundError:
+        raise ConfigError(f'{path}: no such manifest') from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ConfigError(f'{path}: cannot read the manifest ({err})') from None
+    except yaml.YAMLError as err:
+        first = str(err).splitlines()[0] if str(err) else 'syntax error'
+        raise ConfigError(f'{path}: not valid YAML ({first})') from None
+    if not isinstance(data, dict) or not isinstance(data.get('runs'), list):
+        raise ConfigError(f'{path}: expected a mapping with a list under "runs:"')
+    defaults = data.get('defaults') or {}
+    if not isinstance(defaults, dict):
+        raise ConfigError(f'{path}: "defaults" must be a mapping of options')
+    base = path.parent
+    out = []
+    for k, item in enumerate(data['runs']):
+        if not isinstance(item, dict):
+            raise ConfigError(f'{path}: run {k + 1} is not a mapping')
+        extra = {key: v for key, v in item.items() if key not in RUN_KEYS}
+        options = {**defaults, **(item.get('options') or {}), **extra}
+        labels = {key: str(item.get(key, '')) for key in ('algorithm', 'sequence', 'trial')}
+        name = str(item.get('name') or '/'.join(v for v in labels.values() if v) or
+                   f'run{k + 1}')
+        files = {key: str((base / str(item[key])).resolve()) if item.get(key) else None
+                 for key in ('hand', 'eye', 'bag')}
+        out.append(RunSpec(name=name, options=options, report=bool(item.get('report', False)),
+                           **labels, **files))
+    return out
+
+
+def _from_layout(root: Path) -> list[RunSpec]:
+    out = []
+    for trial in sorted(p for p in root.glob('*/*/*') if p.is_dir()):
+        algorithm, sequence = trial.parent.parent.name, trial.parent.name
+        files = {f.stem: f for f in sorted(trial.iterdir()) if f.is_file()}
+        bags = [f for f in trial.iterdir() if f.suffix in BAG_SUFFIXES or
+                (f.is_dir() and (f / 'metadata.yaml').is_file())]
+        spec = RunSpec(name=f'{algorithm}/{sequence}/{trial.name}', algorithm=algorithm,
+                       sequence=sequence, trial=trial.name,
+                       hand=str(files['hand']) if 'hand' in files else None,
+                       eye=str(files['eye']) if 'eye' in files else None,
+                       bag=str(bags[0]) if bags and 'hand' not in files else None)
+        out.append(spec)
+    return out
+
+
+def code_fingerprint() -> str:
+    """sha256 of this package's Python sources: a changed algorithm invalidates the cache."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parents[1]
+    for f in sorted(root.rglob('*.py')):
+        h.update(str(f.relative_to(root)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def cache_key(run: RunSpec, code: str) -> str:
+    """sha256 of the run's input contents, options and the code (:func:`code_fingerprint`); no
+    paths or names, so a moved file keeps its result."""
+    h = hashlib.sha256(f'{CACHE_VERSION} {code}'.encode())
+    h.update(json.dumps({'options': run.options, 'report': run.report},
+                        sort_keys=True, default=str).encode())
+    for p in run.inputs():
+        path = Path(p)
+        files = sorted(f for f in path.rglob('*') if f.is_file()) if path.is_dir() else [path]
+        for f in files:
+            h.update(f.name.encode())
+            try:
+                with f.open('rb') as fh:
+                    while chunk := fh.read(HASH_CHUNK):
+                        h.update(chunk)
+            except OSError:
+                h.update(b'<unreadable>')  # the run itself will say why
+    return h.hexdigest()[:32]
+
+
+def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
+    """Calibrate, export and evaluate one run into ``output/runs/<slug>/``; its table row.
+
+    Never raises for bad input: the row says ``status: failed`` and why.
+    """
+    from .. import offline
+    from ..core.errors import HandeyeError
+    from ..report import write_result
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {'name': run.name, 'algorithm': run.algorithm,
+                           'sequence': run.sequence, 'trial': run.trial}
+    folder = Path(output) / 'runs' / run.slug()
+    argv = (['--bag', run.bag] if run.bag else ['--hand', run.hand or '', '--eye', run.eye or ''])
+    argv += ['--export', str(folder / 'export')]
+    if run.report:
+        argv += ['--report', str(folder / 'report')]
+    try:
+        missing = [p for p in run.inputs() if not Path(p).exists()]
+        if missing or not (run.bag or (run.hand and run.eye)):
+            why = (f'no such file: {missing[0]}' if missing else
+                   'a run needs hand and eye files, or a bag')
+            raise ConfigError(why)
+        args = offline.build_parser().parse_args(argv)
+        out, _ = offline.calibrate_args(args, dict(run.options))
+        write_result(folder / 'result.yaml', out)
+        row.update(_row(out))
+        row['status'], row['reason'] = 'ok', ''
+    except HandeyeError as err:
+        row['status'], row['reason'] = 'failed', str(err)
+    except MemoryError:
+        row['status'], row['reason'] = 'failed', 'out of memory'
+    except Exception as err:  # noqa: BLE001  (a bug: the table says so, the evaluation goes on)
+        row['status'] = 'failed'
+        row['reason'] = f'internal error: {type(err).__name__}: {err}'
+    row['seconds'] = round(time.perf_counter() - t0, 3)
+    row['pid'] = os.getpid()
+    return row
+
+
+def _row(d: dict[str, Any]) -> dict[str, Any]:
+    s = d.get('std') or {}
+    ev = d.get('evaluation') or {}
+    cal, base = ev.get('calibrated') or {}, ev.get('uncalibrated') or {}
+
+    def stat(pe: dict, key: str, k: float) -> float | None:
+        v = (pe.get(key) or {}).get('rmse')
+        return None if v is None else v * k
+    norm = (lambda v: None if not v else sum(x * x for x in v) ** 0.5)
+    t, q = d['extrinsic']['translation'], d['extrinsic']['rotation']
+    return {
+        'verdict': d['quality']['verdict'],
+        'verdict_reasons': ' '.join(r['code'] for r in d['quality']['reasons']),
+        'time_offset_ms': d['time_offset'] * 1e3,
+        'time_offset_std_ms': None if s.get('time_offset') is None else s['time_offset'] * 1e3,
+        'clock_drift_ppm': None if d.get('clock_drift') is None else d['clock_drift'] * 1e6,
+        'scale': d.get('scale'),
+        'tx_m': t[0], 'ty_m': t[1], 'tz_m': t[2], 'qx': q[0], 'qy': q[1], 'qz': q[2], 'qw': q[3],
+        'translation_std_mm': None if not s else norm(s['translation']) * 1e3,
+        'rotation_std_deg': None if not s else norm(s['rotation']) * 57.29577951308232,
+        'ape_mm': stat(cal, 'ape_translation', 1e3), 'ape_deg': stat(cal, 'ape_rotation', 1.0),
+        'rpe_1s_mm': stat(cal, 'rpe_time_translation', 1e3),
+        'rpe_1s_deg': stat(cal, 'rpe_time_rotation', 1.0),
+        'rpe_1m_mm': stat(cal, 'rpe_distance_translation', 1e3),
+        'rpe_1m_deg': stat(cal, 'rpe_distance_rotation', 1.0),
+        'ape_uncalibrated_mm': stat(base, 'ape_translation', 1e3),
+        'ape_uncalibrated_deg': stat(base, 'ape_rotation', 1.0),
+        'rpe_1s_uncalibrated_mm': stat(base, 'rpe_time_translation', 1e3),
+        'pairs': d['association']['pairs'],
+    }
+
+
+def read_cached(cache: Path, key: str) -> dict[str, Any] | None:
+    """The row cached under ``key``, or None."""
+    try:
+        return json.loads((cache / f'{key}.json').read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def write_cached(cache: Path, key: str, row: dict[str, Any]) -> None:
+    """Cache a row atomically (a killed writer leaves no half file to be read back)."""
+    cache.mkdir(parents=True, exist_ok=True)
+    tmp = cache / f'.{key}.{os.getpid()}.tmp'
+    tmp.write_text(json.dumps(row))
+    os.replace(tmp, cache / f'{key}.json')
+
+
+def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
+    """results.csv (one row per run, :data:`COLUMNS`) and results.md; returns both paths."""
+    csv_path, md_path = output / 'results.csv', output / 'results.md'
+    with csv_path.open('w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction='ignore')
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _cell(r.get(k)) for k in COLUMNS})
+    shown = ('name', 'status', 'verdict', 'time_offset_ms', 'tx_m', 'ty_m', 'tz_m', 'ape_mm',
+             'ape_deg', 'rpe_1s_mm', 'ape_uncalibrated_mm', 'reason')
+    lines = ['| ' + ' | '.join(shown) + ' |', '|' + '---|' * len(shown)]
+    for r in rows:
+        cells = [_md(r.get(k)) for k in shown]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    md_path.write_text('\n'.join(lines) + '\n')
+    return csv_path, md_path
+
+
+def _cell(v: Any) -> Any:
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    return '' if v is None else v
+
+
+def _md(v: Any) -> str:
+    if isinstance(v, float):
+        return f'{v:.4g}'
+    return ('' if v is None else str(v)).replace('|', '\\|').replace('\n', ' ')[:200]
+

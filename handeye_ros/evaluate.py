@@ -21,6 +21,7 @@ import argparse
 import logging
 import os
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,9 @@ LOG = logging.getLogger('handeye_ros.evaluate')
 #: Exit code when nothing could be run (a bad manifest or option).
 EXIT_UNUSABLE = 101
 MAX_EXIT_FAILED = 100
+#: Modules a LocalCluster's workers import as they start.
+WORKER_PRELOAD = ('handeye_ros.evaluation.runs', 'handeye_ros.offline',
+                  'handeye_ros.core.pipeline', 'handeye_ros.evaluation.outputs')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,12 +56,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help='calibrate every run again even when its inputs did not change')
     p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
                    help='a progress bar on stderr (default: when stderr is a terminal)')
+    p.add_argument('-v', '--verbose', action='store_true',
+                   help='log the phases\' timings (cluster start, runs, tables)')
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format='%(name)s: %(message)s', stream=sys.stderr)
+    LOG.setLevel(logging.INFO if args.verbose else logging.WARNING)
     from dataclasses import replace
 
     from .core.errors import HandeyeError
@@ -127,10 +134,13 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
 
     with bar:
         if args.sequential or not todo:
+            t0 = time.perf_counter()
             for r in todo:
                 done(r, calibrate_run(r, str(output)))
+            LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
         else:
             _on_dask(todo, output, args, done)
+    t0 = time.perf_counter()
     ordered = [rows[r.name] for r in runs]
     write_tables(output, ordered)
     try:
@@ -138,6 +148,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
         summary(ordered, output / 'summary.png')
     except Exception as err:  # noqa: BLE001  (the table matters more than the picture)
         LOG.warning('summary plot not written: %s', err)
+    LOG.info('timing: tables and plots %.2f s', time.perf_counter() - t0)
     return ordered
 
 
@@ -154,14 +165,18 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     # the scheduler runs in this process: its INFO lines would bury the table's summary
     logging.getLogger('distributed').setLevel(logging.ERROR)
     cluster = None
+    t0 = time.perf_counter()
     if args.scheduler:
         client = Client(args.scheduler, timeout='20s')
     else:
         n = args.workers or os.cpu_count() or 1
+        # the workers import the package while the cluster starts, not in their first run
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                host='127.0.0.1', dashboard_address=None,
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.ERROR, preload=list(WORKER_PRELOAD))
         client = Client(cluster)
+    LOG.info('timing: cluster start %.2f s', time.perf_counter() - t0)
+    t0 = time.perf_counter()
     try:
         futures = {client.submit(calibrate_run, r, str(output), key=f'calibrate-{k}-{r.slug()}',
                                  pure=False): r for k, r in enumerate(todo)}
@@ -174,10 +189,13 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
                        'trial': run.trial, 'status': 'failed',
                        'reason': f'internal error: {type(err).__name__}: {err}'}
             done(run, row)
+        LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
     finally:
+        t0 = time.perf_counter()
         client.close()
         if cluster is not None:
             cluster.close()
+        LOG.info('timing: cluster stop %.2f s', time.perf_counter() - t0)
 
 
 if __name__ == '__main__':

@@ -60,7 +60,8 @@ def _call(ros: Processes, *services: str, mode: str = 'call', name: str = 'clien
 def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: Path,
                                                        tmp_path: Path) -> None:
     saved_path = tmp_path / 'node_result.yaml'
-    node = _start_node(ros, install, f'output_file:={saved_path}')
+    report = tmp_path / 'report'
+    node = _start_node(ros, install, f'output_file:={saved_path}', f'report_dir:={report}')
     bags = [f'{tmp_path / "rec_mcap"}:mcap', f'{tmp_path / "rec_sqlite"}:sqlite3',
             f'{tmp_path / "rec.bag"}:ros1']
     pub = ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '500',
@@ -70,6 +71,10 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     assert answer[1]['success'], answer
     latched = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched')
     saved = yaml.safe_load(saved_path.read_text())
+    # ~/save wrote the report the worker drew (report_dir), and the result holds the evaluation
+    assert f'{report / "report.html"}' in answer[1]['message'], answer[1]
+    assert {p.name for p in report.iterdir()} >= {'report.html', 'trajectories.png'}
+    assert saved['evaluation']['calibrated']['ape_translation']['n'] > 100
 
     # nothing lost on the way: every published message was buffered
     for s in ('hand', 'eye'):
@@ -110,6 +115,7 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
         d = json.loads(proc.stdout)
         assert d['time_offset'] == saved['time_offset'], spec
         assert d['extrinsic'] == saved['extrinsic'], spec
+        assert d['evaluation'] == saved['evaluation'], spec
     assert ros.stop(node) == 0
 
 

@@ -83,3 +83,17 @@ def write_report(directory: str | Path, result: CalibrationResult, out: dict[str
         raise InputError(f'report directory {d}: cannot write ({err.strerror or err})') from None
     LOG.info('report written in %.2f s: %s', time.perf_counter() - t0, page)
     return page
+
+
+def calibrate_snapshot(snapshot: Any, config: Any, stage_dir: str | None = None) -> dict[str, Any]:
+    """The node's worker job: calibrate a :class:`~handeye_ros.stream.recorder.Snapshot`, add
+    the evaluation, and with ``stage_dir`` draw the report there (``files.report``), ready for
+    ``~/save`` to copy; the result dictionary (the CalibrationResult stays in the worker: an
+    hour of MoCap is too large to send back)."""
+    result = snapshot.result(config)
+    out = snapshot.describe(result)
+    try:
+        evaluate_and_write(result, out, report_dir=stage_dir)
+    except Exception as err:  # noqa: BLE001  (the calibration matters more than its report)
+        out['warnings'].append(f'no evaluation or report: {type(err).__name__}: {err}')
+    return out

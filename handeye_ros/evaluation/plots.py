@@ -35,6 +35,11 @@ def _save(fig, path: Path) -> None:
     fig.savefig(path, format='png')
 
 
+def _empty(ax, message: str) -> None:
+    """Say in the plot why it has nothing to show."""
+    ax.text(0.5, 0.5, message, ha='center', va='center', transform=ax.transAxes)
+
+
 def _thin(n: int) -> slice:
     return slice(None, None, max(1, -(-n // MAX_POINTS)))
 
@@ -72,8 +77,7 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
         c.legend(loc='upper right', fontsize='small')
         c.set_title(f'normalised cross-correlation of the angular speeds ({ta.method} peak)')
     else:
-        c.text(0.5, 0.5, f'no correlation curve: the offset was {ta.method}', ha='center',
-               va='center', transform=c.transAxes)
+        _empty(c, f'no correlation curve: the offset was {ta.method}')
     c.set_xlabel('time offset dt = eye clock - hand clock [s]')
     c.set_ylabel('correlation')
     _save(fig, path)
@@ -87,8 +91,7 @@ def clock(result: CalibrationResult, path: Path) -> str:
     fig, ax = _figure(1, height=3.4)
     a = ax[0, 0]
     if fit is None or fit.centres_ns.size == 0:
-        a.text(0.5, 0.5, 'no windows: the recording is too short or the offset was fixed',
-               ha='center', va='center', transform=a.transAxes)
+        _empty(a, 'no windows: the recording is too short or the offset was fixed')
     else:
         t0 = int(fit.centres_ns[0])
         t = (fit.centres_ns - t0) * 1e-9
@@ -123,7 +126,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     a = fig.add_subplot(1, 2, 1)
     b = fig.add_subplot(1, 2, 2, projection='3d')
     if m is None or len(m) == 0:
-        a.text(0.5, 0.5, 'no motions', ha='center', va='center', transform=a.transAxes)
+        _empty(a, 'no motions')
     else:
         from ..core.linear import motion_errors
         e_rot, e_trans = motion_errors(m, lin.q_HE[None], lin.p_HE[None])
@@ -289,8 +292,7 @@ def summary(rows: list[dict], path: Path) -> str:
                 a.boxplot([d for _, d in shown], tick_labels=[n for n, _ in shown])
                 a.tick_params(axis='x', labelrotation=30)
             else:
-                a.text(0.5, 0.5, 'no successful runs', ha='center', va='center',
-                       transform=a.transAxes)
+                _empty(a, 'no successful runs')
             a.set_ylabel(label, fontsize='small')
             a.set_title(f'per {group} ({len(ok)} of {len(rows)} runs)', fontsize='small')
     _save(fig, path)

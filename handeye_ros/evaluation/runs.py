@@ -42,7 +42,7 @@ COLUMNS = ('name', 'algorithm', 'sequence', 'trial', 'status', 'reason', 'verdic
            'tx_m', 'ty_m', 'tz_m', 'qx', 'qy', 'qz', 'qw', 'translation_std_mm',
            'rotation_std_deg', 'ape_mm', 'ape_deg', 'rpe_1s_mm', 'rpe_1s_deg', 'rpe_1m_mm',
            'rpe_1m_deg', 'ape_uncalibrated_mm', 'ape_uncalibrated_deg',
-           'rpe_1s_uncalibrated_mm', 'pairs', 'seconds', 'cached')
+           'rpe_1s_uncalibrated_mm', 'pairs', 'seconds', 'cached', 'pid', 'rss_mb')
 #: Bumped when a row's meaning changes, so that old cache entries are not reused.
 CACHE_VERSION = 1
 HASH_CHUNK = 1 << 20
@@ -207,7 +207,17 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
         row['reason'] = f'internal error: {type(err).__name__}: {err}'
     row['seconds'] = round(time.perf_counter() - t0, 3)
     row['pid'] = os.getpid()
+    row['rss_mb'] = _rss_mb()
     return row
+
+
+def _rss_mb() -> float | None:
+    """This process's resident memory now (MB; Linux), to see a worker's memory stay flat."""
+    try:
+        pages = int(Path('/proc/self/statm').read_text().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return round(pages * os.sysconf('SC_PAGE_SIZE') / 2**20, 1)
 
 
 def _row(d: dict[str, Any]) -> dict[str, Any]:

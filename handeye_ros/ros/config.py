@@ -21,6 +21,9 @@ class NodeConfig(Options):
     output_file: str = option(
         'handeye_result.yaml', 'str', 'where ~/save writes the last result (YAML, or JSON for '
         '.json); relative to the working directory')
+    report_dir: str = option(
+        '', 'str', 'where ~/save also writes report.html and its plots (empty: no report); '
+        'each calibration then draws its report in the worker, ready for ~/save')
     calibrate_period: float = option(
         0.0, 'float', 'run the calibration every this many seconds while data flow (online use); '
         '0 disables', low=0.0, high=86_400.0)

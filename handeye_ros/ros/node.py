@@ -24,10 +24,13 @@ from __future__ import annotations
 import concurrent.futures as cf
 import importlib
 import multiprocessing
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 import rclpy
@@ -55,6 +58,7 @@ from std_srvs.srv import Trigger
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError, HandeyeError, InputError
 from ..core.options import Spec, split_options
+from ..evaluation.outputs import calibrate_snapshot
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
 from ..stream.convert import UnsupportedTypeError
@@ -241,7 +245,8 @@ class CalibratorNode(Node):
 
     def _new_pool(self) -> cf.ProcessPoolExecutor:
         ctx = multiprocessing.get_context('forkserver')
-        ctx.set_forkserver_preload(['handeye_ros.core.pipeline', 'handeye_ros.stream.recorder'])
+        ctx.set_forkserver_preload(['handeye_ros.core.pipeline', 'handeye_ros.stream.recorder',
+                                   'handeye_ros.evaluation.outputs'])
         pool = cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx)
         pool.submit(int)  # start the forkserver and the worker now, not on the first call
         return pool
@@ -263,7 +268,9 @@ class CalibratorNode(Node):
                 raise InputError(why)
             snapshot = self.recorder.snapshot()
             t0 = time.perf_counter()
-            job = self._pool.submit(snapshot.calibrate, self.calib_cfg)
+            stage = (tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir
+                     else None)
+            job = self._pool.submit(calibrate_snapshot, snapshot, self.calib_cfg, stage)
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._last_ok, self._last_summary = False, str(err)
             future.set_result((False, str(err)))
@@ -283,6 +290,7 @@ class CalibratorNode(Node):
                 self._last_ok, self._last_summary = False, f'internal error: {err!r}'
                 future.set_result((False, f'internal error: {err!r}'))
             else:
+                self._drop_staged_report()
                 self._last_result, self._last_ok, self._last_summary = d, True, d['summary']
                 self._publish(d)
                 self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
@@ -322,17 +330,38 @@ class CalibratorNode(Node):
         if self._last_result is None:
             response.success, response.message = False, 'no result to save: call calibrate first'
             return response
+        wrote = [self.node_cfg.output_file]
         try:
             write_result(self.node_cfg.output_file, self._last_result)
+            staged = (self._last_result.get('files') or {}).get('report')
+            if self.node_cfg.report_dir and staged:
+                shutil.copytree(Path(staged).parent, self.node_cfg.report_dir,
+                                dirs_exist_ok=True)
+                wrote.append(str(Path(self.node_cfg.report_dir) / 'report.html'))
+            elif self.node_cfg.report_dir:
+                wrote.append('no report (report_dir was set after this calibration: calibrate '
+                             'again)')
         except HandeyeError as err:
             response.success, response.message = False, str(err)
             return response
-        response.success, response.message = True, f'wrote {self.node_cfg.output_file}'
+        except OSError as err:
+            response.success = False
+            response.message = (f'report_dir {self.node_cfg.report_dir}: cannot write '
+                                f'({err.strerror or err})')
+            return response
+        response.success, response.message = True, 'wrote ' + ', '.join(wrote)
         return response
+
+    def _drop_staged_report(self) -> None:
+        """Remove the previous result's staged report (a new one replaces it)."""
+        staged = ((self._last_result or {}).get('files') or {}).get('report')
+        if staged:
+            shutil.rmtree(Path(staged).parent, ignore_errors=True)
 
     def close(self) -> None:
         """Stop the worker process (a running calibration is abandoned)."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+        self._drop_staged_report()
 
     # ------------------------------------------------------------------ outputs
 

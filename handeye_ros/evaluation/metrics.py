@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..core.geometry import compose, inverse, rotation_angle
+from ..core.geometry import rotation_angle
 from .aligned import AlignedTrajectories
 
 #: An RPE pair may miss the time or distance step by this fraction of it (evo's default).
@@ -50,7 +50,7 @@ class ErrorStats:
 
 def ape(al: AlignedTrajectories) -> tuple[np.ndarray, np.ndarray]:
     """Per-pose translation (m) and rotation (deg) errors (module docstring)."""
-    R_err, _ = compose(inverse((al.R_ref, al.p_ref)), (al.R_est, al.p_est))
+    R_err = np.matmul(np.swapaxes(al.R_ref, -1, -2), al.R_est)  # R(Q^-1 P)
     return np.linalg.norm(al.p_est - al.p_ref, axis=1), np.degrees(rotation_angle(R_err))
 
 
@@ -87,12 +87,19 @@ def rpe(al: AlignedTrajectories, delta: float, unit: str = 's') -> tuple[np.ndar
                                                                          np.ndarray]:
     """Per-pair translation (m) and rotation (deg) errors and the pairs' first indices."""
     i, j = rpe_pairs(al, delta, unit)
-    Q = (al.R_ref, al.p_ref)
-    P = (al.R_est, al.p_est)
-    dQ = compose(inverse((Q[0][i], Q[1][i])), (Q[0][j], Q[1][j]))
-    dP = compose(inverse((P[0][i], P[1][i])), (P[0][j], P[1][j]))
-    R_err, p_err = compose(inverse(dQ), dP)
-    return np.linalg.norm(p_err, axis=1), np.degrees(rotation_angle(R_err)), i
+    # with dQ = Q_i^-1 Q_j = (R_Qi^T R_Qj, R_Qi^T (q_j - q_i)) and dP alike, E = dQ^-1 dP has
+    # rotation R_dQ^T R_dP and translation R_dQ^T (t_dP - t_dQ), whose norm is |t_dP - t_dQ|
+    R_dQ, t_dQ = _relative(al.R_ref, al.p_ref, i, j)
+    R_dP, t_dP = _relative(al.R_est, al.p_est, i, j)
+    R_err = np.matmul(np.swapaxes(R_dQ, -1, -2), R_dP)
+    return (np.linalg.norm(t_dP - t_dQ, axis=1), np.degrees(rotation_angle(R_err)), i)
+
+
+def _relative(R: np.ndarray, p: np.ndarray, i: np.ndarray,
+              j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``T_i^-1 T_j`` for index pairs: rotations (M, 3, 3), translations (M, 3)."""
+    Ri_T = np.swapaxes(R[i], -1, -2)
+    return np.matmul(Ri_T, R[j]), np.einsum('nab,nb->na', Ri_T, p[j] - p[i])
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,8 @@ class UsedStreams:
     clock. eye: the eye (T_WE) likewise, moved onto the hand's clock up to ``time_offset``
     (stage 1's shift and any drift taken out) and made metric by the scale; its breaks split
     it into segments with their own VIO worlds. eye_stamps_ns: the eye's poses' stamps on the
-    eye's own clock (int64 ns, as in its file or bag).
+    eye's own clock (int64 ns, as in its file or bag). time_offset_s: the offset left between
+    ``eye`` and ``hand`` [s]: the eye pose stamped t there belongs to hand time t - it.
     """
 
     hand: Trajectory

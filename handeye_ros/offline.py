@@ -154,11 +154,6 @@ def load_options(path: str | None) -> dict[str, Any]:
     return {k: v for k, v in data.items() if k not in NODE_ONLY_KEYS}
 
 
-def run(args: argparse.Namespace) -> dict[str, Any]:
-    """Read, calibrate and return the result dictionary (raises HandeyeError on bad input)."""
-    return calibrate_args(args)[0]
-
-
 def calibrate_args(args: argparse.Namespace,
                    extra_options: dict[str, Any] | None = None) -> tuple[dict[str, Any], Any]:
     """Read, calibrate, evaluate, export and report; the result dictionary (with its
@@ -258,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
     from .core.errors import HandeyeError
     from .report import format_report, write_result
     try:
-        result = run(args)
+        result, _ = calibrate_args(args)
         if args.output:
             write_result(args.output, result)
     except HandeyeError as err:

@@ -74,34 +74,51 @@ def associate(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> PosePa
 
     Raises :class:`TimeAlignmentError` when fewer than MIN_PAIRS instants are covered by both.
     """
-    dt_ns = np.int64(round(time_offset_s * 1e9))
-    seg = eye.segment_ids()
     if eye.rate_hz <= hand.rate_hz:
-        R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
-        R_WE, p_WE = matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok]
-        R_GH, p_GH, t_eye_ns, seg = R_GH[ok], p_GH[ok], eye.t_ns[ok], seg[ok]
-    else:
-        R_WE, p_WE, ok = interpolate(eye, hand.t_ns + dt_ns)
-        R_GH, p_GH = matrix_from_quat(hand.q_xyzw[ok]), hand.p_xyz[ok]
-        R_WE, p_WE, t_eye_ns = R_WE[ok], p_WE[ok], hand.t_ns[ok] + dt_ns
-        # the segment of the eye pose before each instant (no instant lies inside a break)
-        seg = seg[np.clip(np.searchsorted(eye.t_ns, t_eye_ns, side='right') - 1, 0,
-                          len(eye) - 1)]
-    if t_eye_ns.size < MIN_PAIRS:
-        msg = (f'after applying the time offset {time_offset_s:+.4f} s only {t_eye_ns.size} '
+        pairs, _ = pairs_at_eye(hand, eye, time_offset_s)
+        _check_overlap(pairs.t_eye_s.size, hand, eye, time_offset_s)
+        return pairs
+    # the eye is the denser stream: interpolated at the hand's stamps
+    dt_ns = np.int64(round(time_offset_s * 1e9))
+    R_WE, p_WE, ok = interpolate(eye, hand.t_ns + dt_ns)
+    R_GH, p_GH = matrix_from_quat(hand.q_xyzw[ok]), hand.p_xyz[ok]
+    R_WE, p_WE, t_eye_ns = R_WE[ok], p_WE[ok], hand.t_ns[ok] + dt_ns
+    # the segment of the eye pose before each instant (no instant lies inside a break)
+    seg = eye.segment_ids()[np.clip(np.searchsorted(eye.t_ns, t_eye_ns, side='right') - 1, 0,
+                                    len(eye) - 1)]
+    _check_overlap(t_eye_ns.size, hand, eye, time_offset_s)
+    return PosePairs(_seconds(t_eye_ns), R_GH, p_GH, R_WE, p_WE, seg)
+
+
+def pairs_at_eye(hand: Trajectory, eye: Trajectory,
+                 time_offset_s: float) -> tuple[PosePairs, np.ndarray]:
+    """Pairs ``(T_GH(t - dt), T_WE(t))`` at every eye stamp the hand covers, and the mask (N,)
+    of those eye poses (no check of how many there are)."""
+    dt_ns = np.int64(round(time_offset_s * 1e9))
+    R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
+    pairs = PosePairs(_seconds(eye.t_ns[ok]), R_GH[ok], p_GH[ok],
+                      matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok], eye.segment_ids()[ok])
+    return pairs, ok
+
+
+def _seconds(t_ns: np.ndarray) -> np.ndarray:
+    return (t_ns - t_ns[0]).astype(float) * 1e-9 if t_ns.size else np.zeros(0)
+
+
+def _check_overlap(n: int, hand: Trajectory, eye: Trajectory, time_offset_s: float) -> None:
+    if n < MIN_PAIRS:
+        msg = (f'after applying the time offset {time_offset_s:+.4f} s only {n} '
                f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
                'overlap too little in time')
         raise TimeAlignmentError(msg)
-    t_eye_s = (t_eye_ns - t_eye_ns[0]).astype(float) * 1e-9
-    return PosePairs(t_eye_s, R_GH, p_GH, R_WE, p_WE, seg)
 
 
-def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
-                      time_offset_s: float, R_HE: np.ndarray,
-                      p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """How far each eye motion ``B = T_WE_i^-1 T_WE_j`` is from the hand's motion over the same
-    instants seen from the eye, ``T_HE^-1 A T_HE`` with ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)``
-    (AX = XB, eq. 2).
+def eye_motion_residuals(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
+                         time_offset_s: float, R_HE: np.ndarray,
+                         p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(T_HE^-1 A T_HE)^-1 B`` for each eye motion ``B = T_WE_i^-1 T_WE_j``, with
+    ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)`` the hand's motion over the same instants
+    (AX = XB, eq. 2), in the eye frame.
 
     Parameters
     ----------
@@ -110,12 +127,10 @@ def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.nd
 
     Returns
     -------
-    e_rot : ndarray, shape (M,)
-        Rotation angle of ``(T_HE^-1 A T_HE)^-1 B``, rad.
-    e_trans : ndarray, shape (M,)
-        Norm of its translation, m.
+    err_R, err_p : ndarray, shapes (M, 3, 3), (M, 3)
+        The residual motion's rotation and translation (m).
     covered : ndarray of bool, shape (M,)
-        Whether the hand covers both instants (the errors are meaningless elsewhere).
+        Whether the hand covers both instants (the residuals are meaningless elsewhere).
     """
     dt_ns = np.int64(round(time_offset_s * 1e9))
     R_h, p_h, ok = interpolate(hand, eye.t_ns - dt_ns)
@@ -123,4 +138,13 @@ def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.nd
     A = relative((R_h, p_h), i, j)
     B = relative((matrix_from_quat(eye.q_xyzw), eye.p_xyz), i, j)
     err_R, err_p = compose(inverse(compose(compose(inverse(X), A), X)), B)
-    return rotation_angle(err_R), np.linalg.norm(err_p, axis=1), ok[i] & ok[j]
+    return err_R, err_p, ok[i] & ok[j]
+
+
+def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
+                      time_offset_s: float, R_HE: np.ndarray,
+                      p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How far each eye motion is from the hand's (:func:`eye_motion_residuals`): the rotation
+    angle (rad) and the translation norm (m) of the residual motion, and ``covered``."""
+    err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, R_HE, p_HE)
+    return rotation_angle(err_R), np.linalg.norm(err_p, axis=1), covered

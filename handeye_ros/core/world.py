@@ -89,13 +89,20 @@ def _align_segment(pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray,
     spread = np.sqrt(np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0,
                              None))
     if d.shape[0] >= 3 and spread[1] >= MIN_PLANAR_SPREAD_M:
-        rot, _ = Rotation.align_vectors(c_W - mean_W, c_G - mean_G)
-        method = 'positions'
-    else:
-        rot = Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2))).mean()
-        method = 'orientations'
-    R_WG = rot.as_matrix()
-    return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, method)
+        R_WG, p_WG = rigid_fit(c_G, c_W)
+        return WorldAlignment(R_WG, p_WG, 'positions')
+    R_WG = Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2))).mean(
+        ).as_matrix()
+    return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
+
+
+def rigid_fit(points_a: np.ndarray, points_b: np.ndarray) -> Pose:
+    """The rotation and translation (R, p) that best map ``points_a`` (N, 3) onto ``points_b``
+    in the least-squares sense: Kabsch/Umeyama without scale (``b ~ R a + p``)."""
+    mean_a, mean_b = points_a.mean(axis=0), points_b.mean(axis=0)
+    rot, _ = Rotation.align_vectors(points_b - mean_b, points_a - mean_a)
+    R = rot.as_matrix()
+    return R, mean_b - R @ mean_a
 
 
 def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,

@@ -15,12 +15,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from ..core.association import MIN_PAIRS, PosePairs, interpolate
+from ..core.association import MIN_PAIRS, interpolate, pairs_at_eye
 from ..core.geometry import compose, matrix_from_quat
 from ..core.result import CalibrationResult
-from ..core.world import worlds_per_pair
+from ..core.world import rigid_fit, worlds_per_pair
 
 
 @dataclass(frozen=True)
@@ -56,17 +55,12 @@ def calibrated(result: CalibrationResult) -> AlignedTrajectories:
     Raises ValueError for a result without the streams it was computed on (``result.used``).
     """
     used = _used(result)
-    hand, eye = used.hand, used.eye
-    dt_ns = np.int64(round(used.time_offset_s * 1e9))
-    R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
-    seg = eye.segment_ids()[ok]
-    pairs = PosePairs(eye.seconds(int(eye.t_ns[0]))[ok], R_GH[ok], p_GH[ok],
-                      matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok], seg)
+    pairs, ok = pairs_at_eye(used.hand, used.eye, used.time_offset_s)
     X = (matrix_from_quat(result.q_HE), np.asarray(result.p_HE, dtype=float))
     world = worlds_per_pair(pairs, result.q_HE, result.p_HE, result.world)
     R_ref, p_ref = compose(world, compose((pairs.R_GH, pairs.p_GH), X))
     return AlignedTrajectories(used.eye_stamps_ns[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE,
-                               seg, 'calibrated')
+                               pairs.segment, 'calibrated')
 
 
 def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None, str]:
@@ -83,10 +77,7 @@ def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None,
     d = p_h - p_h.mean(axis=0)
     if np.linalg.svd(d, compute_uv=False)[1] < 1e-6 * max(1.0, np.abs(d).max()):
         return None, 'the hand positions span no plane: an SE(3) fit of positions is undefined'
-    rot, _ = Rotation.align_vectors(p_est - p_est.mean(axis=0), d)
-    R_WG = rot.as_matrix()
-    p_WG = p_est.mean(axis=0) - R_WG @ p_h.mean(axis=0)
-    R_ref, p_ref = compose((R_WG, p_WG), (R_GH[ok], p_h))
+    R_ref, p_ref = compose(rigid_fit(p_h, p_est), (R_GH[ok], p_h))
     return AlignedTrajectories(used.eye_stamps_ns[ok], R_ref, p_ref, R_est, p_est,
                                np.zeros(int(ok.sum()), dtype=int),
                                'uncalibrated (dt = 0, no T_HE, SE(3) Umeyama)'), ''

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.geometry import compose, inverse
 from ..core.result import CalibrationResult
 from ..core.time_align import angular_speed
 from .aligned import AlignedTrajectories
@@ -171,20 +170,17 @@ def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, n
     """Relative-pose residuals of consecutive eye poses against the calibrated hand
     (eq. 16's, with the hand interpolated rather than splined): times (s, eye), rotation
     residual vectors (rad, (M, 3)) and translation residuals (m, (M, 3)), in the eye frame."""
-    from ..core.association import interpolate
+    from scipy.spatial.transform import Rotation
+
+    from ..core.association import eye_motion_residuals
     from ..core.geometry import matrix_from_quat
     used = result.used
     eye = used.eye
-    R_h, p_h, ok = interpolate(used.hand, eye.t_ns - np.int64(round(used.time_offset_s * 1e9)))
-    i = np.flatnonzero(eye.interval_ok() & ok[:-1] & ok[1:])
-    X = (matrix_from_quat(result.q_HE), np.asarray(result.p_HE, dtype=float))
-    R_e, p_e = matrix_from_quat(eye.q_xyzw), eye.p_xyz
-    A = compose(inverse((R_h[i], p_h[i])), (R_h[i + 1], p_h[i + 1]))
-    B = compose(inverse((R_e[i], p_e[i])), (R_e[i + 1], p_e[i + 1]))
-    R_err, p_err = compose(inverse(compose(compose(inverse(X), A), X)), B)
-    from scipy.spatial.transform import Rotation
-    t = eye.seconds(int(eye.t_ns[0]))[i]
-    return t, Rotation.from_matrix(R_err).as_rotvec(), p_err
+    k = np.flatnonzero(eye.interval_ok())
+    R_err, p_err, covered = eye_motion_residuals(used.hand, eye, k, k + 1, used.time_offset_s,
+                                                 matrix_from_quat(result.q_HE), result.p_HE)
+    t = eye.seconds(int(eye.t_ns[0]))[k[covered]]
+    return t, Rotation.from_matrix(R_err[covered]).as_rotvec(), p_err[covered]
 
 
 def residuals(result: CalibrationResult, path: Path) -> str:

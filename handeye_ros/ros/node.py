@@ -263,6 +263,7 @@ class CalibratorNode(Node):
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
         why = self._why_no_data()
+        stage = None
         try:
             if why is not None:
                 raise InputError(why)
@@ -274,10 +275,12 @@ class CalibratorNode(Node):
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._last_ok, self._last_summary = False, str(err)
             future.set_result((False, str(err)))
+            self._drop_stage(stage)
             self._busy.release()
             return future
 
         def done(job: cf.Future) -> None:  # in a pool thread
+            kept = False
             try:
                 d = job.result()
             except HandeyeError as err:
@@ -290,7 +293,8 @@ class CalibratorNode(Node):
                 self._last_ok, self._last_summary = False, f'internal error: {err!r}'
                 future.set_result((False, f'internal error: {err!r}'))
             else:
-                self._drop_staged_report()
+                self._drop_stage(_staged_dir(self._last_result))
+                kept = True
                 self._last_result, self._last_ok, self._last_summary = d, True, d['summary']
                 self._publish(d)
                 self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
@@ -299,6 +303,8 @@ class CalibratorNode(Node):
                     self.get_logger().warning(w)
                 future.set_result((True, d['summary']))
             finally:
+                if not kept:  # a failed calibration leaves no report to keep
+                    self._drop_stage(stage)
                 self._busy.release()
 
         job.add_done_callback(done)
@@ -333,10 +339,9 @@ class CalibratorNode(Node):
         wrote = [self.node_cfg.output_file]
         try:
             write_result(self.node_cfg.output_file, self._last_result)
-            staged = (self._last_result.get('files') or {}).get('report')
+            staged = _staged_dir(self._last_result)
             if self.node_cfg.report_dir and staged:
-                shutil.copytree(Path(staged).parent, self.node_cfg.report_dir,
-                                dirs_exist_ok=True)
+                shutil.copytree(staged, self.node_cfg.report_dir, dirs_exist_ok=True)
                 wrote.append(str(Path(self.node_cfg.report_dir) / 'report.html'))
             elif self.node_cfg.report_dir:
                 wrote.append('no report (report_dir was set after this calibration: calibrate '
@@ -352,16 +357,16 @@ class CalibratorNode(Node):
         response.success, response.message = True, 'wrote ' + ', '.join(wrote)
         return response
 
-    def _drop_staged_report(self) -> None:
-        """Remove the previous result's staged report (a new one replaces it)."""
-        staged = ((self._last_result or {}).get('files') or {}).get('report')
-        if staged:
-            shutil.rmtree(Path(staged).parent, ignore_errors=True)
+    @staticmethod
+    def _drop_stage(stage: str | None) -> None:
+        """Remove a staging folder of the worker's report (replaced, or never used)."""
+        if stage:
+            shutil.rmtree(stage, ignore_errors=True)
 
     def close(self) -> None:
         """Stop the worker process (a running calibration is abandoned)."""
         self._pool.shutdown(wait=False, cancel_futures=True)
-        self._drop_staged_report()
+        self._drop_stage(_staged_dir(self._last_result))
 
     # ------------------------------------------------------------------ outputs
 
@@ -437,6 +442,12 @@ class CalibratorNode(Node):
                 ('warnings', len(d['warnings'])))]
         arr.status.append(res)
         self.pub_diag.publish(arr)
+
+
+def _staged_dir(result: dict[str, Any] | None) -> str | None:
+    """The folder where the worker drew a result's report, if it did."""
+    staged = ((result or {}).get('files') or {}).get('report')
+    return str(Path(staged).parent) if staged else None
 
 
 def pose_with_covariance(tf: TransformStamped, d: dict[str, Any]) -> PoseWithCovarianceStamped:

@@ -75,12 +75,15 @@ def build_parser() -> argparse.ArgumentParser:
                         default='auto', help=f'order of the {stream} file\'s quaternion '
                         'columns (default: the format\'s, x y z w for TUM, w x y z for EuRoC)')
     io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')
-    io.add_argument('--hand-topic', metavar='TOPIC',
+    io.add_argument('--hand-topic', metavar='SELECTOR',
                     help='hand pose topic in the bag (default: /mocap/pose if present, else '
-                         'the one pose topic named like a MoCap)')
-    io.add_argument('--eye-topic', metavar='TOPIC',
+                         'the one pose topic named like a MoCap); /tf:PARENT.CHILD selects the '
+                         'pose of CHILD in PARENT from tf2_msgs/TFMessage (static transforms '
+                         'of /tf_static chained; /tf:P.C:/other_static names the static topic), '
+                         'TOPIC:NAME the rigid body NAME of mocap4r2_msgs/RigidBodies')
+    io.add_argument('--eye-topic', metavar='SELECTOR',
                     help='eye pose topic in the bag (default: /vio/odom if present, else the one '
-                         'pose topic named like a VIO)')
+                         'pose topic named like a VIO); the same selectors as --hand-topic')
     io.add_argument('--hand-frame-id', metavar='FRAME', help='parent frame of the extrinsic')
     io.add_argument('--eye-frame-id', metavar='FRAME', help='child frame of the extrinsic')
     io.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,

@@ -157,4 +157,5 @@ def test_buffer_bounds_drop_oldest_and_count() -> None:
     assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) == 'zero_quaternion'
     assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5) == 'non_unit_quaternion'
     assert b2.stats().rejected == {'non_finite': 0, 'zero_quaternion': 1,
-                                   'non_unit_quaternion': 1, 'stamp_not_increasing': 1}
+                                   'non_unit_quaternion': 1, 'stamp_not_increasing': 1,
+                                   'not_in_message': 0}

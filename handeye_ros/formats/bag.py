@@ -16,10 +16,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..core.errors import InputError
+from ..core.errors import ConfigError, InputError
 from ..core.trajectory import Trajectory
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
-from ..stream.convert import UnsupportedTypeError, normalise_type
+from ..stream.convert import (
+    MULTI_POSE_TYPES,
+    RIGID_BODIES_TYPES,
+    TF_TYPE,
+    UnsupportedTypeError,
+    normalise_type,
+)
+from ..stream.sources import parse_selector
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
     from typing import Self
@@ -39,9 +46,26 @@ class Topic:
     count: int
 
 
+#: mocap4r2_msgs as the package publishes them, for bags that carry no message definitions
+#: (ROS 2 Humble's sqlite3 bags); a bag's own definitions take precedence when it has them.
+MOCAP4R2_MSGS = {
+    'mocap4r2_msgs/msg/Marker': 'int8 USE_NAME=0\nint8 USE_INDEX=1\nint8 USE_BOTH=2\n'
+                                'int8 id_type\nint32 marker_index\nstring marker_name\n'
+                                'geometry_msgs/Point translation\n',
+    'mocap4r2_msgs/msg/RigidBody': 'string rigid_body_name\nmocap4r2_msgs/Marker[] markers\n'
+                                   'geometry_msgs/Pose pose\n',
+    'mocap4r2_msgs/msg/RigidBodies': 'std_msgs/Header header\nuint32 frame_number\n'
+                                     'mocap4r2_msgs/RigidBody[] rigidbodies\n',
+}
+
+
 def _typestore() -> Any:
-    from rosbags.typesys import Stores, get_typestore
-    return get_typestore(Stores.ROS2_JAZZY)
+    """Jazzy's types (tf2_msgs included) and mocap4r2_msgs."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in MOCAP4R2_MSGS.items():
+        store.register(get_types_from_msg(text, name))
+    return store
 
 
 class BagReader:
@@ -79,10 +103,21 @@ class BagReader:
         out = []
         for t in self.topics():
             try:
-                normalise_type(t.msgtype)
+                if normalise_type(t.msgtype) in SUPPORTED_TYPES:
+                    out.append(t)
             except UnsupportedTypeError:
                 continue
-            out.append(t)
+        return out
+
+    def multi_pose_topics(self) -> list[Topic]:
+        """Topics of many poses per message (tf, rigid bodies), which need a selector."""
+        out = []
+        for t in self.topics():
+            try:
+                if normalise_type(t.msgtype) in MULTI_POSE_TYPES:
+                    out.append(t)
+            except UnsupportedTypeError:
+                continue
         return out
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, Any]]:
@@ -107,9 +142,12 @@ def choose_topics(bag: BagReader, config: StreamConfig,
     listing = ('; pose topics in the bag: ' + ', '.join(
         f'{t.name} ({t.msgtype}, {t.count} msgs)' for t in poses)) if poses else \
         '; the bag holds no pose topic (supported types: ' + ', '.join(SUPPORTED_TYPES) + ')'
+    for t in bag.multi_pose_topics():
+        how = 'PARENT.CHILD' if normalise_type(t.msgtype) == TF_TYPE else 'BODY_NAME'
+        listing += f'; {t.name} ({t.msgtype}, {t.count} msgs): select as {t.name}:{how}'
     chosen: dict[str, Topic] = {}
     for stream, words in (('hand', HAND_WORDS), ('eye', EYE_WORDS)):
-        name = getattr(config, f'{stream}_topic')
+        name = parse_selector(getattr(config, f'{stream}_topic')).topic
         if name in by_name or given[stream]:
             if name not in by_name:
                 raise InputError(f'{bag.path}: no topic {name} (--{stream}-topic){listing}')
@@ -126,12 +164,20 @@ def choose_topics(bag: BagReader, config: StreamConfig,
             raise InputError(f'{bag.path}: {why} looks like the {stream} stream; pass '
                              f'--{stream}-topic{listing}')
         chosen[stream] = matches[0]
-    if chosen['hand'].name == chosen['eye'].name:
-        raise InputError(f'{bag.path}: hand and eye are the same topic {chosen["hand"].name}')
+    texts = [selector_text(config, s, chosen[s]) for s in STREAMS]
+    if texts[0] == texts[1]:
+        raise InputError(f'{bag.path}: hand and eye are the same topic {texts[0]}')
     for stream in STREAMS:
         if chosen[stream].count == 0:
             raise InputError(f'{bag.path}: topic {chosen[stream].name} holds no messages')
     return chosen
+
+
+def selector_text(config: StreamConfig, stream: str, topic: Topic) -> str:
+    """The stream's selector on the chosen topic: the option's own (with its tf pair or body
+    name) when it names that topic, else the topic picked by name."""
+    text = getattr(config, f'{stream}_topic')
+    return text if parse_selector(text).topic == topic.name else topic.name
 
 
 def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None = None,
@@ -147,7 +193,8 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
     given = given or {s: False for s in STREAMS}
     with BagReader(path) as bag:
         chosen = choose_topics(bag, config, given)
-        config = replace(config, hand_topic=chosen['hand'].name, eye_topic=chosen['eye'].name)
+        config = replace(config, hand_topic=selector_text(config, 'hand', chosen['hand']),
+                         eye_topic=selector_text(config, 'eye', chosen['eye']))
         rec = Recorder(config)
         for stream in STREAMS:
             declared = getattr(config, f'{stream}_type')
@@ -155,18 +202,48 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
             if declared != 'auto' and normalise_type(declared) != normalise_type(msgtype):
                 raise InputError(f'{bag.path}: topic {chosen[stream].name} is {msgtype}, but '
                                  f'{stream}_type is {declared}')
-            rec.set_type(stream, normalise_type(msgtype))
-        stream_of = {chosen[s].name: s for s in STREAMS}
-        total = sum(chosen[s].count for s in STREAMS)
+            try:
+                rec.set_type(stream, msgtype)
+            except ConfigError as err:
+                raise InputError(f'{bag.path}: {err}{_items(bag, chosen[stream])}') from None
+        routes = rec.routes()
+        counts = {t.name: t.count for t in bag.topics()}
+        # static transforms first: a recorder may log /tf_static after the first /tf samples
+        static = [t for t, r in routes.items() if all(st for _, st in r) and t in counts]
+        moving = [t for t in routes if t not in static and t in counts]
+        total = sum(counts[t] for t in routes if t in counts)
         bar = tqdm(total=total, unit='msg', desc=f'replaying {bag.path.name}', file=sys.stderr,
                    disable=None if progress is None else not progress, mininterval=0.5)
         with bar:
-            for k, (topic, msg) in enumerate(bag.messages(list(stream_of))):
-                rec.add(stream_of[topic], msg)
-                if k % 4096 == 4095:
-                    bar.update(4096)
+            for topics in (static, moving):
+                if not topics:
+                    continue
+                for k, (topic, msg) in enumerate(bag.messages(topics)):
+                    for stream, is_static in routes[topic]:
+                        rec.add(stream, msg, is_static)
+                    if k % 4096 == 4095:
+                        bar.update(4096)
             bar.update(total - bar.n)
     return rec
+
+
+def _items(bag: BagReader, topic: Topic) -> str:
+    """What a many-pose topic holds (frame pairs, body names), from its first messages."""
+    kind = normalise_type(topic.msgtype)
+    if kind not in MULTI_POSE_TYPES:
+        return ''
+    seen: dict[str, None] = {}
+    for k, (_, msg) in enumerate(bag.messages([topic.name])):
+        if kind in RIGID_BODIES_TYPES:
+            seen.update(dict.fromkeys(b.rigid_body_name for b in msg.rigidbodies))
+        else:
+            seen.update(dict.fromkeys(f'{tf.header.frame_id.lstrip("/")}.'
+                                      f'{tf.child_frame_id.lstrip("/")}'
+                                      for tf in msg.transforms))
+        if k >= 200 or len(seen) > 20:
+            break
+    listed = ', '.join(f'{topic.name}:{x}' for x in list(seen)[:20])
+    return f'; it holds {listed}' if seen else ''
 
 
 # ----------------------------------------------------------------------------------- writing
@@ -180,20 +257,56 @@ def _stamp(store: Any, t_ns: int) -> Any:
     return Time(sec=int(t_ns // 1_000_000_000), nanosec=int(t_ns % 1_000_000_000))
 
 
+def transform_stamped(store: Any, t_ns: int, parent: str, child: str,
+                      p: Any, q: Any) -> Any:
+    """geometry_msgs/TransformStamped (rosbags class): the pose (p x y z, q x y z w) of
+    ``child`` in ``parent`` at ``t_ns``."""
+    T = store.types
+    return T['geometry_msgs/msg/TransformStamped'](
+        header=T['std_msgs/msg/Header'](stamp=_stamp(store, t_ns), frame_id=parent),
+        child_frame_id=child,
+        transform=T['geometry_msgs/msg/Transform'](
+            translation=T['geometry_msgs/msg/Vector3'](x=p[0], y=p[1], z=p[2]),
+            rotation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])))
+
+
+def rigid_bodies_message(store: Any, t_ns: int, frame_id: str,
+                         bodies: list[tuple[str, Any, Any]]) -> Any:
+    """mocap4r2_msgs/RigidBodies (rosbags class) of (name, p x y z, q x y z w) bodies."""
+    T = store.types
+    return T['mocap4r2_msgs/msg/RigidBodies'](
+        header=T['std_msgs/msg/Header'](stamp=_stamp(store, t_ns), frame_id=frame_id),
+        frame_number=0,
+        rigidbodies=[T['mocap4r2_msgs/msg/RigidBody'](
+            rigid_body_name=name, markers=[],
+            pose=T['geometry_msgs/msg/Pose'](
+                position=T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2]),
+                orientation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])))
+            for name, p, q in bodies])
+
+
 def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
                   child_frame_id: str) -> Iterator[tuple[int, Any]]:
-    """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes)."""
+    """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes).
+
+    A TFMessage holds one transform (frame_id -> child_frame_id), a RigidBodies message one
+    body named child_frame_id."""
     T = store.types
     msgtype = normalise_type(msgtype)
     for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
+        if msgtype == TF_TYPE:
+            tf = transform_stamped(store, t, frame_id, child_frame_id, p, q)
+            yield t, T[msgtype](transforms=[tf])
+            continue
+        if msgtype in RIGID_BODIES_TYPES:
+            yield t, rigid_bodies_message(store, t, frame_id, [(child_frame_id, p, q)])
+            continue
+        if msgtype == 'geometry_msgs/msg/TransformStamped':
+            yield t, transform_stamped(store, t, frame_id, child_frame_id, p, q)
+            continue
         header = T['std_msgs/msg/Header'](stamp=_stamp(store, t), frame_id=frame_id)
         point = T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2])
         quat = T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])
-        if msgtype == 'geometry_msgs/msg/TransformStamped':
-            vec = T['geometry_msgs/msg/Vector3'](x=p[0], y=p[1], z=p[2])
-            tf = T['geometry_msgs/msg/Transform'](translation=vec, rotation=quat)
-            yield t, T[msgtype](header=header, child_frame_id=child_frame_id, transform=tf)
-            continue
         pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
         if msgtype == 'geometry_msgs/msg/PoseStamped':
             yield t, T[msgtype](header=header, pose=pose)
@@ -274,13 +387,8 @@ def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
     with BagWriter(path, storage) as w:
         T = w.store.types
         e = result['extrinsic']
-        tf = T['geometry_msgs/msg/TransformStamped'](
-            header=T['std_msgs/msg/Header'](stamp=_stamp(w.store, stamp_ns),
-                                            frame_id=e['parent']),
-            child_frame_id=e['child'],
-            transform=T['geometry_msgs/msg/Transform'](
-                translation=T['geometry_msgs/msg/Vector3'](*e['translation']),
-                rotation=T['geometry_msgs/msg/Quaternion'](*e['rotation'])))
+        tf = transform_stamped(w.store, stamp_ns, e['parent'], e['child'], e['translation'],
+                               e['rotation'])
         w.write('/tf_static', 'tf2_msgs/msg/TFMessage', stamp_ns,
                 T['tf2_msgs/msg/TFMessage'](transforms=[tf]))
         w.write('/handeye/time_offset', 'std_msgs/msg/Float64', stamp_ns,

@@ -61,7 +61,7 @@ from ..core.options import Spec, split_options
 from ..evaluation.outputs import calibrate_snapshot
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
-from ..stream.convert import UnsupportedTypeError
+from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from .config import NodeConfig, all_specs
 
 #: Latched result topics: late subscribers get the last result.
@@ -105,12 +105,15 @@ class CalibratorNode(Node):
         super().__init__('calibrator', **kwargs)
         self.calib_cfg, self.stream_cfg, self.node_cfg = self._declare_and_read()
         self.recorder = Recorder(self.stream_cfg)
+        self._check_tf_selectors()
         self._busy = threading.Lock()
         self._last_result: dict[str, Any] | None = None
         self._last_summary = 'no calibration yet'
         self._last_ok: bool | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
         self._subs: dict[str, Any] = {}
+        self._static_subs: dict[str, Any] = {}
+        self._sub_errors: dict[str, str] = {}
         self._started = time.monotonic()
         self._type_warned = dict.fromkeys(STREAMS, self._started)
 
@@ -173,20 +176,46 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ subscriptions
 
+    def _check_tf_selectors(self) -> None:
+        """Say at start, not when data would arrive, that a tf selector cannot be read here:
+        tf2_msgs comes with a ROS 2 install, not with the PyPI wheels."""
+        for stream in STREAMS:
+            sel = self.recorder.selectors[stream]
+            declared = getattr(self.stream_cfg, f'{stream}_type')
+            is_tf = (normalise_type(declared) == TF_TYPE if declared != 'auto' else
+                     sel.item is not None and sel.topic.rstrip('/').rsplit('/', 1)[-1] == 'tf')
+            if not is_tf:
+                continue
+            sel.frames()  # a malformed pair is a ConfigError now
+            try:
+                _message_class(TF_TYPE)
+            except ConfigError as err:
+                raise ConfigError(f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
+                                  'ROS install: offline_calibrate --bag reads them') from None
+
     def _subscribe(self, stream: str, msgtype: str) -> None:
+        """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
+        tf2's static broadcasters latch) once its type is known; raises ConfigError when
+        the type does not fit the selector or its Python package cannot be imported."""
         self.recorder.set_type(stream, msgtype)
-        pkg, _, name = msgtype.split('/')
-        cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
+        cls = _message_class(msgtype)
         qos = QoSProfile(
             depth=self.node_cfg.qos_depth, history=HistoryPolicy.KEEP_LAST,
             reliability=(ReliabilityPolicy.BEST_EFFORT
                          if self.node_cfg.qos_reliability == 'best_effort'
                          else ReliabilityPolicy.RELIABLE),
             durability=DurabilityPolicy.VOLATILE)
-        topic = getattr(self.stream_cfg, f'{stream}_topic')
+        sel = self.recorder.selectors[stream]
         self._subs[stream] = self.create_subscription(
-            cls, topic, lambda msg, s=stream: self._on_pose(s, msg), qos)
-        self.get_logger().info(f'{stream}: subscribed to {topic} ({msgtype})')
+            cls, sel.topic, lambda msg, s=stream: self._on_pose(s, msg), qos)
+        if sel.static_topic:
+            static_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
+                                    reliability=ReliabilityPolicy.RELIABLE,
+                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            self._static_subs[stream] = self.create_subscription(
+                cls, sel.static_topic, lambda msg, s=stream: self._on_pose(s, msg, True),
+                static_qos)
+        self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
 
     def _discover_types(self) -> None:
         """Learn the message type of auto-typed topics from the graph."""
@@ -195,7 +224,7 @@ class CalibratorNode(Node):
         for stream in STREAMS:
             if stream in self._subs:
                 continue
-            topic = getattr(self.stream_cfg, f'{stream}_topic')
+            topic = self.recorder.selectors[stream].topic
             types = graph.get(topic, [])
             usable = []
             for t in types:
@@ -204,7 +233,13 @@ class CalibratorNode(Node):
                 except UnsupportedTypeError:
                     pass
             if len(usable) == 1:
-                self._subscribe(stream, usable[0])
+                try:
+                    self._subscribe(stream, usable[0])
+                except ConfigError as err:
+                    self._sub_errors[stream] = str(err)
+                    if now - self._type_warned[stream] > self.node_cfg.topic_wait:
+                        self._type_warned[stream] = now
+                        self.get_logger().error(f'{stream}: {err}')
             elif now - self._type_warned[stream] > self.node_cfg.topic_wait:
                 self._type_warned[stream] = now
                 if types and not usable:
@@ -218,8 +253,8 @@ class CalibratorNode(Node):
         if len(self._subs) == len(STREAMS) and self._graph_timer is not None:
             self._graph_timer.cancel()
 
-    def _on_pose(self, stream: str, msg: Any) -> None:
-        reason = self.recorder.add(stream, msg)
+    def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
+        reason = self.recorder.add(stream, msg, static)
         if reason is not None:
             now = time.monotonic()
             if now - self._reject_warned[stream] >= REJECT_WARN_PERIOD_S:
@@ -233,8 +268,10 @@ class CalibratorNode(Node):
 
     def _why_no_data(self) -> str | None:
         for stream in STREAMS:
+            if stream in self._sub_errors and stream not in self._subs:
+                return f'{stream}: {self._sub_errors[stream]}'
             if stream not in self._subs:
-                topic = getattr(self.stream_cfg, f'{stream}_topic')
+                topic = self.recorder.selectors[stream].topic
                 types = dict(self.get_topic_names_and_types()).get(topic)
                 if types:
                     return (f'{stream} topic {topic} has type {", ".join(types)}, which carries '
@@ -442,6 +479,18 @@ class CalibratorNode(Node):
                 ('warnings', len(d['warnings'])))]
         arr.status.append(res)
         self.pub_diag.publish(arr)
+
+
+def _message_class(msgtype: str) -> Any:
+    """The rclpy class of 'pkg/msg/Name'; ConfigError naming the package when this Python
+    cannot import it (tf2_msgs and mocap4r2_msgs come with a ROS 2 install, not from PyPI)."""
+    pkg, _, name = msgtype.split('/')
+    try:
+        return getattr(importlib.import_module(f'{pkg}.msg'), name)
+    except (ImportError, AttributeError):
+        raise ConfigError(f'{msgtype} cannot be imported in this Python ({sys.executable}): '
+                          f'install {pkg} (e.g. apt install ros-jazzy-{pkg.replace("_", "-")} '
+                          'and source /opt/ros/jazzy/setup.bash)') from None
 
 
 def _staged_dir(result: dict[str, Any] | None) -> str | None:

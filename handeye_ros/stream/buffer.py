@@ -17,7 +17,8 @@ import numpy as np
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 
 #: Reasons a message is rejected (keys of BufferStats.rejected).
-REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'stamp_not_increasing')
+REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'stamp_not_increasing',
+                  'not_in_message')
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,14 @@ class PoseBuffer:
             if n_old:
                 self._drop(n_old)
             return None
+
+    def reject(self, reason: str) -> str:
+        """Count a message that held no pose for this stream (e.g. a rigid body not tracked in
+        that frame); returns the reason."""
+        with self._lock:
+            self.received += 1
+            self.rejected[reason] += 1
+        return reason
 
     def _check(self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float,
                qw: float) -> str | None:

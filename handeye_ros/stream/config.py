@@ -10,9 +10,13 @@ from dataclasses import dataclass
 
 from ..core.errors import ConfigError
 from ..core.options import Options, option
-from .convert import SUPPORTED_TYPES, UnsupportedTypeError, normalise_type
+from .convert import MULTI_POSE_TYPES, SUPPORTED_TYPES, UnsupportedTypeError, normalise_type
+from .sources import parse_selector
 
-_TYPES = ', '.join(t.rsplit('/', 1)[1] for t in SUPPORTED_TYPES)
+_TYPES = ', '.join(dict.fromkeys(t.rsplit('/', 1)[1] for t in SUPPORTED_TYPES + MULTI_POSE_TYPES))
+_SELECTORS = ('; TOPIC:PARENT.CHILD selects a frame of tf2_msgs/TFMessage (e.g. '
+              '/tf:world.marker, static transforms from /tf_static chained), TOPIC:NAME a rigid '
+              'body of mocap4r2_msgs/RigidBodies')
 
 
 @dataclass(frozen=True)
@@ -20,9 +24,11 @@ class StreamConfig(Options):
     """Where the hand and eye poses come from and how many are kept."""
 
     hand_topic: str = option(
-        '/mocap/pose', 'str', 'topic of the MoCap pose of the marker frame H in the MoCap world G')
+        '/mocap/pose', 'str', 'topic of the MoCap pose of the marker frame H in the MoCap world G'
+        + _SELECTORS)
     eye_topic: str = option(
-        '/vio/odom', 'str', 'topic of the VO/VIO pose of the body frame E in the VIO world W')
+        '/vio/odom', 'str', 'topic of the VO/VIO pose of the body frame E in the VIO world W'
+        ' (a selector, as hand_topic)')
     hand_type: str = option(
         'auto', 'str', f'message type of hand_topic: auto (from the graph or the bag) or {_TYPES}')
     eye_type: str = option(
@@ -50,3 +56,7 @@ class StreamConfig(Options):
         for name in ('hand_topic', 'eye_topic'):
             if not getattr(self, name).strip():
                 raise ConfigError(f'option {name} must not be empty')
+            try:
+                parse_selector(getattr(self, name))
+            except ConfigError as err:
+                raise ConfigError(f'option {name}: {err}') from None

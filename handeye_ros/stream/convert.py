@@ -44,28 +44,36 @@ _CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
     'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), m.pose.pose),
 }
 
-#: Message types a stream may carry, in ROS 2 'pkg/msg/Name' form.
+#: Message types holding one pose each, in ROS 2 'pkg/msg/Name' form.
 SUPPORTED_TYPES = tuple(_CONVERTERS)
+#: Message types holding many poses, of which a topic selector picks one (see sources.py):
+#: tf (``TOPIC:PARENT.CHILD``) and mocap4r2 rigid bodies (``TOPIC:NAME``; mocap_msgs is the
+#: package's name before its rename, with the same fields).
+TF_TYPE = 'tf2_msgs/msg/TFMessage'
+RIGID_BODIES_TYPES = ('mocap4r2_msgs/msg/RigidBodies', 'mocap_msgs/msg/RigidBodies')
+MULTI_POSE_TYPES = (TF_TYPE, *RIGID_BODIES_TYPES)
 
 
 def normalise_type(name: str) -> str:
     """'geometry_msgs/msg/PoseStamped' from that, 'geometry_msgs/PoseStamped' (ROS 1 bags) or
-    a bare 'PoseStamped' / 'Odometry'; raises UnsupportedTypeError for anything else."""
+    a bare 'PoseStamped' / 'Odometry' / 'TFMessage'; raises UnsupportedTypeError for anything
+    else."""
+    known = (*SUPPORTED_TYPES, *MULTI_POSE_TYPES)
     parts = name.strip().split('/')
     if len(parts) == 2:
         parts = [parts[0], 'msg', parts[1]]
     if len(parts) == 1:
-        matches = [t for t in SUPPORTED_TYPES if t.endswith('/' + parts[0])]
-        if len(matches) == 1:
+        matches = [t for t in known if t.endswith('/' + parts[0])]
+        if matches:
             return matches[0]
     full = '/'.join(parts)
-    if full in _CONVERTERS:
+    if full in known:
         return full
     msg = (f'message type {name!r} carries no pose this tool reads; supported: '
-           f'{", ".join(SUPPORTED_TYPES)}')
+           f'{", ".join(known)}')
     raise UnsupportedTypeError(msg)
 
 
 def pose_of(msgtype: str) -> Callable[[Any], StampedPose]:
-    """The converter for a (normalised) message type."""
+    """The converter of a one-pose message type (KeyError for the many-pose ones)."""
     return _CONVERTERS[normalise_type(msgtype)]

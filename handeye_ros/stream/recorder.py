@@ -12,13 +12,14 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from ..core.config import CalibrationConfig
-from ..core.errors import InputError
+from ..core.errors import ConfigError, InputError
 from ..core.pipeline import calibrate
 from ..core.result import CalibrationResult
 from ..core.trajectory import Trajectory
 from .buffer import BufferStats, PoseBuffer
 from .config import StreamConfig
-from .convert import StampedPose, pose_of
+from .convert import RIGID_BODIES_TYPES, TF_TYPE, StampedPose, normalise_type, pose_of
+from .sources import TF_STATIC, RigidBodyPicker, Selector, TfChain, parse_selector
 
 STREAMS = ('hand', 'eye')
 
@@ -56,25 +57,80 @@ class Snapshot:
 
 
 class Recorder:
-    """Hand and eye pose buffers with their message converters."""
+    """Hand and eye pose buffers with their message converters.
+
+    A stream's topic option is a selector (see :mod:`.sources`): a topic of single poses, or a
+    tf pair / rigid body out of a topic of many. :meth:`set_type` fixes how its messages are
+    read once the topic's type is known (from the graph, the bag, or the options)."""
 
     def __init__(self, config: StreamConfig):
         self.config = config
+        self.selectors: dict[str, Selector] = {
+            name: parse_selector(getattr(config, name + '_topic')) for name in STREAMS}
         self.buffers = {
             name: PoseBuffer(f'{name} ({getattr(config, name + "_topic")})',
                              config.buffer_size, config.buffer_duration)
             for name in STREAMS}
         self.types: dict[str, str | None] = {name: None for name in STREAMS}
         self._convert: dict[str, Callable[[Any], StampedPose]] = {}
+        self._tf: dict[str, TfChain] = {}
+        self._bodies: dict[str, RigidBodyPicker] = {}
 
     def set_type(self, stream: str, msgtype: str) -> None:
-        """Fix the message type of a stream (raises UnsupportedTypeError)."""
-        self._convert[stream] = pose_of(msgtype)
+        """Fix the message type of a stream's topic (raises UnsupportedTypeError, or
+        ConfigError when the selector does not fit the type)."""
+        msgtype = normalise_type(msgtype)
+        sel = self.selectors[stream]
+        if msgtype == TF_TYPE:
+            if sel.item is None:
+                raise ConfigError(f'{stream} topic {sel.topic} is {msgtype}: select the pose '
+                                  f'of a frame in another, as {sel.topic}:PARENT.CHILD')
+            self._tf[stream] = TfChain(*sel.frames(), sel.text)
+            if sel.static_topic is None:
+                self.selectors[stream] = Selector(sel.text, sel.topic, sel.item, TF_STATIC)
+        elif msgtype in RIGID_BODIES_TYPES:
+            if sel.item is None or sel.static_topic is not None:
+                raise ConfigError(f'{stream} topic {sel.text} is {msgtype}: select one rigid '
+                                  f'body by its name, as {sel.topic}:NAME')
+            self._bodies[stream] = RigidBodyPicker(sel.item)
+        else:
+            if sel.item is not None:
+                raise ConfigError(f'{stream} topic {sel.topic} is {msgtype}, one pose per '
+                                  f'message: name the topic alone, without :{sel.item}')
+            self._convert[stream] = pose_of(msgtype)
         self.types[stream] = msgtype
 
-    def add(self, stream: str, msg: Any) -> str | None:
-        """Convert and buffer one message; returns None or why it was rejected."""
-        return self.buffers[stream].add(*self._convert[stream](msg))
+    def routes(self) -> dict[str, list[tuple[str, bool]]]:
+        """Which streams read each topic: topic -> [(stream, static)] (a tf topic may feed
+        both streams; its static topic comes with static=True)."""
+        out: dict[str, list[tuple[str, bool]]] = {}
+        for stream in STREAMS:
+            sel = self.selectors[stream]
+            for topic in sel.topics:
+                out.setdefault(topic, []).append((stream, topic == sel.static_topic))
+        return out
+
+    def add(self, stream: str, msg: Any, static: bool = False) -> str | None:
+        """Convert and buffer one message; returns None or why (one of) its pose(s) was
+        rejected. ``static``: the message came on a tf selector's static topic."""
+        convert = self._convert.get(stream)
+        if convert is not None:
+            return self.buffers[stream].add(*convert(msg))
+        picker = self._bodies.get(stream)
+        if picker is not None:
+            pose = picker.pose(msg)
+            if pose is None:
+                return self.buffers[stream].reject('not_in_message')
+            return self.buffers[stream].add(*pose)
+        reason = None
+        for pose in self._tf[stream].poses(msg, static):
+            reason = self.buffers[stream].add(*pose) or reason
+        return reason
+
+    def diagnose(self, stream: str) -> str | None:
+        """Why a many-pose selector gave no pose (None for one-pose topics)."""
+        source = self._tf.get(stream) or self._bodies.get(stream)
+        return source.diagnose() if source is not None else None
 
     def reset(self) -> None:
         """Empty both buffers and their counters."""
@@ -96,8 +152,11 @@ class Recorder:
                 msg = (f'{name} stream {topic}: {len(buf)} pose(s) buffered '
                        f'({buf.received} received, {sum(buf.rejected.values())} rejected); '
                        'need a recording of both streams first')
-                raise InputError(msg)
+                why = self.diagnose(name)
+                raise InputError(msg + (f' ({why})' if why else ''))
             trajectories[name] = buf.trajectory()
+            if name in self._tf:
+                trajectories[name] = self._tf[name].finish(trajectories[name])
         return Snapshot(trajectories['hand'], trajectories['eye'], self.config.hand_frame_id,
                         self.config.eye_frame_id, self.stream_dict(),
                         tuple(self.stream_warnings()))
@@ -123,11 +182,16 @@ class Recorder:
             if bad:
                 out.append(f'{name} stream {topic}: rejected messages: '
                            + ', '.join(f'{v} {k.replace("_", " ")}' for k, v in bad.items()))
+            if name in self._tf:
+                out += self._tf[name].warnings()
         return out
 
     def stream_dict(self) -> dict[str, Any]:
         """Per-stream bookkeeping for the result file."""
-        return {name: {'topic': getattr(self.config, name + '_topic'), 'type': self.types[name],
-                       'received': s.received, 'buffered': s.stored, 'dropped': s.dropped,
-                       'rejected': s.rejected, 'span_s': s.span_s, 'rate_hz': s.rate_hz}
-                for name, s in self.stats().items()}
+        out = {name: {'topic': getattr(self.config, name + '_topic'), 'type': self.types[name],
+                      'received': s.received, 'buffered': s.stored, 'dropped': s.dropped,
+                      'rejected': s.rejected, 'span_s': s.span_s, 'rate_hz': s.rate_hz}
+               for name, s in self.stats().items()}
+        for name, chain in self._tf.items():
+            out[name]['tf_chain'] = chain.describe()
+        return out

@@ -58,6 +58,25 @@ def ros_env(install: Path) -> dict[str, str]:
     return env
 
 
+#: tf2_msgs and mocap4r2_msgs built by scripts/interfaces (not on PyPI).
+INTERFACES = ROOT / '.interfaces' / 'install'
+
+
+def with_interfaces(env: dict[str, str]) -> dict[str, str] | None:
+    """``env`` with the message packages of scripts/interfaces on the paths, as sourcing their
+    install/setup.bash would put them; None when they were not built."""
+    site = INTERFACES / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / \
+        'site-packages'
+    if not (site / 'tf2_msgs').is_dir() or not (site / 'mocap4r2_msgs').is_dir():
+        return None
+    out = dict(env)
+    out['PYTHONPATH'] = os.pathsep.join(filter(None, [env.get('PYTHONPATH'), str(site)]))
+    out['LD_LIBRARY_PATH'] = os.pathsep.join(filter(None, [str(INTERFACES / 'lib'),
+                                                           env.get('LD_LIBRARY_PATH')]))
+    out['AMENT_PREFIX_PATH'] = os.pathsep.join([env['AMENT_PREFIX_PATH'], str(INTERFACES)])
+    return out
+
+
 def resolve_executable(env: dict[str, str], package: str, executable: str) -> Path:
     """What `ros2 run package executable` would start."""
     code = ('import os, sys; from ament_index_python.packages import get_package_prefix; '

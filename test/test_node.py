@@ -3,6 +3,7 @@ a separate publisher process, queried by a separate client process, over DDS on 
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from ros_support import (
     ros_available,
     ros_env,
     wait_for,
+    with_interfaces,
 )
 
 from handeye_ros.core.simulate import Truth, calibration_error
@@ -119,6 +121,50 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     assert ros.stop(node) == 0
 
 
+@pytest.mark.parametrize('inputs', ['tf', 'rigid_bodies'])
+def test_live_tf_and_rigid_bodies(install: Path, tmp_path: Path, inputs: str) -> None:
+    """The hand as /tf:world.marker (a moving link and a latched static one) and the eye as
+    /tf:odom.imu (the inverse link) on one /tf topic; or the hand as a mocap4r2 rigid body
+    among others. Needs tf2_msgs and mocap4r2_msgs (scripts/interfaces builds them from
+    their published definitions: a ROS 2 install has them; PyPI has not)."""
+    env = with_interfaces(ros_env(install))
+    if env is None:
+        pytest.skip('tf2_msgs / mocap4r2_msgs not built: run scripts/interfaces (needs cmake '
+                    'and a C++ compiler)')
+    ros = Processes(env, tmp_path)
+    try:
+        saved_path = tmp_path / 'node_result.yaml'
+        if inputs == 'tf':
+            topics = ('hand_topic:=/tf:world.marker', 'eye_topic:=/tf:odom.imu')
+            publish = ('--hand-type', 'TFMessage', '--hand-topic', '/tf', '--eye-type',
+                       'TFMessage', '--eye-topic', '/tf')
+        else:
+            topics = ('hand_topic:=/mocap/rigid_bodies:rig',)
+            publish = ('--hand-type', 'RigidBodies', '--hand-topic', '/mocap/rigid_bodies')
+        node = _start_node(ros, install, f'output_file:={saved_path}', *topics)
+        pub = ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '500',
+                                      '--reliable', *publish), 'publisher')
+        answer = _call(ros, '/calibrator/calibrate', '/calibrator/save')
+        assert answer[0]['success'] and answer[1]['success'], answer
+        saved = yaml.safe_load(saved_path.read_text())
+        for s in ('hand', 'eye'):
+            assert saved['streams'][s]['buffered'] == pub['sent'][s], saved['streams'][s]
+        if inputs == 'tf':
+            assert saved['streams']['hand']['tf_chain'] == ['world->rig (moving)',
+                                                            'rig->marker (static)']
+            assert saved['streams']['eye']['tf_chain'] == ['imu->odom (moving, inverted)']
+        else:
+            assert saved['streams']['hand']['type'] == 'mocap4r2_msgs/msg/RigidBodies'
+        t = pub['truth']
+        truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
+        err = calibration_error(truth, saved['time_offset'], saved['extrinsic']['rotation'],
+                                saved['extrinsic']['translation'])
+        assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
+        assert ros.stop(node) == 0
+    finally:
+        ros.stop_all()
+
+
 def test_no_data_wrong_topic_and_unsupported_type(ros: Processes, install: Path) -> None:
     _start_node(ros, install, 'hand_topic:=/wrong/pose')
     first = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='before')
@@ -163,7 +209,12 @@ def test_nan_on_the_wire_busy_refusal_and_reset(ros: Processes, install: Path,
 
 @pytest.mark.parametrize(('param', 'fragment'), [
     ('eta:=-1.0', 'eta'), ('eta:=five', 'eta'), ('qos_reliability:=sometimes', 'qos_reliability'),
-    ('hand_type:=Imu', 'hand_type'), ('buffer_size:=1', 'buffer_size')])
+    ('hand_type:=Imu', 'hand_type'), ('buffer_size:=1', 'buffer_size'),
+    ('hand_topic:=/tf:world', 'PARENT.CHILD'),
+    pytest.param('hand_topic:=/tf:world.marker', 'tf2_msgs/msg/TFMessage cannot be imported',
+                 marks=pytest.mark.skipif(
+                     importlib.util.find_spec('tf2_msgs') is not None,
+                     reason='tf2_msgs is importable here: the node subscribes to /tf'))])
 def test_invalid_parameters_are_refused_at_start(ros: Processes, install: Path, param: str,
                                                  fragment: str) -> None:
     node = _start_node(ros, install, param)

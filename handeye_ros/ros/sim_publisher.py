@@ -7,31 +7,63 @@ subscribers, publishes the hand and eye poses interleaved by stamp at ``--rate``
 second (stamps are the recording's, not the wall clock's), and prints one JSON line when done:
 the truth and how many messages went out per topic. ``--bag PATH[:mcap|sqlite3|ros1]`` also
 writes the very same messages to a bag, for ``offline_calibrate --bag``.
+
+Many-pose types (they need tf2_msgs / mocap4r2_msgs importable), as drivers publish them:
+``--hand-type TFMessage`` publishes world -> rig (moving) on the hand topic and rig -> marker
+on /tf_static (latched), so the hand is ``/tf:world.marker``; ``--eye-type TFMessage``
+publishes the inverse link imu -> odom, so the eye is ``/tf:odom.imu``; ``--hand-type
+RigidBodies`` publishes the bodies 'wand' and 'rig' (the hand: ``TOPIC:rig``) in each message.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import sys
 import time
 
+import numpy as np
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.simulate import noise_level, simulate
+from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats.bag import write_recording
 from handeye_ros.stream import normalise_type
 
+#: The hand's static part under /tf (rig -> marker): any fixed pose will do.
+RIG_TO_MARKER = ((0.05, -0.02, 0.11), Rotation.from_euler('xyz', (10.0, -20.0, 30.0),
+                                                          degrees=True).as_quat())
+_PACKAGES = {'PoseStamped': 'geometry_msgs', 'PoseWithCovarianceStamped': 'geometry_msgs',
+             'TransformStamped': 'geometry_msgs', 'Odometry': 'nav_msgs', 'TFMessage': 'tf2_msgs',
+             'RigidBodies': 'mocap4r2_msgs'}
+
+
+def message_class(cls_name: str):
+    return getattr(importlib.import_module(f'{_PACKAGES[cls_name]}.msg'), cls_name)
+
 
 def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
-    import geometry_msgs.msg as g
-    import nav_msgs.msg as n
-    cls = {'PoseStamped': g.PoseStamped, 'PoseWithCovarianceStamped': g.PoseWithCovarianceStamped,
-           'TransformStamped': g.TransformStamped, 'Odometry': n.Odometry}[cls_name]
-    m = cls()
+    if cls_name == 'TFMessage':
+        return message_class('TFMessage')(
+            transforms=[message('TransformStamped', t_ns, p, q, frame, child)])
+    if cls_name == 'RigidBodies':
+        import mocap4r2_msgs.msg as mc
+        m = mc.RigidBodies()
+        m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10 ** 9), int(t_ns % 10 ** 9)
+        m.header.frame_id = frame
+        for name, pp, qq in (('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0)), (child, p, q)):
+            b = mc.RigidBody(rigid_body_name=name)
+            pos, rot = b.pose.position, b.pose.orientation
+            pos.x, pos.y, pos.z = (float(v) for v in pp)
+            rot.x, rot.y, rot.z, rot.w = (float(v) for v in qq)
+            m.rigidbodies.append(b)
+        return m
+    m = message_class(cls_name)()
     m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10 ** 9), int(t_ns % 10 ** 9)
     m.header.frame_id = frame
     if cls_name == 'TransformStamped':
@@ -74,18 +106,33 @@ def main() -> int:
         write_recording(path, [(args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
                                (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu')],
                         storage or 'mcap')
+    # what goes on the wire, and between which frames (see the module docstring)
+    wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
+    if args.hand_type == 'TFMessage':
+        s_p, s_q = RIG_TO_MARKER
+        rot = Rotation.from_quat(rec.hand.q_xyzw) * Rotation.from_quat(s_q).inv()
+        wire['hand'] = (Trajectory.from_arrays(rec.hand.t_ns, rec.hand.p_xyz - rot.apply(s_p),
+                                               rot.as_quat(), name='rig'), 'world', 'rig')
+    elif args.hand_type == 'RigidBodies':
+        wire['hand'] = (rec.hand, 'mocap', 'rig')
+    if args.eye_type == 'TFMessage':
+        inv = Rotation.from_quat(rec.eye.q_xyzw).inv()
+        wire['eye'] = (Trajectory.from_arrays(rec.eye.t_ns, -inv.apply(rec.eye.p_xyz),
+                                              inv.as_quat(), name='inverse'), 'imu', 'odom')
     rclpy.init()
     node = Node('recording_publisher')
     hand_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE if args.reliable
                           else ReliabilityPolicy.BEST_EFFORT)
-    import geometry_msgs.msg as g
-    import nav_msgs.msg as n
-    classes = {'PoseStamped': g.PoseStamped, 'PoseWithCovarianceStamped':
-               g.PoseWithCovarianceStamped, 'TransformStamped': g.TransformStamped,
-               'Odometry': n.Odometry}
-    pubs = {'hand': node.create_publisher(classes[args.hand_type], args.hand_topic, hand_qos),
-            'eye': node.create_publisher(classes[args.eye_type], args.eye_topic,
+    pubs = {'hand': node.create_publisher(message_class(args.hand_type), args.hand_topic,
+                                          hand_qos),
+            'eye': node.create_publisher(message_class(args.eye_type), args.eye_topic,
                                          QoSProfile(depth=1000))}
+    if args.hand_type == 'TFMessage':
+        static = node.create_publisher(message_class('TFMessage'), '/tf_static', QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        static.publish(message('TFMessage', int(rec.hand.t_ns[0]), *RIG_TO_MARKER, 'rig',
+                               'marker'))
     deadline = time.monotonic() + args.wait_subscribers
     while time.monotonic() < deadline and not all(p.get_subscription_count() for p in
                                                     pubs.values()):
@@ -97,13 +144,12 @@ def main() -> int:
     t0 = time.monotonic()
     for j, (t, s, k) in enumerate(items):
         name = 'hand' if s == 0 else 'eye'
-        traj = rec.hand if s == 0 else rec.eye
+        traj, frame, child = wire[name]
         p = traj.p_xyz[k]
         if name == 'eye' and args.nan_every and k % args.nan_every == args.nan_every - 1:
-            p = [math.nan, 0.0, 0.0]
+            p = np.array([math.nan, 0.0, 0.0])
         pubs[name].publish(message(args.hand_type if s == 0 else args.eye_type, t, p,
-                                   traj.q_xyzw[k], 'mocap' if s == 0 else 'odom',
-                                   'marker' if s == 0 else 'imu'))
+                                   traj.q_xyzw[k], frame, child))
         sent[name] += 1
         ahead = (j + 1) / args.rate - (time.monotonic() - t0)
         if ahead > 0:

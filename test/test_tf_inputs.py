@@ -18,12 +18,16 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats.bag import (
+    MOCAP4R2_MSGS,
+    RIGID_BODIES_TOPIC,
+    TF_SELECTORS,
     BagWriter,
     _typestore,
     pose_messages,
-    rigid_bodies_message,
     transform_stamped,
     write_recording,
+    write_rigid_bodies_recording,
+    write_tf_recording,
 )
 from handeye_ros.stream import Recorder, StreamConfig
 from handeye_ros.stream.sources import TfChain, parse_selector
@@ -126,27 +130,8 @@ def _tf_bag(path: Path, rec, storage: str = 'mcap', slash: str = '') -> tuple[Pa
     """The hand as world -> rig (moving) -> marker (static, logged after the first moving
     samples, as a recorder started before the static broadcaster does), the eye as the
     inverse link imu -> odom (moving; the selector odom.imu climbs it); both on /tf."""
-    rng = np.random.default_rng(3)
-    s_p, s_q = _random_pose(rng)
-    S = Rotation.from_quat(s_q)
-    H = Rotation.from_quat(rec.hand.q_xyzw)
-    d_rot = H * S.inv()
-    rig = Trajectory.from_arrays(rec.hand.t_ns, rec.hand.p_xyz - d_rot.apply(s_p),
-                                 d_rot.as_quat(), name='rig')
-    E = Rotation.from_quat(rec.eye.q_xyzw)
-    inv = Trajectory.from_arrays(rec.eye.t_ns, -E.inv().apply(rec.eye.p_xyz),
-                                 E.inv().as_quat(), name='inv')
-    with BagWriter(path, storage) as w:
-        items = [(t, 0, m) for t, m in pose_messages(w.store, rig, TF, slash + 'world', 'rig')]
-        items += [(t, 1, m) for t, m in pose_messages(w.store, inv, TF, 'imu', 'odom')]
-        items.sort(key=lambda x: (x[0], x[1]))
-        static = _tf_msg(w.store, transform_stamped(w.store, items[0][0], 'rig',
-                                                    slash + 'marker', s_p, s_q))
-        for k, (t, _, m) in enumerate(items):
-            w.write('/tf', TF, t, m)
-            if k == 5:
-                w.write('/tf_static', TF, t, static)
-    return path, {'--hand-topic': '/tf:world.marker', '--eye-topic': '/tf:odom.imu'}
+    write_tf_recording(path, rec.hand, rec.eye, storage, slash)
+    return path, {'--hand-topic': TF_SELECTORS['hand'], '--eye-topic': TF_SELECTORS['eye']}
 
 
 def _run(bag: Path, *args: str) -> dict:
@@ -197,46 +182,24 @@ def test_tf_selection_errors_list_what_the_bag_holds(tmp_path: Path, rec) -> Non
     assert res.returncode == 1 and 'same topic /tf:odom.imu' in res.stderr, res.stderr
 
 
-def _bodies_bag(path: Path, rec, storage: str = 'mcap', package: str = 'mocap4r2_msgs',
-                lost_every: int = 50) -> Path:
-    """The hand as the body 'rig' among two others in each RigidBodies message, as mocap4r2
-    drivers publish a capture frame; 'rig' is lost (not in the message) every lost_every-th
-    frame. ``package``: the message package (mocap_msgs is the name before the rename; the
-    definition then comes only from the bag)."""
-    rng = np.random.default_rng(5)
+def _old_package_bag(path: Path, rec) -> Path:
+    """The hand as the body 'rig' of mocap_msgs/RigidBodies (mocap4r2's name before the
+    rename), whose definition only the bag holds."""
+    from rosbags.typesys import get_types_from_msg
     store = _typestore()
-    msgtype = f'{package}/msg/RigidBodies'
-    if package != 'mocap4r2_msgs':
-        from rosbags.typesys import get_types_from_msg
-
-        from handeye_ros.formats.bag import MOCAP4R2_MSGS
-        for name, text in MOCAP4R2_MSGS.items():
-            store.register(get_types_from_msg(text.replace('mocap4r2_msgs', package),
-                                              name.replace('mocap4r2_msgs', package)))
+    for name, text in MOCAP4R2_MSGS.items():
+        store.register(get_types_from_msg(text.replace('mocap4r2_msgs', 'mocap_msgs'),
+                                          name.replace('mocap4r2_msgs', 'mocap_msgs')))
     T = store.types
-    with BagWriter(path, storage) as w:
+    with BagWriter(path) as w:
         w.store = store
-        eye = dict(pose_messages(store, rec.eye, 'Odometry', 'odom', 'imu'))
-        items = [(t, 1, '/vio/odom', 'nav_msgs/msg/Odometry', m) for t, m in eye.items()]
-        for k, (t, p, q) in enumerate(zip(rec.hand.t_ns.tolist(), rec.hand.p_xyz.tolist(),
-                                          rec.hand.q_xyzw.tolist(), strict=True)):
-            bodies = [('wand', rng.normal(size=3), (0.0, 0.0, 0.0, 1.0))]
-            if k % lost_every != 7:
-                bodies.append(('rig', p, q))
-            bodies.append(('table', (1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
-            msg = rigid_bodies_message(store, t, 'mocap', bodies) \
-                if package == 'mocap4r2_msgs' else T[msgtype](
-                    header=T['std_msgs/msg/Header'](
-                        stamp=T['builtin_interfaces/msg/Time'](sec=t // 10 ** 9,
-                                                               nanosec=t % 10 ** 9),
-                        frame_id='mocap'), frame_number=k,
-                    rigidbodies=[T[f'{package}/msg/RigidBody'](
-                        rigid_body_name=n, markers=[],
-                        pose=T['geometry_msgs/msg/Pose'](
-                            position=T['geometry_msgs/msg/Point'](*map(float, pp)),
-                            orientation=T['geometry_msgs/msg/Quaternion'](*map(float, qq))))
-                        for n, pp, qq in bodies])
-            items.append((t, 0, '/mocap/rigid_bodies', msgtype, msg))
+        items = [(t, 1, '/vio/odom', 'nav_msgs/msg/Odometry', m)
+                 for t, m in pose_messages(store, rec.eye, 'Odometry', 'odom', 'imu')]
+        for t, m in pose_messages(store, rec.hand, 'PoseStamped', 'mocap', 'rig'):
+            body = T['mocap_msgs/msg/RigidBody'](rigid_body_name='rig', markers=[], pose=m.pose)
+            items.append((t, 0, RIGID_BODIES_TOPIC, 'mocap_msgs/msg/RigidBodies',
+                          T['mocap_msgs/msg/RigidBodies'](header=m.header, frame_number=0,
+                                                          rigidbodies=[body])))
         items.sort(key=lambda x: (x[0], x[1]))
         for t, _, topic, mt, m in items:
             w.write(topic, mt, t, m)
@@ -247,7 +210,11 @@ def _bodies_bag(path: Path, rec, storage: str = 'mcap', package: str = 'mocap4r2
 def test_rigid_body_by_name(tmp_path: Path, rec, plain: dict, case: str) -> None:
     storage = 'mcap' if case != 'sqlite3 without definitions' else 'sqlite3'
     package = 'mocap_msgs' if case == 'mocap_msgs' else 'mocap4r2_msgs'
-    bag = _bodies_bag(tmp_path / 'bodies', rec, storage, package, lost_every=10 ** 9)
+    bag = tmp_path / 'bodies'
+    if package == 'mocap_msgs':
+        _old_package_bag(bag, rec)
+    else:
+        write_rigid_bodies_recording(bag, rec.hand, rec.eye, storage)
     if storage == 'sqlite3':
         # as ROS 2 Humble records: no message definitions in the bag
         db = next(bag.glob('*.db3'))
@@ -260,9 +227,10 @@ def test_rigid_body_by_name(tmp_path: Path, rec, plain: dict, case: str) -> None
 
 def test_rigid_body_lost_frames_are_counted_and_names_listed(tmp_path: Path, rec,
                                                              plain: dict) -> None:
-    bag = _bodies_bag(tmp_path / 'bodies', rec, lost_every=50)
+    bag = tmp_path / 'bodies'
+    write_rigid_bodies_recording(bag, rec.hand, rec.eye, lost_every=50)
     d = _run(bag, '--hand-topic', '/mocap/rigid_bodies:rig')
-    lost = len(range(7, len(rec.hand), 50))
+    lost = len(range(25, len(rec.hand), 50))
     assert d['streams']['hand']['rejected']['not_in_message'] == lost
     assert d['streams']['hand']['buffered'] == len(rec.hand) - lost
     assert any(f'{lost} not in message' in w for w in d['warnings']), d['warnings']

@@ -373,6 +373,71 @@ def write_recording(path: str | Path, streams: list[tuple[str, str, Trajectory, 
             w.write(topic, full, t, msg)
 
 
+#: The fixed rig -> marker transform of the /tf layout below (any fixed pose will do).
+RIG_TO_MARKER = ((0.05, -0.02, 0.11),  # 10, -20, 30 deg about x, y, z
+                 (0.12767944069578063, -0.14487812541736914, 0.2685358227515692,
+                  0.943714364147489))
+#: Topics and selectors of the layouts below.
+TF_SELECTORS = {'hand': '/tf:world.marker', 'eye': '/tf:odom.imu'}
+RIGID_BODIES_TOPIC = '/mocap/rigid_bodies'
+
+
+def tf_links(hand: Trajectory, eye: Trajectory) -> tuple[Trajectory, Trajectory]:
+    """A hand and an eye laid out as a tf tree would carry them: the hand as the moving link
+    world -> rig, with rig -> marker static (RIG_TO_MARKER), and the eye as the inverse link
+    imu -> odom; ``/tf:world.marker`` and ``/tf:odom.imu`` give them back."""
+    from scipy.spatial.transform import Rotation
+    s_p, s_q = RIG_TO_MARKER
+    rot = Rotation.from_quat(hand.q_xyzw) * Rotation.from_quat(s_q).inv()
+    rig = Trajectory.from_arrays(hand.t_ns, hand.p_xyz - rot.apply(s_p), rot.as_quat(),
+                                 name='world->rig')
+    inv = Rotation.from_quat(eye.q_xyzw).inv()
+    imu = Trajectory.from_arrays(eye.t_ns, -inv.apply(eye.p_xyz), inv.as_quat(),
+                                 name='imu->odom')
+    return rig, imu
+
+
+def write_tf_recording(path: str | Path, hand: Trajectory, eye: Trajectory,
+                       storage: str = 'mcap', slash: str = '', static_after: int = 5) -> None:
+    """Both streams on /tf as :func:`tf_links` lays them out, interleaved by stamp, and the
+    static rig -> marker on /tf_static after the first ``static_after`` messages (a recorder
+    started before the static broadcaster). ``slash``: '/' gives ROS 1 frame names."""
+    rig, imu = tf_links(hand, eye)
+    with BagWriter(path, storage) as w:
+        items = [(t, 0, m) for t, m in pose_messages(w.store, rig, TF_TYPE, slash + 'world',
+                                                     'rig')]
+        items += [(t, 1, m) for t, m in pose_messages(w.store, imu, TF_TYPE, 'imu', 'odom')]
+        items.sort(key=lambda x: (x[0], x[1]))
+        static = w.store.types[TF_TYPE](transforms=[transform_stamped(
+            w.store, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER)])
+        for k, (t, _, m) in enumerate(items):
+            w.write('/tf', TF_TYPE, t, m)
+            if k == static_after:
+                w.write('/tf_static', TF_TYPE, t, static)
+
+
+def write_rigid_bodies_recording(path: str | Path, hand: Trajectory, eye: Trajectory,
+                                 storage: str = 'mcap', lost_every: int = 0) -> None:
+    """The hand as the body 'rig' between 'wand' and 'table' in mocap4r2 RigidBodies messages
+    (as a driver publishes each capture frame) on RIGID_BODIES_TOPIC, missing from every
+    ``lost_every``-th frame (0: never); the eye as nav_msgs/Odometry on /vio/odom."""
+    odom = 'nav_msgs/msg/Odometry'
+    with BagWriter(path, storage) as w:
+        items = [(t, 1, '/vio/odom', odom, m)
+                 for t, m in pose_messages(w.store, eye, odom, 'odom', 'imu')]
+        for k, (t, p, q) in enumerate(zip(hand.t_ns.tolist(), hand.p_xyz.tolist(),
+                                          hand.q_xyzw.tolist(), strict=True)):
+            bodies = [('wand', (0.3 * k % 7, 1.0, 0.5), (0.0, 0.0, 0.0, 1.0))]
+            if not lost_every or k % lost_every != lost_every // 2:
+                bodies.append(('rig', p, q))
+            bodies.append(('table', (1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+            items.append((t, 0, RIGID_BODIES_TOPIC, RIGID_BODIES_TYPES[0],
+                          rigid_bodies_message(w.store, t, 'mocap', bodies)))
+        items.sort(key=lambda x: (x[0], x[1]))
+        for t, _, topic, msgtype, m in items:
+            w.write(topic, msgtype, t, m)
+
+
 def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
                      storage: str = 'mcap') -> None:
     """The extrinsic as a static transform (/tf_static, tf2_msgs/TFMessage, parent = hand

@@ -28,16 +28,11 @@ import numpy as np
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.simulate import noise_level, simulate
-from handeye_ros.core.trajectory import Trajectory
-from handeye_ros.formats.bag import write_recording
+from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
 from handeye_ros.stream import normalise_type
 
-#: The hand's static part under /tf (rig -> marker): any fixed pose will do.
-RIG_TO_MARKER = ((0.05, -0.02, 0.11), Rotation.from_euler('xyz', (10.0, -20.0, 30.0),
-                                                          degrees=True).as_quat())
 _PACKAGES = {'PoseStamped': 'geometry_msgs', 'PoseWithCovarianceStamped': 'geometry_msgs',
              'TransformStamped': 'geometry_msgs', 'Odometry': 'nav_msgs', 'TFMessage': 'tf2_msgs',
              'RigidBodies': 'mocap4r2_msgs'}
@@ -108,17 +103,13 @@ def main() -> int:
                         storage or 'mcap')
     # what goes on the wire, and between which frames (see the module docstring)
     wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
+    rig, imu = tf_links(rec.hand, rec.eye)
     if args.hand_type == 'TFMessage':
-        s_p, s_q = RIG_TO_MARKER
-        rot = Rotation.from_quat(rec.hand.q_xyzw) * Rotation.from_quat(s_q).inv()
-        wire['hand'] = (Trajectory.from_arrays(rec.hand.t_ns, rec.hand.p_xyz - rot.apply(s_p),
-                                               rot.as_quat(), name='rig'), 'world', 'rig')
+        wire['hand'] = (rig, 'world', 'rig')
     elif args.hand_type == 'RigidBodies':
         wire['hand'] = (rec.hand, 'mocap', 'rig')
     if args.eye_type == 'TFMessage':
-        inv = Rotation.from_quat(rec.eye.q_xyzw).inv()
-        wire['eye'] = (Trajectory.from_arrays(rec.eye.t_ns, -inv.apply(rec.eye.p_xyz),
-                                              inv.as_quat(), name='inverse'), 'imu', 'odom')
+        wire['eye'] = (imu, 'imu', 'odom')
     rclpy.init()
     node = Node('recording_publisher')
     hand_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE if args.reliable

@@ -149,11 +149,13 @@ class Recorder:
         for name, buf in self.buffers.items():
             if len(buf) < 2:
                 topic = getattr(self.config, name + '_topic')
+                why = self.diagnose(name)
+                if why is not None and len(buf) == 0:
+                    raise InputError(f'{name} stream {topic} gave no pose: {why}')
                 msg = (f'{name} stream {topic}: {len(buf)} pose(s) buffered '
                        f'({buf.received} received, {sum(buf.rejected.values())} rejected); '
                        'need a recording of both streams first')
-                why = self.diagnose(name)
-                raise InputError(msg + (f' ({why})' if why else ''))
+                raise InputError(msg)
             trajectories[name] = buf.trajectory()
             if name in self._tf:
                 trajectories[name] = self._tf[name].finish(trajectories[name])

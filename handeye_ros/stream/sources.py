@@ -269,6 +269,8 @@ class TfChain:
 
     def diagnose(self) -> str:
         """Why no pose came out: the frames seen and what joins them."""
+        if self.path is None and self.edges:
+            self._find_path()  # a bag of static transforms only never triggered the search
         if self.problem and self.path is None:
             return f'{self.parent!r} to {self.child!r}: {self.problem}'
         if not self.edges:

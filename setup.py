@@ -39,11 +39,12 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'calibrator = handeye_ros.ros.node:main',
+            'calibrator = handeye_ros.ros.calibrator:main',
             'offline_calibrate = handeye_ros.offline:main',
             'sim_publisher = handeye_ros.ros.sim_publisher:main',
             'demo = handeye_ros.demo:main',
             'evaluate = handeye_ros.evaluate:main',
+            'publish_calibration = handeye_ros.ros.publish_calibration:main',
         ],
     },
 )

@@ -105,7 +105,7 @@ def sent_counts(pub: subprocess.Popen) -> dict:
 
 
 def ingest(probe: Probe) -> None:
-    node = start('handeye_ros.ros.node', '--ros-args', '-p', 'buffer_duration:=20.0')
+    node = start('handeye_ros.ros.calibrator', '--ros-args', '-p', 'buffer_duration:=20.0')
     time.sleep(1.0)
     pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '1000', '--eye-rate', '200',
                 '--duration', '60', '--rate', '1200', '--level', '2')
@@ -132,7 +132,7 @@ def ingest(probe: Probe) -> None:
 
 
 def calibrate_while_ingesting(probe: Probe) -> None:
-    node = start('handeye_ros.ros.node')
+    node = start('handeye_ros.ros.calibrator')
     time.sleep(1.0)
     pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '200', '--eye-rate', '30',
                 '--duration', '400', '--rate', '1500', '--level', '3')

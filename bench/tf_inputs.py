@@ -44,11 +44,11 @@ from handeye_ros.formats.bag import (
     TF_SELECTORS,
     BagWriter,
     pose_messages,
-    transform_stamped,
     write_recording,
     write_rigid_bodies_recording,
     write_tf_recording,
 )
+from handeye_ros.stream.messages import transform_stamped
 
 DEFAULT_PAIRS = ('V1_01 openvins', 'MH_03 stereo', 'V2_02 mono')
 TF_ARGS = ('--hand-topic', TF_SELECTORS['hand'], '--eye-topic', TF_SELECTORS['eye'])
@@ -61,7 +61,7 @@ def _two_moving(path: Path, hand, eye) -> tuple[str, ...]:
         T = w.store.types
         items = []
         for t, m in pose_messages(w.store, eye, 'TFMessage', 'odom', 'imu'):
-            fix = transform_stamped(w.store, t, 'map', 'odom', (0.0, 0.0, 0.0),
+            fix = transform_stamped(w.store.types, t, 'map', 'odom', (0.0, 0.0, 0.0),
                                     (0.0, 0.0, 0.0, 1.0))
             items.append((t, 1, '/tf', 'tf2_msgs/msg/TFMessage',
                           T['tf2_msgs/msg/TFMessage'](transforms=[fix, *m.transforms])))

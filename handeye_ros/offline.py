@@ -26,7 +26,8 @@ LOG = logging.getLogger('handeye_ros')
 #: A run shorter than this (s) shows no progress bar.
 PROGRESS_DELAY_S = 2.0
 #: Stream options given on the command line (the algorithm ones come from their specs).
-STREAM_OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id')
+STREAM_OPTION_KEYS = ('hand_topic', 'eye_topic', 'hand_frame_id', 'eye_frame_id',
+                      'hand_world_frame_id', 'eye_world_frame_id', 'use_arrival_time')
 
 
 def add_options(group: Any, cls: Any) -> None:
@@ -84,8 +85,18 @@ def build_parser() -> argparse.ArgumentParser:
     io.add_argument('--eye-topic', metavar='SELECTOR',
                     help='eye pose topic in the bag (default: /vio/odom if present, else the one '
                          'pose topic named like a VIO); the same selectors as --hand-topic')
-    io.add_argument('--hand-frame-id', metavar='FRAME', help='parent frame of the extrinsic')
-    io.add_argument('--eye-frame-id', metavar='FRAME', help='child frame of the extrinsic')
+    io.add_argument('--hand-frame-id', metavar='FRAME',
+                    help='parent frame of the extrinsic (default: from the bag\'s messages)')
+    io.add_argument('--eye-frame-id', metavar='FRAME',
+                    help='child frame of the extrinsic (default: from the bag\'s messages)')
+    io.add_argument('--hand-world-frame-id', metavar='FRAME',
+                    help='the MoCap world frame (default: from the bag\'s messages)')
+    io.add_argument('--eye-world-frame-id', metavar='FRAME',
+                    help='the VIO world frame (default: from the bag\'s messages)')
+    io.add_argument('--use-arrival-time', choices=('none', 'hand', 'eye', 'both'),
+                    help="with --bag: stamp that stream's poses with the bag's record time "
+                         'instead of header.stamp (for publishers that leave it unset or '
+                         'frozen; the transport delay then joins the time offset)')
     io.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
                     help='progress bars while replaying a bag and calibrating, shown after '
                          f'{PROGRESS_DELAY_S:g} s (default: when stderr is a '
@@ -96,8 +107,11 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument('--json', action='store_true',
                      help='print exactly one JSON document with the result on stdout')
     out.add_argument('--output-bag', metavar='PATH',
-                     help='write the result to a new bag: /tf_static (tf2_msgs/TFMessage) and '
-                          '/handeye/time_offset (std_msgs/Float64)')
+                     help='write the result to a new bag, latched, on the topics the node '
+                          'publishes: /tf_static and /calibrator/extrinsic (T_HE), '
+                          '/calibrator/extrinsic_with_covariance, /calibrator/time_offset '
+                          '(std_msgs/Float64) and /calibrator/time_reference '
+                          '(sensor_msgs/TimeReference)')
     out.add_argument('--export', metavar='DIR',
                      help='write evo-ready files into DIR: groundtruth.tum (the MoCap mapped '
                           'into the eye\'s frame, world and clock), estimate.tum, T_HE.json and '
@@ -177,7 +191,7 @@ def calibrate_args(args: argparse.Namespace,
     options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
     calib, streams = split_options(options, (CalibrationConfig, StreamConfig),
                                    source=args.config or 'options')
-    frames = {'hand_frame': streams.hand_frame_id, 'eye_frame': streams.eye_frame_id}
+    frames = streams.frames()  # files name no frames: the options or the fallbacks
     if args.bag:
         from .formats.bag import replay
         given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
@@ -201,7 +215,8 @@ def calibrate_args(args: argparse.Namespace,
             LOG.info('hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz', hand.name,
                      len(hand), hand.rate_hz, eye.name, len(eye), eye.rate_hz)
             result = calibrate(hand, eye, calib, progress=step)
-        out = result.to_dict(**frames)
+        out = result.to_dict(hand_frame=frames['hand'], eye_frame=frames['eye'],
+                             hand_world=frames['hand_world'], eye_world=frames['eye_world'])
         out['summary'] = result.summary()
     from .evaluation.outputs import evaluate_and_write
     if args.evaluation or args.export or args.report:

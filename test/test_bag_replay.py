@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import recording, run_cli
 
-from handeye_ros.formats.bag import BagWriter, write_recording
+from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
 from handeye_ros.stream import PoseBuffer
 
 
@@ -54,7 +54,11 @@ def test_every_storage_and_type_gives_the_same_result(tmp_path: Path, rec) -> No
         results.append(d)
     for d in results[1:]:
         assert d['time_offset'] == results[0]['time_offset']
-        assert d['extrinsic'] == results[0]['extrinsic']
+        for key in ('translation', 'rotation', 'matrix'):
+            assert d['extrinsic'][key] == results[0]['extrinsic'][key]
+    # the names are the messages' own: a TransformStamped names its child, a PoseStamped none
+    assert [d['extrinsic']['parent'] for d in results] == ['mocap_marker', 'marker',
+                                                           'mocap_marker']
     assert abs(results[0]['time_offset'] - rec.truth.time_offset_s) < 3e-3
 
 
@@ -129,33 +133,97 @@ def test_nan_poses_are_rejected_and_reported(tmp_path: Path, rec) -> None:
 
 def test_output_bag_holds_the_result(tmp_path: Path, rec) -> None:
     from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import QosDurability
+
+    from handeye_ros.stream.messages import offset_of
     out = tmp_path / 'result_bag'
     d = _ok(run_cli('--bag', _bag(tmp_path, rec), '--json', '--output-bag', out,
                     '--hand-frame-id', 'marker', '--eye-frame-id', 'body'))
     with AnyReader([out]) as reader:
         msgs = {c.topic: reader.deserialize(raw, c.msgtype)
                 for c, _, raw in reader.messages()}
+        # every topic latched, as the node's and tf2's static broadcaster's
+        for c in reader.connections:
+            qos = c.ext.offered_qos_profiles
+            assert [q.durability for q in qos] == [QosDurability.TRANSIENT_LOCAL], c.topic
     tf = msgs['/tf_static'].transforms[0]
     assert (tf.header.frame_id, tf.child_frame_id) == ('marker', 'body')
     np.testing.assert_allclose([tf.transform.translation.x, tf.transform.translation.y,
                                 tf.transform.translation.z], d['extrinsic']['translation'])
-    assert msgs['/handeye/time_offset'].data == d['time_offset']
+    assert msgs['/calibrator/extrinsic'] == tf
+    assert msgs['/calibrator/time_offset'].data == d['time_offset']
+    ref = msgs['/calibrator/time_reference']
+    # the offset to the nanosecond, between the frames it relates, at an eye-clock instant
+    assert offset_of(ref) == pytest.approx(d['time_offset'], abs=1e-9)
+    assert (ref.header.frame_id, ref.source) == ('body', 'marker')
+    assert ref.header.stamp.sec * 10 ** 9 + ref.header.stamp.nanosec == \
+        d['inputs']['eye']['last_stamp_ns']
+    cov = np.asarray(msgs['/calibrator/extrinsic_with_covariance'].pose.covariance)
+    assert np.sqrt(cov[[0, 7, 14]]) == pytest.approx(d['std']['translation'], rel=1e-9)
+
+
+def test_frames_come_from_the_messages(tmp_path: Path, rec) -> None:
+    """With no frame options, the result names the frames the bag's messages carry; an option
+    still wins, and a PoseStamped (no child frame) falls back to the default name."""
+    bag = tmp_path / 'frames'
+    write_recording(bag, [('/mocap/pose', 'TransformStamped', rec.hand, 'vicon', 'rig_marker'),
+                          ('/vio/odom', 'Odometry', rec.eye, '/odom_vio', 'body_imu')])
+    d = _ok(run_cli('--bag', bag, '--json'))
+    assert (d['extrinsic']['parent'], d['extrinsic']['child']) == ('rig_marker', 'body_imu')
+    assert (d['world_alignment']['parent'], d['world_alignment']['child']) == \
+        ('odom_vio', 'vicon')
+    assert d['streams']['hand']['frames'] == {'world': 'vicon', 'body': 'rig_marker'}
+    d = _ok(run_cli('--bag', bag, '--json', '--eye-frame-id', 'imu_link'))
+    assert d['extrinsic']['child'] == 'imu_link'
+    plain = tmp_path / 'plain'
+    write_recording(plain, [('/mocap/pose', 'PoseStamped', rec.hand, 'vicon', ''),
+                            ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')])
+    d = _ok(run_cli('--bag', plain, '--json'))
+    assert d['extrinsic']['parent'] == 'mocap_marker'
 
 
 def test_buffer_bounds_drop_oldest_and_count() -> None:
     b = PoseBuffer('b', capacity=100, max_duration_s=2.0)
-    for k in range(1000):
+    for k in range(1, 1001):
         assert b.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) is None
     s = b.stats()
     assert s.stored == 100 and s.dropped == 900 and s.received == 1000
-    assert b.trajectory().t_ns[0] == 900 * 10_000_000
+    assert b.trajectory().t_ns[0] == 901 * 10_000_000
     b2 = PoseBuffer('b2', capacity=10_000, max_duration_s=2.0)
-    for k in range(1000):
+    for k in range(1, 1001):
         b2.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
     assert b2.stats().span_s <= 2.0 and b2.stats().dropped == 1000 - 201
-    assert b2.add(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_not_increasing'
+    assert b2.add(5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_not_increasing'
+    assert b2.add(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'zero_stamp'
+    assert b2.add(1000 * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_repeated'
     assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) == 'zero_quaternion'
     assert b2.add(10 ** 12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5) == 'non_unit_quaternion'
     assert b2.stats().rejected == {'non_finite': 0, 'zero_quaternion': 1,
-                                   'non_unit_quaternion': 1, 'stamp_not_increasing': 1,
+                                   'non_unit_quaternion': 1, 'zero_stamp': 1,
+                                   'stamp_repeated': 1, 'stamp_not_increasing': 1,
                                    'not_in_message': 0}
+
+
+def test_unset_stamps_are_named_and_arrival_time_is_the_way_out(tmp_path: Path, rec) -> None:
+    """A MoCap driver that leaves header.stamp at zero: the failure names the cause and the
+    option; with use_arrival_time the bag's record times stamp the poses, and the result says
+    so."""
+    bag = tmp_path / 'zero'
+    with BagWriter(bag) as w:
+        zero = w.store.types['builtin_interfaces/msg/Time'](sec=0, nanosec=0)
+        items = []
+        for t, m in pose_messages(w.store, rec.hand, 'PoseStamped', 'mocap', ''):
+            m.header.stamp = zero
+            items.append((t, '/mocap/pose', 'geometry_msgs/msg/PoseStamped', m))
+        items += [(t, '/vio/odom', 'nav_msgs/msg/Odometry', m)
+                  for t, m in pose_messages(w.store, rec.eye, 'Odometry', 'odom', 'imu')]
+        for t, topic, msgtype, m in sorted(items, key=lambda x: x[0]):
+            w.write(topic, msgtype, t, m)
+    _fails(run_cli('--bag', bag, '--json'), 'had no stamp (header.stamp 0)',
+           'use_arrival_time: hand')
+    d = _ok(run_cli('--bag', bag, '--json', '--use-arrival-time', 'hand'))
+    assert (d['streams']['hand']['stamps'], d['streams']['eye']['stamps']) == \
+        ('arrival', 'header')
+    assert any('stamped on arrival' in w for w in d['warnings'])
+    # the recorder's clock is the true one here: the offset as from the stamps
+    assert abs(d['time_offset'] - rec.truth.time_offset_s) < 3e-3

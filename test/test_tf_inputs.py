@@ -24,12 +24,12 @@ from handeye_ros.formats.bag import (
     BagWriter,
     _typestore,
     pose_messages,
-    transform_stamped,
     write_recording,
     write_rigid_bodies_recording,
     write_tf_recording,
 )
 from handeye_ros.stream import Recorder, StreamConfig
+from handeye_ros.stream.messages import transform_stamped
 from handeye_ros.stream.sources import TfChain, parse_selector
 
 TF = 'tf2_msgs/msg/TFMessage'
@@ -72,12 +72,12 @@ def test_chain_equals_matrix_products(store, parent: str, child: str) -> None:
     statics = {('world', 'a'): _random_pose(rng), ('b', 'c'): _random_pose(rng),
                ('world', 'd'): _random_pose(rng), ('d', 'e'): _random_pose(rng)}
     chain = TfChain(parent, child, f'/tf:{parent}.{child}')
-    chain.poses(_tf_msg(store, *(transform_stamped(store, 0, pa, ch, *v)
+    chain.poses(_tf_msg(store, *(transform_stamped(store.types, 0, pa, ch, *v)
                                  for (pa, ch), v in statics.items())), static=True)
     moving = [_random_pose(rng) for _ in range(20)]
     raw = []
     for k, (p, q) in enumerate(moving):
-        raw += chain.poses(_tf_msg(store, transform_stamped(store, 10 ** 9 + k, 'a', 'b', p, q)),
+        raw += chain.poses(_tf_msg(store, transform_stamped(store.types, 10 ** 9 + k, 'a', 'b', p, q)),
                            static=False)
     assert len(raw) == len(moving)
     arr = np.array(raw)
@@ -99,19 +99,19 @@ def test_chain_refuses_what_it_cannot_give(store) -> None:
     rng = np.random.default_rng(1)
     two = TfChain('map', 'base', '/tf:map.base')
     for k in range(3):
-        assert two.poses(_tf_msg(store, transform_stamped(store, k + 1, 'map', 'odom',
+        assert two.poses(_tf_msg(store, transform_stamped(store.types, k + 1, 'map', 'odom',
                                                           *_random_pose(rng)),
-                                 transform_stamped(store, k + 1, 'odom', 'base',
+                                 transform_stamped(store.types, k + 1, 'odom', 'base',
                                                    *_random_pose(rng))), static=False) == []
     assert 'passes 2 moving transforms (map->odom, odom->base)' in two.diagnose()
     still = TfChain('world', 'cam', '/tf:world.cam')
-    still.poses(_tf_msg(store, transform_stamped(store, 0, 'world', 'cam', *_random_pose(rng))),
+    still.poses(_tf_msg(store, transform_stamped(store.types, 0, 'world', 'cam', *_random_pose(rng))),
                 static=True)
-    still.poses(_tf_msg(store, transform_stamped(store, 1, 'world', 'other',
+    still.poses(_tf_msg(store, transform_stamped(store.types, 1, 'world', 'other',
                                                  *_random_pose(rng))), static=False)
     assert 'never moves' in still.diagnose()
     apart = TfChain('world', 'imu', '/tf:world.imu')
-    apart.poses(_tf_msg(store, transform_stamped(store, 1, 'odom', 'imu', *_random_pose(rng))),
+    apart.poses(_tf_msg(store, transform_stamped(store.types, 1, 'odom', 'imu', *_random_pose(rng))),
                 static=False)
     assert "no frame 'world'" in apart.diagnose() and 'odom.imu (1 msgs)' in apart.diagnose()
     for bad in ('/tf:world', '/tf:.imu', '/tf:a.a'):
@@ -255,8 +255,8 @@ def test_recorder_feeds_one_tf_message_to_both_streams(store) -> None:
                             '/tf_static': [('hand', True), ('eye', True)]}
     rng = np.random.default_rng(2)
     for k in range(5):
-        msg = _tf_msg(store, transform_stamped(store, k + 1, 'world', 'marker', *_random_pose(rng)),
-                      transform_stamped(store, k + 1, 'odom', 'imu', *_random_pose(rng)))
+        msg = _tf_msg(store, transform_stamped(store.types, k + 1, 'world', 'marker', *_random_pose(rng)),
+                      transform_stamped(store.types, k + 1, 'odom', 'imu', *_random_pose(rng)))
         for stream, static in rec.routes()['/tf']:
             rec.add(stream, msg, static)
     assert rec.stats()['hand'].stored == rec.stats()['eye'].stored == 5

@@ -29,6 +29,12 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     """Quaternions (..., 4), x y z w with w >= 0, from rotation matrices (..., 3, 3)."""
     R = np.asarray(R, dtype=float)
     q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
+    return positive_w(q)
+
+
+def positive_w(q: np.ndarray) -> np.ndarray:
+    """The same rotations (..., 4), x y z w, with w >= 0: the one sign every output uses."""
+    q = np.asarray(q, dtype=float)
     return np.where(q[..., 3:] < 0.0, -q, q)
 
 

@@ -36,7 +36,7 @@ from .clock import DriftFit, linear_clock
 from .config import CalibrationConfig
 from .conventions import Correction
 from .eye_model import EyeModel
-from .geometry import inverse, matrix_from_quat, quat_from_matrix
+from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
 from .linear import LinearSolution
 from .quality import Quality
 from .screening import Screening
@@ -123,7 +123,8 @@ class CalibrationResult:
     def summary(self) -> str:
         """One line: verdict, offset, translation, rotation, inliers, quality."""
         t = ', '.join(f'{v:.4f}' for v in self.p_HE)
-        q = ', '.join(f'{v:.4f}' for v in self.q_HE)
+        # the sign of the YAML, the terminal and the messages (w >= 0), not the solver's
+        q = ', '.join(f'{v:.4f}' for v in positive_w(self.q_HE))
         std = ''
         if self.batch is not None:
             s = self.batch.std
@@ -271,11 +272,11 @@ class CalibrationResult:
                 'inlier_thresholds': {'rotation_deg': lin.inlier_rotation_deg,
                                       'translation_m': lin.inlier_translation_m},
                 'extrinsic': {'translation': [float(v) for v in lin.p_HE],
-                              'rotation': [float(v) for v in lin.q_HE]},
+                              'rotation': [float(v) for v in positive_w(lin.q_HE)]},
                 'decoupled_refit': self.config.decoupled_refit,
                 'dual_quaternion_solution': {
                     'translation': [float(v) for v in lin.p_HE_dq],
-                    'rotation': [float(v) for v in lin.q_HE_dq]},
+                    'rotation': [float(v) for v in positive_w(lin.q_HE_dq)]},
                 'sigma_ratio': _num(lin.sigma_ratio),
                 'singular_values': [float(v) for v in lin.singular_values],
                 'axis_spread_deg': _num(lin.axis_spread_deg),
@@ -285,7 +286,7 @@ class CalibrationResult:
                 'seed_check': None if self.seed_check is None else {
                     'seed': self.config.seed + 1,
                     'translation': [float(v) for v in self.seed_check.p_HE],
-                    'rotation': [float(v) for v in self.seed_check.q_HE]},
+                    'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)]},
             },
             'std': self._std_dict(),
             'covariance': None if self.batch is None else {

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core.errors import ConfigError, InputError
 from ..core.trajectory import Trajectory
-from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages
 from ..stream.convert import (
     MULTI_POSE_TYPES,
     RIGID_BODIES_TYPES,
@@ -26,6 +26,7 @@ from ..stream.convert import (
     UnsupportedTypeError,
     normalise_type,
 )
+from ..stream.messages import header, transform_stamped
 from ..stream.sources import parse_selector
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
@@ -120,11 +121,12 @@ class BagReader:
                 continue
         return out
 
-    def messages(self, topics: list[str]) -> Iterator[tuple[str, Any]]:
-        """(topic, deserialised message) in recorded order."""
+    def messages(self, topics: list[str]) -> Iterator[tuple[str, int, Any]]:
+        """(topic, record time [ns], deserialised message) in recorded order; the record time
+        is when the recorder received it (its arrival time)."""
         conns = [c for c in self.reader.connections if c.topic in topics]
-        for conn, _, raw in self.reader.messages(connections=conns):
-            yield conn.topic, self.reader.deserialize(raw, conn.msgtype)
+        for conn, t_ns, raw in self.reader.messages(connections=conns):
+            yield conn.topic, t_ns, self.reader.deserialize(raw, conn.msgtype)
 
 
 def choose_topics(bag: BagReader, config: StreamConfig,
@@ -218,9 +220,9 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
             for topics in (static, moving):
                 if not topics:
                     continue
-                for k, (topic, msg) in enumerate(bag.messages(topics)):
+                for k, (topic, t_ns, msg) in enumerate(bag.messages(topics)):
                     for stream, is_static in routes[topic]:
-                        rec.add(stream, msg, is_static)
+                        rec.add(stream, msg, is_static, t_ns)
                     if k % 4096 == 4095:
                         bar.update(4096)
             bar.update(total - bar.n)
@@ -233,7 +235,7 @@ def _items(bag: BagReader, topic: Topic) -> str:
     if kind not in MULTI_POSE_TYPES:
         return ''
     seen: dict[str, None] = {}
-    for k, (_, msg) in enumerate(bag.messages([topic.name])):
+    for k, (_, _, msg) in enumerate(bag.messages([topic.name])):
         if kind in RIGID_BODIES_TYPES:
             seen.update(dict.fromkeys(b.rigid_body_name for b in msg.rigidbodies))
         else:
@@ -248,34 +250,12 @@ def _items(bag: BagReader, topic: Topic) -> str:
 
 # ----------------------------------------------------------------------------------- writing
 
-#: The latest stamp a ROS 2 message header holds (builtin_interfaces/Time: int32 seconds).
-ROS_TIME_MAX_NS = (2 ** 31 - 1) * 1_000_000_000 + 999_999_999
-
-
-def _stamp(store: Any, t_ns: int) -> Any:
-    Time = store.types['builtin_interfaces/msg/Time']
-    return Time(sec=int(t_ns // 1_000_000_000), nanosec=int(t_ns % 1_000_000_000))
-
-
-def transform_stamped(store: Any, t_ns: int, parent: str, child: str,
-                      p: Any, q: Any) -> Any:
-    """geometry_msgs/TransformStamped (rosbags class): the pose (p x y z, q x y z w) of
-    ``child`` in ``parent`` at ``t_ns``."""
-    T = store.types
-    return T['geometry_msgs/msg/TransformStamped'](
-        header=T['std_msgs/msg/Header'](stamp=_stamp(store, t_ns), frame_id=parent),
-        child_frame_id=child,
-        transform=T['geometry_msgs/msg/Transform'](
-            translation=T['geometry_msgs/msg/Vector3'](x=p[0], y=p[1], z=p[2]),
-            rotation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])))
-
-
 def rigid_bodies_message(store: Any, t_ns: int, frame_id: str,
                          bodies: list[tuple[str, Any, Any]]) -> Any:
     """mocap4r2_msgs/RigidBodies (rosbags class) of (name, p x y z, q x y z w) bodies."""
     T = store.types
     return T['mocap4r2_msgs/msg/RigidBodies'](
-        header=T['std_msgs/msg/Header'](stamp=_stamp(store, t_ns), frame_id=frame_id),
+        header=header(T, t_ns, frame_id),
         frame_number=0,
         rigidbodies=[T['mocap4r2_msgs/msg/RigidBody'](
             rigid_body_name=name, markers=[],
@@ -295,30 +275,48 @@ def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
     msgtype = normalise_type(msgtype)
     for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
         if msgtype == TF_TYPE:
-            tf = transform_stamped(store, t, frame_id, child_frame_id, p, q)
+            tf = transform_stamped(T, t, frame_id, child_frame_id, p, q)
             yield t, T[msgtype](transforms=[tf])
             continue
         if msgtype in RIGID_BODIES_TYPES:
             yield t, rigid_bodies_message(store, t, frame_id, [(child_frame_id, p, q)])
             continue
         if msgtype == 'geometry_msgs/msg/TransformStamped':
-            yield t, transform_stamped(store, t, frame_id, child_frame_id, p, q)
+            yield t, transform_stamped(T, t, frame_id, child_frame_id, p, q)
             continue
-        header = T['std_msgs/msg/Header'](stamp=_stamp(store, t), frame_id=frame_id)
+        head = header(T, t, frame_id)
         point = T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2])
         quat = T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])
         pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
         if msgtype == 'geometry_msgs/msg/PoseStamped':
-            yield t, T[msgtype](header=header, pose=pose)
+            yield t, T[msgtype](header=head, pose=pose)
             continue
         pwc = T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=np.zeros(36))
         if msgtype == 'geometry_msgs/msg/PoseWithCovarianceStamped':
-            yield t, T[msgtype](header=header, pose=pwc)
+            yield t, T[msgtype](header=head, pose=pwc)
             continue
         zero = T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
         twist = T['geometry_msgs/msg/TwistWithCovariance'](
             twist=T['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36))
-        yield t, T[msgtype](header=header, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+        yield t, T[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+
+
+def _latched_qos() -> Any:
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+    zero = QosTime(0, 0)
+    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
+               zero, zero, QosLiveliness.AUTOMATIC, zero, False)
+
+
+#: The QoS tf2's static broadcaster offers (transient local, reliable, keep last 1).
+LATCHED_QOS = _latched_qos()
 
 
 class BagWriter:
@@ -346,9 +344,16 @@ class BagWriter:
     def __exit__(self, *exc: object) -> None:
         self.writer.close()
 
-    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any) -> None:
+    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any, latched: bool = False) -> None:
+        """Append one message. ``latched`` (the first message of a topic decides): the topic is
+        recorded as offered transient local, reliable, depth 1, so that a replay latches it as
+        tf2's static broadcaster does (ROS 1 bags have no QoS; their reader latches
+        /tf_static by name)."""
         if topic not in self._conns:
-            self._conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.store)
+            qos = (LATCHED_QOS,) if latched and self.storage != 'ros1' else ()
+            self._conns[topic] = self.writer.add_connection(
+                topic, msgtype, typestore=self.store,
+                **({'offered_qos_profiles': qos} if qos else {}))
         if self.storage == 'ros1':
             data = self.store.serialize_ros1(msg, msgtype)
         else:
@@ -409,7 +414,7 @@ def write_tf_recording(path: str | Path, hand: Trajectory, eye: Trajectory,
         items += [(t, 1, m) for t, m in pose_messages(w.store, imu, TF_TYPE, 'imu', 'odom')]
         items.sort(key=lambda x: (x[0], x[1]))
         static = w.store.types[TF_TYPE](transforms=[transform_stamped(
-            w.store, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER)])
+            w.store.types, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER)])
         for k, (t, _, m) in enumerate(items):
             w.write('/tf', TF_TYPE, t, m)
             if k == static_after:
@@ -440,21 +445,22 @@ def write_rigid_bodies_recording(path: str | Path, hand: Trajectory, eye: Trajec
 
 def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
                      storage: str = 'mcap') -> None:
-    """The extrinsic as a static transform (/tf_static, tf2_msgs/TFMessage, parent = hand
-    frame, child = eye frame) and the time offset (/handeye/time_offset, std_msgs/Float64).
+    """The calibration as the node publishes it (see :mod:`handeye_ros.stream.messages`), all
+    latched: the extrinsic on /tf_static (tf2_msgs/TFMessage, parent = hand frame, child = eye
+    frame) and on /calibrator/extrinsic, its covariance, and the time offset on
+    /calibrator/time_offset and /calibrator/time_reference, stamped ``stamp_ns``.
 
     Raises InputError when ``stamp_ns`` is no ROS time (builtin_interfaces/Time holds the
     seconds in an int32: 1970 to 2038; ROS 1 in a uint32)."""
-    if not 0 <= stamp_ns <= ROS_TIME_MAX_NS:
-        msg = (f'{path}: cannot write the result bag: its stamp {stamp_ns} ns (the eye\'s last '
-               'stamp) is no ROS time, whose seconds are an int32 (1970 to 2038)')
+    if not messages.is_ros_time(stamp_ns):
+        msg = (f'{path}: cannot write the result bag: its stamp {stamp_ns} ns is no ROS time, '
+               'whose seconds are an int32 (1970 to 2038)')
         raise InputError(msg)
     with BagWriter(path, storage) as w:
         T = w.store.types
-        e = result['extrinsic']
-        tf = transform_stamped(w.store, stamp_ns, e['parent'], e['child'], e['translation'],
-                               e['rotation'])
-        w.write('/tf_static', 'tf2_msgs/msg/TFMessage', stamp_ns,
-                T['tf2_msgs/msg/TFMessage'](transforms=[tf]))
-        w.write('/handeye/time_offset', 'std_msgs/msg/Float64', stamp_ns,
-                T['std_msgs/msg/Float64'](data=float(result['time_offset'])))
+        out = messages.outputs(T, result, stamp_ns)
+        w.write('/tf_static', TF_TYPE, stamp_ns,
+                T[TF_TYPE](transforms=[out[messages.EXTRINSIC]]), latched=True)
+        for name, m in out.items():
+            w.write(f'/{messages.NODE_NAME}/{name}', messages.OUTPUT_TYPES[name], stamp_ns, m,
+                    latched=True)

@@ -20,10 +20,11 @@ class NodeConfig(Options):
 
     output_file: str = option(
         'handeye_result.yaml', 'str', 'where ~/save writes the last result (YAML, or JSON for '
-        '.json); relative to the working directory')
+        '.json); relative to the working directory; may be set while the node runs')
     report_dir: str = option(
         '', 'str', 'where ~/save also writes report.html and its plots (empty: no report); '
-        'each calibration then draws its report in the worker, ready for ~/save')
+        'each calibration then draws its report in the worker, ready for ~/save; may be set '
+        'while the node runs (the next calibration draws the report)')
     calibrate_period: float = option(
         0.0, 'float', 'run the calibration every this many seconds while data flow (online use); '
         '0 disables', low=0.0, high=86_400.0)
@@ -40,6 +41,11 @@ class NodeConfig(Options):
         30.0, 'float', 'with hand_type/eye_type auto: how long to wait for a publisher to learn '
         'the type before warning again [s]', low=0.1, high=86_400.0)
 
+
+#: Node parameters that may change while the node runs: the algorithm options and where
+#: ~/save writes. The others shape subscriptions and buffers and are read once.
+RUNTIME_NODE_KEYS = frozenset({'output_file', 'report_dir'})
+RUNTIME_KEYS = frozenset(CalibrationConfig.specs()) | RUNTIME_NODE_KEYS
 
 #: Parameters the offline tool ignores in a node params file (ROS's own use_sim_time too).
 NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'}
@@ -79,3 +85,44 @@ def params_yaml() -> str:
             value = float('nan') if value is None else value
             lines.append(f'    {yaml.safe_dump({name: value}, default_flow_style=True)[1:-2]}')
     return '\n'.join(lines) + '\n'
+
+
+USAGE = """\
+usage: calibrator [-h] [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] ...]
+
+The handeye_ros calibrator node: buffers a MoCap pose stream (the hand, marker frame H in the
+MoCap world G) and a VO/VIO pose stream (the eye, body frame E in the VIO world W), and on
+request estimates the time offset dt (eye clock minus hand clock) and the extrinsic T_HE, with
+T_WE(t) = T_WG * T_GH(t - dt) * T_HE.
+
+services (std_srvs/Trigger), under the node's name (/calibrator by default):
+  ~/calibrate   calibrate on a copy of the buffers (the answer holds the one-line result)
+  ~/reset       empty the buffers
+  ~/save        write the last result to output_file (and the report to report_dir); both
+                parameters may be changed at run time (ros2 param set)
+latched topics: ~/extrinsic (geometry_msgs/TransformStamped, H -> E), and on /tf_static where
+  tf2_msgs is importable; ~/extrinsic_with_covariance (geometry_msgs/PoseWithCovarianceStamped);
+  ~/time_offset (std_msgs/Float64, s); ~/time_reference (sensor_msgs/TimeReference: header
+  stamp on the eye clock, time_ref the same instant on the hand clock). Status: /diagnostics.
+Ctrl-C, SIGINT or SIGTERM stop the node (exit code 0).
+
+parameters (every one with its default in config/calibrator.yaml; * may change at run time):
+"""
+
+
+def usage() -> str:
+    """The text of ``calibrator --help``: what the node does and every parameter."""
+    import textwrap
+    defaults = {**CalibrationConfig().to_dict(), **StreamConfig().to_dict(),
+                **NodeConfig().to_dict()}
+    lines = [USAGE.rstrip('\n')]
+    for name, spec in all_specs().items():
+        value = defaults[name]
+        shown = 'automatic' if value is None else repr(value)
+        lines.append(f'  {name}{" *" if name in RUNTIME_KEYS else ""} (default {shown})')
+        text = spec.description + (f' {spec.range_text()}' if spec.range_text() and
+                                   not spec.choices else '')
+        if spec.choices:
+            text += ' (one of: ' + ', '.join(spec.choices) + ')'
+        lines += textwrap.wrap(text, 95, initial_indent='      ', subsequent_indent='      ')
+    return '\n'.join(lines)

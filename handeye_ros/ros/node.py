@@ -4,7 +4,7 @@
 
 Subscriptions feed a :class:`~handeye_ros.stream.Recorder` (the same conversion and buffers the
 offline bag replay uses). Services (std_srvs/Trigger): ``~/calibrate`` runs the core on a copy
-of the buffers in a worker thread while the subscriptions keep flowing (a second call while
+of the buffers in a worker process while the subscriptions keep flowing (a second call while
 one runs is refused), ``~/reset`` empties the buffers, ``~/save`` writes the last result.
 
 Concurrency: one single-threaded executor runs every callback (rclpy's multi-threaded executor
@@ -12,16 +12,21 @@ costs so much per callback that a 1 kHz stream overruns it). ``~/calibrate`` is 
 it snapshots the buffers, hands the snapshot to a worker *process* and awaits the result, so
 the executor keeps taking messages meanwhile. A process rather than a thread: at 1 kHz the
 executor holds the GIL most of the time, and a calibration thread beside it ran ten times
-slower. The worker is forked from a forkserver that has the core imported, so a call pays
-no start-up.
-Results go out on latched topics ``~/extrinsic`` (TransformStamped, hand frame -> eye frame)
-and ``~/time_offset`` (Float64, s, eye clock minus hand clock), and as a static transform when
-tf2_ros is importable. Status goes to /diagnostics.
+slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
+start-up. Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running
+calibration is abandoned) is stopped and joined first.
+Every calibration, successful or not, updates every output together. A success publishes on
+the latched topics of :mod:`handeye_ros.stream.messages` (``~/extrinsic``,
+``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
+and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latched
+messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
+(the result they come from and when). Status goes to /diagnostics.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import difflib
 import importlib
 import multiprocessing
 import shutil
@@ -35,7 +40,6 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -43,16 +47,23 @@ from rcl_interfaces.msg import (
     SetParametersResult,
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import (
     InvalidParameterTypeException,
     InvalidParameterValueException,
     ParameterException,
 )
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSPolicyKind,
+    QoSProfile,
+    ReliabilityPolicy,
+)
 from rclpy.task import Future
-from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from ..core.config import CalibrationConfig
@@ -60,17 +71,18 @@ from ..core.errors import ConfigError, HandeyeError, InputError
 from ..core.options import Spec, split_options
 from ..evaluation.outputs import calibrate_snapshot
 from ..report import write_result
-from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, normalise_type
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
-from .config import NodeConfig, all_specs
+from . import worker
+from .config import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
+from .lifecycle import ignore_signals
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Node parameters that may change while the node runs (the algorithm options); the others
-#: shape subscriptions and buffers and are read once.
-DYNAMIC = frozenset(CalibrationConfig.specs())
+#: Parameters rclpy declares on every node.
+ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service', 'qos_overrides.')
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
 
@@ -80,7 +92,7 @@ def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
     rng = spec.range_text()
     d = ParameterDescriptor(name=name, description=spec.description + (
         f' ({rng})' if rng and not spec.choices else ''),
-        read_only=name not in DYNAMIC)
+        read_only=name not in RUNTIME_KEYS)
     if spec.choices:
         d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
     if spec.low is not None and spec.high is not None and not spec.optional:
@@ -107,20 +119,23 @@ class CalibratorNode(Node):
         self.recorder = Recorder(self.stream_cfg)
         self._check_tf_selectors()
         self._busy = threading.Lock()
+        #: the last successful result, when it came (wall clock), and the last failure's
+        #: reason (None after a success): the three things every output is made from
         self._last_result: dict[str, Any] | None = None
-        self._last_summary = 'no calibration yet'
-        self._last_ok: bool | None = None
+        self._last_when = ''
+        self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
         self._subs: dict[str, Any] = {}
         self._static_subs: dict[str, Any] = {}
         self._sub_errors: dict[str, str] = {}
+        self._qos_problems: dict[str, str] = {}
         self._started = time.monotonic()
         self._type_warned = dict.fromkeys(STREAMS, self._started)
 
-        self.pub_extrinsic = self.create_publisher(TransformStamped, '~/extrinsic', LATCHED)
-        self.pub_offset = self.create_publisher(Float64, '~/time_offset', LATCHED)
-        self.pub_cov = self.create_publisher(PoseWithCovarianceStamped,
-                                             '~/extrinsic_with_covariance', LATCHED)
+        self._types = RclpyTypes()
+        self._outputs = {name: self.create_publisher(self._types[t], f'~/{name}', LATCHED)
+                         for name, t in messages.OUTPUT_TYPES.items()}
+        self._static_tf = self._static_broadcaster()
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # its own reentrant group: a callback group stays busy while a coroutine in it awaits,
         # and the default (mutually exclusive) group would then hold back every subscription
@@ -129,9 +144,9 @@ class CalibratorNode(Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/save', self._on_save)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._static_tf = self._static_broadcaster()
-        self._pool = self._new_pool()
+        self._closing = False
 
+        self._check_topics()
         for stream in STREAMS:
             declared = getattr(self.stream_cfg, f'{stream}_type')
             if declared != 'auto':
@@ -142,6 +157,9 @@ class CalibratorNode(Node):
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
+        self._warn_unknown_parameters()
+        # last: nothing after it can fail, so a failed start leaves no worker behind
+        self._pool = self._new_pool()
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved')
@@ -164,17 +182,46 @@ class CalibratorNode(Node):
                              source='parameters')
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
-        changes = {p.name: p.value for p in params if p.name in DYNAMIC}
+        changes = {p.name: p.value for p in params if p.name in RUNTIME_KEYS}
         if not changes:
             return SetParametersResult(successful=True)
         try:
-            merged = {**self.calib_cfg.to_dict(), **changes}
-            self.calib_cfg = CalibrationConfig.from_mapping(merged, source='parameters')
+            ours = {k: v for k, v in changes.items() if k in RUNTIME_NODE_KEYS}
+            calib = CalibrationConfig.from_mapping(
+                {**self.calib_cfg.to_dict(), **{k: v for k, v in changes.items()
+                                                if k not in ours}}, source='parameters')
+            node = NodeConfig.from_mapping({**self.node_cfg.to_dict(), **ours},
+                                           source='parameters')
         except ConfigError as err:
             return SetParametersResult(successful=False, reason=str(err))
+        self.calib_cfg, self.node_cfg = calib, node
         return SetParametersResult(successful=True)
 
+    def _warn_unknown_parameters(self) -> None:
+        """Name the parameters given (a params file, -p) that this node does not have: a
+        misspelt name is otherwise silently ignored."""
+        given = getattr(self, '_parameter_overrides', {})  # rclpy keeps them only here
+        unknown = sorted(n for n in given if not self.has_parameter(n)
+                         and not n.startswith(ROS_OWN_PARAMETERS))
+        for name in unknown:
+            near = difflib.get_close_matches(name, list(all_specs()), n=1)
+            self.get_logger().warning(
+                f'unknown parameter {name!r} ignored' + (f': did you mean {near[0]!r}?' if near
+                                                         else ' (calibrator --help lists them)'))
+
     # ------------------------------------------------------------------ subscriptions
+
+    def _check_topics(self) -> None:
+        """Every topic a selector names is a valid ROS name (ConfigError naming the rule)."""
+        for stream in STREAMS:
+            sel = self.recorder.selectors[stream]
+            for topic in sel.topics:
+                try:
+                    self.resolve_topic_name(topic)
+                except _rclpy.RCLError as err:
+                    why = str(err).split('failed to resolve name: ', 1)[-1].split(', at ')[0]
+                    raise ConfigError(f'{stream}_topic {sel.text}: {topic!r} is no valid topic '
+                                      f'name: {why}') from None
 
     def _check_tf_selectors(self) -> None:
         """Say at start, not when data would arrive, that a tf selector cannot be read here:
@@ -207,7 +254,9 @@ class CalibratorNode(Node):
             durability=DurabilityPolicy.VOLATILE)
         sel = self.recorder.selectors[stream]
         self._subs[stream] = self.create_subscription(
-            cls, sel.topic, lambda msg, s=stream: self._on_pose(s, msg), qos)
+            cls, sel.topic, lambda msg, s=stream: self._on_pose(s, msg), qos,
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)))
         if sel.static_topic:
             static_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
                                     reliability=ReliabilityPolicy.RELIABLE,
@@ -216,6 +265,30 @@ class CalibratorNode(Node):
                 cls, sel.static_topic, lambda msg, s=stream: self._on_pose(s, msg, True),
                 static_qos)
         self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
+
+    def _on_incompatible_qos(self, stream: str, event: Any) -> None:
+        """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
+        why = self._qos_mismatch(stream)
+        if why is None:
+            policy = QoSPolicyKind(event.last_policy_kind).name.lower()
+            why = (f'{stream} topic {self.recorder.selectors[stream].topic}: a publisher offers '
+                   f'a QoS this subscription cannot match ({policy}); nothing it sends arrives')
+        self._qos_problems[stream] = why
+        self.get_logger().warning(why)
+
+    def _qos_mismatch(self, stream: str) -> str | None:
+        """The reason no message of a stream's publishers can arrive, read from the QoS they
+        offer in the graph; None when every one matches."""
+        sub = self._subs.get(stream)
+        if sub is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+            return None
+        topic = self.recorder.selectors[stream].topic
+        for info in self.get_publishers_info_by_topic(topic):
+            if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
+                return (f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
+                        'and this node asks reliable delivery (qos_reliability: reliable), so '
+                        'nothing it sends arrives: set qos_reliability: best_effort')
+        return None
 
     def _discover_types(self) -> None:
         """Learn the message type of auto-typed topics from the graph."""
@@ -235,6 +308,10 @@ class CalibratorNode(Node):
             if len(usable) == 1:
                 try:
                     self._subscribe(stream, usable[0])
+                    self.get_logger().info(
+                        f'{stream}: {topic} learnt from its publisher; messages it sent before '
+                        f'this subscription matched are not received (set {stream}_type: '
+                        f'{usable[0].rsplit("/", 1)[-1]} to subscribe at start)')
                 except ConfigError as err:
                     self._sub_errors[stream] = str(err)
                     if now - self._type_warned[stream] > self.node_cfg.topic_wait:
@@ -254,7 +331,9 @@ class CalibratorNode(Node):
             self._graph_timer.cancel()
 
     def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
-        reason = self.recorder.add(stream, msg, static)
+        arrival = (self.get_clock().now().nanoseconds if stream in self.recorder.arrival
+                   else None)
+        reason = self.recorder.add(stream, msg, static, arrival)
         if reason is not None:
             now = time.monotonic()
             if now - self._reject_warned[stream] >= REJECT_WARN_PERIOD_S:
@@ -268,6 +347,11 @@ class CalibratorNode(Node):
 
     def _why_no_data(self) -> str | None:
         for stream in STREAMS:
+            if stream in self._subs and len(self.recorder.buffers[stream]) < 2:
+                # the graph now, or what the QoS event said of a publisher since gone
+                why = self._qos_mismatch(stream) or self._qos_problems.get(stream)
+                if why is not None:
+                    return why
             if stream in self._sub_errors and stream not in self._subs:
                 return f'{stream}: {self._sub_errors[stream]}'
             if stream not in self._subs:
@@ -281,11 +365,17 @@ class CalibratorNode(Node):
         return None
 
     def _new_pool(self) -> cf.ProcessPoolExecutor:
-        ctx = multiprocessing.get_context('forkserver')
-        ctx.set_forkserver_preload(['handeye_ros.core.pipeline', 'handeye_ros.stream.recorder',
-                                   'handeye_ros.evaluation.outputs'])
-        pool = cf.ProcessPoolExecutor(max_workers=1, mp_context=ctx)
-        pool.submit(int)  # start the forkserver and the worker now, not on the first call
+        # spawn, not fork: the node's DDS threads must not be forked. SIGINT is blocked in
+        # this thread while the worker (and multiprocessing's resource tracker) start, and
+        # the blocked mask is inherited: worker.start then ignores it for good
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            pool = cf.ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context('spawn'),
+                initializer=worker.start)
+            pool.submit(int)  # starts the worker now, not on the first call
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
         return pool
 
     def _start_worker(self) -> Future | None:
@@ -310,7 +400,7 @@ class CalibratorNode(Node):
                      else None)
             job = self._pool.submit(calibrate_snapshot, snapshot, self.calib_cfg, stage)
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
-            self._last_ok, self._last_summary = False, str(err)
+            self._failed(str(err))
             future.set_result((False, str(err)))
             self._drop_stage(stage)
             self._busy.release()
@@ -321,19 +411,21 @@ class CalibratorNode(Node):
             try:
                 d = job.result()
             except HandeyeError as err:
-                self._last_ok, self._last_summary = False, str(err)
+                self._failed(str(err))
                 future.set_result((False, str(err)))
             except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
+                if self._closing:  # the node stopped it
+                    future.set_result((False, 'the node is shutting down'))
+                    return
                 self.get_logger().error(f'calibration worker failed: {err!r}')
                 if isinstance(err, cf.process.BrokenProcessPool):
                     self._pool = self._new_pool()
-                self._last_ok, self._last_summary = False, f'internal error: {err!r}'
+                self._failed(f'internal error: {err!r}')
                 future.set_result((False, f'internal error: {err!r}'))
             else:
                 self._drop_stage(_staged_dir(self._last_result))
                 kept = True
-                self._last_result, self._last_ok, self._last_summary = d, True, d['summary']
-                self._publish(d)
+                self._succeeded(d)
                 self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
                                        f'{d["summary"]}')
                 for w in d['warnings']:
@@ -371,16 +463,20 @@ class CalibratorNode(Node):
 
     def _on_save(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         if self._last_result is None:
-            response.success, response.message = False, 'no result to save: call calibrate first'
+            response.success = False
+            response.message = ('no result to save: call calibrate first' if self._last_error
+                                is None else f'no result to save: the calibration failed '
+                                f'({self._last_error})')
             return response
-        wrote = [self.node_cfg.output_file]
+        out, report = self.node_cfg.output_file, self.node_cfg.report_dir
+        wrote = [out]
         try:
-            write_result(self.node_cfg.output_file, self._last_result)
+            write_result(out, self._last_result)
             staged = _staged_dir(self._last_result)
-            if self.node_cfg.report_dir and staged:
-                shutil.copytree(staged, self.node_cfg.report_dir, dirs_exist_ok=True)
-                wrote.append(str(Path(self.node_cfg.report_dir) / 'report.html'))
-            elif self.node_cfg.report_dir:
+            if report and staged:
+                shutil.copytree(staged, report, dirs_exist_ok=True)
+                wrote.append(str(Path(report) / 'report.html'))
+            elif report:
                 wrote.append('no report (report_dir was set after this calibration: calibrate '
                              'again)')
         except HandeyeError as err:
@@ -388,10 +484,12 @@ class CalibratorNode(Node):
             return response
         except OSError as err:
             response.success = False
-            response.message = (f'report_dir {self.node_cfg.report_dir}: cannot write '
-                                f'({err.strerror or err})')
+            response.message = f'report_dir {report}: cannot write ({err.strerror or err})'
             return response
         response.success, response.message = True, 'wrote ' + ', '.join(wrote)
+        if self._last_error is not None:
+            response.message += (f' (the latest calibration failed: this is the result of '
+                                 f'{self._last_when})')
         return response
 
     @staticmethod
@@ -401,37 +499,59 @@ class CalibratorNode(Node):
             shutil.rmtree(stage, ignore_errors=True)
 
     def close(self) -> None:
-        """Stop the worker process (a running calibration is abandoned)."""
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the worker process and wait for it (a running calibration is abandoned), so
+        that no process outlives the node."""
+        self._closing = True
+        pool = getattr(self, '_pool', None)
+        if pool is not None:
+            # the executor has no public way to stop a running call; its worker processes
+            # are ours to stop, and shutdown(wait=True) then joins them
+            for proc in list((getattr(pool, '_processes', None) or {}).values()):
+                proc.terminate()
+            pool.shutdown(wait=True, cancel_futures=True)
+            # dropped, so that its queues' semaphores are released before the resource
+            # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
+            self._pool = None
         self._drop_stage(_staged_dir(self._last_result))
 
     # ------------------------------------------------------------------ outputs
 
-    def _publish(self, d: dict[str, Any]) -> None:
-        e = d['extrinsic']
-        tf = TransformStamped()
-        tf.header.stamp = self.get_clock().now().to_msg()
-        tf.header.frame_id = e['parent']
-        tf.child_frame_id = e['child']
-        (tf.transform.translation.x, tf.transform.translation.y,
-         tf.transform.translation.z) = e['translation']
-        (tf.transform.rotation.x, tf.transform.rotation.y, tf.transform.rotation.z,
-         tf.transform.rotation.w) = e['rotation']
-        self.pub_extrinsic.publish(tf)
-        self.pub_offset.publish(Float64(data=float(d['time_offset'])))
-        if d.get('covariance'):
-            self.pub_cov.publish(pose_with_covariance(tf, d))
+    def _succeeded(self, d: dict[str, Any]) -> None:
+        """A new result: every output at once, one stamp (in a pool thread; rclpy's publish
+        is thread-safe)."""
+        self._last_result, self._last_error = d, None
+        self._last_when = time.strftime('%Y-%m-%d %H:%M:%S')
+        stamp = self.get_clock().now().nanoseconds
+        out = messages.outputs(self._types, d, stamp)
+        for name, pub in self._outputs.items():
+            if name in out:
+                pub.publish(out[name])
+        if messages.TIME_REFERENCE not in out:
+            self.get_logger().warning(
+                'the time offset is not published as a TimeReference: its instant on one of '
+                'the clocks is no ROS time (before 1970); ~/time_offset has it')
         if self._static_tf is not None:
-            self._static_tf.sendTransform(tf)
+            self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
+        self._publish_diagnostics()
+
+    def _failed(self, why: str) -> None:
+        """A failed calibration: the diagnostics say so at once; the latched outputs, which
+        cannot be withdrawn, are named stale there."""
+        self._last_error = why
+        self._publish_diagnostics()
 
     def _static_broadcaster(self) -> Any:
+        """A latched /tf_static publisher, as tf2's static broadcaster keeps one, where
+        tf2_msgs is importable (a ROS 2 install; the PyPI wheels have neither tf2_msgs nor
+        tf2_ros); None otherwise, said once."""
         try:
-            from tf2_ros import StaticTransformBroadcaster
-        except ImportError:
-            self.get_logger().info('tf2_ros is not importable here: the extrinsic is published '
-                                   'on ~/extrinsic only, not as a static transform')
+            cls = self._types[TF_TYPE]
+        except ConfigError:
+            self.get_logger().info('tf2_msgs is not importable here: the extrinsic is published '
+                                   'on ~/extrinsic, not on /tf_static (publish_calibration FILE '
+                                   'writes it into a bag)')
             return None
-        return StaticTransformBroadcaster(self)
+        return self.create_publisher(cls, '/tf_static', LATCHED)
 
     def _publish_diagnostics(self) -> None:
         arr = DiagnosticArray()
@@ -453,32 +573,58 @@ class CalibratorNode(Node):
                 ('received', s.received), ('buffered', s.stored), ('dropped', s.dropped),
                 *((f'rejected_{k}', v) for k, v in s.rejected.items()))]
             arr.status.append(st)
-        res = DiagnosticStatus(name=f'{name}: result', hardware_id=name,
-                               message=self._last_summary[:500])
-        if self._last_ok is None:
-            res.level = DiagnosticStatus.OK
-        elif not self._last_ok:
-            res.level = DiagnosticStatus.ERROR
-        else:
-            # the verdict: good OK, doubtful WARN, failed ERROR
-            verdict = self._last_result['quality']['verdict'] if self._last_result else 'good'
-            res.level = {'good': DiagnosticStatus.OK, 'doubtful': DiagnosticStatus.WARN,
-                         'failed': DiagnosticStatus.ERROR}[verdict]
-        if self._last_result is not None:
-            d = self._last_result
-            q = d['quality']
-            res.values = [KeyValue(key=k, value=str(v)) for k, v in (
-                ('verdict', q['verdict']),
-                ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
-                ('time_offset_s', d['time_offset']),
-                ('translation_m', d['extrinsic']['translation']),
-                ('rotation_xyzw', d['extrinsic']['rotation']),
-                ('inliers', f'{d["linear"]["inliers"]}/{d["linear"]["motions"]}'),
-                ('peak_correlation', d['time_alignment']['peak_correlation']),
-                ('ape_rmse_m', d['metrics']['ape_rmse']),
-                ('warnings', len(d['warnings'])))]
-        arr.status.append(res)
+        arr.status.append(result_status(name, self._last_result, self._last_when,
+                                        self._last_error))
         self.pub_diag.publish(arr)
+
+
+def result_status(name: str, result: dict[str, Any] | None, when: str,
+                  error: str | None) -> DiagnosticStatus:
+    """The diagnostics of the calibration: the last attempt's outcome, and only then the
+    numbers of the result the latched topics hold.
+
+    - No calibration yet: OK.
+    - The last attempt failed: ERROR with its reason. The numbers of an earlier result are not
+      shown; ``latched_outputs`` says they are stale and where they come from.
+    - The last attempt succeeded: the verdict's level (good OK, doubtful WARN, failed ERROR)
+      and the result's numbers.
+    """
+    st = DiagnosticStatus(name=f'{name}: result', hardware_id=name)
+    if error is not None:
+        st.level, st.message = DiagnosticStatus.ERROR, error[:500]
+        stale = ('none' if result is None else
+                 f'stale: from the calibration of {when} ({result["quality"]["verdict"]}); '
+                 'the latest one failed')
+        st.values = [KeyValue(key='latched_outputs', value=stale)]
+        return st
+    if result is None:
+        st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
+        return st
+    q = result['quality']
+    st.level = {'good': DiagnosticStatus.OK, 'doubtful': DiagnosticStatus.WARN,
+                'failed': DiagnosticStatus.ERROR}[q['verdict']]
+    st.message = result['summary'][:500]
+    st.values = [KeyValue(key=k, value=str(v)) for k, v in (
+        ('verdict', q['verdict']),
+        ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
+        ('time_offset_s', result['time_offset']),
+        ('translation_m', result['extrinsic']['translation']),
+        ('rotation_xyzw', result['extrinsic']['rotation']),
+        ('inliers', f'{result["linear"]["inliers"]}/{result["linear"]["motions"]}'),
+        ('peak_correlation', result['time_alignment']['peak_correlation']),
+        ('ape_rmse_m', result['metrics']['ape_rmse']),
+        ('warnings', len(result['warnings'])),
+        ('latched_outputs', f'current: from the calibration of {when}'))]
+    return st
+
+
+class RclpyTypes(dict):
+    """rclpy message classes by 'pkg/msg/Name', imported on first use (the ``types`` of
+    :mod:`handeye_ros.stream.messages`)."""
+
+    def __missing__(self, msgtype: str) -> Any:
+        cls = self[msgtype] = _message_class(msgtype)
+        return cls
 
 
 def _message_class(msgtype: str) -> Any:
@@ -499,35 +645,25 @@ def _staged_dir(result: dict[str, Any] | None) -> str | None:
     return str(Path(staged).parent) if staged else None
 
 
-def pose_with_covariance(tf: TransformStamped, d: dict[str, Any]) -> PoseWithCovarianceStamped:
-    """T_HE with its 6x6 covariance in ROS order (x, y, z, rotation about the parent's X, Y, Z).
-
-    The result's rotation covariance is in the tangent on the right of T_HE (eye frame);
-    ROS wants fixed (parent-frame) axes: dtheta_H = R_HE dtheta_E.
-    """
-    import numpy as np
-    msg = PoseWithCovarianceStamped()
-    msg.header = tf.header
-    t, r = tf.transform.translation, tf.transform.rotation
-    msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = t.x, t.y, t.z
-    msg.pose.pose.orientation = r
-    cov = np.asarray(d['covariance']['matrix'])[1:, 1:]
-    R = np.asarray(d['extrinsic']['matrix'])[:3, :3]
-    J = np.eye(6)
-    J[3:, 3:] = R
-    msg.pose.covariance = [float(v) for v in (J @ cov @ J.T).ravel()]
-    return msg
-
-
-def main(args: list[str] | None = None) -> int:
-    """Entry point of ``ros2 run handeye_ros calibrator``; returns the exit code."""
+def run(args: list[str] | None = None, on_init: Any = None) -> int:
+    """Run the node until a signal or an external shutdown; returns the exit code (0, or 1
+    when the options are refused). ``on_init`` is called once rclpy's signal handlers are
+    installed. From then on a SIGINT or SIGTERM shuts the context down and spin returns.
+    The entry point is :func:`handeye_ros.ros.calibrator.main`."""
     rclpy.init(args=args)
+    if on_init is not None:
+        on_init()
     try:
         node = CalibratorNode()
     except ConfigError as err:
         print(f'calibrator: error: {err}', file=sys.stderr)
         rclpy.try_shutdown()
         return 1
+    except Exception:
+        if rclpy.ok():
+            raise
+        rclpy.try_shutdown()  # a signal during the start shut the context down under it
+        return 0
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
@@ -535,14 +671,15 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        # a second Ctrl-C (or a signal forwarded twice) must not break the clean-up
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        ignore_signals()
         node.close()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+        worker.stop_tracker()
     return 0
 
 
 if __name__ == '__main__':
+    from .calibrator import main
     sys.exit(main())

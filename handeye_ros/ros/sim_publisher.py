@@ -75,22 +75,36 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(prog='sim_publisher', description=__doc__.split('\n')[0])
-    ap.add_argument('--seed', type=int, default=3)
-    ap.add_argument('--level', type=float, default=3.0)
-    ap.add_argument('--duration', type=float, default=40.0)
-    ap.add_argument('--hand-rate', type=float, default=100.0)
-    ap.add_argument('--eye-rate', type=float, default=20.0)
-    ap.add_argument('--hand-topic', default='/mocap/pose')
-    ap.add_argument('--eye-topic', default='/vio/odom')
-    ap.add_argument('--hand-type', default='PoseStamped')
-    ap.add_argument('--eye-type', default='Odometry')
-    ap.add_argument('--rate', type=float, default=1000.0, help='messages per second, both topics')
-    ap.add_argument('--nan-every', type=int, default=0, help='every k-th eye message has NaN')
+    ap = argparse.ArgumentParser(prog='sim_publisher', description=__doc__.split('\n\n')[0],
+                                 epilog='Stamps are the recording\'s (they start near 0 s), '
+                                        'not the wall clock\'s.')
+    ap.add_argument('--seed', type=int, default=3, help='random seed of the recording '
+                                                        '(default: 3)')
+    ap.add_argument('--level', type=float, default=3.0,
+                    help='noise level 0-10 of the paper\'s protocol (default: 3)')
+    ap.add_argument('--duration', type=float, default=40.0, help='length [s] (default: 40)')
+    ap.add_argument('--hand-rate', type=float, default=100.0,
+                    help='MoCap pose rate [Hz] (default: 100)')
+    ap.add_argument('--eye-rate', type=float, default=20.0,
+                    help='VIO pose rate [Hz] (default: 20)')
+    ap.add_argument('--hand-topic', default='/mocap/pose', help='default: /mocap/pose')
+    ap.add_argument('--eye-topic', default='/vio/odom', help='default: /vio/odom')
+    ap.add_argument('--hand-type', default='PoseStamped',
+                    help='PoseStamped (default), PoseWithCovarianceStamped, TransformStamped, '
+                         'Odometry, TFMessage or RigidBodies (see above)')
+    ap.add_argument('--eye-type', default='Odometry',
+                    help='Odometry (default), one of the other one-pose types, or TFMessage')
+    ap.add_argument('--rate', type=float, default=1000.0,
+                    help='messages per second, both topics together (default: 1000)')
+    ap.add_argument('--nan-every', type=int, default=0,
+                    help='every k-th eye message has a NaN position (default: 0, none)')
     ap.add_argument('--reliable', action='store_true', help='reliable publishers (default: '
                                                             'best-effort hand, reliable eye)')
-    ap.add_argument('--bag', action='append', default=[], help='also write PATH:storage')
-    ap.add_argument('--wait-subscribers', type=float, default=10.0)
+    ap.add_argument('--bag', action='append', default=[], metavar='PATH[:STORAGE]',
+                    help='also write the same messages to a bag (mcap, sqlite3 or ros1); '
+                         'repeatable')
+    ap.add_argument('--wait-subscribers', type=float, default=10.0, metavar='SECONDS',
+                    help='how long to wait for a subscriber on both topics (default: 10)')
     args = ap.parse_args()
 
     nm, nd = noise_level(args.level)

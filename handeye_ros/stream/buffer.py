@@ -16,9 +16,11 @@ import numpy as np
 
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 
-#: Reasons a message is rejected (keys of BufferStats.rejected).
-REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'stamp_not_increasing',
-                  'not_in_message')
+#: Reasons a message is rejected (keys of BufferStats.rejected): zero_stamp, header.stamp
+#: left unset; stamp_repeated, the previous pose's stamp again; stamp_not_increasing, a stamp
+#: before the previous pose's.
+REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'zero_stamp',
+                  'stamp_repeated', 'stamp_not_increasing', 'not_in_message')
 
 
 @dataclass(frozen=True)
@@ -112,8 +114,10 @@ class PoseBuffer:
             return 'zero_quaternion'
         if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
             return 'non_unit_quaternion'
+        if t_ns == 0:
+            return 'zero_stamp'
         if self._last is not None and t_ns <= self._last:
-            return 'stamp_not_increasing'
+            return 'stamp_repeated' if t_ns == self._last else 'stamp_not_increasing'
         return None
 
     def _drop(self, n: int) -> None:

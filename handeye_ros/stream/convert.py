@@ -44,6 +44,17 @@ _CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
     'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), m.pose.pose),
 }
 
+def frame_name(name: str) -> str:
+    """A frame id as tf2 compares them: without the leading slash of ROS 1 names."""
+    return name.strip().lstrip('/')
+
+
+def frames_of(msg: Any) -> tuple[str, str]:
+    """(world, body) frame ids a one-pose message names: header.frame_id and child_frame_id
+    (empty where the type has none, as PoseStamped)."""
+    return frame_name(msg.header.frame_id), frame_name(getattr(msg, 'child_frame_id', ''))
+
+
 #: Message types holding one pose each, in ROS 2 'pkg/msg/Name' form.
 SUPPORTED_TYPES = tuple(_CONVERTERS)
 #: Message types holding many poses, of which a topic selector picks one (see sources.py):

@@ -18,7 +18,15 @@ from ..core.result import CalibrationResult
 from ..core.trajectory import Trajectory
 from .buffer import BufferStats, PoseBuffer
 from .config import StreamConfig
-from .convert import RIGID_BODIES_TYPES, TF_TYPE, StampedPose, normalise_type, pose_of
+from .convert import (
+    RIGID_BODIES_TYPES,
+    TF_TYPE,
+    StampedPose,
+    frame_name,
+    frames_of,
+    normalise_type,
+    pose_of,
+)
 from .sources import TF_STATIC, RigidBodyPicker, Selector, TfChain, parse_selector
 
 STREAMS = ('hand', 'eye')
@@ -30,8 +38,8 @@ class Snapshot:
 
     hand: Trajectory
     eye: Trajectory
-    hand_frame: str
-    eye_frame: str
+    #: frame names: hand (H), eye (E), hand_world (G), eye_world (W); see StreamConfig.frames
+    frames: dict[str, str]
     streams: dict[str, Any]
     warnings: tuple[str, ...]
 
@@ -45,7 +53,9 @@ class Snapshot:
     def describe(self, result: CalibrationResult) -> dict[str, Any]:
         """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
         one-line ``summary``) with this snapshot's frame names."""
-        out = result.to_dict(hand_frame=self.hand_frame, eye_frame=self.eye_frame)
+        f = self.frames
+        out = result.to_dict(hand_frame=f['hand'], eye_frame=f['eye'],
+                             hand_world=f['hand_world'], eye_world=f['eye_world'])
         out['streams'] = self.streams
         out['summary'] = result.summary()
         return out
@@ -75,6 +85,10 @@ class Recorder:
         self._convert: dict[str, Callable[[Any], StampedPose]] = {}
         self._tf: dict[str, TfChain] = {}
         self._bodies: dict[str, RigidBodyPicker] = {}
+        #: (world, body) frame ids the first message of each stream named
+        self.seen_frames: dict[str, tuple[str, str]] = {}
+        #: streams stamped on arrival (use_arrival_time) rather than by header.stamp
+        self.arrival = frozenset(s for s in STREAMS if config.use_arrival_time in (s, 'both'))
 
     def set_type(self, stream: str, msgtype: str) -> None:
         """Fix the message type of a stream's topic (raises UnsupportedTypeError, or
@@ -86,6 +100,7 @@ class Recorder:
                 raise ConfigError(f'{stream} topic {sel.topic} is {msgtype}: select the pose '
                                   f'of a frame in another, as {sel.topic}:PARENT.CHILD')
             self._tf[stream] = TfChain(*sel.frames(), sel.text)
+            self.seen_frames[stream] = sel.frames()
             if sel.static_topic is None:
                 self.selectors[stream] = Selector(sel.text, sel.topic, sel.item, TF_STATIC)
         elif msgtype in RIGID_BODIES_TYPES:
@@ -110,27 +125,66 @@ class Recorder:
                 out.setdefault(topic, []).append((stream, topic == sel.static_topic))
         return out
 
-    def add(self, stream: str, msg: Any, static: bool = False) -> str | None:
+    def add(self, stream: str, msg: Any, static: bool = False,
+            arrival_ns: int | None = None) -> str | None:
         """Convert and buffer one message; returns None or why (one of) its pose(s) was
-        rejected. ``static``: the message came on a tf selector's static topic."""
+        rejected. ``static``: the message came on a tf selector's static topic.
+        ``arrival_ns``: when it arrived (node clock, or the bag's record time); it replaces
+        header.stamp for the streams in :attr:`arrival`."""
+        restamp = arrival_ns if stream in self.arrival else None
         convert = self._convert.get(stream)
         if convert is not None:
-            return self.buffers[stream].add(*convert(msg))
+            if stream not in self.seen_frames:
+                self.seen_frames[stream] = frames_of(msg)
+            pose = convert(msg)
+            if restamp is not None:
+                pose = (restamp, *pose[1:])
+            return self.buffers[stream].add(*pose)
         picker = self._bodies.get(stream)
         if picker is not None:
-            pose = picker.pose(msg)
-            if pose is None:
+            if stream not in self.seen_frames:
+                self.seen_frames[stream] = (frame_name(msg.header.frame_id), picker.name)
+            body = picker.pose(msg)
+            if body is None:
                 return self.buffers[stream].reject('not_in_message')
-            return self.buffers[stream].add(*pose)
+            if restamp is not None:
+                body = (restamp, *body[1:])
+            return self.buffers[stream].add(*body)
         reason = None
         for pose in self._tf[stream].poses(msg, static):
+            if restamp is not None:
+                pose = (restamp, *pose[1:])
             reason = self.buffers[stream].add(*pose) or reason
         return reason
+
+    def stamp_trouble(self, stream: str) -> str | None:
+        """What the rejected stamps of a stream say about its publisher, with the way out;
+        None when its stamps look sound."""
+        buf = self.buffers[stream]
+        r, way_out = buf.rejected, (f'use_arrival_time: {stream} stamps them on arrival'
+                                    if stream not in self.arrival else '')
+        if r['zero_stamp']:
+            return (f'{r["zero_stamp"]} message(s) had no stamp (header.stamp 0): the publisher '
+                    f'leaves it unset; {way_out or "their arrival times are zero too"}')
+        bad = r['stamp_repeated'] + r['stamp_not_increasing']
+        if bad and bad >= 0.1 * buf.received:
+            return (f'{r["stamp_repeated"]} message(s) repeated the previous stamp and '
+                    f'{r["stamp_not_increasing"]} went back: the publisher stamps with a frozen '
+                    f'or coarse clock, or several sources share the topic'
+                    + (f'; {way_out}' if way_out else ''))
+        return None
 
     def diagnose(self, stream: str) -> str | None:
         """Why a many-pose selector gave no pose (None for one-pose topics)."""
         source = self._tf.get(stream) or self._bodies.get(stream)
         return source.diagnose() if source is not None else None
+
+    def frames(self) -> dict[str, str]:
+        """The frame names of the result: options, else the messages', else the fallbacks."""
+        seen = {}
+        for stream, (world, body) in self.seen_frames.items():
+            seen[stream], seen[f'{stream}_world'] = body, world
+        return self.config.frames(seen)
 
     def reset(self) -> None:
         """Empty both buffers and their counters."""
@@ -152,15 +206,16 @@ class Recorder:
                 why = self.diagnose(name)
                 if why is not None and len(buf) == 0:
                     raise InputError(f'{name} stream {topic} gave no pose: {why}')
+                trouble = self.stamp_trouble(name)
                 msg = (f'{name} stream {topic}: {len(buf)} pose(s) buffered '
                        f'({buf.received} received, {sum(buf.rejected.values())} rejected); '
-                       'need a recording of both streams first')
+                       + (trouble if trouble else 'need a recording of both streams first'))
                 raise InputError(msg)
             trajectories[name] = buf.trajectory()
             if name in self._tf:
                 trajectories[name] = self._tf[name].finish(trajectories[name])
-        return Snapshot(trajectories['hand'], trajectories['eye'], self.config.hand_frame_id,
-                        self.config.eye_frame_id, self.stream_dict(),
+        return Snapshot(trajectories['hand'], trajectories['eye'], self.frames(),
+                        self.stream_dict(),
                         tuple(self.stream_warnings()))
 
     def calibrate(self, config: CalibrationConfig,
@@ -186,14 +241,24 @@ class Recorder:
                            + ', '.join(f'{v} {k.replace("_", " ")}' for k, v in bad.items()))
             if name in self._tf:
                 out += self._tf[name].warnings()
+            trouble = self.stamp_trouble(name)
+            if trouble:
+                out.append(f'{name} stream {topic}: {trouble}')
+            if name in self.arrival:
+                out.append(f'{name} stream {topic}: stamped on arrival (use_arrival_time), not '
+                           'by header.stamp: the transport delay is part of the time offset '
+                           'and its jitter adds noise')
         return out
 
     def stream_dict(self) -> dict[str, Any]:
         """Per-stream bookkeeping for the result file."""
         out = {name: {'topic': getattr(self.config, name + '_topic'), 'type': self.types[name],
+                      'stamps': 'arrival' if name in self.arrival else 'header',
                       'received': s.received, 'buffered': s.stored, 'dropped': s.dropped,
                       'rejected': s.rejected, 'span_s': s.span_s, 'rate_hz': s.rate_hz}
                for name, s in self.stats().items()}
+        for name, (world, body) in self.seen_frames.items():
+            out[name]['frames'] = {'world': world, 'body': body}
         for name, chain in self._tf.items():
             out[name]['tf_chain'] = chain.describe()
         return out

@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.errors import ConfigError
 from ..core.trajectory import Trajectory
-from .convert import StampedPose
+from .convert import StampedPose, frame_name
 
 #: The static topic of a tf selector that names none.
 TF_STATIC = '/tf_static'
@@ -82,11 +82,6 @@ def parse_selector(text: str) -> Selector:
         raise ConfigError(f'topic selector {text!r}: the static topic after the second colon '
                           'must be a topic name starting with /')
     return Selector(text, topic, item, static or None)
-
-
-def frame_name(name: str) -> str:
-    """A frame id as tf2 compares them: without the leading slash of ROS 1 names."""
-    return name.strip().lstrip('/')
 
 
 def _stamp(header: Any) -> int:

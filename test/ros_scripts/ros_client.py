@@ -3,8 +3,11 @@
 Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
        ros_client.py concurrent SERVICE SERVICE ...  (all sent at once, answers in order)
        ros_client.py staggered SERVICE SERVICE ...   (sent 0.3 s apart, without waiting)
-       ros_client.py latched                          (/calibrator/extrinsic and time_offset,
-                                                       the result's /diagnostics status)
+       ros_client.py latched                          (the latched outputs of /calibrator
+                                                       and the result's /diagnostics status)
+       ros_client.py param NAME:=VALUE ...            (set /calibrator's parameters; YAML
+                                                       values)
+       ros_client.py tf_static                        (the latched /tf_static; needs tf2_msgs)
 """
 
 from __future__ import annotations
@@ -14,10 +17,14 @@ import sys
 import time
 
 import rclpy
+import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import TimeReference
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -60,24 +67,62 @@ def latched(node: Node) -> dict:
                              lambda m: got.__setitem__('covariance', list(m.pose.covariance)),
                              qos)
 
+    node.create_subscription(TimeReference, '/calibrator/time_reference',
+                             lambda m: got.__setitem__('time_reference', m), qos)
+
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for st in msg.status:
             values = {kv.key: kv.value for kv in st.values}
-            if st.name.endswith(': result') and 'verdict' in values:
+            if st.name.endswith(': result'):
                 got['diagnostics'] = {'level': int.from_bytes(st.level, 'little')
                                       if isinstance(st.level, bytes) else int(st.level),
-                                      'verdict': values['verdict'],
+                                      'message': st.message, 'values': values,
+                                      'verdict': values.get('verdict'),
                                       'reasons': values.get('reasons', '')}
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     deadline = time.monotonic() + 10.0
-    while len(got) < 4 and time.monotonic() < deadline:
+    while len(got) < 5 and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     if 'extrinsic' in got:
         m = got['extrinsic']
         t, r = m.transform.translation, m.transform.rotation
         got['extrinsic'] = {'parent': m.header.frame_id, 'child': m.child_frame_id,
+                            'stamp_ns': m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec,
                             'translation': [t.x, t.y, t.z], 'rotation': [r.x, r.y, r.z, r.w]}
+    if 'time_reference' in got:
+        m = got['time_reference']
+        s, r = m.header.stamp, m.time_ref
+        got['time_reference'] = {
+            'offset_ns': (s.sec - r.sec) * 10 ** 9 + s.nanosec - r.nanosec,
+            'stamp_ns': s.sec * 10 ** 9 + s.nanosec, 'frame_id': m.header.frame_id,
+            'source': m.source}
     return got
+
+
+def tf_static(node: Node) -> list[dict]:
+    from tf2_msgs.msg import TFMessage
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    got: list = []
+    node.create_subscription(TFMessage, '/tf_static', got.append, qos)
+    deadline = time.monotonic() + 20.0
+    while not got and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    return [{'parent': t.header.frame_id, 'child': t.child_frame_id,
+             'translation': [t.transform.translation.x, t.transform.translation.y,
+                             t.transform.translation.z]}
+            for m in got for t in m.transforms]
+
+
+def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
+    client = AsyncParameterClient(node, '/calibrator')
+    if not client.wait_for_services(timeout_sec=TIMEOUT_S):
+        return [{'error': 'parameter services of /calibrator not available'}]
+    params = [Parameter(name, value=yaml.safe_load(value))
+              for name, value in (a.split(':=', 1) for a in assignments)]
+    f = client.set_parameters(params)
+    rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
+    return [{'success': r.successful, 'message': r.reason} for r in f.result().results]
 
 
 def main() -> int:
@@ -86,6 +131,10 @@ def main() -> int:
     mode, names = sys.argv[1], sys.argv[2:]
     if mode == 'latched':
         out = latched(node)
+    elif mode == 'tf_static':
+        out = tf_static(node)
+    elif mode == 'param':
+        out = set_parameters(node, names)
     else:
         out = call(node, names, concurrent=mode in ('concurrent', 'staggered'),
                    gap_s=0.3 if mode == 'staggered' else 0.0)

@@ -1,0 +1,160 @@
+"""ROS messages out of a result dictionary, for rclpy and rosbags alike.
+
+Every builder takes ``types``: a mapping from a 'pkg/msg/Name' type name to its message class.
+The node passes one that imports rclpy's classes (:class:`handeye_ros.ros.node.RclpyTypes`);
+the bag writer passes its typestore's ``types``. Both kinds of class take every field as a keyword, so one builder
+serves the live topics and the output bag, and the two cannot disagree.
+
+What the calibration publishes (the node's latched topics, the output bag and
+``publish_calibration`` use the same names, relative to the node, ``calibrator`` by default):
+
+- ``extrinsic``: geometry_msgs/TransformStamped. This is T_HE: the parent is the hand frame H
+  and the child is the eye frame E. The same transform goes on /tf_static.
+- ``extrinsic_with_covariance``: geometry_msgs/PoseWithCovarianceStamped. This is T_HE with its
+  6x6 covariance. A result without one (no batch stage) has -1 in the first element and zeros
+  elsewhere: the covariance is unknown, as sensor_msgs marks it.
+- ``time_offset``: std_msgs/Float64. This is dt [s], eye clock minus hand clock.
+- ``time_reference``: sensor_msgs/TimeReference. This is the same offset with its stamp and
+  frames:
+  - ``header.stamp`` is an instant on the eye clock;
+  - ``time_ref`` is that instant on the hand clock;
+  - ``header.frame_id`` is E and ``source`` is H.
+  - So dt = header.stamp - time_ref, and T_WE(t) = T_WG T_GH(t - dt) T_HE.
+  - With an estimated clock drift, the stamp is the instant dt refers to.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+#: Message classes by their 'pkg/msg/Name'.
+Types = Mapping[str, Any]
+
+#: Topic names of the calibration, relative to the node (see the module docstring).
+EXTRINSIC = 'extrinsic'
+EXTRINSIC_WITH_COVARIANCE = 'extrinsic_with_covariance'
+TIME_OFFSET = 'time_offset'
+TIME_REFERENCE = 'time_reference'
+#: The node's default name: the output bag's topics are those of a node of this name.
+NODE_NAME = 'calibrator'
+#: Every output topic (relative to the node) and its type; all latched.
+OUTPUT_TYPES = {EXTRINSIC: 'geometry_msgs/msg/TransformStamped',
+                EXTRINSIC_WITH_COVARIANCE: 'geometry_msgs/msg/PoseWithCovarianceStamped',
+                TIME_OFFSET: 'std_msgs/msg/Float64',
+                TIME_REFERENCE: 'sensor_msgs/msg/TimeReference'}
+
+#: The last ROS time: builtin_interfaces/Time holds the seconds in an int32 (to 2038).
+ROS_TIME_MAX_NS = (2 ** 31 - 1) * 1_000_000_000 + 999_999_999
+
+
+def is_ros_time(t_ns: int) -> bool:
+    """Whether ``t_ns`` fits builtin_interfaces/Time (1970 to 2038)."""
+    return 0 <= t_ns <= ROS_TIME_MAX_NS
+
+
+def time(types: Types, t_ns: int) -> Any:
+    """builtin_interfaces/Time of an int64 nanosecond stamp."""
+    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
+    return types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
+
+
+def header(types: Types, t_ns: int, frame_id: str) -> Any:
+    return types['std_msgs/msg/Header'](stamp=time(types, t_ns), frame_id=frame_id)
+
+
+def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any,
+                      q: Any) -> Any:
+    """geometry_msgs/TransformStamped: the pose (p x y z, q x y z w) of ``child`` in
+    ``parent`` at ``t_ns``."""
+    return types['geometry_msgs/msg/TransformStamped'](
+        header=header(types, t_ns, parent), child_frame_id=child,
+        transform=types['geometry_msgs/msg/Transform'](
+            translation=types['geometry_msgs/msg/Vector3'](
+                x=float(p[0]), y=float(p[1]), z=float(p[2])),
+            rotation=_quaternion(types, q)))
+
+
+def _quaternion(types: Types, q: Any) -> Any:
+    return types['geometry_msgs/msg/Quaternion'](x=float(q[0]), y=float(q[1]), z=float(q[2]),
+                                               w=float(q[3]))
+
+
+def extrinsic(types: Types, result: dict[str, Any], t_ns: int) -> Any:
+    """T_HE as geometry_msgs/TransformStamped (parent H, child E), stamped ``t_ns``."""
+    e = result['extrinsic']
+    return transform_stamped(types, t_ns, e['parent'], e['child'], e['translation'],
+                             e['rotation'])
+
+
+def extrinsic_covariance(result: dict[str, Any]) -> np.ndarray:
+    """The 36 covariance values of T_HE in ROS order: x, y, z, then rotations about the
+    parent's (H) fixed X, Y, Z axes. [-1, 0, ...] when the result has none.
+
+    The result's rotation covariance is in the tangent on the right of T_HE (eye frame);
+    ROS wants fixed parent-frame axes: dtheta_H = R_HE dtheta_E.
+    """
+    cov = (result.get('covariance') or {}).get('matrix')
+    if cov is None:
+        out = np.zeros(36)
+        out[0] = -1.0
+        return out
+    cov6 = np.asarray(cov, dtype=float)[1:, 1:]   # the first row and column are dt's
+    J = np.eye(6)
+    J[3:, 3:] = np.asarray(result['extrinsic']['matrix'], dtype=float)[:3, :3]
+    return (J @ cov6 @ J.T).ravel()
+
+
+def extrinsic_with_covariance(types: Types, result: dict[str, Any], t_ns: int) -> Any:
+    """T_HE with its covariance (see :func:`extrinsic_covariance`), stamped ``t_ns``."""
+    e = result['extrinsic']
+    x, y, z = (float(v) for v in e['translation'])
+    pose = types['geometry_msgs/msg/Pose'](position=types['geometry_msgs/msg/Point'](x=x, y=y, z=z),
+                                         orientation=_quaternion(types, e['rotation']))
+    return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
+        header=header(types, t_ns, e['parent']),
+        pose=types['geometry_msgs/msg/PoseWithCovariance'](
+            pose=pose, covariance=extrinsic_covariance(result)))
+
+
+def time_offset(types: Types, result: dict[str, Any]) -> Any:
+    """dt [s] as std_msgs/Float64."""
+    return types['std_msgs/msg/Float64'](data=float(result['time_offset']))
+
+
+def offset_instant_ns(result: dict[str, Any]) -> int:
+    """The eye-clock instant [ns] the time offset is stated at: the stamp dt refers to under
+    a clock drift, else the eye stream's last stamp."""
+    stamp = result.get('time_offset_stamp_ns')
+    return int(stamp if stamp is not None else result['inputs']['eye']['last_stamp_ns'])
+
+
+def time_reference(types: Types, result: dict[str, Any]) -> Any | None:
+    """dt as sensor_msgs/TimeReference (see the module docstring). Returns None when the
+    instant on either clock is no ROS time (a boot clock minus a larger offset)."""
+    t_eye = offset_instant_ns(result)
+    t_hand = t_eye - int(result['time_offset_ns'])
+    if not (is_ros_time(t_eye) and is_ros_time(t_hand)):
+        return None
+    return types['sensor_msgs/msg/TimeReference'](
+        header=header(types, t_eye, result['extrinsic']['child']),
+        time_ref=time(types, t_hand), source=result['extrinsic']['parent'])
+
+
+def offset_of(msg: Any) -> float:
+    """dt [s] from a TimeReference built by :func:`time_reference`."""
+    s, r = msg.header.stamp, msg.time_ref
+    return ((int(s.sec) - int(r.sec)) * 1_000_000_000 + int(s.nanosec) - int(r.nanosec)) * 1e-9
+
+
+def outputs(types: Types, result: dict[str, Any], t_ns: int) -> dict[str, Any]:
+    """Every output of one result (topic relative to the node -> message), the transforms
+    stamped ``t_ns``. time_reference is left out when it cannot be stated (see
+    :func:`time_reference`)."""
+    out = {EXTRINSIC: extrinsic(types, result, t_ns),
+           EXTRINSIC_WITH_COVARIANCE: extrinsic_with_covariance(types, result, t_ns),
+           TIME_OFFSET: time_offset(types, result),
+           TIME_REFERENCE: time_reference(types, result)}
+    return {k: v for k, v in out.items() if v is not None}

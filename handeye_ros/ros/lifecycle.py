@@ -12,12 +12,26 @@ from __future__ import annotations
 
 import signal
 
-_state = {'rclpy': False}
+_state = {'rclpy': False, 'hold': False, 'pending': False}
 
 
 def _on_signal(signum: int, frame: object) -> None:
-    if not _state['rclpy']:
+    if _state['hold']:
+        _state['pending'] = True
+    elif not _state['rclpy']:
         raise SystemExit(0)
+
+
+def hold() -> None:
+    """Until :func:`release`: a signal is noted, not acted on (while starting child processes
+    that must not be left behind half-made)."""
+    _state['hold'], _state['pending'] = True, False
+
+
+def release() -> bool:
+    """End :func:`hold`; True when a signal came meanwhile (the caller then stops)."""
+    _state['hold'] = False
+    return _state['pending']
 
 
 def quiet_start() -> None:

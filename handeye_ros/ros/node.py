@@ -28,9 +28,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import difflib
 import importlib
-import multiprocessing
 import shutil
-import signal
 import sys
 import tempfile
 import threading
@@ -75,7 +73,7 @@ from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages,
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
 from .config import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
-from .lifecycle import ignore_signals
+from .lifecycle import hold, ignore_signals, release
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
@@ -113,7 +111,9 @@ def _default(value: Any) -> Any:
 class CalibratorNode(Node):
     """See the module docstring."""
 
-    def __init__(self, **kwargs: Any):
+    def __init__(self, pool: cf.ProcessPoolExecutor, **kwargs: Any):
+        """``pool``: the worker (:func:`.worker.new_pool`, started before rclpy.init); the
+        node owns it from here and stops it in :meth:`close`."""
         super().__init__('calibrator', **kwargs)
         self.calib_cfg, self.stream_cfg, self.node_cfg = self._declare_and_read()
         self.recorder = Recorder(self.stream_cfg)
@@ -158,8 +158,7 @@ class CalibratorNode(Node):
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         self._warn_unknown_parameters()
-        # last: nothing after it can fail, so a failed start leaves no worker behind
-        self._pool = self._new_pool()
+        self._pool = pool
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved')
@@ -364,20 +363,6 @@ class CalibratorNode(Node):
                         f'set {stream}_type to subscribe before one appears')
         return None
 
-    def _new_pool(self) -> cf.ProcessPoolExecutor:
-        # spawn, not fork: the node's DDS threads must not be forked. SIGINT is blocked in
-        # this thread while the worker (and multiprocessing's resource tracker) start, and
-        # the blocked mask is inherited: worker.start then ignores it for good
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        try:
-            pool = cf.ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context('spawn'),
-                initializer=worker.start)
-            pool.submit(int)  # starts the worker now, not on the first call
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
-        return pool
-
     def _start_worker(self) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
@@ -419,7 +404,7 @@ class CalibratorNode(Node):
                     return
                 self.get_logger().error(f'calibration worker failed: {err!r}')
                 if isinstance(err, cf.process.BrokenProcessPool):
-                    self._pool = self._new_pool()
+                    self._pool = worker.new_pool(ignore_sigint=False)
                 self._failed(f'internal error: {err!r}')
                 future.set_result((False, f'internal error: {err!r}'))
             else:
@@ -502,13 +487,8 @@ class CalibratorNode(Node):
         """Stop the worker process and wait for it (a running calibration is abandoned), so
         that no process outlives the node."""
         self._closing = True
-        pool = getattr(self, '_pool', None)
-        if pool is not None:
-            # the executor has no public way to stop a running call; its worker processes
-            # are ours to stop, and shutdown(wait=True) then joins them
-            for proc in list((getattr(pool, '_processes', None) or {}).values()):
-                proc.terminate()
-            pool.shutdown(wait=True, cancel_futures=True)
+        if self._pool is not None:
+            worker.stop(self._pool)
             # dropped, so that its queues' semaphores are released before the resource
             # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
             self._pool = None
@@ -650,19 +630,40 @@ def run(args: list[str] | None = None, on_init: Any = None) -> int:
     when the options are refused). ``on_init`` is called once rclpy's signal handlers are
     installed. From then on a SIGINT or SIGTERM shuts the context down and spin returns.
     The entry point is :func:`handeye_ros.ros.calibrator.main`."""
+    hold()  # a signal now must not leave a half-started worker behind
+    pool = worker.new_pool()  # before rclpy.init: see worker's docstring
+    if release():
+        worker.stop(pool)
+        del pool
+        worker.stop_tracker()
+        return 0
     rclpy.init(args=args)
     if on_init is not None:
         on_init()
+    failure = None
     try:
-        node = CalibratorNode()
+        node = CalibratorNode(pool)
     except ConfigError as err:
-        print(f'calibrator: error: {err}', file=sys.stderr)
-        rclpy.try_shutdown()
-        return 1
+        node, failure = None, str(err)
+    except SystemExit:  # a signal during the start
+        node = None
     except Exception:
         if rclpy.ok():
+            worker.stop(pool)
+            rclpy.try_shutdown()
             raise
-        rclpy.try_shutdown()  # a signal during the start shut the context down under it
+        node = None  # a signal during the start shut the context down under the constructor
+    if node is None:
+        worker.stop(pool)
+    # the node owns the pool now; no other reference may keep its semaphores alive until
+    # the resource tracker stops (worker.stop_tracker)
+    del pool
+    if node is None:
+        worker.stop_tracker()
+        rclpy.try_shutdown()
+        if failure is not None:
+            print(f'calibrator: error: {failure}', file=sys.stderr)
+            return 1
         return 0
     executor = SingleThreadedExecutor()
     executor.add_node(node)

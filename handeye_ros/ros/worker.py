@@ -1,23 +1,52 @@
-"""The calibrator's worker process: what it does when it starts. No rclpy here.
+"""The calibrator's worker process: its pool, its start and its end. No rclpy here.
 
-The node starts the worker with SIGINT blocked (see ``CalibratorNode._new_pool``), so that a
-Ctrl-C, which reaches the whole process group, cannot interrupt the worker's imports with a
-KeyboardInterrupt traceback. Stopping the worker is the node's job.
+A Ctrl-C reaches the whole process group, the worker included, and stopping the worker is the
+node's job. So the worker ignores SIGINT, from its first instruction on: the node starts it
+with SIGINT ignored (the disposition survives the exec of a spawned process; the signal mask
+does not), before rclpy installs its own handlers, which ``signal.signal`` would replace.
 """
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import importlib
+import multiprocessing
 import signal
 
 #: The module whose function the worker runs; imported at start, not on the first call.
 MODULE = 'handeye_ros.evaluation.outputs'
 
 
+def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
+    """A pool of one spawned worker (spawn, not fork: the node's DDS threads must not be
+    forked), started now and with the core imported, so that a call pays no start-up.
+
+    ``ignore_sigint``: start it with SIGINT ignored (see the module docstring); only from the
+    main thread and before rclpy.init. A pool renewed later (after a worker crashed) cannot,
+    and ignores SIGINT from its initializer on, a second after it starts."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignore_sigint else None
+    try:
+        pool = cf.ProcessPoolExecutor(max_workers=1, initializer=start,
+                                      mp_context=multiprocessing.get_context('spawn'))
+        pool.submit(int)  # spawns the worker (and multiprocessing's resource tracker) now
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    return pool
+
+
+def stop(pool: cf.ProcessPoolExecutor) -> None:
+    """Stop the worker and wait for it; a running call is abandoned."""
+    # the executor has no public way to stop a running call; its worker processes are ours to
+    # stop, and shutdown(wait=True) then joins them
+    for proc in list((getattr(pool, '_processes', None) or {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
 def start() -> None:
-    """Process pool initializer: ignore SIGINT for good, unblock it, import the core."""
+    """Process pool initializer: ignore SIGINT, import the core."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     importlib.import_module(MODULE)
 
 

@@ -11,6 +11,8 @@ then calls the previous Python handler, which is ours and now does nothing.
 from __future__ import annotations
 
 import signal
+from collections.abc import Callable
+from typing import Any
 
 _state = {'rclpy': False, 'hold': False, 'pending': False}
 
@@ -50,3 +52,23 @@ def ignore_signals() -> None:
     """During the clean-up: a second Ctrl-C (or a signal forwarded twice) must not break it."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
+
+
+def spin(node: Any, close: Callable[[], None] | None = None) -> None:
+    """Spin ``node`` until a signal or an external shutdown, then clean up: ``close`` (the
+    node's own resources), the executor, the node, rclpy."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        ignore_signals()
+        if close is not None:
+            close()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()

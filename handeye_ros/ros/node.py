@@ -51,7 +51,6 @@ from rclpy.exceptions import (
     InvalidParameterValueException,
     ParameterException,
 )
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import (
@@ -73,7 +72,7 @@ from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages,
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
 from .config import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
-from .lifecycle import hold, ignore_signals, release
+from .lifecycle import hold, release, spin
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
@@ -665,18 +664,9 @@ def run(args: list[str] | None = None, on_init: Any = None) -> int:
             print(f'calibrator: error: {failure}', file=sys.stderr)
             return 1
         return 0
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
     try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spin(node, node.close)
     finally:
-        ignore_signals()
-        node.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
         worker.stop_tracker()
     return 0
 

@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from .lifecycle import ignore_signals, quiet_start, rclpy_took_over
+from .lifecycle import quiet_start, rclpy_took_over, spin
 
 
 def parser() -> argparse.ArgumentParser:
@@ -69,7 +69,6 @@ def main(args: list[str] | None = None) -> int:
 
 def _publish(result: dict, namespace: str) -> int:
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
     from ..stream import messages
@@ -88,17 +87,7 @@ def _publish(result: dict, namespace: str) -> int:
     e = result['extrinsic']
     node.get_logger().info(f'publishing {e["parent"]} -> {e["child"]} on /tf_static and the '
                            f'calibration on {namespace}/*, latched; Ctrl-C to stop')
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        ignore_signals()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin(node)
     return 0
 
 

@@ -325,7 +325,7 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
 def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
     """--help on every executable, without starting anything; a stray argument is named."""
     env = ros_env(install)
-    for exe in ('calibrator', 'sim_publisher', 'offline_calibrate', 'evaluate',
+    for exe in ('calibrator', 'sim_publisher', 'offline_calibrate', 'evaluate', 'demo',
                 'publish_calibration'):
         proc = subprocess.run([str(resolve_executable(env, 'handeye_ros', exe)), '--help'],
                               env=env, capture_output=True, text=True, timeout=60,

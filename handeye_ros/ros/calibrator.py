@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 
-from .lifecycle import quiet_start, rclpy_took_over
+from .lifecycle import quiet_start, stop_requested
 
 
 def main(args: list[str] | None = None) -> int:
@@ -26,11 +26,10 @@ def main(args: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     quiet_start()
-    try:
-        from .node import run
-        return run(args, on_init=rclpy_took_over)
-    except SystemExit as stop:  # a signal before rclpy's handlers
-        return int(stop.code or 0)
+    from .node import run
+    if stop_requested():  # a signal while the imports ran
+        return 0
+    return run(args)
 
 
 if __name__ == '__main__':

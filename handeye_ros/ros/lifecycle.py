@@ -1,11 +1,15 @@
 """A quiet stop for our ROS executables, whenever the signal comes.
 
-Importing rclpy and scipy takes about a second. Without care, a Ctrl-C in that second prints
-a KeyboardInterrupt traceback, and a SIGTERM kills the process with a code that is not 0.
-:func:`quiet_start` installs handlers that end the start with exit code 0 (SystemExit).
-Once rclpy is initialised, :func:`rclpy_took_over` turns those handlers into no-ops:
-rclpy's own handlers shut the context down, so spin returns and the clean-up runs; rclpy
-then calls the previous Python handler, which is ours and now does nothing.
+Importing rclpy and scipy and starting the worker take about a second. A Ctrl-C in that second
+would print a KeyboardInterrupt traceback from wherever it struck (inside an extension
+module's initialisation it even turns into an ImportError), and a SIGTERM would kill the
+process with a code that is not 0. :func:`quiet_start` therefore replaces both handlers by one
+that only notes the signal; the start checks :func:`stop_requested` at the points where
+stopping is safe and then returns 0. Once rclpy is initialised, its own handlers shut the
+context down (spin returns and the clean-up runs) and call ours, which notes again, harmlessly.
+
+A signal in the interpreter's first ~0.1 s, before it runs any of this package's code (while it
+imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not ours.
 """
 
 from __future__ import annotations
@@ -14,38 +18,23 @@ import signal
 from collections.abc import Callable
 from typing import Any
 
-_state = {'rclpy': False, 'hold': False, 'pending': False}
+_state = {'stop': False}
 
 
 def _on_signal(signum: int, frame: object) -> None:
-    if _state['hold']:
-        _state['pending'] = True
-    elif not _state['rclpy']:
-        raise SystemExit(0)
-
-
-def hold() -> None:
-    """Until :func:`release`: a signal is noted, not acted on (while starting child processes
-    that must not be left behind half-made)."""
-    _state['hold'], _state['pending'] = True, False
-
-
-def release() -> bool:
-    """End :func:`hold`; True when a signal came meanwhile (the caller then stops)."""
-    _state['hold'] = False
-    return _state['pending']
+    _state['stop'] = True
 
 
 def quiet_start() -> None:
-    """Make SIGINT and SIGTERM end the process quietly (exit code 0) until rclpy is up."""
-    _state['rclpy'] = False
+    """Note SIGINT and SIGTERM instead of acting on them, until rclpy takes over."""
+    _state['stop'] = False
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _on_signal)
 
 
-def rclpy_took_over() -> None:
-    """Call right after rclpy.init: from now on rclpy's handlers stop the process."""
-    _state['rclpy'] = True
+def stop_requested() -> bool:
+    """Whether a SIGINT or SIGTERM came since :func:`quiet_start`."""
+    return _state['stop']
 
 
 def ignore_signals() -> None:
@@ -62,7 +51,8 @@ def spin(node: Any, close: Callable[[], None] | None = None) -> None:
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
-        executor.spin()
+        if not stop_requested():  # a signal just before rclpy's handlers were in place
+            executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -72,7 +72,7 @@ from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages,
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
 from .config import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
-from .lifecycle import hold, release, spin
+from .lifecycle import spin, stop_requested
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
@@ -624,34 +624,25 @@ def _staged_dir(result: dict[str, Any] | None) -> str | None:
     return str(Path(staged).parent) if staged else None
 
 
-def run(args: list[str] | None = None, on_init: Any = None) -> int:
+def run(args: list[str] | None = None) -> int:
     """Run the node until a signal or an external shutdown; returns the exit code (0, or 1
-    when the options are refused). ``on_init`` is called once rclpy's signal handlers are
-    installed. From then on a SIGINT or SIGTERM shuts the context down and spin returns.
-    The entry point is :func:`handeye_ros.ros.calibrator.main`."""
-    hold()  # a signal now must not leave a half-started worker behind
+    when the options are refused). The entry point, which installs the quiet signal handlers
+    of :mod:`.lifecycle` first, is :func:`handeye_ros.ros.calibrator.main`."""
     pool = worker.new_pool()  # before rclpy.init: see worker's docstring
-    if release():
-        worker.stop(pool)
-        del pool
-        worker.stop_tracker()
-        return 0
     rclpy.init(args=args)
-    if on_init is not None:
-        on_init()
     failure = None
+    node = None
     try:
-        node = CalibratorNode(pool)
+        if not stop_requested():
+            node = CalibratorNode(pool)
     except ConfigError as err:
-        node, failure = None, str(err)
-    except SystemExit:  # a signal during the start
-        node = None
+        failure = str(err)
     except Exception:
-        if rclpy.ok():
+        if rclpy.ok() and not stop_requested():
             worker.stop(pool)
             rclpy.try_shutdown()
             raise
-        node = None  # a signal during the start shut the context down under the constructor
+        # a signal during the start shut the context down under the constructor
     if node is None:
         worker.stop(pool)
     # the node owns the pool now; no other reference may keep its semaphores alive until

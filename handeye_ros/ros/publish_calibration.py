@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from .lifecycle import quiet_start, rclpy_took_over, spin
+from .lifecycle import quiet_start, spin, stop_requested
 
 
 def parser() -> argparse.ArgumentParser:
@@ -64,6 +64,8 @@ def main(args: list[str] | None = None) -> int:
     except HandeyeError as err:
         print(f'publish_calibration: error: {err}', file=sys.stderr)
         return 1
+    if stop_requested():
+        return 0
     return _publish(result, a.namespace.rstrip('/'))
 
 
@@ -74,7 +76,6 @@ def _publish(result: dict, namespace: str) -> int:
     from ..stream import messages
     from .node import LATCHED, RclpyTypes
     rclpy.init()
-    rclpy_took_over()
     node = Node('calibration_publisher')
     types = RclpyTypes()
     out = messages.outputs(types, result, node.get_clock().now().nanoseconds)

@@ -24,14 +24,19 @@ def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
     ``ignore_sigint``: start it with SIGINT ignored (see the module docstring); only from the
     main thread and before rclpy.init. A pool renewed later (after a worker crashed) cannot,
     and ignores SIGINT from its initializer on, a second after it starts."""
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignore_sigint else None
+    if ignore_sigint:
+        # blocked as well as ignored: Linux never discards a blocked signal, so a Ctrl-C in
+        # these milliseconds stays pending and reaches the handler restored below
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         pool = cf.ProcessPoolExecutor(max_workers=1, initializer=start,
                                       mp_context=multiprocessing.get_context('spawn'))
         pool.submit(int)  # spawns the worker (and multiprocessing's resource tracker) now
     finally:
-        if previous is not None:
+        if ignore_sigint:
             signal.signal(signal.SIGINT, previous)
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     return pool
 
 

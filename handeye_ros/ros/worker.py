@@ -13,8 +13,10 @@ import importlib
 import multiprocessing
 import signal
 
-#: The module whose function the worker runs; imported at start, not on the first call.
-MODULE = 'handeye_ros.evaluation.outputs'
+#: What a calibration in the worker imports (the function it runs, the snapshot's class and
+#: the core with scipy.optimize): imported when the worker starts, not on the first call.
+MODULES = ('handeye_ros.evaluation.outputs', 'handeye_ros.stream.recorder',
+           'handeye_ros.core.pipeline')
 
 
 def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
@@ -52,7 +54,8 @@ def stop(pool: cf.ProcessPoolExecutor) -> None:
 def start() -> None:
     """Process pool initializer: ignore SIGINT, import the core."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    importlib.import_module(MODULE)
+    for module in MODULES:
+        importlib.import_module(module)
 
 
 def stop_tracker() -> None:

@@ -52,8 +52,13 @@ class PoseBuffer:
         self.name = name
         self.capacity = int(capacity)
         self.max_duration_ns = int(max_duration_s * 1e9)
-        self._t = np.empty(self.capacity, dtype=np.int64)
-        self._pq = np.empty((self.capacity, 7))
+        # written through once, so that the memory is the process's from the start: np.empty
+        # only reserves it, and the ring would page it in slot by slot, an RSS that grows by
+        # 64 bytes a pose until the ring first wraps (it looked like a leak in the node)
+        self._t = np.zeros(self.capacity, dtype=np.int64)
+        self._pq = np.zeros((self.capacity, 7))
+        self._t.fill(0)
+        self._pq.fill(0.0)
         self._lock = threading.Lock()
         self.clear()
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..core.config import CalibrationConfig
-from ..core.options import Options, option
+from ..core.options import Options, Spec, option
 from ..stream.config import StreamConfig
 
 
@@ -64,6 +64,12 @@ PARAMS_HEADER = """\
 """
 
 
+def _described(spec: Spec) -> str:
+    """An option's description with its range (a choice lists its values apart)."""
+    rng = spec.range_text() if not spec.choices else ''
+    return spec.description + (f' {rng}' if rng else '')
+
+
 def params_yaml() -> str:
     """The node's params file with every parameter at its default and its description (the
     text of config/calibrator.yaml; a test checks that the shipped file is this)."""
@@ -78,8 +84,7 @@ def params_yaml() -> str:
         lines.append(f'    # --- {title} '.ljust(99, '-'))
         defaults = cls().to_dict()
         for name, spec in cls.specs().items():
-            rng = spec.range_text() if not spec.choices else ''
-            text = spec.description + (f' {rng}' if rng else '')
+            text = _described(spec)
             lines += textwrap.wrap(text, 99, initial_indent='    # ', subsequent_indent='    # ')
             value = defaults[name]
             value = float('nan') if value is None else value
@@ -120,8 +125,7 @@ def usage() -> str:
         value = defaults[name]
         shown = 'automatic' if value is None else repr(value)
         lines.append(f'  {name}{" *" if name in RUNTIME_KEYS else ""} (default {shown})')
-        text = spec.description + (f' {spec.range_text()}' if spec.range_text() and
-                                   not spec.choices else '')
+        text = _described(spec)
         if spec.choices:
             text += ' (one of: ' + ', '.join(spec.choices) + ')'
         lines += textwrap.wrap(text, 95, initial_indent='      ', subsequent_indent='      ')

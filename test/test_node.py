@@ -405,6 +405,33 @@ def test_publish_calibration_latched_or_as_a_bag(install: Path, tmp_path: Path) 
         ros.stop_all()
 
 
+def test_unset_stamps_are_named_live(ros: Processes, install: Path, tmp_path: Path) -> None:
+    """A MoCap driver that leaves header.stamp at 0, live with auto-typed topics: the answer
+    names the cause and the option; with use_arrival_time: hand the node stamps the hand poses
+    on arrival and the saved result says so. The publisher runs at the recording's own rate
+    here, so arrival times follow the motion."""
+    node = _start_node(ros, install, 'hand_type:=auto', 'eye_type:=auto')
+    ros.run_json(_publisher(ros, '--seed', '6', '--level', '2', '--duration', '10',
+                            '--zero-stamps', 'hand'), 'zero')
+    answer = _call(ros, '/calibrator/calibrate', name='zero_call')[0]
+    assert not answer['success'], answer
+    assert 'had no stamp (header.stamp 0)' in answer['message'] and \
+        'use_arrival_time: hand' in answer['message'], answer
+    assert ros.stop(node) == 0
+
+    saved = tmp_path / 'arrival.yaml'
+    _start_node(ros, install, 'use_arrival_time:=hand', f'output_file:={saved}',
+                'hand_type:=PoseStamped', 'eye_type:=Odometry', name='arrival_node')
+    ros.run_json(_publisher(ros, '--seed', '6', '--level', '2', '--duration', '25',
+                            '--rate', '120', '--zero-stamps', 'hand'), 'arrival')
+    answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='arrival_call')
+    assert answer[0]['success'] and answer[1]['success'], answer
+    d = yaml.safe_load(saved.read_text())
+    assert (d['streams']['hand']['stamps'], d['streams']['eye']['stamps']) == \
+        ('arrival', 'header'), d['streams']
+    assert any('stamped on arrival' in w for w in d['warnings']), d['warnings']
+
+
 def test_qos_mismatch_is_named(ros: Processes, install: Path) -> None:
     """'0 pose(s) buffered' from a reliable subscription to a best-effort MoCap publisher: the
     answer names the publisher's QoS and the parameter that fixes it, also once the publisher

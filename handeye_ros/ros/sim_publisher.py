@@ -98,6 +98,9 @@ def main() -> int:
                     help='messages per second, both topics together (default: 1000)')
     ap.add_argument('--nan-every', type=int, default=0,
                     help='every k-th eye message has a NaN position (default: 0, none)')
+    ap.add_argument('--zero-stamps', choices=('hand', 'eye', 'both'), default=None,
+                    help='leave header.stamp at 0 on that stream, as some drivers do '
+                         '(default: stamp every message)')
     ap.add_argument('--reliable', action='store_true', help='reliable publishers (default: '
                                                             'best-effort hand, reliable eye)')
     ap.add_argument('--bag', action='append', default=[], metavar='PATH[:STORAGE]',
@@ -153,7 +156,9 @@ def main() -> int:
         p = traj.p_xyz[k]
         if name == 'eye' and args.nan_every and k % args.nan_every == args.nan_every - 1:
             p = np.array([math.nan, 0.0, 0.0])
-        pubs[name].publish(message(args.hand_type if s == 0 else args.eye_type, t, p,
+        unset = args.zero_stamps in (name, 'both')
+        pubs[name].publish(message(args.hand_type if s == 0 else args.eye_type,
+                                   0 if unset else t, p,
                                    traj.q_xyzw[k], frame, child))
         sent[name] += 1
         ahead = (j + 1) / args.rate - (time.monotonic() - t0)

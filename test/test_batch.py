@@ -141,7 +141,7 @@ def test_given_noise_is_used() -> None:
 
 def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     # MoCap with white noise 0.1 mm / 0.0057 deg per axis, VIO at level 5: the full problem of
-    # eq. 19 (control poses free) converges in a few steps, measures the MoCap noise, and lands
+    # eq. 15 (control poses free) converges in a few steps, measures the MoCap noise, and lands
     # within a fraction of its own sigma of the default solve (fixed spline), in both the
     # two-step and the all-together form: the MoCap is 25x less noisy than the VIO, so the
     # spline has little to learn from the eye.

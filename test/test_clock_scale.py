@@ -119,7 +119,7 @@ def test_dual_quaternion_scale_is_exact_on_exact_motions() -> None:
     A, B, RX, pX = _exact_motions(2.5)
     qa, qad = dual_quat_from_pose(quat_from_matrix(A[0]), A[1])
     qb, qbd = dual_quat_from_pose(quat_from_matrix(B[0]), B[1])
-    # eq. 5 wants both scalar parts >= 0
+    # eq. 4 wants both scalar parts >= 0
     sa, sb = np.sign(qa[:, 3:]), np.sign(qb[:, 3:])
     p, s = dual_quaternion_scale(qa * sa, qad * sa, qb * sb, qbd * sb, quat_from_matrix(RX),
                                  np.ones(A[0].shape[0]))

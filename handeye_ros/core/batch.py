@@ -2,15 +2,15 @@
 
 The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.spline`); the eye is predicted as
 ``T_WE(t) = T_WG T_GH(t - dt) T_HE``. The eye residuals compare relative poses between
-consecutive observations (eq. 20), so T_WG drops out; the hand residuals compare the spline
+consecutive observations (eq. 16), so T_WG drops out; the hand residuals compare the spline
 with each MoCap pose::
 
     hand:  d(T_GH(t_h),  Z_h)
     eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
 
 with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)`` (rotation and translation apart: the SE(3)
-Log of eq. 20 differs from it only at second order), each part divided by its stream's noise,
-and a Huber loss. Why the hand differs from eq. 19's relative form: the MoCap measures T_GH in
+Log of eq. 16 differs from it only at second order), each part divided by its stream's noise,
+and a Huber loss. Why the hand differs from eq. 15's relative form: the MoCap measures T_GH in
 G directly, so there is no unknown world frame to remove, and its noise is white per pose,
 which per-pose residuals model exactly; relative ones would be correlated between neighbours
 and leave a rigid motion of the whole spline free. (The VIO's error is a drift, white in its
@@ -499,7 +499,7 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     """Refine dt and T_HE from the linear result (see the module docstring).
 
     By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
-    residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 19,
+    residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 15,
     analytic sparse Jacobian and sparse direct solve; slower, and the same answer while the
     MoCap is much less noisy than the VIO).
 
@@ -924,7 +924,7 @@ def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
 
 def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
                  max_iterations: int, fix_time_offset: bool, decoupled: bool):
-    """Control poses, dt and T_HE together: the whole problem of eq. 19.
+    """Control poses, dt and T_HE together: the whole problem of eq. 15.
 
     ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
     steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,

@@ -64,17 +64,17 @@ class CalibrationConfig(Options):
         5.0, 'float', 'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the '
         'rotation is noise', low=0.01, high=90.0)
     robust_kernel: bool = option(
-        True, 'bool', 'weight motions by the screw-congruence kernel (eq. 13)')
+        True, 'bool', 'weight motions by the screw-congruence kernel (eq. 10-12)')
     mu: float = option(
-        5.0, 'float', 'robust kernel sharpness (eq. 13)', low=0.0, high=1000.0)
+        5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0)
     ransac_iterations: int = option(
         200, 'int', 'RANSAC two-motion hypotheses; 0 disables RANSAC (evaluated in chunks: '
         'memory stays flat, time grows with the count)', low=0, high=100_000)
     inlier_rotation: float = option(
-        0.5, 'float', 'RANSAC inlier threshold on the rotation error of eq. 14 [deg]', low=0.0,
+        0.5, 'float', 'RANSAC inlier threshold on the rotation error e1 of eq. 13 [deg]', low=0.0,
         high=180.0, open_low=True)
     inlier_translation: float = option(
-        0.02, 'float', 'RANSAC inlier threshold on the translation error of eq. 14 [m]',
+        0.02, 'float', 'RANSAC inlier threshold on the translation error e2 of eq. 13 [m]',
         low=0.0, high=100.0, open_low=True)
     adaptive_inliers: bool = option(
         True, 'bool', 'widen the final consensus thresholds to the noise measured from the '

@@ -1,7 +1,7 @@
 """Which pose pairs (i, j) become the relative motions A_ij, B_ij (paper Section III-B.1).
 
 - ``rotation`` (the paper's choice): keyframes chosen so that each motion rotates by at least
-  eta (eq. 9). Every motion then constrains the extrinsic (a pure translation would not, and a
+  eta (eq. 6). Every motion then constrains the extrinsic (a pure translation would not, and a
   tiny rotation is drowned by noise), while staying short enough not to accumulate VIO drift.
 - ``global``: every frame against the first; drift couples into every equation.
 - ``interframe``: consecutive frames; short motions, low signal-to-noise.
@@ -35,7 +35,7 @@ def motion_indices(R: np.ndarray, strategy: str = 'rotation',
 
 
 def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """Chain of keyframes k_0 = 0, k_m+1 = first j > k_m with angle(R_k_m^T R_j) >= eta (eq. 9).
+    """Chain of keyframes k_0 = 0, k_m+1 = first j > k_m with angle(R_k_m^T R_j) >= eta (eq. 6).
 
     The loop runs once per keyframe, not per pose: the rotation path length s (cumulative sum of
     inter-frame angles) bounds the angle from above, angle(i, j) <= s_j - s_i, so no j before

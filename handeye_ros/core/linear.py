@@ -2,9 +2,9 @@
 
 For each motion i -> j, ``A = T_GH_i^-1 T_GH_j`` (hand), ``B = T_WE_i^-1 T_WE_j`` (eye) and
 ``X = T_HE`` satisfy ``A X = X B`` (eq. 2-3). Written with unit dual quaternions this is linear
-in the 8 entries of X's dual quaternion: a 6x8 block per motion (eq. 5), stacked into M (eq. 6),
+in the 8 entries of X's dual quaternion: a 6x8 block per motion (eq. 4), stacked into M (eq. 5),
 whose two-dimensional null space holds X; the unit constraints ``|q| = 1, q . q' = 0`` pick it out
-(Daniilidis 1999). Robustness comes from the screw-congruence kernel (eq. 10-13) and RANSAC on
+(Daniilidis 1999). Robustness comes from the screw-congruence kernel (eq. 7-12) and RANSAC on
 2-motion subsets scored by ``sigma7 / sigma6`` (Algorithm 1).
 
 One step beyond the paper, on by default (``decoupled_refit``): on the final consensus, the
@@ -58,7 +58,7 @@ RANSAC_CHUNK_ELEMENTS = 4_000_000
 #: Below this spread the result is given, with a warning that it is weakly constrained.
 WARN_AXIS_SPREAD_DEG = 10.0
 #: Ratio of the 99 % quantile to the median of a chi distribution with 3 degrees of freedom
-#: (3.368 / 1.538): the error norms of eq. 14 of inlier motions are roughly chi-3 distributed, so
+#: (3.368 / 1.538): the error norms of eq. 13 of inlier motions are roughly chi-3 distributed, so
 #: this times their median is a threshold that keeps 99 % of the inliers at the measured noise.
 CHI3_Q99_OVER_MEDIAN = 2.19
 
@@ -68,7 +68,7 @@ class Motions:
     """Relative motions of hand (A) and eye (B) between pose pairs ``(i, j)``.
 
     Rotations (n, 3, 3) and translations (n, 3) in the frame of the earlier pose; the dual
-    quaternions have their signs chosen so that both scalar parts are >= 0, as eq. 5 requires.
+    quaternions have their signs chosen so that both scalar parts are >= 0, as eq. 4 requires.
     """
 
     i: np.ndarray
@@ -161,7 +161,7 @@ def build_motions(pairs: PosePairs, strategy: str = 'rotation',
 
 
 def constraint_gram(m: Motions) -> np.ndarray:
-    """Gram matrices ``S_i^T S_i``, (n, 8, 8), of the 6x8 blocks of eq. 5.
+    """Gram matrices ``S_i^T S_i``, (n, 8, 8), of the 6x8 blocks of eq. 4.
 
     With r, r' (s, s') the vector parts of the hand (eye) dual quaternion, and our column order
     ``(q_v, q_w, q'_v, q'_w)``::
@@ -182,10 +182,10 @@ def constraint_gram(m: Motions) -> np.ndarray:
 
 
 def screw_log_weights(m: Motions, mu: float) -> np.ndarray:
-    """``log W_i = mu (1 - E_i^2)`` of the screw-congruence kernel (eq. 12-13).
+    """``log W_i = mu (1 - E_i^2)`` of the screw-congruence kernel (eq. 10-11).
 
-    E_i (eq. 12) compares the scalar parts of the hand and eye dual quaternions, which are equal
-    without noise (eq. 11): ``w = cos(theta/2)`` (rotation angle) and
+    E_i (eq. 10) compares the scalar parts of the hand and eye dual quaternions, which are equal
+    without noise (eq. 9; eq. 8 gives their forms): ``w = cos(theta/2)`` (rotation angle) and
     ``w' = -d/2 sin(theta/2)`` (d: translation along the screw axis). E_i = 1 when they agree.
     Logs are returned so that large E cannot underflow the weights to zero before normalising.
     """
@@ -250,7 +250,7 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def motion_errors(m: Motions, q_HE: np.ndarray, p_HE: np.ndarray,
                   chunk: int = 4_000_000) -> tuple[np.ndarray, np.ndarray]:
-    """Inlier criteria of eq. 14 for K hypotheses against n motions.
+    """Inlier criteria of eq. 13 for K hypotheses against n motions.
 
     ``E = X B X^-1 A^-1``; e1 = rotation angle of E (rad), e2 = norm of its translation (m).
 
@@ -506,8 +506,8 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     """Algorithm 1: RANSAC over 2-motion subsets, robust refinement, best sigma7/sigma6.
 
     Each iteration solves the 12x8 system of two random motions, collects the motions that agree
-    with it within the inlier thresholds (eq. 14), re-solves on them with the robust kernel
-    weights (eq. 15), and scores that refinement by sigma7/sigma6; the best-scoring refinement
+    with it within the inlier thresholds (eq. 13), re-solves on them with the robust kernel
+    weights (eq. 12), and scores that refinement by sigma7/sigma6; the best-scoring refinement
     wins. With ``ransac_iterations=0`` a single robust solve on all motions is returned.
 
     With ``adaptive_inliers`` the consensus of the winner is taken once more with thresholds no
@@ -591,7 +591,7 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     scale_std = float('nan')
     if estimate_scale and spread >= MIN_AXIS_SPREAD_DEG:
         # the paper's baseline with a scale: the rotation of the dual-quaternion solution,
-        # then its dual part and s from the lower rows of eq. 5
+        # then its dual part and s from the lower rows of eq. 4
         p_dq, scale_dq = dual_quaternion_scale(m.qa[inliers], m.qad[inliers], m.qb[inliers],
                                                m.qbd[inliers], q_dq, drift_weights(m, inliers))
         if not (np.isfinite(scale_dq) and scale_dq > 0.0):
@@ -621,7 +621,7 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
         warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
                         'constrained; rotate about more different axes')
-    if scale != 1.0:  # the inlier criteria of eq. 14 with the eye made metric
+    if scale != 1.0:  # the inlier criteria of eq. 13 with the eye made metric
         m = scaled_motions(m, scale)
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
     return LinearSolution(

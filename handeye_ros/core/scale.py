@@ -5,7 +5,7 @@ small: ``s p_WE`` is metric. In AX = XB (eq. 2-3) s multiplies the eye's relativ
 only, so that, with the rotation R_X found from the rotations alone (scale-free), the
 translation part ``(R_A - I) t_X = R_X (s t_B) - t_A`` is linear in (t_X, s), as in the
 hand-eye-with-structure-from-motion literature (Andreff et al. 2001). In the dual-quaternion
-form (eq. 5) s multiplies the eye's dual part: with the rotation q fixed, the lower rows are
+form (eq. 4) s multiplies the eye's dual part: with the rotation q fixed, the lower rows are
 linear in (q', s) (Schmidt et al. 2005) -- the paper's baseline with scale.
 
 The pipeline uses these three ways: :func:`scale_prior` (before stage 2, so that its
@@ -124,7 +124,7 @@ def _rms(r: np.ndarray, w: np.ndarray) -> float:
 
 def dual_quaternion_scale(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray,
                           q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
-    """The dual part q' and the scale s of eq. 5 with the rotation q (x y z w) fixed.
+    """The dual part q' and the scale s of eq. 4 with the rotation q (x y z w) fixed.
 
     The eye's dual part scales with its translation, so the lower rows of each 6x8 block read
     ``[r' + s s']^ q_v + (r' - s s') q_w + (r + s)^ q'_v + (r - s) q'_w = 0`` (r, r': hand vector

@@ -15,8 +15,11 @@ Why: in the dual-quaternion system the rotation also has to satisfy the dual row
 the eye's translation error; a VIO's relative translations are far noisier than its relative
 rotations, so that error leaks into the rotation. On the real flights of bench/real_cases.py
 the rotation error drops from 0.4-1.7 deg to 0.03-0.5 deg, and on the paper's protocol at
-level 10 from 0.9 to 0.5 deg (bench/ablation.py). RANSAC, the kernel, the inlier test and the
-sigma7/sigma6 model choice stay the paper's; the dual-quaternion solution is kept in the result.
+level 10 from 0.9 to 0.5 deg (bench/ablation.py). The dual-quaternion solution is kept in the
+result. The kernel and the inlier test are the paper's; two more departures are disclosed in
+docs/method.md: the singular values come from the eigendecomposition of ``M^T M`` (batched 8x8
+Gram matrices, never M itself), and a RANSAC refinement is eligible for the sigma7/sigma6
+choice only when its consensus holds at least ``CONSENSUS_FRACTION`` of the largest one.
 """
 
 from __future__ import annotations
@@ -209,7 +212,8 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     q, qd : ndarray, shape (..., 4)
         Rotation and dual part (x y z w), |q| = 1 and q . qd = 0.
     sigma : ndarray, shape (..., 8)
-        Singular values of the stacked system, descending (sigma[..., 6] is the paper's sigma7).
+        Singular values of the stacked system, descending (sigma[..., 6] is the paper's sigma7):
+        the square roots of G's eigenvalues, since G = M^T M.
     """
     lam, V = np.linalg.eigh(G)
     sigma = np.sqrt(np.clip(lam[..., ::-1], 0.0, None))

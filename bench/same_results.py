@@ -1,0 +1,136 @@
+"""Same results before and after a refactor (issue 14): record every number a calibration
+returns on a fixed set of cases, then compare another commit's numbers with them to 1e-9.
+
+Cases: the built-in example (handeye_ros.demo's recording), the simulator at noise levels 0, 5
+and 10 with the default configuration and with each stage switch that takes another code path
+(linear only, the joint batch solve, clock drift, scale, the paper's dual-quaternion solution,
+no RANSAC), and the semi-synthetic real pairs of bench/realdata.py (skipped without the data).
+
+Usage:
+    python bench/same_results.py record FILE     # numbers of this tree, as JSON
+    python bench/same_results.py compare FILE    # this tree against FILE; exit 1 on a difference
+
+A field differs when ``|a - b| > 1e-9 * max(1, |a|, |b|)``; run times and anything measured
+in seconds of the machine are left out.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import common  # noqa: F401  (puts the project on sys.path)
+import realdata
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import HandeyeError
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import noise_level, simulate
+
+TOLERANCE = 1e-9
+#: Keys whose values are machine time, not results.
+VOLATILE = ('seconds', 'runtime', 'elapsed', 'wall')
+VARIANTS = {
+    'default': {},
+    'linear': {'batch': False},
+    'joint': {'batch_joint': True},
+    'drift': {'clock_drift': True},
+    'scale': {'estimate_scale': True},
+    'paper_dq': {'decoupled_refit': False, 'adaptive_inliers': False, 'batch': False},
+    'no_ransac': {'ransac_iterations': 0, 'batch': False},
+}
+DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/demo.py's defaults
+
+
+def cases():
+    """(name, hand, eye, config) of every case."""
+    base = CalibrationConfig()
+    nm, nd = noise_level(DEMO_LEVEL)
+    rec = simulate(DEMO_SEED, duration_s=DEMO_DURATION, noise_m=nm, noise_deg=nd)
+    yield 'demo', rec.hand, rec.eye, base
+    for level in (0, 5, 10):
+        nm, nd = noise_level(level)
+        rec = simulate(100 + level, duration_s=40.0, noise_m=nm, noise_deg=nd)
+        for name, change in VARIANTS.items():
+            yield f'sim L{level} {name}', rec.hand, rec.eye, replace(base, **change)
+    if realdata.available():
+        for pair in realdata.PAIRS:
+            gt, est = realdata.load(pair)
+            hand = realdata.to_marker_frame(gt, 0.0873)
+            for name in ('default', 'linear'):
+                yield f'{pair.name} {name}', hand, est, replace(base, **VARIANTS[name])
+
+
+def flatten(value, prefix: str = '') -> dict:
+    """Leaves of nested dicts and lists, keyed by their path; volatile keys left out."""
+    out = {}
+    if isinstance(value, dict):
+        for k, v in value.items():
+            if not any(word in str(k) for word in VOLATILE):
+                out.update(flatten(v, f'{prefix}/{k}'))
+    elif isinstance(value, (list, tuple)):
+        for k, v in enumerate(value):
+            out.update(flatten(v, f'{prefix}/{k}'))
+    else:
+        out[prefix] = value
+    return out
+
+
+def record() -> dict:
+    results = {}
+    for name, hand, eye, cfg in cases():
+        try:
+            results[name] = flatten(calibrate(hand, eye, cfg).to_dict())
+        except HandeyeError as err:
+            results[name] = {'/error': str(err)}
+        print(name, file=sys.stderr, flush=True)
+    return results
+
+
+def differs(a, b) -> bool:
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and \
+            not isinstance(a, bool) and not isinstance(b, bool):
+        if math.isnan(a) or math.isnan(b):
+            return not (math.isnan(a) and math.isnan(b))
+        return abs(a - b) > TOLERANCE * max(1.0, abs(a), abs(b))
+    return a != b
+
+
+def compare(before: dict, after: dict) -> list[str]:
+    lines = []
+    for case in sorted(set(before) | set(after)):
+        b, a = before.get(case), after.get(case)
+        if a is None or b is None:
+            lines.append(f'{case}: only {"before" if a is None else "after"}')
+            continue
+        for key in sorted(set(a) | set(b)):
+            if key not in a or key not in b:
+                lines.append(f'{case} {key}: only {"before" if key not in a else "after"}')
+            elif differs(b[key], a[key]):
+                lines.append(f'{case} {key}: {b[key]!r} -> {a[key]!r}')
+    return lines
+
+
+def main() -> int:
+    if len(sys.argv) != 3 or sys.argv[1] not in ('record', 'compare'):
+        print(__doc__.split('Usage:')[1].strip(), file=sys.stderr)
+        return 2
+    path = Path(sys.argv[2])
+    now = json.loads(json.dumps(record()))  # the same float round trip as the file
+    if sys.argv[1] == 'record':
+        path.write_text(json.dumps({'provenance': common.provenance(), 'results': now},
+                                   indent=1))
+        print(f'{len(now)} cases recorded in {path}')
+        return 0
+    before = json.loads(path.read_text())
+    lines = compare(before['results'], now)
+    print(f'before: {before["provenance"]}\nafter:  {common.provenance()}')
+    print('\n'.join(lines) if lines else f'{len(now)} cases: the same to {TOLERANCE:g}')
+    return 1 if lines else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

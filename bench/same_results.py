@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from dataclasses import replace
 from pathlib import Path
 
-import common  # noqa: F401  (puts the project on sys.path)
+import common  # first: puts the project on sys.path
 import realdata
 
 from handeye_ros.core.config import CalibrationConfig
@@ -74,6 +75,8 @@ def flatten(value, prefix: str = '') -> dict:
     elif isinstance(value, (list, tuple)):
         for k, v in enumerate(value):
             out.update(flatten(v, f'{prefix}/{k}'))
+    elif isinstance(value, str):  # the data folder's path differs between checkouts
+        out[prefix] = re.sub(r'\S*/shared/data/real/', '<real>/', value)
     else:
         out[prefix] = value
     return out

@@ -1,7 +1,7 @@
 """Calibrate and evaluate many recordings on Dask: ``python -m handeye_ros.evaluate MANIFEST
 --output DIR`` (also ``ros2 run handeye_ros evaluate``).
 
-Each run of the manifest (see :mod:`handeye_ros.evaluation.runs`) is calibrated, exported
+Each run of the manifest (see :mod:`handeye_ros.runs`) is calibrated, exported
 (evo-ready files) and evaluated (APE/RPE with and without the calibration) as one Dask task.
 By default a LocalCluster with one single-threaded worker process per core runs them on this
 machine (nothing to install beyond the pinned requirements); ``--scheduler ADDRESS`` sends them
@@ -30,7 +30,7 @@ LOG = logging.getLogger('handeye_ros.evaluate')
 EXIT_UNUSABLE = 101
 MAX_EXIT_FAILED = 100
 #: Modules a LocalCluster's workers import as they start.
-WORKER_PRELOAD = ('handeye_ros.evaluation.runs', 'handeye_ros.offline',
+WORKER_PRELOAD = ('handeye_ros.runs', 'handeye_ros.offline',
                   'handeye_ros.core.pipeline', 'handeye_ros.evaluation.outputs')
 
 
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from .core.errors import HandeyeError
     from .evaluation.outputs import check_directory
-    from .evaluation.runs import read_manifest
+    from .runs import read_manifest
     try:
         if args.workers is not None and not 1 <= args.workers <= 256:
             raise HandeyeError(f'--workers must be 1-256, got {args.workers}')
@@ -103,7 +103,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     """Every run's row, in manifest order (cached rows reused); writes the tables and plots."""
     from tqdm import tqdm
 
-    from .evaluation.runs import (
+    from .runs import (
         cache_key,
         calibrate_run,
         code_fingerprint,
@@ -161,7 +161,7 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     """
     from distributed import Client, LocalCluster, as_completed
 
-    from .evaluation.runs import calibrate_run
+    from .runs import calibrate_run
     # the scheduler runs in this process: its INFO lines would bury the table's summary
     logging.getLogger('distributed').setLevel(logging.ERROR)
     cluster = None

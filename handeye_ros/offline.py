@@ -151,7 +151,7 @@ def load_options(path: str | None) -> dict[str, Any]:
     import yaml
 
     from .core.errors import ConfigError
-    from .ros.config import NODE_ONLY_KEYS
+    from .params import NODE_ONLY_KEYS
     try:
         data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
     except OSError as err:
@@ -193,7 +193,7 @@ def calibrate_args(args: argparse.Namespace,
                                    source=args.config or 'options')
     frames = streams.frames()  # files name no frames: the options or the fallbacks
     if args.bag:
-        from .formats.bag import replay
+        from .replay import replay
         given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
         from .core.pipeline import STEPS
         rec = replay(args.bag, streams, given=given, progress=args.progress)

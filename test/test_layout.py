@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import ast
 import os
 import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 from conftest import ROOT, run_cli
 
@@ -22,6 +24,54 @@ def test_core_and_offline_tool_do_not_import_rclpy() -> None:
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
                          check=True, cwd=ROOT).stdout.strip()
     assert out == '[]'
+
+
+#: One folder, one layer, lowest first: a module imports from its own layer or a lower one.
+#: The package's own top-level modules (offline, replay, params, report, runs, demo, evaluate)
+#: are the application layer, between the libraries and the ROS front end.
+LAYERS = ('core', 'stream', 'formats', 'evaluation', '<top level>', 'ros')
+
+
+def _layer(module: str) -> int:
+    parts = module.split('.')
+    sub = parts[1] if len(parts) > 1 and parts[1] in LAYERS else '<top level>'
+    return LAYERS.index(sub)
+
+
+def _imports(path, module: str) -> set[str]:
+    """Every handeye_ros module ``path`` imports, at module level or inside functions."""
+    package = module if path.name == '__init__.py' else module.rsplit('.', 1)[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.startswith('handeye_ros'))
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split('.')
+                base = base[:len(base) - node.level + 1]
+                target = '.'.join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ''
+            if not target.startswith('handeye_ros'):
+                continue
+            found.add(target)
+            # ``from . import offline`` imports a module, not a name
+            found.update(f'{target}.{a.name}' for a in node.names
+                         if (ROOT / Path(*f'{target}.{a.name}'.split('.'))).with_suffix('.py')
+                         .is_file())
+    return found
+
+
+def test_no_layer_imports_from_a_layer_above() -> None:
+    upward = []
+    for path in sorted((ROOT / 'handeye_ros').rglob('*.py')):
+        rel = path.relative_to(ROOT).with_suffix('')
+        module = '.'.join(rel.parts[:-1] if rel.name == '__init__' else rel.parts)
+        for target in _imports(path, module):
+            if _layer(target) > _layer(module):
+                upward.append(f'{module} ({LAYERS[_layer(module)]}) imports {target} '
+                              f'({LAYERS[_layer(target)]})')
+    assert not upward, '\n'.join(upward)
 
 
 def test_package_xml_and_setup_agree() -> None:

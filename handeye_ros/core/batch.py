@@ -53,7 +53,7 @@ from .geometry import (
     right_jacobian,
 )
 from .spline import PoseSpline, exp_so3, fit_spline
-from .trajectory import GAP_FACTOR, Trajectory
+from .trajectory import Trajectory
 from .uncertainty import (
     LongRunCovariance,
     huber_psi,
@@ -1090,6 +1090,12 @@ def _marginal_covariance(J, n_nuisance: int) -> np.ndarray:
 MIN_PIECE_COVERAGE = 0.5
 
 
+def _bridged_s(hand: Trajectory, knot_spacing: float, order: int) -> float:
+    """Longest hand interval [s] the spline bridges: a gap of the stream's own
+    (:meth:`Trajectory.gap_limit_s`) or the span of one spline segment's support."""
+    return max(knot_spacing * (order - 1), hand.gap_limit_s())
+
+
 def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
                       knot_spacing: float, order: int) -> tuple[Trajectory, str]:
     """The hand itself when it has no gap the spline cannot bridge; otherwise its gap-free part
@@ -1097,8 +1103,7 @@ def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
     MIN_PIECE_COVERAGE of them (a spline cannot bridge a gap, and eye residuals near one would
     compare the VIO with an invented motion). Raises BatchError otherwise."""
     step = np.diff(hand.t_ns) * 1e-9
-    limit = max(knot_spacing * (order - 1), GAP_FACTOR * float(np.median(step)))
-    cuts = np.flatnonzero(step > limit)
+    cuts = np.flatnonzero(step > _bridged_s(hand, knot_spacing, order))
     if not cuts.size:
         return hand, ''
     starts = np.concatenate(([0], cuts + 1))
@@ -1137,8 +1142,7 @@ def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int,
                          f'holds the spline to the MoCap) or set knot_spacing >= '
                          f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s')
     longest = float(step.max())
-    limit = max(knot_spacing * (order - 1), GAP_FACTOR * period)
-    if longest > limit:
+    if longest > _bridged_s(hand, knot_spacing, order):
         k = int(np.argmax(step))
         raise BatchError(f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '
                          f'spline (knots every {knot_spacing:g} s) would have control points '

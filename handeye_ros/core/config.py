@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from .options import Options, option
 
 PEAK_FITS = ('quadratic', 'none')
-#: Relative-pose strategies (see :mod:`.keyframes`); kept here so that reading the options
-#: does not import numpy and scipy (instant --help).
-STRATEGIES = ('rotation', 'global', 'interframe')
+#: Names of the relative-pose strategies, owned by :data:`.keyframes.STRATEGIES`; repeated here
+#: so that reading the options does not import numpy and scipy (instant --help).
+RELATIVE_POSES = ('rotation', 'global', 'interframe')
 
 
 #: Offsets beyond this many seconds are refused as options (317 years: an epoch difference
@@ -59,7 +59,7 @@ class CalibrationConfig(Options):
         '(integer peak, the baseline)', choices=PEAK_FITS)
     relative_poses: str = option(
         'rotation', 'str', 'relative motions: rotation (keyframes at least eta apart, the '
-        'paper), global or interframe', choices=STRATEGIES)
+        'paper), global or interframe', choices=RELATIVE_POSES)
     eta: float = option(
         5.0, 'float', 'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the '
         'rotation is noise', low=0.01, high=90.0)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import STRATEGIES
 from .trajectory import segment_spans
 
 
@@ -21,17 +20,22 @@ def motion_indices(R: np.ndarray, strategy: str = 'rotation',
 
     ``eta_rad`` is used by the ``rotation`` strategy only.
     """
-    n = R.shape[0]
-    if strategy == 'global':
-        j = np.arange(1, n)
-        return np.zeros_like(j), j
-    if strategy == 'interframe':
-        i = np.arange(n - 1)
-        return i, i + 1
-    if strategy == 'rotation':
-        return rotation_keyframes(R, eta_rad)
-    msg = f'relative_poses must be one of {STRATEGIES}, got {strategy!r}'
-    raise ValueError(msg)
+    if strategy not in STRATEGIES:
+        msg = f'relative_poses must be one of {tuple(STRATEGIES)}, got {strategy!r}'
+        raise ValueError(msg)
+    return STRATEGIES[strategy](R, eta_rad)
+
+
+def global_pairs(R: np.ndarray, eta_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame against the first (``eta_rad`` unused)."""
+    j = np.arange(1, R.shape[0])
+    return np.zeros_like(j), j
+
+
+def interframe_pairs(R: np.ndarray, eta_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive frames (``eta_rad`` unused)."""
+    i = np.arange(R.shape[0] - 1)
+    return i, i + 1
 
 
 def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
@@ -89,3 +93,9 @@ def segment_motion_indices(R: np.ndarray, segment: np.ndarray, strategy: str = '
     if not firsts:
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
     return np.concatenate(firsts), np.concatenate(seconds)
+
+
+#: The relative-pose strategies by name (the option ``relative_poses``; its choices in
+#: :mod:`.config` are these names, which test_config checks).
+STRATEGIES = {'rotation': rotation_keyframes, 'global': global_pairs,
+              'interframe': interframe_pairs}

@@ -153,6 +153,10 @@ class Trajectory:
         """The same poses with every stamp moved by ``delta_ns`` (int64 ns, exact)."""
         return replace(self, t_ns=self.t_ns + np.int64(delta_ns))
 
+    def gap_limit_s(self) -> float:
+        """Longest interval that is not a gap [s]: GAP_FACTOR median periods."""
+        return GAP_FACTOR * float(np.median(np.diff(self.t_ns))) * 1e-9
+
     def interval_ok(self) -> np.ndarray:
         """(N - 1,) bool: intervals that are neither a gap nor a break (see module docstring)."""
         step = np.diff(self.t_ns)

@@ -71,7 +71,7 @@ from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
-from .config import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
+from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from .lifecycle import spin, stop_requested
 
 #: Latched result topics: late subscribers get the last result.

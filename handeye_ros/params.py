@@ -1,17 +1,19 @@
-"""Options of the calibrator node itself (services, periodic work, QoS); no rclpy here.
+"""The node's parameters: its own options (services, periodic work, QoS), the params file and
+``--help`` generated from every option's spec; no rclpy here.
 
 With :class:`~handeye_ros.core.config.CalibrationConfig` and
-:class:`~handeye_ros.stream.config.StreamConfig` these are all of the node's parameters.
-The offline tool reads the same params file and ignores these.
+:class:`~handeye_ros.stream.config.StreamConfig` these are all of the node's parameters. The
+offline tool reads the same params file and ignores the node's own block
+(:data:`NODE_ONLY_KEYS`), which is why this lives beside it, below :mod:`handeye_ros.ros`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..core.config import CalibrationConfig
-from ..core.options import Options, Spec, option
-from ..stream.config import StreamConfig
+from .core.config import CalibrationConfig
+from .core.options import Options, Spec, option
+from .stream.config import StreamConfig
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,7 @@ PARAMS_HEADER = """\
 # Parameters of the calibrator node (ros2 run handeye_ros calibrator --ros-args
 # --params-file config/calibrator.yaml). offline_calibrate --config reads the same file and
 # ignores the node-only block. Every value is the default. Units: s, m, deg, Hz, rad.
-# Generated from the option specs by handeye_ros.ros.config.params_yaml(); do not edit.
+# Generated from the option specs by handeye_ros.params.params_yaml(); do not edit.
 """
 
 

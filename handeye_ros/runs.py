@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..core.errors import ConfigError
+from .core.errors import ConfigError
 
 #: Keys of a manifest run that are not calibration options.
 RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options',
@@ -176,9 +176,9 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
 
     Never raises for bad input: the row says ``status: failed`` and why.
     """
-    from .. import offline
-    from ..core.errors import HandeyeError
-    from ..report import write_result
+    from . import offline
+    from .core.errors import HandeyeError
+    from .report import write_result
     t0 = time.perf_counter()
     row: dict[str, Any] = {'name': run.name, 'algorithm': run.algorithm,
                            'sequence': run.sequence, 'trial': run.trial}

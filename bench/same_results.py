@@ -75,11 +75,16 @@ def flatten(value, prefix: str = '') -> dict:
     elif isinstance(value, (list, tuple)):
         for k, v in enumerate(value):
             out.update(flatten(v, f'{prefix}/{k}'))
-    elif isinstance(value, str):  # the data folder's path differs between checkouts
-        out[prefix] = re.sub(r'\S*/shared/data/real/', '<real>/', value)
+    elif isinstance(value, str):
+        out[prefix] = _portable(value)
     else:
         out[prefix] = value
     return out
+
+
+def _portable(text: str) -> str:
+    """The data folder's path differs between checkouts."""
+    return re.sub(r'\S*/shared/data/real/', '<real>/', text)
 
 
 def record() -> dict:
@@ -99,6 +104,8 @@ def differs(a, b) -> bool:
         if math.isnan(a) or math.isnan(b):
             return not (math.isnan(a) and math.isnan(b))
         return abs(a - b) > TOLERANCE * max(1.0, abs(a), abs(b))
+    if isinstance(a, str) and isinstance(b, str):
+        return _portable(a) != _portable(b)
     return a != b
 
 

@@ -210,7 +210,10 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns
     -------
     q, qd : ndarray, shape (..., 4)
-        Rotation and dual part (x y z w), |q| = 1 and q . qd = 0.
+        Rotation and dual part (x y z w), |q| = 1 and q . qd = 0. When no combination of the
+        two smallest singular vectors satisfies q . qd = 0 (the quadratic in their weights has
+        no real root, which noise far beyond a rank-6 system can cause), the combination
+        nearest to it is returned and :func:`pose_from_dual_quat` projects qd.
     sigma : ndarray, shape (..., 8)
         Singular values of the stacked system, descending (sigma[..., 6] is the paper's sigma7):
         the square roots of G's eigenvalues, since G = M^T M.

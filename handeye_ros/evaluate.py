@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-LOG = logging.getLogger('handeye_ros.evaluate')
+LOG = logging.getLogger('handeye_ros.evaluate')  # not __name__: it is __main__ under -m
 #: Exit code when nothing could be run (a bad manifest or option).
 EXIT_UNUSABLE = 101
 MAX_EXIT_FAILED = 100

@@ -21,7 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-LOG = logging.getLogger('handeye_ros')
+LOG = logging.getLogger('handeye_ros.offline')  # not __name__: it is __main__ under -m
 
 #: A run shorter than this (s) shows no progress bar.
 PROGRESS_DELAY_S = 2.0

@@ -74,6 +74,16 @@ def test_no_layer_imports_from_a_layer_above() -> None:
     assert not upward, '\n'.join(upward)
 
 
+def test_public_api_is_small_documented_and_lazy() -> None:
+    code = ('import sys, handeye_ros as h; before = "numpy" in sys.modules; '
+            'names = [n for n in h.__all__ if getattr(h, n).__doc__]; '
+            'print(before, names == h.__all__, "calibrate" in dir(h))')
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
+                         check=True, cwd=ROOT).stdout.split()
+    assert out == ['False', 'True', 'True']
+
+
 def test_package_xml_and_setup_agree() -> None:
     root = ET.parse(ROOT / 'package.xml').getroot()
     assert root.get('format') == '3'

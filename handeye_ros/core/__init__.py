@@ -1,0 +1,21 @@
+"""The algorithm: numpy and scipy only, never rclpy (test_layout checks it).
+
+Notation
+--------
+``T_A_B`` (also ``T_AB``) is the pose of frame B in frame A and reads right to left:
+``p_A = T_AB p_B``, and ``T_AC = T_AB T_BC``. Frames: G the MoCap world, H the MoCap marker
+(the *hand*), W the VIO world, E the VIO body (the *eye*). Both streams obey
+
+    T_WE(t) = T_WG T_GH(t - dt) T_HE
+
+so ``dt`` is the eye clock minus the hand clock for the same instant, ``T_HE`` the eye in the
+hand frame (the extrinsic) and ``T_WG`` the world alignment. Rotations are (..., 3, 3) arrays
+or Hamilton quaternions stored ``x y z w``; a pose is a tuple ``(R, p)`` of arrays, stacked
+along the first axis (array-first, as scipy.spatial.transform). Stamps are int64 nanoseconds;
+float seconds only after subtracting a common origin.
+
+The stages, in :func:`.pipeline.calibrate`'s order: :mod:`.time_align` (stage 1, eq. 1),
+:mod:`.keyframes` and :mod:`.linear` (stage 2, eq. 2-13 and Algorithm 1), :mod:`.spline` and
+:mod:`.batch` (stage 3, eq. 14-16). docs/method.md maps every equation to its function and
+lists the departures from the paper.
+"""

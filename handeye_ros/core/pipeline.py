@@ -74,7 +74,7 @@ from .time_align import TimeAlignment, align_time, align_time_vector
 from .trajectory import Trajectory
 from .world import Metrics, align_worlds, evaluate
 
-LOG = logging.getLogger('handeye_ros')
+LOG = logging.getLogger(__name__)
 
 #: A search window given by its guess alone is this wide on each side (s).
 DEFAULT_HALF_WINDOW_S = 0.5

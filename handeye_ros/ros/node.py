@@ -67,11 +67,11 @@ from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError, HandeyeError, InputError
 from ..core.options import Spec, split_options
 from ..evaluation.outputs import calibrate_snapshot
+from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
-from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from .lifecycle import spin, stop_requested
 
 #: Latched result topics: late subscribers get the last result.

@@ -29,9 +29,13 @@ from handeye_ros.core.time_align import align_time
 #: (label, relative poses, eta deg, robust kernel, decoupled refit)
 LINEAR_VARIANTS = [
     (f'{name} {"+" if kernel else "-"}kernel{suffix}', strategy, eta, kernel, refit)
-    for name, strategy, eta in (('global', 'global', 5.0), ('interframe', 'interframe', 5.0),
-                                ('rot eta=1', 'rotation', 1.0), ('rot eta=5', 'rotation', 5.0),
-                                ('rot eta=10', 'rotation', 10.0))
+    for name, strategy, eta in (
+        ('global', 'global', 5.0),
+        ('interframe', 'interframe', 5.0),
+        ('rot eta=1', 'rotation', 1.0),
+        ('rot eta=5', 'rotation', 5.0),
+        ('rot eta=10', 'rotation', 10.0),
+    )
     for kernel in (True, False)
     for refit, suffix in ((False, ' (paper)'), (True, ' +refit'))
 ]
@@ -62,8 +66,9 @@ def main() -> None:
                 if (strategy, eta) not in motions:
                     motions[strategy, eta] = build_motions(pairs, strategy, np.deg2rad(eta))
                 try:
-                    s = calibrate_linear(motions[strategy, eta], robust_kernel=kernel,
-                                         decoupled_refit=refit)
+                    s = calibrate_linear(
+                        motions[strategy, eta], robust_kernel=kernel, decoupled_refit=refit
+                    )
                 except HandeyeError:  # a failed variant counts as missing
                     continue
                 e = calibration_error(truth, truth.time_offset_s, s.q_HE, s.p_HE)
@@ -73,26 +78,60 @@ def main() -> None:
             full[a, b] = e.time_offset_s, e.translation_m, e.rotation_deg
     elapsed = time.perf_counter() - t0
 
-    emit('ablation_time_alignment', table(
-        f'Time alignment |dt error| [ms], mean (max) over {len(seeds)} seeds; hand 100 Hz, '
-        'eye 20 Hz, 60 s', ['level', 'noise mm/deg', 'quadratic', 'integer peak'],
-        [[f'{lv:g}', f'{noise_level(lv)[0] * 1e3:.1f}/{noise_level(lv)[1]:.2f}',
-          f'{dt_err["quadratic"][a].mean() * 1e3:.3f} ({dt_err["quadratic"][a].max() * 1e3:.2f})',
-          f'{dt_err["none"][a].mean() * 1e3:.3f} ({dt_err["none"][a].max() * 1e3:.2f})']
-         for a, lv in enumerate(levels)]))
+    emit(
+        'ablation_time_alignment',
+        table(
+            f'Time alignment |dt error| [ms], mean (max) over {len(seeds)} seeds; hand 100 Hz, '
+            'eye 20 Hz, 60 s',
+            ['level', 'noise mm/deg', 'quadratic', 'integer peak'],
+            [
+                [
+                    f'{lv:g}',
+                    f'{noise_level(lv)[0] * 1e3:.1f}/{noise_level(lv)[1]:.2f}',
+                    f'{dt_err["quadratic"][a].mean() * 1e3:.3f} ({dt_err["quadratic"][a].max() * 1e3:.2f})',
+                    f'{dt_err["none"][a].mean() * 1e3:.3f} ({dt_err["none"][a].max() * 1e3:.2f})',
+                ]
+                for a, lv in enumerate(levels)
+            ],
+        ),
+    )
     for k, (unit, scale) in enumerate((('mm', 1e3), ('deg', 1.0))):
-        emit(f'ablation_linear_{"translation" if k == 0 else "rotation"}', table(
-            f'Linear calibration on the true offset: extrinsic '
-            f'{"translation" if k == 0 else "rotation"} error [{unit}], mean over {len(seeds)} '
-            'seeds (nan: the variant failed on every seed)',
-            ['variant'] + [f'L{lv:g}' for lv in levels],
-            [[n] + [_mean(lin[c, a, :, k]) * scale for a in range(len(levels))]
-             for c, n in enumerate(names)]))
-    emit('ablation_pipeline', table(
-        f'Whole linear pipeline (offset estimated), mean over {len(seeds)} seeds',
-        ['level', '|dt| ms', 'trans mm', 'rot deg', 'max |dt| ms', 'max trans mm', 'max rot deg'],
-        [[f'{lv:g}', *(full[a].mean(axis=0) * [1e3, 1e3, 1]),
-          *(full[a].max(axis=0) * [1e3, 1e3, 1])] for a, lv in enumerate(levels)]))
+        emit(
+            f'ablation_linear_{"translation" if k == 0 else "rotation"}',
+            table(
+                f'Linear calibration on the true offset: extrinsic '
+                f'{"translation" if k == 0 else "rotation"} error [{unit}], mean over {len(seeds)} '
+                'seeds (nan: the variant failed on every seed)',
+                ['variant'] + [f'L{lv:g}' for lv in levels],
+                [
+                    [n] + [_mean(lin[c, a, :, k]) * scale for a in range(len(levels))]
+                    for c, n in enumerate(names)
+                ],
+            ),
+        )
+    emit(
+        'ablation_pipeline',
+        table(
+            f'Whole linear pipeline (offset estimated), mean over {len(seeds)} seeds',
+            [
+                'level',
+                '|dt| ms',
+                'trans mm',
+                'rot deg',
+                'max |dt| ms',
+                'max trans mm',
+                'max rot deg',
+            ],
+            [
+                [
+                    f'{lv:g}',
+                    *(full[a].mean(axis=0) * [1e3, 1e3, 1]),
+                    *(full[a].max(axis=0) * [1e3, 1e3, 1]),
+                ]
+                for a, lv in enumerate(levels)
+            ],
+        ),
+    )
     print(f'({elapsed:.1f} s)')
 
     plt = pyplot()
@@ -101,15 +140,22 @@ def main() -> None:
         for fit, label in (('quadratic', 'quadratic fit'), ('none', 'integer peak')):
             ax[0].plot(levels, dt_err[fit].mean(axis=1) * 1e3, 'o-', label=label)
         ax[0].set(xlabel='noise level', ylabel='|dt error| [ms]', title='time alignment')
-        for k, (scale, unit) in enumerate(((1e3, 'translation error [mm]'),
-                                           (1.0, 'rotation error [deg]'))):
+        for k, (scale, unit) in enumerate(
+            ((1e3, 'translation error [mm]'), (1.0, 'rotation error [deg]'))
+        ):
             for c, n in enumerate(names):
-                ax[k + 1].plot(levels, [_mean(lin[c, a, :, k]) * scale
-                                        for a in range(len(levels))],
-                               ('o-' if '+kernel' in n else 'x--') if 'refit' in n else ':',
-                               label=n)
-            ax[k + 1].set(xlabel='noise level', ylabel=unit, yscale='log',
-                          title='linear calibration (true offset)')
+                ax[k + 1].plot(
+                    levels,
+                    [_mean(lin[c, a, :, k]) * scale for a in range(len(levels))],
+                    ('o-' if '+kernel' in n else 'x--') if 'refit' in n else ':',
+                    label=n,
+                )
+            ax[k + 1].set(
+                xlabel='noise level',
+                ylabel=unit,
+                yscale='log',
+                title='linear calibration (true offset)',
+            )
         ax[0].legend()
         ax[2].legend(fontsize=7, ncol=2)
         print('plot:', save_plot(fig, 'ablation'))

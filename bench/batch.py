@@ -31,8 +31,13 @@ def recording(level: float, seed: int, hand_noise: float):
     """The paper protocol at ``level``, its own draw per (level, seed), MoCap noise per axis
     ``hand_noise`` (m and rad)."""
     nm, nd = noise_level(level)
-    return simulate(int(1000 * level) + seed, noise_m=nm, noise_deg=nd, hand_noise_m=hand_noise,
-                    hand_noise_deg=float(np.degrees(hand_noise)))
+    return simulate(
+        int(1000 * level) + seed,
+        noise_m=nm,
+        noise_deg=nd,
+        hand_noise_m=hand_noise,
+        hand_noise_deg=float(np.degrees(hand_noise)),
+    )
 
 
 def main() -> None:
@@ -62,30 +67,61 @@ def main() -> None:
                 secs.append(r1.batch.seconds)
                 sig.append(r1.batch.std[0])
         lin_m, bat_m = np.mean(lin, axis=0), np.mean(bat, axis=0)
-        rows.append([f'{level:g}', lin_m[0] * 1e3, bat_m[0] * 1e3, lin_m[1] * 1e3,
-                     bat_m[1] * 1e3, lin_m[2], bat_m[2],
-                     float(np.mean(sig)) * 1e3 if sig else float('nan'), f'{len(cov)}/{args.seeds}',
-                     float(np.mean(secs)) if secs else float('nan')])
+        rows.append(
+            [
+                f'{level:g}',
+                lin_m[0] * 1e3,
+                bat_m[0] * 1e3,
+                lin_m[1] * 1e3,
+                bat_m[1] * 1e3,
+                lin_m[2],
+                bat_m[2],
+                float(np.mean(sig)) * 1e3 if sig else float('nan'),
+                f'{len(cov)}/{args.seeds}',
+                float(np.mean(secs)) if secs else float('nan'),
+            ]
+        )
         c = np.mean(cov, axis=0) * 100 if cov else [np.nan] * 3
         cov_rows.append([f'{level:g}', *c])
         all_cov += cov
         curves.append((level, lin_m, bat_m))
-    emit('batch_accuracy', table(
-        f'Linear vs batch on the paper protocol, mean over {args.seeds} seeds (hand 100 Hz, '
-        'eye 20 Hz, 60 s)', ['level', 'dt lin ms', 'dt batch ms', 'trans lin mm',
-                             'trans batch mm', 'rot lin deg', 'rot batch deg',
-                             'reported 1-sigma dt ms', 'batch used', 'batch s'], rows))
+    emit(
+        'batch_accuracy',
+        table(
+            f'Linear vs batch on the paper protocol, mean over {args.seeds} seeds (hand 100 Hz, '
+            'eye 20 Hz, 60 s)',
+            [
+                'level',
+                'dt lin ms',
+                'dt batch ms',
+                'trans lin mm',
+                'trans batch mm',
+                'rot lin deg',
+                'rot batch deg',
+                'reported 1-sigma dt ms',
+                'batch used',
+                'batch s',
+            ],
+            rows,
+        ),
+    )
     c = np.mean(all_cov, axis=0) * 100
-    emit('batch_coverage', table(
-        'Truth inside the reported 3-sigma [% of seeds] (target >= 95)',
-        ['level', 'dt', 'translation', 'rotation'], cov_rows + [['all', *c]]))
+    emit(
+        'batch_coverage',
+        table(
+            'Truth inside the reported 3-sigma [% of seeds] (target >= 95)',
+            ['level', 'dt', 'translation', 'rotation'],
+            cov_rows + [['all', *c]],
+        ),
+    )
     print(f'({time.perf_counter() - t0:.0f} s)')
     plt = pyplot()
     if plt is not None:
         fig, ax = plt.subplots(1, 3, figsize=(15, 4))
         lv = [c[0] for c in curves]
-        for k, (name, scale) in enumerate((('|dt error| [ms]', 1e3), ('translation [mm]', 1e3),
-                                           ('rotation [deg]', 1.0))):
+        for k, (name, scale) in enumerate(
+            (('|dt error| [ms]', 1e3), ('translation [mm]', 1e3), ('rotation [deg]', 1.0))
+        ):
             ax[k].plot(lv, [c[1][k] * scale for c in curves], 'o-', label='linear')
             ax[k].plot(lv, [c[2][k] * scale for c in curves], 's-', label='batch')
             ax[k].set(xlabel='noise level', ylabel=name)
@@ -101,8 +137,10 @@ def joint_vs_default(args) -> None:
         err, cov, secs, sig = {'d': [], 'j': []}, [], {'d': [], 'j': []}, {'d': [], 'j': []}
         for seed in range(args.seeds):
             rec = recording(level, seed, args.hand_noise)
-            for key, cfg in (('d', CalibrationConfig()),
-                             ('j', CalibrationConfig(batch_joint=True))):
+            for key, cfg in (
+                ('d', CalibrationConfig()),
+                ('j', CalibrationConfig(batch_joint=True)),
+            ):
                 r = calibrate(rec.hand, rec.eye, cfg)
                 e = calibration_error(rec.truth, r.time_offset_s, r.q_HE, r.p_HE)
                 err[key].append((e.time_offset_s * 1e3, e.translation_m * 1e3, e.rotation_deg))
@@ -112,19 +150,53 @@ def joint_vs_default(args) -> None:
                     if key == 'j':
                         cov.append(covered(r, rec.truth))
         d, j = np.mean(err['d'], axis=0), np.mean(err['j'], axis=0)
-        rows.append([f'{level:g}', d[0], j[0], d[1], j[1], d[2], j[2], np.mean(sig['d']),
-                     np.mean(sig['j']), np.mean(secs['d']), np.mean(secs['j']),
-                     f"{len(secs['j'])}/{args.seeds}"])
+        rows.append(
+            [
+                f'{level:g}',
+                d[0],
+                j[0],
+                d[1],
+                j[1],
+                d[2],
+                j[2],
+                np.mean(sig['d']),
+                np.mean(sig['j']),
+                np.mean(secs['d']),
+                np.mean(secs['j']),
+                f'{len(secs["j"])}/{args.seeds}',
+            ]
+        )
         cov_rows.append([f'{level:g}', *(np.mean(cov, axis=0) * 100 if cov else [np.nan] * 3)])
-    emit('batch_joint', table(
-        f'Default (spline fixed to the MoCap) vs joint solve, mean over {args.seeds} seeds, '
-        f'MoCap noise {args.hand_noise:g} m / rad per axis',
-        ['level', 'dt def ms', 'dt joint ms', 'trans def mm', 'trans joint mm', 'rot def deg',
-         'rot joint deg', '1-sigma dt def ms', '1-sigma dt joint ms', 'def s', 'joint s',
-         'joint used'], rows))
-    emit('batch_joint_coverage', table(
-        'Joint solve: truth inside the reported 3-sigma [% of seeds]',
-        ['level', 'dt', 'translation', 'rotation'], cov_rows))
+    emit(
+        'batch_joint',
+        table(
+            f'Default (spline fixed to the MoCap) vs joint solve, mean over {args.seeds} seeds, '
+            f'MoCap noise {args.hand_noise:g} m / rad per axis',
+            [
+                'level',
+                'dt def ms',
+                'dt joint ms',
+                'trans def mm',
+                'trans joint mm',
+                'rot def deg',
+                'rot joint deg',
+                '1-sigma dt def ms',
+                '1-sigma dt joint ms',
+                'def s',
+                'joint s',
+                'joint used',
+            ],
+            rows,
+        ),
+    )
+    emit(
+        'batch_joint_coverage',
+        table(
+            'Joint solve: truth inside the reported 3-sigma [% of seeds]',
+            ['level', 'dt', 'translation', 'rotation'],
+            cov_rows,
+        ),
+    )
     print(f'({time.perf_counter() - t0:.0f} s)')
 
 

@@ -18,8 +18,11 @@ def table(title: str, header: Sequence[str], rows: Sequence[Sequence[object]]) -
     """A plain-text table (also written to bench/out/<title>.txt by :func:`emit`)."""
     cells = [[str(c) for c in header]] + [[_fmt(c) for c in row] for row in rows]
     widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
-    lines = [title, '  '.join(h.rjust(w) for h, w in zip(cells[0], widths, strict=True)),
-             '  '.join('-' * w for w in widths)]
+    lines = [
+        title,
+        '  '.join(h.rjust(w) for h, w in zip(cells[0], widths, strict=True)),
+        '  '.join('-' * w for w in widths),
+    ]
     lines += ['  '.join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells[1:]]
     return '\n'.join(lines)
 
@@ -34,15 +37,18 @@ def provenance(seeds: object = None) -> str:
 
     def git(*args: str) -> str:
         try:
-            return subprocess.run(['git', *args], cwd=ROOT, capture_output=True, text=True,
-                                  check=False, timeout=10).stdout.strip()
+            return subprocess.run(
+                ['git', *args], cwd=ROOT, capture_output=True, text=True, check=False, timeout=10
+            ).stdout.strip()
         except (OSError, subprocess.SubprocessError):
             return ''
+
     commit = git('rev-parse', '--short=12', 'HEAD') or 'unknown'
-    dirty = ' +uncommitted changes' if git('status', '--porcelain', '--untracked-files=no') \
-        else ''
-    line = (f'commit {commit}{dirty}; python {platform.python_version()}, numpy '
-            f'{np.__version__}, scipy {scipy.__version__}')
+    dirty = ' +uncommitted changes' if git('status', '--porcelain', '--untracked-files=no') else ''
+    line = (
+        f'commit {commit}{dirty}; python {platform.python_version()}, numpy '
+        f'{np.__version__}, scipy {scipy.__version__}'
+    )
     return line + (f'; seeds {seeds}' if seeds is not None else '')
 
 
@@ -71,6 +77,7 @@ def pyplot():
         return None
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -90,6 +97,7 @@ def covered(res, truth, white: bool = False) -> tuple[bool, bool, bool]:
     99.73 % quantile. ``white``: the batch stage's white covariance instead of the long-run
     one."""
     from scipy.spatial.transform import Rotation
+
     cov = res.batch.covariance_white if white else res.batch.covariance
     e_dt = res.time_offset_s - truth.time_offset_s
     e_t = truth.p_HE - res.p_HE

@@ -46,16 +46,19 @@ def world_error(gt: Trajectory, est: Trajectory) -> tuple[np.ndarray, np.ndarray
     return est.t_ns[ok], E[0], E[1]
 
 
-def make_case(motion: Trajectory, err: tuple[np.ndarray, np.ndarray, np.ndarray],
-              rng: np.random.Generator) -> tuple[Trajectory, Truth]:
+def make_case(
+    motion: Trajectory, err: tuple[np.ndarray, np.ndarray, np.ndarray], rng: np.random.Generator
+) -> tuple[Trajectory, Truth]:
     """The eye of the module docstring and its exact truth."""
     t_err, R_E, p_E = err
     axis = rng.normal(size=3)
-    truth = Truth(time_offset_s=float(rng.uniform(-0.3, 0.3)),
-                  q_HE=Rotation.random(random_state=rng).as_quat(),
-                  p_HE=axis / np.linalg.norm(axis) * rng.uniform(0.05, 0.25),
-                  q_WG=Rotation.random(random_state=rng).as_quat(),
-                  p_WG=rng.normal(0.0, 2.0, 3))
+    truth = Truth(
+        time_offset_s=float(rng.uniform(-0.3, 0.3)),
+        q_HE=Rotation.random(random_state=rng).as_quat(),
+        p_HE=axis / np.linalg.norm(axis) * rng.uniform(0.05, 0.25),
+        q_WG=Rotation.random(random_state=rng).as_quat(),
+        p_WG=rng.normal(0.0, 2.0, 3),
+    )
     dt_ns = round(truth.time_offset_s * 1e9)
     # B's stamps onto A's clock: the eye starts 1 s into A's span (+ the offset)
     t_eye = t_err - t_err[0] + int(motion.t_ns[0]) + 1_000_000_000 + dt_ns
@@ -94,31 +97,72 @@ def main() -> None:
             secs = time.perf_counter() - t0
             e = calibration_error(truth, res.time_offset_s, res.q_HE, res.p_HE)
             if res.batch is None:
-                rows.append([pa.name, pb.name, res.quality.verdict, e.time_offset_s * 1e3,
-                             e.translation_m * 1e3, e.rotation_deg, np.nan, np.nan, np.nan,
-                             'no batch', '', secs])
+                rows.append(
+                    [
+                        pa.name,
+                        pb.name,
+                        res.quality.verdict,
+                        e.time_offset_s * 1e3,
+                        e.translation_m * 1e3,
+                        e.rotation_deg,
+                        np.nan,
+                        np.nan,
+                        np.nan,
+                        'no batch',
+                        '',
+                        secs,
+                    ]
+                )
                 continue
             c, cw = covered(res, truth), covered(res, truth, white=True)
             hits.append(c)
             hits_white.append(cw)
             s = res.batch.std
-            rows.append([pa.name, pb.name, res.quality.verdict, e.time_offset_s * 1e3,
-                         e.translation_m * 1e3, e.rotation_deg, s[0] * 1e3,
-                         np.linalg.norm(s[1:4]) * 1e3, np.degrees(np.linalg.norm(s[4:7])),
-                         ''.join('y' if x else 'n' for x in c),
-                         ''.join('y' if x else 'n' for x in cw), secs])
+            rows.append(
+                [
+                    pa.name,
+                    pb.name,
+                    res.quality.verdict,
+                    e.time_offset_s * 1e3,
+                    e.translation_m * 1e3,
+                    e.rotation_deg,
+                    s[0] * 1e3,
+                    np.linalg.norm(s[1:4]) * 1e3,
+                    np.degrees(np.linalg.norm(s[4:7])),
+                    ''.join('y' if x else 'n' for x in c),
+                    ''.join('y' if x else 'n' for x in cw),
+                    secs,
+                ]
+            )
             print(f'  {pa.name} <- {pb.name}: {rows[-1][9]} (white {rows[-1][10]})', flush=True)
     h, hw = np.asarray(hits), np.asarray(hits_white)
-    emit('coverage_real', table(
-        'Coverage on real VIO errors with exact truth (motion: flight A ground truth; error: '
-        'flight B VIO error; covered = inside 3-sigma for dt, translation, rotation)',
-        ['motion A', 'error of B', 'verdict', '|dt err| ms', 'trans err mm', 'rot err deg',
-         '1-sigma dt ms', '1-sigma mm', '1-sigma deg', 'covered (long-run)',
-         'covered (white)', 's'], rows)
+    emit(
+        'coverage_real',
+        table(
+            'Coverage on real VIO errors with exact truth (motion: flight A ground truth; error: '
+            'flight B VIO error; covered = inside 3-sigma for dt, translation, rotation)',
+            [
+                'motion A',
+                'error of B',
+                'verdict',
+                '|dt err| ms',
+                'trans err mm',
+                'rot err deg',
+                '1-sigma dt ms',
+                '1-sigma mm',
+                '1-sigma deg',
+                'covered (long-run)',
+                'covered (white)',
+                's',
+            ],
+            rows,
+        )
         + f'\n\ninside 3-sigma over {h.shape[0]} cases: dt {h[:, 0].mean():.0%}, translation '
-          f'{h[:, 1].mean():.0%}, rotation {h[:, 2].mean():.0%} (long-run covariance); '
-          f'white covariance: dt {hw[:, 0].mean():.0%}, translation {hw[:, 1].mean():.0%}, '
-          f'rotation {hw[:, 2].mean():.0%}', seeds=args.seed)
+        f'{h[:, 1].mean():.0%}, rotation {h[:, 2].mean():.0%} (long-run covariance); '
+        f'white covariance: dt {hw[:, 0].mean():.0%}, translation {hw[:, 1].mean():.0%}, '
+        f'rotation {hw[:, 2].mean():.0%}',
+        seeds=args.seed,
+    )
 
 
 if __name__ == '__main__':

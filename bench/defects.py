@@ -62,9 +62,10 @@ QUICK_PAIRS = ('V2_01 mono', 'V2_02 stereo', 'MH_01 stereo', 'MH_05 mono')
 
 # ----------------------------------------------------------------------------- writers
 
+
 def stamp_text(t_ns: np.ndarray, unit: str, decimals: int | None = None) -> list[str]:
     """Exact decimal text of int64 ns stamps in ``unit`` (s, ms, us, ns), optionally rounded."""
-    scale = {'s': 10 ** 9, 'ms': 10 ** 6, 'us': 10 ** 3, 'ns': 1}[unit]
+    scale = {'s': 10**9, 'ms': 10**6, 'us': 10**3, 'ns': 1}[unit]
     digits = {'s': 9, 'ms': 6, 'us': 3, 'ns': 0}[unit]
     t = np.asarray(t_ns, dtype=np.int64)
     if decimals is not None and decimals < digits:
@@ -105,16 +106,20 @@ class Stream:
         if self.fmt == 'tum':
             qc = quat_columns(self.q, self.order)
             lines = ['# timestamp tx ty tz qx qy qz qw']
-            lines += [f'{s} {p[0]:.{dp}f} {p[1]:.{dp}f} {p[2]:.{dp}f} '
-                      f'{q[0]:.{dq}f} {q[1]:.{dq}f} {q[2]:.{dq}f} {q[3]:.{dq}f}'
-                      for s, p, q in zip(stamps, self.p, qc, strict=True)]
+            lines += [
+                f'{s} {p[0]:.{dp}f} {p[1]:.{dp}f} {p[2]:.{dp}f} '
+                f'{q[0]:.{dq}f} {q[1]:.{dq}f} {q[2]:.{dq}f} {q[3]:.{dq}f}'
+                for s, p, q in zip(stamps, self.p, qc, strict=True)
+            ]
         else:
             # EuRoC's columns are q_w, q_x, q_y, q_z: 'wxyz' is right, 'xyzw' the mistake
             qc = quat_columns(self.q, self.order)
             lines = ['#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []']
-            lines += [f'{s},{p[0]:.{dp}f},{p[1]:.{dp}f},{p[2]:.{dp}f},'
-                      f'{q[0]:.{dq}f},{q[1]:.{dq}f},{q[2]:.{dq}f},{q[3]:.{dq}f}'
-                      for s, p, q in zip(stamps, self.p, qc, strict=True)]
+            lines += [
+                f'{s},{p[0]:.{dp}f},{p[1]:.{dp}f},{p[2]:.{dp}f},'
+                f'{q[0]:.{dq}f},{q[1]:.{dq}f},{q[2]:.{dq}f},{q[3]:.{dq}f}'
+                for s, p, q in zip(stamps, self.p, qc, strict=True)
+            ]
         path.write_text('\n'.join(lines) + '\n')
 
 
@@ -128,6 +133,7 @@ def eye_stream(traj: Trajectory) -> Stream:
 
 # ----------------------------------------------------------------------------- defects
 
+
 @dataclass
 class Injected:
     hand: Stream
@@ -138,8 +144,9 @@ class Injected:
 Inject = Callable[[Stream, Stream, np.random.Generator], Injected]
 
 
-def _random_rotations(rng: np.random.Generator, n: int, lo_deg: float,
-                      hi_deg: float) -> np.ndarray:
+def _random_rotations(
+    rng: np.random.Generator, n: int, lo_deg: float, hi_deg: float
+) -> np.ndarray:
     axis = rng.normal(size=(n, 3))
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)
     return axis * np.deg2rad(rng.uniform(lo_deg, hi_deg, n))[:, None]
@@ -153,12 +160,14 @@ def _interior(rng: np.random.Generator, n: int, frac: float) -> np.ndarray:
 def placeholder(count: int) -> Inject:
     """Identity pose rows before the first estimate, 50 ms apart (an evaluation toolbox's
     convention, as in the published rpg files)."""
+
     def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
         t0 = e.t_ns[0]
         t = np.concatenate((t0 - 50_000_000 * np.arange(count, 0, -1), e.t_ns))
         p = np.concatenate((np.zeros((count, 3)), e.p))
         q = np.concatenate((np.tile([0.0, 0.0, 0.0, 1.0], (count, 1)), e.q))
         return Injected(h, Stream(t, p, q, e.fmt, e.unit, e.order))
+
     return f
 
 
@@ -183,10 +192,12 @@ class ScaledFirstRow(Stream):
         path.write_text('\n'.join(lines) + '\n')
 
 
-def wild_poses(stream: str, frac: float, rot_deg: tuple[float, float], trans_m: float,
-               zero: bool = False) -> Inject:
+def wild_poses(
+    stream: str, frac: float, rot_deg: tuple[float, float], trans_m: float, zero: bool = False
+) -> Inject:
     """A fraction of one stream's poses replaced by a wild one: a marker swap (large rotation,
     a few cm), a VIO glitch (a few degrees, tens of cm), or a MoCap dropout written as zeros."""
+
     def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
         s = h if stream == 'hand' else e
         idx = _interior(rng, s.t_ns.size, frac)
@@ -194,13 +205,20 @@ def wild_poses(stream: str, frac: float, rot_deg: tuple[float, float], trans_m: 
         if zero:
             p[idx], q[idx] = 0.0, [0.0, 0.0, 0.0, 1.0]
         else:
-            q[idx] = (Rotation.from_quat(q[idx])
-                      * Rotation.from_rotvec(_random_rotations(rng, idx.size, *rot_deg))).as_quat()
+            q[idx] = (
+                Rotation.from_quat(q[idx])
+                * Rotation.from_rotvec(_random_rotations(rng, idx.size, *rot_deg))
+            ).as_quat()
             d = rng.normal(size=(idx.size, 3))
-            p[idx] += d / np.linalg.norm(d, axis=1, keepdims=True) * \
-                rng.uniform(0.3, 1.0, (idx.size, 1)) * trans_m
+            p[idx] += (
+                d
+                / np.linalg.norm(d, axis=1, keepdims=True)
+                * rng.uniform(0.3, 1.0, (idx.size, 1))
+                * trans_m
+            )
         out = Stream(s.t_ns, p, q, s.fmt, s.unit, s.order)
         return Injected(out, e) if stream == 'hand' else Injected(h, out)
+
     return f
 
 
@@ -223,9 +241,11 @@ def vio_reset(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
 
 def offset(delta_s: float) -> Inject:
     """The hand clock runs delta_s behind: the true dt (eye minus hand) grows by delta_s."""
+
     def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
         t = h.t_ns - np.int64(round(delta_s * 1e9))
         return Injected(Stream(t, h.p, h.q, h.fmt, h.unit, h.order), e, delta_s)
+
     return f
 
 
@@ -233,28 +253,33 @@ def eye_boot_clock(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """The eye stamped in time since boot (first pose at 3612.3 s), the hand in Unix time."""
     boot0 = 3_612_345_678_901
     t = e.t_ns - e.t_ns[0] + boot0
-    return Injected(h, Stream(t, e.p, e.q, e.fmt, e.unit, e.order),
-                    float(boot0 - e.t_ns[0]) * 1e-9)
+    return Injected(
+        h, Stream(t, e.p, e.q, e.fmt, e.unit, e.order), float(boot0 - e.t_ns[0]) * 1e-9
+    )
 
 
 def stamp_unit(stream: str, unit: str) -> Inject:
     """One stream's stamps written in another unit than its format says (TUM: seconds;
     EuRoC: nanoseconds)."""
+
     def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
         s = h if stream == 'hand' else e
         out = Stream(s.t_ns, s.p, s.q, s.fmt, unit, s.order)
         return Injected(out, e) if stream == 'hand' else Injected(h, out)
+
     return f
 
 
 def quaternion_order(stream: str) -> Inject:
     """The quaternion written in the other order than the format's (w x y z in a TUM file,
     x y z w in a EuRoC CSV)."""
+
     def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
         s = h if stream == 'hand' else e
         wrong = 'wxyz' if s.order == 'xyzw' else 'xyzw'
         out = Stream(s.t_ns, s.p, s.q, s.fmt, s.unit, wrong)
         return Injected(out, e) if stream == 'hand' else Injected(h, out)
+
     return f
 
 
@@ -268,9 +293,10 @@ def rounded(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """Both files written as some tools do: stamps to the millisecond, positions to the
     millimetre, quaternions to 4 decimals."""
     t_h = (h.t_ns + 500_000) // 1_000_000 * 1_000_000
-    return Injected(Stream(t_h, h.p, h.q, h.fmt, h.unit, h.order, value_decimals=(3, 4)),
-                    Stream(e.t_ns, e.p, e.q, e.fmt, e.unit, e.order, stamp_decimals=3,
-                           value_decimals=(3, 4)))
+    return Injected(
+        Stream(t_h, h.p, h.q, h.fmt, h.unit, h.order, value_decimals=(3, 4)),
+        Stream(e.t_ns, e.p, e.q, e.fmt, e.unit, e.order, stamp_decimals=3, value_decimals=(3, 4)),
+    )
 
 
 DEFECTS: dict[str, Inject] = {
@@ -303,6 +329,7 @@ MOTION_CASES = ('planar', 'one_axis', 'repetitive', 'slow')
 
 # ----------------------------------------------------------------------------- cases
 
+
 @dataclass
 class Base:
     name: str
@@ -329,8 +356,9 @@ def real_bases(names: tuple[str, ...] | None) -> list[Base]:
         if names and pair.name not in names:
             continue
         gt, est = realdata.load(pair)
-        out.append(Base(pair.name, realdata.to_marker_frame(gt, SHIFT_S), est,
-                        Truth(SHIFT_S, q, p, q, p)))
+        out.append(
+            Base(pair.name, realdata.to_marker_frame(gt, SHIFT_S), est, Truth(SHIFT_S, q, p, q, p))
+        )
     return out
 
 
@@ -338,8 +366,9 @@ def sim_bases(motion: str = 'random') -> list[Base]:
     nm, nd = noise_level(3.0)
     out = []
     for seed in SIM_SEEDS:
-        rec = simulate(seed, hand_rate_hz=200.0, eye_rate_hz=20.0, noise_m=nm, noise_deg=nd,
-                       motion=motion)
+        rec = simulate(
+            seed, hand_rate_hz=200.0, eye_rate_hz=20.0, noise_m=nm, noise_deg=nd, motion=motion
+        )
         out.append(Base(f'sim {motion} {seed}', rec.hand, rec.eye, rec.truth))
     return out
 
@@ -360,37 +389,45 @@ def run_files(hand: Stream, eye: Stream, workdir: Path, config: CalibrationConfi
 
 
 def judge(res, ref_dt: float, ref_q: np.ndarray, ref_p: np.ndarray) -> tuple[bool, tuple]:
-    e = calibration_error(Truth(ref_dt, ref_q, ref_p, ref_q, ref_p), res.time_offset_s,
-                          res.q_HE, res.p_HE)
+    e = calibration_error(
+        Truth(ref_dt, ref_q, ref_p, ref_q, ref_p), res.time_offset_s, res.q_HE, res.p_HE
+    )
     errs = (e.time_offset_s * 1e3, e.translation_m * 1e3, e.rotation_deg)
-    ok = e.time_offset_s <= TOL_DT_S and e.translation_m <= TOL_T_M and \
-        e.rotation_deg <= TOL_R_DEG
+    ok = e.time_offset_s <= TOL_DT_S and e.translation_m <= TOL_T_M and e.rotation_deg <= TOL_R_DEG
     return ok, errs
 
 
-def evaluate(hand: Stream, eye: Stream, workdir: Path, config: CalibrationConfig,
-             ref: tuple[float, np.ndarray, np.ndarray]) -> Outcome:
+def evaluate(
+    hand: Stream,
+    eye: Stream,
+    workdir: Path,
+    config: CalibrationConfig,
+    ref: tuple[float, np.ndarray, np.ndarray],
+) -> Outcome:
     t0 = time.perf_counter()
     try:
         res = run_files(hand, eye, workdir, config)
     except HandeyeError as err:
         return Outcome('refused', message=str(err), seconds=time.perf_counter() - t0)
     except Exception as err:  # noqa: BLE001  (counted: a traceback for a user)
-        return Outcome('CRASH', message=f'{err!r} ' + traceback.format_exc(limit=-3),
-                       seconds=time.perf_counter() - t0)
+        return Outcome(
+            'CRASH',
+            message=f'{err!r} ' + traceback.format_exc(limit=-3),
+            seconds=time.perf_counter() - t0,
+        )
     ok, errs = judge(res, *ref)
     verdict, reasons = verdict_of(res)
     good = verdict == 'good'
     kind = ('ok' if good else 'flagged') if ok else ('WRONG' if good else 'honest')
-    return Outcome(kind, errs, verdict, reasons, '; '.join(res.warnings),
-                   time.perf_counter() - t0)
+    return Outcome(kind, errs, verdict, reasons, '; '.join(res.warnings), time.perf_counter() - t0)
 
 
 KINDS = ('ok', 'flagged', 'honest', 'refused', 'WRONG', 'CRASH')
 
 
-def defect_table(bases: list[Base], defects: dict[str, Inject], config: CalibrationConfig,
-                 details: list[list]) -> list[list]:
+def defect_table(
+    bases: list[Base], defects: dict[str, Inject], config: CalibrationConfig, details: list[list]
+) -> list[list]:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
@@ -402,8 +439,9 @@ def defect_table(bases: list[Base], defects: dict[str, Inject], config: Calibrat
                 _, errs = judge(r, b.truth.time_offset_s, b.truth.q_HE, b.truth.p_HE)
                 details.append([b.name, 'reference vs truth', verdict_of(r)[0], *errs, ''])
             except HandeyeError as err:
-                details.append([b.name, 'reference', 'refused', np.nan, np.nan, np.nan,
-                                str(err)[:100]])
+                details.append(
+                    [b.name, 'reference', 'refused', np.nan, np.nan, np.nan, str(err)[:100]]
+                )
         for name, inject in defects.items():
             counts: Counter[str] = Counter()
             worst = np.zeros(3)
@@ -414,17 +452,27 @@ def defect_table(bases: list[Base], defects: dict[str, Inject], config: Calibrat
                 rng = np.random.default_rng(1000 + k)
                 inj = inject(hand_stream(b.hand), eye_stream(b.eye), rng)
                 dt_ref, q_ref, p_ref = refs[b.name]
-                out = evaluate(inj.hand, inj.eye, workdir, config,
-                               (dt_ref + inj.extra_offset_s, q_ref, p_ref))
+                out = evaluate(
+                    inj.hand, inj.eye, workdir, config, (dt_ref + inj.extra_offset_s, q_ref, p_ref)
+                )
                 counts[out.kind] += 1
                 secs.append(out.seconds)
                 if out.kind in ('ok', 'flagged', 'honest', 'WRONG'):
                     worst = np.fmax(worst, out.errors)
-                details.append([b.name, name, f'{out.kind}/{out.verdict}', *out.errors,
-                                ('; '.join(out.reasons) or out.message)[:160]])
+                details.append(
+                    [
+                        b.name,
+                        name,
+                        f'{out.kind}/{out.verdict}',
+                        *out.errors,
+                        ('; '.join(out.reasons) or out.message)[:160],
+                    ]
+                )
             rows.append([name, *(counts[k] for k in KINDS), *worst, float(np.mean(secs))])
-            print(f'  {name}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS if counts[k]),
-                  flush=True)
+            print(
+                f'  {name}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS if counts[k]),
+                flush=True,
+            )
     return rows
 
 
@@ -438,18 +486,33 @@ def motion_table(config: CalibrationConfig, details: list[list]) -> list[list]:
             secs = []
             for b in sim_bases(motion):
                 t = b.truth
-                out = evaluate(hand_stream(b.hand), eye_stream(b.eye), workdir, config,
-                               (t.time_offset_s, t.q_HE, t.p_HE))
+                out = evaluate(
+                    hand_stream(b.hand),
+                    eye_stream(b.eye),
+                    workdir,
+                    config,
+                    (t.time_offset_s, t.q_HE, t.p_HE),
+                )
                 counts[out.kind] += 1
                 secs.append(out.seconds)
                 if out.kind in ('ok', 'flagged', 'honest', 'WRONG'):
                     worst = np.fmax(worst, out.errors)
-                details.append([b.name, f'motion {motion}', f'{out.kind}/{out.verdict}',
-                                *out.errors, ('; '.join(out.reasons) or out.message)[:160]])
-            rows.append([f'motion {motion}', *(counts[k] for k in KINDS), *worst,
-                         float(np.mean(secs))])
-            print(f'  motion {motion}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS
-                                                     if counts[k]), flush=True)
+                details.append(
+                    [
+                        b.name,
+                        f'motion {motion}',
+                        f'{out.kind}/{out.verdict}',
+                        *out.errors,
+                        ('; '.join(out.reasons) or out.message)[:160],
+                    ]
+                )
+            rows.append(
+                [f'motion {motion}', *(counts[k] for k in KINDS), *worst, float(np.mean(secs))]
+            )
+            print(
+                f'  motion {motion}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS if counts[k]),
+                flush=True,
+            )
     return rows
 
 
@@ -464,8 +527,11 @@ def published_table(config: CalibrationConfig, names: tuple[str, ...] | None) ->
         ref = calibrate(gt, est_clean, config)
         t0 = time.perf_counter()
         try:
-            res = calibrate(read_trajectory(root / pair.ground_truth),
-                            read_trajectory(root / pair.estimate), config)
+            res = calibrate(
+                read_trajectory(root / pair.ground_truth),
+                read_trajectory(root / pair.estimate),
+                config,
+            )
         except HandeyeError as err:
             rows.append([pair.name, 'refused', *([np.nan] * 6), str(err)[:80]])
             continue
@@ -482,8 +548,11 @@ def published_table(config: CalibrationConfig, names: tuple[str, ...] | None) ->
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    p.add_argument('--quick', action='store_true', help=f'real pairs {", ".join(QUICK_PAIRS)}'
-                   ' and one simulated seed')
+    p.add_argument(
+        '--quick',
+        action='store_true',
+        help=f'real pairs {", ".join(QUICK_PAIRS)} and one simulated seed',
+    )
     p.add_argument('--only', nargs='+', help='defect names (default: all)')
     p.add_argument('--pairs', nargs='+', help='real pair names (default: all 12)')
     p.add_argument('--no-published', action='store_true')
@@ -499,30 +568,64 @@ def main() -> None:
         bases = real_bases(names)
         print(f'real pairs: {", ".join(b.name for b in bases)}', flush=True)
         rows = defect_table(bases, defects, config, details)
-        emit('defects_real', table(
-            f'Defects injected into {len(bases)} real pairs (hand: EuRoC CSV in the Vicon marker '
-            f'frame, clock +{SHIFT_S * 1e3:.1f} ms; eye: the published VIO as TUM); accurate = '
-            f'within {TOL_DT_S * 1e3:g} ms, {TOL_T_M * 1e3:g} mm, {TOL_R_DEG} deg of the same '
-            'recording without the defect', header, rows), seeds)
+        emit(
+            'defects_real',
+            table(
+                f'Defects injected into {len(bases)} real pairs (hand: EuRoC CSV in the Vicon marker '
+                f'frame, clock +{SHIFT_S * 1e3:.1f} ms; eye: the published VIO as TUM); accurate = '
+                f'within {TOL_DT_S * 1e3:g} ms, {TOL_T_M * 1e3:g} mm, {TOL_R_DEG} deg of the same '
+                'recording without the defect',
+                header,
+                rows,
+            ),
+            seeds,
+        )
     else:
         print(f'real data not found at {realdata.REAL_DATA}: real cases skipped')
     if not args.no_sim:
-        sims = sim_bases()[:1 if args.quick else None]
+        sims = sim_bases()[: 1 if args.quick else None]
         rows = defect_table(sims, defects, config, details)
         if not args.only:
             rows += motion_table(config, details)
-        emit('defects_sim', table(
-            f'Defects injected into {len(sims)} simulated recordings (level 3, 200 Hz / 20 Hz) '
-            'and motion shapes against the truth', header, rows), seeds)
-    emit('defects_details', table('Every case', ['case', 'defect', 'outcome/verdict', 'dt ms',
-                                                 'mm', 'deg', 'reasons or message'], details),
-         seeds)
+        emit(
+            'defects_sim',
+            table(
+                f'Defects injected into {len(sims)} simulated recordings (level 3, 200 Hz / 20 Hz) '
+                'and motion shapes against the truth',
+                header,
+                rows,
+            ),
+            seeds,
+        )
+    emit(
+        'defects_details',
+        table(
+            'Every case',
+            ['case', 'defect', 'outcome/verdict', 'dt ms', 'mm', 'deg', 'reasons or message'],
+            details,
+        ),
+        seeds,
+    )
     if realdata.available() and not args.no_published:
-        emit('defects_published', table(
-            'Published VIO estimates as they are (placeholder rows, repeated stamps) against the '
-            'raw ground truth: error vs the hand-cleaned pair and vs identity / 0 s',
-            ['pair', 'verdict', 'dt ms (vs clean)', 'mm', 'deg', 'dt ms (vs identity)', 'mm',
-             'deg', 'notes'], published_table(config, names)))
+        emit(
+            'defects_published',
+            table(
+                'Published VIO estimates as they are (placeholder rows, repeated stamps) against the '
+                'raw ground truth: error vs the hand-cleaned pair and vs identity / 0 s',
+                [
+                    'pair',
+                    'verdict',
+                    'dt ms (vs clean)',
+                    'mm',
+                    'deg',
+                    'dt ms (vs identity)',
+                    'mm',
+                    'deg',
+                    'notes',
+                ],
+                published_table(config, names),
+            ),
+        )
 
 
 if __name__ == '__main__':

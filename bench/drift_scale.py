@@ -70,24 +70,49 @@ def drift_rows(cases, calibrate) -> list[list]:
             continue
         e = calibration_error(truth, truth.time_offset_s, res.q_HE, res.p_HE)
         e0 = calibration_error(truth, truth.time_offset_s, plain.q_HE, plain.p_HE)
-        d_err = (res.clock_drift - truth.clock_drift) * 1e6 if res.clock_drift is not None \
+        d_err = (
+            (res.clock_drift - truth.clock_drift) * 1e6
+            if res.clock_drift is not None
             else float('nan')
+        )
         d_std = res.eye_model.drift_std * 1e6 if res.clock_drift is not None else float('nan')
         end_err = np.abs(res.time_offset_at(ends) - true_ends) * 1e3
         plain_end = np.abs(plain.time_offset_at(ends) - true_ends) * 1e3
         named = 'clock_drift' in plain.quality.codes
-        rows.append([label, d_err, d_std, end_err.max(), plain_end.max(),
-                     e.translation_m * 1e3, e.rotation_deg, e0.translation_m * 1e3,
-                     e0.rotation_deg, 'yes' if named else 'no',
-                     res.quality.verdict + ('' if not res.quality.codes else
-                                            ' (' + ','.join(res.quality.codes) + ')'),
-                     f'{secs:.1f}'])
+        rows.append(
+            [
+                label,
+                d_err,
+                d_std,
+                end_err.max(),
+                plain_end.max(),
+                e.translation_m * 1e3,
+                e.rotation_deg,
+                e0.translation_m * 1e3,
+                e0.rotation_deg,
+                'yes' if named else 'no',
+                res.quality.verdict
+                + ('' if not res.quality.codes else ' (' + ','.join(res.quality.codes) + ')'),
+                f'{secs:.1f}',
+            ]
+        )
     return rows
 
 
-DRIFT_HEADER = ['case', 'drift err ppm', 'drift sigma ppm', 'dt err at ends ms',
-                'default: dt err at ends ms', 'T_HE mm', 'T_HE deg', 'default: mm',
-                'default: deg', 'default names it', 'verdict with --clock-drift', 's']
+DRIFT_HEADER = [
+    'case',
+    'drift err ppm',
+    'drift sigma ppm',
+    'dt err at ends ms',
+    'default: dt err at ends ms',
+    'T_HE mm',
+    'T_HE deg',
+    'default: mm',
+    'default: deg',
+    'default names it',
+    'verdict with --clock-drift',
+    's',
+]
 
 
 def sim3_scale(gt: Trajectory, est: Trajectory) -> float:
@@ -95,6 +120,7 @@ def sim3_scale(gt: Trajectory, est: Trajectory) -> float:
     ground truth's (both in the IMU frame, same clock) after the best rotation and translation
     (least squares over the matched positions; Umeyama 1991)."""
     from handeye_ros.core.association import associate
+
     pairs = associate(gt, est, 0.0)
     a = pairs.p_GH - pairs.p_GH.mean(axis=0)
     b = pairs.p_WE - pairs.p_WE.mean(axis=0)
@@ -116,56 +142,101 @@ def scale_rows(cases, calibrate) -> list[list]:
             continue
         s, sd = res.scale, res.eye_model.scale_std
         e = calibration_error(truth, truth.time_offset_s, res.q_HE, res.p_HE)
-        rows.append([label, s, sd, 100.0 * (s / s_true - 1.0),
-                     100.0 * (s / (s_true * ref) - 1.0) if ref is not None else float('nan'),
-                     abs(s - 1.0) / sd if s_true == 1.0 else float('nan'),
-                     sim3 if sim3 is not None else float('nan'),
-                     e.translation_m * 1e3, e.rotation_deg,
-                     res.quality.verdict + ('' if not res.quality.codes else
-                                            ' (' + ','.join(res.quality.codes) + ')'),
-                     f'{secs:.1f}'])
+        rows.append(
+            [
+                label,
+                s,
+                sd,
+                100.0 * (s / s_true - 1.0),
+                100.0 * (s / (s_true * ref) - 1.0) if ref is not None else float('nan'),
+                abs(s - 1.0) / sd if s_true == 1.0 else float('nan'),
+                sim3 if sim3 is not None else float('nan'),
+                e.translation_m * 1e3,
+                e.rotation_deg,
+                res.quality.verdict
+                + ('' if not res.quality.codes else ' (' + ','.join(res.quality.codes) + ')'),
+                f'{secs:.1f}',
+            ]
+        )
     return rows
 
 
-SCALE_HEADER = ['case', 's', 'sigma', 'err % vs truth', 'err % vs unmodified pair',
-                '|s-1|/sigma', "VIO's own s (Sim(3))", 'T_HE mm', 'T_HE deg', 'verdict', 's']
+SCALE_HEADER = [
+    'case',
+    's',
+    'sigma',
+    'err % vs truth',
+    'err % vs unmodified pair',
+    '|s-1|/sigma',
+    "VIO's own s (Sim(3))",
+    'T_HE mm',
+    'T_HE deg',
+    'verdict',
+    's',
+]
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    p.add_argument('--quick', action='store_true', help=f'real pairs {", ".join(QUICK_PAIRS)}, '
-                   'one simulated seed')
+    p.add_argument(
+        '--quick',
+        action='store_true',
+        help=f'real pairs {", ".join(QUICK_PAIRS)}, one simulated seed',
+    )
     p.add_argument('--no-sim', action='store_true')
     p.add_argument('--no-real', action='store_true')
     p.add_argument('--pairs', nargs='+')
     args = p.parse_args()
     from handeye_ros.core.pipeline import calibrate
+
     seeds = SIM_SEEDS[:1] if args.quick else SIM_SEEDS
     if not args.no_sim:
         nm, nd = noise_level(5)
         cases = []
         for seed in seeds:
             for ppm in DRIFTS_PPM:
-                rec = simulate(seed, duration_s=600.0, hand_rate_hz=200, eye_rate_hz=30,
-                               noise_m=nm, noise_deg=nd, clock_drift=ppm * 1e-6)
+                rec = simulate(
+                    seed,
+                    duration_s=600.0,
+                    hand_rate_hz=200,
+                    eye_rate_hz=30,
+                    noise_m=nm,
+                    noise_deg=nd,
+                    clock_drift=ppm * 1e-6,
+                )
                 cases.append((f'sim {seed} {ppm:g} ppm', rec.hand, rec.eye, rec.truth))
-        emit('drift_sim', table(
-            'Clock drift, simulated 10 min (200 Hz hand, 30 Hz eye, noise level 5): '
-            'targets drift within 5 ppm, dt at the ends within 2 ms, T_HE no worse than '
-            'without drift', DRIFT_HEADER, drift_rows(cases, calibrate)), seeds)
+        emit(
+            'drift_sim',
+            table(
+                'Clock drift, simulated 10 min (200 Hz hand, 30 Hz eye, noise level 5): '
+                'targets drift within 5 ppm, dt at the ends within 2 ms, T_HE no worse than '
+                'without drift',
+                DRIFT_HEADER,
+                drift_rows(cases, calibrate),
+            ),
+            seeds,
+        )
         cases = []
         for seed in seeds:
             base = simulate(seed, duration_s=120.0, noise_m=nm, noise_deg=nd)
-            cases.append((f'sim {seed} unscaled', base.hand, base.eye, base.truth, 1.0, None,
-                          None))
+            cases.append(
+                (f'sim {seed} unscaled', base.hand, base.eye, base.truth, 1.0, None, None)
+            )
             for s in SCALES:
                 rec = simulate(seed, duration_s=120.0, noise_m=nm, noise_deg=nd, scale=s)
-                cases.append((f'sim {seed} scale {s:g}', rec.hand, rec.eye, rec.truth, s, None,
-                              None))
-        emit('scale_sim', table(
-            'Monocular scale, simulated 2 min (100 Hz hand, 20 Hz eye, noise level 5) with '
-            '--scale: targets s within 0.5 %, T_HE within the unscaled case\'s error + 20 %',
-            SCALE_HEADER, scale_rows(cases, calibrate)), seeds)
+                cases.append(
+                    (f'sim {seed} scale {s:g}', rec.hand, rec.eye, rec.truth, s, None, None)
+                )
+        emit(
+            'scale_sim',
+            table(
+                'Monocular scale, simulated 2 min (100 Hz hand, 20 Hz eye, noise level 5) with '
+                "--scale: targets s within 0.5 %, T_HE within the unscaled case's error + 20 %",
+                SCALE_HEADER,
+                scale_rows(cases, calibrate),
+            ),
+            seeds,
+        )
     if args.no_real or not realdata.available():
         if not args.no_real:
             print(f'real data not found at {realdata.REAL_DATA}: real cases skipped')
@@ -186,19 +257,39 @@ def main() -> None:
         ref = calibrate(hand, est, CalibrationConfig(estimate_scale=True)).scale
         s_cases.append((f'{pair.name} metric', hand, est, truth, 1.0, None, sim3_scale(gt, est)))
         for s in SCALES:
-            s_cases.append((f'{pair.name} scale {s:g}', hand,
-                            replace(est, p_xyz=est.p_xyz / s), truth, s, ref, None))
-    emit('drift_real', table(
-        f'Clock drift put into the eye stamps of {len(names)} real pairs (durations 80-180 s): '
-        'drift error, dt at the ends against the truth (the pair\'s own offset error '
-        'included), T_HE against EuRoC\'s T_BS', DRIFT_HEADER, drift_rows(d_cases, calibrate)),
-        'no random draws')
-    emit('scale_real', table(
-        f'Monocular scale put into the eye positions of {len(names)} real pairs, with --scale; '
-        '"metric": the published VIO as it is, whose own scale error the Sim(3) column '
-        'measures independently (whole-trajectory position fit against the ground truth)',
-        SCALE_HEADER, scale_rows(s_cases, calibrate)),
-        'no random draws')
+            s_cases.append(
+                (
+                    f'{pair.name} scale {s:g}',
+                    hand,
+                    replace(est, p_xyz=est.p_xyz / s),
+                    truth,
+                    s,
+                    ref,
+                    None,
+                )
+            )
+    emit(
+        'drift_real',
+        table(
+            f'Clock drift put into the eye stamps of {len(names)} real pairs (durations 80-180 s): '
+            "drift error, dt at the ends against the truth (the pair's own offset error "
+            "included), T_HE against EuRoC's T_BS",
+            DRIFT_HEADER,
+            drift_rows(d_cases, calibrate),
+        ),
+        'no random draws',
+    )
+    emit(
+        'scale_real',
+        table(
+            f'Monocular scale put into the eye positions of {len(names)} real pairs, with --scale; '
+            '"metric": the published VIO as it is, whose own scale error the Sim(3) column '
+            'measures independently (whole-trajectory position fit against the ground truth)',
+            SCALE_HEADER,
+            scale_rows(s_cases, calibrate),
+        ),
+        'no random draws',
+    )
 
 
 if __name__ == '__main__':

@@ -48,13 +48,18 @@ SEED0 = 1000
 
 
 def _env() -> dict[str, str]:
-    return dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-                **SINGLE_THREAD)
+    return dict(
+        os.environ,
+        PYTHONPATH=str(ROOT),
+        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+        **SINGLE_THREAD,
+    )
 
 
 def write_runs(folder: Path, n: int, seconds: float) -> Path:
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.formats import write_tum
+
     nm, nd = noise_level(5.0)
     runs = []
     for k in range(n):
@@ -62,9 +67,17 @@ def write_runs(folder: Path, n: int, seconds: float) -> Path:
         h, e = folder / f'h{k:03d}.txt', folder / f'e{k:03d}.txt'
         write_tum(h, rec.hand)
         write_tum(e, rec.eye)
-        runs.append({'algorithm': f'alg{k % 4}', 'sequence': f'seq{k % 5}', 'trial': k,
-                     'hand': h.name, 'eye': e.name})
+        runs.append(
+            {
+                'algorithm': f'alg{k % 4}',
+                'sequence': f'seq{k % 5}',
+                'trial': k,
+                'hand': h.name,
+                'eye': e.name,
+            }
+        )
     import yaml
+
     path = folder / 'manifest.yaml'
     path.write_text(yaml.safe_dump({'runs': runs}))
     return path
@@ -73,38 +86,60 @@ def write_runs(folder: Path, n: int, seconds: float) -> Path:
 def evaluate(manifest: Path, out: Path, *extra: str) -> tuple[float, dict, list[dict]]:
     """Wall time, the -v phase timings and the rows of one evaluate command."""
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, '-m', 'handeye_ros.evaluate', str(manifest), '-o',
-                           str(out), '--no-cache', '--no-progress', '-v', *extra], env=_env(),
-                          cwd=ROOT, capture_output=True, text=True, check=False)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'handeye_ros.evaluate',
+            str(manifest),
+            '-o',
+            str(out),
+            '--no-cache',
+            '--no-progress',
+            '-v',
+            *extra,
+        ],
+        env=_env(),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         sys.exit(f'evaluate failed ({proc.returncode}): {proc.stderr[-2000:]}')
-    phases = {m.group(1): float(m.group(2)) for m in re.finditer(
-        r'timing: ([a-z ]+?) ([\d.]+) s', proc.stderr)}
+    phases = {
+        m.group(1): float(m.group(2))
+        for m in re.finditer(r'timing: ([a-z ]+?) ([\d.]+) s', proc.stderr)
+    }
     with (out / 'results.csv').open() as f:
         return wall, phases, list(csv.DictReader(f))
 
 
-KERNEL = '''
+KERNEL = """
 import time, numpy as np
 a = np.random.default_rng(0).random((2000, 3, 3)); b = np.random.default_rng(1).random((2000, 3, 3))
 t = time.perf_counter()
 for _ in range(2000):
     c = np.matmul(a, b); d = np.sin(c).sum()
 print(time.perf_counter() - t)
-'''
+"""
 
 
 def ceiling(workers: int) -> float:
     """Throughput of ``workers`` concurrent numpy processes over one alone (the kernel above,
     single-threaded BLAS), best of three."""
+
     def batch(n: int) -> float:
         t0 = time.perf_counter()
-        procs = [subprocess.Popen([sys.executable, '-c', KERNEL], env=_env(),
-                                  stdout=subprocess.DEVNULL) for _ in range(n)]
+        procs = [
+            subprocess.Popen([sys.executable, '-c', KERNEL], env=_env(), stdout=subprocess.DEVNULL)
+            for _ in range(n)
+        ]
         for p in procs:
             p.wait()
         return time.perf_counter() - t0
+
     one = min(batch(1) for _ in range(3))
     many_ = min(batch(workers) for _ in range(3))
     return workers * one / many_
@@ -117,27 +152,62 @@ def many(args: argparse.Namespace, tmp: Path) -> None:
     seq_work = sum(float(r['seconds']) for r in seq_rows)
     par_work = sum(float(r['seconds']) for r in par_rows)
     overhead = (par_ph['runs'] - par_work / args.workers) / (par_work / args.workers)
-    rows = [('sequential (one process)', f'{seq_wall:.1f}', f'{seq_ph["runs"]:.1f}', '',
-             f'{seq_work:.1f}', '', '', ''),
-            (f'LocalCluster, {args.workers} workers', f'{par_wall:.1f}', f'{par_ph["runs"]:.1f}',
-             f'{par_ph["cluster start"] + par_ph["cluster stop"]:.1f}', f'{par_work:.1f}',
-             f'{seq_wall / par_wall:.2f}x', f'{seq_ph["runs"] / par_ph["runs"]:.2f}x',
-             f'{overhead * 100:.1f} %')]
-    text = table(f'{args.runs} simulated {args.seconds:g}-s runs (100 Hz + 20 Hz, level 5)',
-                 ('how', 'wall s', 'runs phase s', 'cluster start+stop s', 'sum of runs s',
-                  'speed-up (wall)', 'speed-up (runs)', 'scheduler overhead'), rows)
+    rows = [
+        (
+            'sequential (one process)',
+            f'{seq_wall:.1f}',
+            f'{seq_ph["runs"]:.1f}',
+            '',
+            f'{seq_work:.1f}',
+            '',
+            '',
+            '',
+        ),
+        (
+            f'LocalCluster, {args.workers} workers',
+            f'{par_wall:.1f}',
+            f'{par_ph["runs"]:.1f}',
+            f'{par_ph["cluster start"] + par_ph["cluster stop"]:.1f}',
+            f'{par_work:.1f}',
+            f'{seq_wall / par_wall:.2f}x',
+            f'{seq_ph["runs"] / par_ph["runs"]:.2f}x',
+            f'{overhead * 100:.1f} %',
+        ),
+    ]
+    text = table(
+        f'{args.runs} simulated {args.seconds:g}-s runs (100 Hz + 20 Hz, level 5)',
+        (
+            'how',
+            'wall s',
+            'runs phase s',
+            'cluster start+stop s',
+            'sum of runs s',
+            'speed-up (wall)',
+            'speed-up (runs)',
+            'scheduler overhead',
+        ),
+        rows,
+    )
     by_pid: dict[str, list[float]] = {}
     for r in sorted(par_rows, key=lambda r: int(r['trial'])):
         by_pid.setdefault(r['pid'], []).append(float(r['rss_mb']))
-    mem = [(pid, len(v), f'{np.mean(v[:5]):.0f}', f'{np.mean(v[-5:]):.0f}', f'{max(v):.0f}')
-           for pid, v in by_pid.items()]
-    text += '\n\n' + table('worker resident memory after each run (MB)',
-                           ('worker pid', 'runs', 'first 5', 'last 5', 'max'), mem)
-    text += ('\n\nstatus: ' + ', '.join(f'{s} {sum(r["status"] == s for r in par_rows)}'
-                                         for s in ('ok', 'failed')))
+    mem = [
+        (pid, len(v), f'{np.mean(v[:5]):.0f}', f'{np.mean(v[-5:]):.0f}', f'{max(v):.0f}')
+        for pid, v in by_pid.items()
+    ]
+    text += '\n\n' + table(
+        'worker resident memory after each run (MB)',
+        ('worker pid', 'runs', 'first 5', 'last 5', 'max'),
+        mem,
+    )
+    text += '\n\nstatus: ' + ', '.join(
+        f'{s} {sum(r["status"] == s for r in par_rows)}' for s in ('ok', 'failed')
+    )
     limit = ceiling(args.workers)
-    text += (f'\n\nmachine ceiling: {args.workers} processes of a vectorised numpy kernel run '
-             f'{limit:.2f}x as fast as one (the most any scheduler can reach here)')
+    text += (
+        f'\n\nmachine ceiling: {args.workers} processes of a vectorised numpy kernel run '
+        f'{limit:.2f}x as fast as one (the most any scheduler can reach here)'
+    )
     emit('evaluate_many', text, seeds=f'{SEED0}..{SEED0 + args.runs - 1}')
 
 
@@ -145,10 +215,17 @@ def report(args: argparse.Namespace, tmp: Path) -> None:
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.evaluation.outputs import evaluate_and_write
+
     nm, nd = noise_level(5.0)
     seed = 7
-    rec = simulate(seed, duration_s=args.report_minutes * 60.0, hand_rate_hz=1000.0,
-                   eye_rate_hz=200.0, noise_m=nm, noise_deg=nd)
+    rec = simulate(
+        seed,
+        duration_s=args.report_minutes * 60.0,
+        hand_rate_hz=1000.0,
+        eye_rate_hz=200.0,
+        noise_m=nm,
+        noise_deg=nd,
+    )
     t0 = time.perf_counter()
     result = calibrate(rec.hand, rec.eye)
     t_cal = time.perf_counter() - t0
@@ -161,26 +238,46 @@ def report(args: argparse.Namespace, tmp: Path) -> None:
     t_all = time.perf_counter() - t0
     ours = out['evaluation']['calibrated']['ape_translation']
     evo = evo_ape(tmp / 'export', tmp / 'home')
-    rows = [('calibration (not counted)', f'{t_cal:.1f}'),
-            ('evaluation: APE/RPE with and without the calibration', f'{t_eval:.2f}'),
-            ('evaluation + exports + report (5 PNGs, report.html)', f'{t_all:.2f}')]
-    text = table(f'report of a {args.report_minutes:g}-minute recording (1 kHz + 200 Hz, '
-                 f'{len(rec.eye)} eye poses)', ('step', 'seconds'), rows)
-    diff = [(k, f'{ours[k] * 1e3:.6f}', f'{evo[k] * 1e3:.6f}',
-             f'{abs(ours[k] - evo[k]) * 1e3:.2e}') for k in ('rmse', 'mean', 'median', 'max')]
-    text += '\n\n' + table('evo_ape on our exports against our APE (mm)',
-                           ('statistic', 'ours', 'evo', '|difference|'), diff)
+    rows = [
+        ('calibration (not counted)', f'{t_cal:.1f}'),
+        ('evaluation: APE/RPE with and without the calibration', f'{t_eval:.2f}'),
+        ('evaluation + exports + report (5 PNGs, report.html)', f'{t_all:.2f}'),
+    ]
+    text = table(
+        f'report of a {args.report_minutes:g}-minute recording (1 kHz + 200 Hz, '
+        f'{len(rec.eye)} eye poses)',
+        ('step', 'seconds'),
+        rows,
+    )
+    diff = [
+        (k, f'{ours[k] * 1e3:.6f}', f'{evo[k] * 1e3:.6f}', f'{abs(ours[k] - evo[k]) * 1e3:.2e}')
+        for k in ('rmse', 'mean', 'median', 'max')
+    ]
+    text += '\n\n' + table(
+        'evo_ape on our exports against our APE (mm)',
+        ('statistic', 'ours', 'evo', '|difference|'),
+        diff,
+    )
     emit('evaluate_report', text, seeds=seed)
 
 
 def evo_ape(export: Path, home: Path) -> dict:
     home.mkdir(exist_ok=True)
     zip_path = export / 'ape.zip'
-    subprocess.run([str(Path(sys.executable).parent / 'evo_ape'), 'tum',
-                    str(export / 'groundtruth.tum'), str(export / 'estimate.tum'),
-                    '--save_results', str(zip_path), '--no_warnings'],
-                   env=dict(_env(), HOME=str(home), MPLBACKEND='Agg'), check=True,
-                   capture_output=True)
+    subprocess.run(
+        [
+            str(Path(sys.executable).parent / 'evo_ape'),
+            'tum',
+            str(export / 'groundtruth.tum'),
+            str(export / 'estimate.tum'),
+            '--save_results',
+            str(zip_path),
+            '--no_warnings',
+        ],
+        env=dict(_env(), HOME=str(home), MPLBACKEND='Agg'),
+        check=True,
+        capture_output=True,
+    )
     with zipfile.ZipFile(zip_path) as z:
         return json.loads(z.read('stats.json'))
 
@@ -190,6 +287,7 @@ def real(tmp: Path) -> None:
 
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.evaluation.outputs import evaluate_and_write
+
     if not realdata.available():
         print('real data not present: skipped')
         return
@@ -204,27 +302,51 @@ def real(tmp: Path) -> None:
         evo = evo_ape(export, tmp / 'home')
         ev = out['evaluation']
         base = ev['uncalibrated']
-        rows.append((pair.name, out['quality']['verdict'],
-                     f'{ev["calibrated"]["ape_translation"]["rmse"] * 1e3:.2f}',
-                     f'{abs(evo["rmse"] - ev["calibrated"]["ape_translation"]["rmse"]) * 1e3:.1e}',
-                     f'{ev["calibrated"]["ape_rotation"]["rmse"]:.2f}',
-                     f'{ev["calibrated"]["rpe_time_translation"]["rmse"] * 1e3:.1f}',
-                     'n/a' if base is None else
-                     f'{base["ape_translation"]["rmse"] * 1e3:.1f}',
-                     'n/a' if base is None else f'{base["ape_rotation"]["rmse"]:.1f}',
-                     'n/a' if base is None else
-                     f'{base["rpe_time_translation"]["rmse"] * 1e3:.1f}'))
-    text = table(f'real pairs (hand in the marker frame, clocks {shift:g} s apart): APE/RPE RMSE '
-                 'with our calibration, and as a user would align today (dt = 0, SE(3) '
-                 'Umeyama, no T_HE)',
-                 ('pair', 'verdict', 'APE mm', '|evo - ours| mm', 'APE deg', 'RPE 1 s mm',
-                  'without: APE mm', 'APE deg', 'RPE 1 s mm'), rows)
+        rows.append(
+            (
+                pair.name,
+                out['quality']['verdict'],
+                f'{ev["calibrated"]["ape_translation"]["rmse"] * 1e3:.2f}',
+                f'{abs(evo["rmse"] - ev["calibrated"]["ape_translation"]["rmse"]) * 1e3:.1e}',
+                f'{ev["calibrated"]["ape_rotation"]["rmse"]:.2f}',
+                f'{ev["calibrated"]["rpe_time_translation"]["rmse"] * 1e3:.1f}',
+                'n/a' if base is None else f'{base["ape_translation"]["rmse"] * 1e3:.1f}',
+                'n/a' if base is None else f'{base["ape_rotation"]["rmse"]:.1f}',
+                'n/a' if base is None else f'{base["rpe_time_translation"]["rmse"] * 1e3:.1f}',
+            )
+        )
+    text = table(
+        f'real pairs (hand in the marker frame, clocks {shift:g} s apart): APE/RPE RMSE '
+        'with our calibration, and as a user would align today (dt = 0, SE(3) '
+        'Umeyama, no T_HE)',
+        (
+            'pair',
+            'verdict',
+            'APE mm',
+            '|evo - ours| mm',
+            'APE deg',
+            'RPE 1 s mm',
+            'without: APE mm',
+            'APE deg',
+            'RPE 1 s mm',
+        ),
+        rows,
+    )
     emit('evaluate_real', text, seeds='none (real data)')
 
 
-DEFECT_CASES = ('clean (files)', 'placeholder pose', 'mocap swaps 1%', 'vio glitches 5%',
-                'vio reset', 'offset -30 s', 'eye boot clock', 'eye stamps ms', 'eye quat wxyz',
-                'hand stamps us')
+DEFECT_CASES = (
+    'clean (files)',
+    'placeholder pose',
+    'mocap swaps 1%',
+    'vio glitches 5%',
+    'vio reset',
+    'offset -30 s',
+    'eye boot clock',
+    'eye stamps ms',
+    'eye quat wxyz',
+    'hand stamps us',
+)
 DEFECT_PAIRS = ('V1_01 openvins', 'MH_03 stereo')
 DEFECT_SEED0 = 1000
 
@@ -232,6 +354,7 @@ DEFECT_SEED0 = 1000
 def defects(tmp: Path) -> None:
     import defects as dfx
     import realdata
+
     if not realdata.available():
         print('real data not present: skipped')
         return
@@ -246,29 +369,81 @@ def defects(tmp: Path) -> None:
             ep = work / ('eye.csv' if inj.eye.fmt == 'euroc' else 'eye.txt')
             inj.hand.write(hp)
             inj.eye.write(ep)
-            proc = subprocess.run([sys.executable, '-m', 'handeye_ros.offline', '--hand', str(hp),
-                                   '--eye', str(ep), '--json', '--export', str(work / 'ex'),
-                                   '--report', str(work / 'rep')], env=_env(), cwd=ROOT,
-                                  capture_output=True, text=True, check=False)
+            proc = subprocess.run(
+                [
+                    sys.executable,
+                    '-m',
+                    'handeye_ros.offline',
+                    '--hand',
+                    str(hp),
+                    '--eye',
+                    str(ep),
+                    '--json',
+                    '--export',
+                    str(work / 'ex'),
+                    '--report',
+                    str(work / 'rep'),
+                ],
+                env=_env(),
+                cwd=ROOT,
+                capture_output=True,
+                text=True,
+                check=False,
+            )
             tb = 'Traceback' in proc.stderr
             if proc.returncode != 0:
-                rows.append((base.name, name, proc.returncode, tb, '', '', '', '', '',
-                             proc.stderr.strip().splitlines()[-1][:70] if proc.stderr else ''))
+                rows.append(
+                    (
+                        base.name,
+                        name,
+                        proc.returncode,
+                        tb,
+                        '',
+                        '',
+                        '',
+                        '',
+                        '',
+                        proc.stderr.strip().splitlines()[-1][:70] if proc.stderr else '',
+                    )
+                )
                 continue
             d = json.loads(proc.stdout)
             ev = d['evaluation']
             ours = ev['calibrated']['ape_translation']['rmse']
             evo = evo_ape(work / 'ex', tmp / 'home')['rmse']
             base_ape = ev['uncalibrated']
-            rows.append((base.name, name, proc.returncode, tb, d['quality']['verdict'],
-                         f'{ours * 1e3:.1f}', f'{abs(evo - ours) * 1e3:.1e}',
-                         (work / 'rep' / 'report.html').is_file(),
-                         'n/a' if base_ape is None else
-                         f'{base_ape["ape_translation"]["rmse"] * 1e3:.0f}',
-                         (ev['uncalibrated_why'] or '')[:70]))
-    text = table('defects of real recordings through offline_calibrate --export --report',
-                 ('pair', 'defect', 'exit', 'traceback', 'verdict', 'APE mm', '|evo - ours| mm',
-                  'report', 'without: APE mm', 'without: why not / error'), rows)
+            rows.append(
+                (
+                    base.name,
+                    name,
+                    proc.returncode,
+                    tb,
+                    d['quality']['verdict'],
+                    f'{ours * 1e3:.1f}',
+                    f'{abs(evo - ours) * 1e3:.1e}',
+                    (work / 'rep' / 'report.html').is_file(),
+                    'n/a'
+                    if base_ape is None
+                    else f'{base_ape["ape_translation"]["rmse"] * 1e3:.0f}',
+                    (ev['uncalibrated_why'] or '')[:70],
+                )
+            )
+    text = table(
+        'defects of real recordings through offline_calibrate --export --report',
+        (
+            'pair',
+            'defect',
+            'exit',
+            'traceback',
+            'verdict',
+            'APE mm',
+            '|evo - ours| mm',
+            'report',
+            'without: APE mm',
+            'without: why not / error',
+        ),
+        rows,
+    )
     emit('evaluate_defects', text, seeds=f'{DEFECT_SEED0} + case index')
 
 

@@ -31,8 +31,11 @@ from common import emit, table
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.pop('ROS_LOCALHOST_ONLY', None)
 os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 101)))
-ENV = dict(os.environ, PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
-           PYTHONUNBUFFERED='1')
+ENV = dict(
+    os.environ,
+    PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
+    PYTHONUNBUFFERED='1',
+)
 
 
 def rss_mb(pid: int) -> float:
@@ -51,6 +54,7 @@ class Probe:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from std_srvs.srv import Trigger
+
         rclpy.init()
         self.rclpy, self.Trigger = rclpy, Trigger
         self.node = Node('bench_probe')
@@ -85,9 +89,14 @@ class Probe:
 
 
 def start(module: str, *args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, '-m', module, *args], env=ENV,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+    return subprocess.Popen(
+        [sys.executable, '-m', module, *args],
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
 
 
 def stop(p: subprocess.Popen) -> None:
@@ -101,6 +110,7 @@ def stop(p: subprocess.Popen) -> None:
 
 def sent_counts(pub: subprocess.Popen) -> dict:
     import json
+
     out, _ = pub.communicate(timeout=600)
     return json.loads(out.strip().splitlines()[-1])['sent']
 
@@ -108,8 +118,19 @@ def sent_counts(pub: subprocess.Popen) -> dict:
 def ingest(probe: Probe, minutes: float) -> None:
     node = start('handeye_ros.ros.calibrator', '--ros-args', '-p', 'buffer_duration:=20.0')
     time.sleep(1.0)
-    pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '1000', '--eye-rate', '200',
-                '--duration', str(60 * minutes), '--rate', '1200', '--level', '2')
+    pub = start(
+        'handeye_ros.ros.sim_publisher',
+        '--hand-rate',
+        '1000',
+        '--eye-rate',
+        '200',
+        '--duration',
+        str(60 * minutes),
+        '--rate',
+        '1200',
+        '--level',
+        '2',
+    )
     samples = []
     t0 = time.monotonic()
     while pub.poll() is None:
@@ -120,25 +141,56 @@ def ingest(probe: Probe, minutes: float) -> None:
     rows = []
     for s in ('hand', 'eye'):
         d = probe.stream(s)
-        rows.append([s, sent[s], d.get('received'), sent[s] - int(d.get('received', 0)),
-                     d.get('buffered'), d.get('dropped'), d.get('rate_hz')])
+        rows.append(
+            [
+                s,
+                sent[s],
+                d.get('received'),
+                sent[s] - int(d.get('received', 0)),
+                d.get('buffered'),
+                d.get('dropped'),
+                d.get('rate_hz'),
+            ]
+        )
     stop(node)
-    emit('node_ingest', table(
-        f'(a) Ingest 1 kHz hand + 200 Hz eye for {minutes:g} min from a separate process '
-        '(buffer_duration 20 s)', ['stream', 'published', 'received', 'lost', 'buffered',
-                                   'dropped (buffer)', 'rate Hz'], rows))
+    emit(
+        'node_ingest',
+        table(
+            f'(a) Ingest 1 kHz hand + 200 Hz eye for {minutes:g} min from a separate process '
+            '(buffer_duration 20 s)',
+            ['stream', 'published', 'received', 'lost', 'buffered', 'dropped (buffer)', 'rate Hz'],
+            rows,
+        ),
+    )
     total = 60 * minutes
     at = sorted({2, 10, 20, 30, *(round(total * f) for f in (0.25, 0.5, 0.75, 1.0))})
     marks = [s for s in samples if int(s[0]) in at]
-    emit('node_memory', table('(a) Node resident memory during ingest',
-                              ['t s', 'RSS MB'], [[f'{t:.0f}', m] for t, m in marks]))
+    emit(
+        'node_memory',
+        table(
+            '(a) Node resident memory during ingest',
+            ['t s', 'RSS MB'],
+            [[f'{t:.0f}', m] for t, m in marks],
+        ),
+    )
 
 
 def calibrate_while_ingesting(probe: Probe) -> None:
     node = start('handeye_ros.ros.calibrator')
     time.sleep(1.0)
-    pub = start('handeye_ros.ros.sim_publisher', '--hand-rate', '200', '--eye-rate', '30',
-                '--duration', '400', '--rate', '1500', '--level', '3')
+    pub = start(
+        'handeye_ros.ros.sim_publisher',
+        '--hand-rate',
+        '200',
+        '--eye-rate',
+        '30',
+        '--duration',
+        '400',
+        '--rate',
+        '1500',
+        '--level',
+        '3',
+    )
     while pub.poll() is None and float(probe.stream('eye').get('buffered_span_s', 0)) < 300.0:
         time.sleep(0.2)
     before = {s: int(probe.stream(s).get('received', 0)) for s in ('hand', 'eye')}
@@ -149,37 +201,78 @@ def calibrate_while_ingesting(probe: Probe) -> None:
     time.sleep(2.0)
     lost = {s: sent[s] - int(probe.stream(s).get('received', 0)) for s in ('hand', 'eye')}
     stop(node)
-    emit('node_calibrate', table(
-        '(b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while ingest continues '
-        '(1500 msg/s)', ['round trip s', 'success', 'msgs received meanwhile', 'lost overall',
-                         'answer'],
-        [[took, ok, f'{during["hand"]} + {during["eye"]}', f'{lost["hand"]} + {lost["eye"]}',
-          message[:60]]]))
+    emit(
+        'node_calibrate',
+        table(
+            '(b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while ingest continues '
+            '(1500 msg/s)',
+            ['round trip s', 'success', 'msgs received meanwhile', 'lost overall', 'answer'],
+            [
+                [
+                    took,
+                    ok,
+                    f'{during["hand"]} + {during["eye"]}',
+                    f'{lost["hand"]} + {lost["eye"]}',
+                    message[:60],
+                ]
+            ],
+        ),
+    )
 
 
 def offline_bag() -> None:
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.formats.bag import write_recording
+
     nm, nd = noise_level(3)
-    rec = simulate(2, duration_s=600, hand_rate_hz=200, eye_rate_hz=30, noise_m=nm,
-                   noise_deg=nd)
+    rec = simulate(2, duration_s=600, hand_rate_hz=200, eye_rate_hz=30, noise_m=nm, noise_deg=nd)
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / 'ten_minutes'
-        write_recording(bag, [('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
-                              ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')], 'mcap')
-        size = sum(f.stat().st_size for f in bag.iterdir()) / 2 ** 20
+        write_recording(
+            bag,
+            [
+                ('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
+                ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu'),
+            ],
+            'mcap',
+        )
+        size = sum(f.stat().st_size for f in bag.iterdir()) / 2**20
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, '-m', 'handeye_ros.offline', '--bag', str(bag),
-                               '--json', '--no-progress'], env=ENV, capture_output=True,
-                              text=True, check=True)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                '-m',
+                'handeye_ros.offline',
+                '--bag',
+                str(bag),
+                '--json',
+                '--no-progress',
+            ],
+            env=ENV,
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         took = time.perf_counter() - t0
     import json
+
     d = json.loads(proc.stdout)
-    emit('offline_bag', table(
-        '(c) offline_calibrate --bag on a 10-minute mcap bag (200 Hz + 30 Hz), end to end '
-        '(process start to result)', ['messages', 'bag MB', 'wall s', '|dt error| ms'],
-        [[len(rec.hand) + len(rec.eye), size, took,
-          abs(d['time_offset'] - rec.truth.time_offset_s) * 1e3]]))
+    emit(
+        'offline_bag',
+        table(
+            '(c) offline_calibrate --bag on a 10-minute mcap bag (200 Hz + 30 Hz), end to end '
+            '(process start to result)',
+            ['messages', 'bag MB', 'wall s', '|dt error| ms'],
+            [
+                [
+                    len(rec.hand) + len(rec.eye),
+                    size,
+                    took,
+                    abs(d['time_offset'] - rec.truth.time_offset_s) * 1e3,
+                ]
+            ],
+        ),
+    )
 
 
 def main() -> None:

@@ -37,8 +37,9 @@ MOMENTS = ('starting', 'receiving', 'calibrating', 'idle')
 
 
 def session_processes(sid: int) -> list[str]:
-    rows = subprocess.run(['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True,
-                          text=True, check=True).stdout.splitlines()
+    rows = subprocess.run(
+        ['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True, text=True, check=True
+    ).stdout.splitlines()
     return [r.strip() for r in rows if r.split()[0] == str(sid)]
 
 
@@ -50,8 +51,17 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
     elif moment == 'interpreter start':
         time.sleep(0.05)
     else:
-        pub = start('handeye_ros.ros.sim_publisher', '--duration', '20', '--rate', '3000',
-                    '--seed', str(rng.randrange(1000)), '--level', '2')
+        pub = start(
+            'handeye_ros.ros.sim_publisher',
+            '--duration',
+            '20',
+            '--rate',
+            '3000',
+            '--seed',
+            str(rng.randrange(1000)),
+            '--level',
+            '2',
+        )
         if moment == 'receiving':
             time.sleep(rng.uniform(1.5, 2.5))
         else:
@@ -79,16 +89,22 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
         pub.kill()
         pub.wait()
     time.sleep(0.5)
-    return {'rc': node.returncode, 'tracebacks': err.count('Traceback'),
-            'left': session_processes(node.pid), 'stop_s': stop_s, 'err': err}
+    return {
+        'rc': node.returncode,
+        'tracebacks': err.count('Traceback'),
+        'left': session_processes(node.pid),
+        'stop_s': stop_s,
+        'err': err,
+    }
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--cycles', type=int, default=100)
     p.add_argument('--seed', type=int, default=0)
-    p.add_argument('--early', type=int, default=10,
-                   help='cycles stopped 0.05 s after the exec (the last row)')
+    p.add_argument(
+        '--early', type=int, default=10, help='cycles stopped 0.05 s after the exec (the last row)'
+    )
     args = p.parse_args()
     rng = random.Random(args.seed)
     probe = Probe()
@@ -100,26 +116,59 @@ def main() -> None:
             r = cycle(probe, moment, how, rng)
             results.setdefault((how, moment), []).append(r)
             if r['rc'] != 0 or r['tracebacks'] or r['left']:
-                print(f'cycle {k} ({how}, {moment}): rc {r["rc"]}, left {r["left"]}\n'
-                      f'{r["err"][-2000:]}', flush=True)
+                print(
+                    f'cycle {k} ({how}, {moment}): rc {r["rc"]}, left {r["left"]}\n'
+                    f'{r["err"][-2000:]}',
+                    flush=True,
+                )
         for _ in range(args.early):
             results.setdefault(('ctrl-c', 'interpreter start'), []).append(
-                cycle(probe, 'interpreter start', 'ctrl-c', rng))
+                cycle(probe, 'interpreter start', 'ctrl-c', rng)
+            )
     finally:
         probe.close()
     rows = []
     for (how, moment), rs in sorted(results.items()):
-        rows.append([how, moment, len(rs), sum(r['rc'] != 0 for r in rs),
-                     sum(r['tracebacks'] for r in rs), sum(len(r['left']) for r in rs),
-                     max(r['stop_s'] for r in rs)])
+        rows.append(
+            [
+                how,
+                moment,
+                len(rs),
+                sum(r['rc'] != 0 for r in rs),
+                sum(r['tracebacks'] for r in rs),
+                sum(len(r['left']) for r in rs),
+                max(r['stop_s'] for r in rs),
+            ]
+        )
     total = [r for (_, m), rs in results.items() if m in MOMENTS for r in rs]
-    rows.append(['all four moments', '', len(total), sum(r['rc'] != 0 for r in total),
-                 sum(r['tracebacks'] for r in total), sum(len(r['left']) for r in total),
-                 max(r['stop_s'] for r in total)])
-    emit('node_lifecycle', table(
-        f'Calibrator node: {args.cycles} start/stop cycles under real signals',
-        ['signal', 'stopped while', 'cycles', 'exit code != 0', 'tracebacks',
-         'processes left', 'longest stop s'], rows), seeds=args.seed)
+    rows.append(
+        [
+            'all four moments',
+            '',
+            len(total),
+            sum(r['rc'] != 0 for r in total),
+            sum(r['tracebacks'] for r in total),
+            sum(len(r['left']) for r in total),
+            max(r['stop_s'] for r in total),
+        ]
+    )
+    emit(
+        'node_lifecycle',
+        table(
+            f'Calibrator node: {args.cycles} start/stop cycles under real signals',
+            [
+                'signal',
+                'stopped while',
+                'cycles',
+                'exit code != 0',
+                'tracebacks',
+                'processes left',
+                'longest stop s',
+            ],
+            rows,
+        ),
+        seeds=args.seed,
+    )
 
 
 if __name__ == '__main__':

@@ -32,16 +32,22 @@ except ImportError:  # benchmark-only extra
 METHODS = ('TSAI', 'PARK', 'HORAUD', 'ANDREFF', 'DANIILIDIS')
 
 
-def opencv_hand_eye(pairs: PosePairs, idx: np.ndarray, method: str) -> tuple[np.ndarray,
-                                                                             np.ndarray]:
+def opencv_hand_eye(
+    pairs: PosePairs, idx: np.ndarray, method: str
+) -> tuple[np.ndarray, np.ndarray]:
     """T_HE by cv2.calibrateHandEye from the pairs at ``idx``.
 
     OpenCV's eye-in-hand names: gripper = H in base = G (our hand pose T_GH); target = W seen
     from cam = E (T_EW = T_WE^-1); the result cam2gripper is T_HE.
     """
     R_EW, p_EW = inverse((pairs.R_WE[idx], pairs.p_WE[idx]))
-    R, t = cv2.calibrateHandEye(list(pairs.R_GH[idx]), list(pairs.p_GH[idx]), list(R_EW),
-                                list(p_EW), method=getattr(cv2, f'CALIB_HAND_EYE_{method}'))
+    R, t = cv2.calibrateHandEye(
+        list(pairs.R_GH[idx]),
+        list(pairs.p_GH[idx]),
+        list(R_EW),
+        list(p_EW),
+        method=getattr(cv2, f'CALIB_HAND_EYE_{method}'),
+    )
     if not (np.isfinite(R).all() and np.isfinite(t).all()):  # a failed method: NaN result
         return np.array([0.0, 0.0, 0.0, 1.0]), np.full(3, np.inf)
     return quat_from_matrix(R), t.ravel()
@@ -50,8 +56,10 @@ def opencv_hand_eye(pairs: PosePairs, idx: np.ndarray, method: str) -> tuple[np.
 def input_sets(pairs: PosePairs) -> dict[str, np.ndarray]:
     i, j = rotation_keyframes(pairs.R_GH, np.deg2rad(5.0))
     step = max(1, round(0.5 / np.median(np.diff(pairs.t_eye_s))))
-    return {'keyframes': np.unique(np.concatenate((i, j))),
-            'every 0.5 s': np.arange(0, pairs.t_eye_s.size, step)}
+    return {
+        'keyframes': np.unique(np.concatenate((i, j))),
+        'every 0.5 s': np.arange(0, pairs.t_eye_s.size, step),
+    }
 
 
 def run(seeds: range, level: float) -> dict[str, np.ndarray]:
@@ -64,7 +72,8 @@ def run(seeds: range, level: float) -> dict[str, np.ndarray]:
         res = calibrate(rec.hand, rec.eye)
         e = calibration_error(t, res.time_offset_s, res.q_HE, res.p_HE)
         out.setdefault('ours (dt estimated)', []).append(
-            (e.time_offset_s, e.translation_m, e.rotation_deg))
+            (e.time_offset_s, e.translation_m, e.rotation_deg)
+        )
         if cv2 is None:
             continue
         pairs = associate(rec.hand, rec.eye, t.time_offset_s)
@@ -73,7 +82,8 @@ def run(seeds: range, level: float) -> dict[str, np.ndarray]:
                 q, p = opencv_hand_eye(pairs, idx, method)
                 e = calibration_error(t, t.time_offset_s, q, p)
                 out.setdefault(f'OpenCV {method} / {name}', []).append(
-                    (0.0, e.translation_m, e.rotation_deg))
+                    (0.0, e.translation_m, e.rotation_deg)
+                )
     return {k: np.asarray(v) for k, v in out.items()}
 
 
@@ -87,23 +97,32 @@ def main() -> None:
     for level in args.levels:
         t0 = time.perf_counter()
         errs = run(range(args.seeds), level)
-        rows = [[k, v[:, 1].mean() * 1e3, v[:, 2].mean(), np.median(v[:, 1]) * 1e3,
-                 np.median(v[:, 2])] for k, v in errs.items()]
+        rows = [
+            [k, v[:, 1].mean() * 1e3, v[:, 2].mean(), np.median(v[:, 1]) * 1e3, np.median(v[:, 2])]
+            for k, v in errs.items()
+        ]
         cv_rows = [r for r in rows if r[0].startswith('OpenCV')]
-        lines = table(f'Noise level {level:g} ({args.seeds} seeds): extrinsic error; OpenCV '
-                      'given the true offset',
-                      ['method / input', 'trans mm', 'rot deg', 'median mm', 'median deg'], rows)
+        lines = table(
+            f'Noise level {level:g} ({args.seeds} seeds): extrinsic error; OpenCV '
+            'given the true offset',
+            ['method / input', 'trans mm', 'rot deg', 'median mm', 'median deg'],
+            rows,
+        )
         if cv_rows:
             ours = errs['ours (dt estimated)']
             bt = min(cv_rows, key=lambda r: r[1])
             br = min(cv_rows, key=lambda r: r[2])
+
             def ratio(a: float, b: float) -> str:
                 return f'{a / b:.2f}' if b > 1e-6 else 'n/a (OpenCV exact)'
-            lines += (f'\nbest OpenCV: translation {bt[1]:.1f} mm ({bt[0]}), rotation '
-                      f'{br[2]:.3f} deg ({br[0]})\nours / best OpenCV: translation '
-                      f'{ratio(ours[:, 1].mean() * 1e3, bt[1])}, rotation '
-                      f'{ratio(ours[:, 2].mean(), br[2])} (target <= 0.5 at level 10); ours '
-                      f'|dt| {ours[:, 0].mean() * 1e3:.3f} ms')
+
+            lines += (
+                f'\nbest OpenCV: translation {bt[1]:.1f} mm ({bt[0]}), rotation '
+                f'{br[2]:.3f} deg ({br[0]})\nours / best OpenCV: translation '
+                f'{ratio(ours[:, 1].mean() * 1e3, bt[1])}, rotation '
+                f'{ratio(ours[:, 2].mean(), br[2])} (target <= 0.5 at level 10); ours '
+                f'|dt| {ours[:, 0].mean() * 1e3:.3f} ms'
+            )
         emit(f'opencv_level{level:g}', lines + f'\n({time.perf_counter() - t0:.1f} s)')
 
 

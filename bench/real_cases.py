@@ -31,8 +31,9 @@ from handeye_ros.core.simulate import Truth, calibration_error
 SHIFTS_S = (0.0873, -0.2315)
 
 
-def evaluate_pair(pair: realdata.RealPair,
-                  config: CalibrationConfig | None = None) -> dict[str, float]:
+def evaluate_pair(
+    pair: realdata.RealPair, config: CalibrationConfig | None = None
+) -> dict[str, float]:
     gt, est = realdata.load(pair)
     q, p = realdata.true_extrinsic()
     identity = calibrate(gt, est, CalibrationConfig(batch=False))
@@ -54,19 +55,25 @@ def evaluate_pair(pair: realdata.RealPair,
         ours.append((e.translation_m, e.rotation_deg))
         if cv2 is not None:
             pairs = associate(hand, est, shift)
-            cv = [calibration_error(truth, shift, *opencv_hand_eye(pairs, idx, method))
-                  for idx in input_sets(pairs).values() for method in METHODS]
+            cv = [
+                calibration_error(truth, shift, *opencv_hand_eye(pairs, idx, method))
+                for idx in input_sets(pairs).values()
+                for method in METHODS
+            ]
             best_cv.append((min(c.translation_m for c in cv), min(c.rotation_deg for c in cv)))
     ours_a, cv_a = np.asarray(ours), np.asarray(best_cv) if best_cv else np.full((1, 2), np.nan)
     lin_a = np.asarray(lin)
     return {
         'lin_dt_err_ms': float(np.max(np.abs(lin_dt)) * 1e3),
-        'lin_trans_mm': float(lin_a[:, 0].mean() * 1e3), 'lin_rot_deg': float(lin_a[:, 1].mean()),
+        'lin_trans_mm': float(lin_a[:, 0].mean() * 1e3),
+        'lin_rot_deg': float(lin_a[:, 1].mean()),
         'std_dt_ms': float(np.mean(std) * 1e3),
         'dt_err_ms': float(np.max(np.abs(dt_err)) * 1e3),
         'dt_bias_ms': float(np.mean(dt_err) * 1e3),
-        'trans_mm': float(ours_a[:, 0].mean() * 1e3), 'rot_deg': float(ours_a[:, 1].mean()),
-        'cv_trans_mm': float(cv_a[:, 0].mean() * 1e3), 'cv_rot_deg': float(cv_a[:, 1].mean()),
+        'trans_mm': float(ours_a[:, 0].mean() * 1e3),
+        'rot_deg': float(ours_a[:, 1].mean()),
+        'cv_trans_mm': float(cv_a[:, 0].mean() * 1e3),
+        'cv_rot_deg': float(cv_a[:, 1].mean()),
         'identity_deg': float(np.degrees(2 * np.arccos(min(1.0, abs(identity.q_HE[3]))))),
         'inliers': f'{res.linear.n_inliers}/{res.linear.n_motions}',
         'seconds': elapsed,
@@ -83,28 +90,61 @@ def main() -> None:
     if not realdata.available():
         print(f'real data not found at {realdata.REAL_DATA}: nothing to do')
         return
-    header = ['pair', 'lin max|dt err| ms', 'lin mm', 'lin deg', 'max|dt err| ms',
-              'dt err mean ms', '1-sigma dt ms', 'trans mm', 'rot deg', 'OpenCV best mm',
-              'OpenCV best deg', 'identity deg', 'inliers', 'time s']
+    header = [
+        'pair',
+        'lin max|dt err| ms',
+        'lin mm',
+        'lin deg',
+        'max|dt err| ms',
+        'dt err mean ms',
+        '1-sigma dt ms',
+        'trans mm',
+        'rot deg',
+        'OpenCV best mm',
+        'OpenCV best deg',
+        'identity deg',
+        'inliers',
+        'time s',
+    ]
     for title, room in (('Vicon room (V1_*, V2_*)', True), ('Machine Hall (MH_*)', False)):
         rows = []
         for pair in (p for p in realdata.PAIRS if p.vicon_room == room):
             if args.only and pair.name not in args.only:
                 continue
             r = evaluate_pair(pair, config)
-            rows.append([pair.name, r['lin_dt_err_ms'], r['lin_trans_mm'], r['lin_rot_deg'],
-                         r['dt_err_ms'], r['dt_bias_ms'], r['std_dt_ms'], r['trans_mm'],
-                         r['rot_deg'], r['cv_trans_mm'], r['cv_rot_deg'], r['identity_deg'],
-                         r['inliers'], r['seconds']])
+            rows.append(
+                [
+                    pair.name,
+                    r['lin_dt_err_ms'],
+                    r['lin_trans_mm'],
+                    r['lin_rot_deg'],
+                    r['dt_err_ms'],
+                    r['dt_bias_ms'],
+                    r['std_dt_ms'],
+                    r['trans_mm'],
+                    r['rot_deg'],
+                    r['cv_trans_mm'],
+                    r['cv_rot_deg'],
+                    r['identity_deg'],
+                    r['inliers'],
+                    r['seconds'],
+                ]
+            )
         if not rows:
             continue
-        mean = ['mean'] + [float(np.mean([row[k] for row in rows])) for k in range(1, 12)] + \
-            ['', '']
-        emit(f'real_{"vicon" if room else "machine_hall"}{suffix}', table(
-            f'{title}: offset estimated by us (shifts {", ".join(f"{s:+g}" for s in SHIFTS_S)} s'
-            ' applied); lin = stages 1+2, then the batch stage; OpenCV given the applied shift '
-            '(best method and input per column)',
-            header, rows + [mean]))
+        mean = (
+            ['mean'] + [float(np.mean([row[k] for row in rows])) for k in range(1, 12)] + ['', '']
+        )
+        emit(
+            f'real_{"vicon" if room else "machine_hall"}{suffix}',
+            table(
+                f'{title}: offset estimated by us (shifts {", ".join(f"{s:+g}" for s in SHIFTS_S)} s'
+                ' applied); lin = stages 1+2, then the batch stage; OpenCV given the applied shift '
+                '(best method and input per column)',
+                header,
+                rows + [mean],
+            ),
+        )
 
 
 if __name__ == '__main__':

@@ -27,10 +27,14 @@ ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = ROOT.parent / 'shared' / 'data' / 'real'
 
 #: EuRoC vicon0 T_BS: the Vicon marker frame S in the IMU frame B (SOURCES.md).
-T_BS = np.array([[0.33638, -0.01749, 0.94156, 0.06901],
-                 [-0.02078, -0.99972, -0.01114, -0.02781],
-                 [0.94150, -0.01582, -0.33665, -0.12395],
-                 [0.0, 0.0, 0.0, 1.0]])
+T_BS = np.array(
+    [
+        [0.33638, -0.01749, 0.94156, 0.06901],
+        [-0.02078, -0.99972, -0.01114, -0.02781],
+        [0.94150, -0.01582, -0.33665, -0.12395],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+)
 
 _EUROC = 'open_vins/ov_data/euroc_mav'
 _RPG = 'rpg_trajectory_evaluation/results/euroc_mono_stereo/laptop'
@@ -47,23 +51,36 @@ class RealPair:
 
 
 def _rpg(kind: str, seq: str, gt: str) -> RealPair:
-    return RealPair(f'{seq} {kind}', f'{_EUROC}/{gt}.txt',
-                    f'{_RPG}/vio_{kind}/laptop_vio_{kind}_{seq}/stamped_traj_estimate.txt',
-                    seq.startswith('V'))
+    return RealPair(
+        f'{seq} {kind}',
+        f'{_EUROC}/{gt}.txt',
+        f'{_RPG}/vio_{kind}/laptop_vio_{kind}_{seq}/stamped_traj_estimate.txt',
+        seq.startswith('V'),
+    )
 
 
 PAIRS = (
     # The re-generated V1_01 ground truth (20 Hz): the original one differs from it by a body
     # rotation of 5.2 deg and 43 mm (calibrating one against the other), an error of the
     # original, not of the estimate.
-    RealPair('V1_01 openvins', f'{_EUROC}/V1_01_easy.txt', 'evo/test/data/V101_openvins.txt',
-             True),
+    RealPair(
+        'V1_01 openvins', f'{_EUROC}/V1_01_easy.txt', 'evo/test/data/V101_openvins.txt', True
+    ),
     RealPair('V1_02 evo', 'evo/test/data/V102_groundtruth.csv', 'evo/test/data/V102.txt', True),
-    *(_rpg(kind, seq, gt) for seq, gt in (('V2_01', 'V2_01_easy'), ('V2_02', 'V2_02_medium'))
-      for kind in ('mono', 'stereo')),
-    *(_rpg(kind, seq, gt) for seq, gt in (('MH_01', 'MH_01_easy'), ('MH_03', 'MH_03_medium'),
-                                          ('MH_05', 'MH_05_difficult'))
-      for kind in ('mono', 'stereo')),
+    *(
+        _rpg(kind, seq, gt)
+        for seq, gt in (('V2_01', 'V2_01_easy'), ('V2_02', 'V2_02_medium'))
+        for kind in ('mono', 'stereo')
+    ),
+    *(
+        _rpg(kind, seq, gt)
+        for seq, gt in (
+            ('MH_01', 'MH_01_easy'),
+            ('MH_03', 'MH_03_medium'),
+            ('MH_05', 'MH_05_difficult'),
+        )
+        for kind in ('mono', 'stereo')
+    ),
 )
 
 
@@ -96,7 +113,9 @@ def to_marker_frame(gt: Trajectory, clock_shift_s: float) -> Trajectory:
     X = (T_BS[:3, :3], T_BS[:3, 3])
     R, p = compose((matrix_from_quat(gt.q_xyzw), gt.p_xyz), X)
     shift_ns = np.int64(round(clock_shift_s * 1e9))
-    return Trajectory.from_arrays(gt.t_ns - shift_ns, p, quat_from_matrix(R), gt.name + ' (marker)')
+    return Trajectory.from_arrays(
+        gt.t_ns - shift_ns, p, quat_from_matrix(R), gt.name + ' (marker)'
+    )
 
 
 def true_extrinsic() -> tuple[np.ndarray, np.ndarray]:

@@ -30,17 +30,28 @@ from common import emit, save_plot, table
 
 SINGLE_THREAD = {k: '1' for k in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS')}
 SEED = 1
-STAGES = re.compile(r'stage 1 \+ conventions ([\d.]+) s, stage 2 \+ checks ([\d.]+) s, '
-                    r'batch ([\d.]+) s')
+STAGES = re.compile(
+    r'stage 1 \+ conventions ([\d.]+) s, stage 2 \+ checks ([\d.]+) s, '
+    r'batch ([\d.]+) s'
+)
 
 
-def write_recording(folder: Path, minutes: float, hand_hz: float, eye_hz: float) -> tuple[int, int]:
+def write_recording(
+    folder: Path, minutes: float, hand_hz: float, eye_hz: float
+) -> tuple[int, int]:
     """Simulate and write h.txt / e.txt (TUM); returns the pose counts."""
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.formats import write_tum
+
     noise_m, noise_deg = noise_level(5)
-    rec = simulate(SEED, duration_s=minutes * 60, hand_rate_hz=hand_hz, eye_rate_hz=eye_hz,
-                   noise_m=noise_m, noise_deg=noise_deg)
+    rec = simulate(
+        SEED,
+        duration_s=minutes * 60,
+        hand_rate_hz=hand_hz,
+        eye_rate_hz=eye_hz,
+        noise_m=noise_m,
+        noise_deg=noise_deg,
+    )
     write_tum(folder / 'h.txt', rec.hand)
     write_tum(folder / 'e.txt', rec.eye)
     return len(rec.hand), len(rec.eye)
@@ -52,15 +63,30 @@ def pin_one_core() -> None:
 
 def run_offline(folder: Path, options: list[str]) -> dict[str, float]:
     """The offline tool on the files, in a pinned child; wall time, peak RSS, stage times."""
-    env = dict(os.environ, **SINGLE_THREAD,
-               PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
-    cmd = [sys.executable, '-m', 'handeye_ros.offline', '--hand', str(folder / 'h.txt'),
-           '--eye', str(folder / 'e.txt'), '-o', str(folder / 'result.yaml'), '-v',
-           '--no-progress', *options]
+    env = dict(
+        os.environ,
+        **SINGLE_THREAD,
+        PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
+    )
+    cmd = [
+        sys.executable,
+        '-m',
+        'handeye_ros.offline',
+        '--hand',
+        str(folder / 'h.txt'),
+        '--eye',
+        str(folder / 'e.txt'),
+        '-o',
+        str(folder / 'result.yaml'),
+        '-v',
+        '--no-progress',
+        *options,
+    ]
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False,
-                          preexec_fn=pin_one_core)
+    proc = subprocess.run(
+        cmd, env=env, capture_output=True, text=True, check=False, preexec_fn=pin_one_core
+    )
     wall = time.perf_counter() - t0
     rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     if proc.returncode not in (0, 2):
@@ -69,8 +95,13 @@ def run_offline(folder: Path, options: list[str]) -> dict[str, float]:
     stage = [float(v) for v in m.groups()] if m else [float('nan')] * 3
     # ru_maxrss of children is the largest any child reached: valid because each run is
     # larger than the one before
-    return {'wall_s': wall, 'rss_mb': max(rss, before) / 1024, 'stage1_s': stage[0],
-            'stage2_s': stage[1], 'batch_s': stage[2]}
+    return {
+        'wall_s': wall,
+        'rss_mb': max(rss, before) / 1024,
+        'stage1_s': stage[0],
+        'stage2_s': stage[1],
+        'batch_s': stage[2],
+    }
 
 
 def main() -> None:
@@ -78,44 +109,79 @@ def main() -> None:
     p.add_argument('--minutes', type=float, nargs='+', default=[1, 5, 10, 30, 60])
     p.add_argument('--hand-rate', type=float, default=1000.0)
     p.add_argument('--eye-rate', type=float, default=200.0)
-    p.add_argument('--repeat', type=int, default=3,
-                   help='runs per length: the table gives the median run (by wall time) and '
-                        'the range of the wall times (the machine is shared; one run can be '
-                        'some 10 %% off)')
-    p.add_argument('--options', nargs=argparse.REMAINDER, default=[],
-                   help='further offline_calibrate options (e.g. --clock-drift)')
+    p.add_argument(
+        '--repeat',
+        type=int,
+        default=3,
+        help='runs per length: the table gives the median run (by wall time) and '
+        'the range of the wall times (the machine is shared; one run can be '
+        'some 10 %% off)',
+    )
+    p.add_argument(
+        '--options',
+        nargs=argparse.REMAINDER,
+        default=[],
+        help='further offline_calibrate options (e.g. --clock-drift)',
+    )
     args = p.parse_args()
     rows, points = [], []
     for minutes in sorted(args.minutes):
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp)
             n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate)
-            size = sum(f.stat().st_size for f in folder.iterdir()) / 2 ** 20
-            runs = sorted((run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
-                          key=lambda run: run['wall_s'])
+            size = sum(f.stat().st_size for f in folder.iterdir()) / 2**20
+            runs = sorted(
+                (run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
+                key=lambda run: run['wall_s'],
+            )
         r = runs[len(runs) // 2]
         points.append((minutes, r['wall_s'], r['rss_mb']))
-        rows.append([f'{minutes:g}', f'{n_h} + {n_e}', size, r['wall_s'],
-                     f'{runs[0]["wall_s"]:.1f}-{runs[-1]["wall_s"]:.1f}', r['stage1_s'],
-                     r['stage2_s'], r['batch_s'],
-                     r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'], r['rss_mb']])
+        rows.append(
+            [
+                f'{minutes:g}',
+                f'{n_h} + {n_e}',
+                size,
+                r['wall_s'],
+                f'{runs[0]["wall_s"]:.1f}-{runs[-1]["wall_s"]:.1f}',
+                r['stage1_s'],
+                r['stage2_s'],
+                r['batch_s'],
+                r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'],
+                r['rss_mb'],
+            ]
+        )
         print(rows[-1], flush=True)
     opts = ' '.join(args.options) or 'defaults'
-    emit('runtime', table(
-        f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
-        f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
-        ['minutes', 'poses', 'files MB', 'offline run s (median)', f'range of {args.repeat}',
-         'stage 1 + conventions s', 'stage 2 + checks s', 'batch s',
-         'reading, metrics, writing s', 'peak RSS MB'],
-        rows), SEED)
+    emit(
+        'runtime',
+        table(
+            f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
+            f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
+            [
+                'minutes',
+                'poses',
+                'files MB',
+                'offline run s (median)',
+                f'range of {args.repeat}',
+                'stage 1 + conventions s',
+                'stage 2 + checks s',
+                'batch s',
+                'reading, metrics, writing s',
+                'peak RSS MB',
+            ],
+            rows,
+        ),
+        SEED,
+    )
     plt = common.pyplot()
     if plt is not None and len(points) > 1:
         fig, ax = plt.subplots(figsize=(6, 4))
         m = [q[0] for q in points]
         ax.loglog(m, [q[1] for q in points], 'o-', label='time (s)')
         ax.loglog(m, [q[2] for q in points], 's-', label='peak RSS (MB)')
-        ax.loglog(m, [points[0][1] * x / m[0] for x in m], ':', color='grey',
-                  label='linear in length')
+        ax.loglog(
+            m, [points[0][1] * x / m[0] for x in m], ':', color='grey', label='linear in length'
+        )
         ax.axhline(60, color='C0', lw=0.5)
         ax.axhline(2048, color='C1', lw=0.5)
         ax.set_xlabel('recording length (minutes)')

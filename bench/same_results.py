@@ -99,8 +99,12 @@ def record() -> dict:
 
 
 def differs(a, b) -> bool:
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and \
-            not isinstance(a, bool) and not isinstance(b, bool):
+    if (
+        isinstance(a, (int, float))
+        and isinstance(b, (int, float))
+        and not isinstance(a, bool)
+        and not isinstance(b, bool)
+    ):
         if math.isnan(a) or math.isnan(b):
             return not (math.isnan(a) and math.isnan(b))
         return abs(a - b) > TOLERANCE * max(1.0, abs(a), abs(b))
@@ -131,8 +135,7 @@ def main() -> int:
     path = Path(sys.argv[2])
     now = json.loads(json.dumps(record()))  # the same float round trip as the file
     if sys.argv[1] == 'record':
-        path.write_text(json.dumps({'provenance': common.provenance(), 'results': now},
-                                   indent=1))
+        path.write_text(json.dumps({'provenance': common.provenance(), 'results': now}, indent=1))
         print(f'{len(now)} cases recorded in {path}')
         return 0
     before = json.loads(path.read_text())

@@ -61,12 +61,22 @@ def _two_moving(path: Path, hand, eye) -> tuple[str, ...]:
         T = w.store.types
         items = []
         for t, m in pose_messages(w.store, eye, 'TFMessage', 'odom', 'imu'):
-            fix = transform_stamped(w.store.types, t, 'map', 'odom', (0.0, 0.0, 0.0),
-                                    (0.0, 0.0, 0.0, 1.0))
-            items.append((t, 1, '/tf', 'tf2_msgs/msg/TFMessage',
-                          T['tf2_msgs/msg/TFMessage'](transforms=[fix, *m.transforms])))
-        items += [(t, 0, '/mocap/pose', 'geometry_msgs/msg/PoseStamped', m)
-                  for t, m in pose_messages(w.store, hand, 'PoseStamped', 'mocap', 'marker')]
+            fix = transform_stamped(
+                w.store.types, t, 'map', 'odom', (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)
+            )
+            items.append(
+                (
+                    t,
+                    1,
+                    '/tf',
+                    'tf2_msgs/msg/TFMessage',
+                    T['tf2_msgs/msg/TFMessage'](transforms=[fix, *m.transforms]),
+                )
+            )
+        items += [
+            (t, 0, '/mocap/pose', 'geometry_msgs/msg/PoseStamped', m)
+            for t, m in pose_messages(w.store, hand, 'PoseStamped', 'mocap', 'marker')
+        ]
         items.sort(key=lambda x: (x[0], x[1]))
         for t, _, topic, mt, m in items:
             w.write(topic, mt, t, m)
@@ -75,6 +85,7 @@ def _two_moving(path: Path, hand, eye) -> tuple[str, ...]:
 
 def _sqlite_without_definitions(path: Path, hand, eye) -> tuple[str, ...]:
     import sqlite3
+
     write_rigid_bodies_recording(path, hand, eye, 'sqlite3')
     with sqlite3.connect(next(path.glob('*.db3'))) as con:
         con.execute('DELETE FROM message_definitions')
@@ -82,22 +93,36 @@ def _sqlite_without_definitions(path: Path, hand, eye) -> tuple[str, ...]:
 
 
 CASES = {
-    'plain': lambda p, h, e: (write_recording(p, [
-        ('/mocap/pose', 'PoseStamped', h, 'mocap', 'marker'),
-        ('/vio/odom', 'Odometry', e, 'odom', 'imu')]), ())[1],
+    'plain': lambda p, h, e: (
+        write_recording(
+            p,
+            [
+                ('/mocap/pose', 'PoseStamped', h, 'mocap', 'marker'),
+                ('/vio/odom', 'Odometry', e, 'odom', 'imu'),
+            ],
+        ),
+        (),
+    )[1],
     'tf': lambda p, h, e: (write_tf_recording(p, h, e), TF_ARGS)[1],
-    'tf ros1 /names': lambda p, h, e: (write_tf_recording(p.with_suffix('.bag'), h, e, 'ros1',
-                                                          slash='/'), TF_ARGS)[1],
+    'tf ros1 /names': lambda p, h, e: (
+        write_tf_recording(p.with_suffix('.bag'), h, e, 'ros1', slash='/'),
+        TF_ARGS,
+    )[1],
     'bodies': lambda p, h, e: (write_rigid_bodies_recording(p, h, e), BODY_ARGS)[1],
     'bodies humble': _sqlite_without_definitions,
-    'bodies lost 2%': lambda p, h, e: (write_rigid_bodies_recording(p, h, e, lost_every=50),
-                                       BODY_ARGS)[1],
+    'bodies lost 2%': lambda p, h, e: (
+        write_rigid_bodies_recording(p, h, e, lost_every=50),
+        BODY_ARGS,
+    )[1],
     'tf 2 moving': _two_moving,
-    'tf wrong frame': lambda p, h, e: (write_tf_recording(p, h, e),
-                                       ('--hand-topic', '/tf:world.markr', TF_ARGS[2],
-                                        TF_ARGS[3]))[1],
-    'bodies wrong name': lambda p, h, e: (write_rigid_bodies_recording(p, h, e),
-                                          ('--hand-topic', f'{RIGID_BODIES_TOPIC}:Rig'))[1],
+    'tf wrong frame': lambda p, h, e: (
+        write_tf_recording(p, h, e),
+        ('--hand-topic', '/tf:world.markr', TF_ARGS[2], TF_ARGS[3]),
+    )[1],
+    'bodies wrong name': lambda p, h, e: (
+        write_rigid_bodies_recording(p, h, e),
+        ('--hand-topic', f'{RIGID_BODIES_TOPIC}:Rig'),
+    )[1],
 }
 #: Cases that must end in a clear error.
 REFUSED = ('tf 2 moving', 'tf wrong frame', 'bodies wrong name')
@@ -106,9 +131,23 @@ REFUSED = ('tf 2 moving', 'tf wrong frame', 'bodies wrong name')
 def run(bag: Path, args: tuple[str, ...]) -> tuple[int, dict | None, str, float]:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, '-m', 'handeye_ros.offline', '--bag', str(bag),
-                           '--json', '--no-evaluation', *args], env=env, capture_output=True,
-                          text=True, timeout=1800, check=False)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'handeye_ros.offline',
+            '--bag',
+            str(bag),
+            '--json',
+            '--no-evaluation',
+            *args,
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+        check=False,
+    )
     seconds = time.perf_counter() - t0
     data = json.loads(proc.stdout) if proc.returncode == 0 else None
     return proc.returncode, data, proc.stderr, seconds
@@ -118,8 +157,11 @@ def replay_rate(bag: Path, args: tuple[str, ...]) -> float:
     """Messages per second of the replay alone (in this process, best of 3)."""
     from handeye_ros.replay import replay
     from handeye_ros.stream import StreamConfig
-    cfg = StreamConfig(**({'hand_topic': args[1]} if args else {}),
-                       **({'eye_topic': args[3]} if len(args) > 2 else {}))
+
+    cfg = StreamConfig(
+        **({'hand_topic': args[1]} if args else {}),
+        **({'eye_topic': args[3]} if len(args) > 2 else {}),
+    )
     given = {'hand': bool(args), 'eye': len(args) > 2}
     best = np.inf
     for _ in range(3):
@@ -156,8 +198,10 @@ def main() -> None:
                     ref = d
                 if d is not None and ref is not None:
                     ddt = abs(d['time_offset'] - ref['time_offset']) * 1e3
-                    dT = np.abs(np.asarray(d['extrinsic']['matrix'])
-                                - np.asarray(ref['extrinsic']['matrix'])).max()
+                    dT = np.abs(
+                        np.asarray(d['extrinsic']['matrix'])
+                        - np.asarray(ref['extrinsic']['matrix'])
+                    ).max()
                     warn = '; '.join(w for w in d['warnings'] if 'stream' in w)[:90]
                     verdict = d['quality']['verdict']
                     what = f'{ddt:.1e} ms, {dT:.1e}'
@@ -165,16 +209,41 @@ def main() -> None:
                     verdict, what = '-', '-'
                     warn = err.strip().splitlines()[-1][:160] if err.strip() else ''
                 ok = (code == 1 and not tb) if case in REFUSED else (code == 0 and not tb)
-                rows.append([pair.name, case, code, 'yes' if tb else 'no', verdict, what,
-                             'ok' if ok else 'WRONG', warn])
+                rows.append(
+                    [
+                        pair.name,
+                        case,
+                        code,
+                        'yes' if tb else 'no',
+                        verdict,
+                        what,
+                        'ok' if ok else 'WRONG',
+                        warn,
+                    ]
+                )
                 if case in ('plain', 'tf', 'bodies'):
-                    rates.append([pair.name, case, f'{replay_rate(bag, sel):,.0f}',
-                                  f'{seconds:.1f}'])
-    text = table('Real pairs as /tf and mocap4r2 bags (offline_calibrate --bag)',
-                 ['pair', 'case', 'exit', 'traceback', 'verdict',
-                  'vs plain: |d dt|, max |d T_HE|', 'expected', 'warning or error (cut)'], rows)
-    text += '\n' + table('Replay rate (messages/s, best of 3) and the whole command (s)',
-                         ['pair', 'case', 'replay msg/s', 'offline_calibrate s'], rates)
+                    rates.append(
+                        [pair.name, case, f'{replay_rate(bag, sel):,.0f}', f'{seconds:.1f}']
+                    )
+    text = table(
+        'Real pairs as /tf and mocap4r2 bags (offline_calibrate --bag)',
+        [
+            'pair',
+            'case',
+            'exit',
+            'traceback',
+            'verdict',
+            'vs plain: |d dt|, max |d T_HE|',
+            'expected',
+            'warning or error (cut)',
+        ],
+        rows,
+    )
+    text += '\n' + table(
+        'Replay rate (messages/s, best of 3) and the whole command (s)',
+        ['pair', 'case', 'replay msg/s', 'offline_calibrate s'],
+        rates,
+    )
     emit('tf_inputs', text, seeds={'clock_shift_s': SHIFT_S, 'pairs': args.pairs})
 
 

@@ -21,8 +21,17 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__all__ = ['CalibrationConfig', 'CalibrationResult', 'HandeyeError', 'StreamConfig',
-           'Trajectory', 'calibrate', 'read_trajectory', 'write_euroc', 'write_tum']
+__all__ = [
+    'CalibrationConfig',
+    'CalibrationResult',
+    'HandeyeError',
+    'StreamConfig',
+    'Trajectory',
+    'calibrate',
+    'read_trajectory',
+    'write_euroc',
+    'write_tum',
+]
 
 #: Where each public name lives.
 _HOMES = {

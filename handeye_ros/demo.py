@@ -28,8 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     """Run the example; returns the exit code."""
     p = argparse.ArgumentParser(prog='handeye_ros.demo', description=__doc__.split('\n')[0])
     p.add_argument('--seed', type=int, default=7, help='simulation seed')
-    p.add_argument('--level', type=float, default=5.0,
-                   help="eye noise level of the paper's protocol, 0-10 (0.5 mm / 0.02 deg each)")
+    p.add_argument(
+        '--level',
+        type=float,
+        default=5.0,
+        help="eye noise level of the paper's protocol, 0-10 (0.5 mm / 0.02 deg each)",
+    )
     p.add_argument('--duration', type=float, default=60.0, help='seconds of motion')
     p.add_argument('--keep', metavar='DIR', help='write the files into DIR and keep them')
     p.add_argument('--text', action='store_true', help='TUM text files instead of a bag')
@@ -41,9 +45,11 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(args.keep or tmp)
         out.mkdir(parents=True, exist_ok=True)
         res = out / 'result.json'
-        what = (f'hand {len(rec.hand)} poses at 100 Hz, eye {len(rec.eye)} poses at 20 Hz with '
-                f'noise level {args.level:g} ({noise_m * 1e3:.1f} mm / {noise_deg:.2f} deg per '
-                'frame, cumulative)')
+        what = (
+            f'hand {len(rec.hand)} poses at 100 Hz, eye {len(rec.eye)} poses at 20 Hz with '
+            f'noise level {args.level:g} ({noise_m * 1e3:.1f} mm / {noise_deg:.2f} deg per '
+            'frame, cumulative)'
+        )
         if args.text:
             hand, eye = out / 'hand_mocap.txt', out / 'eye_vio.txt'
             write_tum(hand, rec.hand)
@@ -53,8 +59,14 @@ def main(argv: list[str] | None = None) -> int:
             bag = out / 'recording'
             if bag.exists():
                 shutil.rmtree(bag)
-            write_recording(bag, [('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
-                                  ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')], 'mcap')
+            write_recording(
+                bag,
+                [
+                    ('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
+                    ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu'),
+                ],
+                'mcap',
+            )
             what += ' -> bag with /mocap/pose (PoseStamped) and /vio/odom (Odometry)'
             cmd = ['--bag', str(bag), '-o', str(res)]
         print(f'simulated {args.duration:.0f} s: {what}')
@@ -70,18 +82,26 @@ def main(argv: list[str] | None = None) -> int:
     err = calibration_error(t, result['time_offset'], q, p_he)
     print('\nresult beside the truth')
     print(f'  {"":22s}{"estimated":>36s}{"true":>36s}{"error":>14s}')
-    print(f'  {"time offset [ms]":22s}{result["time_offset"] * 1e3:36.3f}'
-          f'{t.time_offset_s * 1e3:36.3f}{err.time_offset_s * 1e3:11.3f} ms')
-    print(f'  {"T_HE translation [m]":22s}{_vec(p_he):>36s}{_vec(t.p_HE):>36s}'
-          f'{err.translation_m * 1e3:11.1f} mm')
+    print(
+        f'  {"time offset [ms]":22s}{result["time_offset"] * 1e3:36.3f}'
+        f'{t.time_offset_s * 1e3:36.3f}{err.time_offset_s * 1e3:11.3f} ms'
+    )
+    print(
+        f'  {"T_HE translation [m]":22s}{_vec(p_he):>36s}{_vec(t.p_HE):>36s}'
+        f'{err.translation_m * 1e3:11.1f} mm'
+    )
     true_q = t.q_HE * (1.0 if np.dot(t.q_HE, q) >= 0 else -1.0)
-    print(f'  {"T_HE rotation [xyzw]":22s}{_vec(q):>36s}{_vec(true_q):>36s}'
-          f'{err.rotation_deg:10.3f} deg')
+    print(
+        f'  {"T_HE rotation [xyzw]":22s}{_vec(q):>36s}{_vec(true_q):>36s}'
+        f'{err.rotation_deg:10.3f} deg'
+    )
     if result.get('std'):
         s = result['std']
-        print(f'\nreported 1-sigma (batch stage): time offset {s["time_offset"] * 1e3:.3f} ms, '
-              f'translation {np.linalg.norm(s["translation"]) * 1e3:.1f} mm, rotation '
-              f'{np.degrees(np.linalg.norm(s["rotation"])):.3f} deg (norms over the axes)')
+        print(
+            f'\nreported 1-sigma (batch stage): time offset {s["time_offset"] * 1e3:.3f} ms, '
+            f'translation {np.linalg.norm(s["translation"]) * 1e3:.1f} mm, rotation '
+            f'{np.degrees(np.linalg.norm(s["rotation"])):.3f} deg (norms over the axes)'
+        )
     q = result['quality']
     print(f'verdict: {q["verdict"]}' + ''.join(f'\n  - {r["message"]}' for r in q['reasons']))
     return 0

@@ -30,34 +30,71 @@ LOG = logging.getLogger('handeye_ros.evaluate')  # not __name__: it is __main__ 
 EXIT_UNUSABLE = 101
 MAX_EXIT_FAILED = 100
 #: Modules a LocalCluster's workers import as they start.
-WORKER_PRELOAD = ('handeye_ros.runs', 'handeye_ros.offline',
-                  'handeye_ros.core.pipeline', 'handeye_ros.evaluation.outputs')
+WORKER_PRELOAD = (
+    'handeye_ros.runs',
+    'handeye_ros.offline',
+    'handeye_ros.core.pipeline',
+    'handeye_ros.evaluation.outputs',
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog='evaluate', description=__doc__.split('\n\n')[0].replace('``', ''),
+        prog='evaluate',
+        description=__doc__.split('\n\n')[0].replace('``', ''),
         epilog='Exit code: the number of failed runs (capped at 100); 101 when the manifest or '
-               'the options cannot be used.')
-    p.add_argument('manifest', help='a YAML manifest (runs: [{name, hand, eye | bag, ...}]) or '
-                                    'a directory laid out as ALGORITHM/SEQUENCE/TRIAL/')
-    p.add_argument('-o', '--output', required=True, metavar='DIR',
-                   help='where the table, the summary plots and each run\'s files go')
-    p.add_argument('--scheduler', metavar='ADDRESS',
-                   help='a running Dask scheduler (tcp://host:port); default: a LocalCluster on '
-                        'this machine')
-    p.add_argument('--workers', type=int, default=None,
-                   help='LocalCluster worker processes (default: one per core)')
-    p.add_argument('--sequential', action='store_true',
-                   help='run every recording in this process, without Dask (for comparison)')
-    p.add_argument('--reports', action='store_true',
-                   help='write every run\'s report.html (a run can also ask with report: true)')
-    p.add_argument('--no-cache', action='store_true',
-                   help='calibrate every run again even when its inputs did not change')
-    p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
-                   help='a progress bar on stderr (default: when stderr is a terminal)')
-    p.add_argument('-v', '--verbose', action='store_true',
-                   help='log the phases\' timings (cluster start, runs, tables)')
+        'the options cannot be used.',
+    )
+    p.add_argument(
+        'manifest',
+        help='a YAML manifest (runs: [{name, hand, eye | bag, ...}]) or '
+        'a directory laid out as ALGORITHM/SEQUENCE/TRIAL/',
+    )
+    p.add_argument(
+        '-o',
+        '--output',
+        required=True,
+        metavar='DIR',
+        help="where the table, the summary plots and each run's files go",
+    )
+    p.add_argument(
+        '--scheduler',
+        metavar='ADDRESS',
+        help='a running Dask scheduler (tcp://host:port); default: a LocalCluster on this machine',
+    )
+    p.add_argument(
+        '--workers',
+        type=int,
+        default=None,
+        help='LocalCluster worker processes (default: one per core)',
+    )
+    p.add_argument(
+        '--sequential',
+        action='store_true',
+        help='run every recording in this process, without Dask (for comparison)',
+    )
+    p.add_argument(
+        '--reports',
+        action='store_true',
+        help="write every run's report.html (a run can also ask with report: true)",
+    )
+    p.add_argument(
+        '--no-cache',
+        action='store_true',
+        help='calibrate every run again even when its inputs did not change',
+    )
+    p.add_argument(
+        '--progress',
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help='a progress bar on stderr (default: when stderr is a terminal)',
+    )
+    p.add_argument(
+        '-v',
+        '--verbose',
+        action='store_true',
+        help="log the phases' timings (cluster start, runs, tables)",
+    )
     return p
 
 
@@ -70,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     from .core.errors import HandeyeError
     from .evaluation.outputs import check_directory
     from .runs import read_manifest
+
     try:
         if args.workers is not None and not 1 <= args.workers <= 256:
             raise HandeyeError(f'--workers must be 1-256, got {args.workers}')
@@ -83,8 +121,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rows = evaluate_runs(runs, output, args)
     except KeyboardInterrupt:
-        print('evaluate: interrupted; finished runs are cached and will not run again',
-              file=sys.stderr)
+        print(
+            'evaluate: interrupted; finished runs are cached and will not run again',
+            file=sys.stderr,
+        )
         return 130
     except OSError as err:  # a scheduler that cannot be reached, a full disk
         print(f'evaluate: error: {err}', file=sys.stderr)
@@ -93,9 +133,11 @@ def main(argv: list[str] | None = None) -> int:
     for r in failed:
         print(f'evaluate: {r["name"]}: failed: {r["reason"]}', file=sys.stderr)
     cached = sum(bool(r.get('cached')) for r in rows)
-    print(f'{len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed'
-          + (f', {cached} from the cache' if cached else '')
-          + f'; table: {output / "results.csv"}')
+    print(
+        f'{len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed'
+        + (f', {cached} from the cache' if cached else '')
+        + f'; table: {output / "results.csv"}'
+    )
     return min(len(failed), MAX_EXIT_FAILED)
 
 
@@ -111,6 +153,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
         write_cached,
         write_tables,
     )
+
     cache = output / 'cache'
     code = code_fingerprint()
     keys = {r.name: cache_key(r, code) for r in runs}
@@ -122,8 +165,14 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
             rows[r.name] = {**hit, 'name': r.name, 'cached': True}
         else:
             todo.append(r)
-    bar = tqdm(total=len(runs), initial=len(runs) - len(todo), unit='run', desc='evaluating',
-               file=sys.stderr, disable=None if args.progress is None else not args.progress)
+    bar = tqdm(
+        total=len(runs),
+        initial=len(runs) - len(todo),
+        unit='run',
+        desc='evaluating',
+        file=sys.stderr,
+        disable=None if args.progress is None else not args.progress,
+    )
 
     def done(run, row: dict[str, Any]) -> None:
         row['cached'] = False
@@ -145,6 +194,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     write_tables(output, ordered)
     try:
         from .evaluation.plots import summary
+
         summary(ordered, output / 'summary.png')
     except Exception as err:  # noqa: BLE001  (the table matters more than the picture)
         LOG.warning('summary plot not written: %s', err)
@@ -162,6 +212,7 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     from distributed import Client, LocalCluster, as_completed
 
     from .runs import calibrate_run
+
     # the scheduler runs in this process: its INFO lines would bury the table's summary
     logging.getLogger('distributed').setLevel(logging.ERROR)
     cluster = None
@@ -171,23 +222,38 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     else:
         n = args.workers or os.cpu_count() or 1
         # the workers import the package while the cluster starts, not in their first run
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                               host='127.0.0.1', dashboard_address=None,
-                               silence_logs=logging.ERROR, preload=list(WORKER_PRELOAD))
+        cluster = LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host='127.0.0.1',
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            preload=list(WORKER_PRELOAD),
+        )
         client = Client(cluster)
     LOG.info('timing: cluster start %.2f s', time.perf_counter() - t0)
     t0 = time.perf_counter()
     try:
-        futures = {client.submit(calibrate_run, r, str(output), key=f'calibrate-{k}-{r.slug()}',
-                                 pure=False): r for k, r in enumerate(todo)}
+        futures = {
+            client.submit(
+                calibrate_run, r, str(output), key=f'calibrate-{k}-{r.slug()}', pure=False
+            ): r
+            for k, r in enumerate(todo)
+        }
         for fut in as_completed(futures):
             run = futures[fut]
             try:
                 row = fut.result()
             except Exception as err:  # noqa: BLE001  (KilledWorker after repeated deaths)
-                row = {'name': run.name, 'algorithm': run.algorithm, 'sequence': run.sequence,
-                       'trial': run.trial, 'status': 'failed',
-                       'reason': f'internal error: {type(err).__name__}: {err}'}
+                row = {
+                    'name': run.name,
+                    'algorithm': run.algorithm,
+                    'sequence': run.sequence,
+                    'trial': run.trial,
+                    'status': 'failed',
+                    'reason': f'internal error: {type(err).__name__}: {err}',
+                }
             done(run, row)
         LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
     finally:

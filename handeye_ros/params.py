@@ -21,27 +21,50 @@ class NodeConfig(Options):
     """Node-only behaviour."""
 
     output_file: str = option(
-        'handeye_result.yaml', 'str', 'where ~/save writes the last result (YAML, or JSON for '
-        '.json); relative to the working directory; may be set while the node runs')
+        'handeye_result.yaml',
+        'str',
+        'where ~/save writes the last result (YAML, or JSON for '
+        '.json); relative to the working directory; may be set while the node runs',
+    )
     report_dir: str = option(
-        '', 'str', 'where ~/save also writes report.html and its plots (empty: no report); '
+        '',
+        'str',
+        'where ~/save also writes report.html and its plots (empty: no report); '
         'each calibration then draws its report in the worker, ready for ~/save; may be set '
-        'while the node runs (the next calibration draws the report)')
+        'while the node runs (the next calibration draws the report)',
+    )
     calibrate_period: float = option(
-        0.0, 'float', 'run the calibration every this many seconds while data flow (online use); '
-        '0 disables', low=0.0, high=86_400.0)
+        0.0,
+        'float',
+        'run the calibration every this many seconds while data flow (online use); 0 disables',
+        low=0.0,
+        high=86_400.0,
+    )
     diagnostics_period: float = option(
-        1.0, 'float', 'period of the /diagnostics status [s]', low=0.05, high=3600.0)
+        1.0, 'float', 'period of the /diagnostics status [s]', low=0.05, high=3600.0
+    )
     qos_reliability: str = option(
-        'best_effort', 'str', 'subscription reliability: best_effort also receives from reliable '
+        'best_effort',
+        'str',
+        'subscription reliability: best_effort also receives from reliable '
         'publishers and matches sensor-data MoCap drivers; reliable matches reliable ones only',
-        choices=('best_effort', 'reliable'))
+        choices=('best_effort', 'reliable'),
+    )
     qos_depth: int = option(
-        1000, 'int', 'subscription queue depth: deep enough that bursts are not dropped',
-        low=1, high=1_000_000)
+        1000,
+        'int',
+        'subscription queue depth: deep enough that bursts are not dropped',
+        low=1,
+        high=1_000_000,
+    )
     topic_wait: float = option(
-        30.0, 'float', 'with hand_type/eye_type auto: how long to wait for a publisher to learn '
-        'the type before warning again [s]', low=0.1, high=86_400.0)
+        30.0,
+        'float',
+        'with hand_type/eye_type auto: how long to wait for a publisher to learn '
+        'the type before warning again [s]',
+        low=0.1,
+        high=86_400.0,
+    )
 
 
 #: Node parameters that may change while the node runs: the algorithm options and where
@@ -78,9 +101,12 @@ def params_yaml() -> str:
     import textwrap
 
     import yaml
-    blocks = (('pose streams (node and bag replay)', StreamConfig),
-              ("algorithm (same names as offline_calibrate's options)", CalibrationConfig),
-              ('node only', NodeConfig))
+
+    blocks = (
+        ('pose streams (node and bag replay)', StreamConfig),
+        ("algorithm (same names as offline_calibrate's options)", CalibrationConfig),
+        ('node only', NodeConfig),
+    )
     lines = [PARAMS_HEADER.rstrip('\n'), 'calibrator:', '  ros__parameters:']
     for title, cls in blocks:
         lines.append(f'    # --- {title} '.ljust(99, '-'))
@@ -120,8 +146,12 @@ parameters (every one with its default in config/calibrator.yaml; * may change a
 def usage() -> str:
     """The text of ``calibrator --help``: what the node does and every parameter."""
     import textwrap
-    defaults = {**CalibrationConfig().to_dict(), **StreamConfig().to_dict(),
-                **NodeConfig().to_dict()}
+
+    defaults = {
+        **CalibrationConfig().to_dict(),
+        **StreamConfig().to_dict(),
+        **NodeConfig().to_dict(),
+    }
     lines = [USAGE.rstrip('\n')]
     for name, spec in all_specs().items():
         value = defaults[name]

@@ -25,13 +25,34 @@ from .stream.convert import (
 from .stream.sources import parse_selector
 
 #: Words that mark a topic as MoCap (hand) or VO/VIO (eye) when the topics are not given.
-HAND_WORDS = ('mocap', 'vicon', 'optitrack', 'qualisys', 'vrpn', 'motion_capture', 'natnet',
-              'ground_truth', 'groundtruth')
-EYE_WORDS = ('vio', 'odom', 'slam', 'vins', 'msckf', 'orb', 'okvis', 'estimate', 'camera',
-             'visual')
+HAND_WORDS = (
+    'mocap',
+    'vicon',
+    'optitrack',
+    'qualisys',
+    'vrpn',
+    'motion_capture',
+    'natnet',
+    'ground_truth',
+    'groundtruth',
+)
+EYE_WORDS = (
+    'vio',
+    'odom',
+    'slam',
+    'vins',
+    'msckf',
+    'orb',
+    'okvis',
+    'estimate',
+    'camera',
+    'visual',
+)
 
-def choose_topics(bag: BagReader, config: StreamConfig,
-                  given: dict[str, bool]) -> dict[str, Topic]:
+
+def choose_topics(
+    bag: BagReader, config: StreamConfig, given: dict[str, bool]
+) -> dict[str, Topic]:
     """The hand and eye topics: as given, else by name, else the one obvious pair.
 
     ``given[stream]`` says whether the user named the topic (command line or config); a
@@ -42,9 +63,14 @@ def choose_topics(bag: BagReader, config: StreamConfig,
     by_name = {t.name: t for t in bag.topics()}
     if not any(t.count for t in by_name.values()):
         raise InputError(f'{bag.path}: the bag holds no messages')
-    listing = ('; pose topics in the bag: ' + ', '.join(
-        f'{t.name} ({t.msgtype}, {t.count} msgs)' for t in poses)) if poses else \
-        '; the bag holds no pose topic (supported types: ' + ', '.join(SUPPORTED_TYPES) + ')'
+    listing = (
+        (
+            '; pose topics in the bag: '
+            + ', '.join(f'{t.name} ({t.msgtype}, {t.count} msgs)' for t in poses)
+        )
+        if poses
+        else '; the bag holds no pose topic (supported types: ' + ', '.join(SUPPORTED_TYPES) + ')'
+    )
     for t in bag.multi_pose_topics():
         how = 'PARENT.CHILD' if normalise_type(t.msgtype) == TF_TYPE else 'BODY_NAME'
         listing += f'; {t.name} ({t.msgtype}, {t.count} msgs): select as {t.name}:{how}'
@@ -64,8 +90,9 @@ def choose_topics(bag: BagReader, config: StreamConfig,
         matches = [t for t in poses if any(w in t.name.lower() for w in words)]
         if len(matches) != 1:
             why = 'no pose topic' if not matches else f'{len(matches)} pose topics'
-            raise InputError(f'{bag.path}: {why} looks like the {stream} stream; pass '
-                             f'--{stream}-topic{listing}')
+            raise InputError(
+                f'{bag.path}: {why} looks like the {stream} stream; pass --{stream}-topic{listing}'
+            )
         chosen[stream] = matches[0]
     texts = [selector_text(config, s, chosen[s]) for s in STREAMS]
     if texts[0] == texts[1]:
@@ -83,8 +110,12 @@ def selector_text(config: StreamConfig, stream: str, topic: Topic) -> str:
     return text if parse_selector(text).topic == topic.name else topic.name
 
 
-def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None = None,
-           progress: bool | None = None) -> Recorder:
+def replay(
+    path: str | Path,
+    config: StreamConfig,
+    given: dict[str, bool] | None = None,
+    progress: bool | None = None,
+) -> Recorder:
     """Feed the bag's hand and eye messages through a Recorder, as the node would receive them.
 
     ``progress``: show a progress bar on stderr (None: only when stderr is a terminal).
@@ -94,15 +125,20 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
     given = given or {s: False for s in STREAMS}
     with BagReader(path) as bag:
         chosen = choose_topics(bag, config, given)
-        config = _replace(config, hand_topic=selector_text(config, 'hand', chosen['hand']),
-                         eye_topic=selector_text(config, 'eye', chosen['eye']))
+        config = _replace(
+            config,
+            hand_topic=selector_text(config, 'hand', chosen['hand']),
+            eye_topic=selector_text(config, 'eye', chosen['eye']),
+        )
         rec = Recorder(config)
         for stream in STREAMS:
             declared = getattr(config, f'{stream}_type')
             msgtype = chosen[stream].msgtype
             if declared != 'auto' and normalise_type(declared) != normalise_type(msgtype):
-                raise InputError(f'{bag.path}: topic {chosen[stream].name} is {msgtype}, but '
-                                 f'{stream}_type is {declared}')
+                raise InputError(
+                    f'{bag.path}: topic {chosen[stream].name} is {msgtype}, but '
+                    f'{stream}_type is {declared}'
+                )
             try:
                 rec.set_type(stream, msgtype)
             except ConfigError as err:
@@ -113,8 +149,14 @@ def replay(path: str | Path, config: StreamConfig, given: dict[str, bool] | None
         static = [t for t, r in routes.items() if all(st for _, st in r) and t in counts]
         moving = [t for t in routes if t not in static and t in counts]
         total = sum(counts[t] for t in routes if t in counts)
-        bar = tqdm(total=total, unit='msg', desc=f'replaying {bag.path.name}', file=sys.stderr,
-                   disable=None if progress is None else not progress, mininterval=0.5)
+        bar = tqdm(
+            total=total,
+            unit='msg',
+            desc=f'replaying {bag.path.name}',
+            file=sys.stderr,
+            disable=None if progress is None else not progress,
+            mininterval=0.5,
+        )
         with bar:
             for topics in (static, moving):
                 if not topics:
@@ -138,9 +180,12 @@ def _items(bag: BagReader, topic: Topic) -> str:
         if kind in RIGID_BODIES_TYPES:
             seen.update(dict.fromkeys(b.rigid_body_name for b in msg.rigidbodies))
         else:
-            seen.update(dict.fromkeys(f'{tf.header.frame_id.lstrip("/")}.'
-                                      f'{tf.child_frame_id.lstrip("/")}'
-                                      for tf in msg.transforms))
+            seen.update(
+                dict.fromkeys(
+                    f'{tf.header.frame_id.lstrip("/")}.{tf.child_frame_id.lstrip("/")}'
+                    for tf in msg.transforms
+                )
+            )
         if k >= 200 or len(seen) > 20:
             break
     listed = ', '.join(f'{topic.name}:{x}' for x in list(seen)[:20])

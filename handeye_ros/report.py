@@ -38,58 +38,82 @@ def read_result(path: str | Path) -> dict[str, Any]:
         raise InputError(f'{path}: not YAML or JSON ({str(err).splitlines()[0]})') from None
     e = data.get('extrinsic') if isinstance(data, dict) else None
     try:
-        ok = (isinstance(e, dict) and isinstance(e['parent'], str) and isinstance(e['child'], str)
-              and len(e['translation']) == 3 and len(e['rotation']) == 4
-              and all(isinstance(v, (int, float)) for v in [*e['translation'], *e['rotation']])
-              and isinstance(data['time_offset'], (int, float))
-              and isinstance(data['time_offset_ns'], int))
+        ok = (
+            isinstance(e, dict)
+            and isinstance(e['parent'], str)
+            and isinstance(e['child'], str)
+            and len(e['translation']) == 3
+            and len(e['rotation']) == 4
+            and all(isinstance(v, (int, float)) for v in [*e['translation'], *e['rotation']])
+            and isinstance(data['time_offset'], (int, float))
+            and isinstance(data['time_offset_ns'], int)
+        )
     except (KeyError, TypeError):
         ok = False
     if not ok:
-        raise InputError(f'{path}: not a handeye_ros result (needs extrinsic.parent, child, '
-                         'translation [3], rotation [4], time_offset and time_offset_ns, as '
-                         '~/save and offline_calibrate -o write them)')
+        raise InputError(
+            f'{path}: not a handeye_ros result (needs extrinsic.parent, child, '
+            'translation [3], rotation [4], time_offset and time_offset_ns, as '
+            '~/save and offline_calibrate -o write them)'
+        )
     return data
 
 
 def format_report(d: dict[str, Any]) -> str:
     """A terminal report of a result dictionary (see :mod:`handeye_ros.core.result`)."""
     ta, lin, m, q = d['time_alignment'], d['linear'], d['metrics'], d['quality']
-    lines = ['handeye_ros calibration', f'  convention: {d["convention"]}',
-             '', f'VERDICT: {q["verdict"].upper()}']
+    lines = [
+        'handeye_ros calibration',
+        f'  convention: {d["convention"]}',
+        '',
+        f'VERDICT: {q["verdict"].upper()}',
+    ]
     lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
     lines += [f'  note: {n}' for n in q['notes']]
     for name in ('hand', 'eye'):
         info = d['inputs'][name]
-        lines.append(f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
-                     f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)')
+        lines.append(
+            f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
+            f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)'
+        )
     peak = ta['peak_correlation']
     lines += [
         '',
-        (f'time offset dt = {d["time_offset"] * 1e3:+.3f} ms  (eye clock minus hand clock; the '
-         'hand pose at hand time t - dt belongs to the eye pose at eye time t)'),
-        f'  method {ta["method"]}' + (f', peak correlation {peak:.3f}, second peak '
-                                      f'{ta["second_peak_ratio"]:.2f} of it'
-                                      if peak is not None else ''),
+        (
+            f'time offset dt = {d["time_offset"] * 1e3:+.3f} ms  (eye clock minus hand clock; the '
+            'hand pose at hand time t - dt belongs to the eye pose at eye time t)'
+        ),
+        f'  method {ta["method"]}'
+        + (
+            f', peak correlation {peak:.3f}, second peak {ta["second_peak_ratio"]:.2f} of it'
+            if peak is not None
+            else ''
+        ),
         '',
         _transform('T_HE: eye frame in hand frame', d['extrinsic']),
         _transform('T_EH: hand frame in eye frame', d['extrinsic_inverse']),
         _transform('T_WG: hand (MoCap) world in eye (VIO) world', d['world_alignment']),
         '',
-        (f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
-         f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, '
-         f'rotation axes spread {lin["axis_spread_deg"]:.0f} deg'),
+        (
+            f'linear stage: {lin["inliers"]}/{lin["motions"]} motions inliers '
+            f'({lin["relative_poses"]} keyframes), sigma7/sigma6 {lin["sigma_ratio"]:.3g}, '
+            f'rotation axes spread {lin["axis_spread_deg"]:.0f} deg'
+        ),
         *_batch_lines(d),
-        (f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
-         f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
-         f'(max {m["are_max"]:.3f})'),
+        (
+            f'metrics over {m["poses"]} poses: APE rmse {m["ape_rmse"] * 1e3:.1f} mm '
+            f'(max {m["ape_max"] * 1e3:.1f}), ARE rmse {m["are_rmse"]:.3f} deg '
+            f'(max {m["are_max"]:.3f})'
+        ),
         *_evaluation_lines(d),
         *_screening_lines(d),
     ]
     files = d.get('files') or {}
     if files.get('export'):
-        lines.append(f'exports: {Path(files["export"][0]).parent}/ (evo_ape tum groundtruth.tum '
-                     'estimate.tum, no -a)')
+        lines.append(
+            f'exports: {Path(files["export"][0]).parent}/ (evo_ape tum groundtruth.tum '
+            'estimate.tum, no -a)'
+        )
     if files.get('report'):
         lines.append(f'report: {files["report"]}')
     for w in d['warnings']:
@@ -109,12 +133,18 @@ def _batch_lines(d: dict[str, Any]) -> list[str]:
     if not b.get('used'):
         return ['batch stage: ' + ('off' if not b.get('enabled') else 'not used (see warnings)')]
     s = d['std']
-    return [(f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
-             f'{b["iterations"]} iterations ({b["termination"]}); dt moved '
-             f'{b["time_offset_change"] * 1e3:+.3f} ms from stage 1'),
-            f'  1-sigma: time offset {s["time_offset"] * 1e3:.3f} ms, translation '
-            + ' '.join(f'{v * 1e3:.2f}' for v in s['translation']) + ' mm, rotation '
-            + ' '.join(f'{v * 57.29577951308232:.3f}' for v in s['rotation']) + ' deg']
+    return [
+        (
+            f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
+            f'{b["iterations"]} iterations ({b["termination"]}); dt moved '
+            f'{b["time_offset_change"] * 1e3:+.3f} ms from stage 1'
+        ),
+        f'  1-sigma: time offset {s["time_offset"] * 1e3:.3f} ms, translation '
+        + ' '.join(f'{v * 1e3:.2f}' for v in s['translation'])
+        + ' mm, rotation '
+        + ' '.join(f'{v * 57.29577951308232:.3f}' for v in s['rotation'])
+        + ' deg',
+    ]
 
 
 def _screening_lines(d: dict[str, Any]) -> list[str]:
@@ -123,10 +153,15 @@ def _screening_lines(d: dict[str, Any]) -> list[str]:
     for name, rep in sc.items():
         removed = {k: v for k, v in rep['removed'].items() if v}
         if removed or rep['breaks_ns']:
-            out.append(f'screening {name}: removed ' + (', '.join(
-                f'{v} {k.replace("_", " ")}' for k, v in removed.items()) or 'nothing')
+            out.append(
+                f'screening {name}: removed '
+                + (
+                    ', '.join(f'{v} {k.replace("_", " ")}' for k, v in removed.items())
+                    or 'nothing'
+                )
                 + (f'; {len(rep["breaks_ns"])} break(s)' if rep['breaks_ns'] else '')
-                + f' of {rep["poses_in"]} poses')
+                + f' of {rep["poses_in"]} poses'
+            )
     return out
 
 
@@ -139,11 +174,13 @@ def _evaluation_lines(d: dict[str, Any]) -> list[str]:
         pe = ev.get(side)
         if pe is None:
             continue
-        out.append(f'  {pe["what"]}: APE {_mm(pe["ape_translation"])} mm / '
-                   f'{_deg(pe["ape_rotation"])} deg, RPE per {ev["rpe_delta_s"]:g} s '
-                   f'{_mm(pe["rpe_time_translation"])} mm / {_deg(pe["rpe_time_rotation"])} deg, '
-                   f'per {ev["rpe_delta_m"]:g} m {_mm(pe["rpe_distance_translation"])} mm / '
-                   f'{_deg(pe["rpe_distance_rotation"])} deg (RMSE)')
+        out.append(
+            f'  {pe["what"]}: APE {_mm(pe["ape_translation"])} mm / '
+            f'{_deg(pe["ape_rotation"])} deg, RPE per {ev["rpe_delta_s"]:g} s '
+            f'{_mm(pe["rpe_time_translation"])} mm / {_deg(pe["rpe_time_rotation"])} deg, '
+            f'per {ev["rpe_delta_m"]:g} m {_mm(pe["rpe_distance_translation"])} mm / '
+            f'{_deg(pe["rpe_distance_rotation"])} deg (RMSE)'
+        )
     if ev.get('uncalibrated_why'):
         out.append(f'  without the calibration: {ev["uncalibrated_why"]}')
     return ['evaluation of the eye against the MoCap:', *out] if out else []

@@ -34,15 +34,45 @@ from typing import Any
 from .core.errors import ConfigError
 
 #: Keys of a manifest run that are not calibration options.
-RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options',
-            'report')
+RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options', 'report')
 #: Columns of results.csv, in order.
-COLUMNS = ('name', 'algorithm', 'sequence', 'trial', 'status', 'reason', 'verdict',
-           'verdict_reasons', 'time_offset_ms', 'time_offset_std_ms', 'clock_drift_ppm', 'scale',
-           'tx_m', 'ty_m', 'tz_m', 'qx', 'qy', 'qz', 'qw', 'translation_std_mm',
-           'rotation_std_deg', 'ape_mm', 'ape_deg', 'rpe_1s_mm', 'rpe_1s_deg', 'rpe_1m_mm',
-           'rpe_1m_deg', 'ape_uncalibrated_mm', 'ape_uncalibrated_deg',
-           'rpe_1s_uncalibrated_mm', 'pairs', 'seconds', 'cached', 'pid', 'rss_mb')
+COLUMNS = (
+    'name',
+    'algorithm',
+    'sequence',
+    'trial',
+    'status',
+    'reason',
+    'verdict',
+    'verdict_reasons',
+    'time_offset_ms',
+    'time_offset_std_ms',
+    'clock_drift_ppm',
+    'scale',
+    'tx_m',
+    'ty_m',
+    'tz_m',
+    'qx',
+    'qy',
+    'qz',
+    'qw',
+    'translation_std_mm',
+    'rotation_std_deg',
+    'ape_mm',
+    'ape_deg',
+    'rpe_1s_mm',
+    'rpe_1s_deg',
+    'rpe_1m_mm',
+    'rpe_1m_deg',
+    'ape_uncalibrated_mm',
+    'ape_uncalibrated_deg',
+    'rpe_1s_uncalibrated_mm',
+    'pairs',
+    'seconds',
+    'cached',
+    'pid',
+    'rss_mb',
+)
 #: Bumped when a row's meaning changes, so that old cache entries are not reused.
 CACHE_VERSION = 1
 HASH_CHUNK = 1 << 20
@@ -94,6 +124,7 @@ def read_manifest(path: str | Path) -> list[RunSpec]:
 
 def _from_yaml(path: Path) -> list[RunSpec]:
     import yaml
+
     try:
         data = yaml.safe_load(path.read_text(encoding='utf-8'))
     except FileNotFoundError:
@@ -116,12 +147,20 @@ def _from_yaml(path: Path) -> list[RunSpec]:
         extra = {key: v for key, v in item.items() if key not in RUN_KEYS}
         options = {**defaults, **(item.get('options') or {}), **extra}
         labels = {key: str(item.get(key, '')) for key in ('algorithm', 'sequence', 'trial')}
-        name = str(item.get('name') or '/'.join(v for v in labels.values() if v) or
-                   f'run{k + 1}')
-        files = {key: str((base / str(item[key])).resolve()) if item.get(key) else None
-                 for key in ('hand', 'eye', 'bag')}
-        out.append(RunSpec(name=name, options=options, report=bool(item.get('report', False)),
-                           **labels, **files))
+        name = str(item.get('name') or '/'.join(v for v in labels.values() if v) or f'run{k + 1}')
+        files = {
+            key: str((base / str(item[key])).resolve()) if item.get(key) else None
+            for key in ('hand', 'eye', 'bag')
+        }
+        out.append(
+            RunSpec(
+                name=name,
+                options=options,
+                report=bool(item.get('report', False)),
+                **labels,
+                **files,
+            )
+        )
     return out
 
 
@@ -130,13 +169,20 @@ def _from_layout(root: Path) -> list[RunSpec]:
     for trial in sorted(p for p in root.glob('*/*/*') if p.is_dir()):
         algorithm, sequence = trial.parent.parent.name, trial.parent.name
         files = {f.stem: f for f in sorted(trial.iterdir()) if f.is_file()}
-        bags = [f for f in trial.iterdir() if f.suffix in BAG_SUFFIXES or
-                (f.is_dir() and (f / 'metadata.yaml').is_file())]
-        spec = RunSpec(name=f'{algorithm}/{sequence}/{trial.name}', algorithm=algorithm,
-                       sequence=sequence, trial=trial.name,
-                       hand=str(files['hand']) if 'hand' in files else None,
-                       eye=str(files['eye']) if 'eye' in files else None,
-                       bag=str(bags[0]) if bags and 'hand' not in files else None)
+        bags = [
+            f
+            for f in trial.iterdir()
+            if f.suffix in BAG_SUFFIXES or (f.is_dir() and (f / 'metadata.yaml').is_file())
+        ]
+        spec = RunSpec(
+            name=f'{algorithm}/{sequence}/{trial.name}',
+            algorithm=algorithm,
+            sequence=sequence,
+            trial=trial.name,
+            hand=str(files['hand']) if 'hand' in files else None,
+            eye=str(files['eye']) if 'eye' in files else None,
+            bag=str(bags[0]) if bags and 'hand' not in files else None,
+        )
         out.append(spec)
     return out
 
@@ -155,8 +201,11 @@ def cache_key(run: RunSpec, code: str) -> str:
     """sha256 of the run's input contents, options and the code (:func:`code_fingerprint`); no
     paths or names, so a moved file keeps its result."""
     h = hashlib.sha256(f'{CACHE_VERSION} {code}'.encode())
-    h.update(json.dumps({'options': run.options, 'report': run.report},
-                        sort_keys=True, default=str).encode())
+    h.update(
+        json.dumps(
+            {'options': run.options, 'report': run.report}, sort_keys=True, default=str
+        ).encode()
+    )
     for p in run.inputs():
         path = Path(p)
         files = sorted(f for f in path.rglob('*') if f.is_file()) if path.is_dir() else [path]
@@ -179,11 +228,16 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     from . import offline
     from .core.errors import HandeyeError
     from .report import write_result
+
     t0 = time.perf_counter()
-    row: dict[str, Any] = {'name': run.name, 'algorithm': run.algorithm,
-                           'sequence': run.sequence, 'trial': run.trial}
+    row: dict[str, Any] = {
+        'name': run.name,
+        'algorithm': run.algorithm,
+        'sequence': run.sequence,
+        'trial': run.trial,
+    }
     folder = Path(output) / 'runs' / run.slug()
-    argv = (['--bag', run.bag] if run.bag else ['--hand', run.hand or '', '--eye', run.eye or ''])
+    argv = ['--bag', run.bag] if run.bag else ['--hand', run.hand or '', '--eye', run.eye or '']
     argv += ['--export', str(folder / 'export')]
     if run.report:
         argv += ['--report', str(folder / 'report')]
@@ -226,7 +280,8 @@ def _row(d: dict[str, Any]) -> dict[str, Any]:
     def stat(pe: dict, key: str, k: float) -> float | None:
         v = (pe.get(key) or {}).get('rmse')
         return None if v is None else v * k
-    norm = (lambda v: None if not v else sum(x * x for x in v) ** 0.5)
+
+    norm = lambda v: None if not v else sum(x * x for x in v) ** 0.5
     t, q = d['extrinsic']['translation'], d['extrinsic']['rotation']
     return {
         'verdict': d['quality']['verdict'],
@@ -235,10 +290,17 @@ def _row(d: dict[str, Any]) -> dict[str, Any]:
         'time_offset_std_ms': None if s.get('time_offset') is None else s['time_offset'] * 1e3,
         'clock_drift_ppm': None if d.get('clock_drift') is None else d['clock_drift'] * 1e6,
         'scale': d.get('scale'),
-        'tx_m': t[0], 'ty_m': t[1], 'tz_m': t[2], 'qx': q[0], 'qy': q[1], 'qz': q[2], 'qw': q[3],
+        'tx_m': t[0],
+        'ty_m': t[1],
+        'tz_m': t[2],
+        'qx': q[0],
+        'qy': q[1],
+        'qz': q[2],
+        'qw': q[3],
         'translation_std_mm': None if not s else norm(s['translation']) * 1e3,
         'rotation_std_deg': None if not s else norm(s['rotation']) * 57.29577951308232,
-        'ape_mm': stat(cal, 'ape_translation', 1e3), 'ape_deg': stat(cal, 'ape_rotation', 1.0),
+        'ape_mm': stat(cal, 'ape_translation', 1e3),
+        'ape_deg': stat(cal, 'ape_rotation', 1.0),
         'rpe_1s_mm': stat(cal, 'rpe_time_translation', 1e3),
         'rpe_1s_deg': stat(cal, 'rpe_time_rotation', 1.0),
         'rpe_1m_mm': stat(cal, 'rpe_distance_translation', 1e3),
@@ -274,8 +336,20 @@ def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
         w.writeheader()
         for r in rows:
             w.writerow({k: _cell(r.get(k)) for k in COLUMNS})
-    shown = ('name', 'status', 'verdict', 'time_offset_ms', 'tx_m', 'ty_m', 'tz_m', 'ape_mm',
-             'ape_deg', 'rpe_1s_mm', 'ape_uncalibrated_mm', 'reason')
+    shown = (
+        'name',
+        'status',
+        'verdict',
+        'time_offset_ms',
+        'tx_m',
+        'ty_m',
+        'tz_m',
+        'ape_mm',
+        'ape_deg',
+        'rpe_1s_mm',
+        'ape_uncalibrated_mm',
+        'reason',
+    )
     lines = ['| ' + ' | '.join(shown) + ' |', '|' + '---|' * len(shown)]
     for r in rows:
         cells = [_md(r.get(k)) for k in shown]
@@ -294,4 +368,3 @@ def _md(v: Any) -> str:
     if isinstance(v, float):
         return f'{v:.4g}'
     return ('' if v is None else str(v)).replace('|', '\\|').replace('\n', ' ')[:200]
-

@@ -34,8 +34,15 @@ class CliResult:
 def run_cli(*args: str, module: str = 'handeye_ros.offline', timeout: float = 120.0) -> CliResult:
     """Run a package module in a fresh interpreter, as a user would, and capture its output."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
-    proc = subprocess.run([sys.executable, '-m', module, *map(str, args)], capture_output=True,
-                          text=True, env=env, timeout=timeout, cwd=ROOT, check=False)
+    proc = subprocess.run(
+        [sys.executable, '-m', module, *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=timeout,
+        cwd=ROOT,
+        check=False,
+    )
     return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
 

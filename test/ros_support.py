@@ -35,11 +35,20 @@ def build_workspace(ws: Path) -> Path:
     """colcon build of this repository into ``ws``; returns the install folder."""
     (ws / 'src').mkdir(parents=True)
     (ws / 'src' / 'handeye_ros').symlink_to(ROOT)
-    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix,
-               PATH=str(Path(sys.prefix) / 'bin') + os.pathsep + os.environ['PATH'])
-    proc = subprocess.run([str(Path(sys.prefix) / 'bin' / 'colcon'), 'build',
-                           '--event-handlers', 'console_direct-'], cwd=ws, env=env,
-                          capture_output=True, text=True, timeout=300, check=False)
+    env = dict(
+        os.environ,
+        AMENT_PREFIX_PATH=sys.prefix,
+        PATH=str(Path(sys.prefix) / 'bin') + os.pathsep + os.environ['PATH'],
+    )
+    proc = subprocess.run(
+        [str(Path(sys.prefix) / 'bin' / 'colcon'), 'build', '--event-handlers', 'console_direct-'],
+        cwd=ws,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     if proc.returncode:
         raise RuntimeError(f'colcon build failed:\n{proc.stdout}\n{proc.stderr}')
     return ws / 'install'
@@ -51,10 +60,13 @@ def ros_env(install: Path) -> dict[str, str]:
     site = next((prefix / 'lib').glob('python3*/site-packages'))
     env = dict(os.environ)
     env.pop('ROS_LOCALHOST_ONLY', None)
-    env.update(AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]),
-               PYTHONPATH=str(site), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(1, 101))),
-               PYTHONUNBUFFERED='1')
+    env.update(
+        AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]),
+        PYTHONPATH=str(site),
+        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+        ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(1, 101))),
+        PYTHONUNBUFFERED='1',
+    )
     return env
 
 
@@ -65,27 +77,39 @@ INTERFACES = ROOT / '.interfaces' / 'install'
 def with_interfaces(env: dict[str, str]) -> dict[str, str] | None:
     """``env`` with the message packages of scripts/interfaces on the paths, as sourcing their
     install/setup.bash would put them; None when they were not built."""
-    site = INTERFACES / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / \
-        'site-packages'
+    site = (
+        INTERFACES
+        / 'lib'
+        / f'python{sys.version_info.major}.{sys.version_info.minor}'
+        / 'site-packages'
+    )
     if not (site / 'tf2_msgs').is_dir() or not (site / 'mocap4r2_msgs').is_dir():
         return None
     out = dict(env)
     out['PYTHONPATH'] = os.pathsep.join(filter(None, [env.get('PYTHONPATH'), str(site)]))
-    out['LD_LIBRARY_PATH'] = os.pathsep.join(filter(None, [str(INTERFACES / 'lib'),
-                                                           env.get('LD_LIBRARY_PATH')]))
+    out['LD_LIBRARY_PATH'] = os.pathsep.join(
+        filter(None, [str(INTERFACES / 'lib'), env.get('LD_LIBRARY_PATH')])
+    )
     out['AMENT_PREFIX_PATH'] = os.pathsep.join([env['AMENT_PREFIX_PATH'], str(INTERFACES)])
     return out
 
 
 def resolve_executable(env: dict[str, str], package: str, executable: str) -> Path:
     """What `ros2 run package executable` would start."""
-    code = ('import os, sys; from ament_index_python.packages import get_package_prefix; '
-            'base = os.path.join(get_package_prefix(sys.argv[1]), "lib", sys.argv[1]); '
-            'hits = [os.path.join(d, f) for d, ds, fs in os.walk(base) '
-            'for f in fs if f == sys.argv[2] and os.access(os.path.join(d, f), os.X_OK)]; '
-            'print(hits[0] if len(hits) == 1 else "")')
-    out = subprocess.run([sys.executable, '-c', code, package, executable], env=env,
-                         capture_output=True, text=True, check=True).stdout.strip()
+    code = (
+        'import os, sys; from ament_index_python.packages import get_package_prefix; '
+        'base = os.path.join(get_package_prefix(sys.argv[1]), "lib", sys.argv[1]); '
+        'hits = [os.path.join(d, f) for d, ds, fs in os.walk(base) '
+        'for f in fs if f == sys.argv[2] and os.access(os.path.join(d, f), os.X_OK)]; '
+        'print(hits[0] if len(hits) == 1 else "")'
+    )
+    out = subprocess.run(
+        [sys.executable, '-c', code, package, executable],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     if not out:
         raise RuntimeError(f'{package}/{executable} not found as ros2 run would')
     return Path(out)
@@ -100,8 +124,14 @@ class Processes:
 
     def start(self, cmd: list[str], name: str) -> subprocess.Popen:
         out, err = self.logs / f'{name}.out', self.logs / f'{name}.err'
-        p = subprocess.Popen(cmd, env=self.env, stdout=out.open('w'), stderr=err.open('w'),
-                             start_new_session=True, cwd=self.logs)
+        p = subprocess.Popen(
+            cmd,
+            env=self.env,
+            stdout=out.open('w'),
+            stderr=err.open('w'),
+            start_new_session=True,
+            cwd=self.logs,
+        )
         self.procs.append((p, out, err))
         return p
 

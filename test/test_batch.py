@@ -95,6 +95,7 @@ def test_too_short_overlap_and_far_off_start() -> None:
     with pytest.raises(BatchError, match='overlap too little'):
         refine(rec.hand, short, rec.truth.time_offset_s, rec.truth.q_HE, rec.truth.p_HE)
 
+
 def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
     """No cap on how far the batch stage may move: when it moves beyond its sigmas the
     self-check scores both on one motion set. From a linear result 30 cm / 20 deg off, the
@@ -107,25 +108,28 @@ def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
     dt = rec.truth.time_offset_s
     sol, _ = _run_batch(rec.hand, rec.eye, dt, q_bad, bad_lin.p_HE, CalibrationConfig())
     assert sol is not None
-    assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m \
-        < 0.01
+    assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m < 0.01
     run = _Run()
     assert _check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
     assert not run.reasons and any('supports it' in n for n in run.notes)
     # a batch solution far off a good linear result is refused
     bad_sol = replace(sol, q_HE=q_bad, p_HE=bad_lin.p_HE)
     run = _Run()
-    assert _check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(),
-                        run) is None
+    assert (
+        _check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(), run) is None
+    )
     assert [r.code for r in run.reasons] == ['stages_disagree']
 
 
-@pytest.mark.parametrize(('values', 'message'), [
-    ({'knot_spacing': 0.0}, 'knot_spacing must lie in'),
-    ({'spline_order': 9}, 'spline_order must lie in'),
-    ({'huber_delta': -1.0}, 'huber_delta must lie in'),
-    ({'eye_noise_rotation': 0.0}, 'eye_noise_rotation must lie in'),
-])
+@pytest.mark.parametrize(
+    ('values', 'message'),
+    [
+        ({'knot_spacing': 0.0}, 'knot_spacing must lie in'),
+        ({'spline_order': 9}, 'spline_order must lie in'),
+        ({'huber_delta': -1.0}, 'huber_delta must lie in'),
+        ({'eye_noise_rotation': 0.0}, 'eye_noise_rotation must lie in'),
+    ],
+)
 def test_batch_options_out_of_range(values: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         CalibrationConfig.from_mapping(values)
@@ -145,12 +149,14 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     # within a fraction of its own sigma of the default solve (fixed spline), in both the
     # two-step and the all-together form: the MoCap is 25x less noisy than the VIO, so the
     # spline has little to learn from the eye.
-    rec = recording(seed=3, level=5.0, duration_s=30.0, hand_noise_m=1e-4,
-                    hand_noise_deg=np.degrees(1e-4))
+    rec = recording(
+        seed=3, level=5.0, duration_s=30.0, hand_noise_m=1e-4, hand_noise_deg=np.degrees(1e-4)
+    )
     for decoupled in (True, False):
         default = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_decoupled=decoupled))
-        joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True,
-                                                               batch_decoupled=decoupled))
+        joint = calibrate(
+            rec.hand, rec.eye, CalibrationConfig(batch_joint=True, batch_decoupled=decoupled)
+        )
         b, d = joint.batch, default.batch
         assert b is not None and b.success and b.decoupled == decoupled, joint.warnings
         assert b.iterations <= 15 and b.cost_after <= b.cost_before
@@ -166,8 +172,9 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
         assert np.allclose(b.std, d.std, rtol=0.15)
         assert abs(joint.time_offset_s - default.time_offset_s) < 0.2 * b.std[0]
         assert np.all(np.abs(joint.p_HE - default.p_HE) < 0.2 * b.std[1:4])
-    fixed = calibrate(rec.hand, rec.eye, CalibrationConfig(
-        batch_joint=True, time_offset=rec.truth.time_offset_s))
+    fixed = calibrate(
+        rec.hand, rec.eye, CalibrationConfig(batch_joint=True, time_offset=rec.truth.time_offset_s)
+    )
     assert fixed.time_offset_s == rec.truth.time_offset_s and fixed.batch.std[0] == 0.0
     assert fixed.batch.success
 
@@ -177,16 +184,20 @@ def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
     # columns against dense central differences, away from the start values
     from handeye_ros.core.batch import _Problem
 
-    rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4,
-                    hand_noise_deg=0.004)
+    rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4, hand_noise_deg=0.004)
     t = rec.truth
     prob = _Problem(rec.hand, rec.eye, t.time_offset_s + 3e-4, t.q_HE, t.p_HE + 0.003, 0.05, 4)
     prob.w = np.array([1e3, 2e3, 500.0, 400.0])
     x = np.random.default_rng(0).normal(size=prob.n) * 1e-3
     J = prob.jacobian(x).toarray()
     h = 1e-6
-    J_fd = np.stack([(prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
-                     for e in np.eye(prob.n)], axis=1)
+    J_fd = np.stack(
+        [
+            (prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
+            for e in np.eye(prob.n)
+        ],
+        axis=1,
+    )
     # central differences with this step are good to ~1e-8 of the largest entry here
     assert np.abs(J - J_fd).max() < 1e-7 * np.abs(J_fd).max()
 
@@ -195,12 +206,20 @@ def test_joint_solve_refuses_one_mocap_pose_per_knot() -> None:
     # a 20 Hz MoCap has one pose per 0.05 s knot interval: the control poses outnumber what the
     # MoCap determines, so the joint solve says so and the linear result is kept; the default
     # solve (spline held to the MoCap fit) works on the same data
-    rec = recording(seed=9, level=5.0, hand_rate_hz=20.0, duration_s=30.0, hand_noise_m=1e-4,
-                    hand_noise_deg=np.degrees(1e-4))
+    rec = recording(
+        seed=9,
+        level=5.0,
+        hand_rate_hz=20.0,
+        duration_s=30.0,
+        hand_noise_m=1e-4,
+        hand_noise_deg=np.degrees(1e-4),
+    )
     joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True))
     assert joint.batch is None
-    assert any('at least 2 MoCap poses per knot interval' in w and 'knot_spacing >= 0.1 s' in w
-               for w in joint.warnings), joint.warnings
+    assert any(
+        'at least 2 MoCap poses per knot interval' in w and 'knot_spacing >= 0.1 s' in w
+        for w in joint.warnings
+    ), joint.warnings
     default = calibrate(rec.hand, rec.eye)
     assert default.batch is not None and default.batch.success
     e_dt = default.time_offset_s - rec.truth.time_offset_s
@@ -213,19 +232,30 @@ def test_analytic_eye_jacobian_matches_central_differences() -> None:
     differences of the residuals, away from the solution so that no term vanishes."""
     from handeye_ros.core import batch
     from handeye_ros.core.simulate import simulate
+
     rec = simulate(3, duration_s=20.0, clock_drift=100e-6, scale=0.7)
     t = rec.truth
-    prob = batch._Problem(rec.hand, rec.eye, t.time_offset_s + 0.002, t.q_HE, t.p_HE + 0.01,
-                          0.05, 4, drift_stamp_ns=int(rec.eye.t_ns[len(rec.eye) // 2]),
-                          scale=True)
+    prob = batch._Problem(
+        rec.hand,
+        rec.eye,
+        t.time_offset_s + 0.002,
+        t.q_HE,
+        t.p_HE + 0.01,
+        0.05,
+        4,
+        drift_stamp_ns=int(rec.eye.t_ns[len(rec.eye) // 2]),
+        scale=True,
+    )
     y = np.array([1e-4, 0.01, -0.02, 0.005, 0.003, 0.0, -0.01, 2e-5, 0.1])
     n = prob.ei.size
     r, J = prob.eye_chunk(y, 0, n)
     # the residuals against the model written directly: T_GH(tau) T_HE between consecutive
     # eye stamps, its translation divided by the scale, against the eye's relative poses
     from handeye_ros.core.geometry import compose, log_so3, relative
-    pred = relative(compose(prob.spline0.evaluate(prob.eye_times(y)), prob.extrinsic(y)),
-                    prob.ei, prob.ej)
+
+    pred = relative(
+        compose(prob.spline0.evaluate(prob.eye_times(y)), prob.extrinsic(y)), prob.ei, prob.ej
+    )
     dR = np.matmul(pred[0], np.swapaxes(prob.eye_obs[0], -1, -2))
     direct = np.concatenate((log_so3(dR), pred[1] / prob.scale(y) - prob.eye_obs[1]), axis=1)
     np.testing.assert_allclose(r, direct, atol=1e-12)

@@ -49,17 +49,20 @@ def test_line_fits_match_scipy_stats() -> None:
     """The two line fits written out in core/clock.py (to spare every run scipy.stats' 1.3 s
     import) give scipy's numbers, wild points included."""
     from scipy import stats
+
     rng = np.random.default_rng(4)
     for n in (4, 7, 16):
         x = np.sort(rng.uniform(-300, 300, n))
         y = 2e-3 + 5e-5 * x + rng.normal(scale=5e-4, size=n)
         y[n // 3] += 0.05  # a window on a wrong peak
         ref = stats.siegelslopes(y, x)
-        np.testing.assert_allclose(repeated_medians_line(x, y), (ref.slope, ref.intercept),
-                                   rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(
+            repeated_medians_line(x, y), (ref.slope, ref.intercept), rtol=1e-12, atol=1e-15
+        )
         lr = stats.linregress(x, y)
-        np.testing.assert_allclose(least_squares_line(x, y),
-                                   (lr.slope, lr.intercept, lr.stderr), rtol=1e-10)
+        np.testing.assert_allclose(
+            least_squares_line(x, y), (lr.slope, lr.intercept, lr.stderr), rtol=1e-10
+        )
 
 
 def test_drift_significance_uses_the_t_quantile_of_its_windows() -> None:
@@ -68,8 +71,19 @@ def test_drift_significance_uses_the_t_quantile_of_its_windows() -> None:
     from scipy import stats
 
     def fit(n: int, drift: float) -> DriftFit:
-        return DriftFit(drift, 1e-6, 0.0, 1e-4, 0, 6000.0, np.zeros(n, np.int64), np.zeros(n),
-                        np.ones(n), np.ones(n, bool))
+        return DriftFit(
+            drift,
+            1e-6,
+            0.0,
+            1e-4,
+            0,
+            6000.0,
+            np.zeros(n, np.int64),
+            np.zeros(n),
+            np.ones(n),
+            np.ones(n, bool),
+        )
+
     for n in (4, 6, 15):
         bar = stats.t.ppf(stats.norm.cdf(3.0), n - 2)
         assert fit(n, 1e-6).threshold_sigmas == pytest.approx(bar)
@@ -102,7 +116,9 @@ def _exact_motions(s_true: float, n: int = 30, translate: float = 0.5):
     RX = Rotation.random(random_state=rng).as_matrix()
     pX = np.array([0.05, -0.1, 0.2])
     A = (Rotation.random(n, random_state=rng).as_matrix(), rng.normal(0, translate, (n, 3)))
-    B = compose(compose(inverse((RX, pX)), A), (np.broadcast_to(RX, (n, 3, 3)), np.tile(pX, (n, 1))))
+    B = compose(
+        compose(inverse((RX, pX)), A), (np.broadcast_to(RX, (n, 3, 3)), np.tile(pX, (n, 1)))
+    )
     return A, (B[0], B[1] / s_true), RX, pX
 
 
@@ -121,8 +137,9 @@ def test_dual_quaternion_scale_is_exact_on_exact_motions() -> None:
     qb, qbd = dual_quat_from_pose(quat_from_matrix(B[0]), B[1])
     # eq. 4 wants both scalar parts >= 0
     sa, sb = np.sign(qa[:, 3:]), np.sign(qb[:, 3:])
-    p, s = dual_quaternion_scale(qa * sa, qad * sa, qb * sb, qbd * sb, quat_from_matrix(RX),
-                                 np.ones(A[0].shape[0]))
+    p, s = dual_quaternion_scale(
+        qa * sa, qad * sa, qb * sb, qbd * sb, quat_from_matrix(RX), np.ones(A[0].shape[0])
+    )
     assert s == pytest.approx(2.5, rel=1e-9)
     np.testing.assert_allclose(p, pX, atol=1e-9)
 
@@ -135,6 +152,7 @@ def test_scale_is_unobservable_without_translation() -> None:
 
 
 # ----------------------------------------------------------------------------- the pipeline
+
 
 def test_clock_drift_is_estimated_in_all_stages() -> None:
     """300 ppm over 3 minutes (54 ms end to end), noise level 3: with clock_drift, the drift
@@ -153,8 +171,9 @@ def test_clock_drift_is_estimated_in_all_stages() -> None:
     assert d['time_offset_stamp_ns'] == res.eye_model.time_offset_stamp_ns
     assert d['std']['clock_drift'] > 0 and 'clock_drift' in d['covariance']['order']
     # the result holds at its own reference stamp
-    assert abs(res.time_offset_s - float(rec.truth.time_offset_at(
-        d['time_offset_stamp_ns']))) < 1e-3
+    assert (
+        abs(res.time_offset_s - float(rec.truth.time_offset_at(d['time_offset_stamp_ns']))) < 1e-3
+    )
 
 
 def test_default_run_names_a_drift_with_its_rate() -> None:
@@ -219,6 +238,7 @@ def test_scale_on_a_metric_eye_is_one_within_its_sigma() -> None:
 
 # ----------------------------------------------------------------------------- bad input
 
+
 def test_drift_on_a_short_recording_is_called_unobservable() -> None:
     rec = recording(seed=1, level=2.0, duration_s=32.0)
     res = calibrate(rec.hand, rec.eye, CalibrationConfig(clock_drift=True))
@@ -239,7 +259,7 @@ def test_scale_on_a_hand_that_does_not_translate_is_called_unobservable() -> Non
     rec = recording(seed=1, level=2.0, motion='in_place', scale=0.5)
     res = calibrate(rec.hand, rec.eye, CalibrationConfig(estimate_scale=True))
     reason = next(r.message for r in res.quality.reasons if r.code == 'unobservable')
-    assert "scale cannot be observed" in reason
+    assert 'scale cannot be observed' in reason
 
 
 def test_drift_with_a_fixed_offset_is_refused() -> None:
@@ -261,8 +281,15 @@ def test_cli_flags_and_result_keys(tmp_path) -> None:
     rec = recording(seed=2, level=2.0, duration_s=60.0, scale=2.0)
     write_tum(tmp_path / 'h.txt', rec.hand)
     write_tum(tmp_path / 'e.txt', rec.eye)
-    out = run_cli('--hand', tmp_path / 'h.txt', '--eye', tmp_path / 'e.txt', '--scale',
-                  '--clock-drift', '--json')
+    out = run_cli(
+        '--hand',
+        tmp_path / 'h.txt',
+        '--eye',
+        tmp_path / 'e.txt',
+        '--scale',
+        '--clock-drift',
+        '--json',
+    )
     assert out.returncode == 0, out.stderr
     d = json.loads(out.stdout)
     assert d['scale'] == pytest.approx(2.0, rel=0.01)
@@ -272,6 +299,7 @@ def test_cli_flags_and_result_keys(tmp_path) -> None:
 
 # ----------------------------------------------------------------------------- real data
 
+
 @pytest.mark.skipif(not (REAL_DATA / 'SOURCES.md').is_file(), reason='no ../shared/data/real')
 def test_real_pair_with_drift_and_scale() -> None:
     """A real VIO (V2_01, stereo) against the real ground truth moved to the Vicon marker
@@ -280,6 +308,7 @@ def test_real_pair_with_drift_and_scale() -> None:
     2 % of 1 (a metric VIO, to its own scale error)."""
     sys.path.insert(0, str(ROOT / 'bench'))
     import realdata
+
     pair = next(p for p in realdata.PAIRS if p.name == 'V2_01 stereo')
     gt, est = realdata.load(pair)
     hand = realdata.to_marker_frame(gt, 0.0873)
@@ -295,8 +324,9 @@ def test_real_pair_with_drift_and_scale() -> None:
     # a metric VIO is metric to its own scale error: this one's whole trajectory fits the
     # ground truth best at 1.012 (Sim(3) alignment of positions, bench/drift_scale.py)
     assert abs(metric.scale - 1.0) < 0.02
-    half = calibrate(hand, replace(est, p_xyz=est.p_xyz / 2), CalibrationConfig(
-        estimate_scale=True))
+    half = calibrate(
+        hand, replace(est, p_xyz=est.p_xyz / 2), CalibrationConfig(estimate_scale=True)
+    )
     assert half.scale == pytest.approx(2 * metric.scale, rel=5e-3)
 
 
@@ -311,10 +341,12 @@ def test_world_metrics_survive_a_one_pose_segment() -> None:
     ppm put in): the metrics of that one-pair segment are computed, not a LinAlgError."""
     from handeye_ros.core.association import associate
     from handeye_ros.core.world import align_worlds, evaluate
+
     rec = recording(seed=1, level=1.0, duration_s=20.0)
     eye = rec.eye.with_breaks(np.array([len(rec.eye) - 2]))
     pairs = associate(rec.hand, eye, rec.truth.time_offset_s)
     assert np.sum(pairs.segment == pairs.segment.max()) == 1
-    m = evaluate(pairs, rec.truth.q_HE, rec.truth.p_HE,
-                 align_worlds(pairs, rec.truth.q_HE, rec.truth.p_HE))
+    m = evaluate(
+        pairs, rec.truth.q_HE, rec.truth.p_HE, align_worlds(pairs, rec.truth.q_HE, rec.truth.p_HE)
+    )
     assert np.isfinite(m.ape_rmse_m)

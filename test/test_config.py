@@ -23,6 +23,7 @@ def test_defaults_are_the_papers() -> None:
 def test_option_choices_are_the_owners_names() -> None:
     from handeye_ros.core.config import RELATIVE_POSES
     from handeye_ros.core.keyframes import STRATEGIES
+
     assert RELATIVE_POSES == tuple(STRATEGIES)
 
 
@@ -49,19 +50,22 @@ def test_stream_and_node_options() -> None:
         NodeConfig(qos_reliability='sometimes')
 
 
-@pytest.mark.parametrize(('values', 'message'), [
-    ({'etaa': 5.0}, 'unknown option.*etaa'),
-    ({'eta': 'five'}, 'eta must be of type float'),
-    ({'eta': 0.0}, 'eta must lie in'),
-    ({'mu': -1.0}, 'mu must lie in'),
-    ({'ransac_iterations': 2.5}, 'ransac_iterations must be of type int'),
-    ({'robust_kernel': 1}, 'robust_kernel must be of type bool'),
-    ({'relative_poses': 'keyframes'}, 'relative_poses must be one of'),
-    ({'peak_fit': 'cubic'}, 'peak_fit must be one of'),
-    ({'max_time_offset': 0.0}, 'max_time_offset must lie in'),
-    ({'max_time_offset': float('inf')}, 'max_time_offset must be a finite number'),
-    ({'min_motions': 1}, 'min_motions must lie in'),
-])
+@pytest.mark.parametrize(
+    ('values', 'message'),
+    [
+        ({'etaa': 5.0}, 'unknown option.*etaa'),
+        ({'eta': 'five'}, 'eta must be of type float'),
+        ({'eta': 0.0}, 'eta must lie in'),
+        ({'mu': -1.0}, 'mu must lie in'),
+        ({'ransac_iterations': 2.5}, 'ransac_iterations must be of type int'),
+        ({'robust_kernel': 1}, 'robust_kernel must be of type bool'),
+        ({'relative_poses': 'keyframes'}, 'relative_poses must be one of'),
+        ({'peak_fit': 'cubic'}, 'peak_fit must be one of'),
+        ({'max_time_offset': 0.0}, 'max_time_offset must lie in'),
+        ({'max_time_offset': float('inf')}, 'max_time_offset must be a finite number'),
+        ({'min_motions': 1}, 'min_motions must lie in'),
+    ],
+)
 def test_bad_values_are_refused_by_name(values: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         CalibrationConfig.from_mapping(values, source='my.yaml')

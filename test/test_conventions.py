@@ -36,11 +36,14 @@ def test_plausible_stamps_are_kept() -> None:
     assert hand is rec.hand and eye is rec.eye and found == []
 
 
-@pytest.mark.parametrize(('stream', 'factor', 'unit'), [
-    ('eye', 1000, 'milliseconds'),        # a TUM file in ms since boot, read as s
-    ('eye', 10 ** 6, 'microseconds'),     # in us since boot, read as s
-    ('hand', 10 ** -3, 'microseconds'),   # a EuRoC file in Unix us, read as ns
-])
+@pytest.mark.parametrize(
+    ('stream', 'factor', 'unit'),
+    [
+        ('eye', 1000, 'milliseconds'),  # a TUM file in ms since boot, read as s
+        ('eye', 10**6, 'microseconds'),  # in us since boot, read as s
+        ('hand', 10**-3, 'microseconds'),  # a EuRoC file in Unix us, read as ns
+    ],
+)
 def test_a_stream_in_another_unit_is_read_in_it(stream: str, factor: float, unit: str) -> None:
     """What the reader makes of a file in another unit than its format's: the stamps scaled
     by a power of 1000 (boot-time clocks for the large ones: Unix ms read as s would not fit
@@ -48,8 +51,8 @@ def test_a_stream_in_another_unit_is_read_in_it(stream: str, factor: float, unit
     rec = recording(seed=2)
     traj = getattr(rec, stream)
     if factor > 1:
-        boot = traj.t_ns - int(traj.t_ns[0]) + 3_600 * 10 ** 9
-        scaled = boot * np.int64(factor) // 10 ** 6 * 10 ** 6  # written to the microsecond
+        boot = traj.t_ns - int(traj.t_ns[0]) + 3_600 * 10**9
+        scaled = boot * np.int64(factor) // 10**6 * 10**6  # written to the microsecond
     else:
         scaled = traj.t_ns // round(1 / factor)
     wrong = _stamps(traj, scaled)
@@ -63,7 +66,7 @@ def test_a_stream_in_another_unit_is_read_in_it(stream: str, factor: float, unit
 
 def test_epochs_are_named() -> None:
     rec = recording(seed=4)
-    boot = rec.eye.shifted(3_612 * 10 ** 9 - int(rec.eye.t_ns[0]))
+    boot = rec.eye.shifted(3_612 * 10**9 - int(rec.eye.t_ns[0]))
     note = epoch_note(rec.hand, boot)
     assert note is not None and 'time since boot' in note and 'absolute epoch' in note
     assert epoch_note(rec.hand, rec.eye) is None
@@ -75,12 +78,15 @@ def _misread(traj: Trajectory, reading: str) -> Trajectory:
     if reading == 'inverse':
         return reread(traj, 'inverse')
     other = {'wxyz': 'xyzw', 'xyzw': 'wxyz'}[reading]
-    return Trajectory.from_arrays(traj.t_ns, traj.p_xyz, traj.q_xyzw[:, PERMUTATIONS[other]],
-                                  traj.name)
+    return Trajectory.from_arrays(
+        traj.t_ns, traj.p_xyz, traj.q_xyzw[:, PERMUTATIONS[other]], traj.name
+    )
 
 
-@pytest.mark.parametrize(('stream', 'reading'), [
-    ('eye', 'wxyz'), ('eye', 'xyzw'), ('eye', 'inverse'), ('hand', 'wxyz'), ('hand', 'xyzw')])
+@pytest.mark.parametrize(
+    ('stream', 'reading'),
+    [('eye', 'wxyz'), ('eye', 'xyzw'), ('eye', 'inverse'), ('hand', 'wxyz'), ('hand', 'xyzw')],
+)
 def test_orientation_mistakes_are_found_and_read_right(stream: str, reading: str) -> None:
     """A quaternion order swapped or poses inverted: AX = XB holds only under the right
     reading, which is applied, named, and leaves the verdict doubtful."""
@@ -112,8 +118,9 @@ def test_stating_the_convention_makes_it_good() -> None:
 def test_check_can_be_switched_off() -> None:
     """check_conventions off: the mistake goes through, and the verdict fails on AX = XB."""
     rec = recording(seed=7, level=2.0)
-    res = calibrate(rec.hand, _misread(rec.eye, 'wxyz'),
-                    CalibrationConfig(check_conventions=False))
+    res = calibrate(
+        rec.hand, _misread(rec.eye, 'wxyz'), CalibrationConfig(check_conventions=False)
+    )
     assert res.corrections == ()
     assert res.quality.verdict == 'failed' and 'inconsistent' in res.quality.codes
 

@@ -29,8 +29,15 @@ def _write_runs(folder: Path, n: int, seed0: int = 200) -> list[dict]:
         h, e = folder / f'hand{k}.txt', folder / f'eye{k}.txt'
         write_tum(h, rec.hand)
         write_tum(e, rec.eye)
-        runs.append({'algorithm': f'alg{k % 2}', 'sequence': f'seq{k // 2}', 'trial': 0,
-                     'hand': h.name, 'eye': e.name})
+        runs.append(
+            {
+                'algorithm': f'alg{k % 2}',
+                'sequence': f'seq{k // 2}',
+                'trial': 0,
+                'hand': h.name,
+                'eye': e.name,
+            }
+        )
     return runs
 
 
@@ -47,8 +54,12 @@ def manifest(tmp_path_factory) -> Path:
     runs.append({'name': 'missing file', 'hand': 'nowhere.txt', 'eye': 'eye0.txt'})
     still = folder / 'still.txt'
     t = np.arange(3000, dtype=np.int64) * 10_000_000 + 1_700_000_000 * 10**9
-    write_tum(still, Trajectory.from_arrays(t, np.zeros((t.size, 3)),
-                                            np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))))
+    write_tum(
+        still,
+        Trajectory.from_arrays(
+            t, np.zeros((t.size, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))
+        ),
+    )
     runs.append({'name': 'no motion', 'hand': 'still.txt', 'eye': 'eye1.txt'})
     path = folder / 'manifest.yaml'
     path.write_text(yaml.safe_dump({'defaults': {'batch': True}, 'runs': runs}))
@@ -57,13 +68,26 @@ def manifest(tmp_path_factory) -> Path:
 
 def test_table_marks_failures_and_the_exit_code_counts_them(manifest, tmp_path: Path) -> None:
     out = tmp_path / 'out'
-    res = run_cli(str(manifest), '--output', str(out), '--workers', '2',
-                  module='handeye_ros.evaluate', timeout=300)
+    res = run_cli(
+        str(manifest),
+        '--output',
+        str(out),
+        '--workers',
+        '2',
+        module='handeye_ros.evaluate',
+        timeout=300,
+    )
     assert 'Traceback' not in res.stderr, res.stderr
     assert res.returncode == 2, res.stderr
     rows = _rows(out)
-    assert [r['name'] for r in rows] == ['alg0/seq0/0', 'alg1/seq0/0', 'alg0/seq1/0',
-                                         'alg1/seq1/0', 'missing file', 'no motion']
+    assert [r['name'] for r in rows] == [
+        'alg0/seq0/0',
+        'alg1/seq0/0',
+        'alg0/seq1/0',
+        'alg1/seq1/0',
+        'missing file',
+        'no motion',
+    ]
     ok = rows[:4]
     assert all(r['status'] == 'ok' and r['verdict'] == 'good' for r in ok)
     # level 2 noise, 40 s: the same bounds as the pipeline tests (a few mm and ms)
@@ -76,8 +100,14 @@ def test_table_marks_failures_and_the_exit_code_counts_them(manifest, tmp_path: 
         run = out / 'runs' / r['name'].replace('/', '_')
         assert (run / 'export' / 'groundtruth.tum').is_file() and (run / 'result.yaml').is_file()
     # every finished run is cached by content: a second evaluation runs nothing again
-    again = run_cli(str(manifest), '--output', str(out), '--sequential',
-                    module='handeye_ros.evaluate', timeout=300)
+    again = run_cli(
+        str(manifest),
+        '--output',
+        str(out),
+        '--sequential',
+        module='handeye_ros.evaluate',
+        timeout=300,
+    )
     assert again.returncode == 2 and '6 from the cache' in again.stdout
     assert [r['time_offset_ms'] for r in _rows(out)] == [r['time_offset_ms'] for r in rows]
 
@@ -89,8 +119,14 @@ def test_directory_layout_and_an_unusable_manifest(tmp_path: Path) -> None:
         trial.mkdir(parents=True)
         os.replace(tmp_path / r['hand'], trial / 'hand.txt')
         os.replace(tmp_path / r['eye'], trial / 'eye.txt')
-    res = run_cli(str(tmp_path / 'layout'), '-o', str(tmp_path / 'out'), '--sequential',
-                  module='handeye_ros.evaluate', timeout=300)
+    res = run_cli(
+        str(tmp_path / 'layout'),
+        '-o',
+        str(tmp_path / 'out'),
+        '--sequential',
+        module='handeye_ros.evaluate',
+        timeout=300,
+    )
     assert res.returncode == 0, res.stderr
     assert [r['status'] for r in _rows(tmp_path / 'out')] == ['ok', 'ok']
     bad = tmp_path / 'bad.yaml'
@@ -103,18 +139,40 @@ def test_directory_layout_and_an_unusable_manifest(tmp_path: Path) -> None:
 
 def test_a_worker_killed_mid_run_costs_only_a_retry(tmp_path: Path, monkeypatch) -> None:
     from distributed import Client, LocalCluster
+
     monkeypatch.setenv('PYTHONPATH', str(ROOT))  # the workers import the package from here
     runs = _write_runs(tmp_path, 6, seed0=400)
     manifest = tmp_path / 'm.yaml'
     manifest.write_text(yaml.safe_dump({'runs': runs}))
     out = tmp_path / 'out'
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host='127.0.0.1',
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host='127.0.0.1',
+            dashboard_address=None,
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         env = dict(os.environ, PYTHONPATH=str(ROOT))
         proc = subprocess.Popen(
-            [sys.executable, '-m', 'handeye_ros.evaluate', str(manifest), '-o', str(out),
-             '--scheduler', cluster.scheduler_address], env=env, cwd=ROOT,
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            [
+                sys.executable,
+                '-m',
+                'handeye_ros.evaluate',
+                str(manifest),
+                '-o',
+                str(out),
+                '--scheduler',
+                cluster.scheduler_address,
+            ],
+            env=env,
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         killed = None
         deadline = time.monotonic() + 120
         while killed is None and time.monotonic() < deadline and proc.poll() is None:

@@ -43,8 +43,14 @@ def _evo(tool: str, *args: str, home: Path) -> subprocess.CompletedProcess:
         pytest.skip(f'{tool} is not installed (evo is a test-only dependency: scripts/setup)')
     home.mkdir(exist_ok=True)
     env = dict(os.environ, HOME=str(home), MPLBACKEND='Agg')
-    proc = subprocess.run([str(exe), *args, '--no_warnings'], capture_output=True, text=True,
-                          env=env, timeout=120, check=False)
+    proc = subprocess.run(
+        [str(exe), *args, '--no_warnings'],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return proc
 
@@ -59,8 +65,17 @@ def exported(sim_files, tmp_path_factory) -> tuple[dict, Path, Path]:
     """One offline run with --export and --report on the shared simulated recording."""
     hand, eye, _ = sim_files
     out = tmp_path_factory.mktemp('evaluation')
-    res = run_cli('--hand', hand, '--eye', eye, '--json', '--export', out / 'export',
-                  '--report', out / 'report')
+    res = run_cli(
+        '--hand',
+        hand,
+        '--eye',
+        eye,
+        '--json',
+        '--export',
+        out / 'export',
+        '--report',
+        out / 'report',
+    )
     _ok(res)
     return json.loads(res.stdout), out, hand
 
@@ -69,24 +84,50 @@ def test_evo_ape_and_rpe_on_our_exports_equal_ours(exported, tmp_path: Path) -> 
     d, out, _ = exported
     ex = out / 'export'
     ev = d['evaluation']['calibrated']
-    _evo('evo_ape', 'tum', str(ex / 'groundtruth.tum'), str(ex / 'estimate.tum'),
-         '--save_results', str(tmp_path / 'ape.zip'), home=tmp_path)
+    _evo(
+        'evo_ape',
+        'tum',
+        str(ex / 'groundtruth.tum'),
+        str(ex / 'estimate.tum'),
+        '--save_results',
+        str(tmp_path / 'ape.zip'),
+        home=tmp_path,
+    )
     evo_ape = _evo_stats(tmp_path / 'ape.zip')
     for key in ('rmse', 'mean', 'median', 'max'):
         assert abs(evo_ape[key] - ev['ape_translation'][key]) < EVO_TOLERANCE_M, key
     # the same numbers as the calibration's own metrics (the export is what it evaluated)
     assert abs(evo_ape['rmse'] - d['metrics']['ape_rmse']) < EVO_TOLERANCE_M
-    _evo('evo_rpe', 'tum', str(ex / 'groundtruth.tum'), str(ex / 'estimate.tum'),
-         '--delta', '1', '--delta_unit', 'm', '--all_pairs', '--pairs_from_reference',
-         '--save_results', str(tmp_path / 'rpe.zip'), home=tmp_path)
+    _evo(
+        'evo_rpe',
+        'tum',
+        str(ex / 'groundtruth.tum'),
+        str(ex / 'estimate.tum'),
+        '--delta',
+        '1',
+        '--delta_unit',
+        'm',
+        '--all_pairs',
+        '--pairs_from_reference',
+        '--save_results',
+        str(tmp_path / 'rpe.zip'),
+        home=tmp_path,
+    )
     evo_rpe = _evo_stats(tmp_path / 'rpe.zip')
     assert abs(evo_rpe['rmse'] - ev['rpe_distance_translation']['rmse']) < EVO_TOLERANCE_M
 
 
 def test_evo_transform_right_applies_our_extrinsic(exported, tmp_path: Path) -> None:
     d, out, hand = exported
-    _evo('evo_traj', 'tum', str(hand), '--transform_right', str(out / 'export' / 'T_HE.json'),
-         '--save_as_tum', home=tmp_path)
+    _evo(
+        'evo_traj',
+        'tum',
+        str(hand),
+        '--transform_right',
+        str(out / 'export' / 'T_HE.json'),
+        '--save_as_tum',
+        home=tmp_path,
+    )
     # evo writes <name>.tum into the working directory of the call... of the test process
     moved = Path.cwd() / (Path(hand).stem + '.tum')
     if not moved.exists():
@@ -96,8 +137,10 @@ def test_evo_transform_right_applies_our_extrinsic(exported, tmp_path: Path) -> 
     finally:
         moved.unlink(missing_ok=True)
     h = read_trajectory(hand, 'tum')
-    X = (matrix_from_quat(np.asarray(d['extrinsic']['rotation'])),
-         np.asarray(d['extrinsic']['translation']))
+    X = (
+        matrix_from_quat(np.asarray(d['extrinsic']['rotation'])),
+        np.asarray(d['extrinsic']['translation']),
+    )
     R, p = compose((matrix_from_quat(h.q_xyzw), h.p_xyz), X)
     assert np.max(np.abs(got.p_xyz - p)) < 1e-6
     assert np.max(np.abs(matrix_from_quat(got.q_xyzw) - R)) < 1e-6
@@ -115,8 +158,10 @@ def test_calibration_improves_on_what_users_do_today(exported) -> None:
     assert base is not None
     assert cal['ape_rotation']['rmse'] < base['ape_rotation']['rmse']
     assert cal['rpe_time_translation']['rmse'] < 0.5 * base['rpe_time_translation']['rmse']
-    assert cal['rpe_time_translation']['n'] > 0.9 * d['inputs']['eye']['duration_s'] * \
-        d['inputs']['eye']['rate_hz'] * 0.9
+    assert (
+        cal['rpe_time_translation']['n']
+        > 0.9 * d['inputs']['eye']['duration_s'] * d['inputs']['eye']['rate_hz'] * 0.9
+    )
 
 
 def test_clocks_apart_have_no_baseline_and_say_why(tmp_path: Path, sim_files) -> None:
@@ -149,9 +194,15 @@ def test_unwritable_output_directory_fails_before_calibrating(sim_files, tmp_pat
 def _aligned(p_ref, p_est, t_s, segment=None, R_est=None) -> AlignedTrajectories:
     n = len(t_s)
     eye = np.tile(np.eye(3), (n, 1, 1))
-    return AlignedTrajectories(np.rint(np.asarray(t_s) * 1e9).astype(np.int64), eye, p_ref,
-                               eye if R_est is None else R_est, p_est,
-                               np.zeros(n, int) if segment is None else segment, 'test')
+    return AlignedTrajectories(
+        np.rint(np.asarray(t_s) * 1e9).astype(np.int64),
+        eye,
+        p_ref,
+        eye if R_est is None else R_est,
+        p_est,
+        np.zeros(n, int) if segment is None else segment,
+        'test',
+    )
 
 
 def test_ape_and_rpe_exact_cases() -> None:
@@ -183,9 +234,16 @@ def test_ape_and_rpe_exact_cases() -> None:
 CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser')
 #: The flags that let headless chromium start as root in a closed network (no GPU, no sandbox,
 #: no background connections).
-CHROMIUM_FLAGS = ('--headless', '--no-sandbox', '--disable-gpu', '--disable-quic',
-                  '--no-first-run', '--disable-background-networking',
-                  '--disable-component-update', '--disable-sync')
+CHROMIUM_FLAGS = (
+    '--headless',
+    '--no-sandbox',
+    '--disable-gpu',
+    '--disable-quic',
+    '--no-first-run',
+    '--disable-background-networking',
+    '--disable-component-update',
+    '--disable-sync',
+)
 CHECK_SCRIPT = """<script>
 window.addEventListener('load', () => {
   const imgs = Array.from(document.images);
@@ -202,30 +260,50 @@ def test_report_page_holds_every_plot(exported) -> None:
     page = out / 'report' / 'report.html'
     text = page.read_text()
     names = re.findall(r'data-file="([^"]+)"', text)
-    assert names == ['time_alignment.png', 'clock.png', 'linear.png', 'residuals.png',
-                     'trajectories.png']
-    for name, data in zip(names, re.findall(r'src="data:image/png;base64,([^"]+)"', text),
-                          strict=True):
+    assert names == [
+        'time_alignment.png',
+        'clock.png',
+        'linear.png',
+        'residuals.png',
+        'trajectories.png',
+    ]
+    for name, data in zip(
+        names, re.findall(r'src="data:image/png;base64,([^"]+)"', text), strict=True
+    ):
         blob = base64.b64decode(data)
         assert blob == (out / 'report' / name).read_bytes()
         assert blob.startswith(b'\x89PNG\r\n\x1a\n')
     assert 'http://' not in text and 'https://' not in text  # nothing to fetch: opens offline
-    for needle in ('T_HE: eye frame in hand frame', 'T_EH: hand frame in eye frame',
-                   'T_WG', 'APE translation', 'RPE per 1 s', 'GOOD'):
+    for needle in (
+        'T_HE: eye frame in hand frame',
+        'T_EH: hand frame in eye frame',
+        'T_WG',
+        'APE translation',
+        'RPE per 1 s',
+        'GOOD',
+    ):
         assert needle in text, needle
 
 
 def test_report_renders_in_a_real_browser(exported, tmp_path: Path) -> None:
     if CHROMIUM is None:
-        pytest.skip('chromium is not installed (scripts/browser installs Debian\'s); the '
-                    'report was not opened in a browser')
+        pytest.skip(
+            "chromium is not installed (scripts/browser installs Debian's); the "
+            'report was not opened in a browser'
+        )
     _, out, _ = exported
     page = tmp_path / 'check.html'
-    page.write_text((out / 'report' / 'report.html').read_text().replace(
-        '</body>', CHECK_SCRIPT + '</body>'))
+    page.write_text(
+        (out / 'report' / 'report.html').read_text().replace('</body>', CHECK_SCRIPT + '</body>')
+    )
     args = [CHROMIUM, *CHROMIUM_FLAGS, f'--user-data-dir={tmp_path / "profile"}']
-    dom = subprocess.run([*args, '--dump-dom', page.as_uri()], capture_output=True, text=True,
-                         timeout=120, check=False)
+    dom = subprocess.run(
+        [*args, '--dump-dom', page.as_uri()],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     found = re.search(r'<pre id="image-check">(.*?)</pre>', dom.stdout, re.DOTALL)
     assert found, dom.stderr[-2000:]
     images = json.loads(found.group(1).replace('&quot;', '"'))
@@ -233,8 +311,12 @@ def test_report_renders_in_a_real_browser(exported, tmp_path: Path) -> None:
     for alt, complete, width in images:
         assert complete and width > 500, (alt, complete, width)
     shot = tmp_path / 'report.png'
-    subprocess.run([*args, f'--screenshot={shot}', '--window-size=1200,3000', page.as_uri()],
-                   capture_output=True, timeout=120, check=False)
+    subprocess.run(
+        [*args, f'--screenshot={shot}', '--window-size=1200,3000', page.as_uri()],
+        capture_output=True,
+        timeout=120,
+        check=False,
+    )
     assert shot.is_file() and shot.stat().st_size > 20_000
     keep = ROOT / 'bench' / 'out'
     if keep.is_dir():  # for a human to look at; bench/out is not committed

@@ -25,8 +25,8 @@ from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_tum
 from handeye_ros.offline import main as offline_main
 
-SETTINGS = settings(max_examples=60, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
 
 @functools.cache
 def _short_files() -> tuple[Path, Path]:
@@ -40,8 +40,9 @@ def _short_files() -> tuple[Path, Path]:
 
 number = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
-    st.integers(min_value=-10 ** 25, max_value=10 ** 25),
-    st.sampled_from(['1e300', '-0', '1.403636579758555555e9', '0x10', 'nan', '', '1.2.3']))
+    st.integers(min_value=-(10**25), max_value=10**25),
+    st.sampled_from(['1e300', '-0', '1.403636579758555555e9', '0x10', 'nan', '', '1.2.3']),
+)
 
 
 def _row(values: list, sep: str) -> str:
@@ -59,9 +60,12 @@ def text_files(draw) -> str:
 
 
 @SETTINGS
-@given(content=text_files(), fmt=st.sampled_from(['auto', 'tum', 'euroc']),
-       unit=st.sampled_from(['auto', 's', 'ms', 'us', 'ns']),
-       order=st.sampled_from(['auto', 'xyzw', 'wxyz']))
+@given(
+    content=text_files(),
+    fmt=st.sampled_from(['auto', 'tum', 'euroc']),
+    unit=st.sampled_from(['auto', 's', 'ms', 'us', 'ns']),
+    order=st.sampled_from(['auto', 'xyzw', 'wxyz']),
+)
 def test_reader_on_arbitrary_text(content: str, fmt: str, unit: str, order: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / 'traj.txt'
@@ -86,13 +90,17 @@ def test_reader_on_arbitrary_bytes(data: bytes) -> None:
             pass
 
 
-option_value = st.one_of(st.none(), st.booleans(), number, st.text(max_size=12),
-                         st.lists(st.integers(), max_size=2))
+option_value = st.one_of(
+    st.none(), st.booleans(), number, st.text(max_size=12), st.lists(st.integers(), max_size=2)
+)
 
 
 @SETTINGS
-@given(values=st.dictionaries(st.sampled_from(list(CalibrationConfig.specs()) + ['typo']),
-                              option_value, max_size=6))
+@given(
+    values=st.dictionaries(
+        st.sampled_from(list(CalibrationConfig.specs()) + ['typo']), option_value, max_size=6
+    )
+)
 def test_options_on_arbitrary_values(values: dict) -> None:
     try:
         cfg = CalibrationConfig.from_mapping(values)
@@ -107,16 +115,23 @@ def test_options_on_arbitrary_values(values: dict) -> None:
 @st.composite
 def trajectories(draw, name: str) -> Trajectory:
     n = draw(st.integers(min_value=2, max_value=60))
-    steps = draw(st.lists(st.integers(min_value=1, max_value=10 ** 9), min_size=n - 1,
-                          max_size=n - 1))
-    t0 = draw(st.integers(min_value=0, max_value=2 * 10 ** 18))
+    steps = draw(
+        st.lists(st.integers(min_value=1, max_value=10**9), min_size=n - 1, max_size=n - 1)
+    )
+    t0 = draw(st.integers(min_value=0, max_value=2 * 10**18))
     t = t0 + np.concatenate(([0], np.cumsum(steps)))
-    if t[-1] > 9 * 10 ** 18:
+    if t[-1] > 9 * 10**18:
         t = t - t[0]
-    p = np.array(draw(st.lists(st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3),
-                               min_size=n, max_size=n)))
-    q = np.array(draw(st.lists(st.lists(st.floats(-1, 1), min_size=4, max_size=4),
-                               min_size=n, max_size=n)))
+    p = np.array(
+        draw(
+            st.lists(
+                st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3), min_size=n, max_size=n
+            )
+        )
+    )
+    q = np.array(
+        draw(st.lists(st.lists(st.floats(-1, 1), min_size=4, max_size=4), min_size=n, max_size=n))
+    )
     norms = np.linalg.norm(q, axis=1, keepdims=True)
     q = np.where(norms > 1e-3, q / np.where(norms > 0, norms, 1.0), [0.0, 0.0, 0.0, 1.0])
     return Trajectory.from_arrays(t.astype(np.int64), p, q, name)
@@ -131,15 +146,48 @@ def test_calibrate_on_arbitrary_trajectories(hand: Trajectory, eye: Trajectory) 
         pass
 
 
-@settings(max_examples=25, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(option=st.sampled_from(['--time-offset', '--time-offset-guess', '--max-time-offset',
-                               '--resample-rate-hz', '--eta', '--mu', '--ransac-iterations',
-                               '--inlier-rotation', '--knot-spacing', '--huber-delta',
-                               '--outlier-threshold', '--max-outlier-fraction',
-                               '--batch-max-iterations', '--min-motions', '--seed']),
-       value=st.sampled_from(['0', '-1', '1e18', '1403636579758555555', 'nan', 'inf', '-inf',
-                              '1e-300', '100000', '0.0001', '3', 'x']))
+@settings(
+    max_examples=25,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(
+    option=st.sampled_from(
+        [
+            '--time-offset',
+            '--time-offset-guess',
+            '--max-time-offset',
+            '--resample-rate-hz',
+            '--eta',
+            '--mu',
+            '--ransac-iterations',
+            '--inlier-rotation',
+            '--knot-spacing',
+            '--huber-delta',
+            '--outlier-threshold',
+            '--max-outlier-fraction',
+            '--batch-max-iterations',
+            '--min-motions',
+            '--seed',
+        ]
+    ),
+    value=st.sampled_from(
+        [
+            '0',
+            '-1',
+            '1e18',
+            '1403636579758555555',
+            'nan',
+            'inf',
+            '-inf',
+            '1e-300',
+            '100000',
+            '0.0001',
+            '3',
+            'x',
+        ]
+    ),
+)
 def test_offline_tool_on_absurd_option_values(option: str, value: str, capsys) -> None:
     """Exit codes 0 (a result), 1 (a one-line error), 2 (argparse's usage error); never an
     exception, a MemoryError or an internal error (3)."""
@@ -153,22 +201,40 @@ def test_offline_tool_on_absurd_option_values(option: str, value: str, capsys) -
     assert 'internal error' not in err and 'Traceback' not in err
 
 
-
 stamp_token = st.one_of(
-    st.integers(min_value=-10 ** 19, max_value=10 ** 19).map(str),
-    st.decimals(min_value=-10 ** 12, max_value=10 ** 12, allow_nan=False,
-                allow_infinity=False, places=12).map(lambda d: format(d, 'f')),
-    st.sampled_from(['+1.5', '-0.000000001', '.5', '5.', '00012.3400', '1.4e9', '1..2', '-',
-                     '٣.5', '1403636579.758555555123']))
+    st.integers(min_value=-(10**19), max_value=10**19).map(str),
+    st.decimals(
+        min_value=-(10**12), max_value=10**12, allow_nan=False, allow_infinity=False, places=12
+    ).map(lambda d: format(d, 'f')),
+    st.sampled_from(
+        [
+            '+1.5',
+            '-0.000000001',
+            '.5',
+            '5.',
+            '00012.3400',
+            '1.4e9',
+            '1..2',
+            '-',
+            '٣.5',
+            '1403636579.758555555123',
+        ]
+    ),
+)
 
 
 @SETTINGS
-@given(stamps=st.lists(stamp_token, min_size=1, max_size=30),
-       sep=st.sampled_from([' ', '\t', ',']), comment=st.booleans())
-def test_bulk_reader_agrees_with_the_line_by_line_one(stamps: list[str], sep: str,
-                                                      comment: bool) -> None:
+@given(
+    stamps=st.lists(stamp_token, min_size=1, max_size=30),
+    sep=st.sampled_from([' ', '\t', ',']),
+    comment=st.booleans(),
+)
+def test_bulk_reader_agrees_with_the_line_by_line_one(
+    stamps: list[str], sep: str, comment: bool
+) -> None:
     """What formats/bulk.py reads from the bytes, it reads as the line-by-line reader does."""
     from handeye_ros.formats import bulk, text
+
     fmt = 'euroc' if sep == ',' else 'tum'
     lines = ['# header'] if comment else []
     lines += [sep.join([s, '0.5', '1', '2', '0', '0', '0', '1']) for s in stamps]
@@ -188,5 +254,6 @@ def test_bulk_reader_agrees_with_the_line_by_line_one(stamps: list[str], sep: st
     np.testing.assert_array_equal(table.numbers, numbers)
     np.testing.assert_array_equal(table.values, values)
     for name in ('whole', 'frac9', 'fractional', 'neg'):
-        np.testing.assert_array_equal(getattr(table.stamps, name), getattr(split, name),
-                                      err_msg=name)
+        np.testing.assert_array_equal(
+            getattr(table.stamps, name), getattr(split, name), err_msg=name
+        )

@@ -35,7 +35,9 @@ def test_quaternions_are_hamilton_xyzw() -> None:
     qb = Rotation.random(10, random_state=4)
     np.testing.assert_allclose(
         Rotation.from_quat(g.quat_multiply(qa.as_quat(), qb.as_quat())).as_matrix(),
-        (qa * qb).as_matrix(), atol=1e-12)
+        (qa * qb).as_matrix(),
+        atol=1e-12,
+    )
     np.testing.assert_allclose(g.matrix_from_quat(qa.as_quat()), qa.as_matrix(), atol=1e-12)
 
 
@@ -52,12 +54,16 @@ def test_dual_quaternion_round_trip() -> None:
 def test_rotation_angle() -> None:
     rv = np.random.default_rng(6).normal(size=(40, 3))
     rv *= (np.linspace(0.0, np.pi - 1e-6, 40) / np.linalg.norm(rv, axis=1))[:, None]
-    np.testing.assert_allclose(g.rotation_angle(Rotation.from_rotvec(rv).as_matrix()),
-                               np.linalg.norm(rv, axis=1), atol=1e-6)
+    np.testing.assert_allclose(
+        g.rotation_angle(Rotation.from_rotvec(rv).as_matrix()),
+        np.linalg.norm(rv, axis=1),
+        atol=1e-6,
+    )
 
 
 def test_log_and_exp_so3_match_scipy_at_every_angle() -> None:
     from handeye_ros.core.spline import exp_so3
+
     rng = np.random.default_rng(7)
     v = rng.normal(size=(3000, 3)) * np.repeat([1e-9, 0.3, 1.0], 1000)[:, None]
     R = Rotation.from_rotvec(v).as_matrix()

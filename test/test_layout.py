@@ -15,14 +15,17 @@ from conftest import ROOT, run_cli
 
 def test_core_and_offline_tool_do_not_import_rclpy() -> None:
     # nor evo: it is GPLv3 and a test-only dependency
-    code = ('import sys, handeye_ros.core.pipeline, handeye_ros.core.simulate, '
-            'handeye_ros.offline, handeye_ros.formats, handeye_ros.evaluation.outputs, '
-            'handeye_ros.evaluation.plots, handeye_ros.evaluation.html; '
-            'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags", '
-            '"evo")))')
+    code = (
+        'import sys, handeye_ros.core.pipeline, handeye_ros.core.simulate, '
+        'handeye_ros.offline, handeye_ros.formats, handeye_ros.evaluation.outputs, '
+        'handeye_ros.evaluation.plots, handeye_ros.evaluation.html; '
+        'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags", '
+        '"evo")))'
+    )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
-                         check=True, cwd=ROOT).stdout.strip()
+    out = subprocess.run(
+        [sys.executable, '-c', code], capture_output=True, text=True, env=env, check=True, cwd=ROOT
+    ).stdout.strip()
     assert out == '[]'
 
 
@@ -48,7 +51,7 @@ def _imports(path, module: str) -> set[str]:
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split('.')
-                base = base[:len(base) - node.level + 1]
+                base = base[: len(base) - node.level + 1]
                 target = '.'.join(base + ([node.module] if node.module else []))
             else:
                 target = node.module or ''
@@ -56,9 +59,11 @@ def _imports(path, module: str) -> set[str]:
                 continue
             found.add(target)
             # ``from . import offline`` imports a module, not a name
-            found.update(f'{target}.{a.name}' for a in node.names
-                         if (ROOT / Path(*f'{target}.{a.name}'.split('.'))).with_suffix('.py')
-                         .is_file())
+            found.update(
+                f'{target}.{a.name}'
+                for a in node.names
+                if (ROOT / Path(*f'{target}.{a.name}'.split('.'))).with_suffix('.py').is_file()
+            )
     return found
 
 
@@ -69,18 +74,23 @@ def test_no_layer_imports_from_a_layer_above() -> None:
         module = '.'.join(rel.parts[:-1] if rel.name == '__init__' else rel.parts)
         for target in _imports(path, module):
             if _layer(target) > _layer(module):
-                upward.append(f'{module} ({LAYERS[_layer(module)]}) imports {target} '
-                              f'({LAYERS[_layer(target)]})')
+                upward.append(
+                    f'{module} ({LAYERS[_layer(module)]}) imports {target} '
+                    f'({LAYERS[_layer(target)]})'
+                )
     assert not upward, '\n'.join(upward)
 
 
 def test_public_api_is_small_documented_and_lazy() -> None:
-    code = ('import sys, handeye_ros as h; before = "numpy" in sys.modules; '
-            'names = [n for n in h.__all__ if getattr(h, n).__doc__]; '
-            'print(before, names == h.__all__, "calibrate" in dir(h))')
+    code = (
+        'import sys, handeye_ros as h; before = "numpy" in sys.modules; '
+        'names = [n for n in h.__all__ if getattr(h, n).__doc__]; '
+        'print(before, names == h.__all__, "calibrate" in dir(h))'
+    )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, env=env,
-                         check=True, cwd=ROOT).stdout.split()
+    out = subprocess.run(
+        [sys.executable, '-c', code], capture_output=True, text=True, env=env, check=True, cwd=ROOT
+    ).stdout.split()
     assert out == ['False', 'True', 'True']
 
 
@@ -98,8 +108,11 @@ def test_package_xml_and_setup_agree() -> None:
 def test_every_pin_lives_in_requirements_txt() -> None:
     setup = (ROOT / 'setup.py').read_text()
     assert not re.search(r"'[\w\-\[\]]+\s*[=<>~]=", setup), 'versions belong in requirements.txt'
-    pins = [ln for ln in (ROOT / 'requirements.txt').read_text().splitlines()
-            if ln and not ln.startswith('#')]
+    pins = [
+        ln
+        for ln in (ROOT / 'requirements.txt').read_text().splitlines()
+        if ln and not ln.startswith('#')
+    ]
     assert all('==' in ln for ln in pins)
 
 

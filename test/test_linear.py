@@ -79,8 +79,10 @@ def test_relocalisation_jumps_are_rejected() -> None:
     rng = np.random.default_rng(0)
     R, p = Rotation.from_quat(eye.q_xyzw).as_matrix(), eye.p_xyz.copy()
     for k in rng.choice(np.arange(50, len(eye) - 50), 12, replace=False):
-        jump = (Rotation.from_rotvec(rng.normal(0, np.deg2rad(3.0), 3)).as_matrix(),
-                rng.normal(0, 0.1, 3))
+        jump = (
+            Rotation.from_rotvec(rng.normal(0, np.deg2rad(3.0), 3)).as_matrix(),
+            rng.normal(0, 0.1, 3),
+        )
         R[k:], p[k:] = compose(jump, (R[k:], p[k:]))
     jumped = Trajectory.from_arrays(eye.t_ns, p, Rotation.from_matrix(R).as_quat(), 'eye')
     bad = recording(seed=5, level=2.0)
@@ -102,7 +104,7 @@ def _single_axis_recording(n: int = 2000) -> tuple[Trajectory, Trajectory, float
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     W = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
     Re, pe = compose(compose(W, (R, p)), X)
-    t_ns = 10 ** 18 + np.rint(t * 1e9).astype(np.int64)
+    t_ns = 10**18 + np.rint(t * 1e9).astype(np.int64)
     hand = Trajectory.from_arrays(t_ns, p, Rotation.from_matrix(R).as_quat(), 'hand')
     eye = Trajectory.from_arrays(t_ns, pe, Rotation.from_matrix(Re).as_quat(), 'eye')
     return hand, eye, 0.0
@@ -116,8 +118,9 @@ def test_single_rotation_axis_names_the_unobservable_part() -> None:
     m = build_motions(associate(hand, eye, dt))
     lin = calibrate_linear(m)
     truth = random_truth(np.random.default_rng(0))
-    assert len(lin.unobservable) == 1 and 'translation along the rotation axis' in \
-        lin.unobservable[0]
+    assert (
+        len(lin.unobservable) == 1 and 'translation along the rotation axis' in lin.unobservable[0]
+    )
     err = Rotation.from_quat(lin.q_HE).inv() * Rotation.from_quat(truth.q_HE)
     assert np.degrees(err.magnitude()) < 1e-6
     axis = np.array([0.0, 0.0, 1.0])  # the hand's rotation axis, in H
@@ -137,8 +140,9 @@ def test_sigma_ratio_scores_a_degenerate_system_last_not_never() -> None:
     """sigma7 / sigma6 (Algorithm 1's score); a null space wider than two dimensions (exact
     one-axis motions) scores 1, the worst, instead of 0 / 0; an empty system is NaN."""
     from handeye_ros.core.linear import sigma_ratio
-    s = np.array([[4.0, 3, 2, 2, 1, 0.5, 0.01, 0.0],
-                  [4.0, 3, 2, 2, 1, 1e-17, 0.0, 0.0],
-                  [0.0] * 8])
+
+    s = np.array(
+        [[4.0, 3, 2, 2, 1, 0.5, 0.01, 0.0], [4.0, 3, 2, 2, 1, 1e-17, 0.0, 0.0], [0.0] * 8]
+    )
     np.testing.assert_allclose(sigma_ratio(s)[:2], [0.02, 1.0])
     assert np.isnan(sigma_ratio(s)[2])

@@ -1,4 +1,4 @@
-"""Lint: ruff's default rules over the package, the tests and the benchmarks (ruff.toml)."""
+"""Lint and format: ruff over the package, the tests and the benchmarks (ruff.toml)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,35 @@ from conftest import ROOT
 
 def test_ruff_is_clean() -> None:
     pytest.importorskip('ruff', reason='ruff not installed (requirements.txt pins it)')
-    proc = subprocess.run([sys.executable, '-m', 'ruff', 'check', '--no-cache', 'handeye_ros',
-                           'test', 'bench'], cwd=ROOT, capture_output=True, text=True,
-                          timeout=120, check=False)
+    proc = subprocess.run(
+        [sys.executable, '-m', 'ruff', 'check', '--no-cache', 'handeye_ros', 'test', 'bench'],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_ruff_format_is_clean() -> None:
+    pytest.importorskip('ruff', reason='ruff not installed (requirements.txt pins it)')
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'ruff',
+            'format',
+            '--check',
+            '--no-cache',
+            'handeye_ros',
+            'test',
+            'bench',
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, 'run `ruff format handeye_ros test bench`:\n' + proc.stdout

@@ -59,15 +59,30 @@ def _call(ros: Processes, *services: str, mode: str = 'call', name: str = 'clien
     return ros.run_json(ros.script('ros_client.py', mode, *services), name)
 
 
-def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: Path,
-                                                       tmp_path: Path) -> None:
+def test_live_calibration_matches_truth_and_bag_replay(
+    ros: Processes, install: Path, tmp_path: Path
+) -> None:
     saved_path = tmp_path / 'node_result.yaml'
     report = tmp_path / 'report'
     node = _start_node(ros, install, f'output_file:={saved_path}', f'report_dir:={report}')
-    bags = [f'{tmp_path / "rec_mcap"}:mcap', f'{tmp_path / "rec_sqlite"}:sqlite3',
-            f'{tmp_path / "rec.bag"}:ros1']
-    pub = ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '500',
-                                  *[a for b in bags for a in ('--bag', b)]), 'publisher')
+    bags = [
+        f'{tmp_path / "rec_mcap"}:mcap',
+        f'{tmp_path / "rec_sqlite"}:sqlite3',
+        f'{tmp_path / "rec.bag"}:ros1',
+    ]
+    pub = ros.run_json(
+        _publisher(
+            ros,
+            '--seed',
+            '3',
+            '--level',
+            '3',
+            '--rate',
+            '500',
+            *[a for b in bags for a in ('--bag', b)],
+        ),
+        'publisher',
+    )
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save')
     assert answer[0]['success'], answer
     assert answer[1]['success'], answer
@@ -86,15 +101,22 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     # the truth, within the noise (level 3: see test_pipeline / test_offline_cli)
     t = pub['truth']
     truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
-    err = calibration_error(truth, latched['time_offset'], latched['extrinsic']['rotation'],
-                            latched['extrinsic']['translation'])
+    err = calibration_error(
+        truth,
+        latched['time_offset'],
+        latched['extrinsic']['rotation'],
+        latched['extrinsic']['translation'],
+    )
     assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
     # latched topics, saved file and service answer agree
     assert latched['time_offset'] == saved['time_offset']
-    np.testing.assert_allclose(latched['extrinsic']['translation'],
-                               saved['extrinsic']['translation'], atol=1e-12)
-    assert (latched['extrinsic']['parent'], latched['extrinsic']['child']) == \
-        ('mocap_marker', 'imu')
+    np.testing.assert_allclose(
+        latched['extrinsic']['translation'], saved['extrinsic']['translation'], atol=1e-12
+    )
+    assert (latched['extrinsic']['parent'], latched['extrinsic']['child']) == (
+        'mocap_marker',
+        'imu',
+    )
     assert f'time_offset {saved["time_offset"] * 1e3:+.2f} ms' in answer[0]['message']
     # the verdict goes with the answer and the file (a clean simulated rig: good)
     assert answer[0]['message'].startswith(f'{saved["quality"]["verdict"]}')
@@ -109,21 +131,26 @@ def test_live_calibration_matches_truth_and_bag_replay(ros: Processes, install: 
     # one quaternion sign everywhere: the service's one line, the file, the topic
     q = ', '.join(f'{v:.4f}' for v in saved['extrinsic']['rotation'])
     assert f'rotation xyzw [{q}]' in answer[0]['message']
-    np.testing.assert_allclose(latched['extrinsic']['rotation'], saved['extrinsic']['rotation'],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        latched['extrinsic']['rotation'], saved['extrinsic']['rotation'], atol=1e-12
+    )
     # the batch stage ran and its covariance went out: translation variances as in the file
     assert saved['batch']['used']
     cov6 = np.asarray(latched['covariance']).reshape(6, 6)
-    np.testing.assert_allclose(np.sqrt(np.diag(cov6)[:3]), saved['std']['translation'],
-                               rtol=1e-9)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov6)[:3]), saved['std']['translation'], rtol=1e-9)
     np.testing.assert_allclose(cov6, cov6.T, atol=1e-15)
     # the bags replayed offline give the same answer as the node did live
     offline = resolve_executable(ros.env, 'handeye_ros', 'offline_calibrate')
     for spec in bags:
         path = spec.rsplit(':', 1)[0]
-        proc = subprocess.run([str(offline), '--bag', path, '--json', '--config',
-                               str(_params(install))], env=ros.env, capture_output=True,
-                              text=True, timeout=120, check=False)
+        proc = subprocess.run(
+            [str(offline), '--bag', path, '--json', '--config', str(_params(install))],
+            env=ros.env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
         assert proc.returncode == 0, proc.stderr
         d = json.loads(proc.stdout)
         assert d['time_offset'] == saved['time_offset'], spec
@@ -140,36 +167,56 @@ def test_live_tf_and_rigid_bodies(install: Path, tmp_path: Path, inputs: str) ->
     their published definitions: a ROS 2 install has them; PyPI has not)."""
     env = with_interfaces(ros_env(install))
     if env is None:
-        pytest.skip('tf2_msgs / mocap4r2_msgs not built: run scripts/interfaces (needs cmake '
-                    'and a C++ compiler)')
+        pytest.skip(
+            'tf2_msgs / mocap4r2_msgs not built: run scripts/interfaces (needs cmake '
+            'and a C++ compiler)'
+        )
     ros = Processes(env, tmp_path)
     try:
         saved_path = tmp_path / 'node_result.yaml'
         if inputs == 'tf':
             topics = ('hand_topic:=/tf:world.marker', 'eye_topic:=/tf:odom.imu')
-            publish = ('--hand-type', 'TFMessage', '--hand-topic', '/tf', '--eye-type',
-                       'TFMessage', '--eye-topic', '/tf')
+            publish = (
+                '--hand-type',
+                'TFMessage',
+                '--hand-topic',
+                '/tf',
+                '--eye-type',
+                'TFMessage',
+                '--eye-topic',
+                '/tf',
+            )
         else:
             topics = ('hand_topic:=/mocap/rigid_bodies:rig',)
             publish = ('--hand-type', 'RigidBodies', '--hand-topic', '/mocap/rigid_bodies')
         node = _start_node(ros, install, f'output_file:={saved_path}', *topics)
-        pub = ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '500',
-                                      '--reliable', *publish), 'publisher')
+        pub = ros.run_json(
+            _publisher(
+                ros, '--seed', '3', '--level', '3', '--rate', '500', '--reliable', *publish
+            ),
+            'publisher',
+        )
         answer = _call(ros, '/calibrator/calibrate', '/calibrator/save')
         assert answer[0]['success'] and answer[1]['success'], answer
         saved = yaml.safe_load(saved_path.read_text())
         for s in ('hand', 'eye'):
             assert saved['streams'][s]['buffered'] == pub['sent'][s], saved['streams'][s]
         if inputs == 'tf':
-            assert saved['streams']['hand']['tf_chain'] == ['world->rig (moving)',
-                                                            'rig->marker (static)']
+            assert saved['streams']['hand']['tf_chain'] == [
+                'world->rig (moving)',
+                'rig->marker (static)',
+            ]
             assert saved['streams']['eye']['tf_chain'] == ['imu->odom (moving, inverted)']
         else:
             assert saved['streams']['hand']['type'] == 'mocap4r2_msgs/msg/RigidBodies'
         t = pub['truth']
         truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
-        err = calibration_error(truth, saved['time_offset'], saved['extrinsic']['rotation'],
-                                saved['extrinsic']['translation'])
+        err = calibration_error(
+            truth,
+            saved['time_offset'],
+            saved['extrinsic']['rotation'],
+            saved['extrinsic']['translation'],
+        )
         assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
         assert ros.stop(node) == 0
     finally:
@@ -182,25 +229,42 @@ def test_no_data_wrong_topic_and_unsupported_type(ros: Processes, install: Path)
     assert not first[0]['success'] and 'no publisher yet' in first[0]['message']
     assert not first[1]['success'] and 'no result to save' in first[1]['message']
     # an Imu on the hand topic: the node says what it sees instead of waiting forever
-    imu = ros.start([sys.executable, '-c', (
-        'import rclpy, time; from rclpy.node import Node; from sensor_msgs.msg import Imu; '
-        'rclpy.init(); n = Node("imu_pub"); p = n.create_publisher(Imu, "/wrong/pose", 10); '
-        'end = time.time() + 30\n'
-        'while time.time() < end: p.publish(Imu()); time.sleep(0.05)')], 'imu')
-    assert wait_for(lambda: 'sensor_msgs/msg/Imu' in _call(
-        ros, '/calibrator/calibrate', name='after')[0]['message'], timeout=10.0, step=0.5)
+    imu = ros.start(
+        [
+            sys.executable,
+            '-c',
+            (
+                'import rclpy, time; from rclpy.node import Node; from sensor_msgs.msg import Imu; '
+                'rclpy.init(); n = Node("imu_pub"); p = n.create_publisher(Imu, "/wrong/pose", 10); '
+                'end = time.time() + 30\n'
+                'while time.time() < end: p.publish(Imu()); time.sleep(0.05)'
+            ),
+        ],
+        'imu',
+    )
+    assert wait_for(
+        lambda: (
+            'sensor_msgs/msg/Imu'
+            in _call(ros, '/calibrator/calibrate', name='after')[0]['message']
+        ),
+        timeout=10.0,
+        step=0.5,
+    )
     answer = _call(ros, '/calibrator/calibrate', name='last')[0]
     assert not answer['success'] and 'carries no pose' in answer['message']
     ros.stop(imu)
 
 
-def test_nan_on_the_wire_busy_refusal_and_reset(ros: Processes, install: Path,
-                                                tmp_path: Path) -> None:
+def test_nan_on_the_wire_busy_refusal_and_reset(
+    ros: Processes, install: Path, tmp_path: Path
+) -> None:
     # many RANSAC hypotheses make one calibration last seconds, so calls overlap for sure
     saved_path = tmp_path / 'r.yaml'
     _start_node(ros, install, 'ransac_iterations:=100000', f'output_file:={saved_path}')
-    pub = ros.run_json(_publisher(ros, '--seed', '5', '--level', '2', '--rate', '500',
-                                  '--nan-every', '10'), 'publisher')
+    pub = ros.run_json(
+        _publisher(ros, '--seed', '5', '--level', '2', '--rate', '500', '--nan-every', '10'),
+        'publisher',
+    )
     both = _call(ros, '/calibrator/calibrate', '/calibrator/calibrate', mode='staggered')
     assert both[0]['success'] and not both[1]['success'], both
     assert 'already running' in both[1]['message']
@@ -211,28 +275,45 @@ def test_nan_on_the_wire_busy_refusal_and_reset(ros: Processes, install: Path,
     assert saved['streams']['eye']['buffered'] == pub['sent']['eye'] - n_nan
     assert any('non finite' in w for w in saved['warnings'])
     # reset while a calibration runs (0.3 s into it): both answer, the calibration on its copy
-    calib_reset = _call(ros, '/calibrator/calibrate', '/calibrator/reset', mode='staggered',
-                        name='calib_reset')
+    calib_reset = _call(
+        ros, '/calibrator/calibrate', '/calibrator/reset', mode='staggered', name='calib_reset'
+    )
     assert calib_reset[0]['success'] and calib_reset[1]['success'], calib_reset
     after = _call(ros, '/calibrator/calibrate', name='after_reset')[0]
     assert not after['success'] and '0 pose(s) buffered' in after['message']
 
 
-@pytest.mark.parametrize(('param', 'fragment'), [
-    ('eta:=-1.0', 'eta'), ('eta:=five', 'eta'), ('qos_reliability:=sometimes', 'qos_reliability'),
-    ('hand_type:=Imu', 'hand_type'), ('buffer_size:=1', 'buffer_size'),
-    ('hand_topic:=/tf:world', 'PARENT.CHILD'),
-    ('hand_topic:=/mocap pose', "hand_topic /mocap pose: '/mocap pose' is no valid topic name"),
-    ('eye_topic:=/vio/1odom', 'must not start with a number'),
-    pytest.param('hand_topic:=/tf:world.marker', 'tf2_msgs/msg/TFMessage cannot be imported',
-                 marks=pytest.mark.skipif(
-                     importlib.util.find_spec('tf2_msgs') is not None,
-                     reason='tf2_msgs is importable here: the node subscribes to /tf'))])
-def test_invalid_parameters_are_refused_at_start(ros: Processes, install: Path, param: str,
-                                                 fragment: str) -> None:
+@pytest.mark.parametrize(
+    ('param', 'fragment'),
+    [
+        ('eta:=-1.0', 'eta'),
+        ('eta:=five', 'eta'),
+        ('qos_reliability:=sometimes', 'qos_reliability'),
+        ('hand_type:=Imu', 'hand_type'),
+        ('buffer_size:=1', 'buffer_size'),
+        ('hand_topic:=/tf:world', 'PARENT.CHILD'),
+        (
+            'hand_topic:=/mocap pose',
+            "hand_topic /mocap pose: '/mocap pose' is no valid topic name",
+        ),
+        ('eye_topic:=/vio/1odom', 'must not start with a number'),
+        pytest.param(
+            'hand_topic:=/tf:world.marker',
+            'tf2_msgs/msg/TFMessage cannot be imported',
+            marks=pytest.mark.skipif(
+                importlib.util.find_spec('tf2_msgs') is not None,
+                reason='tf2_msgs is importable here: the node subscribes to /tf',
+            ),
+        ),
+    ],
+)
+def test_invalid_parameters_are_refused_at_start(
+    ros: Processes, install: Path, param: str, fragment: str
+) -> None:
     # an explicit type subscribes at start: a bad topic name is caught before rclpy sees it
-    typed = ('hand_type:=PoseStamped', 'eye_type:=Odometry') if ' ' in param or '1' in param \
-        else ()
+    typed = (
+        ('hand_type:=PoseStamped', 'eye_type:=Odometry') if ' ' in param or '1' in param else ()
+    )
     node = _start_node(ros, install, *typed, param)
     node.wait(timeout=30)
     out, err = ros.output(node)
@@ -240,8 +321,7 @@ def test_invalid_parameters_are_refused_at_start(ros: Processes, install: Path, 
     assert fragment in err and 'Traceback' not in err, err
 
 
-def test_one_result_published_consistently(ros: Processes, install: Path,
-                                           tmp_path: Path) -> None:
+def test_one_result_published_consistently(ros: Processes, install: Path, tmp_path: Path) -> None:
     """Every calibrate, successful or not, updates every output together: a result without a
     batch stage replaces the covariance by 'unknown'; a failure turns the diagnostics to
     ERROR and names the latched outputs stale; ~/save writes where output_file now says."""
@@ -252,8 +332,9 @@ def test_one_result_published_consistently(ros: Processes, install: Path,
     with_batch = yaml.safe_load(first.read_text())
     assert with_batch['batch']['used']
 
-    set_ = ros.run_json(ros.script('ros_client.py', 'param', 'batch:=false',
-                                   f'output_file:={second}'), 'param')
+    set_ = ros.run_json(
+        ros.script('ros_client.py', 'param', 'batch:=false', f'output_file:={second}'), 'param'
+    )
     assert all(r['success'] for r in set_), set_
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='linear')
     assert answer[0]['success'] and answer[1]['success'], answer
@@ -261,16 +342,18 @@ def test_one_result_published_consistently(ros: Processes, install: Path,
     linear = yaml.safe_load(second.read_text())
     assert not linear['batch']['used'] and linear['extrinsic'] != with_batch['extrinsic']
     latched = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched_linear')
-    np.testing.assert_allclose(latched['extrinsic']['translation'],
-                               linear['extrinsic']['translation'], atol=1e-12)
+    np.testing.assert_allclose(
+        latched['extrinsic']['translation'], linear['extrinsic']['translation'], atol=1e-12
+    )
     assert latched['covariance'][0] == -1.0 and not any(latched['covariance'][1:])
     assert latched['time_offset'] == linear['time_offset']
     assert latched['time_reference']['offset_ns'] == linear['time_offset_ns']
     assert latched['diagnostics']['values']['time_offset_s'] == str(linear['time_offset'])
 
     # a failed calibration: ERROR with its reason, no numbers of the old result, 'stale'
-    failed = _call(ros, '/calibrator/reset', '/calibrator/calibrate', '/calibrator/save',
-                   name='failed')
+    failed = _call(
+        ros, '/calibrator/reset', '/calibrator/calibrate', '/calibrator/save', name='failed'
+    )
     assert not failed[1]['success'] and '0 pose(s) buffered' in failed[1]['message']
     diag = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched_failed')['diagnostics']
     assert diag['level'] == 2 and '0 pose(s) buffered' in diag['message'], diag
@@ -297,8 +380,9 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
 
     def left(p: subprocess.Popen) -> list[str]:
         time.sleep(0.3)
-        rows = subprocess.run(['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True,
-                              text=True, check=True).stdout.splitlines()
+        rows = subprocess.run(
+            ['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True, text=True, check=True
+        ).stdout.splitlines()
         return [r for r in rows if r.split()[0] == str(p.pid)]
 
     runs = []
@@ -325,20 +409,41 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
 def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
     """--help on every executable, without starting anything; a stray argument is named."""
     env = ros_env(install)
-    for exe in ('calibrator', 'sim_publisher', 'offline_calibrate', 'evaluate', 'demo',
-                'publish_calibration'):
-        proc = subprocess.run([str(resolve_executable(env, 'handeye_ros', exe)), '--help'],
-                              env=env, capture_output=True, text=True, timeout=60,
-                              check=False)
+    for exe in (
+        'calibrator',
+        'sim_publisher',
+        'offline_calibrate',
+        'evaluate',
+        'demo',
+        'publish_calibration',
+    ):
+        proc = subprocess.run(
+            [str(resolve_executable(env, 'handeye_ros', exe)), '--help'],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
         assert proc.returncode == 0, (exe, proc.stderr)
         assert proc.stdout.startswith('usage:'), (exe, proc.stdout[:200])
-    helped = subprocess.run([str(resolve_executable(env, 'handeye_ros', 'calibrator')), '-h'],
-                            env=env, capture_output=True, text=True, timeout=60,
-                            check=False).stdout
+    helped = subprocess.run(
+        [str(resolve_executable(env, 'handeye_ros', 'calibrator')), '-h'],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    ).stdout
     assert 'time_reference' in helped and '  output_file * (default' in helped
-    stray = subprocess.run([str(resolve_executable(env, 'handeye_ros', 'calibrator')),
-                            'eta:=3'], env=env, capture_output=True, text=True, timeout=60,
-                           check=False)
+    stray = subprocess.run(
+        [str(resolve_executable(env, 'handeye_ros', 'calibrator')), 'eta:=3'],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert stray.returncode == 2 and "unknown argument 'eta:=3'" in stray.stderr
 
 
@@ -362,28 +467,33 @@ def test_publish_calibration_latched_or_as_a_bag(install: Path, tmp_path: Path) 
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.core.simulate import simulate
     from handeye_ros.report import write_result
+
     rec = simulate(2, duration_s=30.0)
     result = calibrate(rec.hand, rec.eye, CalibrationConfig(batch=False)).to_dict(
-        hand_frame='marker', eye_frame='body')
+        hand_frame='marker', eye_frame='body'
+    )
     saved = tmp_path / 'calibration.yaml'
     write_result(saved, result)
     env = ros_env(install)
     exe = str(resolve_executable(env, 'handeye_ros', 'publish_calibration'))
     bad = tmp_path / 'bad.yaml'
     bad.write_text('extrinsic: 3\n')
-    proc = subprocess.run([exe, str(bad)], env=env, capture_output=True, text=True,
-                          timeout=60, check=False)
+    proc = subprocess.run(
+        [exe, str(bad)], env=env, capture_output=True, text=True, timeout=60, check=False
+    )
     assert proc.returncode == 1 and 'not a handeye_ros result' in proc.stderr, proc.stderr
     assert 'Traceback' not in proc.stderr
 
-    proc = subprocess.run([exe, str(saved)], env=env, capture_output=True, text=True,
-                          timeout=60, check=False)
+    proc = subprocess.run(
+        [exe, str(saved)], env=env, capture_output=True, text=True, timeout=60, check=False
+    )
     assert proc.returncode == 0, proc.stderr
     assert 'tf2_msgs cannot be imported' in proc.stderr
     with AnyReader([tmp_path / 'calibration_calibration']) as reader:
         conns = {c.topic: c for c in reader.connections}
-        assert [q.durability for q in conns['/tf_static'].ext.offered_qos_profiles] == \
-            [QosDurability.TRANSIENT_LOCAL]
+        assert [q.durability for q in conns['/tf_static'].ext.offered_qos_profiles] == [
+            QosDurability.TRANSIENT_LOCAL
+        ]
         msgs = {c.topic: reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()}
     tf = msgs['/tf_static'].transforms[0]
     assert (tf.header.frame_id, tf.child_frame_id) == ('marker', 'body')
@@ -397,8 +507,9 @@ def test_publish_calibration_latched_or_as_a_bag(install: Path, tmp_path: Path) 
         pub = ros.start([exe, str(saved)], 'publish_calibration')
         got = ros.run_json(ros.script('ros_client.py', 'tf_static'), 'tf_static')
         assert got and (got[0]['parent'], got[0]['child']) == ('marker', 'body'), got
-        np.testing.assert_allclose(got[0]['translation'], result['extrinsic']['translation'],
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            got[0]['translation'], result['extrinsic']['translation'], atol=1e-12
+        )
         assert ros.stop(pub) == 0
         assert 'Traceback' not in ros.output(pub)[1]
     finally:
@@ -411,24 +522,53 @@ def test_unset_stamps_are_named_live(ros: Processes, install: Path, tmp_path: Pa
     on arrival and the saved result says so. The publisher runs at the recording's own rate
     here, so arrival times follow the motion."""
     node = _start_node(ros, install, 'hand_type:=auto', 'eye_type:=auto')
-    ros.run_json(_publisher(ros, '--seed', '6', '--level', '2', '--duration', '10',
-                            '--zero-stamps', 'hand'), 'zero')
+    ros.run_json(
+        _publisher(
+            ros, '--seed', '6', '--level', '2', '--duration', '10', '--zero-stamps', 'hand'
+        ),
+        'zero',
+    )
     answer = _call(ros, '/calibrator/calibrate', name='zero_call')[0]
     assert not answer['success'], answer
-    assert 'had no stamp (header.stamp 0)' in answer['message'] and \
-        'use_arrival_time: hand' in answer['message'], answer
+    assert (
+        'had no stamp (header.stamp 0)' in answer['message']
+        and 'use_arrival_time: hand' in answer['message']
+    ), answer
     assert ros.stop(node) == 0
 
     saved = tmp_path / 'arrival.yaml'
-    _start_node(ros, install, 'use_arrival_time:=hand', f'output_file:={saved}',
-                'hand_type:=PoseStamped', 'eye_type:=Odometry', name='arrival_node')
-    ros.run_json(_publisher(ros, '--seed', '6', '--level', '2', '--duration', '25',
-                            '--rate', '120', '--zero-stamps', 'hand'), 'arrival')
+    _start_node(
+        ros,
+        install,
+        'use_arrival_time:=hand',
+        f'output_file:={saved}',
+        'hand_type:=PoseStamped',
+        'eye_type:=Odometry',
+        name='arrival_node',
+    )
+    ros.run_json(
+        _publisher(
+            ros,
+            '--seed',
+            '6',
+            '--level',
+            '2',
+            '--duration',
+            '25',
+            '--rate',
+            '120',
+            '--zero-stamps',
+            'hand',
+        ),
+        'arrival',
+    )
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='arrival_call')
     assert answer[0]['success'] and answer[1]['success'], answer
     d = yaml.safe_load(saved.read_text())
-    assert (d['streams']['hand']['stamps'], d['streams']['eye']['stamps']) == \
-        ('arrival', 'header'), d['streams']
+    assert (d['streams']['hand']['stamps'], d['streams']['eye']['stamps']) == (
+        'arrival',
+        'header',
+    ), d['streams']
     assert any('stamped on arrival' in w for w in d['warnings']), d['warnings']
 
 
@@ -436,11 +576,28 @@ def test_qos_mismatch_is_named(ros: Processes, install: Path) -> None:
     """'0 pose(s) buffered' from a reliable subscription to a best-effort MoCap publisher: the
     answer names the publisher's QoS and the parameter that fixes it, also once the publisher
     is gone. (Unset stamps: test_bag_replay, through the same Recorder.)"""
-    _start_node(ros, install, 'qos_reliability:=reliable', 'hand_type:=PoseStamped',
-                'eye_type:=Odometry')
-    ros.run_json(_publisher(ros, '--seed', '3', '--level', '3', '--rate', '2000',
-                            '--duration', '20', '--wait-subscribers', '3'), 'publisher')
+    _start_node(
+        ros, install, 'qos_reliability:=reliable', 'hand_type:=PoseStamped', 'eye_type:=Odometry'
+    )
+    ros.run_json(
+        _publisher(
+            ros,
+            '--seed',
+            '3',
+            '--level',
+            '3',
+            '--rate',
+            '2000',
+            '--duration',
+            '20',
+            '--wait-subscribers',
+            '3',
+        ),
+        'publisher',
+    )
     answer = _call(ros, '/calibrator/calibrate', name='qos')[0]
     assert not answer['success'], answer
-    assert 'best_effort' in answer['message'] and \
-        'set qos_reliability: best_effort' in answer['message'], answer
+    assert (
+        'best_effort' in answer['message']
+        and 'set qos_reliability: best_effort' in answer['message']
+    ), answer

@@ -40,8 +40,9 @@ def test_json_is_one_document_on_stdout(sim_files) -> None:
     _ok(res)
     d = json.loads(res.stdout)  # the whole stdout is exactly one document
     assert 'stage 1' in res.stderr  # -v logs go to stderr
-    err = calibration_error(rec.truth, d['time_offset'], d['extrinsic']['rotation'],
-                            d['extrinsic']['translation'])
+    err = calibration_error(
+        rec.truth, d['time_offset'], d['extrinsic']['rotation'], d['extrinsic']['translation']
+    )
     # level 3 (1.5 mm / 0.06 deg per frame): see test_pipeline for the tolerances
     assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
     for key in ('translation', 'rotation'):
@@ -68,17 +69,42 @@ def test_output_files_hold_the_same_result(sim_files, tmp_path: Path) -> None:
 def test_options_and_config_file(sim_files, tmp_path: Path) -> None:
     hand, eye, rec = sim_files
     cfg = tmp_path / 'params.yaml'
-    cfg.write_text(yaml.safe_dump({'calibrator': {'ros__parameters': {
-        'hand_topic': '/mocap', 'eta': 8.0, 'seed': 3, 'relative_poses': 'rotation'}}}))
-    res = run_cli('--hand', hand, '--eye', eye, '--json', '--config', cfg, '--eta', '6',
-                  '--no-robust-kernel', '--peak-fit', 'none')
+    cfg.write_text(
+        yaml.safe_dump(
+            {
+                'calibrator': {
+                    'ros__parameters': {
+                        'hand_topic': '/mocap',
+                        'eta': 8.0,
+                        'seed': 3,
+                        'relative_poses': 'rotation',
+                    }
+                }
+            }
+        )
+    )
+    res = run_cli(
+        '--hand',
+        hand,
+        '--eye',
+        eye,
+        '--json',
+        '--config',
+        cfg,
+        '--eta',
+        '6',
+        '--no-robust-kernel',
+        '--peak-fit',
+        'none',
+    )
     _ok(res)
     d = json.loads(res.stdout)
     assert d['config']['eta'] == 6.0  # the command line wins over the file
     assert d['config']['seed'] == 3 and d['config']['robust_kernel'] is False
     assert d['time_alignment']['method'] == 'none'
-    fixed = run_cli('--hand', hand, '--eye', eye, '--json',
-                    '--time-offset', str(rec.truth.time_offset_s))
+    fixed = run_cli(
+        '--hand', hand, '--eye', eye, '--json', '--time-offset', str(rec.truth.time_offset_s)
+    )
     _ok(fixed)
     assert json.loads(fixed.stdout)['time_offset'] == rec.truth.time_offset_s
 
@@ -101,8 +127,9 @@ def test_euroc_input_and_sign_flips(sim_files, tmp_path: Path) -> None:
     # both files round quaternions to 12 decimals, in different column orders: the two
     # readings differ by ~1e-12 per pose, which moves the sub-sample peak by ~1e-9 s
     assert db['time_offset'] == pytest.approx(da['time_offset'], abs=1e-7)
-    np.testing.assert_allclose(db['extrinsic']['translation'], da['extrinsic']['translation'],
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        db['extrinsic']['translation'], da['extrinsic']['translation'], atol=1e-6
+    )
 
 
 BAD_FILES = {
@@ -139,8 +166,10 @@ def test_missing_file_and_bad_config(sim_files, tmp_path: Path) -> None:
     cfg.write_text('eta: [1, 2\n')
     _fails(run_cli('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'not valid YAML')
     _fails(run_cli('--hand', hand, '--eye', eye, '--eta', '-1'), 'eta must lie in')
-    _fails(run_cli('--hand', hand, '--eye', eye, '-o', tmp_path / 'no' / 'dir' / 'r.yaml'),
-           'cannot write the result')
+    _fails(
+        run_cli('--hand', hand, '--eye', eye, '-o', tmp_path / 'no' / 'dir' / 'r.yaml'),
+        'cannot write the result',
+    )
 
 
 def test_overlap_too_short(sim_files, tmp_path: Path) -> None:
@@ -161,7 +190,8 @@ def test_offset_outside_the_window(tmp_path: Path) -> None:
     found = run_cli('--hand', hand, '--eye', eye, '--json')
     _ok(found)
     assert json.loads(found.stdout)['time_offset'] == pytest.approx(
-        rec.truth.time_offset_s + 0.8, abs=2e-3)
+        rec.truth.time_offset_s + 0.8, abs=2e-3
+    )
     # the window holds no true peak: either the peak sits at its edge, or a false one inside
     # leaves no consensus in stage 2; both refusals name the window's options
     narrow = run_cli('--hand', hand, '--eye', eye, '--max-time-offset', '0.5')
@@ -170,7 +200,8 @@ def test_offset_outside_the_window(tmp_path: Path) -> None:
     d = run_cli('--hand', hand, '--eye', eye, '--json', '--time-offset-guess', '0.8')
     _ok(d)
     assert json.loads(d.stdout)['time_offset'] == pytest.approx(
-        rec.truth.time_offset_s + 0.8, abs=3e-3)
+        rec.truth.time_offset_s + 0.8, abs=3e-3
+    )
 
 
 def _small_rotation_files(tmp_path: Path) -> tuple[Path, Path]:
@@ -182,11 +213,12 @@ def _small_rotation_files(tmp_path: Path) -> tuple[Path, Path]:
     truth = random_truth(np.random.default_rng(1))
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     Re, pe = compose((R, p), X)
-    t_ns = 1_700_000_000 * 10 ** 9 + np.rint(t * 1e9).astype(np.int64)
+    t_ns = 1_700_000_000 * 10**9 + np.rint(t * 1e9).astype(np.int64)
     hand, eye = tmp_path / 'h.txt', tmp_path / 'e.txt'
     write_tum(hand, Trajectory.from_arrays(t_ns, p, Rotation.from_matrix(R).as_quat()))
-    write_tum(eye, Trajectory.from_arrays(t_ns[::5], pe[::5],
-                                          Rotation.from_matrix(Re[::5]).as_quat()))
+    write_tum(
+        eye, Trajectory.from_arrays(t_ns[::5], pe[::5], Rotation.from_matrix(Re[::5]).as_quat())
+    )
     return hand, eye
 
 
@@ -212,9 +244,12 @@ def test_strict_exits_2_unless_good(sim_files, tmp_path: Path) -> None:
     _ok(run_cli('--hand', hand, '--eye', eye, '--strict'))
     traj = read_trajectory(eye)
     swapped = tmp_path / 'eye_wxyz.txt'
-    swapped.write_text(''.join(
-        f'{t // 10**9}.{t % 10**9:09d} {p[0]} {p[1]} {p[2]} {q[3]} {q[0]} {q[1]} {q[2]}\n'
-        for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True)))
+    swapped.write_text(
+        ''.join(
+            f'{t // 10**9}.{t % 10**9:09d} {p[0]} {p[1]} {p[2]} {q[3]} {q[0]} {q[1]} {q[2]}\n'
+            for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True)
+        )
+    )
     res = run_cli('--hand', hand, '--eye', swapped, '--strict')
     assert res.returncode == 2 and 'convention_corrected' in res.stderr, res.stderr
     assert 'VERDICT: DOUBTFUL' in res.stdout
@@ -228,9 +263,12 @@ def test_binary_config_and_unwritable_bag_stamps(sim_files, tmp_path: Path) -> N
     blob.write_bytes(bytes(range(256)) * 4)
     _fails(run_cli('--hand', hand, '--eye', eye, '--config', blob), 'not a text file')
     # stamps in 2065: fine for int64 ns and the calibration, not for a ROS time (int32 s)
-    late = 3_000_000_000 * 10 ** 9 - rec.hand.t_ns[0]
+    late = 3_000_000_000 * 10**9 - rec.hand.t_ns[0]
     h2, e2 = tmp_path / 'h.txt', tmp_path / 'e.txt'
     write_tum(h2, rec.hand.shifted(late))
     write_tum(e2, rec.eye.shifted(late))
-    _fails(run_cli('--hand', h2, '--eye', e2, '--output-bag', tmp_path / 'out'),
-           'no ROS time', 'int32')
+    _fails(
+        run_cli('--hand', h2, '--eye', e2, '--output-bag', tmp_path / 'out'),
+        'no ROS time',
+        'int32',
+    )

@@ -79,12 +79,14 @@ def test_result_dict_is_plain_data_in_the_conventions() -> None:
 def test_world_alignment_from_orientations_when_positions_do_not_span_a_plane() -> None:
     """A rig rotating in place (MoCap marker moves < 5 cm): T_WG from orientations, warned."""
     rec = recording(seed=3)
-    still = Trajectory.from_arrays(rec.hand.t_ns, np.zeros((len(rec.hand), 3)) + [0.0, 0.0, 1.0],
-                                   rec.hand.q_xyzw, 'hand')
+    still = Trajectory.from_arrays(
+        rec.hand.t_ns, np.zeros((len(rec.hand), 3)) + [0.0, 0.0, 1.0], rec.hand.q_xyzw, 'hand'
+    )
     t = rec.truth
     X = (Rotation.from_quat(t.q_HE).as_matrix(), t.p_HE * 0.01)
     W = (Rotation.from_quat(t.q_WG).as_matrix(), t.p_WG)
     from handeye_ros.core.association import interpolate
+
     R_GH, p_GH, ok = interpolate(still, rec.eye.t_ns - round(t.time_offset_s * 1e9))
     R, p = compose(compose(W, (R_GH[ok], p_GH[ok])), X)
     eye = Trajectory.from_arrays(rec.eye.t_ns[ok], p, Rotation.from_matrix(R).as_quat(), 'eye')

@@ -35,7 +35,7 @@ from handeye_ros.core.linear import (
 )
 from handeye_ros.core.time_align import _parabola_vertex, masked_normalised_correlation
 
-SEEDS = st.integers(0, 2 ** 32 - 1)
+SEEDS = st.integers(0, 2**32 - 1)
 FAST = settings(max_examples=60, deadline=None)
 
 
@@ -136,14 +136,14 @@ def test_inlier_criteria_equal_a_direct_composition(seed: int, n: int, k: int) -
         X = (np.broadcast_to(hyp[0][a], A[0].shape), np.broadcast_to(hyp[1][a], A[1].shape))
         E = compose(compose(X, compose(B, inverse(X))), inverse(A))
         np.testing.assert_allclose(e_rot[a], rotation_angle(E[0]), atol=2e-7)
-        np.testing.assert_allclose(e_trans[a], np.linalg.norm(E[1], axis=1), atol=1e-12,
-                                   rtol=1e-9)
+        np.testing.assert_allclose(e_trans[a], np.linalg.norm(E[1], axis=1), atol=1e-12, rtol=1e-9)
 
 
 @FAST
 @given(seed=SEEDS, n=st.integers(1, 8), mu=st.floats(0.1, 100.0))
-def test_kernel_is_one_for_congruent_screws_and_below_otherwise(seed: int, n: int,
-                                                                mu: float) -> None:
+def test_kernel_is_one_for_congruent_screws_and_below_otherwise(
+    seed: int, n: int, mu: float
+) -> None:
     rng = np.random.default_rng(seed)
     _, A, B = _congruent(rng, n)
     # eq. 9: Scalar(A) = Scalar(B) for any X, so E = 1 and W = exp(0) = 1 (eq. 10-11)
@@ -153,19 +153,25 @@ def test_kernel_is_one_for_congruent_screws_and_below_otherwise(seed: int, n: in
 
 
 @FAST
-@given(vertex=st.floats(-0.49, 0.49), curvature=st.floats(1e-3, 1e3),
-       top=st.floats(-1.0, 1.0))
-def test_parabola_vertex_is_exact_on_a_parabola(vertex: float, curvature: float,
-                                                top: float) -> None:
+@given(vertex=st.floats(-0.49, 0.49), curvature=st.floats(1e-3, 1e3), top=st.floats(-1.0, 1.0))
+def test_parabola_vertex_is_exact_on_a_parabola(
+    vertex: float, curvature: float, top: float
+) -> None:
     c = [top - curvature * (x - vertex) ** 2 for x in (-1.0, 0.0, 1.0)]
     assert abs(_parabola_vertex(*c) - vertex) < 1e-9
 
 
 @FAST
-@given(seed=SEEDS, ny=st.integers(3, 40), nx=st.integers(3, 40), channels=st.integers(1, 3),
-       holes=st.floats(0.0, 0.4))
-def test_masked_ncc_equals_a_brute_force_pearson(seed: int, ny: int, nx: int, channels: int,
-                                                 holes: float) -> None:
+@given(
+    seed=SEEDS,
+    ny=st.integers(3, 40),
+    nx=st.integers(3, 40),
+    channels=st.integers(1, 3),
+    holes=st.floats(0.0, 0.4),
+)
+def test_masked_ncc_equals_a_brute_force_pearson(
+    seed: int, ny: int, nx: int, channels: int, holes: float
+) -> None:
     rng = np.random.default_rng(seed)
     y, x = rng.normal(size=(ny, channels)), rng.normal(size=(nx, channels))
     my, mx = rng.random(ny) >= holes, rng.random(nx) >= holes
@@ -194,7 +200,7 @@ def test_keyframes_are_the_greedy_chain_of_eq_6(seed: int, n: int, eta_deg: floa
     # brute force: from each keyframe, the first later frame at least eta away
     expect, k = [], 0
     while True:
-        ang = np.degrees(rotation_angle(np.swapaxes(R[k], -1, -2) @ R[k + 1:]))
+        ang = np.degrees(rotation_angle(np.swapaxes(R[k], -1, -2) @ R[k + 1 :]))
         later = np.flatnonzero(ang >= eta_deg - 1e-9)
         if not later.size:
             break
@@ -204,8 +210,11 @@ def test_keyframes_are_the_greedy_chain_of_eq_6(seed: int, n: int, eta_deg: floa
     # frames within round-off of eta may go either way: compare away from the threshold
     ang_got = [np.degrees(rotation_angle(R[a].T @ R[b])) for a, b in got]
     assert all(a >= eta_deg - 1e-6 for a in ang_got)
-    if all(abs(np.degrees(rotation_angle(R[a].T @ R[b])) - eta_deg) > 1e-6
-           for a in range(n) for b in range(a + 1, n)):
+    if all(
+        abs(np.degrees(rotation_angle(R[a].T @ R[b])) - eta_deg) > 1e-6
+        for a in range(n)
+        for b in range(a + 1, n)
+    ):
         assert got == expect
 
 

@@ -40,8 +40,9 @@ def test_repetitive_motion_is_ambiguous_and_takes_the_smallest_offset() -> None:
     rec = recording(seed=2, level=2.0, motion='repetitive')
     res = calibrate(rec.hand, rec.eye)
     assert 'ambiguous_offset' in res.quality.codes
-    assert 'max_time_offset' in next(r.message for r in res.quality.reasons
-                                     if r.code == 'ambiguous_offset')
+    assert 'max_time_offset' in next(
+        r.message for r in res.quality.reasons if r.code == 'ambiguous_offset'
+    )
     assert abs(res.time_offset_s - rec.truth.time_offset_s) < 2e-3
     assert len(res.candidates) > 2 and sum(c.chosen for c in res.candidates) == 1
     narrow = calibrate(rec.hand, rec.eye, CalibrationConfig(max_time_offset=0.5))
@@ -64,8 +65,9 @@ def test_vector_refinement_recovers_from_a_biased_magnitude_peak() -> None:
     step's fraction."""
     rec = recording(seed=4, level=3.0)
     R_HE = Rotation.from_quat(rec.truth.q_HE).as_matrix()
-    tv = align_time_vector(rec.hand, rec.eye, R_HE, around_s=rec.truth.time_offset_s + 0.06,
-                           half_window_s=0.15)
+    tv = align_time_vector(
+        rec.hand, rec.eye, R_HE, around_s=rec.truth.time_offset_s + 0.06, half_window_s=0.15
+    )
     assert tv.method == 'vector' and tv.peak_correlation > 0.9
     assert abs(tv.time_offset_s - rec.truth.time_offset_s) < 1e-3
 
@@ -81,9 +83,10 @@ def test_one_spike_does_not_move_the_correlation_peak() -> None:
     assert abs(ta.time_offset_s - rec.truth.time_offset_s) < 2e-3
 
 
-@pytest.mark.parametrize(('motion', 'code'), [('planar', 'unobservable'),
-                                              ('one_axis', 'unobservable'),
-                                              ('slow', 'imprecise')])
+@pytest.mark.parametrize(
+    ('motion', 'code'),
+    [('planar', 'unobservable'), ('one_axis', 'unobservable'), ('slow', 'imprecise')],
+)
 def test_poor_motions_are_named(motion: str, code: str) -> None:
     rec = recording(seed=6, level=3.0, hand_rate_hz=200.0, motion=motion)
     res = calibrate(rec.hand, rec.eye)
@@ -106,8 +109,9 @@ def test_inconsistent_result_fails() -> None:
     """An eye given with its quaternion order swapped and the check switched off: AX = XB
     fails at the result, the verdict is failed."""
     rec = recording(seed=8, level=2.0)
-    eye = Trajectory.from_arrays(rec.eye.t_ns, rec.eye.p_xyz, rec.eye.q_xyzw[:, [3, 0, 1, 2]],
-                                 'eye')
+    eye = Trajectory.from_arrays(
+        rec.eye.t_ns, rec.eye.p_xyz, rec.eye.q_xyzw[:, [3, 0, 1, 2]], 'eye'
+    )
     res = calibrate(rec.hand, eye, CalibrationConfig(check_conventions=False))
     assert res.quality.verdict == 'failed' and 'inconsistent' in res.quality.codes
 
@@ -117,8 +121,9 @@ def test_result_dict_carries_the_verdict_and_the_checks() -> None:
     d = calibrate(rec.hand, rec.eye).to_dict()
     assert d['quality']['verdict'] == 'good'
     assert set(d['screening']) == {'hand', 'eye'}
-    assert d['time_alignment']['vector']['time_offset'] == pytest.approx(d['time_offset'],
-                                                                          abs=2e-3)
+    assert d['time_alignment']['vector']['time_offset'] == pytest.approx(
+        d['time_offset'], abs=2e-3
+    )
     assert d['std']['method'].startswith('long-run') and len(d['std']['white_inflation']) == 7
     assert isinstance(d['time_offset_ns'], int)
     assert d['metrics']['motion_rotation_median'] < 0.5

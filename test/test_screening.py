@@ -21,8 +21,9 @@ from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
 
 
-def _with(traj: Trajectory, idx: np.ndarray, p: np.ndarray | None = None,
-          q: np.ndarray | None = None) -> Trajectory:
+def _with(
+    traj: Trajectory, idx: np.ndarray, p: np.ndarray | None = None, q: np.ndarray | None = None
+) -> Trajectory:
     P, Q = traj.p_xyz.copy(), traj.q_xyzw.copy()
     if p is not None:
         P[idx] = p
@@ -87,8 +88,12 @@ def test_rounded_values_are_not_outliers() -> None:
     floors rise above the rounding, nothing is removed."""
     rec = recording(seed=5, hand_rate_hz=200.0)
     q = np.round(rec.hand.q_xyzw, 4)
-    hand = Trajectory.from_arrays(rec.hand.t_ns, np.round(rec.hand.p_xyz, 3),
-                                  q / np.linalg.norm(q, axis=1, keepdims=True), 'hand')
+    hand = Trajectory.from_arrays(
+        rec.hand.t_ns,
+        np.round(rec.hand.p_xyz, 3),
+        q / np.linalg.norm(q, axis=1, keepdims=True),
+        'hand',
+    )
     assert resolution(hand.p_xyz) == pytest.approx(1e-3)
     _, rep = screen(hand, 'hand')
     assert rep.n_removed == 0
@@ -115,8 +120,13 @@ def test_reset_splits_the_eye_and_nothing_spans_it() -> None:
     assert err.time_offset_s < 2e-3 and err.translation_m < 0.01 and err.rotation_deg < 0.3
     assert res.quality.verdict == 'good', res.quality.reasons
     # the other way round: found directly, on the shifted eye
-    found = find_eye_breaks(rec.hand, eye, rec.truth.time_offset_s,
-                            Rotation.from_quat(rec.truth.q_HE).as_matrix(), rec.truth.p_HE)
+    found = find_eye_breaks(
+        rec.hand,
+        eye,
+        rec.truth.time_offset_s,
+        Rotation.from_quat(rec.truth.q_HE).as_matrix(),
+        rec.truth.p_HE,
+    )
     assert found.breaks_ns.size == 1 and found.outliers_ns.size == 0
 
 

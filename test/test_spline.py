@@ -24,8 +24,7 @@ def test_basis_is_a_partition_of_unity_and_its_derivative_is_exact(order: int) -
     np.testing.assert_allclose(Bc[:, 0], 1.0)
     h = 1e-6
     fd = (cumulative_basis(s + h, order) - cumulative_basis(s - h, order)) / (2 * h)
-    np.testing.assert_allclose(cumulative_basis_derivative(s[1:-1], order), fd[1:-1],
-                               atol=1e-7)
+    np.testing.assert_allclose(cumulative_basis_derivative(s[1:-1], order), fd[1:-1], atol=1e-7)
 
 
 def test_exp_matches_scipy_at_small_and_large_angles() -> None:

@@ -63,26 +63,39 @@ def _tf_msg(store, *transforms):
 
 # ------------------------------------------------------------------ the chain arithmetic
 
-@pytest.mark.parametrize(('parent', 'child'), [('e', 'c'), ('c', 'e'), ('a', 'b'), ('b', 'a'),
-                                                ('world', 'c')])
+
+@pytest.mark.parametrize(
+    ('parent', 'child'), [('e', 'c'), ('c', 'e'), ('a', 'b'), ('b', 'a'), ('world', 'c')]
+)
 def test_chain_equals_matrix_products(store, parent: str, child: str) -> None:
     """world -> a (static) -> b (moving) -> c (static); world -> d -> e (static): every pair
     across the moving link, in either direction, is the product of the edge matrices."""
     rng = np.random.default_rng(7)
-    statics = {('world', 'a'): _random_pose(rng), ('b', 'c'): _random_pose(rng),
-               ('world', 'd'): _random_pose(rng), ('d', 'e'): _random_pose(rng)}
+    statics = {
+        ('world', 'a'): _random_pose(rng),
+        ('b', 'c'): _random_pose(rng),
+        ('world', 'd'): _random_pose(rng),
+        ('d', 'e'): _random_pose(rng),
+    }
     chain = TfChain(parent, child, f'/tf:{parent}.{child}')
-    chain.poses(_tf_msg(store, *(transform_stamped(store.types, 0, pa, ch, *v)
-                                 for (pa, ch), v in statics.items())), static=True)
+    chain.poses(
+        _tf_msg(
+            store,
+            *(transform_stamped(store.types, 0, pa, ch, *v) for (pa, ch), v in statics.items()),
+        ),
+        static=True,
+    )
     moving = [_random_pose(rng) for _ in range(20)]
     raw = []
     for k, (p, q) in enumerate(moving):
-        raw += chain.poses(_tf_msg(store, transform_stamped(store.types, 10 ** 9 + k, 'a', 'b', p, q)),
-                           static=False)
+        raw += chain.poses(
+            _tf_msg(store, transform_stamped(store.types, 10**9 + k, 'a', 'b', p, q)), static=False
+        )
     assert len(raw) == len(moving)
     arr = np.array(raw)
-    out = chain.finish(Trajectory.from_arrays(arr[:, 0].astype(np.int64), arr[:, 1:4],
-                                              arr[:, 4:], name='x'))
+    out = chain.finish(
+        Trajectory.from_arrays(arr[:, 0].astype(np.int64), arr[:, 1:4], arr[:, 4:], name='x')
+    )
     world = {'world': lambda T: np.eye(4), 'a': lambda T: _matrix(*statics['world', 'a'])}
     world['b'] = lambda T: world['a'](T) @ T
     world['c'] = lambda T: world['b'](T) @ _matrix(*statics['b', 'c'])
@@ -92,27 +105,40 @@ def test_chain_equals_matrix_products(store, parent: str, child: str) -> None:
         T = _matrix(p, q)
         want = np.linalg.inv(world[parent](T)) @ world[child](T)
         np.testing.assert_allclose(_matrix(out.p_xyz[k], out.q_xyzw[k]), want, atol=1e-12)
-    assert out.t_ns[0] == 10 ** 9
+    assert out.t_ns[0] == 10**9
 
 
 def test_chain_refuses_what_it_cannot_give(store) -> None:
     rng = np.random.default_rng(1)
     two = TfChain('map', 'base', '/tf:map.base')
     for k in range(3):
-        assert two.poses(_tf_msg(store, transform_stamped(store.types, k + 1, 'map', 'odom',
-                                                          *_random_pose(rng)),
-                                 transform_stamped(store.types, k + 1, 'odom', 'base',
-                                                   *_random_pose(rng))), static=False) == []
+        assert (
+            two.poses(
+                _tf_msg(
+                    store,
+                    transform_stamped(store.types, k + 1, 'map', 'odom', *_random_pose(rng)),
+                    transform_stamped(store.types, k + 1, 'odom', 'base', *_random_pose(rng)),
+                ),
+                static=False,
+            )
+            == []
+        )
     assert 'passes 2 moving transforms (map->odom, odom->base)' in two.diagnose()
     still = TfChain('world', 'cam', '/tf:world.cam')
-    still.poses(_tf_msg(store, transform_stamped(store.types, 0, 'world', 'cam', *_random_pose(rng))),
-                static=True)
-    still.poses(_tf_msg(store, transform_stamped(store.types, 1, 'world', 'other',
-                                                 *_random_pose(rng))), static=False)
+    still.poses(
+        _tf_msg(store, transform_stamped(store.types, 0, 'world', 'cam', *_random_pose(rng))),
+        static=True,
+    )
+    still.poses(
+        _tf_msg(store, transform_stamped(store.types, 1, 'world', 'other', *_random_pose(rng))),
+        static=False,
+    )
     assert 'never moves' in still.diagnose()
     apart = TfChain('world', 'imu', '/tf:world.imu')
-    apart.poses(_tf_msg(store, transform_stamped(store.types, 1, 'odom', 'imu', *_random_pose(rng))),
-                static=False)
+    apart.poses(
+        _tf_msg(store, transform_stamped(store.types, 1, 'odom', 'imu', *_random_pose(rng))),
+        static=False,
+    )
     assert "no frame 'world'" in apart.diagnose() and 'odom.imu (1 msgs)' in apart.diagnose()
     for bad in ('/tf:world', '/tf:.imu', '/tf:a.a'):
         with pytest.raises(ConfigError):
@@ -149,16 +175,23 @@ def _same(a: dict, b: dict) -> None:
 @pytest.fixture(scope='module')
 def plain(tmp_path_factory, rec) -> dict:
     path = tmp_path_factory.mktemp('plain') / 'plain'
-    write_recording(path, [('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
-                           ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu')])
+    write_recording(
+        path,
+        [
+            ('/mocap/pose', 'PoseStamped', rec.hand, 'mocap', 'marker'),
+            ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu'),
+        ],
+    )
     return _run(path)
 
 
 @pytest.mark.parametrize(('storage', 'slash'), [('mcap', ''), ('ros1', '/')])
-def test_tf_bag_gives_the_plain_result(tmp_path: Path, rec, plain: dict, storage: str,
-                                       slash: str) -> None:
-    bag, topics = _tf_bag(tmp_path / ('tf.bag' if storage == 'ros1' else 'tf'), rec, storage,
-                          slash)
+def test_tf_bag_gives_the_plain_result(
+    tmp_path: Path, rec, plain: dict, storage: str, slash: str
+) -> None:
+    bag, topics = _tf_bag(
+        tmp_path / ('tf.bag' if storage == 'ros1' else 'tf'), rec, storage, slash
+    )
     d = _run(bag, *(x for kv in topics.items() for x in kv))
     _same(d, plain)
     assert d['streams']['hand']['received'] == len(rec.hand)
@@ -169,8 +202,7 @@ def test_tf_bag_gives_the_plain_result(tmp_path: Path, rec, plain: dict, storage
 
 def test_tf_selection_errors_list_what_the_bag_holds(tmp_path: Path, rec) -> None:
     bag, _ = _tf_bag(tmp_path / 'tf', rec)
-    res = run_cli('--bag', bag, '--hand-topic', '/tf:world.nothing', '--eye-topic',
-                  '/tf:odom.imu')
+    res = run_cli('--bag', bag, '--hand-topic', '/tf:world.nothing', '--eye-topic', '/tf:odom.imu')
     assert res.returncode == 1 and 'Traceback' not in res.stderr, res.stderr
     assert "no frame 'nothing'" in res.stderr and 'world.rig' in res.stderr, res.stderr
     res = run_cli('--bag', bag, '--hand-topic', '/tf', '--eye-topic', '/tf:odom.imu')
@@ -186,20 +218,35 @@ def _old_package_bag(path: Path, rec) -> Path:
     """The hand as the body 'rig' of mocap_msgs/RigidBodies (mocap4r2's name before the
     rename), whose definition only the bag holds."""
     from rosbags.typesys import get_types_from_msg
+
     store = _typestore()
     for name, text in MOCAP4R2_MSGS.items():
-        store.register(get_types_from_msg(text.replace('mocap4r2_msgs', 'mocap_msgs'),
-                                          name.replace('mocap4r2_msgs', 'mocap_msgs')))
+        store.register(
+            get_types_from_msg(
+                text.replace('mocap4r2_msgs', 'mocap_msgs'),
+                name.replace('mocap4r2_msgs', 'mocap_msgs'),
+            )
+        )
     T = store.types
     with BagWriter(path) as w:
         w.store = store
-        items = [(t, 1, '/vio/odom', 'nav_msgs/msg/Odometry', m)
-                 for t, m in pose_messages(store, rec.eye, 'Odometry', 'odom', 'imu')]
+        items = [
+            (t, 1, '/vio/odom', 'nav_msgs/msg/Odometry', m)
+            for t, m in pose_messages(store, rec.eye, 'Odometry', 'odom', 'imu')
+        ]
         for t, m in pose_messages(store, rec.hand, 'PoseStamped', 'mocap', 'rig'):
             body = T['mocap_msgs/msg/RigidBody'](rigid_body_name='rig', markers=[], pose=m.pose)
-            items.append((t, 0, RIGID_BODIES_TOPIC, 'mocap_msgs/msg/RigidBodies',
-                          T['mocap_msgs/msg/RigidBodies'](header=m.header, frame_number=0,
-                                                          rigidbodies=[body])))
+            items.append(
+                (
+                    t,
+                    0,
+                    RIGID_BODIES_TOPIC,
+                    'mocap_msgs/msg/RigidBodies',
+                    T['mocap_msgs/msg/RigidBodies'](
+                        header=m.header, frame_number=0, rigidbodies=[body]
+                    ),
+                )
+            )
         items.sort(key=lambda x: (x[0], x[1]))
         for t, _, topic, mt, m in items:
             w.write(topic, mt, t, m)
@@ -225,8 +272,9 @@ def test_rigid_body_by_name(tmp_path: Path, rec, plain: dict, case: str) -> None
     assert d['streams']['hand']['type'] == f'{package}/msg/RigidBodies'
 
 
-def test_rigid_body_lost_frames_are_counted_and_names_listed(tmp_path: Path, rec,
-                                                             plain: dict) -> None:
+def test_rigid_body_lost_frames_are_counted_and_names_listed(
+    tmp_path: Path, rec, plain: dict
+) -> None:
     bag = tmp_path / 'bodies'
     write_rigid_bodies_recording(bag, rec.hand, rec.eye, lost_every=50)
     d = _run(bag, '--hand-topic', '/mocap/rigid_bodies:rig')
@@ -241,8 +289,9 @@ def test_rigid_body_lost_frames_are_counted_and_names_listed(tmp_path: Path, rec
     assert "'wand'" in res.stderr and "'rig'" in res.stderr, res.stderr
     res = run_cli('--bag', bag, '--hand-topic', '/mocap/rigid_bodies')
     assert res.returncode == 1 and '/mocap/rigid_bodies:rig' in res.stderr, res.stderr
-    res = run_cli('--bag', bag, '--hand-topic', '/mocap/rigid_bodies:rig', '--eye-topic',
-                  '/vio/odom:imu')
+    res = run_cli(
+        '--bag', bag, '--hand-topic', '/mocap/rigid_bodies:rig', '--eye-topic', '/vio/odom:imu'
+    )
     assert res.returncode == 1 and 'one pose per message' in res.stderr, res.stderr
 
 
@@ -251,12 +300,17 @@ def test_recorder_feeds_one_tf_message_to_both_streams(store) -> None:
     rec = Recorder(StreamConfig(hand_topic='/tf:world.marker', eye_topic='/tf:odom.imu'))
     for s in ('hand', 'eye'):
         rec.set_type(s, 'TFMessage')
-    assert rec.routes() == {'/tf': [('hand', False), ('eye', False)],
-                            '/tf_static': [('hand', True), ('eye', True)]}
+    assert rec.routes() == {
+        '/tf': [('hand', False), ('eye', False)],
+        '/tf_static': [('hand', True), ('eye', True)],
+    }
     rng = np.random.default_rng(2)
     for k in range(5):
-        msg = _tf_msg(store, transform_stamped(store.types, k + 1, 'world', 'marker', *_random_pose(rng)),
-                      transform_stamped(store.types, k + 1, 'odom', 'imu', *_random_pose(rng)))
+        msg = _tf_msg(
+            store,
+            transform_stamped(store.types, k + 1, 'world', 'marker', *_random_pose(rng)),
+            transform_stamped(store.types, k + 1, 'odom', 'imu', *_random_pose(rng)),
+        )
         for stream, static in rec.routes()['/tf']:
             rec.add(stream, msg, static)
     assert rec.stats()['hand'].stored == rec.stats()['eye'].stored == 5

@@ -88,7 +88,7 @@ def test_every_lag_is_searched_by_default() -> None:
     """Clocks 500 s apart (the streams do not overlap on their own clocks): found, and the
     grids follow the recordings, not the offset."""
     rec = recording(seed=9, level=2.0)
-    shifted = rec.eye.shifted(500 * 10 ** 9)
+    shifted = rec.eye.shifted(500 * 10**9)
     ta = align_time(rec.hand, shifted)
     assert ta.time_offset_s == pytest.approx(rec.truth.time_offset_s + 500.0, abs=3e-3)
     assert ta.time_offset_ns == pytest.approx((rec.truth.time_offset_s + 500.0) * 1e9, abs=3e6)
@@ -105,14 +105,18 @@ def test_epochs_far_apart_cost_no_memory() -> None:
 
 def test_no_overlap_in_the_window_is_refused() -> None:
     rec = recording(seed=9)
-    shifted = rec.eye.shifted(500 * 10 ** 9)
+    shifted = rec.eye.shifted(500 * 10**9)
     with pytest.raises(TimeAlignmentError, match='do not overlap'):
         align_time(rec.hand, shifted, max_time_offset=1.0)
 
 
 def test_motion_without_rotation_is_refused() -> None:
     rec = recording(seed=10)
-    still = type(rec.hand)(rec.hand.t_ns, rec.hand.p_xyz,
-                           np.tile([0.0, 0.0, 0.0, 1.0], (len(rec.hand), 1)), 'still hand')
+    still = type(rec.hand)(
+        rec.hand.t_ns,
+        rec.hand.p_xyz,
+        np.tile([0.0, 0.0, 0.0, 1.0], (len(rec.hand), 1)),
+        'still hand',
+    )
     with pytest.raises(TimeAlignmentError):
         align_time(still, rec.eye)

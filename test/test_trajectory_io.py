@@ -23,16 +23,19 @@ def _traj(n: int = 5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, p, q
 
 
-@pytest.mark.parametrize(('mutate', 'message'), [
-    (lambda t, p, q: (t[:1], p[:1], q[:1]), 'holds 1 pose'),
-    (lambda t, p, q: (t[[0, 2, 1, 3, 4]], p, q), 'unsorted'),
-    (lambda t, p, q: (t[[0, 1, 1, 3, 4]], p, q), 'duplicate'),
-    (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 3, np.nan, p), q), 'NaN or inf'),
-    (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 2, np.inf, p), q), 'NaN or inf'),
-    (lambda t, p, q: (t, p, np.where(np.arange(5)[:, None] == 1, 0.0, q)), 'zero quaternion'),
-    (lambda t, p, q: (t, p, q * 1.5), 'non-unit'),
-    (lambda t, p, q: (t.astype(float), p, q), 'integer nanoseconds'),
-])
+@pytest.mark.parametrize(
+    ('mutate', 'message'),
+    [
+        (lambda t, p, q: (t[:1], p[:1], q[:1]), 'holds 1 pose'),
+        (lambda t, p, q: (t[[0, 2, 1, 3, 4]], p, q), 'unsorted'),
+        (lambda t, p, q: (t[[0, 1, 1, 3, 4]], p, q), 'duplicate'),
+        (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 3, np.nan, p), q), 'NaN or inf'),
+        (lambda t, p, q: (t, np.where(np.arange(5)[:, None] == 2, np.inf, p), q), 'NaN or inf'),
+        (lambda t, p, q: (t, p, np.where(np.arange(5)[:, None] == 1, 0.0, q)), 'zero quaternion'),
+        (lambda t, p, q: (t, p, q * 1.5), 'non-unit'),
+        (lambda t, p, q: (t.astype(float), p, q), 'integer nanoseconds'),
+    ],
+)
 def test_trajectory_refuses_bad_arrays(mutate, message: str) -> None:
     with pytest.raises(InputError, match=message) as err:
         Trajectory.from_arrays(*mutate(*_traj()), name='stream.txt')
@@ -64,8 +67,9 @@ def test_euroc_round_trip_converts_wxyz(tmp_path: Path) -> None:
     path = tmp_path / 'gt.csv'
     write_euroc(path, rec.eye)
     first = path.read_text().splitlines()[1].split(',')
-    np.testing.assert_allclose([float(v) for v in first[4:8]],
-                               rec.eye.q_xyzw[0, [3, 0, 1, 2]], atol=1e-11)
+    np.testing.assert_allclose(
+        [float(v) for v in first[4:8]], rec.eye.q_xyzw[0, [3, 0, 1, 2]], atol=1e-11
+    )
     back = read_trajectory(path)
     assert detect_format(path) == 'euroc'
     np.testing.assert_array_equal(back.t_ns, rec.eye.t_ns)
@@ -74,21 +78,26 @@ def test_euroc_round_trip_converts_wxyz(tmp_path: Path) -> None:
 
 def test_euroc_extra_columns_are_ignored(tmp_path: Path) -> None:
     path = tmp_path / 'gt.csv'
-    path.write_text('#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z,v_x,v_y,v_z\n'
-                    f'{EPOCH},1,2,3,1,0,0,0,9,9,9\n'
-                    f'{EPOCH + 5_000_000},1,2,3,0,1,0,0,9,9,9\n')
+    path.write_text(
+        '#timestamp,p_x,p_y,p_z,q_w,q_x,q_y,q_z,v_x,v_y,v_z\n'
+        f'{EPOCH},1,2,3,1,0,0,0,9,9,9\n'
+        f'{EPOCH + 5_000_000},1,2,3,0,1,0,0,9,9,9\n'
+    )
     traj = read_trajectory(path)
     np.testing.assert_array_equal(traj.t_ns, [EPOCH, EPOCH + 5_000_000])
     np.testing.assert_allclose(traj.q_xyzw, [[0, 0, 0, 1], [1, 0, 0, 0]])
 
 
-@pytest.mark.parametrize(('token', 'ns'), [
-    ('1403636579.758555555', EPOCH),
-    ('1403636579.7585555', 1_403_636_579_758_555_500),
-    ('1403636579', 1_403_636_579_000_000_000),
-    ('1.403636579758555555e9', EPOCH),
-    (str(EPOCH), EPOCH),  # integer nanoseconds in a TUM file
-])
+@pytest.mark.parametrize(
+    ('token', 'ns'),
+    [
+        ('1403636579.758555555', EPOCH),
+        ('1403636579.7585555', 1_403_636_579_758_555_500),
+        ('1403636579', 1_403_636_579_000_000_000),
+        ('1.403636579758555555e9', EPOCH),
+        (str(EPOCH), EPOCH),  # integer nanoseconds in a TUM file
+    ],
+)
 def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> None:
     path = tmp_path / 'traj.txt'
     later = '1403636600.0' if 'e' in token or '.' in token else str(int(token) + 1)
@@ -96,23 +105,26 @@ def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> N
     assert read_trajectory(path).t_ns[0] == ns
 
 
-@pytest.mark.parametrize(('content', 'message'), [
-    ('', 'holds no poses'),
-    ('# only a comment\n', 'holds no poses'),
-    ('1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
-    ('1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n', 'unsorted'),
-    # a stamp written twice keeps its last row: here one pose is left
-    ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
-    ('1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n', 'NaN or inf'),
-    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
-    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
-    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n', 'line 2: 7 columns'),
-    ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number"),
-    ('hello world\n', 'unknown trajectory format'),
-    ('1,2,3\n', 'unknown trajectory format'),
-    ('1e300 0 0 0 0 0 0 1\n2e300 0 0 0 0 0 0 1\n', 'beyond what int64 nanoseconds'),
-    ('1,0,0,0,1,0,0,0\n99999999999999999999,0,0,0,1,0,0,0\n', 'beyond what int64'),
-])
+@pytest.mark.parametrize(
+    ('content', 'message'),
+    [
+        ('', 'holds no poses'),
+        ('# only a comment\n', 'holds no poses'),
+        ('1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
+        ('1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n', 'unsorted'),
+        # a stamp written twice keeps its last row: here one pose is left
+        ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
+        ('1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n', 'NaN or inf'),
+        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
+        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
+        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n', 'line 2: 7 columns'),
+        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number"),
+        ('hello world\n', 'unknown trajectory format'),
+        ('1,2,3\n', 'unknown trajectory format'),
+        ('1e300 0 0 0 0 0 0 1\n2e300 0 0 0 0 0 0 1\n', 'beyond what int64 nanoseconds'),
+        ('1,0,0,0,1,0,0,0\n99999999999999999999,0,0,0,1,0,0,0\n', 'beyond what int64'),
+    ],
+)
 def test_bad_files_name_the_file_and_problem(tmp_path: Path, content: str, message: str) -> None:
     path = tmp_path / 'bad.txt'
     path.write_text(content)
@@ -135,24 +147,34 @@ def test_repeated_stamps_keep_the_last_row_with_a_note(tmp_path: Path) -> None:
     """Estimators that correct a pose write it again under the same stamp: the later row
     wins and the notes count the repeats."""
     path = tmp_path / 'est.txt'
-    path.write_text('1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n2.0 2 0 0 0 0 0 1\n'
-                    '3.0 3 0 0 0 0 0 1\n')
+    path.write_text('1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n2.0 2 0 0 0 0 0 1\n3.0 3 0 0 0 0 0 1\n')
     traj = read_trajectory(path)
     np.testing.assert_array_equal(traj.p_xyz[:, 0], [0.0, 2.0, 3.0])
     assert any('1 stamp(s) written twice' in n for n in traj.notes)
 
 
-@pytest.mark.parametrize(('text', 'unit', 'ns', 'note'), [
-    # EuRoC with fractional stamps: they cannot be nanoseconds, so seconds
-    ('1.5,0,0,0,1,0,0,0\n2.5,0,0,0,1,0,0,0\n', 'auto', 1_500_000_000, 'fractional'),
-    # Unix milliseconds in a TUM file cannot be seconds (year 45 000 is beyond int64 ns)
-    ('1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n', 'auto',
-     1_403_636_579_758_555_000, 'read as ms'),
-    # stated explicitly: no note
-    ('1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n', 'ms',
-     1_403_636_579_758_555_000, None),
-    ('1000 0 0 0 0 0 0 1\n1005 0 0 0 0 0 0 1\n', 'us', 1_000_000, None),
-])
+@pytest.mark.parametrize(
+    ('text', 'unit', 'ns', 'note'),
+    [
+        # EuRoC with fractional stamps: they cannot be nanoseconds, so seconds
+        ('1.5,0,0,0,1,0,0,0\n2.5,0,0,0,1,0,0,0\n', 'auto', 1_500_000_000, 'fractional'),
+        # Unix milliseconds in a TUM file cannot be seconds (year 45 000 is beyond int64 ns)
+        (
+            '1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n',
+            'auto',
+            1_403_636_579_758_555_000,
+            'read as ms',
+        ),
+        # stated explicitly: no note
+        (
+            '1403636579758.555 0 0 0 0 0 0 1\n1403636579808.555 0 0 0 0 0 0 1\n',
+            'ms',
+            1_403_636_579_758_555_000,
+            None,
+        ),
+        ('1000 0 0 0 0 0 0 1\n1005 0 0 0 0 0 0 1\n', 'us', 1_000_000, None),
+    ],
+)
 def test_stamp_units(tmp_path: Path, text: str, unit: str, ns: int, note: str | None) -> None:
     path = tmp_path / 'traj.txt'
     path.write_text(text)
@@ -167,8 +189,9 @@ def test_quaternion_order_option(tmp_path: Path) -> None:
     a, b = tmp_path / 'a.txt', tmp_path / 'b.txt'
     a.write_text(f'1.0 0 0 0 {q[0]} {q[1]} {q[2]} {q[3]}\n2.0 0 0 0 0 0 0 1\n')
     b.write_text(f'1.0 0 0 0 {q[3]} {q[0]} {q[1]} {q[2]}\n2.0 0 0 0 1 0 0 0\n')
-    np.testing.assert_allclose(read_trajectory(a).q_xyzw,
-                               read_trajectory(b, quaternion_order='wxyz').q_xyzw, atol=1e-12)
+    np.testing.assert_allclose(
+        read_trajectory(a).q_xyzw, read_trajectory(b, quaternion_order='wxyz').q_xyzw, atol=1e-12
+    )
 
 
 def test_a_few_rows_no_stream_can_hold_are_dropped(tmp_path: Path) -> None:
@@ -180,7 +203,7 @@ def test_a_few_rows_no_stream_can_hold_are_dropped(tmp_path: Path) -> None:
     path = tmp_path / 'est.txt'
     path.write_text('\n'.join([scaled] + rows) + '\n')
     traj = read_trajectory(path)
-    assert len(traj) == 300 and traj.t_ns[0] == 100 * 10 ** 9
+    assert len(traj) == 300 and traj.t_ns[0] == 100 * 10**9
     assert any('dropped 1 row(s)' in n and 'line(s) 1' in n for n in traj.notes)
     path.write_text('\n'.join([scaled] * 5 + rows) + '\n')
     with pytest.raises(InputError, match='line 1'):

@@ -22,7 +22,7 @@ from handeye_ros.core.uncertainty import (
 def _ar1(rng: np.random.Generator, T: int, rho: float, p: int = 1) -> np.ndarray:
     e = rng.normal(size=(T, p))
     x = np.empty_like(e)
-    x[0] = e[0] / np.sqrt(1 - rho ** 2)
+    x[0] = e[0] / np.sqrt(1 - rho**2)
     for t in range(1, T):
         x[t] = rho * x[t - 1] + e[t]
     return x
@@ -62,8 +62,9 @@ def test_influence_of_least_squares_is_the_textbook_covariance() -> None:
     r = rng.normal(scale=0.5, size=T * 3)
     psi, H_inv = influence(r, J, delta=1e9, rows_per_sample=3)
     lr = long_run_covariance(psi, bandwidth=0)
-    np.testing.assert_allclose(lr.covariance, 0.25 * H_inv, rtol=0.1,
-                               atol=0.1 * 0.25 * float(np.max(np.diag(H_inv))))
+    np.testing.assert_allclose(
+        lr.covariance, 0.25 * H_inv, rtol=0.1, atol=0.1 * 0.25 * float(np.max(np.diag(H_inv)))
+    )
 
 
 def test_huber_psi_clips() -> None:

@@ -84,20 +84,28 @@ def associate(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> PosePa
     R_GH, p_GH = matrix_from_quat(hand.q_xyzw[ok]), hand.p_xyz[ok]
     R_WE, p_WE, t_eye_ns = R_WE[ok], p_WE[ok], hand.t_ns[ok] + dt_ns
     # the segment of the eye pose before each instant (no instant lies inside a break)
-    seg = eye.segment_ids()[np.clip(np.searchsorted(eye.t_ns, t_eye_ns, side='right') - 1, 0,
-                                    len(eye) - 1)]
+    seg = eye.segment_ids()[
+        np.clip(np.searchsorted(eye.t_ns, t_eye_ns, side='right') - 1, 0, len(eye) - 1)
+    ]
     _check_overlap(t_eye_ns.size, hand, eye, time_offset_s)
     return PosePairs(_seconds(t_eye_ns), R_GH, p_GH, R_WE, p_WE, seg)
 
 
-def pairs_at_eye(hand: Trajectory, eye: Trajectory,
-                 time_offset_s: float) -> tuple[PosePairs, np.ndarray]:
+def pairs_at_eye(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float
+) -> tuple[PosePairs, np.ndarray]:
     """Pairs ``(T_GH(t - dt), T_WE(t))`` at every eye stamp the hand covers, and the mask (N,)
     of those eye poses (no check of how many there are)."""
     dt_ns = np.int64(round(time_offset_s * 1e9))
     R_GH, p_GH, ok = interpolate(hand, eye.t_ns - dt_ns)
-    pairs = PosePairs(_seconds(eye.t_ns[ok]), R_GH[ok], p_GH[ok],
-                      matrix_from_quat(eye.q_xyzw[ok]), eye.p_xyz[ok], eye.segment_ids()[ok])
+    pairs = PosePairs(
+        _seconds(eye.t_ns[ok]),
+        R_GH[ok],
+        p_GH[ok],
+        matrix_from_quat(eye.q_xyzw[ok]),
+        eye.p_xyz[ok],
+        eye.segment_ids()[ok],
+    )
     return pairs, ok
 
 
@@ -107,15 +115,23 @@ def _seconds(t_ns: np.ndarray) -> np.ndarray:
 
 def _check_overlap(n: int, hand: Trajectory, eye: Trajectory, time_offset_s: float) -> None:
     if n < MIN_PAIRS:
-        msg = (f'after applying the time offset {time_offset_s:+.4f} s only {n} '
-               f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
-               'overlap too little in time')
+        msg = (
+            f'after applying the time offset {time_offset_s:+.4f} s only {n} '
+            f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
+            'overlap too little in time'
+        )
         raise TimeAlignmentError(msg)
 
 
-def eye_motion_residuals(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
-                         time_offset_s: float, R_HE: np.ndarray,
-                         p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def eye_motion_residuals(
+    hand: Trajectory,
+    eye: Trajectory,
+    i: np.ndarray,
+    j: np.ndarray,
+    time_offset_s: float,
+    R_HE: np.ndarray,
+    p_HE: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(T_HE^-1 A T_HE)^-1 B`` for each eye motion ``B = T_WE_i^-1 T_WE_j``, with
     ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)`` the hand's motion over the same instants
     (AX = XB, eq. 2), in the eye frame.
@@ -141,9 +157,15 @@ def eye_motion_residuals(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np
     return err_R, err_p, ok[i] & ok[j]
 
 
-def eye_motion_errors(hand: Trajectory, eye: Trajectory, i: np.ndarray, j: np.ndarray,
-                      time_offset_s: float, R_HE: np.ndarray,
-                      p_HE: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def eye_motion_errors(
+    hand: Trajectory,
+    eye: Trajectory,
+    i: np.ndarray,
+    j: np.ndarray,
+    time_offset_s: float,
+    R_HE: np.ndarray,
+    p_HE: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How far each eye motion is from the hand's (:func:`eye_motion_residuals`): the rotation
     angle (rad) and the translation norm (m) of the residual motion, and ``covered``."""
     err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, R_HE, p_HE)

@@ -206,9 +206,18 @@ def _robust_sigma(r: np.ndarray) -> float:
 class _Problem:
     """The least-squares problem of the module docstring, with its Jacobian."""
 
-    def __init__(self, hand: Trajectory, eye: Trajectory, dt0: float, q0: np.ndarray,
-                 p0: np.ndarray, knot_spacing: float, order: int,
-                 drift_stamp_ns: int | None = None, scale: bool = False):
+    def __init__(
+        self,
+        hand: Trajectory,
+        eye: Trajectory,
+        dt0: float,
+        q0: np.ndarray,
+        p0: np.ndarray,
+        knot_spacing: float,
+        order: int,
+        drift_stamp_ns: int | None = None,
+        scale: bool = False,
+    ):
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
@@ -225,9 +234,11 @@ class _Problem:
         inside = (te[ei] - dt0 >= lo) & (te[ej] - dt0 <= hi)
         self.ei, self.ej = ei[inside], ej[inside]
         if self.ei.size < MIN_EYE_RESIDUALS:
-            raise BatchError(f'only {self.ei.size} consecutive eye pose pairs fall inside the '
-                             f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
-                             'little for the batch stage')
+            raise BatchError(
+                f'only {self.ei.size} consecutive eye pose pairs fall inside the '
+                f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
+                'little for the batch stage'
+            )
         self.te = te
         self.eye_obs = relative((Re, pe), self.ei, self.ej)
         self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
@@ -239,8 +250,11 @@ class _Problem:
         self.i_drift = 7 if drift_stamp_ns is not None else None
         self.i_scale = 7 + int(drift_stamp_ns is not None) if scale else None
         self.n_y = 7 + int(drift_stamp_ns is not None) + int(scale)
-        self.t_ref = (0.0 if drift_stamp_ns is None
-                      else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9)
+        self.t_ref = (
+            0.0
+            if drift_stamp_ns is None
+            else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9
+        )
 
     @property
     def hand_obs(self) -> Pose:
@@ -263,8 +277,9 @@ class _Problem:
         """Hand residuals of the spline fit (n, 6) at up to HAND_NOISE_SAMPLES MoCap poses evenly
         spread: what the default solve needs of the hand is its noise level, which a robust
         sigma of 2e5 residuals gives to 0.3 %; an hour of 1 kHz MoCap would take 10 s more."""
-        pick = np.unique(np.linspace(0, self.th.size - 1,
-                                     min(self.th.size, HAND_NOISE_SAMPLES)).astype(int))
+        pick = np.unique(
+            np.linspace(0, self.th.size - 1, min(self.th.size, HAND_NOISE_SAMPLES)).astype(int)
+        )
         obs = (matrix_from_quat(self.hand_q[pick]), self.hand_p[pick])
         return _residual_parts(self.spline0.evaluate(self.th[pick]), obs)
 
@@ -290,11 +305,11 @@ class _Problem:
     # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
     def unpack(self, x: np.ndarray) -> tuple[PoseSpline, np.ndarray]:
         """(spline, y) of the full parameter vector (joint solve)."""
-        c = x[:self.n_spline].reshape(self.M, 6)
+        c = x[: self.n_spline].reshape(self.M, 6)
         s0 = self.spline0
         R = np.matmul(s0.R, exp_so3(c[:, :3]))
         spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
-        return spline, x[self.n_spline:]
+        return spline, x[self.n_spline :]
 
     def hand_raw(self, spline: PoseSpline) -> np.ndarray:
         """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
@@ -304,13 +319,24 @@ class _Problem:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
         and X; with a scale s, the predicted relative translations divided by it), a chunk
         of pairs at a time (:meth:`eye_chunk`)."""
-        return np.concatenate([self.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size),
-                                              jacobian=False, spline=spline)[0]
-                               for k in self.chunks()])
+        return np.concatenate(
+            [
+                self.eye_chunk(
+                    y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size), jacobian=False, spline=spline
+                )[0]
+                for k in self.chunks()
+            ]
+        )
 
-    def eye_chunk(self, y: np.ndarray, k0: int, k1: int, jacobian: bool = True,
-                  rotation_only: bool = False,
-                  spline: PoseSpline | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    def eye_chunk(
+        self,
+        y: np.ndarray,
+        k0: int,
+        k1: int,
+        jacobian: bool = True,
+        rotation_only: bool = False,
+        spline: PoseSpline | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only)
         predicted from ``spline`` (default: the hand's fit) and y, and with ``jacobian`` their
         Jacobian (n, 6 or 3, n_y) in y, analytic (the spline held fixed). The pairs are taken a
@@ -369,8 +395,9 @@ class _Problem:
         J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
         time_cols = [(0, -1.0, -1.0)]
         if self.i_drift is not None:
-            time_cols.append((self.i_drift, -(te[a] - self.t_ref)[:, None],
-                              -(te[b] - self.t_ref)[:, None]))
+            time_cols.append(
+                (self.i_drift, -(te[a] - self.t_ref)[:, None], -(te[b] - self.t_ref)[:, None])
+            )
         Wa, Wb = W[a], W[b]
         QWb = np.einsum('nij,nj->ni', Q, Wb)
         for col, fa, fb in time_cols:
@@ -380,10 +407,9 @@ class _Problem:
         J[:, 3:, 1:4] = _times(hat(p_rel), Jr_theta / s)
         J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
         if self.i_scale is not None:
-            J[:, 3:, self.i_scale] = -p_rel / s ** 2
+            J[:, 3:, self.i_scale] = -p_rel / s**2
         dp_a = np.cross(u, Wa) - np.einsum('nij,nj->ni', Ra_t, V[a])
-        dp_b = np.einsum('nij,nj->ni', Ra_t, V[b]) - \
-            np.einsum('nij,nj->ni', Q, np.cross(pX, Wb))
+        dp_b = np.einsum('nij,nj->ni', Ra_t, V[b]) - np.einsum('nij,nj->ni', Q, np.cross(pX, Wb))
         for col, fa, fb in time_cols:
             J[:, 3:, col] = (dp_a * fa + dp_b * fb) @ RX / s
         return r, J
@@ -405,8 +431,9 @@ class _Problem:
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r_h, r_e = self.raw(x)
         w = self.w
-        return np.concatenate(((r_h * np.repeat(w[:2], 3)).ravel(),
-                               (r_e * np.repeat(w[2:], 3)).ravel()))
+        return np.concatenate(
+            ((r_h * np.repeat(w[:2], 3)).ravel(), (r_e * np.repeat(w[2:], 3)).ravel())
+        )
 
     def jacobian(self, x: np.ndarray) -> csr_matrix:
         """Sparse Jacobian of :meth:`residuals`: analytic in the control poses (through
@@ -428,7 +455,7 @@ class _Problem:
         ent_r, ent_c, ent_v = [], [], []
 
         # the parameters are R_m = R0_m Exp(c_m): a change dc is Exp(Jr(c_m) dc) on R_m
-        Jc = right_jacobian(x[:self.n_spline].reshape(self.M, 6)[:, :3])
+        Jc = right_jacobian(x[: self.n_spline].reshape(self.M, 6)[:, :3])
 
         def add(row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
             """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2."""
@@ -464,8 +491,9 @@ class _Problem:
         RXtRat = np.matmul(RXt, np.swapaxes(Ra, -1, -2))
         row = 6 * (self.th.size + np.arange(ia.size))
         for idx, sign_rot, d_trans in (
-                (ia, -1.0, np.matmul(RXt, hat(u))),
-                (ib, 1.0, -np.matmul(np.matmul(RXt, Q), hat(pX)))):
+            (ia, -1.0, np.matmul(RXt, hat(u))),
+            (ib, 1.0, -np.matmul(np.matmul(RXt, Q), hat(pX))),
+        ):
             cp = eb[0][idx][:, None] + np.arange(k)
             JRi = JR_e[idx]
             # d r_rot / d eps: Jl^-1 R_X^T (-I for a, Q for b)
@@ -484,18 +512,31 @@ class _Problem:
         ent_c.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
         ent_v.append(d.ravel())
         m = 6 * (self.th.size + ia.size)
-        return csr_matrix((np.concatenate(ent_v), (np.concatenate(ent_r),
-                                                   np.concatenate(ent_c))), shape=(m, self.n))
+        return csr_matrix(
+            (np.concatenate(ent_v), (np.concatenate(ent_r), np.concatenate(ent_c))),
+            shape=(m, self.n),
+        )
 
 
-def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.ndarray,
-           p_HE: np.ndarray, *, knot_spacing: float = 0.05, order: int = 4,
-           hand_noise: tuple[float | None, float | None] = (None, None),
-           eye_noise: tuple[float | None, float | None] = (None, None),
-           huber_delta: float = 1.345, max_iterations: int = 50,
-           joint: bool = False, fix_time_offset: bool = False,
-           decoupled: bool = True, drift_stamp_ns: int | None = None,
-           scale: bool = False) -> BatchSolution:
+def refine(
+    hand: Trajectory,
+    eye: Trajectory,
+    time_offset_s: float,
+    q_HE: np.ndarray,
+    p_HE: np.ndarray,
+    *,
+    knot_spacing: float = 0.05,
+    order: int = 4,
+    hand_noise: tuple[float | None, float | None] = (None, None),
+    eye_noise: tuple[float | None, float | None] = (None, None),
+    huber_delta: float = 1.345,
+    max_iterations: int = 50,
+    joint: bool = False,
+    fix_time_offset: bool = False,
+    decoupled: bool = True,
+    drift_stamp_ns: int | None = None,
+    scale: bool = False,
+) -> BatchSolution:
     """Refine dt and T_HE from the linear result (see the module docstring).
 
     By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
@@ -519,37 +560,60 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     """
     t_start = time.perf_counter()
     if joint and (drift_stamp_ns is not None or scale):
-        raise BatchError('the joint solve (batch_joint) does not estimate a clock drift or a '
-                         'scale; leave batch_joint off to estimate them')
+        raise BatchError(
+            'the joint solve (batch_joint) does not estimate a clock drift or a '
+            'scale; leave batch_joint off to estimate them'
+        )
     hand, piece_note = _continuous_piece(hand, eye, time_offset_s, knot_spacing, order)
     _check_hand_stream(hand, knot_spacing, order, joint)
-    prob = _Problem(hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order,
-                    drift_stamp_ns, scale)
+    prob = _Problem(
+        hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order, drift_stamp_ns, scale
+    )
     layout = _Layout.of(prob, fix_time_offset)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
-    hn = Noise(*_sigmas(prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals(),
-                        hand_noise, prob.M, prob.th.size))
+    hn = Noise(
+        *_sigmas(
+            prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals(),
+            hand_noise,
+            prob.M,
+            prob.th.size,
+        )
+    )
     if joint:
         x, cost_before, cost_after, hn, en, cov, n_res, n_free, sol = _solve_joint(
-            prob, hn, hand_noise, eye_noise, huber_delta, max_iterations, fix_time_offset,
-            decoupled)
+            prob,
+            hn,
+            hand_noise,
+            eye_noise,
+            huber_delta,
+            max_iterations,
+            fix_time_offset,
+            decoupled,
+        )
         spline, y = prob.unpack(x)
         w_eye = np.repeat(prob.w[2:], 3)
 
         def eye_rows(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
             r = prob.eye_raw_at(spline, yy) * w_eye
             return (r[:, :3] if rotation_only else r).ravel()
+
         # the eye's long-run correlation, added to the Schur covariance (which has the spline's
         # share): the eye rows' long-run minus their white sandwich, at the joint solution
-        lr = _eye_long_run(eye_rows(y), _eye_jacobians(eye_rows, y, layout, decoupled), layout,
-                           huber_delta, decoupled)
+        lr = _eye_long_run(
+            eye_rows(y),
+            _eye_jacobians(eye_rows, y, layout, decoupled),
+            layout,
+            huber_delta,
+            decoupled,
+        )
         extra = lr.covariance - lr.white
         lam, V = np.linalg.eigh(0.5 * (cov + extra + (cov + extra).T))
         cov_lr = (V * np.clip(lam, 0.0, None)) @ V.T
         lr = LongRunCovariance(cov_lr, cov, lr.bandwidth, lr.samples)
     else:
         y, cost_before, cost_after, en, cov, n_res, n_free, sol, lr = _solve_offset_extrinsic(
-            prob, layout, eye_noise, huber_delta, max_iterations, decoupled)
+            prob, layout, eye_noise, huber_delta, max_iterations, decoupled
+        )
     dof = max(n_res - n_free, 1)
     chi2 = 2.0 * cost_after / dof
     # parameter order (dt, dtheta, dp, ...) -> reported order (dt, translation, rotation, ...)
@@ -561,17 +625,32 @@ def refine(hand: Trajectory, eye: Trajectory, time_offset_s: float, q_HE: np.nda
     if not sol.success:
         warnings.append(f'batch solver stopped without converging: {sol.message}')
     return BatchSolution(
-        time_offset_s=float(dt), q_HE=quat_from_matrix(X[0]), p_HE=X[1], covariance=cov,
-        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), cost_before=cost_before,
-        cost_after=cost_after, iterations=int(sol.njev or 0), evaluations=int(sol.nfev),
-        termination=str(sol.message), success=bool(sol.success), hand_noise=hn, eye_noise=en,
-        n_hand_residuals=int(prob.th.size), n_eye_residuals=int(prob.ei.size),
-        n_control_points=prob.M, seconds=time.perf_counter() - t_start, reduced_chi2=chi2,
-        decoupled=decoupled, warnings=tuple(warnings), covariance_white=cov_white,
+        time_offset_s=float(dt),
+        q_HE=quat_from_matrix(X[0]),
+        p_HE=X[1],
+        covariance=cov,
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+        cost_before=cost_before,
+        cost_after=cost_after,
+        iterations=int(sol.njev or 0),
+        evaluations=int(sol.nfev),
+        termination=str(sol.message),
+        success=bool(sol.success),
+        hand_noise=hn,
+        eye_noise=en,
+        n_hand_residuals=int(prob.th.size),
+        n_eye_residuals=int(prob.ei.size),
+        n_control_points=prob.M,
+        seconds=time.perf_counter() - t_start,
+        reduced_chi2=chi2,
+        decoupled=decoupled,
+        warnings=tuple(warnings),
+        covariance_white=cov_white,
         bandwidth=lr.bandwidth,
         clock_drift=None if prob.i_drift is None else drift,
         time_offset_stamp_ns=drift_stamp_ns,
-        scale=None if prob.i_scale is None else prob.scale(y))
+        scale=None if prob.i_scale is None else prob.scale(y),
+    )
 
 
 @dataclass(frozen=True)
@@ -589,7 +668,8 @@ class _Layout:
     @classmethod
     def of(cls, prob: _Problem, fix_time_offset: bool) -> _Layout:
         time_idx = (() if fix_time_offset else (0,)) + (
-            () if prob.i_drift is None else (prob.i_drift,))
+            () if prob.i_drift is None else (prob.i_drift,)
+        )
         return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
 
     @property
@@ -614,8 +694,9 @@ class _Layout:
         return h
 
 
-def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: float,
-                            max_iterations: int, decoupled: bool):
+def _solve_offset_extrinsic(
+    prob: _Problem, layout: _Layout, eye_noise, delta: float, max_iterations: int, decoupled: bool
+):
     """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
     hand, with the analytic Jacobian of :meth:`_Problem.eye_chunk`
     (:func:`_levenberg_marquardt_small`). Parameters y = (dt, dtheta_X, dp_X, ...) from the
@@ -652,9 +733,11 @@ def _solve_offset_extrinsic(prob: _Problem, layout: _Layout, eye_noise, delta: f
         every = 1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS)
         for free, rotation_only in steps:
             y, sol, last = _levenberg_marquardt_small(
-                lambda yy, f=free, ro=rotation_only, e=every: _eye_sums(prob, yy, f, ro, delta,
-                                                                        e),
-                y, free, iterations)
+                lambda yy, f=free, ro=rotation_only, e=every: _eye_sums(prob, yy, f, ro, delta, e),
+                y,
+                free,
+                iterations,
+            )
             sols.append(sol)
         if k + 1 < passes:  # the last step's residuals (all rows) are those at y
             en = Noise(*_sigmas(last.raw, eye_noise))
@@ -678,23 +761,33 @@ class _EyeSums:
     raw: np.ndarray | None = None
 
 
-def _weighted_chunks(prob: _Problem, y: np.ndarray, rotation_only: bool = False,
-                     raw: list[np.ndarray] | None = None, every: int = 1):
+def _weighted_chunks(
+    prob: _Problem,
+    y: np.ndarray,
+    rotation_only: bool = False,
+    raw: list[np.ndarray] | None = None,
+    every: int = 1,
+):
     """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
     chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
     ``raw`` when given."""
     rows = 3 if rotation_only else 6
     w = np.repeat(prob.w[2:], 3)[:rows]
     for k in prob.chunks()[::every]:
-        r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True,
-                              rotation_only)
+        r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True, rotation_only)
         if raw is not None:
             raw.append(r)
         yield r * w, J * w[None, :, None]
 
 
-def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bool,
-              delta: float, every: int = 1) -> _EyeSums:
+def _eye_sums(
+    prob: _Problem,
+    y: np.ndarray,
+    free: np.ndarray,
+    rotation_only: bool,
+    delta: float,
+    every: int = 1,
+) -> _EyeSums:
     p = free.size
     cost, A, g, D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
     raw: list[np.ndarray] | None = None if rotation_only else []
@@ -709,8 +802,9 @@ def _eye_sums(prob: _Problem, y: np.ndarray, free: np.ndarray, rotation_only: bo
     return _EyeSums(cost, A, g, D, None if raw is None else np.concatenate(raw))
 
 
-def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float,
-                    decoupled: bool) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+def _eye_covariance(
+    prob: _Problem, y: np.ndarray, layout: _Layout, delta: float, decoupled: bool
+) -> tuple[np.ndarray, LongRunCovariance, float, int]:
     """(white covariance, long-run covariance (:mod:`.uncertainty`), Huber cost, number of
     residuals) of the default solve at y, in the order of y (zero rows for a fixed dt), from
     one pass over the eye pairs with their analytic Jacobian.
@@ -753,10 +847,19 @@ def _eye_covariance(prob: _Problem, y: np.ndarray, layout: _Layout, delta: float
     cov = np.zeros((layout.size, layout.size))
     if decoupled:
         cov[np.ix_(free_all, free_all)] = _two_step_from_normals(
-            sums['N_a'], sums['N_b'], sums['N_bt'], s2, k)
-        psi = _two_step_influences(*two_step_from_sums(
-            np.concatenate(g_parts['a']), sums['H_a'], np.concatenate(g_parts['b']),
-            sums['H_b'], sums['C'], np.arange(k, k + 3)), k)
+            sums['N_a'], sums['N_b'], sums['N_bt'], s2, k
+        )
+        psi = _two_step_influences(
+            *two_step_from_sums(
+                np.concatenate(g_parts['a']),
+                sums['H_a'],
+                np.concatenate(g_parts['b']),
+                sums['H_b'],
+                sums['C'],
+                np.arange(k, k + 3),
+            ),
+            k,
+        )
     else:
         cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
         psi, _ = influence_from_sums(np.concatenate(g_parts['all']), sums['H'])
@@ -786,8 +889,9 @@ def _long_run_in_y(psi: np.ndarray, layout: _Layout) -> LongRunCovariance:
 STEP_TOL_SIGMA = 1e-2
 
 
-def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_iterations: int
-                               ) -> tuple[np.ndarray, SolverReport, _EyeSums]:
+def _levenberg_marquardt_small(
+    sums_at, y: np.ndarray, free: np.ndarray, max_iterations: int
+) -> tuple[np.ndarray, SolverReport, _EyeSums]:
     """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with the
     analytic Jacobian: the Newton model of :func:`_levenberg_marquardt` (rows beyond delta
     add a clipped gradient and no curvature) solved densely. ``sums_at(y) -> _EyeSums``.
@@ -838,8 +942,9 @@ def _levenberg_marquardt_small(sums_at, y: np.ndarray, free: np.ndarray, max_ite
     return y, SolverReport(success=success, message=message, nfev=nfev, njev=nfev), cur
 
 
-def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
-                   decoupled: bool) -> dict[str, np.ndarray]:
+def _eye_jacobians(
+    residuals, y: np.ndarray, layout: _Layout, decoupled: bool
+) -> dict[str, np.ndarray]:
     """Central-difference Jacobians of the eye residuals at y (the joint solve's, where the
     spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
     rows; dt if free, dp) and 'theta' (all rows; dtheta); otherwise 'all' (all rows; every
@@ -847,13 +952,16 @@ def _eye_jacobians(residuals, y: np.ndarray, layout: _Layout,
     h = layout.steps
     if not decoupled:
         return {'all': _jacobian(residuals, y, layout.all, h)}
-    return {'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y, layout.a, h),
-            'b': _jacobian(residuals, y, layout.b, h),
-            'theta': _jacobian(residuals, y, np.array([1, 2, 3]), h)}
+    return {
+        'a': _jacobian(lambda yy: residuals(yy, rotation_only=True), y, layout.a, h),
+        'b': _jacobian(residuals, y, layout.b, h),
+        'theta': _jacobian(residuals, y, np.array([1, 2, 3]), h),
+    }
 
 
-def _eye_long_run(r: np.ndarray, jac: dict[str, np.ndarray], layout: _Layout, delta: float,
-                  decoupled: bool) -> LongRunCovariance:
+def _eye_long_run(
+    r: np.ndarray, jac: dict[str, np.ndarray], layout: _Layout, delta: float, decoupled: bool
+) -> LongRunCovariance:
     """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X, ...) from the eye
     residuals at the solution, as matrices in the order of y (zero rows for a fixed dt).
 
@@ -862,16 +970,26 @@ def _eye_long_run(r: np.ndarray, jac: dict[str, np.ndarray], layout: _Layout, de
     """
     k = len(layout.time)
     if decoupled:
-        psi = _two_step_influences(*influence_two_step(
-            r.reshape(-1, 6)[:, :3].ravel(), jac['a'], r, jac['b'], jac['theta'],
-            delta, 3, 6, np.arange(k, k + 3)), k)
+        psi = _two_step_influences(
+            *influence_two_step(
+                r.reshape(-1, 6)[:, :3].ravel(),
+                jac['a'],
+                r,
+                jac['b'],
+                jac['theta'],
+                delta,
+                3,
+                6,
+                np.arange(k, k + 3),
+            ),
+            k,
+        )
     else:
         psi, _ = influence(r, jac['all'], delta, 6)
     return _long_run_in_y(psi, layout)
 
 
-def _jacobian(fun, y: np.ndarray, cols: np.ndarray,
-              steps: np.ndarray | None = None) -> np.ndarray:
+def _jacobian(fun, y: np.ndarray, cols: np.ndarray, steps: np.ndarray | None = None) -> np.ndarray:
     """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
     dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
     out = []
@@ -884,8 +1002,9 @@ def _jacobian(fun, y: np.ndarray, cols: np.ndarray,
     return np.stack(out, axis=1)
 
 
-def _two_step_from_normals(N_A: np.ndarray, N_B: np.ndarray, N_Bt: np.ndarray, s2: float,
-                           k: int) -> np.ndarray:
+def _two_step_from_normals(
+    N_A: np.ndarray, N_B: np.ndarray, N_Bt: np.ndarray, s2: float, k: int
+) -> np.ndarray:
     """Covariance of the decoupled estimate under white residuals, in the order (dt if free,
     dtheta, dp); k is 1 when dt is free.
 
@@ -902,8 +1021,7 @@ def _two_step_from_normals(N_A: np.ndarray, N_B: np.ndarray, N_Bt: np.ndarray, s
     return _assemble_two_step(cov_tt, s2 * N_B_inv, S, k)
 
 
-def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
-                       k: int) -> np.ndarray:
+def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray, k: int) -> np.ndarray:
     """The two-step estimate's covariance in the order (time parameters, dtheta, dp, scale?).
 
     cov_tt: dtheta from step A; cov_b: step B's (time, dp, scale?) from its own noise; S: how
@@ -922,8 +1040,16 @@ def _assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray,
     return out
 
 
-def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
-                 max_iterations: int, fix_time_offset: bool, decoupled: bool):
+def _solve_joint(
+    prob: _Problem,
+    hn: Noise,
+    hand_noise,
+    eye_noise,
+    delta: float,
+    max_iterations: int,
+    fix_time_offset: bool,
+    decoupled: bool,
+):
     """Control poses, dt and T_HE together: the whole problem of eq. 15.
 
     ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
@@ -937,13 +1063,14 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
     if fix_time_offset:
         free[ns] = False
     theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
-    theta[ns + 1:ns + 4], trans[ns + 4:] = True, True
+    theta[ns + 1 : ns + 4], trans[ns + 4 :] = True, True
     m = nh + 6 * prob.ei.size
     all_rows = np.ones(m, bool)
     rot_rows = all_rows.copy()
     rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
-    steps = ([(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled
-             else [(free, all_rows)])
+    steps = (
+        [(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled else [(free, all_rows)]
+    )
     x = np.zeros(prob.n)
     en = Noise(*_sigmas(prob.eye_raw(np.zeros(prob.n_y)), eye_noise))
     passes = 2 if (en.estimated or hn.estimated) else 1
@@ -956,8 +1083,14 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
         last = k + 1 == passes
         for cols, rows in steps:
             x, report = _levenberg_marquardt(
-                prob, x, cols, rows, delta if last else np.inf, max_iterations,
-                LM_FTOL if last else LM_FTOL_FIRST_PASS)
+                prob,
+                x,
+                cols,
+                rows,
+                delta if last else np.inf,
+                max_iterations,
+                LM_FTOL if last else LM_FTOL_FIRST_PASS,
+            )
         if not last:
             r_h, r_e = prob.raw(x)
             hn, en = Noise(*_sigmas(r_h, hand_noise, prob.M)), Noise(*_sigmas(r_e, eye_noise))
@@ -967,8 +1100,9 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
     # for the control poses, the eye rows for dt and T_HE.
     s2_h = 2.0 * _huber_cost(f[:nh], delta) / max(nh - ns, 1)
     s2_e = 2.0 * _huber_cost(f[nh:], delta) / max(f.size - nh - 7, 1)
-    scale = np.where(np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)),
-                     1.0 / np.sqrt(max(s2_e, 1e-12)))
+    scale = np.where(
+        np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)), 1.0 / np.sqrt(max(s2_e, 1e-12))
+    )
     scale *= np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))
     J = diags(scale) @ prob.jacobian(x)
     cov = np.zeros((7, 7))
@@ -984,14 +1118,21 @@ def _solve_joint(prob: _Problem, hn: Noise, hand_noise, eye_noise, delta: float,
         S = -splu(csc_matrix(J_B.T @ J_B)).solve(rhs)[ns:]
         k_dt = int(free[ns])
         cov[np.ix_(glob, glob)] = _assemble_two_step(
-            cov_tt, _marginal_covariance(J_B, ns), S, k_dt)
+            cov_tt, _marginal_covariance(J_B, ns), S, k_dt
+        )
     cost_before = _huber_cost(prob.residuals(np.zeros(prob.n)), delta)
     return (x, cost_before, _huber_cost(f, delta), hn, en, cov, f.size, int(free.sum()), report)
 
 
-def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: np.ndarray,
-                         delta: float, max_iterations: int,
-                         ftol: float) -> tuple[np.ndarray, SolverReport]:
+def _levenberg_marquardt(
+    prob: _Problem,
+    x: np.ndarray,
+    free: np.ndarray,
+    rows: np.ndarray,
+    delta: float,
+    max_iterations: int,
+    ftol: float,
+) -> tuple[np.ndarray, SolverReport]:
     """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
 
     Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
@@ -1021,8 +1162,9 @@ def _levenberg_marquardt(prob: _Problem, x: np.ndarray, free: np.ndarray, rows: 
         while True:
             # the parameters are in time order with (dt, T_HE) last: the normal matrix is
             # banded with a 7-wide border, which factors without fill outside them as it is
-            step = splu((A + lam * D).tocsc(), permc_spec='NATURAL',
-                        diag_pivot_thresh=0.0).solve(-g)
+            step = splu((A + lam * D).tocsc(), permc_spec='NATURAL', diag_pivot_thresh=0.0).solve(
+                -g
+            )
             x_new = x.copy()
             x_new[free] += step
             f_new = prob.residuals(x_new)[rows]
@@ -1052,8 +1194,9 @@ def _huber_cost(r: np.ndarray, delta: float) -> float:
     return float(np.sum(huber_rho(r, delta)))
 
 
-def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
-            fitted: int = 0, n: int | None = None) -> tuple[float, float, bool]:
+def _sigmas(
+    r: np.ndarray, given: tuple[float | None, float | None], fitted: int = 0, n: int | None = None
+) -> tuple[float, float, bool]:
     """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
 
     ``fitted``: parameters per axis fitted to these same residuals (the spline's M control
@@ -1065,10 +1208,14 @@ def _sigmas(r: np.ndarray, given: tuple[float | None, float | None],
     """
     n = r.shape[0] if n is None else n
     inflate = float(np.sqrt(n / max(n - fitted, n / 2.0)))
-    rot = (given[0] if given[0] is not None
-           else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT))
-    trans = (given[1] if given[1] is not None
-             else max(inflate * _robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS))
+    rot = (
+        given[0] if given[0] is not None else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT)
+    )
+    trans = (
+        given[1]
+        if given[1] is not None
+        else max(inflate * _robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS)
+    )
     return rot, trans, given[0] is None or given[1] is None
 
 
@@ -1096,8 +1243,9 @@ def _bridged_s(hand: Trajectory, knot_spacing: float, order: int) -> float:
     return max(knot_spacing * (order - 1), hand.gap_limit_s())
 
 
-def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
-                      knot_spacing: float, order: int) -> tuple[Trajectory, str]:
+def _continuous_piece(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, knot_spacing: float, order: int
+) -> tuple[Trajectory, str]:
     """The hand itself when it has no gap the spline cannot bridge; otherwise its gap-free part
     that covers the most eye poses, with a note, when that part covers at least
     MIN_PIECE_COVERAGE of them (a spline cannot bridge a gap, and eye residuals near one would
@@ -1109,42 +1257,51 @@ def _continuous_piece(hand: Trajectory, eye: Trajectory, time_offset_s: float,
     starts = np.concatenate(([0], cuts + 1))
     ends = np.concatenate((cuts + 1, [len(hand)]))
     te = eye.t_ns - np.int64(round(time_offset_s * 1e9))
-    covered = [int(np.sum((te >= hand.t_ns[a]) & (te <= hand.t_ns[b - 1])))
-               for a, b in zip(starts, ends, strict=True)]
+    covered = [
+        int(np.sum((te >= hand.t_ns[a]) & (te <= hand.t_ns[b - 1])))
+        for a, b in zip(starts, ends, strict=True)
+    ]
     total = int(np.sum((te >= hand.t_ns[0]) & (te <= hand.t_ns[-1])))
     best = int(np.argmax(covered))
     k = int(cuts[np.argmax(step[cuts])])
     if covered[best] < MIN_PIECE_COVERAGE * max(total, 1):
-        raise BatchError(f'{hand.name} has a gap of {step[k]:.3f} s (after pose {k}) and no '
-                         'part without one covers half of the eye: the spline (knots every '
-                         f'{knot_spacing:g} s) cannot bridge a gap; the batch stage needs a '
-                         'continuous hand stream (or a larger knot_spacing)')
+        raise BatchError(
+            f'{hand.name} has a gap of {step[k]:.3f} s (after pose {k}) and no '
+            'part without one covers half of the eye: the spline (knots every '
+            f'{knot_spacing:g} s) cannot bridge a gap; the batch stage needs a '
+            'continuous hand stream (or a larger knot_spacing)'
+        )
     a, b = int(starts[best]), int(ends[best])
     origin = int(hand.t_ns[0])
     first, last = (hand.t_ns[a] - origin) * 1e-9, (hand.t_ns[b - 1] - origin) * 1e-9
-    note = (f'{hand.name} has {cuts.size} gap(s) the spline cannot bridge (the longest '
-            f'{step[k]:.3f} s); the batch stage used its part from {first:.1f} to {last:.1f} s, '
-            f'which covers {covered[best]} of the {total} eye poses')
+    note = (
+        f'{hand.name} has {cuts.size} gap(s) the spline cannot bridge (the longest '
+        f'{step[k]:.3f} s); the batch stage used its part from {first:.1f} to {last:.1f} s, '
+        f'which covers {covered[best]} of the {total} eye poses'
+    )
     return hand.select(slice(a, b)), note
 
 
-def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int,
-                       joint: bool) -> None:
+def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int, joint: bool) -> None:
     """Refuse a MoCap stream the spline cannot be fitted to: a gap longer than the spline
     bridges, or (joint solve) fewer MoCap poses per knot interval than it needs."""
     step = np.diff(hand.t_ns) * 1e-9
     period = float(np.median(step))
     if joint and knot_spacing < MIN_HAND_POSES_PER_KNOT_JOINT * period:
-        raise BatchError(f'the joint solve needs at least {MIN_HAND_POSES_PER_KNOT_JOINT:g} '
-                         f'MoCap poses per knot interval; {hand.name} at '
-                         f'{1.0 / period:.3g} Hz gives {knot_spacing / period:.2g} with knots '
-                         f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
-                         f'holds the spline to the MoCap) or set knot_spacing >= '
-                         f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s')
+        raise BatchError(
+            f'the joint solve needs at least {MIN_HAND_POSES_PER_KNOT_JOINT:g} '
+            f'MoCap poses per knot interval; {hand.name} at '
+            f'{1.0 / period:.3g} Hz gives {knot_spacing / period:.2g} with knots '
+            f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
+            f'holds the spline to the MoCap) or set knot_spacing >= '
+            f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s'
+        )
     longest = float(step.max())
     if longest > _bridged_s(hand, knot_spacing, order):
         k = int(np.argmax(step))
-        raise BatchError(f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '
-                         f'spline (knots every {knot_spacing:g} s) would have control points '
-                         'without MoCap data there; the batch stage needs a continuous hand '
-                         'stream (or a larger knot_spacing)')
+        raise BatchError(
+            f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '
+            f'spline (knots every {knot_spacing:g} s) would have control points '
+            'without MoCap data there; the batch stage needs a continuous hand '
+            'stream (or a larger knot_spacing)'
+        )

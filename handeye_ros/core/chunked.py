@@ -16,8 +16,9 @@ import numpy as np
 CHUNK_ROWS = 1 << 16
 
 
-def chunked(fn: Callable[[slice], np.ndarray | tuple[np.ndarray, ...]], n: int,
-            size: int = CHUNK_ROWS) -> np.ndarray | tuple[np.ndarray, ...]:
+def chunked(
+    fn: Callable[[slice], np.ndarray | tuple[np.ndarray, ...]], n: int, size: int = CHUNK_ROWS
+) -> np.ndarray | tuple[np.ndarray, ...]:
     """``fn(slice)`` over consecutive slices of ``range(n)``, its outputs (an array or a tuple
     of arrays, rows first) concatenated as one call on ``slice(0, n)`` would return them."""
     if n <= size:

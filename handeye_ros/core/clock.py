@@ -58,8 +58,9 @@ DRIFT_NOTICE_S = 2e-3
 DRIFT_SIGMAS = 3.0
 
 
-def linear_clock(offset_s: float, drift: float, stamp_ns: int,
-                 t_ns: np.ndarray | int) -> np.ndarray:
+def linear_clock(
+    offset_s: float, drift: float, stamp_ns: int, t_ns: np.ndarray | int
+) -> np.ndarray:
     """dt(t) = offset + drift (t - stamp) [s] at stamps t_ns [ns] (int64 differences first)."""
     return offset_s + drift * (np.asarray(t_ns) - np.int64(stamp_ns)) * 1e-9
 
@@ -105,8 +106,11 @@ class DriftFit:
         quantile (n - 2 degrees of freedom, n the windows fitted) at the false-alarm rate of
         DRIFT_SIGMAS Gaussian sigmas. The sigma is itself estimated from a few windows' scatter;
         at 3 Gaussian sigmas 15 windows need 3.8, 6 windows 6.4."""
-        return (self.estimated and abs(self.change_s) > DRIFT_NOTICE_S
-                and abs(self.drift) > self.threshold_sigmas * self.drift_std)
+        return (
+            self.estimated
+            and abs(self.change_s) > DRIFT_NOTICE_S
+            and abs(self.drift) > self.threshold_sigmas * self.drift_std
+        )
 
     @property
     def threshold_sigmas(self) -> float:
@@ -121,10 +125,13 @@ class DriftFit:
     def shifted(self, delta_ns: int) -> DriftFit:
         """The same fit on an eye clock moved by ``delta_ns`` (stamps t + delta_ns), with the
         offset then eye minus hand on that clock."""
-        return replace(self, stamp_ns=self.stamp_ns + int(delta_ns),
-                       offset_s=self.offset_s + delta_ns * 1e-9,
-                       centres_ns=self.centres_ns + np.int64(delta_ns),
-                       offsets_s=self.offsets_s + delta_ns * 1e-9)
+        return replace(
+            self,
+            stamp_ns=self.stamp_ns + int(delta_ns),
+            offset_s=self.offset_s + delta_ns * 1e-9,
+            centres_ns=self.centres_ns + np.int64(delta_ns),
+            offsets_s=self.offsets_s + delta_ns * 1e-9,
+        )
 
 
 def covered_span(hand: Trajectory, eye: Trajectory) -> tuple[int, int, int]:
@@ -148,12 +155,16 @@ def window_bounds(first_ns: int, last_ns: int) -> np.ndarray:
     return np.stack((edges[:-1], edges[1:]), axis=1)
 
 
-def window_offsets(hand: Trajectory, eye: Trajectory, bounds: np.ndarray,
-                   predicted_s: np.ndarray, half_window_s: float | np.ndarray,
-                   R_HE: np.ndarray | None = None,
-                   resample_rate_hz: float | None = None,
-                   signals: tuple[AngularSpeed, AngularSpeed] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def window_offsets(
+    hand: Trajectory,
+    eye: Trajectory,
+    bounds: np.ndarray,
+    predicted_s: np.ndarray,
+    half_window_s: float | np.ndarray,
+    R_HE: np.ndarray | None = None,
+    resample_rate_hz: float | None = None,
+    signals: tuple[AngularSpeed, AngularSpeed] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Stage 1 in each window of the eye, searched ``predicted_s +- half_window_s``.
 
     With ``R_HE`` the vector form (``w_E = R_HE^T w_H(t - dt)``), otherwise the angular-speed
@@ -177,49 +188,81 @@ def window_offsets(hand: Trajectory, eye: Trajectory, bounds: np.ndarray,
         hand_k, eye_k = hand.select(slice(h0, h1)), eye.select(slice(e0, e1))
         try:
             if R_HE is None:
-                ta = align_time(hand_k, eye_k, max_time_offset=half[k],
-                                time_offset_guess=float(predicted_s[k]),
-                                resample_rate_hz=resample_rate_hz, signals=parts)
+                ta = align_time(
+                    hand_k,
+                    eye_k,
+                    max_time_offset=half[k],
+                    time_offset_guess=float(predicted_s[k]),
+                    resample_rate_hz=resample_rate_hz,
+                    signals=parts,
+                )
             else:
-                ta = align_time_vector(hand_k, eye_k, R_HE, around_s=float(predicted_s[k]),
-                                       half_window_s=half[k],
-                                       resample_rate_hz=resample_rate_hz, signals=parts)
+                ta = align_time_vector(
+                    hand_k,
+                    eye_k,
+                    R_HE,
+                    around_s=float(predicted_s[k]),
+                    half_window_s=half[k],
+                    resample_rate_hz=resample_rate_hz,
+                    signals=parts,
+                )
         except TimeAlignmentError:
             continue
         offsets[k], corr[k] = ta.time_offset_s, ta.peak_correlation
     return centres, offsets, corr
 
 
-def stream_signals(hand: Trajectory, eye: Trajectory,
-                   R_HE: np.ndarray | None) -> tuple[AngularSpeed, AngularSpeed]:
+def stream_signals(
+    hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None
+) -> tuple[AngularSpeed, AngularSpeed]:
     """The angular signals of the whole streams that :func:`window_offsets` cuts into windows:
     body angular velocities with ``R_HE``, angular speeds without."""
     vector = R_HE is not None
     return angular_speed(hand, vector=vector), angular_speed(eye, vector=vector)
 
 
-def fit_drift(centres_ns: np.ndarray, offsets_s: np.ndarray, correlation: np.ndarray,
-              stamp_ns: int, span_s: float) -> DriftFit:
+def fit_drift(
+    centres_ns: np.ndarray,
+    offsets_s: np.ndarray,
+    correlation: np.ndarray,
+    stamp_ns: int,
+    span_s: float,
+) -> DriftFit:
     """The line through the window offsets (see the module docstring)."""
     ok = np.isfinite(offsets_s) & (np.nan_to_num(correlation) >= MIN_WINDOW_CORRELATION)
     x = (centres_ns - np.int64(stamp_ns)) * 1e-9
     nan = float('nan')
 
     def none(why: str) -> DriftFit:
-        return DriftFit(nan, nan, nan, nan, int(stamp_ns), span_s, centres_ns, offsets_s,
-                        correlation, np.zeros(x.size, bool), why)
+        return DriftFit(
+            nan,
+            nan,
+            nan,
+            nan,
+            int(stamp_ns),
+            span_s,
+            centres_ns,
+            offsets_s,
+            correlation,
+            np.zeros(x.size, bool),
+            why,
+        )
 
     if ok.sum() < MIN_WINDOWS:
-        return none(f'only {int(ok.sum())} window(s) of at least {MIN_WINDOW_S:g} s gave an '
-                    f'offset (need {MIN_WINDOWS}): the overlap of the recordings '
-                    f'({span_s:.0f} s) is too short, or moves too little, to observe a drift')
+        return none(
+            f'only {int(ok.sum())} window(s) of at least {MIN_WINDOW_S:g} s gave an '
+            f'offset (need {MIN_WINDOWS}): the overlap of the recordings '
+            f'({span_s:.0f} s) is too short, or moves too little, to observe a drift'
+        )
     slope, icpt = repeated_medians_line(x[ok], offsets_s[ok])
     resid = offsets_s - (icpt + slope * x)
     sigma = 1.4826 * float(np.median(np.abs(resid[ok])))
     inl = ok & (np.abs(resid) <= max(INLIER_SIGMAS * sigma, INLIER_FLOOR_S))
     if inl.sum() < MIN_WINDOWS or np.ptp(x[inl]) <= 0.0:
-        return none(f'only {int(inl.sum())} window offsets agree with one line (need '
-                    f'{MIN_WINDOWS}): the offset does not change linearly along the recording')
+        return none(
+            f'only {int(inl.sum())} window offsets agree with one line (need '
+            f'{MIN_WINDOWS}): the offset does not change linearly along the recording'
+        )
     slope, icpt, stderr = least_squares_line(x[inl], offsets_s[inl])
     if inl.sum() == 2 or not np.isfinite(stderr):
         return none('the window offsets cannot give an uncertainty')
@@ -227,13 +270,15 @@ def fit_drift(centres_ns: np.ndarray, offsets_s: np.ndarray, correlation: np.nda
     # exactly (a noise-free simulation) would otherwise claim a zero uncertainty
     floor = INLIER_FLOOR_S / np.sqrt(inl.sum())
     xc = x[inl] - x[inl].mean()
-    slope_std = max(stderr, floor / max(float(np.sqrt(np.mean(xc ** 2))), 1e-9))
+    slope_std = max(stderr, floor / max(float(np.sqrt(np.mean(xc**2))), 1e-9))
     off = float(icpt + slope * x[inl].mean())
     ref = int(stamp_ns + np.int64(round(float(x[inl].mean()) * 1e9)))
-    off_std = max(float(np.std(offsets_s[inl] - (icpt + slope * x[inl]), ddof=2))
-                  / np.sqrt(inl.sum()), floor)
-    return DriftFit(slope, slope_std, off, off_std, ref, span_s, centres_ns,
-                    offsets_s, correlation, inl)
+    off_std = max(
+        float(np.std(offsets_s[inl] - (icpt + slope * x[inl]), ddof=2)) / np.sqrt(inl.sum()), floor
+    )
+    return DriftFit(
+        slope, slope_std, off, off_std, ref, span_s, centres_ns, offsets_s, correlation, inl
+    )
 
 
 def repeated_medians_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -260,12 +305,17 @@ def least_squares_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float, floa
     slope = float(np.sum((x - xm) * (y - ym)) / sxx)
     icpt = ym - slope * xm
     resid = y - (icpt + slope * x)
-    return slope, icpt, float(np.sqrt(np.sum(resid ** 2) / (x.size - 2) / sxx))
+    return slope, icpt, float(np.sqrt(np.sum(resid**2) / (x.size - 2) / sxx))
 
 
-def measure_drift(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None = None,
-                  resample_rate_hz: float | None = None,
-                  start: DriftFit | None = None, around_s: float = 0.0) -> DriftFit:
+def measure_drift(
+    hand: Trajectory,
+    eye: Trajectory,
+    R_HE: np.ndarray | None = None,
+    resample_rate_hz: float | None = None,
+    start: DriftFit | None = None,
+    around_s: float = 0.0,
+) -> DriftFit:
     """The linear clock of an eye already on the hand's clock up to a small offset.
 
     Two passes: the first searches each window as far as MAX_DRIFT can move its offset (or
@@ -279,21 +329,40 @@ def measure_drift(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None = N
     centres = (bounds[:, 0] + (bounds[:, 1] - bounds[:, 0]) // 2).astype(np.int64)
     if start is not None and start.estimated:
         pred = np.asarray(start.offset_at(centres), float)
-        half = np.full(centres.size, max(SECOND_PASS_MIN_S, SECOND_PASS_SIGMAS * max(
-            start.offset_std * np.sqrt(max(start.inliers.sum(), 1)), INLIER_FLOOR_S)))
+        half = np.full(
+            centres.size,
+            max(
+                SECOND_PASS_MIN_S,
+                SECOND_PASS_SIGMAS
+                * max(start.offset_std * np.sqrt(max(start.inliers.sum(), 1)), INLIER_FLOOR_S),
+            ),
+        )
     else:
         pred = np.full(centres.size, around_s)
         half = MAX_DRIFT * np.abs((centres - mean) * 1e-9) + SEARCH_MARGIN_S
     signals = stream_signals(hand, eye, R_HE)
-    fit = fit_drift(*window_offsets(hand, eye, bounds, pred, half, R_HE, resample_rate_hz,
-                                    signals), mean, span)
+    fit = fit_drift(
+        *window_offsets(hand, eye, bounds, pred, half, R_HE, resample_rate_hz, signals), mean, span
+    )
     if not fit.estimated:
         return fit
     resid = fit.offsets_s[fit.inliers] - np.asarray(fit.offset_at(fit.centres_ns[fit.inliers]))
     sigma = 1.4826 * float(np.median(np.abs(resid)))
     half2 = max(SECOND_PASS_MIN_S, SECOND_PASS_SIGMAS * sigma)
-    again = fit_drift(*window_offsets(hand, eye, bounds, np.asarray(fit.offset_at(centres)),
-                                      half2, R_HE, resample_rate_hz, signals), mean, span)
+    again = fit_drift(
+        *window_offsets(
+            hand,
+            eye,
+            bounds,
+            np.asarray(fit.offset_at(centres)),
+            half2,
+            R_HE,
+            resample_rate_hz,
+            signals,
+        ),
+        mean,
+        span,
+    )
     return again if again.estimated else fit
 
 

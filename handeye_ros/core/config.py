@@ -33,118 +33,263 @@ class CalibrationConfig(Options):
     """
 
     time_offset: float | None = option(
-        None, 'float', 'fix the time offset dt = eye clock - hand clock [s] instead of '
-        'estimating it; NaN/null estimates it', optional=True, low=-MAX_OFFSET_S,
-        high=MAX_OFFSET_S)
+        None,
+        'float',
+        'fix the time offset dt = eye clock - hand clock [s] instead of '
+        'estimating it; NaN/null estimates it',
+        optional=True,
+        low=-MAX_OFFSET_S,
+        high=MAX_OFFSET_S,
+    )
     time_offset_guess: float | None = option(
-        None, 'float', 'centre of the time offset search window [s] (with max_time_offset; '
-        'alone it sets a window of +-0.5 s); NaN/null: no window', optional=True,
-        low=-MAX_OFFSET_S, high=MAX_OFFSET_S)
+        None,
+        'float',
+        'centre of the time offset search window [s] (with max_time_offset; '
+        'alone it sets a window of +-0.5 s); NaN/null: no window',
+        optional=True,
+        low=-MAX_OFFSET_S,
+        high=MAX_OFFSET_S,
+    )
     max_time_offset: float | None = option(
-        None, 'float', 'half-width of the time offset search window [s]; NaN/null searches '
-        'every lag at which the recordings overlap', optional=True, low=0.0, high=MAX_OFFSET_S,
-        open_low=True)
+        None,
+        'float',
+        'half-width of the time offset search window [s]; NaN/null searches '
+        'every lag at which the recordings overlap',
+        optional=True,
+        low=0.0,
+        high=MAX_OFFSET_S,
+        open_low=True,
+    )
     resample_rate_hz: float | None = option(
-        None, 'float', 'rate of the correlation grid [Hz]; NaN/null: the faster stream, at most '
-        '200 Hz', optional=True, low=0.0, high=10_000.0, open_low=True)
+        None,
+        'float',
+        'rate of the correlation grid [Hz]; NaN/null: the faster stream, at most 200 Hz',
+        optional=True,
+        low=0.0,
+        high=10_000.0,
+        open_low=True,
+    )
     clock_drift: bool = option(
-        False, 'bool', 'estimate a linear clock, dt(t) = time_offset + clock_drift * (t - '
+        False,
+        'bool',
+        'estimate a linear clock, dt(t) = time_offset + clock_drift * (t - '
         'time_offset_stamp), instead of one constant offset (without it the offset is still '
-        'measured along the recording and a drift is named)')
+        'measured along the recording and a drift is named)',
+    )
     estimate_scale: bool = option(
-        False, 'bool', 'estimate the eye\'s scale s (s * eye positions are metric: a monocular '
-        'VO) in all stages (without it a scale the data show is named)', alias='scale')
+        False,
+        'bool',
+        "estimate the eye's scale s (s * eye positions are metric: a monocular "
+        'VO) in all stages (without it a scale the data show is named)',
+        alias='scale',
+    )
     peak_fit: str = option(
-        'quadratic', 'str', 'correlation peak: quadratic (sub-sample fit, the paper) or none '
-        '(integer peak, the baseline)', choices=PEAK_FITS)
+        'quadratic',
+        'str',
+        'correlation peak: quadratic (sub-sample fit, the paper) or none '
+        '(integer peak, the baseline)',
+        choices=PEAK_FITS,
+    )
     relative_poses: str = option(
-        'rotation', 'str', 'relative motions: rotation (keyframes at least eta apart, the '
-        'paper), global or interframe', choices=RELATIVE_POSES)
+        'rotation',
+        'str',
+        'relative motions: rotation (keyframes at least eta apart, the '
+        'paper), global or interframe',
+        choices=RELATIVE_POSES,
+    )
     eta: float = option(
-        5.0, 'float', 'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the '
-        'rotation is noise', low=0.01, high=90.0)
+        5.0,
+        'float',
+        'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the rotation is noise',
+        low=0.01,
+        high=90.0,
+    )
     robust_kernel: bool = option(
-        True, 'bool', 'weight motions by the screw-congruence kernel (eq. 10-12)')
-    mu: float = option(
-        5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0)
+        True, 'bool', 'weight motions by the screw-congruence kernel (eq. 10-12)'
+    )
+    mu: float = option(5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0)
     ransac_iterations: int = option(
-        200, 'int', 'RANSAC two-motion hypotheses; 0 disables RANSAC (evaluated in chunks: '
-        'memory stays flat, time grows with the count)', low=0, high=100_000)
+        200,
+        'int',
+        'RANSAC two-motion hypotheses; 0 disables RANSAC (evaluated in chunks: '
+        'memory stays flat, time grows with the count)',
+        low=0,
+        high=100_000,
+    )
     inlier_rotation: float = option(
-        0.5, 'float', 'RANSAC inlier threshold on the rotation error e1 of eq. 13 [deg]', low=0.0,
-        high=180.0, open_low=True)
+        0.5,
+        'float',
+        'RANSAC inlier threshold on the rotation error e1 of eq. 13 [deg]',
+        low=0.0,
+        high=180.0,
+        open_low=True,
+    )
     inlier_translation: float = option(
-        0.02, 'float', 'RANSAC inlier threshold on the translation error e2 of eq. 13 [m]',
-        low=0.0, high=100.0, open_low=True)
+        0.02,
+        'float',
+        'RANSAC inlier threshold on the translation error e2 of eq. 13 [m]',
+        low=0.0,
+        high=100.0,
+        open_low=True,
+    )
     adaptive_inliers: bool = option(
-        True, 'bool', 'widen the final consensus thresholds to the noise measured from the '
-        'best model (never narrower than the configured ones)')
+        True,
+        'bool',
+        'widen the final consensus thresholds to the noise measured from the '
+        'best model (never narrower than the configured ones)',
+    )
     decoupled_refit: bool = option(
-        True, 'bool', 're-estimate rotation (rotation-vector alignment) and translation '
+        True,
+        'bool',
+        're-estimate rotation (rotation-vector alignment) and translation '
         '(drift-weighted least squares) apart on the final consensus; false keeps the '
-        'dual-quaternion solution')
+        'dual-quaternion solution',
+    )
     batch: bool = option(
-        True, 'bool', 'refine dt and T_HE by the continuous-time batch stage (Section III-C) and '
-        'report their covariance; the linear result is kept, with a warning, if it fails')
+        True,
+        'bool',
+        'refine dt and T_HE by the continuous-time batch stage (Section III-C) and '
+        'report their covariance; the linear result is kept, with a warning, if it fails',
+    )
     knot_spacing: float = option(
-        0.05, 'float', 'knot spacing of the hand B-spline [s]: 20 knots/s follow hand-held and '
-        'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz', low=0.005, high=1.0)
-    spline_order: int = option(
-        4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6)
+        0.05,
+        'float',
+        'knot spacing of the hand B-spline [s]: 20 knots/s follow hand-held and '
+        'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz',
+        low=0.005,
+        high=1.0,
+    )
+    spline_order: int = option(4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6)
     batch_decoupled: bool = option(
-        True, 'bool', 'batch stage: the rotation of T_HE from the rotation residuals alone, then '
-        'dt and the translation from all residuals (false: all together)')
+        True,
+        'bool',
+        'batch stage: the rotation of T_HE from the rotation residuals alone, then '
+        'dt and the translation from all residuals (false: all together)',
+    )
     batch_joint: bool = option(
-        False, 'bool', 'also free the spline control poses in the batch solve (the full joint '
-        'problem; slower, the same result while the MoCap is much less noisy than the VIO)')
+        False,
+        'bool',
+        'also free the spline control poses in the batch solve (the full joint '
+        'problem; slower, the same result while the MoCap is much less noisy than the VIO)',
+    )
     hand_noise_rotation: float | None = option(
-        None, 'float', 'hand (MoCap) noise of each pose per axis [rad]; NaN/null estimates it '
-        'from the data', optional=True, low=0.0, high=1.0, open_low=True)
+        None,
+        'float',
+        'hand (MoCap) noise of each pose per axis [rad]; NaN/null estimates it from the data',
+        optional=True,
+        low=0.0,
+        high=1.0,
+        open_low=True,
+    )
     hand_noise_translation: float | None = option(
-        None, 'float', 'hand (MoCap) noise of each pose per axis [m]; NaN/null estimates it',
-        optional=True, low=0.0, high=10.0, open_low=True)
+        None,
+        'float',
+        'hand (MoCap) noise of each pose per axis [m]; NaN/null estimates it',
+        optional=True,
+        low=0.0,
+        high=10.0,
+        open_low=True,
+    )
     eye_noise_rotation: float | None = option(
-        None, 'float', 'eye relative-pose noise per axis between consecutive poses [rad]; '
-        'NaN/null estimates it from the data', optional=True, low=0.0, high=1.0, open_low=True)
+        None,
+        'float',
+        'eye relative-pose noise per axis between consecutive poses [rad]; '
+        'NaN/null estimates it from the data',
+        optional=True,
+        low=0.0,
+        high=1.0,
+        open_low=True,
+    )
     eye_noise_translation: float | None = option(
-        None, 'float', 'eye relative-pose noise per axis between consecutive poses [m]; '
-        'NaN/null estimates it', optional=True, low=0.0, high=10.0, open_low=True)
+        None,
+        'float',
+        'eye relative-pose noise per axis between consecutive poses [m]; NaN/null estimates it',
+        optional=True,
+        low=0.0,
+        high=10.0,
+        open_low=True,
+    )
     huber_delta: float = option(
-        1.345, 'float', 'Huber threshold of the batch stage, in noise standard deviations '
+        1.345,
+        'float',
+        'Huber threshold of the batch stage, in noise standard deviations '
         '(1.345: 95 % efficiency on Gaussian noise; below 0.01 it is an L1 loss already)',
-        low=0.01, high=1000.0)
+        low=0.01,
+        high=1000.0,
+    )
     batch_max_iterations: int = option(
-        50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000)
+        50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000
+    )
     screening: bool = option(
-        True, 'bool', 'remove isolated pose outliers (placeholders, marker swaps, glitches) '
-        'before stage 1 and split the eye at VIO resets found against the hand')
+        True,
+        'bool',
+        'remove isolated pose outliers (placeholders, marker swaps, glitches) '
+        'before stage 1 and split the eye at VIO resets found against the hand',
+    )
     outlier_threshold: float = option(
-        6.0, 'float', 'screening: a pose is an outlier when its interpolation residual exceeds '
-        'the running median by this many robust standard deviations', low=3.0, high=1000.0)
+        6.0,
+        'float',
+        'screening: a pose is an outlier when its interpolation residual exceeds '
+        'the running median by this many robust standard deviations',
+        low=3.0,
+        high=1000.0,
+    )
     max_outlier_fraction: float = option(
-        0.15, 'float', 'refuse a stream of which screening would remove more than this '
-        'fraction', low=0.0, high=1.0, open_low=True)
+        0.15,
+        'float',
+        'refuse a stream of which screening would remove more than this fraction',
+        low=0.0,
+        high=1.0,
+        open_low=True,
+    )
     check_conventions: bool = option(
-        True, 'bool', 'detect stamp units and quaternion orders or inverted poses the data '
-        'contradict, and apply the reading the data support (the verdict then says so)')
+        True,
+        'bool',
+        'detect stamp units and quaternion orders or inverted poses the data '
+        'contradict, and apply the reading the data support (the verdict then says so)',
+    )
     invert_hand: bool = option(
-        False, 'bool', 'the hand poses are T_HG (marker to MoCap world), not T_GH')
+        False, 'bool', 'the hand poses are T_HG (marker to MoCap world), not T_GH'
+    )
     invert_eye: bool = option(
-        False, 'bool', 'the eye poses are T_EW (VIO world in body), not T_WE')
+        False, 'bool', 'the eye poses are T_EW (VIO world in body), not T_WE'
+    )
     vector_refinement: bool = option(
-        True, 'bool', 're-estimate dt from the body angular velocities once stage 2 gives '
-        'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2')
+        True,
+        'bool',
+        're-estimate dt from the body angular velocities once stage 2 gives '
+        'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2',
+    )
     precision_time_offset: float = option(
-        1e-3, 'float', 'verdict: a 1-sigma of the time offset above this [s] makes the result '
-        'doubtful (reason imprecise)', low=0.0, high=3600.0, open_low=True)
+        1e-3,
+        'float',
+        'verdict: a 1-sigma of the time offset above this [s] makes the result '
+        'doubtful (reason imprecise)',
+        low=0.0,
+        high=3600.0,
+        open_low=True,
+    )
     precision_translation: float = option(
-        0.01, 'float', 'verdict: a 1-sigma of the translation of T_HE above this [m] makes '
-        'the result doubtful', low=0.0, high=100.0, open_low=True)
+        0.01,
+        'float',
+        'verdict: a 1-sigma of the translation of T_HE above this [m] makes the result doubtful',
+        low=0.0,
+        high=100.0,
+        open_low=True,
+    )
     precision_rotation: float = option(
-        0.5, 'float', 'verdict: a 1-sigma of the rotation of T_HE above this [deg] makes the '
-        'result doubtful', low=0.0, high=180.0, open_low=True)
-    min_motions: int = option(
-        10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000)
+        0.5,
+        'float',
+        'verdict: a 1-sigma of the rotation of T_HE above this [deg] makes the result doubtful',
+        low=0.0,
+        high=180.0,
+        open_low=True,
+    )
+    min_motions: int = option(10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000)
     seed: int = option(
-        0, 'int', 'RANSAC seed: the same input and seed give the same result', low=0,
-        high=2 ** 31 - 1)
+        0,
+        'int',
+        'RANSAC seed: the same input and seed give the same result',
+        low=0,
+        high=2**31 - 1,
+    )

@@ -61,12 +61,15 @@ PLAUSIBLE_RATE_HZ = (0.5, 10_000.0)
 #: longer than the VIO; a unit mistake is a factor 1000).
 SPAN_RATIO_MAX = 100.0
 #: Scale factors tried on the stamps (true = as given * factor), with the unit they imply.
-UNIT_FACTORS = {1e-9: 'nanoseconds (where seconds were expected)',
-                1e-6: 'microseconds (where seconds were expected)',
-                1e-3: 'milliseconds (where seconds were expected)', 1.0: None,
-                1e3: 'microseconds (where nanoseconds were expected)',
-                1e6: 'milliseconds (where nanoseconds were expected)',
-                1e9: 'seconds (where nanoseconds were expected)'}
+UNIT_FACTORS = {
+    1e-9: 'nanoseconds (where seconds were expected)',
+    1e-6: 'microseconds (where seconds were expected)',
+    1e-3: 'milliseconds (where seconds were expected)',
+    1.0: None,
+    1e3: 'microseconds (where nanoseconds were expected)',
+    1e6: 'milliseconds (where nanoseconds were expected)',
+    1e9: 'seconds (where nanoseconds were expected)',
+}
 #: Stamps above this (s) are an absolute epoch; below EPOCH_RELATIVE_S, time since boot.
 EPOCH_ABSOLUTE_S = 1e8
 EPOCH_RELATIVE_S = 1e7
@@ -98,6 +101,7 @@ class Correction:
 
 # --------------------------------------------------------------------------------- stamps
 
+
 def _scaled(traj: Trajectory, factor: float) -> Trajectory:
     """Stamps multiplied by a power of 1000 (exact integer arithmetic)."""
     if factor == 1.0:
@@ -120,8 +124,9 @@ def _plausible_rate(traj: Trajectory, factor: float) -> bool:
     return PLAUSIBLE_RATE_HZ[0] <= rate <= PLAUSIBLE_RATE_HZ[1]
 
 
-def check_stamp_units(hand: Trajectory,
-                      eye: Trajectory) -> tuple[Trajectory, Trajectory, list[Correction]]:
+def check_stamp_units(
+    hand: Trajectory, eye: Trajectory
+) -> tuple[Trajectory, Trajectory, list[Correction]]:
     """Both streams with plausible stamp units (see the module docstring). A unit stated to
     the reader is already applied; one that makes a plausible reading is kept.
 
@@ -143,22 +148,33 @@ def check_stamp_units(hand: Trajectory,
     if not readings:
         if (1.0 in options[0]) and (1.0 in options[1]):
             return hand, eye, []  # plausible rates, unusual spans: nothing better to offer
-        msg = ('no reading of the stamps gives both streams a plausible rate (0.5 Hz to 10 kHz): '
-               f'{hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, {eye.name} '
-               f'at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Check the stamp '
-               'units (set --hand-stamp-unit / --eye-stamp-unit)')
+        msg = (
+            'no reading of the stamps gives both streams a plausible rate (0.5 Hz to 10 kHz): '
+            f'{hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, {eye.name} '
+            f'at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Check the stamp '
+            'units (set --hand-stamp-unit / --eye-stamp-unit)'
+        )
         raise InputError(msg)
     # fewest changed streams first; among equals, the closest spans
-    readings.sort(key=lambda r: ((r[0] != 1.0) + (r[1] != 1.0),
-                                 abs(np.log10(spans[0] * r[0] / (spans[1] * r[1])))))
+    readings.sort(
+        key=lambda r: (
+            (r[0] != 1.0) + (r[1] != 1.0),
+            abs(np.log10(spans[0] * r[0] / (spans[1] * r[1]))),
+        )
+    )
     best = readings[0]
-    rivals = [r for r in readings[1:] if (r[0] != 1.0) + (r[1] != 1.0) ==
-              (best[0] != 1.0) + (best[1] != 1.0)]
+    rivals = [
+        r
+        for r in readings[1:]
+        if (r[0] != 1.0) + (r[1] != 1.0) == (best[0] != 1.0) + (best[1] != 1.0)
+    ]
     if rivals:
-        msg = ('the stamps of one stream are in an unexpected unit, and the data do not say '
-               f'which: {hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, '
-               f'{eye.name} at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Set '
-               '--hand-stamp-unit / --eye-stamp-unit')
+        msg = (
+            'the stamps of one stream are in an unexpected unit, and the data do not say '
+            f'which: {hand.name} at {hand.rate_hz:.4g} Hz over {hand.duration_s:.4g} s, '
+            f'{eye.name} at {eye.rate_hz:.4g} Hz over {eye.duration_s:.4g} s as read. Set '
+            '--hand-stamp-unit / --eye-stamp-unit'
+        )
         raise InputError(msg)
     out, corrections = [hand, eye], []
     for k, (stream, factor) in enumerate(zip(('hand', 'eye'), best, strict=True)):
@@ -168,22 +184,31 @@ def check_stamp_units(hand: Trajectory,
         try:
             out[k] = _scaled(traj, factor)
         except OverflowError:
-            msg = (f'{traj.name}: the stamps look like {UNIT_FACTORS[factor]} but cannot be '
-                   f'converted; set --{stream}-stamp-unit')
+            msg = (
+                f'{traj.name}: the stamps look like {UNIT_FACTORS[factor]} but cannot be '
+                f'converted; set --{stream}-stamp-unit'
+            )
             raise InputError(msg) from None
         unit = UNIT_FACTORS[factor]
-        corrections.append(Correction(
-            stream, 'stamp_unit', unit, f'{stream}_stamp_unit',
-            f'{traj.name}: the stamps were taken as {unit}: as given they make a '
-            f'{traj.rate_hz:.4g} Hz stream over {traj.duration_s:.4g} s, as {unit} a '
-            f'{out[k].rate_hz:.4g} Hz stream over {out[k].duration_s:.4g} s like the other '
-            f'stream. If that is right, say so with --{stream}-stamp-unit (the file still '
-            'holds the mistake for other tools)'))
+        corrections.append(
+            Correction(
+                stream,
+                'stamp_unit',
+                unit,
+                f'{stream}_stamp_unit',
+                f'{traj.name}: the stamps were taken as {unit}: as given they make a '
+                f'{traj.rate_hz:.4g} Hz stream over {traj.duration_s:.4g} s, as {unit} a '
+                f'{out[k].rate_hz:.4g} Hz stream over {out[k].duration_s:.4g} s like the other '
+                f'stream. If that is right, say so with --{stream}-stamp-unit (the file still '
+                'holds the mistake for other tools)',
+            )
+        )
     return out[0], out[1], corrections
 
 
 def epoch_note(hand: Trajectory, eye: Trajectory) -> str | None:
     """A warning when the two streams' stamps are on different clock epochs, else None."""
+
     def kind(t_ns: int) -> str | None:
         s = t_ns * 1e-9
         if s > EPOCH_ABSOLUTE_S:
@@ -192,11 +217,14 @@ def epoch_note(hand: Trajectory, eye: Trajectory) -> str | None:
         if 0 <= s < EPOCH_RELATIVE_S:
             return f'time since boot or since the start ({s:.1f} s)'
         return None
+
     kh, ke = kind(int(hand.t_ns[0])), kind(int(eye.t_ns[0]))
     if kh is None or ke is None or kh.split(' (')[0] == ke.split(' (')[0]:
         return None
-    return (f'the streams are on different clock epochs: {hand.name} starts at {kh}, '
-            f'{eye.name} at {ke}; the time offset includes the epoch difference')
+    return (
+        f'the streams are on different clock epochs: {hand.name} starts at {kh}, '
+        f'{eye.name} at {ke}; the time offset includes the epoch difference'
+    )
 
 
 # --------------------------------------------------------------------------------- orientations
@@ -218,15 +246,22 @@ def reread(traj: Trajectory, reading: str) -> Trajectory:
         return traj
     if reading == 'inverse':
         r = Rotation.from_quat(traj.q_xyzw).inv()
-        return Trajectory.from_arrays(traj.t_ns, -r.apply(traj.p_xyz), r.as_quat(), traj.name
-                                      ).with_breaks(traj.breaks).with_notes(*traj.notes)
+        return (
+            Trajectory.from_arrays(traj.t_ns, -r.apply(traj.p_xyz), r.as_quat(), traj.name)
+            .with_breaks(traj.breaks)
+            .with_notes(*traj.notes)
+        )
     q = traj.q_xyzw[:, PERMUTATIONS[reading]]
-    return Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, traj.name
-                                  ).with_breaks(traj.breaks).with_notes(*traj.notes)
+    return (
+        Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, traj.name)
+        .with_breaks(traj.breaks)
+        .with_notes(*traj.notes)
+    )
 
 
-def _reread_poses(pose: tuple[np.ndarray, np.ndarray], q_xyzw: np.ndarray,
-                  reading: str) -> tuple[np.ndarray, np.ndarray]:
+def _reread_poses(
+    pose: tuple[np.ndarray, np.ndarray], q_xyzw: np.ndarray, reading: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Poses (R (N, 3, 3), p (N, 3); q_xyzw: R's quaternions) under another reading than as
     given, as :func:`reread` does to a stream."""
     R, p = pose
@@ -248,8 +283,9 @@ class ReadingFit:
     score: float = float('nan')
 
 
-def _fit(R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray,
-         t_B: np.ndarray) -> tuple[float, float, float]:
+def _fit(
+    R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray, t_B: np.ndarray
+) -> tuple[float, float, float]:
     """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart as the
     linear stage's refit does (unweighted here), and |t_X|."""
     with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should
@@ -257,12 +293,16 @@ def _fit(R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray,
         rot, a, b = rotation_from_motions(R_A, R_B)
     res_r = np.linalg.norm(a - rot.apply(b), axis=1)
     t_X, res_t = translation_from_motions(R_A, t_A, t_B, rot.as_matrix())
-    return (float(np.median(res_r)), float(np.median(np.linalg.norm(res_t, axis=1))),
-            float(np.linalg.norm(t_X)))
+    return (
+        float(np.median(res_r)),
+        float(np.median(np.linalg.norm(res_t, axis=1))),
+        float(np.linalg.norm(t_X)),
+    )
 
 
-def reading_fits(hand: Trajectory, eye: Trajectory, time_offset_s: float,
-                 eta_rad: float) -> list[ReadingFit]:
+def reading_fits(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, eta_rad: float
+) -> list[ReadingFit]:
     """Scores of every reading (one stream changed at a time); empty when the motion is too
     poor to tell."""
     try:
@@ -284,20 +324,38 @@ def reading_fits(hand: Trajectory, eye: Trajectory, time_offset_s: float,
             # commutes with a permutation or conjugation of the quaternion's numbers (both
             # keep dot products), so only the inverse's interpolated positions differ, at
             # second order in the sampling interval (an hour of 1 kHz MoCap is not re-read)
-            moved = given[stream] if reading == 'as given' else relative(
-                _reread_poses(poses[stream], q, reading), i, j)
+            moved = (
+                given[stream]
+                if reading == 'as given'
+                else relative(_reread_poses(poses[stream], q, reading), i, j)
+            )
             A = moved if stream == 'hand' else given['hand']
             B = moved if stream == 'eye' else given['eye']
-            fits.append(ReadingFit(stream if reading != 'as given' else 'both', reading,
-                                   *_fit(A[0], A[1], B[0], B[1])))
+            fits.append(
+                ReadingFit(
+                    stream if reading != 'as given' else 'both',
+                    reading,
+                    *_fit(A[0], A[1], B[0], B[1]),
+                )
+            )
     best_r = max(min(f.rotation_rad for f in fits), 1e-12)
     best_t = max(min(f.translation_m for f in fits), 1e-12)
-    return [ReadingFit(f.stream, f.reading, f.rotation_rad, f.translation_m, f.lever_arm_m,
-                       f.rotation_rad / best_r + f.translation_m / best_t) for f in fits]
+    return [
+        ReadingFit(
+            f.stream,
+            f.reading,
+            f.rotation_rad,
+            f.translation_m,
+            f.lever_arm_m,
+            f.rotation_rad / best_r + f.translation_m / best_t,
+        )
+        for f in fits
+    ]
 
 
-def check_orientations(hand: Trajectory, eye: Trajectory, time_offset_s: float,
-                       eta_rad: float) -> tuple[Trajectory, Trajectory, list[Correction]]:
+def check_orientations(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, eta_rad: float
+) -> tuple[Trajectory, Trajectory, list[Correction]]:
     """Both streams under the reading of their orientations that AX = XB explains (see the
     module docstring).
 
@@ -313,30 +371,38 @@ def check_orientations(hand: Trajectory, eye: Trajectory, time_offset_s: float,
     fitting = [f for f in fits if f.score <= FIT_FACTOR * best]
     if any(f.reading == 'as given' for f in fitting):
         return hand, eye, []
-    if len(fitting) == 2 and {(f.stream, f.reading) for f in fitting} == \
-            {('hand', 'inverse'), ('eye', 'inverse')}:
+    if len(fitting) == 2 and {(f.stream, f.reading) for f in fitting} == {
+        ('hand', 'inverse'),
+        ('eye', 'inverse'),
+    }:
         short, long = sorted(fitting, key=lambda f: f.lever_arm_m)
-        if short.lever_arm_m <= LEVER_ARM_MAX_M and \
-                short.lever_arm_m * LEVER_ARM_RATIO <= long.lever_arm_m:
+        if (
+            short.lever_arm_m <= LEVER_ARM_MAX_M
+            and short.lever_arm_m * LEVER_ARM_RATIO <= long.lever_arm_m
+        ):
             fitting = [short]
     as_given = next(f for f in fits if f.reading == 'as given')
     if len(fitting) > 1:
         named = '; or '.join(f'the {f.stream} stream: {READINGS[f.reading][1]}' for f in fitting)
-        msg = (f'the orientations do not fit AX = XB as given (median residuals '
-               f'{np.degrees(as_given.rotation_rad):.1f} deg, {as_given.translation_m * 1e3:.0f} '
-               f'mm), and several readings would: {named}. Say which with the options '
-               '--hand-quaternion-order / --eye-quaternion-order or invert_hand / invert_eye')
+        msg = (
+            f'the orientations do not fit AX = XB as given (median residuals '
+            f'{np.degrees(as_given.rotation_rad):.1f} deg, {as_given.translation_m * 1e3:.0f} '
+            f'mm), and several readings would: {named}. Say which with the options '
+            '--hand-quaternion-order / --eye-quaternion-order or invert_hand / invert_eye'
+        )
         raise InputError(msg)
     f = fitting[0]
     what, words = READINGS[f.reading]
     option = ('invert_' + f.stream) if what == 'inverse' else f'{f.stream}_quaternion_order'
     traj = hand if f.stream == 'hand' else eye
     fixed = reread(traj, f.reading)
-    message = (f'{traj.name}: {words}: AX = XB holds with that reading (median residuals '
-               f'{np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and not '
-               f'as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
-               f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '
-               f'say so with {option} (the file still holds the mistake for other tools)')
+    message = (
+        f'{traj.name}: {words}: AX = XB holds with that reading (median residuals '
+        f'{np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and not '
+        f'as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
+        f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '
+        f'say so with {option} (the file still holds the mistake for other tools)'
+    )
     correction = Correction(f.stream, what, f.reading, option, message)
     if f.stream == 'hand':
         return fixed, eye, [correction]

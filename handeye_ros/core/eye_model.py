@@ -43,15 +43,18 @@ class EyeModel:
         """Take a further drift out of an eye this model was applied to (about the same
         stamp: the drifts compose as ``d1 + d2 (1 - d1)``); ``std`` is that of the total."""
         total = self.drift + drift * (1.0 - self.drift)
-        return (retime(eye, drift, self.stamp_ns),
-                replace(self, drift=total, drift_std=std, drift_estimated=True))
+        return (
+            retime(eye, drift, self.stamp_ns),
+            replace(self, drift=total, drift_std=std, drift_estimated=True),
+        )
 
-    def add_scale(self, eye: Trajectory, factor: float,
-                  std: float) -> tuple[Trajectory, EyeModel]:
+    def add_scale(self, eye: Trajectory, factor: float, std: float) -> tuple[Trajectory, EyeModel]:
         """Scale the positions of an eye this model was applied to by a further factor; ``std``
         is that of the total scale."""
-        return (replace(eye, p_xyz=eye.p_xyz * factor),
-                replace(self, scale=self.scale * factor, scale_std=std, scale_estimated=True))
+        return (
+            replace(eye, p_xyz=eye.p_xyz * factor),
+            replace(self, scale=self.scale * factor, scale_std=std, scale_estimated=True),
+        )
 
     @property
     def scale_observable(self) -> bool:
@@ -63,7 +66,9 @@ class EyeModel:
         """The reference stamp on the eye's own clock, ns."""
         return int(self.shift_ns + self.stamp_ns)
 
-    def own_clock_ns(self, t_ns: np.ndarray, eye_stamps_ns: np.ndarray | None = None) -> np.ndarray:
+    def own_clock_ns(
+        self, t_ns: np.ndarray, eye_stamps_ns: np.ndarray | None = None
+    ) -> np.ndarray:
         """Stamps [int64 ns] of an eye this model was applied to, back on the eye's own clock.
 
         Inverts the shift and the drift (``u = v - drift (v - stamp)`` with ``v = t - shift``);
@@ -79,8 +84,14 @@ class EyeModel:
         if eye_stamps_ns is None or out.size == 0 or np.size(eye_stamps_ns) == 0:
             return out
         own = np.asarray(eye_stamps_ns, dtype=np.int64)
-        k = np.clip(np.searchsorted(own, out), 1, own.size - 1) if own.size > 1 else \
-            np.zeros(out.shape, dtype=int)
-        near = own[k] if own.size == 1 else np.where(
-            np.abs(own[k - 1] - out) <= np.abs(own[k] - out), own[k - 1], own[k])
+        k = (
+            np.clip(np.searchsorted(own, out), 1, own.size - 1)
+            if own.size > 1
+            else np.zeros(out.shape, dtype=int)
+        )
+        near = (
+            own[k]
+            if own.size == 1
+            else np.where(np.abs(own[k - 1] - out) <= np.abs(own[k] - out), own[k - 1], own[k])
+        )
         return np.where(np.abs(near - out) <= 1000, near, out)

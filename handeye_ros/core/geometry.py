@@ -151,9 +151,9 @@ def skew(v: np.ndarray) -> np.ndarray:
     """Skew-symmetric (cross-product) matrices, (..., 3, 3), of vectors (..., 3)."""
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     o = np.zeros_like(x)
-    return np.stack((np.stack((o, -z, y), -1),
-                     np.stack((z, o, -x), -1),
-                     np.stack((-y, x, o), -1)), -2)
+    return np.stack(
+        (np.stack((o, -z, y), -1), np.stack((z, o, -x), -1), np.stack((-y, x, o), -1)), -2
+    )
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:
@@ -163,8 +163,9 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     accurate at small angles (unlike arccos of the trace); near pi, where the skew part
     vanishes, scipy's conversion takes over.
     """
-    w = 0.5 * np.stack((R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
-                        R[:, 1, 0] - R[:, 0, 1]), axis=1)
+    w = 0.5 * np.stack(
+        (R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]), axis=1
+    )
     s = np.linalg.norm(w, axis=1)
     c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
     theta = np.arctan2(s, c)
@@ -174,6 +175,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     near_pi = theta > 3.0
     if near_pi.any():
         from scipy.spatial.transform import Rotation
+
         out[near_pi] = Rotation.from_matrix(R[near_pi]).as_rotvec()
     return out
 
@@ -201,8 +203,11 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     K2[..., [0, 1, 2], [0, 1, 2]] -= t2[..., None]
     if inverse:
         a = np.full(t.shape, 0.5)
-        b = np.where(small, 1.0 / 12.0 + t2 / 720.0,
-                     1.0 / (s * s) - (1.0 + np.cos(s)) / (2.0 * s * np.sin(s)))
+        b = np.where(
+            small,
+            1.0 / 12.0 + t2 / 720.0,
+            1.0 / (s * s) - (1.0 + np.cos(s)) / (2.0 * s * np.sin(s)),
+        )
     else:
         a = -np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(s)) / (s * s))
         b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (s - np.sin(s)) / (s * s * s))
@@ -229,7 +234,7 @@ def quat_slerp(q0: np.ndarray, q1: np.ndarray, f: np.ndarray) -> np.ndarray:
     d = q0 - q1
     c2 = np.einsum('...i,...i->...', d, d)  # chord^2 = (2 sin(W / 2))^2
     w0, w1 = _slerp_weights_series(c2, f)
-    far = c2 > SLERP_SERIES_CHORD ** 2
+    far = c2 > SLERP_SERIES_CHORD**2
     if np.any(far):
         W = 2.0 * np.arctan2(np.sqrt(c2[far]), np.sqrt(np.maximum(4.0 - c2[far], 0.0)))
         ff = np.broadcast_to(f, c2.shape)[far]

@@ -14,8 +14,9 @@ import numpy as np
 from .trajectory import segment_spans
 
 
-def motion_indices(R: np.ndarray, strategy: str = 'rotation',
-                   eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
+def motion_indices(
+    R: np.ndarray, strategy: str = 'rotation', eta_rad: float = np.deg2rad(5.0)
+) -> tuple[np.ndarray, np.ndarray]:
     """Index pairs ``(i, j)``, i < j, of the relative motions, for rotations R of shape (N, 3, 3).
 
     ``eta_rad`` is used by the ``rotation`` strategy only.
@@ -76,8 +77,12 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
     return np.asarray(first, dtype=int), np.asarray(second, dtype=int)
 
 
-def segment_motion_indices(R: np.ndarray, segment: np.ndarray, strategy: str = 'rotation',
-                           eta_rad: float = np.deg2rad(5.0)) -> tuple[np.ndarray, np.ndarray]:
+def segment_motion_indices(
+    R: np.ndarray,
+    segment: np.ndarray,
+    strategy: str = 'rotation',
+    eta_rad: float = np.deg2rad(5.0),
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`motion_indices` within each segment (``segment``: (N,) labels, non-decreasing),
     so that no motion joins two segments."""
     spans = segment_spans(segment)
@@ -97,5 +102,8 @@ def segment_motion_indices(R: np.ndarray, segment: np.ndarray, strategy: str = '
 
 #: The relative-pose strategies by name (the option ``relative_poses``; its choices in
 #: :mod:`.config` are these names, which test_config checks).
-STRATEGIES = {'rotation': rotation_keyframes, 'global': global_pairs,
-              'interframe': interframe_pairs}
+STRATEGIES = {
+    'rotation': rotation_keyframes,
+    'global': global_pairs,
+    'interframe': interframe_pairs,
+}

@@ -147,8 +147,9 @@ class LinearSolution:
     motions: Motions | None = field(default=None, repr=False, compare=False)
 
 
-def build_motions(pairs: PosePairs, strategy: str = 'rotation',
-                  eta_rad: float = np.deg2rad(5.0)) -> Motions:
+def build_motions(
+    pairs: PosePairs, strategy: str = 'rotation', eta_rad: float = np.deg2rad(5.0)
+) -> Motions:
     """Relative motions A (hand) and B (eye) from matched pose pairs.
 
     Keyframes are chosen on the hand rotations (the MoCap side is the less noisy one), within
@@ -192,6 +193,7 @@ def screw_log_weights(m: Motions, mu: float) -> np.ndarray:
     ``w' = -d/2 sin(theta/2)`` (d: translation along the screw axis). E_i = 1 when they agree.
     Logs are returned so that large E cannot underflow the weights to zero before normalising.
     """
+
     def ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         a, b = np.abs(a), np.abs(b)
         return np.maximum(a, b) / np.maximum(np.minimum(a, b), 1e-15)
@@ -232,8 +234,11 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Q = np.stack((np.stack((dot(u1, u1d), b), -1), np.stack((b, dot(u2, u2d)), -1)), -2)
     e, P = np.linalg.eigh(Q)
     mixed = (e[..., 0] <= 0.0) & (e[..., 1] >= 0.0)
-    m1 = np.where(mixed, np.sqrt(np.abs(e[..., 1])), np.where(np.abs(e[..., 0]) <
-                                                              np.abs(e[..., 1]), 1.0, 0.0))
+    m1 = np.where(
+        mixed,
+        np.sqrt(np.abs(e[..., 1])),
+        np.where(np.abs(e[..., 0]) < np.abs(e[..., 1]), 1.0, 0.0),
+    )
     m2 = np.where(mixed, np.sqrt(np.abs(e[..., 0])), 1.0 - m1)
     best_q = best_qd = None
     best_norm = None
@@ -255,8 +260,9 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return best_q * scale, best_qd * scale, sigma
 
 
-def motion_errors(m: Motions, q_HE: np.ndarray, p_HE: np.ndarray,
-                  chunk: int = 4_000_000) -> tuple[np.ndarray, np.ndarray]:
+def motion_errors(
+    m: Motions, q_HE: np.ndarray, p_HE: np.ndarray, chunk: int = 4_000_000
+) -> tuple[np.ndarray, np.ndarray]:
     """Inlier criteria of eq. 13 for K hypotheses against n motions.
 
     ``E = X B X^-1 A^-1``; e1 = rotation angle of E (rad), e2 = norm of its translation (m).
@@ -293,16 +299,16 @@ def motion_errors(m: Motions, q_HE: np.ndarray, p_HE: np.ndarray,
     e_trans = np.empty((K, n))
     step = max(1, chunk // max(3 * n, 1))
     for k0 in range(0, K, step):
-        q = q_HE[k0:k0 + step]
-        R = RX[k0:k0 + step]
+        q = q_HE[k0 : k0 + step]
+        R = RX[k0 : k0 + step]
         cos_half = np.abs((q[:, :, None] * q[:, None, :]).reshape(-1, 16) @ forms.T)
-        e_rot[k0:k0 + step] = 2.0 * np.arccos(np.minimum(cos_half, 1.0))
-        u = np.einsum('kba,kb->ka', R, p_HE[k0:k0 + step])  # R_X^T t_X, (k, 3)
+        e_rot[k0 : k0 + step] = 2.0 * np.arccos(np.minimum(cos_half, 1.0))
+        u = np.einsum('kba,kb->ka', R, p_HE[k0 : k0 + step])  # R_X^T t_X, (k, 3)
         RB_u = (R_B.reshape(n * 3, 3) @ u.T).reshape(n, 3, -1)
         # sum_bc R_B[a,b] R_X[c,b] a[c]: the entries of R_X ordered (b, c), i.e. R_X^T flattened
         RB_RXt_a = (P @ np.swapaxes(R, -1, -2).reshape(-1, 9).T).reshape(n, 3, -1)
         t = t_B[:, :, None] + u.T[None] - RB_u - RB_RXt_a
-        e_trans[k0:k0 + step] = np.linalg.norm(t, axis=1).T
+        e_trans[k0 : k0 + step] = np.linalg.norm(t, axis=1).T
     return e_rot, e_trans
 
 
@@ -317,8 +323,9 @@ def refit_rotation(m: Motions, mask: np.ndarray) -> np.ndarray:
     return rotation_from_motions(m.A[0][mask], m.B[0][mask])[0].as_quat()
 
 
-def rotation_from_motions(R_A: np.ndarray,
-                          R_B: np.ndarray) -> tuple[Rotation, np.ndarray, np.ndarray]:
+def rotation_from_motions(
+    R_A: np.ndarray, R_B: np.ndarray
+) -> tuple[Rotation, np.ndarray, np.ndarray]:
     """The least-squares R_X of ``log R_A = R_X log R_B`` over motions (n, 3, 3), and the two
     rotation-vector stacks (n, 3) it aligns (for residuals)."""
     a = Rotation.from_matrix(R_A).as_rotvec()
@@ -326,9 +333,9 @@ def rotation_from_motions(R_A: np.ndarray,
     return Rotation.align_vectors(a, b)[0], a, b
 
 
-def translation_from_motions(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray,
-                             R_X: np.ndarray, w: np.ndarray | None = None
-                             ) -> tuple[np.ndarray, np.ndarray]:
+def translation_from_motions(
+    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray, w: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """The least-squares t_X of ``(R_A - I) t_X = R_X t_B - t_A`` over motions, each motion's
     three rows weighted by w (n,) when given; returns t_X and the (n, 3) residuals (weighted
     as solved)."""
@@ -366,8 +373,9 @@ def refit_translation_gls(m: Motions, mask: np.ndarray, R_HE: np.ndarray) -> np.
     ndarray, shape (3,)
         t_HE, metres.
     """
-    return translation_from_motions(m.A[0][mask], m.A[1][mask], m.B[1][mask], R_HE,
-                                    drift_weights(m, mask))[0]
+    return translation_from_motions(
+        m.A[0][mask], m.A[1][mask], m.B[1][mask], R_HE, drift_weights(m, mask)
+    )[0]
 
 
 def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
@@ -394,8 +402,9 @@ def common_axis(v: np.ndarray) -> np.ndarray:
     return a if float(v[k] @ a) >= 0.0 else -a
 
 
-def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                              tuple[str, ...]]:
+def degenerate_refit(
+    m: Motions, mask: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """T_HE when every motion rotates about one axis (a ground robot, a turntable).
 
     The rotation axes fix R_X up to a rotation phi about the common axis a (hand frame):
@@ -429,12 +438,21 @@ def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
     e2 = np.cross(a, e1)
     basis = np.stack((e1, e2, a), axis=1)
     u_perp = u - (u @ a)[:, None] * a
-    cols = np.concatenate((-u_perp[:, :, None], -np.cross(a, u)[:, :, None],
-                           np.matmul(R_A - np.eye(3), basis)), axis=2) * w
+    cols = (
+        np.concatenate(
+            (-u_perp[:, :, None], -np.cross(a, u)[:, :, None], np.matmul(R_A - np.eye(3), basis)),
+            axis=2,
+        )
+        * w
+    )
     rhs = (((u @ a)[:, None] * a - t_A)[:, :, None] * w).reshape(-1)
     lhs = cols.reshape(-1, 5)[:, :4]  # the t_a column is zero: (R_A - I) a = 0
-    unobservable = [('translation along the rotation axis '
-                     f'[{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand frame), set to 0')]
+    unobservable = [
+        (
+            'translation along the rotation axis '
+            f'[{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand frame), set to 0'
+        )
+    ]
     phi = 0.0
     z, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
     # phi is determined when its own standard deviation is small and (cos, sin) came out a
@@ -448,8 +466,10 @@ def degenerate_refit(m: Motions, mask: np.ndarray) -> tuple[np.ndarray, np.ndarr
     if sd_phi < np.deg2rad(MAX_PHI_STD_DEG) and abs(norm_cs - 1.0) < 0.3:
         phi = float(np.arctan2(z[1], z[0]))
     else:
-        unobservable.append('rotation about that axis (and with it the translation across '
-                            'it), set to the smallest rotation that aligns the axes')
+        unobservable.append(
+            'rotation about that axis (and with it the translation across '
+            'it), set to the smallest rotation that aligns the axes'
+        )
     R_X = Rotation.from_rotvec(phi * a) * R0
     # with phi fixed, the translation across the axis (along the axis stays 0)
     lhs_t = (np.matmul(R_A - np.eye(3), basis[:, :2]) * w).reshape(-1, 2)
@@ -472,10 +492,15 @@ def sigma_ratio(sigma: np.ndarray) -> np.ndarray:
         return np.where(s6 > 1e-12 * s1, s7 / s6, np.where(s1 > 0.0, 1.0, np.nan))
 
 
-def _ransac(m: Motions, gram: np.ndarray, w2: np.ndarray, iterations: int,
-            inlier_rotation_rad: float, inlier_translation_m: float,
-            rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                               np.ndarray]:
+def _ransac(
+    m: Motions,
+    gram: np.ndarray,
+    w2: np.ndarray,
+    iterations: int,
+    inlier_rotation_rad: float,
+    inlier_translation_m: float,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
     that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
     with the number of hypotheses. Returns (counts, q1, qd1, ratio, hypotheses' (q0, p0))."""
@@ -504,12 +529,20 @@ def _ransac(m: Motions, gram: np.ndarray, w2: np.ndarray, iterations: int,
     return counts, q1, qd1, ratio, (q0_all, p0_all)
 
 
-def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
-                     ransac_iterations: int = 200, inlier_rotation_rad: float = np.deg2rad(0.5),
-                     inlier_translation_m: float = 0.02, min_motions: int = 10,
-                     adaptive_inliers: bool = True, decoupled_refit: bool = True,
-                     estimate_scale: bool = False,
-                     rng: np.random.Generator | None = None) -> LinearSolution:
+def calibrate_linear(
+    m: Motions,
+    *,
+    robust_kernel: bool = True,
+    mu: float = 5.0,
+    ransac_iterations: int = 200,
+    inlier_rotation_rad: float = np.deg2rad(0.5),
+    inlier_translation_m: float = 0.02,
+    min_motions: int = 10,
+    adaptive_inliers: bool = True,
+    decoupled_refit: bool = True,
+    estimate_scale: bool = False,
+    rng: np.random.Generator | None = None,
+) -> LinearSolution:
     """Algorithm 1: RANSAC over 2-motion subsets, robust refinement, best sigma7/sigma6.
 
     Each iteration solves the 12x8 system of two random motions, collects the motions that agree
@@ -545,9 +578,11 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     """
     n = len(m)
     if n < max(min_motions, 2):
-        msg = (f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
-               'recording rotates too little for the keyframe rule. Rotate the rig more (about '
-               'several axes), or lower eta')
+        msg = (
+            f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
+            'recording rotates too little for the keyframe rule. Rotate the rig more (about '
+            'several axes), or lower eta'
+        )
         raise DegenerateMotionError(msg)
     rng = rng if rng is not None else np.random.default_rng(0)
     gram = constraint_gram(m).reshape(n, 64)
@@ -558,17 +593,20 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         w2 = np.ones(n)
 
     if ransac_iterations > 0:
-        counts, q1, qd1, ratio, (q0, p0) = _ransac(m, gram, w2, ransac_iterations,
-                                                   inlier_rotation_rad, inlier_translation_m, rng)
+        counts, q1, qd1, ratio, (q0, p0) = _ransac(
+            m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
+        )
     else:
         counts = np.array([n])
         q1, qd1, sigma = solve_gram((w2 @ gram).reshape(1, 8, 8))
         ratio = sigma_ratio(sigma)
     eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
     if not eligible.any():
-        msg = (f'RANSAC found no model that 2 or more of the {n} motions agree with within '
-               f'{np.degrees(inlier_rotation_rad):.2f} deg / {inlier_translation_m:.3f} m: the '
-               'eye poses are too noisy for these thresholds, or the time offset is wrong')
+        msg = (
+            f'RANSAC found no model that 2 or more of the {n} motions agree with within '
+            f'{np.degrees(inlier_rotation_rad):.2f} deg / {inlier_translation_m:.3f} m: the '
+            'eye poses are too noisy for these thresholds, or the time offset is wrong'
+        )
         raise DegenerateMotionError(msg)
     best = int(np.argmin(np.where(eligible, ratio, np.inf)))
     q_HE, p_HE = pose_from_dual_quat(q1[best], qd1[best])
@@ -599,8 +637,14 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
     if estimate_scale and spread >= MIN_AXIS_SPREAD_DEG:
         # the paper's baseline with a scale: the rotation of the dual-quaternion solution,
         # then its dual part and s from the lower rows of eq. 4
-        p_dq, scale_dq = dual_quaternion_scale(m.qa[inliers], m.qad[inliers], m.qb[inliers],
-                                               m.qbd[inliers], q_dq, drift_weights(m, inliers))
+        p_dq, scale_dq = dual_quaternion_scale(
+            m.qa[inliers],
+            m.qad[inliers],
+            m.qb[inliers],
+            m.qbd[inliers],
+            q_dq,
+            drift_weights(m, inliers),
+        )
         if not (np.isfinite(scale_dq) and scale_dq > 0.0):
             p_dq, scale_dq = p_HE, 1.0
         if not decoupled_refit:
@@ -609,16 +653,26 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         # one rotation axis: the dual-quaternion system has a 3-D null space and picks an
         # arbitrary point of it; the determined part is solved apart and the rest named
         q_HE, p_HE, unobservable = degenerate_refit(m, inliers)
-        warnings.append(f'the rotation axes of the {inliers.sum()} inlier motions are within '
-                        f'{spread:.2f} deg of one direction, so part of the extrinsic cannot be '
-                        'observed: ' + '; '.join(unobservable) + '. Rotate the rig about at '
-                        'least two different axes to determine it')
+        warnings.append(
+            f'the rotation axes of the {inliers.sum()} inlier motions are within '
+            f'{spread:.2f} deg of one direction, so part of the extrinsic cannot be '
+            'observed: ' + '; '.join(unobservable) + '. Rotate the rig about at '
+            'least two different axes to determine it'
+        )
     elif decoupled_refit:
         q_HE = refit_rotation(m, inliers)
         q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
-        fit = translation_and_scale(m.A[0][inliers], m.A[1][inliers], m.B[1][inliers],
-                                    matrix_from_quat(q_HE), drift_weights(m, inliers)) \
-            if estimate_scale else None
+        fit = (
+            translation_and_scale(
+                m.A[0][inliers],
+                m.A[1][inliers],
+                m.B[1][inliers],
+                matrix_from_quat(q_HE),
+                drift_weights(m, inliers),
+            )
+            if estimate_scale
+            else None
+        )
         if fit is not None:
             scale_std = fit.scale_std
         if fit is not None and fit.observable:
@@ -626,23 +680,37 @@ def calibrate_linear(m: Motions, *, robust_kernel: bool = True, mu: float = 5.0,
         else:  # no scale, or an unobservable one (the pipeline's verdict names it)
             p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
-        warnings.append(f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
-                        'constrained; rotate about more different axes')
+        warnings.append(
+            f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
+            'constrained; rotate about more different axes'
+        )
     if scale != 1.0:  # the inlier criteria of eq. 13 with the eye made metric
         m = scaled_motions(m, scale)
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
     return LinearSolution(
-        q_HE=q_HE, p_HE=p_HE, q_HE_dq=q_dq, p_HE_dq=p_dq, sigma_ratio=ratio_best,
+        q_HE=q_HE,
+        p_HE=p_HE,
+        q_HE_dq=q_dq,
+        p_HE_dq=p_dq,
+        sigma_ratio=ratio_best,
         singular_values=sigma_best,
-        n_motions=n, n_inliers=int(inliers.sum()), inliers=inliers, axis_spread_deg=spread,
+        n_motions=n,
+        n_inliers=int(inliers.sum()),
+        inliers=inliers,
+        axis_spread_deg=spread,
         rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
-        inlier_rotation_deg=float(np.degrees(thr_rot)), inlier_translation_m=float(thr_trans),
-        warnings=tuple(warnings), unobservable=unobservable, scale=scale, scale_std=scale_std,
-        scale_dq=scale_dq, motions=m)
+        inlier_rotation_deg=float(np.degrees(thr_rot)),
+        inlier_translation_m=float(thr_trans),
+        warnings=tuple(warnings),
+        unobservable=unobservable,
+        scale=scale,
+        scale_std=scale_std,
+        scale_dq=scale_dq,
+        motions=m,
+    )
 
 
 def scaled_motions(m: Motions, s: float) -> Motions:
     """The motions with the eye's translations (and dual parts) times s."""
     return replace(m, B=(m.B[0], m.B[1] * s), qbd=m.qbd * s)
-

@@ -43,8 +43,10 @@ class Spec:
             return ' | '.join(self.choices)
         if self.low is None and self.high is None:
             return ''
+
         def num(v: float) -> str:
             return f'{int(v):d}' if self.kind == 'int' else f'{v:g}'
+
         lo = '-inf' if self.low is None else num(self.low)
         hi = 'inf' if self.high is None else num(self.high)
         return f'{"(" if self.open_low else "["}{lo}, {hi}{"]" if self.high is not None else ")"}'
@@ -84,8 +86,10 @@ class Options:
         specs = cls.specs()
         unknown = sorted(set(values) - set(specs))
         if unknown:
-            msg = (f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
-                   f'{", ".join(specs)}')
+            msg = (
+                f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+                f'{", ".join(specs)}'
+            )
             raise ConfigError(msg)
         clean = {k: _coerce(k, v, specs[k], source) for k, v in values.items()}
         try:
@@ -136,16 +140,21 @@ def _check(name: str, value: Any, spec: Spec) -> None:
         raise ConfigError(msg)
 
 
-def split_options(values: dict[str, Any], classes: tuple[type[Options], ...],
-                  source: str = 'config') -> tuple[Options, ...]:
+def split_options(
+    values: dict[str, Any], classes: tuple[type[Options], ...], source: str = 'config'
+) -> tuple[Options, ...]:
     """One flat mapping (a params file, node parameters, command-line options) as one instance
     of each option set in ``classes``; a key none of them knows is refused, naming ``source``.
     """
     known = [name for cls in classes for name in cls.specs()]
     unknown = sorted(set(values) - set(known))
     if unknown:
-        msg = (f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
-               f'{", ".join(known)}')
+        msg = (
+            f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+            f'{", ".join(known)}'
+        )
         raise ConfigError(msg)
-    return tuple(cls.from_mapping({k: v for k, v in values.items() if k in cls.specs()}, source)
-                 for cls in classes)
+    return tuple(
+        cls.from_mapping({k: v for k, v in values.items() if k in cls.specs()}, source)
+        for cls in classes
+    )

@@ -122,12 +122,21 @@ class _Run:
 
 
 #: The steps :func:`calibrate` reports to its ``progress`` callback, in order.
-STEPS = ('screening', 'stage 1: time alignment', 'stage 2: linear calibration',
-         'stage 3: batch', 'world alignment and metrics')
+STEPS = (
+    'screening',
+    'stage 1: time alignment',
+    'stage 2: linear calibration',
+    'stage 3: batch',
+    'world alignment and metrics',
+)
 
 
-def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | None = None,
-              progress: Callable[[str], None] | None = None) -> CalibrationResult:
+def calibrate(
+    hand: Trajectory,
+    eye: Trajectory,
+    config: CalibrationConfig | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> CalibrationResult:
     """Time offset and extrinsic T_HE of a hand (T_GH) and an eye (T_WE) trajectory.
 
     ``progress``: called with each name of :data:`STEPS` as that step starts (a front end's
@@ -139,8 +148,10 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
     """
     cfg = config or CalibrationConfig()
     if cfg.clock_drift and cfg.time_offset is not None:
-        raise ConfigError('time_offset fixes one constant offset and clock_drift estimates one '
-                          'that changes along the recording: give one of them')
+        raise ConfigError(
+            'time_offset fixes one constant offset and clock_drift estimates one '
+            'that changes along the recording: give one of them'
+        )
     run = _Run()
     step = progress or (lambda name: None)
     step(STEPS[0])
@@ -155,13 +166,22 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
     # stage 1 (or the fixed offset), then the orientation conventions at that offset
     fixed = cfg.time_offset is not None
     if fixed:
-        ta = TimeAlignment(time_offset_s=cfg.time_offset, method='fixed',
-                           time_offset_ns=round(cfg.time_offset * 1e9))
+        ta = TimeAlignment(
+            time_offset_s=cfg.time_offset,
+            method='fixed',
+            time_offset_ns=round(cfg.time_offset * 1e9),
+        )
         run.warnings += _check_fixed_offset(hand, eye, cfg)
     else:
         guess, half = _window(cfg)
-        ta = align_time(hand, eye, max_time_offset=half, time_offset_guess=guess,
-                        resample_rate_hz=cfg.resample_rate_hz, peak_fit=cfg.peak_fit)
+        ta = align_time(
+            hand,
+            eye,
+            max_time_offset=half,
+            time_offset_guess=guess,
+            resample_rate_hz=cfg.resample_rate_hz,
+            peak_fit=cfg.peak_fit,
+        )
     if cfg.check_conventions:
         hand, eye, found = check_orientations(hand, eye, ta.time_offset_s, eta)
         _corrected(found, run)
@@ -183,9 +203,11 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
         if fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
         lo, hi = ta.window_s
-        msg = (f'{err}. The time offset was searched in [{lo:+.3f}, {hi:+.3f}] s only: if it '
-               'lies outside, the correlation found a false peak there; widen max_time_offset '
-               'or move time_offset_guess (or leave both unset to search every lag)')
+        msg = (
+            f'{err}. The time offset was searched in [{lo:+.3f}, {hi:+.3f}] s only: if it '
+            'lies outside, the correlation found a false peak there; widen max_time_offset '
+            'or move time_offset_guess (or leave both unset to search every lag)'
+        )
         raise DegenerateMotionError(msg) from None
     scaled = None if cfg.estimate_scale else _scale_check(pairs, lin, cfg)
     if scaled is not None and scaled.significant:
@@ -193,8 +215,9 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
         # it at "breaks" would only hide that
         run.doubt('scale', _scale_message(scaled))
     elif cfg.screening:
-        eye_c, lin, pairs, screening = _split_eye(hand, eye_c, lin, pairs, cfg, screening,
-                                                  shift_ns, run)
+        eye_c, lin, pairs, screening = _split_eye(
+            hand, eye_c, lin, pairs, cfg, screening, shift_ns, run
+        )
     tv = None
     clock = None
     if not fixed:
@@ -231,35 +254,67 @@ def calibrate(hand: Trajectory, eye: Trajectory, config: CalibrationConfig | Non
     pairs = associate(hand, eye_c, dt)
     world = align_worlds(pairs, q_HE, p_HE)
     if world.method != 'positions':
-        run.warnings.append('the positions do not span a plane; the world alignment T_WG was '
-                            'taken from the orientations')
+        run.warnings.append(
+            'the positions do not span a plane; the world alignment T_WG was '
+            'taken from the orientations'
+        )
     metrics = evaluate(pairs, q_HE, p_HE, world)
     m_rot, m_trans, m_len, n_mot = motion_consistency(hand, eye_c, dt, q_HE, p_HE, eta)
-    metrics = replace(metrics, motion_rotation_deg=m_rot, motion_translation_m=m_trans,
-                      motion_length_m=m_len, n_motions=n_mot)
+    metrics = replace(
+        metrics,
+        motion_rotation_deg=m_rot,
+        motion_translation_m=m_trans,
+        motion_length_m=m_len,
+        n_motions=n_mot,
+    )
     seed_lin = _seed_check(hand, eye_c, dt, lin, batch, cfg, run, pairs)
     _assess(ta, tv, lin, batch, screening, metrics, cfg, run)
     _assess_model(model, clock, cfg, run)
-    LOG.info('stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
-             '%d motions', t1 - t0, t2 - t1, t3 - t2, pairs.t_eye_s.size, lin.n_motions)
+    LOG.info(
+        'stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
+        '%d motions',
+        t1 - t0,
+        t2 - t1,
+        t3 - t2,
+        pairs.t_eye_s.size,
+        lin.n_motions,
+    )
     quality = Quality.from_reasons(run.reasons, run.notes)
     return CalibrationResult(
-        time_offset_s=cfg.time_offset if fixed else shift_ns * 1e-9 + dt, q_HE=q_HE,
-        p_HE=p_HE, world=world,
-        time_alignment=ta, linear=lin, metrics=metrics, n_pairs=int(pairs.t_eye_s.size),
-        hand=hand_in, eye=eye_in, config=cfg, warnings=tuple(run.warnings), batch=batch,
-        time_offset_ns=shift_ns + round(dt * 1e9), vector_alignment=_absolute(tv, shift_ns),
-        screening=screening, corrections=tuple(run.corrections),
-        candidates=tuple(replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s)
-                         for c in run.candidates),
-        quality=quality, seed_check=seed_lin, eye_model=model, clock=clock,
-        used=UsedStreams(hand, eye_c, model.own_clock_ns(eye_c.t_ns, eye.t_ns), dt))
+        time_offset_s=cfg.time_offset if fixed else shift_ns * 1e-9 + dt,
+        q_HE=q_HE,
+        p_HE=p_HE,
+        world=world,
+        time_alignment=ta,
+        linear=lin,
+        metrics=metrics,
+        n_pairs=int(pairs.t_eye_s.size),
+        hand=hand_in,
+        eye=eye_in,
+        config=cfg,
+        warnings=tuple(run.warnings),
+        batch=batch,
+        time_offset_ns=shift_ns + round(dt * 1e9),
+        vector_alignment=_absolute(tv, shift_ns),
+        screening=screening,
+        corrections=tuple(run.corrections),
+        candidates=tuple(
+            replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s) for c in run.candidates
+        ),
+        quality=quality,
+        seed_check=seed_lin,
+        eye_model=model,
+        clock=clock,
+        used=UsedStreams(hand, eye_c, model.own_clock_ns(eye_c.t_ns, eye.t_ns), dt),
+    )
 
 
 # ----------------------------------------------------------------------------- inputs
 
-def _prepare(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig,
-             run: _Run) -> tuple[Trajectory, Trajectory]:
+
+def _prepare(
+    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: _Run
+) -> tuple[Trajectory, Trajectory]:
     """Explicit inversions, stamp units, epochs."""
     if cfg.invert_hand:
         hand = reread(hand, 'inverse')
@@ -282,12 +337,19 @@ def _corrected(found: list[Correction], run: _Run) -> None:
         run.doubt('convention_corrected', c.message)
 
 
-def _screen(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig,
-            run: _Run) -> tuple[Trajectory, Trajectory, tuple[Screening, Screening]]:
+def _screen(
+    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: _Run
+) -> tuple[Trajectory, Trajectory, tuple[Screening, Screening]]:
     """Both streams screened (see :mod:`.screening`); refuse a stream that would lose too much."""
     if not cfg.screening:
-        return hand, eye, (Screening('hand', len(hand), np.zeros(0, np.int64), ()),
-                           Screening('eye', len(eye), np.zeros(0, np.int64), ()))
+        return (
+            hand,
+            eye,
+            (
+                Screening('hand', len(hand), np.zeros(0, np.int64), ()),
+                Screening('eye', len(eye), np.zeros(0, np.int64), ()),
+            ),
+        )
     out, reports = [], []
     for traj, stream in ((hand, 'hand'), (eye, 'eye')):
         kept, rep = screen(traj, stream, cfg.outlier_threshold)
@@ -300,11 +362,13 @@ def _screen(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig,
 def _check_fraction(rep: Screening, traj: Trajectory, cfg: CalibrationConfig) -> None:
     if rep.fraction > cfg.max_outlier_fraction:
         counts = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in rep.counts.items() if v)
-        msg = (f'{traj.name}: screening would remove {rep.fraction:.1%} of the {rep.stream} '
-               f'stream ({counts}), more than max_outlier_fraction '
-               f'{cfg.max_outlier_fraction:.0%}: the stream is not what the tool expects '
-               f'(check that it holds the {"MoCap" if rep.stream == "hand" else "VIO"} poses '
-               'of this recording), or raise max_outlier_fraction / outlier_threshold')
+        msg = (
+            f'{traj.name}: screening would remove {rep.fraction:.1%} of the {rep.stream} '
+            f'stream ({counts}), more than max_outlier_fraction '
+            f'{cfg.max_outlier_fraction:.0%}: the stream is not what the tool expects '
+            f'(check that it holds the {"MoCap" if rep.stream == "hand" else "VIO"} poses '
+            'of this recording), or raise max_outlier_fraction / outlier_threshold'
+        )
         raise InputError(msg)
 
 
@@ -312,32 +376,52 @@ def _window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
     """(guess, half-width) of stage 1's search; (None, None) searches every lag."""
     if cfg.max_time_offset is None and cfg.time_offset_guess is None:
         return None, None
-    return (cfg.time_offset_guess or 0.0,
-            cfg.max_time_offset if cfg.max_time_offset is not None else DEFAULT_HALF_WINDOW_S)
+    return (
+        cfg.time_offset_guess or 0.0,
+        cfg.max_time_offset if cfg.max_time_offset is not None else DEFAULT_HALF_WINDOW_S,
+    )
 
 
 # ----------------------------------------------------------------------------- stage 2 and checks
 
-def _linear(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig,
-            seed: int | None = None,
-            pairs: PosePairs | None = None) -> tuple[LinearSolution, PosePairs]:
+
+def _linear(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    cfg: CalibrationConfig,
+    seed: int | None = None,
+    pairs: PosePairs | None = None,
+) -> tuple[LinearSolution, PosePairs]:
     """Stage 2 at offset dt (``pairs``: the streams associated at dt, when already made)."""
     pairs = associate(hand, eye, dt) if pairs is None else pairs
     motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
     lin = calibrate_linear(
-        motions, robust_kernel=cfg.robust_kernel, mu=cfg.mu,
+        motions,
+        robust_kernel=cfg.robust_kernel,
+        mu=cfg.mu,
         ransac_iterations=cfg.ransac_iterations,
         inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
-        inlier_translation_m=cfg.inlier_translation, min_motions=cfg.min_motions,
-        adaptive_inliers=cfg.adaptive_inliers, decoupled_refit=cfg.decoupled_refit,
+        inlier_translation_m=cfg.inlier_translation,
+        min_motions=cfg.min_motions,
+        adaptive_inliers=cfg.adaptive_inliers,
+        decoupled_refit=cfg.decoupled_refit,
         estimate_scale=cfg.estimate_scale,
-        rng=np.random.default_rng(cfg.seed if seed is None else seed))
+        rng=np.random.default_rng(cfg.seed if seed is None else seed),
+    )
     return lin, pairs
 
 
-def _split_eye(hand: Trajectory, eye: Trajectory, lin: LinearSolution, pairs: PosePairs,
-               cfg: CalibrationConfig, screening: tuple[Screening, Screening], shift_ns: int,
-               run: _Run):
+def _split_eye(
+    hand: Trajectory,
+    eye: Trajectory,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    screening: tuple[Screening, Screening],
+    shift_ns: int,
+    run: _Run,
+):
     """Breaks (VIO resets) and leftover wild poses of the eye, against the hand; stage 2 again
     when any were found."""
     found = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
@@ -346,29 +430,44 @@ def _split_eye(hand: Trajectory, eye: Trajectory, lin: LinearSolution, pairs: Po
     sh, se = screening
     # the report keeps the eye's own stamps; this eye was moved by shift_ns
     se = se.merged(found.outliers_ns + shift_ns, 'outlier').merged(
-        found.short_ns + shift_ns, 'short_segment', found.breaks_ns + shift_ns)
+        found.short_ns + shift_ns, 'short_segment', found.breaks_ns + shift_ns
+    )
     _check_fraction(se, eye, cfg)
     if found.breaks_ns.size:
-        note = (f'the eye stream was split at {found.breaks_ns.size} break(s) (a VIO reset or '
-                'jump of its world frame: its motion there disagrees with the hand\'s); no '
-                'motion or residual spans one')
+        note = (
+            f'the eye stream was split at {found.breaks_ns.size} break(s) (a VIO reset or '
+            "jump of its world frame: its motion there disagrees with the hand's); no "
+            'motion or residual spans one'
+        )
         run.warnings.append(note)
         run.notes.append(note)
     lin, pairs = _linear(hand, found.eye, 0.0, cfg)
     return found.eye, lin, pairs, (sh, se)
 
 
-def _refine_vector(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolution,
-                   pairs: PosePairs, cfg: CalibrationConfig, run: _Run):
+def _refine_vector(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    run: _Run,
+):
     """dt from the body angular velocities with stage 2's rotation, iterated with stage 2."""
     if not cfg.vector_refinement or lin.unobservable:
         return dt, lin, pairs, None
     tv = None
     for _ in range(MAX_VECTOR_ITERATIONS):
         try:
-            tv = align_time_vector(hand, eye, matrix_from_quat(lin.q_HE), around_s=dt,
-                                   half_window_s=VECTOR_HALF_WINDOW_S,
-                                   resample_rate_hz=cfg.resample_rate_hz)
+            tv = align_time_vector(
+                hand,
+                eye,
+                matrix_from_quat(lin.q_HE),
+                around_s=dt,
+                half_window_s=VECTOR_HALF_WINDOW_S,
+                resample_rate_hz=cfg.resample_rate_hz,
+            )
         except TimeAlignmentError as err:
             run.warnings.append(f'vector refinement of the time offset not used: {err}')
             return dt, lin, pairs, tv
@@ -380,35 +479,56 @@ def _refine_vector(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolu
     return dt, lin, pairs, tv
 
 
-def _self_check(hand: Trajectory, eye: Trajectory, ta: TimeAlignment, shift_ns: int, dt: float,
-                lin: LinearSolution, pairs: PosePairs, cfg: CalibrationConfig, run: _Run):
+def _self_check(
+    hand: Trajectory,
+    eye: Trajectory,
+    ta: TimeAlignment,
+    shift_ns: int,
+    dt: float,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    run: _Run,
+):
     """Stage 2 at every distinct candidate offset, scored alike; the best one wins."""
     same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
     hyps = [(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin, pairs)]
     proposals = [(0.0, 'correlation peak')] + [
-        (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates]
+        (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
+    ]
     for offset, source in proposals:
         if any(abs(offset - h[0]) < same for h in hyps):
             continue
         try:
             lin_c, pairs_c = _linear(hand, eye, offset, cfg)
             if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
-                offset, lin_c, pairs_c, _ = _refine_vector(hand, eye, offset, lin_c, pairs_c,
-                                                           cfg, _Run())
+                offset, lin_c, pairs_c, _ = _refine_vector(
+                    hand, eye, offset, lin_c, pairs_c, cfg, _Run()
+                )
         except HandeyeError as err:
-            run.notes.append(f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s '
-                             f'({source}) rejected: {err}')
+            run.notes.append(
+                f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
+            )
             # counted in the result with the others, unscored
-            run.candidates.append(Candidate(offset, f'{source}: rejected, stage 2 fails there',
-                                            float('nan'), float('nan'), float('nan'),
-                                            lin.q_HE, lin.p_HE))
+            run.candidates.append(
+                Candidate(
+                    offset,
+                    f'{source}: rejected, stage 2 fails there',
+                    float('nan'),
+                    float('nan'),
+                    float('nan'),
+                    lin.q_HE,
+                    lin.p_HE,
+                )
+            )
             continue
         if not any(abs(offset - h[0]) < same for h in hyps):
             hyps.append((offset, source, lin_c, pairs_c))
     if len(hyps) == 1:
         return dt, lin, pairs
-    scored = score_candidates(hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps],
-                              np.deg2rad(cfg.eta))
+    scored = score_candidates(
+        hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], np.deg2rad(cfg.eta)
+    )
     best = _judge_tie(scored, shift_ns, run)
     run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
     return hyps[best][0], hyps[best][2], hyps[best][3]
@@ -421,38 +541,58 @@ def _judge_tie(scored: list[Candidate], shift_ns: int, run: _Run) -> int:
     best = next(k for k, c in enumerate(scored) if c.chosen)
     win = scored[best]
     if not np.isfinite(win.score):
-        run.doubt('ambiguous_offset', 'the candidate offsets could not be compared (too few '
-                  'motions covered at all of them)')
+        run.doubt(
+            'ambiguous_offset',
+            'the candidate offsets could not be compared (too few motions covered at all of them)',
+        )
         return best
-    tied = [k for k, c in enumerate(scored)
-            if np.isfinite(c.score) and c.score <= AMBIGUOUS_SCORE_RATIO * win.score]
-    text = ', '.join(f'{shift_ns * 1e-9 + c.time_offset_s:+.4f} s ({c.source}, score '
-                     f'{c.score:.3g})' for c in scored)
+    tied = [
+        k
+        for k, c in enumerate(scored)
+        if np.isfinite(c.score) and c.score <= AMBIGUOUS_SCORE_RATIO * win.score
+    ]
+    text = ', '.join(
+        f'{shift_ns * 1e-9 + c.time_offset_s:+.4f} s ({c.source}, score {c.score:.3g})'
+        for c in scored
+    )
     if len(tied) == 1:
-        run.notes.append(f'self-check over the candidate offsets {text}: '
-                         f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won')
+        run.notes.append(
+            f'self-check over the candidate offsets {text}: '
+            f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
+        )
         return best
     best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
-    run.doubt('ambiguous_offset', f'the motion repeats itself: the self-check cannot separate '
-              f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
-              'the search with time_offset_guess and max_time_offset (less than half the '
-              'period of the motion), or record a less repetitive motion')
+    run.doubt(
+        'ambiguous_offset',
+        f'the motion repeats itself: the self-check cannot separate '
+        f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
+        'the search with time_offset_guess and max_time_offset (less than half the '
+        'period of the motion), or record a less repetitive motion',
+    )
     return best
 
 
-def _seed_check(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolution,
-                batch: BatchSolution | None, cfg: CalibrationConfig,
-                run: _Run, pairs: PosePairs | None = None) -> LinearSolution | None:
+def _seed_check(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    cfg: CalibrationConfig,
+    run: _Run,
+    pairs: PosePairs | None = None,
+) -> LinearSolution | None:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
     uncertainty (3 sigmas of the batch stage, and at least SEED_ROTATION_DEG /
     SEED_TRANSLATION_M). ``pairs``: the streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
         return None
     try:
-        other, _ = _linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2 ** 31, pairs=pairs)
+        other, _ = _linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
-        run.doubt('seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage fails '
-                  f'({err})')
+        run.doubt(
+            'seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage fails ({err})'
+        )
         return None
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
@@ -461,16 +601,21 @@ def _seed_check(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolutio
         lim_t = max(lim_t, 3.0 * float(np.linalg.norm(batch.std[1:4])))
         lim_rot = max(lim_rot, 3.0 * float(np.degrees(np.linalg.norm(batch.std[4:7]))))
     if d_rot > lim_rot or d_t > lim_t:
-        run.doubt('seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage gives '
-                  f'an extrinsic {d_t * 1e3:.0f} mm / {d_rot:.2f} deg away: the motions do not '
-                  'single out one answer')
+        run.doubt(
+            'seed_dependent',
+            f'with RANSAC seed {cfg.seed + 1} the linear stage gives '
+            f'an extrinsic {d_t * 1e3:.0f} mm / {d_rot:.2f} deg away: the motions do not '
+            'single out one answer',
+        )
     return other
 
 
 # ----------------------------------------------------------------------------- clock and scale
 
-def _drift_from_windows(hand: Trajectory, eye: Trajectory, model: EyeModel,
-                        cfg: CalibrationConfig) -> tuple[Trajectory, EyeModel]:
+
+def _drift_from_windows(
+    hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
+) -> tuple[Trajectory, EyeModel]:
     """With clock_drift, before stage 2: the drift from stage 1 in windows (magnitudes: no
     rotation of T_HE yet), taken out of the eye's stamps so that stage 2 sees one offset.
     When it cannot be measured here, :func:`_clock_along` says so."""
@@ -480,8 +625,15 @@ def _drift_from_windows(hand: Trajectory, eye: Trajectory, model: EyeModel,
     return model.add_drift(eye, fit.drift, fit.drift_std)
 
 
-def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
-                 lin: LinearSolution, cfg: CalibrationConfig, run: _Run):
+def _clock_along(
+    hand: Trajectory,
+    eye: Trajectory,
+    model: EyeModel,
+    dt: float,
+    lin: LinearSolution,
+    cfg: CalibrationConfig,
+    run: _Run,
+):
     """The offset measured in windows along the recording with stage 2's rotation (the vector
     form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
     clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the
@@ -493,17 +645,23 @@ def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
         if fit.significant:
             run.doubt('clock_drift', _drift_message(fit))
         elif fit.estimated:
-            run.notes.append(f'the offset measured in {int(fit.inliers.sum())} windows along '
-                             f'the recording is constant within its uncertainty (drift '
-                             f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)')
+            run.notes.append(
+                f'the offset measured in {int(fit.inliers.sum())} windows along '
+                f'the recording is constant within its uncertainty (drift '
+                f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)'
+            )
         return eye, model, clock, None
     if not fit.estimated:
         if model.drift_estimated:
-            run.warnings.append('the clock drift comes from the angular-speed magnitudes only: '
-                                + fit.why)
+            run.warnings.append(
+                'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
+            )
         else:
-            run.doubt('unobservable', f'the clock drift cannot be observed: {fit.why}. One '
-                      'constant offset was estimated instead')
+            run.doubt(
+                'unobservable',
+                f'the clock drift cannot be observed: {fit.why}. One '
+                'constant offset was estimated instead',
+            )
         return eye, model, clock, None
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
     return eye, model, clock, float(fit.offset_at(model.stamp_ns))
@@ -511,37 +669,51 @@ def _clock_along(hand: Trajectory, eye: Trajectory, model: EyeModel, dt: float,
 
 def _drift_message(fit: DriftFit) -> str:
     n = int(fit.inliers.sum())
-    return (f'the time offset drifts: measured in {n} windows along the recording it changes '
-            f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
-            f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
-            'result holds one mean offset, so the ends are off by about '
-            f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
-            'parameter clock_drift)')
+    return (
+        f'the time offset drifts: measured in {n} windows along the recording it changes '
+        f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
+        f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
+        'result holds one mean offset, so the ends are off by about '
+        f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
+        'parameter clock_drift)'
+    )
 
 
 def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:
     """A window fit measured on an eye the model was applied to, on the eye's own clock:
     the model's drift added back to the offsets and the rate."""
+
     def back(t_ns: np.ndarray | int) -> np.ndarray:
         return model.drift * (np.asarray(t_ns) - np.int64(model.stamp_ns)) * 1e-9
+
     out = fit.shifted(model.shift_ns)
-    return replace(out, offsets_s=out.offsets_s + back(fit.centres_ns),
-                   offset_s=out.offset_s + float(back(fit.stamp_ns)),
-                   drift=fit.drift + model.drift * (1.0 - fit.drift))
+    return replace(
+        out,
+        offsets_s=out.offsets_s + back(fit.centres_ns),
+        offset_s=out.offset_s + float(back(fit.stamp_ns)),
+        drift=fit.drift + model.drift * (1.0 - fit.drift),
+    )
 
 
-def _scale_from_rotations(hand: Trajectory, eye: Trajectory, model: EyeModel,
-                          cfg: CalibrationConfig) -> tuple[Trajectory, EyeModel]:
+def _scale_from_rotations(
+    hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
+) -> tuple[Trajectory, EyeModel]:
     """With estimate_scale, before stage 2: a first scale (:func:`.scale.scale_prior`) from the
     rotation of T_HE that the rotations alone give (RANSAC with no translation threshold), so
     that stage 2's thresholds in metres mean metres."""
     pairs = associate(hand, eye, 0.0)
     m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
     rot = calibrate_linear(
-        m, robust_kernel=False, ransac_iterations=cfg.ransac_iterations,
-        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation), inlier_translation_m=np.inf,
-        min_motions=cfg.min_motions, adaptive_inliers=False, decoupled_refit=True,
-        rng=np.random.default_rng(cfg.seed))
+        m,
+        robust_kernel=False,
+        ransac_iterations=cfg.ransac_iterations,
+        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
+        inlier_translation_m=np.inf,
+        min_motions=cfg.min_motions,
+        adaptive_inliers=False,
+        decoupled_refit=True,
+        rng=np.random.default_rng(cfg.seed),
+    )
     if rot.unobservable:
         return eye, model
     k = rot.inliers
@@ -551,36 +723,41 @@ def _scale_from_rotations(hand: Trajectory, eye: Trajectory, model: EyeModel,
     return model.add_scale(eye, fit.scale, fit.scale_std)
 
 
-def _fold_linear_scale(eye: Trajectory, model: EyeModel, lin: LinearSolution,
-                       run: _Run) -> tuple[Trajectory, EyeModel]:
+def _fold_linear_scale(
+    eye: Trajectory, model: EyeModel, lin: LinearSolution, run: _Run
+) -> tuple[Trajectory, EyeModel]:
     """Stage 2's scale (on top of the first one) into the eye, whose translations its T_HE
     assumes."""
     if not model.scale_observable or not observable(lin.scale, lin.scale_std):
         std = lin.scale_std * model.scale if np.isfinite(lin.scale_std) else np.inf
         return eye, replace(model, scale_std=max(std, model.scale_std))
     if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
-        run.notes.append(f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
-                         f'the translation refit\'s {lin.scale:.4f} (relative to the first '
-                         'estimate)')
+        run.notes.append(
+            f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
+            f"the translation refit's {lin.scale:.4f} (relative to the first "
+            'estimate)'
+        )
     return model.add_scale(eye, lin.scale, model.scale * lin.scale_std)
 
 
-def _fold_batch(eye: Trajectory, model: EyeModel,
-                batch: BatchSolution) -> tuple[Trajectory, EyeModel]:
+def _fold_batch(
+    eye: Trajectory, model: EyeModel, batch: BatchSolution
+) -> tuple[Trajectory, EyeModel]:
     """The batch stage's drift and scale corrections into the eye and the model."""
     k = 7
     if batch.clock_drift is not None:
-        eye, model = model.add_drift(eye, batch.clock_drift,
-                                     float(batch.std[k]) * (1.0 - model.drift))
+        eye, model = model.add_drift(
+            eye, batch.clock_drift, float(batch.std[k]) * (1.0 - model.drift)
+        )
         k += 1
     if batch.scale is not None:
-        eye, model = model.add_scale(eye, batch.scale,
-                                     float(batch.std[k]) * model.scale * batch.scale)
+        eye, model = model.add_scale(
+            eye, batch.scale, float(batch.std[k]) * model.scale * batch.scale
+        )
     return eye, model
 
 
-def _scale_check(pairs: PosePairs, lin: LinearSolution,
-                 cfg: CalibrationConfig) -> ScaleFit | None:
+def _scale_check(pairs: PosePairs, lin: LinearSolution, cfg: CalibrationConfig) -> ScaleFit | None:
     """Without estimate_scale: the translation part of AX = XB fitted with and without a scale
     (all motions, Huber loss), to name an eye whose translations a scale explains."""
     if lin.unobservable:
@@ -589,57 +766,83 @@ def _scale_check(pairs: PosePairs, lin: LinearSolution,
     if len(m) < cfg.min_motions:
         return None
     every = np.ones(len(m), bool)
-    return translation_and_scale(m.A[0], m.A[1], m.B[1], matrix_from_quat(lin.q_HE),
-                                 drift_weights(m, every), robust=True)
+    return translation_and_scale(
+        m.A[0], m.A[1], m.B[1], matrix_from_quat(lin.q_HE), drift_weights(m, every), robust=True
+    )
 
 
 def _scale_message(fit: ScaleFit) -> str:
-    return (f'the eye\'s translations look scaled: s = {fit.scale:.4g} +- '
-            f'{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand\'s '
-            f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
-            f'{fit.rms_without * 1e3:.0f} mm without): a monocular VO, or positions in other '
-            'units. Estimate it with --scale (node parameter estimate_scale)')
+    return (
+        f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
+        f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
+        f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
+        f'{fit.rms_without * 1e3:.0f} mm without): a monocular VO, or positions in other '
+        'units. Estimate it with --scale (node parameter estimate_scale)'
+    )
 
 
-def _assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig,
-                  run: _Run) -> None:
+def _assess_model(
+    model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig, run: _Run
+) -> None:
     """Reasons about the clock drift and the scale, when they were estimated."""
     if cfg.estimate_scale:
         std = model.scale_std
         if not model.scale_observable:
             sd = f' +- {std:.2g}' if np.isfinite(std) else ''
-            run.doubt('unobservable', f'the eye\'s scale cannot be observed (s = '
-                      f'{model.scale:.4g}{sd}): the hand translates too little for its '
-                      'translations to be told from a lever arm, so the translation of T_HE '
-                      'is as uncertain. Move the rig through space, not only about itself')
+            run.doubt(
+                'unobservable',
+                f"the eye's scale cannot be observed (s = "
+                f'{model.scale:.4g}{sd}): the hand translates too little for its '
+                'translations to be told from a lever arm, so the translation of T_HE '
+                'is as uncertain. Move the rig through space, not only about itself',
+            )
     if cfg.clock_drift and model.drift_estimated and clock is not None:
         half = 0.5 * clock.span_s * model.drift_std
         if half > cfg.precision_time_offset:
-            run.doubt('imprecise', f'the clock drift is {model.drift * 1e6:+.1f} +- '
-                      f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
-                      f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
-                      f'(required {cfg.precision_time_offset * 1e3:.3g} ms)')
+            run.doubt(
+                'imprecise',
+                f'the clock drift is {model.drift * 1e6:+.1f} +- '
+                f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
+                f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
+                f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+            )
 
 
 # ----------------------------------------------------------------------------- stage 3
 
-def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
-               p_HE: np.ndarray, cfg: CalibrationConfig,
-               model: EyeModel | None = None) -> tuple[BatchSolution | None, str]:
+
+def _run_batch(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    q_HE: np.ndarray,
+    p_HE: np.ndarray,
+    cfg: CalibrationConfig,
+    model: EyeModel | None = None,
+) -> tuple[BatchSolution | None, str]:
     """The batch refinement, or None and why it was not used (never raises). It estimates a
     clock drift when one was estimated before it, and a scale when asked."""
     try:
-        sol = refine(hand, eye, dt, q_HE, p_HE, knot_spacing=cfg.knot_spacing,
-                     order=cfg.spline_order,
-                     hand_noise=(cfg.hand_noise_rotation, cfg.hand_noise_translation),
-                     eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
-                     huber_delta=cfg.huber_delta, max_iterations=cfg.batch_max_iterations,
-                     joint=cfg.batch_joint, fix_time_offset=cfg.time_offset is not None,
-                     decoupled=cfg.batch_decoupled,
-                     drift_stamp_ns=(model.stamp_ns if model is not None and model.drift_estimated
-                                     else None),
-                     scale=cfg.estimate_scale and model is not None and
-                     model.scale_observable)
+        sol = refine(
+            hand,
+            eye,
+            dt,
+            q_HE,
+            p_HE,
+            knot_spacing=cfg.knot_spacing,
+            order=cfg.spline_order,
+            hand_noise=(cfg.hand_noise_rotation, cfg.hand_noise_translation),
+            eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
+            huber_delta=cfg.huber_delta,
+            max_iterations=cfg.batch_max_iterations,
+            joint=cfg.batch_joint,
+            fix_time_offset=cfg.time_offset is not None,
+            decoupled=cfg.batch_decoupled,
+            drift_stamp_ns=(
+                model.stamp_ns if model is not None and model.drift_estimated else None
+            ),
+            scale=cfg.estimate_scale and model is not None and model.scale_observable,
+        )
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:
@@ -649,13 +852,19 @@ def _run_batch(hand: Trajectory, eye: Trajectory, dt: float, q_HE: np.ndarray,
     # each solve only takes steps that lower its cost; the decoupled one trades the full cost
     # for a rotation free of translation errors, so only the plain solve is held to it
     if not sol.decoupled and sol.cost_after > sol.cost_before * (1 + 1e-9):
-        return None, (f'it made the cost worse ({sol.cost_before:.6g} -> '
-                      f'{sol.cost_after:.6g})')
+        return None, (f'it made the cost worse ({sol.cost_before:.6g} -> {sol.cost_after:.6g})')
     return sol, ''
 
 
-def _check_batch(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSolution,
-                 sol: BatchSolution, cfg: CalibrationConfig, run: _Run) -> BatchSolution | None:
+def _check_batch(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    lin: LinearSolution,
+    sol: BatchSolution,
+    cfg: CalibrationConfig,
+    run: _Run,
+) -> BatchSolution | None:
     """When the batch stage moves dt or T_HE beyond its own sigmas, let the self-check decide
     between it and the linear result. Returns the batch solution, or None when rejected."""
     s = sol.std
@@ -663,13 +872,17 @@ def _check_batch(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSoluti
     moved_t = float(np.linalg.norm(sol.p_HE - lin.p_HE))
     moved_r = float(np.degrees(quat_angle(sol.q_HE, lin.q_HE)))
     far_dt = moved_dt > max(BATCH_SIGMAS * s[0], BATCH_DT_MIN_S)
-    far_x = (moved_t > max(BATCH_SIGMAS * float(np.linalg.norm(s[1:4])), BATCH_TRANSLATION_MIN_M)
-             or moved_r > max(BATCH_SIGMAS * float(np.degrees(np.linalg.norm(s[4:]))),
-                              BATCH_ROTATION_MIN_DEG))
+    far_x = moved_t > max(
+        BATCH_SIGMAS * float(np.linalg.norm(s[1:4])), BATCH_TRANSLATION_MIN_M
+    ) or moved_r > max(
+        BATCH_SIGMAS * float(np.degrees(np.linalg.norm(s[4:]))), BATCH_ROTATION_MIN_DEG
+    )
     if not (far_dt or far_x):
         return sol
-    what = (f'the batch stage moved dt by {moved_dt * 1e3:.1f} ms and T_HE by '
-            f'{moved_t * 1e3:.0f} mm / {moved_r:.2f} deg from the linear result')
+    what = (
+        f'the batch stage moved dt by {moved_dt * 1e3:.1f} ms and T_HE by '
+        f'{moved_t * 1e3:.0f} mm / {moved_r:.2f} deg from the linear result'
+    )
     # the offset: stage 2 at each offset, scored alike; the extrinsic: the batch's against
     # stage 2's at the batch's offset
     hyps = [(dt, 'linear stage', lin.q_HE, lin.p_HE)]
@@ -680,8 +893,9 @@ def _check_batch(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSoluti
         except HandeyeError as err:
             run.doubt('stages_disagree', f'{what}, and stage 2 fails at its offset ({err})')
             return None
-        hyps.append((sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE,
-                     lin_b.p_HE))
+        hyps.append(
+            (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
+        )
     hyps.append((sol.time_offset_s, 'batch stage', sol.q_HE, sol.p_HE))
     scored = score_candidates(hand, eye, hyps, np.deg2rad(cfg.eta))
     run.candidates.extend(scored)
@@ -692,11 +906,18 @@ def _check_batch(hand: Trajectory, eye: Trajectory, dt: float, lin: LinearSoluti
     offset_ok = not far_dt or score[1] <= AMBIGUOUS_SCORE_RATIO * score[0]
     extrinsic_ok = score[-1] <= BATCH_SCORE_FACTOR * score[-2]
     if offset_ok and extrinsic_ok:
-        run.notes.append(f'{what}; the self-check supports it (scores ' +
-                         ', '.join(f'{c.source} {c.score:.3g}' for c in scored) + ')')
+        run.notes.append(
+            f'{what}; the self-check supports it (scores '
+            + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
+            + ')'
+        )
         return sol
-    run.doubt('stages_disagree', f'{what}; the self-check sides with the linear result (scores '
-              + ', '.join(f'{c.source} {c.score:.3g}' for c in scored) + '), which is kept')
+    run.doubt(
+        'stages_disagree',
+        f'{what}; the self-check sides with the linear result (scores '
+        + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
+        + '), which is kept',
+    )
     return None
 
 
@@ -708,85 +929,148 @@ def _check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfi
     """
     half = cfg.max_time_offset or DEFAULT_HALF_WINDOW_S
     try:
-        est = align_time(hand, eye, max_time_offset=half, time_offset_guess=cfg.time_offset,
-                         resample_rate_hz=cfg.resample_rate_hz)
+        est = align_time(
+            hand,
+            eye,
+            max_time_offset=half,
+            time_offset_guess=cfg.time_offset,
+            resample_rate_hz=cfg.resample_rate_hz,
+        )
     except TimeAlignmentError as err:
         return [f'could not check the fixed time offset against the data: {err}']
-    if est.peak_correlation >= WEAK_CORRELATION and \
-            abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S:
-        return [(f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
-                 f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
-                 f'(correlation {est.peak_correlation:.2f}); check the fixed value')]
+    if (
+        est.peak_correlation >= WEAK_CORRELATION
+        and abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S
+    ):
+        return [
+            (
+                f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
+                f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
+                f'(correlation {est.peak_correlation:.2f}); check the fixed value'
+            )
+        ]
     return []
 
 
 # ----------------------------------------------------------------------------- verdict
 
+
 def _absolute(tv: TimeAlignment | None, shift_ns: int) -> TimeAlignment | None:
     """The vector refinement's result on the original clocks."""
     if tv is None:
         return None
-    return replace(tv, time_offset_s=shift_ns * 1e-9 + tv.time_offset_s,
-                   time_offset_ns=shift_ns + tv.time_offset_ns,
-                   window_s=(shift_ns * 1e-9 + tv.window_s[0], shift_ns * 1e-9 + tv.window_s[1]),
-                   lags_s=None if tv.lags_s is None else shift_ns * 1e-9 + tv.lags_s,
-                   candidates=tuple((shift_ns * 1e-9 + c, r) for c, r in tv.candidates))
+    return replace(
+        tv,
+        time_offset_s=shift_ns * 1e-9 + tv.time_offset_s,
+        time_offset_ns=shift_ns + tv.time_offset_ns,
+        window_s=(shift_ns * 1e-9 + tv.window_s[0], shift_ns * 1e-9 + tv.window_s[1]),
+        lags_s=None if tv.lags_s is None else shift_ns * 1e-9 + tv.lags_s,
+        candidates=tuple((shift_ns * 1e-9 + c, r) for c, r in tv.candidates),
+    )
 
 
-def _assess(ta: TimeAlignment, tv: TimeAlignment | None, lin: LinearSolution,
-            batch: BatchSolution | None, screening: tuple[Screening, Screening],
-            metrics: Metrics, cfg: CalibrationConfig, run: _Run) -> None:
+def _assess(
+    ta: TimeAlignment,
+    tv: TimeAlignment | None,
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    screening: tuple[Screening, Screening],
+    metrics: Metrics,
+    cfg: CalibrationConfig,
+    run: _Run,
+) -> None:
     """The remaining reasons of :mod:`.quality` (the others were added where they arose)."""
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
-            run.doubt('outliers_removed', f'screening removed {rep.fraction:.1%} of the '
-                      f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)')
+            run.doubt(
+                'outliers_removed',
+                f'screening removed {rep.fraction:.1%} of the '
+                f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+            )
         elif rep.n_removed:
-            run.notes.append(f'screening removed {rep.n_removed} of {rep.n_input} '
-                             f'{rep.stream} poses')
+            run.notes.append(
+                f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses'
+            )
     checked = any(c.chosen for c in run.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
-        run.doubt('ambiguous_offset', f'the correlation has a second peak at '
-                  f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
-                  'other candidate offset could be checked')
+        run.doubt(
+            'ambiguous_offset',
+            f'the correlation has a second peak at '
+            f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
+            'other candidate offset could be checked',
+        )
     peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
     if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
-        run.doubt('weak_correlation', f'the angular velocities of the two streams hardly agree '
-                  f'(correlation {max(peaks):.2f}): check that both show the same motion')
+        run.doubt(
+            'weak_correlation',
+            f'the angular velocities of the two streams hardly agree '
+            f'(correlation {max(peaks):.2f}): check that both show the same motion',
+        )
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
-        run.doubt('few_inliers', f'only {lin.n_inliers} of {lin.n_motions} motions are '
-                  f'RANSAC inliers')
+        run.doubt(
+            'few_inliers', f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
+        )
     if lin.unobservable:
-        run.doubt('unobservable', 'part of the extrinsic cannot be observed from this motion: '
-                  + '; '.join(lin.unobservable))
+        run.doubt(
+            'unobservable',
+            'part of the extrinsic cannot be observed from this motion: '
+            + '; '.join(lin.unobservable),
+        )
     elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
-        run.doubt('weak_excitation', f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
-                  'deg: the extrinsic is weakly constrained; rotate about more different axes')
+        run.doubt(
+            'weak_excitation',
+            f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
+            'deg: the extrinsic is weakly constrained; rotate about more different axes',
+        )
     if cfg.batch and batch is None and not any(r.code == 'unobservable' for r in run.reasons):
-        run.doubt('no_uncertainty', 'the batch stage did not run, so the result has no '
-                  'uncertainty (see the warnings)')
+        run.doubt(
+            'no_uncertainty',
+            'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+        )
     if batch is not None:
         s = batch.std
         sd = (s[0], float(np.linalg.norm(s[1:4])), float(np.degrees(np.linalg.norm(s[4:7]))))
         need = (cfg.precision_time_offset, cfg.precision_translation, cfg.precision_rotation)
-        over = [f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
-                for name, v, n, k, unit in zip(('time offset', 'translation', 'rotation'), sd,
-                                               need, (1e3, 1e3, 1.0), ('ms', 'mm', 'deg'),
-                                               strict=True) if v > n]
+        over = [
+            f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
+            for name, v, n, k, unit in zip(
+                ('time offset', 'translation', 'rotation'),
+                sd,
+                need,
+                (1e3, 1e3, 1.0),
+                ('ms', 'mm', 'deg'),
+                strict=True,
+            )
+            if v > n
+        ]
         if over:
-            run.doubt('imprecise', 'the 1-sigma uncertainty exceeds the required precision: '
-                      + ', '.join(over) + '. More varied rotation (faster, about all axes) or '
-                      'a longer recording narrows it; the precision_* options set what is '
-                      'required')
+            run.doubt(
+                'imprecise',
+                'the 1-sigma uncertainty exceeds the required precision: '
+                + ', '.join(over)
+                + '. More varied rotation (faster, about all axes) or '
+                'a longer recording narrows it; the precision_* options set what is '
+                'required',
+            )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
-        run.doubt('residuals_not_white', f'the residuals are strongly correlated in time (the '
-                  f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
-                  'something the model lacks (clock drift, a scale error) shapes them')
+        run.doubt(
+            'residuals_not_white',
+            f'the residuals are strongly correlated in time (the '
+            f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
+            'something the model lacks (clock drift, a scale error) shapes them',
+        )
     m = metrics
-    if m.n_motions and (m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG or (
-            m.motion_translation_m > FAILED_MOTION_TRANSLATION_M and
-            m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m)):
-        run.fail('inconsistent', f'AX = XB does not hold at the result: over {m.n_motions} '
-                 f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
-                 f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '
-                 f'{m.motion_length_m * 1e3:.0f} mm long)')
+    if m.n_motions and (
+        m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG
+        or (
+            m.motion_translation_m > FAILED_MOTION_TRANSLATION_M
+            and m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m
+        )
+    ):
+        run.fail(
+            'inconsistent',
+            f'AX = XB does not hold at the result: over {m.n_motions} '
+            f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
+            f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '
+            f'{m.motion_length_m * 1e3:.0f} mm long)',
+        )

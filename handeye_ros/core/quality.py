@@ -114,7 +114,11 @@ class Quality:
         return tuple(r.code for r in self.reasons)
 
     def to_dict(self) -> dict:
-        return {'verdict': self.verdict,
-                'reasons': [{'code': r.code, 'severity': r.severity, 'message': r.message}
-                            for r in self.reasons],
-                'notes': list(self.notes)}
+        return {
+            'verdict': self.verdict,
+            'reasons': [
+                {'code': r.code, 'severity': r.severity, 'message': r.message}
+                for r in self.reasons
+            ],
+            'notes': list(self.notes),
+        }

@@ -46,10 +46,12 @@ from .trajectory import Trajectory
 from .world import Metrics, WorldAlignment
 
 SCHEMA_VERSION = 3
-CONVENTION = ('T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
-              '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
-              'estimated); with a scale s, s * eye positions are metric (T_WG then maps the '
-              'hand into that scaled eye world); quaternions Hamilton, x y z w')
+CONVENTION = (
+    'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
+    '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
+    'estimated); with a scale s, s * eye positions are metric (T_WG then maps the '
+    'hand into that scaled eye world); quaternions Hamilton, x y z w'
+)
 
 
 @dataclass(frozen=True)
@@ -117,8 +119,9 @@ class CalibrationResult:
         """dt(t) [s] at eye stamps [ns, eye clock]: the time offset with the drift, if any."""
         if self.clock_drift is None or self.eye_model is None:
             return np.full(np.shape(t_eye_ns), self.time_offset_s)
-        return linear_clock(self.time_offset_s, self.clock_drift,
-                            self.eye_model.time_offset_stamp_ns, t_eye_ns)
+        return linear_clock(
+            self.time_offset_s, self.clock_drift, self.eye_model.time_offset_stamp_ns, t_eye_ns
+        )
 
     def summary(self) -> str:
         """One line: verdict, offset, translation, rotation, inliers, quality."""
@@ -128,39 +131,55 @@ class CalibrationResult:
         std = ''
         if self.batch is not None:
             s = self.batch.std
-            std = (f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
-                   f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)')
+            std = (
+                f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
+                f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)'
+            )
         why = (' (' + ', '.join(self.quality.codes) + ')') if self.quality.reasons else ''
         extra = ''
         if self.clock_drift is not None:
             extra += f'; clock drift {self.clock_drift * 1e6:+.2f} ppm'
         if self.scale is not None:
             extra += f'; scale {self.scale:.4f}'
-        return (f'{self.quality.verdict}{why}: '
-                f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
-                f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
-                f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
-                f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
-                f'ARE {self.metrics.are_rmse_deg:.2f} deg'
-                + std + extra + (f'; {len(self.warnings)} warning(s)' if self.warnings else ''))
+        return (
+            f'{self.quality.verdict}{why}: '
+            f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
+            f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
+            f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
+            f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
+            f'ARE {self.metrics.are_rmse_deg:.2f} deg'
+            + std
+            + extra
+            + (f'; {len(self.warnings)} warning(s)' if self.warnings else '')
+        )
 
     def _batch_dict(self) -> dict[str, Any]:
         b, c = self.batch, self.config
         out: dict[str, Any] = {'enabled': c.batch, 'used': b is not None}
         if b is None:
             return out
-        out.update({
-            'knot_spacing': c.knot_spacing, 'spline_order': c.spline_order,
-            'joint': c.batch_joint, 'decoupled': c.batch_decoupled,
-            'control_points': b.n_control_points,
-            'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},
-            'noise': {'hand': _noise_dict(b.hand_noise), 'eye': _noise_dict(b.eye_noise)},
-            'iterations': b.iterations, 'evaluations': b.evaluations,
-            'cost_before': b.cost_before, 'cost_after': b.cost_after,
-            'reduced_chi2': b.reduced_chi2, 'termination': b.termination,
-            'converged': b.success, 'seconds': b.seconds,
-            'time_offset_change': float(self.time_offset_s - self.time_alignment.time_offset_s),
-        })
+        out.update(
+            {
+                'knot_spacing': c.knot_spacing,
+                'spline_order': c.spline_order,
+                'joint': c.batch_joint,
+                'decoupled': c.batch_decoupled,
+                'control_points': b.n_control_points,
+                'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},
+                'noise': {'hand': _noise_dict(b.hand_noise), 'eye': _noise_dict(b.eye_noise)},
+                'iterations': b.iterations,
+                'evaluations': b.evaluations,
+                'cost_before': b.cost_before,
+                'cost_after': b.cost_after,
+                'reduced_chi2': b.reduced_chi2,
+                'termination': b.termination,
+                'converged': b.success,
+                'seconds': b.seconds,
+                'time_offset_change': float(
+                    self.time_offset_s - self.time_alignment.time_offset_s
+                ),
+            }
+        )
         return out
 
     def _clock_dict(self) -> dict[str, Any] | None:
@@ -170,28 +189,43 @@ class CalibrationResult:
         if c is None:
             return None
         return {
-            'windows': [{'stamp_ns': int(t), 'time_offset': _num(o), 'correlation': _num(r),
-                         'used': bool(u)} for t, o, r, u in zip(
-                             c.centres_ns, c.offsets_s, c.correlation, c.inliers, strict=True)],
-            'measured_drift': _num(c.drift), 'measured_drift_std': _num(c.drift_std),
+            'windows': [
+                {
+                    'stamp_ns': int(t),
+                    'time_offset': _num(o),
+                    'correlation': _num(r),
+                    'used': bool(u),
+                }
+                for t, o, r, u in zip(
+                    c.centres_ns, c.offsets_s, c.correlation, c.inliers, strict=True
+                )
+            ],
+            'measured_drift': _num(c.drift),
+            'measured_drift_std': _num(c.drift_std),
             'change_over_recording': _num(c.change_s) if c.estimated else None,
             'drift_significant': bool(c.significant),
             'not_estimated_because': c.why or None,
-            'units': {'time_offset': 's', 'measured_drift': 's/s',
-                      'change_over_recording': 's'},
+            'units': {'time_offset': 's', 'measured_drift': 's/s', 'change_over_recording': 's'},
         }
 
     def _screening_dict(self) -> dict[str, Any] | None:
         if self.screening is None:
             return None
-        return {s.stream: {
-            'poses_in': s.n_input, 'removed': s.counts, 'fraction': s.fraction,
-            'removed_stamps_ns': [int(t) for t in s.removed_ns],
-            'removed_kinds': list(s.removed_kind),
-            'breaks_ns': [int(t) for t in s.breaks_ns],
-            'thresholds': {'translation_m': _num(s.threshold_translation_m),
-                           'rotation_deg': _num(np.degrees(s.threshold_rotation_rad))},
-        } for s in self.screening}
+        return {
+            s.stream: {
+                'poses_in': s.n_input,
+                'removed': s.counts,
+                'fraction': s.fraction,
+                'removed_stamps_ns': [int(t) for t in s.removed_ns],
+                'removed_kinds': list(s.removed_kind),
+                'breaks_ns': [int(t) for t in s.breaks_ns],
+                'thresholds': {
+                    'translation_m': _num(s.threshold_translation_m),
+                    'rotation_deg': _num(np.degrees(s.threshold_rotation_rad)),
+                },
+            }
+            for s in self.screening
+        }
 
     def _std_dict(self) -> dict[str, Any] | None:
         b = self.batch
@@ -202,19 +236,27 @@ class CalibrationResult:
             'time_offset': float(b.std[0]),
             'translation': [float(v) for v in b.std[1:4]],
             'rotation': [float(v) for v in b.std[4:7]],
-            'clock_drift': (_num(m.drift_std) if m is not None and m.drift_estimated
-                            else None),
+            'clock_drift': (_num(m.drift_std) if m is not None and m.drift_estimated else None),
             'scale': _num(m.scale_std) if m is not None and m.scale_estimated else None,
-            'units': {'time_offset': 's', 'translation': 'm',
-                      'rotation': 'rad, tangent of T_HE on the right (eye frame)',
-                      'clock_drift': 's/s', 'scale': '1'},
+            'units': {
+                'time_offset': 's',
+                'translation': 'm',
+                'rotation': 'rad, tangent of T_HE on the right (eye frame)',
+                'clock_drift': 's/s',
+                'scale': '1',
+            },
             'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
-                      'poses) over the eye residuals',
+            'poses) over the eye residuals',
             'white_inflation': [float(v) for v in b.inflation],
         }
 
-    def to_dict(self, hand_frame: str = 'hand', eye_frame: str = 'eye',
-                hand_world: str = 'hand_world', eye_world: str = 'eye_world') -> dict[str, Any]:
+    def to_dict(
+        self,
+        hand_frame: str = 'hand',
+        eye_frame: str = 'eye',
+        hand_world: str = 'hand_world',
+        eye_world: str = 'eye_world',
+    ) -> dict[str, Any]:
         """Plain Python data (floats, lists, strings) for YAML/JSON.
 
         The frame names label the transforms' parent and child (H, E, G and W).
@@ -229,71 +271,102 @@ class CalibrationResult:
             'quality': self.quality.to_dict(),
             'time_offset': float(self.time_offset_s),
             'time_offset_ns': int(self.time_offset_ns),
-            'time_offset_stamp': (None if self.clock_drift is None
-                                  else self.eye_model.time_offset_stamp_ns * 1e-9),
-            'time_offset_stamp_ns': (None if self.clock_drift is None
-                                     else self.eye_model.time_offset_stamp_ns),
+            'time_offset_stamp': (
+                None if self.clock_drift is None else self.eye_model.time_offset_stamp_ns * 1e-9
+            ),
+            'time_offset_stamp_ns': (
+                None if self.clock_drift is None else self.eye_model.time_offset_stamp_ns
+            ),
             'clock_drift': self.clock_drift,
             'scale': self.scale,
             'clock': self._clock_dict(),
             'extrinsic': transform_dict(R_HE, self.p_HE, hand_frame, eye_frame),
             'extrinsic_inverse': transform_dict(R_EH, p_EH, eye_frame, hand_frame),
-            'world_alignment': {**transform_dict(self.world.R_WG, self.world.p_WG,
-                                                 eye_world, hand_world),
-                                'method': self.world.method,
-                                'segments': self.world.segments},
+            'world_alignment': {
+                **transform_dict(self.world.R_WG, self.world.p_WG, eye_world, hand_world),
+                'method': self.world.method,
+                'segments': self.world.segments,
+            },
             'time_alignment': {
                 'method': ta.method,
                 'peak_correlation': _num(ta.peak_correlation),
                 'second_peak_ratio': _num(ta.second_peak_ratio),
                 'step': _num(ta.step_s),
                 'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
-                'candidates': [{'time_offset': float(c), 'correlation': float(r)}
-                               for c, r in ta.candidates],
-                'vector': None if vec is None else {
+                'candidates': [
+                    {'time_offset': float(c), 'correlation': float(r)} for c, r in ta.candidates
+                ],
+                'vector': None
+                if vec is None
+                else {
                     'time_offset': float(vec.time_offset_s),
                     'peak_correlation': _num(vec.peak_correlation),
-                    'window': [_num(vec.window_s[0]), _num(vec.window_s[1])]},
+                    'window': [_num(vec.window_s[0]), _num(vec.window_s[1])],
+                },
             },
             'screening': self._screening_dict(),
-            'conventions': [{'stream': c.stream, 'what': c.what, 'assumed': c.assumed,
-                             'option': c.option, 'message': c.message}
-                            for c in self.corrections],
-            'self_check': [{'time_offset': float(c.time_offset_s), 'source': c.source,
-                            'score': _num(c.score),
-                            'rotation_residual_deg': _num(c.rotation_residual_deg),
-                            'translation_residual_m': _num(c.translation_residual_m),
-                            'chosen': c.chosen} for c in self.candidates],
+            'conventions': [
+                {
+                    'stream': c.stream,
+                    'what': c.what,
+                    'assumed': c.assumed,
+                    'option': c.option,
+                    'message': c.message,
+                }
+                for c in self.corrections
+            ],
+            'self_check': [
+                {
+                    'time_offset': float(c.time_offset_s),
+                    'source': c.source,
+                    'score': _num(c.score),
+                    'rotation_residual_deg': _num(c.rotation_residual_deg),
+                    'translation_residual_m': _num(c.translation_residual_m),
+                    'chosen': c.chosen,
+                }
+                for c in self.candidates
+            ],
             'association': {'pairs': int(self.n_pairs)},
             'linear': {
                 'relative_poses': self.config.relative_poses,
                 'motions': int(lin.n_motions),
                 'inliers': int(lin.n_inliers),
-                'inlier_thresholds': {'rotation_deg': lin.inlier_rotation_deg,
-                                      'translation_m': lin.inlier_translation_m},
-                'extrinsic': {'translation': [float(v) for v in lin.p_HE],
-                              'rotation': [float(v) for v in positive_w(lin.q_HE)]},
+                'inlier_thresholds': {
+                    'rotation_deg': lin.inlier_rotation_deg,
+                    'translation_m': lin.inlier_translation_m,
+                },
+                'extrinsic': {
+                    'translation': [float(v) for v in lin.p_HE],
+                    'rotation': [float(v) for v in positive_w(lin.q_HE)],
+                },
                 'decoupled_refit': self.config.decoupled_refit,
                 'dual_quaternion_solution': {
                     'translation': [float(v) for v in lin.p_HE_dq],
-                    'rotation': [float(v) for v in positive_w(lin.q_HE_dq)]},
+                    'rotation': [float(v) for v in positive_w(lin.q_HE_dq)],
+                },
                 'sigma_ratio': _num(lin.sigma_ratio),
                 'singular_values': [float(v) for v in lin.singular_values],
                 'axis_spread_deg': _num(lin.axis_spread_deg),
                 'rotation_residual_deg': _num(lin.rotation_residual_deg),
                 'translation_residual_m': _num(lin.translation_residual_m),
                 'unobservable': list(lin.unobservable),
-                'seed_check': None if self.seed_check is None else {
+                'seed_check': None
+                if self.seed_check is None
+                else {
                     'seed': self.config.seed + 1,
                     'translation': [float(v) for v in self.seed_check.p_HE],
-                    'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)]},
+                    'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)],
+                },
             },
             'std': self._std_dict(),
-            'covariance': None if self.batch is None else {
+            'covariance': None
+            if self.batch is None
+            else {
                 'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz']
                 + ['clock_drift'] * (self.batch.clock_drift is not None)
                 + ['scale'] * (self.batch.scale is not None),
-                'matrix': [[float(v) for v in row] for row in self.batch.covariance]},
+                'matrix': [[float(v) for v in row] for row in self.batch.covariance],
+            },
             'batch': self._batch_dict(),
             'metrics': {
                 'ape_rmse': m.ape_rmse_m,
@@ -305,35 +378,53 @@ class CalibrationResult:
                 'motion_translation_median': _num(m.motion_translation_m),
                 'motion_length_median': _num(m.motion_length_m),
                 'motions': m.n_motions,
-                'units': {'ape': 'm', 'are': 'deg', 'motion_rotation': 'deg',
-                          'motion_translation': 'm', 'motion_length': 'm'},
+                'units': {
+                    'ape': 'm',
+                    'are': 'deg',
+                    'motion_rotation': 'deg',
+                    'motion_translation': 'm',
+                    'motion_length': 'm',
+                },
             },
-            'inputs': {name: _trajectory_info(traj)
-                       for name, traj in (('hand', self.hand), ('eye', self.eye))},
+            'inputs': {
+                name: _trajectory_info(traj)
+                for name, traj in (('hand', self.hand), ('eye', self.eye))
+            },
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
         }
 
 
 def _noise_dict(n: Any) -> dict[str, Any]:
-    return {'rotation_rad': float(n.rotation), 'translation_m': float(n.translation),
-            'estimated': bool(n.estimated)}
+    return {
+        'rotation_rad': float(n.rotation),
+        'translation_m': float(n.translation),
+        'estimated': bool(n.estimated),
+    }
 
 
 def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dict[str, Any]:
     """``{parent, child, translation, rotation (x y z w), matrix}`` of T_parent_child."""
     M = np.eye(4)
     M[:3, :3], M[:3, 3] = R, p
-    return {'parent': parent, 'child': child,
-            'translation': [float(v) for v in p],
-            'rotation': [float(v) for v in quat_from_matrix(R)],
-            'matrix': [[float(v) for v in row] for row in M]}
+    return {
+        'parent': parent,
+        'child': child,
+        'translation': [float(v) for v in p],
+        'rotation': [float(v) for v in quat_from_matrix(R)],
+        'matrix': [[float(v) for v in row] for row in M],
+    }
 
 
 def _trajectory_info(traj: Trajectory) -> dict[str, Any]:
-    return {'source': traj.name, 'poses': len(traj), 'rate_hz': traj.rate_hz,
-            'duration_s': traj.duration_s, 'first_stamp_ns': int(traj.t_ns[0]),
-            'last_stamp_ns': int(traj.t_ns[-1])}
+    return {
+        'source': traj.name,
+        'poses': len(traj),
+        'rate_hz': traj.rate_hz,
+        'duration_s': traj.duration_s,
+        'first_stamp_ns': int(traj.t_ns[0]),
+        'last_stamp_ns': int(traj.t_ns[-1]),
+    }
 
 
 def _num(x: float) -> float | None:

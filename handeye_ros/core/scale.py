@@ -55,13 +55,17 @@ class ScaleFit:
     @property
     def significant(self) -> bool:
         """Whether a default run (s = 1) should name this scale (see SCALE_NOTICE)."""
-        return (self.observable and abs(self.scale - 1.0) > SCALE_NOTICE
-                and abs(self.scale - 1.0) > SCALE_SIGMAS * self.scale_std
-                and self.rms_with < (1.0 - SCALE_RESIDUAL_DROP) * self.rms_without)
+        return (
+            self.observable
+            and abs(self.scale - 1.0) > SCALE_NOTICE
+            and abs(self.scale - 1.0) > SCALE_SIGMAS * self.scale_std
+            and self.rms_with < (1.0 - SCALE_RESIDUAL_DROP) * self.rms_without
+        )
 
 
-def _system(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
-            w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _system(
+    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Rows of ``(R_A - I) v + u t_A = R_X t_B`` over (v, u) = (t_X / s, 1 / s), three per
     motion, weighted: eq. 2's translation part divided by s, so that the noisy eye is on the
     right and the exact MoCap on the left (with s on the left, a motion's eye noise would sit in
@@ -71,8 +75,14 @@ def _system(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
     return (lhs * w[:, None, None]).reshape(-1, 4), ((t_B @ R_X.T) * w[:, None]).reshape(-1)
 
 
-def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray,
-                          w: np.ndarray | None = None, robust: bool = False) -> ScaleFit:
+def translation_and_scale(
+    R_A: np.ndarray,
+    t_A: np.ndarray,
+    t_B: np.ndarray,
+    R_X: np.ndarray,
+    w: np.ndarray | None = None,
+    robust: bool = False,
+) -> ScaleFit:
     """(t_X, s) by least squares from motions (n,) given R_X, each motion's rows weighted by w
     (see :func:`_system` for the form solved).
 
@@ -90,8 +100,9 @@ def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X
         f_scale = max(HUBER_SIGMAS * 1.4826 * float(np.median(np.abs(r0))), 1e-12)
         from scipy.optimize import least_squares  # here: its import is 0.5 s of every run
 
-        z = least_squares(lambda v: lhs @ v - rhs, z, loss='huber', f_scale=f_scale,
-                          jac=lambda v: lhs).x
+        z = least_squares(
+            lambda v: lhs @ v - rhs, z, loss='huber', f_scale=f_scale, jac=lambda v: lhs
+        ).x
     r = lhs @ z - rhs
     s2 = float(r @ r) / max(rhs.size - 4, 1)
     V, c = lhs[:, :3], lhs[:, 3]
@@ -112,8 +123,12 @@ def translation_and_scale(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X
 def observable(scale: float, std: float) -> bool:
     """Whether a scale estimate says anything: positive, finite, and with a relative standard
     deviation within MAX_SCALE_STD_FRACTION."""
-    return bool(np.isfinite(scale) and scale > 0.0 and np.isfinite(std)
-                and std <= MAX_SCALE_STD_FRACTION * scale)
+    return bool(
+        np.isfinite(scale)
+        and scale > 0.0
+        and np.isfinite(std)
+        and std <= MAX_SCALE_STD_FRACTION * scale
+    )
 
 
 def _rms(r: np.ndarray, w: np.ndarray) -> float:
@@ -122,8 +137,9 @@ def _rms(r: np.ndarray, w: np.ndarray) -> float:
     return float(np.median(norms))
 
 
-def dual_quaternion_scale(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray,
-                          q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
+def dual_quaternion_scale(
+    qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray, q: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, float]:
     """The dual part q' and the scale s of eq. 4 with the rotation q (x y z w) fixed.
 
     The eye's dual part scales with its translation, so the lower rows of each 6x8 block read
@@ -144,8 +160,9 @@ def dual_quaternion_scale(qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: 
     return p, float(z[3])
 
 
-def scale_prior(R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, q_HE: np.ndarray,
-                w: np.ndarray) -> ScaleFit:
+def scale_prior(
+    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, q_HE: np.ndarray, w: np.ndarray
+) -> ScaleFit:
     """A first scale for an eye of unknown scale, from motions and a rotation of T_HE found
     from rotations alone (robust: a scale is needed before stage 2's thresholds in metres
     mean anything)."""

@@ -113,16 +113,23 @@ class Screening:
         """Removed poses over input poses."""
         return self.n_removed / max(self.n_input, 1)
 
-    def merged(self, removed_ns: np.ndarray, kind: str,
-               breaks_ns: np.ndarray | None = None) -> Screening:
+    def merged(
+        self, removed_ns: np.ndarray, kind: str, breaks_ns: np.ndarray | None = None
+    ) -> Screening:
         """This report with more removed poses (all of one kind) and breaks."""
         ns = np.concatenate((self.removed_ns, np.asarray(removed_ns, dtype=np.int64)))
         kinds = self.removed_kind + (kind,) * int(np.size(removed_ns))
         order = np.argsort(ns, kind='stable')
         br = self.breaks_ns if breaks_ns is None else np.union1d(self.breaks_ns, breaks_ns)
-        return Screening(self.stream, self.n_input, ns[order],
-                         tuple(kinds[i] for i in order), self.threshold_translation_m,
-                         self.threshold_rotation_rad, br.astype(np.int64))
+        return Screening(
+            self.stream,
+            self.n_input,
+            ns[order],
+            tuple(kinds[i] for i in order),
+            self.threshold_translation_m,
+            self.threshold_rotation_rad,
+            br.astype(np.int64),
+        )
 
 
 def resolution(values: np.ndarray) -> float:
@@ -131,35 +138,46 @@ def resolution(values: np.ndarray) -> float:
     v = np.asarray(values, dtype=float).ravel()
     v = v[np.isfinite(v)][:20_000]
     for k in range(10):
-        scaled = v * 10.0 ** k
+        scaled = v * 10.0**k
         if np.all(np.abs(scaled - np.rint(scaled)) < 1e-3):
-            return 10.0 ** -k
+            return 10.0**-k
     return 0.0
 
 
-def _predict(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray,
-             k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _predict(
+    t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Residuals (m, rad) of poses k against the line through poses a and b at t_k
     (interpolation when a < k < b, extrapolation otherwise; q: x y z w quaternions)."""
     return chunked(lambda s: _predict_rows(t, p, q, a[s], b[s], k[s]), k.size)
 
 
-def _predict_rows(t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray,
-                  k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _predict_rows(
+    t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
 
 
-def _predict_poses(ta: np.ndarray, tb: np.ndarray, tk: np.ndarray, pa: np.ndarray,
-                   pb: np.ndarray, pk: np.ndarray, qa: np.ndarray, qb: np.ndarray,
-                   qk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _predict_poses(
+    ta: np.ndarray,
+    tb: np.ndarray,
+    tk: np.ndarray,
+    pa: np.ndarray,
+    pb: np.ndarray,
+    pk: np.ndarray,
+    qa: np.ndarray,
+    qb: np.ndarray,
+    qk: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_predict` on the poses themselves (stamps s, positions m, x y z w quaternions)."""
     f = (tk - ta) / np.where(tb != ta, tb - ta, 1.0)
     p_pred = pa + f[:, None] * (pb - pa)
     return np.linalg.norm(pk - p_pred, axis=1), quat_angle(quat_slerp(qa, qb, f), qk)
 
 
-def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,
-                            d: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def interpolation_residuals(
+    t: np.ndarray, p: np.ndarray, q: np.ndarray, d: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """(N,) position (m) and rotation (rad) residual of each pose against the interpolation of
     the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
     side that exists)."""
@@ -171,18 +189,22 @@ def interpolation_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray,
     e_p, e_r = np.empty(n), np.empty(n)
 
     def inner(s: slice) -> tuple[np.ndarray, np.ndarray]:
-        a, k, b = slice(s.start, s.stop), slice(s.start + d, s.stop + d), \
-            slice(s.start + 2 * d, s.stop + 2 * d)
+        a, k, b = (
+            slice(s.start, s.stop),
+            slice(s.start + d, s.stop + d),
+            slice(s.start + 2 * d, s.stop + 2 * d),
+        )
         return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
 
-    e_p[d:n - d], e_r[d:n - d] = chunked(inner, n - 2 * d)
+    e_p[d : n - d], e_r[d : n - d] = chunked(inner, n - 2 * d)
     ends = np.concatenate((np.arange(d), np.arange(n - d, n)))
     e_p[ends], e_r[ends] = _end_residuals(t, p, q, ends, d)
     return e_p, e_r
 
 
-def _end_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray,
-                   d: int) -> tuple[np.ndarray, np.ndarray]:
+def _end_residuals(
+    t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, d: int
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`interpolation_residuals` of the poses k, each against its neighbours d away, or
     near an end the extrapolation of the two on the side that exists."""
     n = t.size
@@ -194,8 +216,9 @@ def _end_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray,
     return _predict(t, p, q, a, b, k)
 
 
-def side_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, side: int,
-                   d: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def side_residuals(
+    t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, side: int, d: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Residuals of poses k against the extrapolation from the poses d and 2d before (side -1)
     or after (side +1) them, and whether that side exists."""
     n = t.size
@@ -207,8 +230,9 @@ def side_residuals(t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, s
     return e_p, e_r, ok
 
 
-def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
-                      floor: float) -> np.ndarray:
+def hampel_thresholds(
+    res: np.ndarray, scale_window: int, n_sigma: float, floor: float
+) -> np.ndarray:
     """Per-pose threshold ``max(m + n_sigma * 1.4826 * s, floor)`` from the running median m
     and median absolute deviation s of the residuals."""
     # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
@@ -218,8 +242,14 @@ def hampel_thresholds(res: np.ndarray, scale_window: int, n_sigma: float,
     return np.maximum(m + n_sigma * 1.4826 * s, floor)
 
 
-def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
-              floors: tuple[float, float], d: int) -> tuple[np.ndarray, float, float]:
+def _outliers(
+    t: np.ndarray,
+    p: np.ndarray,
+    q: np.ndarray,
+    n_sigma: float,
+    floors: tuple[float, float],
+    d: int,
+) -> tuple[np.ndarray, float, float]:
     """(N,) bool outliers of one round at scale d, and the median thresholds (m, rad)."""
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
     scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
@@ -232,8 +262,7 @@ def _outliers(t: np.ndarray, p: np.ndarray, q: np.ndarray, n_sigma: float,
         inconsistent = np.ones(cand.size, dtype=bool)
         for side in (-1, 1):
             sp, sr, ok = side_residuals(t, p, q, cand, side, d)
-            off = (sp > EXTRAPOLATION_FACTOR * tp[cand]) | \
-                (sr > EXTRAPOLATION_FACTOR * tr[cand])
+            off = (sp > EXTRAPOLATION_FACTOR * tp[cand]) | (sr > EXTRAPOLATION_FACTOR * tr[cand])
             inconsistent &= off | ~ok
         bad[cand[inconsistent]] = True
     return bad, float(np.median(tp)), float(np.median(tr))
@@ -249,11 +278,12 @@ def placeholders(traj: Trajectory, floors: tuple[float, float]) -> np.ndarray:
     others = np.flatnonzero(~exact)
     k = np.flatnonzero(exact)
     j = np.clip(np.searchsorted(others, k), 0, others.size - 1)  # the next other row
-    i = np.clip(j - 1, 0, others.size - 1)                       # the previous one
+    i = np.clip(j - 1, 0, others.size - 1)  # the previous one
     out = np.zeros(len(traj), dtype=bool)
     for nb in (others[i], others[j]):
-        far = (np.linalg.norm(traj.p_xyz[nb], axis=1) > floors[0]) | \
-            (2.0 * np.arccos(np.clip(np.abs(traj.q_xyzw[nb, 3]), 0.0, 1.0)) > floors[1])
+        far = (np.linalg.norm(traj.p_xyz[nb], axis=1) > floors[0]) | (
+            2.0 * np.arccos(np.clip(np.abs(traj.q_xyzw[nb, 3]), 0.0, 1.0)) > floors[1]
+        )
         out[k[far]] = True
     return out
 
@@ -268,8 +298,10 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     idx = np.arange(n_input)
     # a residual the file's rounding can make is no outlier: positions rounded to r move it
     # by up to sqrt(3) r; quaternion components rounded to r turn a pose by up to ~2 r
-    floors = (max(FLOOR_TRANSLATION_M, ROUNDING_MARGIN * np.sqrt(3.0) * resolution(traj.p_xyz)),
-              max(FLOOR_ROTATION_RAD, ROUNDING_MARGIN * 4.0 * resolution(traj.q_xyzw)))
+    floors = (
+        max(FLOOR_TRANSLATION_M, ROUNDING_MARGIN * np.sqrt(3.0) * resolution(traj.p_xyz)),
+        max(FLOOR_ROTATION_RAD, ROUNDING_MARGIN * 4.0 * resolution(traj.q_xyzw)),
+    )
     thr_p = thr_r = float('nan')
     t = traj.seconds(int(traj.t_ns[0]))
     held = placeholders(traj, floors)
@@ -281,8 +313,7 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
         for _ in range(HAMPEL_ROUNDS):
             if idx.size < 4 * d + 4:
                 break
-            bad, tp, tr = _outliers(t[idx], traj.p_xyz[idx], traj.q_xyzw[idx], n_sigma, floors,
-                                    d)
+            bad, tp, tr = _outliers(t[idx], traj.p_xyz[idx], traj.q_xyzw[idx], n_sigma, floors, d)
             if d == 1 and np.isnan(thr_p):
                 thr_p, thr_r = tp, tr
             if not bad.any():
@@ -290,8 +321,9 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
             kinds[idx[bad]] = 'outlier'
             idx = idx[~bad]
     removed = kinds != ''
-    report = Screening(stream, n_input, traj.t_ns[removed].copy(),
-                       tuple(kinds[removed]), thr_p, thr_r)
+    report = Screening(
+        stream, n_input, traj.t_ns[removed].copy(), tuple(kinds[removed]), thr_p, thr_r
+    )
     return (traj.select(~removed) if removed.any() else traj), report
 
 
@@ -320,8 +352,9 @@ class EyeBreaks:
     breaks_ns: np.ndarray
 
 
-def find_eye_breaks(hand: Trajectory, eye: Trajectory, time_offset_s: float, R_HE: np.ndarray,
-                    p_HE: np.ndarray) -> EyeBreaks:
+def find_eye_breaks(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, R_HE: np.ndarray, p_HE: np.ndarray
+) -> EyeBreaks:
     """Breaks (resets of the VIO world) and leftover wild poses of the eye, found against the
     hand's motion once stage 2 has an extrinsic.
 
@@ -346,8 +379,10 @@ def find_eye_breaks(hand: Trajectory, eye: Trajectory, time_offset_s: float, R_H
         s = 1.4826 * np.median(np.abs(e[usual] - m))
         return np.maximum(m + BREAK_SIGMAS * s, floor) * scale
 
-    bad = covered & ((e_r > limit(e_r, BREAK_FLOOR_ROTATION_RAD)) |
-                     (e_t > limit(e_t, BREAK_FLOOR_TRANSLATION_M)))
+    bad = covered & (
+        (e_r > limit(e_r, BREAK_FLOOR_ROTATION_RAD))
+        | (e_t > limit(e_t, BREAK_FLOOR_TRANSLATION_M))
+    )
     bad[eye.breaks] = False  # known already
     # a pose between two inconsistent intervals is a wild pose, not two breaks
     wild = np.zeros(len(eye), dtype=bool)

@@ -61,28 +61,42 @@ class Candidate:
 def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Keyframe motions (eq. 6) chosen on the eye's own rotations, within its segments: they
     do not depend on the offset, so every candidate is scored on the same ones."""
-    return segment_motion_indices(matrix_from_quat(eye.q_xyzw), eye.segment_ids(), 'rotation',
-                                  eta_rad)
+    return segment_motion_indices(
+        matrix_from_quat(eye.q_xyzw), eye.segment_ids(), 'rotation', eta_rad
+    )
 
 
-def motion_consistency(hand: Trajectory, eye: Trajectory, time_offset_s: float,
-                       q_HE: np.ndarray, p_HE: np.ndarray,
-                       eta_rad: float) -> tuple[float, float, float, int]:
+def motion_consistency(
+    hand: Trajectory,
+    eye: Trajectory,
+    time_offset_s: float,
+    q_HE: np.ndarray,
+    p_HE: np.ndarray,
+    eta_rad: float,
+) -> tuple[float, float, float, int]:
     """Median AX = XB rotation (deg) and translation (m) error over the eye's keyframe
     motions at (dt, T_HE), the motions' median translation (m), and how many there are."""
     i, j = eye_keyframes(eye, eta_rad)
-    e_r, e_t, covered = eye_motion_errors(hand, eye, i, j, time_offset_s, matrix_from_quat(q_HE),
-                                          p_HE)
+    e_r, e_t, covered = eye_motion_errors(
+        hand, eye, i, j, time_offset_s, matrix_from_quat(q_HE), p_HE
+    )
     if not covered.any():
         return float('nan'), float('nan'), float('nan'), 0
     length = np.linalg.norm(eye.p_xyz[j] - eye.p_xyz[i], axis=1)
-    return (float(np.degrees(np.median(e_r[covered]))), float(np.median(e_t[covered])),
-            float(np.median(length[covered])), int(covered.sum()))
+    return (
+        float(np.degrees(np.median(e_r[covered]))),
+        float(np.median(e_t[covered])),
+        float(np.median(length[covered])),
+        int(covered.sum()),
+    )
 
 
-def score_candidates(hand: Trajectory, eye: Trajectory,
-                     hypotheses: list[tuple[float, str, np.ndarray, np.ndarray]],
-                     eta_rad: float) -> list[Candidate]:
+def score_candidates(
+    hand: Trajectory,
+    eye: Trajectory,
+    hypotheses: list[tuple[float, str, np.ndarray, np.ndarray]],
+    eta_rad: float,
+) -> list[Candidate]:
     """Score (dt, source, q_HE, p_HE) hypotheses on one motion set (see module docstring).
 
     Returns the candidates in the given order, the best one marked ``chosen``; when fewer than
@@ -97,15 +111,30 @@ def score_candidates(hand: Trajectory, eye: Trajectory,
         errors.append((e_r, e_t))
         common &= covered
     if common.sum() < MIN_COMMON_MOTIONS:
-        return [Candidate(dt, src, float('nan'), float('nan'), float('nan'), q, p, k == 0)
-                for k, (dt, src, q, p) in enumerate(hypotheses)]
+        return [
+            Candidate(dt, src, float('nan'), float('nan'), float('nan'), q, p, k == 0)
+            for k, (dt, src, q, p) in enumerate(hypotheses)
+        ]
     s_r = max(min(float(np.median(e_r[common])) for e_r, _ in errors), 1e-9)
     s_t = max(min(float(np.median(e_t[common])) for _, e_t in errors), 1e-9)
     out = []
     for (dt, src, q, p), (e_r, e_t) in zip(hypotheses, errors, strict=True):
-        score = float(np.mean(huber_rho(e_r[common] / s_r, SCORE_HUBER)
-                              + huber_rho(e_t[common] / s_t, SCORE_HUBER)))
-        out.append(Candidate(dt, src, score, float(np.degrees(np.median(e_r[common]))),
-                             float(np.median(e_t[common])), q, p))
+        score = float(
+            np.mean(
+                huber_rho(e_r[common] / s_r, SCORE_HUBER)
+                + huber_rho(e_t[common] / s_t, SCORE_HUBER)
+            )
+        )
+        out.append(
+            Candidate(
+                dt,
+                src,
+                score,
+                float(np.degrees(np.median(e_r[common]))),
+                float(np.median(e_t[common])),
+                q,
+                p,
+            )
+        )
     best = int(np.argmin([c.score for c in out]))
     return [replace(c, chosen=k == best) for k, c in enumerate(out)]

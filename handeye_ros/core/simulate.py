@@ -50,8 +50,9 @@ class Truth:
 
     def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
         """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.clock`)."""
-        return linear_clock(self.time_offset_s, self.clock_drift, self.time_offset_stamp_ns,
-                            t_eye_ns)
+        return linear_clock(
+            self.time_offset_s, self.clock_drift, self.time_offset_stamp_ns, t_eye_ns
+        )
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,9 @@ class CalibrationError:
     rotation_deg: float
 
 
-def calibration_error(truth: Truth, time_offset_s: float, q_HE: np.ndarray,
-                      p_HE: np.ndarray) -> CalibrationError:
+def calibration_error(
+    truth: Truth, time_offset_s: float, q_HE: np.ndarray, p_HE: np.ndarray
+) -> CalibrationError:
     """Errors of an estimated (dt, T_HE) against the truth (rotation: geodesic angle)."""
     rot = Rotation.from_quat(q_HE).inv() * Rotation.from_quat(truth.q_HE)
     return CalibrationError(
@@ -105,9 +107,14 @@ MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow', 'in_place')
 REPETITIVE_PERIOD_S = 2.0
 
 
-def smooth_motion(rng: np.random.Generator, duration_s: float, knot_spacing_s: float = 0.5,
-                  position_std_m: float = 0.2, rotation_std_rad: float = 0.2,
-                  motion: str = 'random') -> tuple[BSpline, BSpline]:
+def smooth_motion(
+    rng: np.random.Generator,
+    duration_s: float,
+    knot_spacing_s: float = 0.5,
+    position_std_m: float = 0.2,
+    rotation_std_rad: float = 0.2,
+    motion: str = 'random',
+) -> tuple[BSpline, BSpline]:
     """Cubic B-splines (seconds -> position [m], rotation vector [rad]) of a hand-held motion.
 
     The defaults give mean speeds of ~0.5 m/s and ~30 deg/s about all axes: between the EuRoC
@@ -159,11 +166,21 @@ def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
     return R, p
 
 
-def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 100.0,
-             eye_rate_hz: float = 20.0, noise_m: float = 0.0, noise_deg: float = 0.0,
-             hand_noise_m: float = 0.0, hand_noise_deg: float = 0.0,
-             truth: Truth | None = None, motion: str = 'random', clock_drift: float = 0.0,
-             scale: float = 1.0) -> Recording:
+def simulate(
+    seed: int = 0,
+    *,
+    duration_s: float = 60.0,
+    hand_rate_hz: float = 100.0,
+    eye_rate_hz: float = 20.0,
+    noise_m: float = 0.0,
+    noise_deg: float = 0.0,
+    hand_noise_m: float = 0.0,
+    hand_noise_deg: float = 0.0,
+    truth: Truth | None = None,
+    motion: str = 'random',
+    clock_drift: float = 0.0,
+    scale: float = 1.0,
+) -> Recording:
     """Simulate one recording.
 
     The eye stream covers the hand stream's span less 1 s at each end, so that every eye pose
@@ -185,8 +202,12 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
     t_hand_ns = EPOCH_NS + np.rint(np.arange(n_hand) * 1e9 / hand_rate_hz).astype(np.int64)
     R_GH, p_GH = hand_pose((t_hand_ns - EPOCH_NS) * 1e-9)
     if hand_noise_m or hand_noise_deg:
-        R_GH = np.matmul(R_GH, Rotation.from_rotvec(
-            rng.normal(0.0, np.deg2rad(hand_noise_deg), (n_hand, 3))).as_matrix())
+        R_GH = np.matmul(
+            R_GH,
+            Rotation.from_rotvec(
+                rng.normal(0.0, np.deg2rad(hand_noise_deg), (n_hand, 3))
+            ).as_matrix(),
+        )
         p_GH = p_GH + rng.normal(0.0, hand_noise_m, (n_hand, 3))
 
     dt_ns = round(truth.time_offset_s * 1e9)
@@ -194,8 +215,13 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
     # the eye's first frame at an arbitrary phase of its period, as two free-running sensors
     # are (drawn apart, so that a seed's other draws do not change)
     phase_ns = int(np.random.default_rng([seed, 1]).integers(0, int(1e9 / eye_rate_hz)))
-    t_eye_ns = (EPOCH_NS + 1_000_000_000 + dt_ns + phase_ns
-                + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64))
+    t_eye_ns = (
+        EPOCH_NS
+        + 1_000_000_000
+        + dt_ns
+        + phase_ns
+        + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64)
+    )
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
     mid_ns = int(t_eye_ns[n_eye // 2])
@@ -212,13 +238,16 @@ def simulate(seed: int = 0, *, duration_s: float = 60.0, hand_rate_hz: float = 1
     return Recording(hand, eye, truth)
 
 
-def _add_cumulative_error(rng: np.random.Generator, R: np.ndarray, p: np.ndarray,
-                          noise_m: float, noise_deg: float) -> Pose:
+def _add_cumulative_error(
+    rng: np.random.Generator, R: np.ndarray, p: np.ndarray, noise_m: float, noise_deg: float
+) -> Pose:
     """Perturb every consecutive relative motion in its body frame and re-chain the poses."""
     n = R.shape[0]
     rel = compose(inverse((R[:-1], p[:-1])), (R[1:], p[1:]))
-    err = (Rotation.from_rotvec(rng.normal(0.0, np.deg2rad(noise_deg), (n - 1, 3))).as_matrix(),
-           rng.normal(0.0, noise_m, (n - 1, 3)))
+    err = (
+        Rotation.from_rotvec(rng.normal(0.0, np.deg2rad(noise_deg), (n - 1, 3))).as_matrix(),
+        rng.normal(0.0, noise_m, (n - 1, 3)),
+    )
     rel = compose(rel, err)
     steps_R = np.concatenate((R[:1], rel[0]))
     steps_p = np.concatenate((p[:1], rel[1]))

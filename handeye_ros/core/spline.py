@@ -36,6 +36,7 @@ def _cardinal(order: int):
     below, and scipy.interpolate's import (0.6 s, with scipy.optimize) is left to other
     orders."""
     from scipy.interpolate import BSpline
+
     return BSpline.basis_element(np.arange(order + 1, dtype=float), extrapolate=False)
 
 
@@ -44,8 +45,15 @@ def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
     s = np.asarray(s, dtype=float)
     if order == 4:  # the cubic's closed form (Sommer et al. 2020), as scipy's below
         s2, s3 = s * s, s * s * s
-        return np.stack((np.ones_like(s), (5.0 + 3.0 * s - 3.0 * s2 + s3) / 6.0,
-                         (1.0 + 3.0 * s + 3.0 * s2 - 2.0 * s3) / 6.0, s3 / 6.0), axis=-1)
+        return np.stack(
+            (
+                np.ones_like(s),
+                (5.0 + 3.0 * s - 3.0 * s2 + s3) / 6.0,
+                (1.0 + 3.0 * s + 3.0 * s2 - 2.0 * s3) / 6.0,
+                s3 / 6.0,
+            ),
+            axis=-1,
+        )
     N = _cardinal(order)
     # the basis function of control point i + j on segment i is the cardinal B-spline at
     # s + k - 1 - j
@@ -58,8 +66,15 @@ def cumulative_basis_derivative(s: np.ndarray, order: int) -> np.ndarray:
     s = np.asarray(s, dtype=float)
     if order == 4:
         s2 = s * s
-        return np.stack((np.zeros_like(s), (3.0 - 6.0 * s + 3.0 * s2) / 6.0,
-                         (3.0 + 6.0 * s - 6.0 * s2) / 6.0, s2 / 2.0), axis=-1)
+        return np.stack(
+            (
+                np.zeros_like(s),
+                (3.0 - 6.0 * s + 3.0 * s2) / 6.0,
+                (3.0 + 6.0 * s - 6.0 * s2) / 6.0,
+                s2 / 2.0,
+            ),
+            axis=-1,
+        )
     dN = _cardinal(order).derivative()
     b = np.stack([np.nan_to_num(dN(s + order - 1 - j)) for j in range(order)], axis=-1)
     return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
@@ -104,8 +119,9 @@ def exp_quat(v: np.ndarray) -> np.ndarray:
     theta = np.sqrt(np.einsum('ij,ij->i', v, v))
     small = theta < 1e-4
     # sin(t/2)/t with its Taylor series near 0
-    k = np.where(small, 0.5 - theta * theta / 48.0,
-                 np.sin(0.5 * theta) / np.where(small, 1.0, theta))
+    k = np.where(
+        small, 0.5 - theta * theta / 48.0, np.sin(0.5 * theta) / np.where(small, 1.0, theta)
+    )
     return np.concatenate((v * k[:, None], np.cos(0.5 * theta)[:, None]), axis=1)
 
 
@@ -157,8 +173,10 @@ class PoseSpline:
         """Log of consecutive control rotations and position differences, computed once."""
         cached = self.__dict__.get('_inc')
         if cached is None:
-            cached = (log_so3(np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:])),
-                      np.diff(self.p, axis=0))
+            cached = (
+                log_so3(np.matmul(np.swapaxes(self.R[:-1], -1, -2), self.R[1:])),
+                np.diff(self.p, axis=0),
+            )
             object.__setattr__(self, '_inc', cached)  # frozen: the cache is not state
         return cached
 
@@ -181,22 +199,23 @@ class PoseSpline:
         _, s = self.segments(t)
         return cumulative_basis_derivative(s, self.order) / self.dt
 
-    def evaluate(self, t: np.ndarray,
-                 basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
+    def evaluate(self, t: np.ndarray, basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
         """Poses at times t (s): rotations (N, 3, 3), positions (N, 3); ``basis``: the
         :meth:`basis` of t, if already at hand."""
         R, p, _, _ = self._product(self.basis(t) if basis is None else basis)
         return R, p
 
-    def evaluate_with_velocity(self, basis: tuple[np.ndarray, np.ndarray],
-                               dbasis: np.ndarray) -> tuple[np.ndarray, ...]:
+    def evaluate_with_velocity(
+        self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
         """Poses at the times of ``basis`` and their rates: R (N, 3, 3), p (N, 3), the body
         angular velocity w (N, 3) with ``dR/dt = R [w]x`` [rad/s], and dp/dt (N, 3) [m/s].
         ``dbasis``: :meth:`basis_derivative` at the same times."""
         return self._product(basis, dbasis)
 
-    def _product(self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _product(
+        self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Eq. 14's product factor by factor: (R, p) and, with ``dbasis``, the rates (w, v).
 
         In quaternions (a product is 16 multiplications where numpy's stacked 3x3 matmul is
@@ -220,8 +239,9 @@ class PoseSpline:
                 v += dbasis[:, j, None] * dp[i + j - 1]
         return Rotation.from_quat(q).as_matrix(), p, w, v
 
-    def evaluate_with_jacobian(self, basis: tuple[np.ndarray, np.ndarray]
-                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def evaluate_with_jacobian(
+        self, basis: tuple[np.ndarray, np.ndarray]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Poses at the times of ``basis`` (:meth:`basis`) and their derivatives with respect to
         the k control poses of each time's segment, i + c (c = 0..k-1).
 
@@ -245,8 +265,10 @@ class PoseSpline:
         JR[:, 0] = np.swapaxes(P[0], -1, -2)
         for j in range(1, k):
             w = omega[i + j - 1]
-            G = np.matmul(np.swapaxes(P[j], -1, -2),
-                          Bc[:, j, None, None] * right_jacobian(Bc[:, j, None] * w))
+            G = np.matmul(
+                np.swapaxes(P[j], -1, -2),
+                Bc[:, j, None, None] * right_jacobian(Bc[:, j, None] * w),
+            )
             JR[:, j] += np.matmul(G, right_jacobian(w, inverse=True))
             JR[:, j - 1] -= np.matmul(G, right_jacobian(-w, inverse=True))
         b = plain_basis(Bc)
@@ -254,8 +276,9 @@ class PoseSpline:
         return R, p, JR, b
 
 
-def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
-               order: int = 4) -> PoseSpline:
+def fit_spline(
+    t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float, order: int = 4
+) -> PoseSpline:
     """A spline through stamped poses (the hand's spline of the batch stage).
 
     Control poses start as the poses interpolated where each control point weighs most (the
@@ -299,8 +322,9 @@ def fit_spline(t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float,
     return PoseSpline(t0, knot_spacing, order, Rc, pc)
 
 
-def _banded_least_squares(i: np.ndarray, b: np.ndarray, y: np.ndarray, M: int,
-                          start: np.ndarray) -> np.ndarray:
+def _banded_least_squares(
+    i: np.ndarray, b: np.ndarray, y: np.ndarray, M: int, start: np.ndarray
+) -> np.ndarray:
     """Control values c (M, d) minimising sum_n |sum_c b[n, c] c[i_n + c] - y_n|^2.
 
     Normal equations in LAPACK's lower banded storage, by Cholesky; when a control value has
@@ -311,13 +335,23 @@ def _banded_least_squares(i: np.ndarray, b: np.ndarray, y: np.ndarray, M: int,
     for off in range(k):
         for c in range(k - off):
             ab[off] += np.bincount(i + c, weights=b[:, c] * b[:, c + off], minlength=M)[:M]
-    rhs = np.stack([sum(np.bincount(i + c, weights=b[:, c] * y[:, a], minlength=M)[:M]
-                        for c in range(k)) for a in range(y.shape[1])], axis=1)
+    rhs = np.stack(
+        [
+            sum(np.bincount(i + c, weights=b[:, c] * y[:, a], minlength=M)[:M] for c in range(k))
+            for a in range(y.shape[1])
+        ],
+        axis=1,
+    )
     try:
         return solveh_banded(ab, rhs, lower=True)
     except LinAlgError:
         rows = np.repeat(np.arange(i.size), k)
         cols = (i[:, None] + np.arange(k)).ravel()
         A = csr_matrix((b.ravel(), (rows, cols)), shape=(i.size, M))
-        return np.stack([lsqr(A, y[:, a], x0=start[:, a], atol=1e-12, btol=1e-12)[0]
-                         for a in range(y.shape[1])], axis=1)
+        return np.stack(
+            [
+                lsqr(A, y[:, a], x0=start[:, a], atol=1e-12, btol=1e-12)[0]
+                for a in range(y.shape[1])
+            ],
+            axis=1,
+        )

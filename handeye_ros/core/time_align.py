@@ -55,7 +55,7 @@ MAX_RESAMPLE_RATE_HZ = 200.0
 #: Most samples of one resampled signal (2^23: 11.6 h at 200 Hz). Longer streams are resampled
 #: more coarsely, down to MIN_RESAMPLE_RATE_HZ; beyond that the span is refused, which also
 #: bounds the memory whatever the stamps say.
-MAX_GRID_SAMPLES = 2 ** 23
+MAX_GRID_SAMPLES = 2**23
 MIN_RESAMPLE_RATE_HZ = 20.0
 #: Signal samples beyond median + MASK_SIGMAS robust standard deviations (1.4826 MAD) are
 #: left out like a gap (a spike no motion made: leaving it in, even clipped, puts a plateau
@@ -147,16 +147,20 @@ def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
     if cached is None:
         t = traj.seconds(int(traj.t_ns[0]))
         dt = np.diff(t)
-        cached = AngularSpeed(0.5 * (t[1:] + t[:-1]),
-                              consecutive_rotvecs(traj.q_xyzw) / dt[:, None], traj.interval_ok())
+        cached = AngularSpeed(
+            0.5 * (t[1:] + t[:-1]),
+            consecutive_rotvecs(traj.q_xyzw) / dt[:, None],
+            traj.interval_ok(),
+        )
         object.__setattr__(traj, '_angular_velocity', cached)  # frozen: a cache, not state
     if vector:
         return cached
     return AngularSpeed(cached.t_s, np.linalg.norm(cached.speed, axis=1), cached.valid)
 
 
-def resample(sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0) -> tuple[np.ndarray,
-                                                                                   np.ndarray]:
+def resample(
+    sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Linear interpolation of a signal at ``grid_s + shift_s``.
 
     Returns values (shape of the grid, with a trailing 3 for vectors) and a mask that is False
@@ -175,8 +179,9 @@ def resample(sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0) -> tup
     return values, ok
 
 
-def masked_normalised_correlation(y: np.ndarray, my: np.ndarray, x: np.ndarray,
-                                  mx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def masked_normalised_correlation(
+    y: np.ndarray, my: np.ndarray, x: np.ndarray, mx: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pearson correlation of ``y[k + lag]`` with ``x[k]`` over the samples valid in both.
 
     For each lag the means and variances are those of the overlapping valid samples only
@@ -203,7 +208,7 @@ def masked_normalised_correlation(y: np.ndarray, my: np.ndarray, x: np.ndarray,
 
     def corr(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         c = fft.irfft(A * B, nfft, axis=0)  # c[L] = sum_m a[m + L] b[m], negative L wrapped
-        return np.concatenate((c[nfft - (nx - 1):], c[:ny]))
+        return np.concatenate((c[nfft - (nx - 1) :], c[:ny]))
 
     FY, FX = fwd(fy), np.conj(fwd(fx))
     Y, X = fwd(y2), np.conj(fwd(x2))
@@ -234,10 +239,12 @@ def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> 
     if longest * rate > MAX_GRID_SAMPLES:
         rate = MAX_GRID_SAMPLES / longest
         if rate < MIN_RESAMPLE_RATE_HZ:
-            msg = (f'{hand.name} spans {hand.duration_s:.4g} s and {eye.name} '
-                   f'{eye.duration_s:.4g} s: too long to correlate at {MIN_RESAMPLE_RATE_HZ:g} '
-                   'Hz or more. Are the stamps in the unit the format expects (seconds for TUM, '
-                   'nanoseconds for EuRoC)? Otherwise cut the recording into parts')
+            msg = (
+                f'{hand.name} spans {hand.duration_s:.4g} s and {eye.name} '
+                f'{eye.duration_s:.4g} s: too long to correlate at {MIN_RESAMPLE_RATE_HZ:g} '
+                'Hz or more. Are the stamps in the unit the format expects (seconds for TUM, '
+                'nanoseconds for EuRoC)? Otherwise cut the recording into parts'
+            )
             raise TimeAlignmentError(msg)
     return 1.0 / rate
 
@@ -266,8 +273,10 @@ def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
     mean = v[mask].mean(axis=0)
     std = np.sqrt(np.sum(v[mask].var(axis=0)))
     if not std > 1e-9:
-        msg = (f'{name}: the angular speed is constant ({np.linalg.norm(mean):.3g} rad/s); the '
-               'time offset cannot be observed. Record a motion with varying rotation')
+        msg = (
+            f'{name}: the angular speed is constant ({np.linalg.norm(mean):.3g} rad/s); the '
+            'time offset cannot be observed. Record a motion with varying rotation'
+        )
         raise TimeAlignmentError(msg)
     out = (v - mean) / std
     out[~mask] = 0.0
@@ -279,7 +288,7 @@ class _Curve:
     """A correlation over lags: offsets dt (s, from the epoch difference D plus the lag),
     values, and which lags may be chosen."""
 
-    base_ns: int     # eye origin - hand origin (ns): dt = base + lag * step
+    base_ns: int  # eye origin - hand origin (ns): dt = base + lag * step
     step: float
     lags: np.ndarray
     ncc: np.ndarray
@@ -289,9 +298,17 @@ class _Curve:
         return self.base_ns * 1e-9 + lag * self.step
 
 
-def _correlate(hand: Trajectory, eye: Trajectory, x: np.ndarray, mx: np.ndarray, y: np.ndarray,
-               my: np.ndarray, step: float, max_time_offset: float | None,
-               time_offset_guess: float | None) -> _Curve:
+def _correlate(
+    hand: Trajectory,
+    eye: Trajectory,
+    x: np.ndarray,
+    mx: np.ndarray,
+    y: np.ndarray,
+    my: np.ndarray,
+    step: float,
+    max_time_offset: float | None,
+    time_offset_guess: float | None,
+) -> _Curve:
     lags, ncc, overlap = masked_normalised_correlation(y, my, x, mx)
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
     need = max(MIN_OVERLAP_S / step, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()))
@@ -304,20 +321,37 @@ def _correlate(hand: Trajectory, eye: Trajectory, x: np.ndarray, mx: np.ndarray,
     return _Curve(base_ns, step, lags, ncc, eligible)
 
 
-def _no_overlap(hand: Trajectory, eye: Trajectory, need_s: float,
-                window: tuple[float, float] | None) -> TimeAlignmentError:
-    where = ('at any offset' if window is None else
-             f'at any offset in [{window[0]:+.3f}, {window[1]:+.3f}] s')
-    msg = (f'{hand.name} and {eye.name} do not overlap in time by at least {need_s:.1f} s '
-           f'{where} (hand covers {hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye '
-           f'starts {(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own '
-           'clocks)' + ('' if window is None else '. Widen max_time_offset or move '
-                        'time_offset_guess, or leave both unset to search every lag'))
+def _no_overlap(
+    hand: Trajectory, eye: Trajectory, need_s: float, window: tuple[float, float] | None
+) -> TimeAlignmentError:
+    where = (
+        'at any offset'
+        if window is None
+        else f'at any offset in [{window[0]:+.3f}, {window[1]:+.3f}] s'
+    )
+    msg = (
+        f'{hand.name} and {eye.name} do not overlap in time by at least {need_s:.1f} s '
+        f'{where} (hand covers {hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye '
+        f'starts {(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own '
+        'clocks)'
+        + (
+            ''
+            if window is None
+            else '. Widen max_time_offset or move '
+            'time_offset_guess, or leave both unset to search every lag'
+        )
+    )
     return TimeAlignmentError(msg)
 
 
-def _peak(curve: _Curve, peak_fit: str, hand: Trajectory, eye: Trajectory,
-          window: tuple[float, float] | None, need_s: float) -> tuple[int, float]:
+def _peak(
+    curve: _Curve,
+    peak_fit: str,
+    hand: Trajectory,
+    eye: Trajectory,
+    window: tuple[float, float] | None,
+    need_s: float,
+) -> tuple[int, float]:
     """Index of the best eligible lag and its sub-sample fraction."""
     if not curve.eligible.any():
         raise _no_overlap(hand, eye, need_s, window)
@@ -325,29 +359,45 @@ def _peak(curve: _Curve, peak_fit: str, hand: Trajectory, eye: Trajectory,
     k = int(np.argmax(scores))
     idx = np.flatnonzero(curve.eligible)
     if k in (idx[0], idx[-1]) or not (curve.eligible[k - 1] and curve.eligible[k + 1]):
-        where = ('the edge of the search window' if window is not None else
-                 'the edge of the lags at which the recordings overlap enough')
-        msg = (f'the angular-speed correlation peaks at {where} (at '
-               f'{curve.offset_s(curve.lags[k]):+.3f} s): the time offset is probably outside '
-               'it. ' + ('Widen max_time_offset or move time_offset_guess' if window is not None
-                         else 'Do the two recordings show the same motion?'))
+        where = (
+            'the edge of the search window'
+            if window is not None
+            else 'the edge of the lags at which the recordings overlap enough'
+        )
+        msg = (
+            f'the angular-speed correlation peaks at {where} (at '
+            f'{curve.offset_s(curve.lags[k]):+.3f} s): the time offset is probably outside '
+            'it. '
+            + (
+                'Widen max_time_offset or move time_offset_guess'
+                if window is not None
+                else 'Do the two recordings show the same motion?'
+            )
+        )
         raise TimeAlignmentError(msg)
-    frac = _parabola_vertex(*curve.ncc[k - 1:k + 2]) if peak_fit == 'quadratic' else 0.0
+    frac = _parabola_vertex(*curve.ncc[k - 1 : k + 2]) if peak_fit == 'quadratic' else 0.0
     return k, frac
 
 
-def _window(max_time_offset: float | None,
-            time_offset_guess: float | None) -> tuple[float, float] | None:
+def _window(
+    max_time_offset: float | None, time_offset_guess: float | None
+) -> tuple[float, float] | None:
     if max_time_offset is None:
         return None
     g = 0.0 if time_offset_guess is None else time_offset_guess
     return g - max_time_offset, g + max_time_offset
 
 
-def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | None = None,
-               time_offset_guess: float | None = None, resample_rate_hz: float | None = None,
-               peak_fit: str = 'quadratic',
-               signals: tuple[AngularSpeed, AngularSpeed] | None = None) -> TimeAlignment:
+def align_time(
+    hand: Trajectory,
+    eye: Trajectory,
+    *,
+    max_time_offset: float | None = None,
+    time_offset_guess: float | None = None,
+    resample_rate_hz: float | None = None,
+    peak_fit: str = 'quadratic',
+    signals: tuple[AngularSpeed, AngularSpeed] | None = None,
+) -> TimeAlignment:
     """Estimate dt (eye clock minus hand clock) from the angular-speed magnitudes (eq. 1).
 
     Every lag with enough overlap is searched unless ``max_time_offset`` is given (then
@@ -366,14 +416,21 @@ def align_time(hand: Trajectory, eye: Trajectory, *, max_time_offset: float | No
         raise ValueError(msg)
     step = _step(hand, eye, resample_rate_hz)
     w_h, w_e = signals or (angular_speed(hand), angular_speed(eye))
-    return _align(hand, eye, w_h, w_e, step, max_time_offset,
-                  time_offset_guess, peak_fit, peak_fit)
+    return _align(
+        hand, eye, w_h, w_e, step, max_time_offset, time_offset_guess, peak_fit, peak_fit
+    )
 
 
-def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
-                      around_s: float, half_window_s: float,
-                      resample_rate_hz: float | None = None,
-                      signals: tuple[AngularSpeed, AngularSpeed] | None = None) -> TimeAlignment:
+def align_time_vector(
+    hand: Trajectory,
+    eye: Trajectory,
+    R_HE: np.ndarray,
+    *,
+    around_s: float,
+    half_window_s: float,
+    resample_rate_hz: float | None = None,
+    signals: tuple[AngularSpeed, AngularSpeed] | None = None,
+) -> TimeAlignment:
     """dt from the body angular velocities: ``w_E(t) = R_HE^T w_H(t - dt)``.
 
     Searches ``around_s +- half_window_s`` (seconds); the sub-sample peak by the same parabola.
@@ -391,9 +448,17 @@ def align_time_vector(hand: Trajectory, eye: Trajectory, R_HE: np.ndarray, *,
     return _align(hand, eye, w_h, w_e, step, half_window_s, around_s, 'quadratic', 'vector')
 
 
-def _align(hand: Trajectory, eye: Trajectory, w_h: AngularSpeed, w_e: AngularSpeed,
-           step: float, max_time_offset: float | None, time_offset_guess: float | None,
-           peak_fit: str, method: str) -> TimeAlignment:
+def _align(
+    hand: Trajectory,
+    eye: Trajectory,
+    w_h: AngularSpeed,
+    w_e: AngularSpeed,
+    step: float,
+    max_time_offset: float | None,
+    time_offset_guess: float | None,
+    peak_fit: str,
+    method: str,
+) -> TimeAlignment:
     """Stage 1 on two signals (magnitudes or vectors): each on its own grid, robust,
     standardised, correlated over the searched lags, the peak and its candidates."""
     x, mx = resample(w_h, _grid(hand, step))
@@ -416,8 +481,8 @@ def _align(hand: Trajectory, eye: Trajectory, w_h: AngularSpeed, w_e: AngularSpe
         peak_correlation=float(curve.ncc[k]),
         second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start),
         step_s=step,
-        window_s=window or (curve.offset_s(curve.lags[sel.start]),
-                            curve.offset_s(curve.lags[sel.stop - 1])),
+        window_s=window
+        or (curve.offset_s(curve.lags[sel.start]), curve.offset_s(curve.lags[sel.stop - 1])),
         lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
         correlation=curve.ncc[sel],
         candidates=_candidates(curve, k),
@@ -434,8 +499,9 @@ def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
     if not peak > 0.0:
         return ()
     inner = s[1:-1]
-    local = np.flatnonzero((inner >= s[:-2]) & (inner > s[2:]) &
-                           (inner >= CANDIDATE_RATIO * peak)) + 1
+    local = (
+        np.flatnonzero((inner >= s[:-2]) & (inner > s[2:]) & (inner >= CANDIDATE_RATIO * peak)) + 1
+    )
     lo, hi = _lobe(s, k)
     local = local[(local < lo) | (local > hi)]
     if not local.size:
@@ -446,8 +512,11 @@ def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
         local = np.append(local, nearest)
     out = []
     for m in local:
-        frac = _parabola_vertex(*curve.ncc[m - 1:m + 2]) if np.all(
-            np.isfinite(curve.ncc[m - 1:m + 2])) else 0.0
+        frac = (
+            _parabola_vertex(*curve.ncc[m - 1 : m + 2])
+            if np.all(np.isfinite(curve.ncc[m - 1 : m + 2]))
+            else 0.0
+        )
         out.append((curve.offset_s(curve.lags[m] + frac), float(curve.ncc[m])))
     return tuple(out)
 
@@ -473,7 +542,7 @@ def _lobe(scores: np.ndarray, k: int) -> tuple[int, int]:
 def _second_peak_ratio(scores: np.ndarray, k: int) -> float:
     """Best correlation outside the main lobe (bounded by the nearest local minima) over peak."""
     lo, hi = _lobe(scores, k)
-    outside = np.concatenate((scores[:lo], scores[hi + 1:]))
+    outside = np.concatenate((scores[:lo], scores[hi + 1 :]))
     outside = outside[np.isfinite(outside)]
     if not outside.size or scores[k] <= 0.0:
         return 0.0

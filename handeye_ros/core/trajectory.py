@@ -61,9 +61,15 @@ class Trajectory:
     notes: tuple[str, ...] = ()
 
     @classmethod
-    def from_arrays(cls, t_ns: np.ndarray, p_xyz: np.ndarray, q_xyzw: np.ndarray,
-                    name: str = 'trajectory', min_poses: int = 2,
-                    notes: tuple[str, ...] = ()) -> Trajectory:
+    def from_arrays(
+        cls,
+        t_ns: np.ndarray,
+        p_xyz: np.ndarray,
+        q_xyzw: np.ndarray,
+        name: str = 'trajectory',
+        min_poses: int = 2,
+        notes: tuple[str, ...] = (),
+    ) -> Trajectory:
         """Validate raw arrays and build a trajectory.
 
         Raises :class:`InputError` naming ``name`` and the first offending row for: too few
@@ -76,8 +82,10 @@ class Trajectory:
         q_xyzw = np.asarray(q_xyzw, dtype=float)
         n = t_ns.shape[0] if t_ns.ndim == 1 else -1
         if n < 0 or p_xyz.shape != (n, 3) or q_xyzw.shape != (n, 4):
-            msg = (f'{name}: expected stamps (N,), positions (N, 3) and quaternions (N, 4), '
-                   f'got {t_ns.shape}, {p_xyz.shape}, {q_xyzw.shape}')
+            msg = (
+                f'{name}: expected stamps (N,), positions (N, 3) and quaternions (N, 4), '
+                f'got {t_ns.shape}, {p_xyz.shape}, {q_xyzw.shape}'
+            )
             raise InputError(msg)
         if n < min_poses:
             msg = f'{name}: holds {n} pose(s); at least {min_poses} are needed'
@@ -93,17 +101,21 @@ class Trajectory:
         if bad.size:
             k = int(bad[0])
             kind = 'duplicate' if steps[k] == 0 else 'unsorted (going backwards)'
-            msg = (f'{name}: {bad.size} {kind} stamp(s); first at pose {k + 1} (from 0): '
-                   f'{t_ns[k]} ns then {t_ns[k + 1]} ns. Stamps must strictly increase')
+            msg = (
+                f'{name}: {bad.size} {kind} stamp(s); first at pose {k + 1} (from 0): '
+                f'{t_ns[k]} ns then {t_ns[k + 1]} ns. Stamps must strictly increase'
+            )
             raise InputError(msg)
         norms = np.linalg.norm(q_xyzw, axis=1)
         bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_NORM_TOLERANCE)
         if bad.size:
             k = int(bad[0])
             what = 'zero' if norms[k] < 1e-9 else f'non-unit (norm {norms[k]:.6g})'
-            msg = (f'{name}: {bad.size} quaternion(s) not of unit norm; first at pose {k} '
-                   '(from 0): '
-                   f'{what} quaternion {q_xyzw[k].tolist()} (order x y z w)')
+            msg = (
+                f'{name}: {bad.size} quaternion(s) not of unit norm; first at pose {k} '
+                '(from 0): '
+                f'{what} quaternion {q_xyzw[k].tolist()} (order x y z w)'
+            )
             raise InputError(msg)
         q_xyzw = q_xyzw / norms[:, None]
         return cls(t_ns, p_xyz, make_continuous(q_xyzw), name, notes=tuple(notes))
@@ -136,8 +148,9 @@ class Trajectory:
         if self.breaks.size and idx.size:
             # kept pose m closes a break if some break lies between the previous kept pose and it
             breaks = np.flatnonzero(np.diff(self.segment_ids()[idx]) > 0)
-        return Trajectory(self.t_ns[idx], self.p_xyz[idx], self.q_xyzw[idx], self.name,
-                          breaks, self.notes)
+        return Trajectory(
+            self.t_ns[idx], self.p_xyz[idx], self.q_xyzw[idx], self.name, breaks, self.notes
+        )
 
     def with_breaks(self, breaks: np.ndarray) -> Trajectory:
         """The same poses with these intervals (index of their first pose) marked as breaks,
@@ -200,7 +213,9 @@ def _check_finite(name: str, values: np.ndarray, what: str) -> None:
     bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
     if bad.size:
         k = int(bad[0])
-        msg = (f'{name}: {bad.size} pose(s) with NaN or inf in the {what}; first at pose {k} '
-               '(from 0): '
-               f'{values[k].tolist()}')
+        msg = (
+            f'{name}: {bad.size} pose(s) with NaN or inf in the {what}; first at pose {k} '
+            '(from 0): '
+            f'{values[k].tolist()}'
+        )
         raise InputError(msg)

@@ -69,8 +69,9 @@ def huber_psi(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
     return np.clip(r, -delta, delta), (np.abs(r) <= delta).astype(float)
 
 
-def influence(r: np.ndarray, J: np.ndarray, delta: float,
-              rows_per_sample: int) -> tuple[np.ndarray, np.ndarray]:
+def influence(
+    r: np.ndarray, J: np.ndarray, delta: float, rows_per_sample: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Per-sample influence ``psi_e = -H^-1 g_e`` of an M-estimate and ``H^-1``.
 
     Parameters
@@ -80,13 +81,15 @@ def influence(r: np.ndarray, J: np.ndarray, delta: float,
     J : ndarray, shape (T * rows_per_sample, p)
         Their Jacobian.
     """
-    g, H = influence_sums(r.reshape(-1, rows_per_sample),
-                          J.reshape(-1, rows_per_sample, J.shape[1]), delta)
+    g, H = influence_sums(
+        r.reshape(-1, rows_per_sample), J.reshape(-1, rows_per_sample, J.shape[1]), delta
+    )
     return influence_from_sums(g, H)
 
 
-def influence_sums(r: np.ndarray, J: np.ndarray, delta: float,
-                   other: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+def influence_sums(
+    r: np.ndarray, J: np.ndarray, delta: float, other: np.ndarray | None = None
+) -> tuple[np.ndarray, ...]:
     """What the influences need of some samples, to be summed over all of them: per sample
     ``g_e = sum_rows J_row^T psi(r_row)`` (T, p) and ``H = sum J^T psi' J`` (p, p); with
     ``other`` (T, rows, q) also ``sum J^T psi' other`` (p, q).
@@ -111,24 +114,42 @@ def influence_from_sums(g: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.nd
     return -g @ H_inv.T, H_inv
 
 
-def influence_two_step(r_a: np.ndarray, J_a: np.ndarray, r_b: np.ndarray, J_b: np.ndarray,
-                       J_theta: np.ndarray, delta: float, rows_a: int, rows_b: int,
-                       theta_in_a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def influence_two_step(
+    r_a: np.ndarray,
+    J_a: np.ndarray,
+    r_b: np.ndarray,
+    J_b: np.ndarray,
+    J_theta: np.ndarray,
+    delta: float,
+    rows_a: int,
+    rows_b: int,
+    theta_in_a: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Influences of a two-step estimate: theta from step A, then step B's parameters b with
     theta fixed (b moves by ``S dtheta``, ``S = -H_b^-1 J_b^T psi' J_theta``).
 
     Returns (psi_theta (T, 3), psi_b (T, p_b)).
     """
-    g_a, H_a = influence_sums(r_a.reshape(-1, rows_a), J_a.reshape(-1, rows_a, J_a.shape[1]),
-                              delta)
-    g_b, H_b, C = influence_sums(r_b.reshape(-1, rows_b),
-                                 J_b.reshape(-1, rows_b, J_b.shape[1]), delta,
-                                 J_theta.reshape(-1, rows_b, J_theta.shape[1]))
+    g_a, H_a = influence_sums(
+        r_a.reshape(-1, rows_a), J_a.reshape(-1, rows_a, J_a.shape[1]), delta
+    )
+    g_b, H_b, C = influence_sums(
+        r_b.reshape(-1, rows_b),
+        J_b.reshape(-1, rows_b, J_b.shape[1]),
+        delta,
+        J_theta.reshape(-1, rows_b, J_theta.shape[1]),
+    )
     return two_step_from_sums(g_a, H_a, g_b, H_b, C, theta_in_a)
 
 
-def two_step_from_sums(g_a: np.ndarray, H_a: np.ndarray, g_b: np.ndarray, H_b: np.ndarray,
-                       C: np.ndarray, theta_in_a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def two_step_from_sums(
+    g_a: np.ndarray,
+    H_a: np.ndarray,
+    g_b: np.ndarray,
+    H_b: np.ndarray,
+    C: np.ndarray,
+    theta_in_a: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`influence_two_step` from the sums of :func:`influence_sums` of both steps (C:
     step B's ``J_b^T psi' J_theta``)."""
     psi_a, _ = influence_from_sums(g_a, H_a)
@@ -151,8 +172,8 @@ def andrews_bandwidth(psi: np.ndarray) -> int:
             continue
         rho = float(np.clip((c[1:] @ c[:-1]) / d, -MAX_RHO, MAX_RHO))
         s2 = float(np.mean((c[1:] - rho * c[:-1]) ** 2))
-        num += 4.0 * rho ** 2 * s2 ** 2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
-        den += s2 ** 2 / (1.0 - rho) ** 4
+        num += 4.0 * rho**2 * s2**2 / ((1.0 - rho) ** 6 * (1.0 + rho) ** 2)
+        den += s2**2 / (1.0 - rho) ** 4
     if not den > 0.0:
         return 0
     L = 1.1447 * (num / den * T) ** (1.0 / 3.0)

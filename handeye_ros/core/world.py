@@ -76,8 +76,9 @@ def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldA
     return WorldAlignment(out.R_WG, out.p_WG, out.method, longest, int(labels.size))
 
 
-def _align_segment(pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray,
-                   p_HE: np.ndarray) -> WorldAlignment:
+def _align_segment(
+    pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray, p_HE: np.ndarray
+) -> WorldAlignment:
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
     R_GE, c_G = predicted_eye(pairs, X)
     R_GE, c_G = R_GE[sel], c_G[sel]
@@ -86,13 +87,17 @@ def _align_segment(pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray,
     # a segment of one or two pairs (a short piece between two eye breaks) spans no plane:
     # np.cov of one sample is NaN, so the spread is taken as the mean square directly
     d = c_G - mean_G
-    spread = np.sqrt(np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0,
-                             None))
+    spread = np.sqrt(
+        np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0, None)
+    )
     if d.shape[0] >= 3 and spread[1] >= MIN_PLANAR_SPREAD_M:
         R_WG, p_WG = rigid_fit(c_G, c_W)
         return WorldAlignment(R_WG, p_WG, 'positions')
-    R_WG = Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2))).mean(
-        ).as_matrix()
+    R_WG = (
+        Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2)))
+        .mean()
+        .as_matrix()
+    )
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
 
 
@@ -105,8 +110,9 @@ def rigid_fit(points_a: np.ndarray, points_b: np.ndarray) -> Pose:
     return R, mean_b - R @ mean_a
 
 
-def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
-             world: WorldAlignment) -> Metrics:
+def evaluate(
+    pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray, world: WorldAlignment
+) -> Metrics:
     """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring), each eye
     segment against its own T_WG (``world`` is the longest segment's)."""
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
@@ -115,12 +121,18 @@ def evaluate(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
     # Translation error measured in W (not in the predicted body frame): the usual APE.
     e_t = np.linalg.norm(apply(pred[0], p_err), axis=-1)
     e_r = np.degrees(rotation_angle(R_err))
-    return Metrics(float(np.sqrt(np.mean(e_t ** 2))), float(np.sqrt(np.mean(e_r ** 2))),
-                   float(e_t.max()), float(e_r.max()), int(e_t.size))
+    return Metrics(
+        float(np.sqrt(np.mean(e_t**2))),
+        float(np.sqrt(np.mean(e_r**2))),
+        float(e_t.max()),
+        float(e_r.max()),
+        int(e_t.size),
+    )
 
 
-def worlds_per_pair(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray,
-                    world: WorldAlignment) -> Pose:
+def worlds_per_pair(
+    pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray, world: WorldAlignment
+) -> Pose:
     """T_WG for every pair: ``world`` on its own segment, each other eye segment aligned on its
     own pairs (a VIO reset starts a new world W). Shapes (N, 3, 3), (N, 3)."""
     R_WG = np.empty((pairs.segment.size, 3, 3))

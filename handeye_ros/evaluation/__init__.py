@@ -8,5 +8,11 @@ rclpy; matplotlib is imported only by the plots.
 from .aligned import AlignedTrajectories, calibrated, uncalibrated
 from .metrics import ErrorStats, Evaluation, evaluate
 
-__all__ = ['AlignedTrajectories', 'ErrorStats', 'Evaluation', 'calibrated', 'evaluate',
-           'uncalibrated']
+__all__ = [
+    'AlignedTrajectories',
+    'ErrorStats',
+    'Evaluation',
+    'calibrated',
+    'evaluate',
+    'uncalibrated',
+]

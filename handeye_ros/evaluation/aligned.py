@@ -59,8 +59,9 @@ def calibrated(result: CalibrationResult) -> AlignedTrajectories:
     X = (matrix_from_quat(result.q_HE), np.asarray(result.p_HE, dtype=float))
     world = worlds_per_pair(pairs, result.q_HE, result.p_HE, result.world)
     R_ref, p_ref = compose(world, compose((pairs.R_GH, pairs.p_GH), X))
-    return AlignedTrajectories(used.eye_stamps_ns[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE,
-                               pairs.segment, 'calibrated')
+    return AlignedTrajectories(
+        used.eye_stamps_ns[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE, pairs.segment, 'calibrated'
+    )
 
 
 def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None, str]:
@@ -69,18 +70,26 @@ def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None,
     hand, eye = used.hand, used.eye
     R_GH, p_GH, ok = interpolate(hand, used.eye_stamps_ns)
     if ok.sum() < MIN_PAIRS:
-        return None, (f'without the time offset only {int(ok.sum())} eye stamps fall inside '
-                      'the hand recording: the two clocks do not overlap, so no APE can be '
-                      'computed without it')
+        return None, (
+            f'without the time offset only {int(ok.sum())} eye stamps fall inside '
+            'the hand recording: the two clocks do not overlap, so no APE can be '
+            'computed without it'
+        )
     p_est, R_est = eye.p_xyz[ok], matrix_from_quat(eye.q_xyzw[ok])
     p_h = p_GH[ok]
     d = p_h - p_h.mean(axis=0)
     if np.linalg.svd(d, compute_uv=False)[1] < 1e-6 * max(1.0, np.abs(d).max()):
         return None, 'the hand positions span no plane: an SE(3) fit of positions is undefined'
     R_ref, p_ref = compose(rigid_fit(p_h, p_est), (R_GH[ok], p_h))
-    return AlignedTrajectories(used.eye_stamps_ns[ok], R_ref, p_ref, R_est, p_est,
-                               np.zeros(int(ok.sum()), dtype=int),
-                               'uncalibrated (dt = 0, no T_HE, SE(3) Umeyama)'), ''
+    return AlignedTrajectories(
+        used.eye_stamps_ns[ok],
+        R_ref,
+        p_ref,
+        R_est,
+        p_est,
+        np.zeros(int(ok.sum()), dtype=int),
+        'uncalibrated (dt = 0, no T_HE, SE(3) Umeyama)',
+    ), ''
 
 
 def _used(result: CalibrationResult):

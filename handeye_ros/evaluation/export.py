@@ -34,12 +34,20 @@ FILES = ('groundtruth.tum', 'estimate.tum', 'T_HE.json', 'T_EH.json', 'export.js
 def transform_json(R: np.ndarray, p: np.ndarray) -> dict[str, float]:
     """evo's transform JSON of ``(R, p)``: ``{x, y, z, qx, qy, qz, qw}``."""
     q = quat_from_matrix(np.asarray(R, dtype=float))
-    return {'x': float(p[0]), 'y': float(p[1]), 'z': float(p[2]),
-            'qx': float(q[0]), 'qy': float(q[1]), 'qz': float(q[2]), 'qw': float(q[3])}
+    return {
+        'x': float(p[0]),
+        'y': float(p[1]),
+        'z': float(p[2]),
+        'qx': float(q[0]),
+        'qy': float(q[1]),
+        'qz': float(q[2]),
+        'qw': float(q[3]),
+    }
 
 
-def write_exports(directory: str | Path, result: CalibrationResult,
-                  cal: AlignedTrajectories) -> list[Path]:
+def write_exports(
+    directory: str | Path, result: CalibrationResult, cal: AlignedTrajectories
+) -> list[Path]:
     """Write :data:`FILES` into ``directory`` (created); returns their paths.
 
     Raises InputError when the directory cannot be written.
@@ -72,11 +80,10 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
 def _meta(result: CalibrationResult, cal: AlignedTrajectories) -> dict[str, Any]:
     return {
         'groundtruth.tum': 'T_WG * T_GH(t - dt(t)) * T_HE at the eye stamps t (eye clock), in '
-                           'the eye world W; each eye segment (between VIO resets) has its own '
-                           'T_WG',
+        'the eye world W; each eye segment (between VIO resets) has its own '
+        'T_WG',
         'estimate.tum': 'T_WE at the same stamps, as calibrated (corrections and screening '
-                        'applied' + (', positions times the scale)' if result.scale is not None
-                                     else ')'),
+        'applied' + (', positions times the scale)' if result.scale is not None else ')'),
         'T_HE.json': 'eye frame E in hand frame H (evo transform JSON)',
         'T_EH.json': 'hand frame H in eye frame E (evo transform JSON)',
         'time_offset': float(result.time_offset_s),

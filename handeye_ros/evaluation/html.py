@@ -31,50 +31,83 @@ def _f(x: Any, fmt: str = '.4f', scale: float = 1.0) -> str:
 
 
 def _transform(title: str, t: dict[str, Any]) -> str:
-    rows = ''.join('<tr>' + ''.join(f'<td>{v:+.6f}</td>' for v in row) + '</tr>'
-                   for row in t['matrix'])
+    rows = ''.join(
+        '<tr>' + ''.join(f'<td>{v:+.6f}</td>' for v in row) + '</tr>' for row in t['matrix']
+    )
     tr = ' '.join(f'{v:+.5f}' for v in t['translation'])
     q = ' '.join(f'{v:+.6f}' for v in t['rotation'])
-    return (f'<h3>{_e(title)}</h3><p>parent <code>{_e(t["parent"])}</code>, child '
-            f'<code>{_e(t["child"])}</code><br>translation [m]: <code>{tr}</code><br>'
-            f'rotation [qx qy qz qw]: <code>{q}</code></p><table>{rows}</table>')
+    return (
+        f'<h3>{_e(title)}</h3><p>parent <code>{_e(t["parent"])}</code>, child '
+        f'<code>{_e(t["child"])}</code><br>translation [m]: <code>{tr}</code><br>'
+        f'rotation [qx qy qz qw]: <code>{q}</code></p><table>{rows}</table>'
+    )
 
 
 def _numbers(d: dict[str, Any]) -> str:
     s = d.get('std') or {}
-    rows = [('time offset dt (eye clock minus hand clock)',
-             f'{d["time_offset"] * 1e3:+.4f} ms', _f(s.get('time_offset'), '.4f', 1e3) + ' ms'),
-            ('time offset, exact', f'{d["time_offset_ns"]} ns', '')]
+    rows = [
+        (
+            'time offset dt (eye clock minus hand clock)',
+            f'{d["time_offset"] * 1e3:+.4f} ms',
+            _f(s.get('time_offset'), '.4f', 1e3) + ' ms',
+        ),
+        ('time offset, exact', f'{d["time_offset_ns"]} ns', ''),
+    ]
     if d.get('clock_drift') is not None:
-        rows.append(('clock drift', f'{d["clock_drift"] * 1e6:+.3f} ppm',
-                     _f(s.get('clock_drift'), '.3f', 1e6) + ' ppm'))
+        rows.append(
+            (
+                'clock drift',
+                f'{d["clock_drift"] * 1e6:+.3f} ppm',
+                _f(s.get('clock_drift'), '.3f', 1e6) + ' ppm',
+            )
+        )
     if d.get('scale') is not None:
-        rows.append(('scale (s * eye positions are metric)', f'{d["scale"]:.5f}',
-                     _f(s.get('scale'), '.5f')))
+        rows.append(
+            (
+                'scale (s * eye positions are metric)',
+                f'{d["scale"]:.5f}',
+                _f(s.get('scale'), '.5f'),
+            )
+        )
     if s:
-        rows.append(('T_HE translation', ' '.join(f'{v:+.4f}' for v in d['extrinsic']
-                                                  ['translation']) + ' m',
-                     ' '.join(_f(v, '.2f', 1e3) for v in s['translation']) + ' mm'))
-        rows.append(('T_HE rotation (tangent, eye frame)', '',
-                     ' '.join(_f(v, '.3f', 57.29577951308232) for v in s['rotation']) + ' deg'))
-    body = ''.join(f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>'
-                   for a, b, c in rows)
-    return ('<table><tr><th class="l">quantity</th><th>value</th><th>1-sigma</th></tr>'
-            f'{body}</table><p class="l">convention: <code>{_e(d["convention"])}</code></p>')
+        rows.append(
+            (
+                'T_HE translation',
+                ' '.join(f'{v:+.4f}' for v in d['extrinsic']['translation']) + ' m',
+                ' '.join(_f(v, '.2f', 1e3) for v in s['translation']) + ' mm',
+            )
+        )
+        rows.append(
+            (
+                'T_HE rotation (tangent, eye frame)',
+                '',
+                ' '.join(_f(v, '.3f', 57.29577951308232) for v in s['rotation']) + ' deg',
+            )
+        )
+    body = ''.join(
+        f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows
+    )
+    return (
+        '<table><tr><th class="l">quantity</th><th>value</th><th>1-sigma</th></tr>'
+        f'{body}</table><p class="l">convention: <code>{_e(d["convention"])}</code></p>'
+    )
 
 
 def _metrics(ev: dict[str, Any] | None) -> str:
     if not ev:
         return '<p>no evaluation</p>'
-    cols = [('ape_translation', 'APE translation', 1e3, 'mm'),
-            ('ape_rotation', 'APE rotation', 1.0, 'deg'),
-            ('rpe_time_translation', f'RPE per {ev["rpe_delta_s"]:g} s translation', 1e3, 'mm'),
-            ('rpe_time_rotation', f'RPE per {ev["rpe_delta_s"]:g} s rotation', 1.0, 'deg'),
-            ('rpe_distance_translation', f'RPE per {ev["rpe_delta_m"]:g} m translation', 1e3,
-             'mm'),
-            ('rpe_distance_rotation', f'RPE per {ev["rpe_delta_m"]:g} m rotation', 1.0, 'deg')]
-    head = ('<tr><th class="l">metric</th><th class="l">alignment</th><th>RMSE</th><th>mean'
-            '</th><th>median</th><th>max</th><th>n</th></tr>')
+    cols = [
+        ('ape_translation', 'APE translation', 1e3, 'mm'),
+        ('ape_rotation', 'APE rotation', 1.0, 'deg'),
+        ('rpe_time_translation', f'RPE per {ev["rpe_delta_s"]:g} s translation', 1e3, 'mm'),
+        ('rpe_time_rotation', f'RPE per {ev["rpe_delta_s"]:g} s rotation', 1.0, 'deg'),
+        ('rpe_distance_translation', f'RPE per {ev["rpe_delta_m"]:g} m translation', 1e3, 'mm'),
+        ('rpe_distance_rotation', f'RPE per {ev["rpe_delta_m"]:g} m rotation', 1.0, 'deg'),
+    ]
+    head = (
+        '<tr><th class="l">metric</th><th class="l">alignment</th><th>RMSE</th><th>mean'
+        '</th><th>median</th><th>max</th><th>n</th></tr>'
+    )
     rows = []
     for key, name, k, unit in cols:
         for side in ('calibrated', 'uncalibrated'):
@@ -82,37 +115,46 @@ def _metrics(ev: dict[str, Any] | None) -> str:
             if pe is None:
                 continue
             st = pe[key]
-            rows.append(f'<tr><td class="l">{_e(name)} [{unit}]</td><td class="l">'
-                        f'{_e(pe["what"])}</td>' + ''.join(
-                            f'<td>{_f(st[f], ".3f", k)}</td>'
-                            for f in ('rmse', 'mean', 'median', 'max')) + f'<td>{st["n"]}</td></tr>')
+            rows.append(
+                f'<tr><td class="l">{_e(name)} [{unit}]</td><td class="l">'
+                f'{_e(pe["what"])}</td>'
+                + ''.join(
+                    f'<td>{_f(st[f], ".3f", k)}</td>' for f in ('rmse', 'mean', 'median', 'max')
+                )
+                + f'<td>{st["n"]}</td></tr>'
+            )
     why = ev.get('uncalibrated_why')
     note = f'<p>Without the calibration: {_e(why)}</p>' if why else ''
     return f'<table>{head}{"".join(rows)}</table>{note}'
 
 
 def _inputs(d: dict[str, Any]) -> str:
-    rows = ''.join(f'<tr><td class="l">{name}</td><td class="l">{_e(i["source"])}</td>'
-                   f'<td>{i["poses"]}</td><td>{i["rate_hz"]:.1f}</td>'
-                   f'<td>{i["duration_s"]:.1f}</td></tr>'
-                   for name, i in d['inputs'].items() if isinstance(i, dict))
-    return ('<table><tr><th class="l">stream</th><th class="l">source</th><th>poses</th>'
-            f'<th>rate [Hz]</th><th>duration [s]</th></tr>{rows}</table>')
+    rows = ''.join(
+        f'<tr><td class="l">{name}</td><td class="l">{_e(i["source"])}</td>'
+        f'<td>{i["poses"]}</td><td>{i["rate_hz"]:.1f}</td>'
+        f'<td>{i["duration_s"]:.1f}</td></tr>'
+        for name, i in d['inputs'].items()
+        if isinstance(i, dict)
+    )
+    return (
+        '<table><tr><th class="l">stream</th><th class="l">source</th><th>poses</th>'
+        f'<th>rate [Hz]</th><th>duration [s]</th></tr>{rows}</table>'
+    )
 
 
 def render(d: dict[str, Any], figures: list[tuple[Path, str]]) -> str:
     """The page for result dictionary ``d`` and ``figures`` (PNG path, caption)."""
     q = d['quality']
     colour = VERDICT_COLOUR.get(q['verdict'], '#555')
-    reasons = ''.join(f'<li><b>{_e(r["code"])}</b>: {_e(r["message"])}</li>'
-                      for r in q['reasons'])
+    reasons = ''.join(f'<li><b>{_e(r["code"])}</b>: {_e(r["message"])}</li>' for r in q['reasons'])
     notes = ''.join(f'<li>{_e(n)}</li>' for n in q['notes'])
     warnings = ''.join(f'<li>{_e(w)}</li>' for w in d['warnings'])
     figs = ''.join(
         f'<figure><img alt="{_e(p.stem)}" src="data:image/png;base64,'
         f'{base64.b64encode(p.read_bytes()).decode("ascii")}" data-file="{_e(p.name)}">'
         f'<figcaption>{_e(c)} (<a href="{_e(p.name)}">{_e(p.name)}</a>)</figcaption></figure>'
-        for p, c in figures)
+        for p, c in figures
+    )
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>handeye_ros calibration report</title>
 <style>{STYLE}</style></head><body>

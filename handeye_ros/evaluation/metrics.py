@@ -40,12 +40,19 @@ class ErrorStats:
         if e.size == 0:
             nan = float('nan')
             return cls(nan, nan, nan, nan, 0)
-        return cls(float(np.sqrt(np.mean(e ** 2))), float(e.mean()), float(np.median(e)),
-                   float(e.max()), int(e.size))
+        return cls(
+            float(np.sqrt(np.mean(e**2))),
+            float(e.mean()),
+            float(np.median(e)),
+            float(e.max()),
+            int(e.size),
+        )
 
     def to_dict(self) -> dict[str, float | int | None]:
-        return {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
-                for k, v in asdict(self).items()}
+        return {
+            k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+            for k, v in asdict(self).items()
+        }
 
 
 def ape(al: AlignedTrajectories) -> tuple[np.ndarray, np.ndarray]:
@@ -83,8 +90,9 @@ def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndar
     return i[keep], j[keep]
 
 
-def rpe(al: AlignedTrajectories, delta: float, unit: str = 's') -> tuple[np.ndarray, np.ndarray,
-                                                                         np.ndarray]:
+def rpe(
+    al: AlignedTrajectories, delta: float, unit: str = 's'
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-pair translation (m) and rotation (deg) errors and the pairs' first indices."""
     i, j = rpe_pairs(al, delta, unit)
     # with dQ = Q_i^-1 Q_j = (R_Qi^T R_Qj, R_Qi^T (q_j - q_i)) and dP alike, E = dQ^-1 dP has
@@ -95,8 +103,9 @@ def rpe(al: AlignedTrajectories, delta: float, unit: str = 's') -> tuple[np.ndar
     return (np.linalg.norm(t_dP - t_dQ, axis=1), np.degrees(rotation_angle(R_err)), i)
 
 
-def _relative(R: np.ndarray, p: np.ndarray, i: np.ndarray,
-              j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _relative(
+    R: np.ndarray, p: np.ndarray, i: np.ndarray, j: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``T_i^-1 T_j`` for index pairs: rotations (M, 3, 3), translations (M, 3)."""
     Ri_T = np.swapaxes(R[i], -1, -2)
     return np.matmul(Ri_T, R[j]), np.einsum('nab,nb->na', Ri_T, p[j] - p[i])
@@ -122,8 +131,10 @@ class PoseErrors:
         return cls(al.what, *(ErrorStats.of(e) for e in (a_t, a_r, rt_t, rt_r, rd_t, rd_r)))
 
     def to_dict(self) -> dict:
-        return {'what': self.what, **{k: v.to_dict() for k, v in vars(self).items()
-                                      if isinstance(v, ErrorStats)}}
+        return {
+            'what': self.what,
+            **{k: v.to_dict() for k, v in vars(self).items() if isinstance(v, ErrorStats)},
+        }
 
 
 @dataclass(frozen=True)
@@ -141,16 +152,29 @@ class Evaluation:
     uncalibrated_why: str = ''
 
     def to_dict(self) -> dict:
-        return {'rpe_delta_s': self.delta_s, 'rpe_delta_m': self.delta_m,
-                'units': {'translation': 'm', 'rotation': 'deg'},
-                'calibrated': self.calibrated.to_dict(),
-                'uncalibrated': None if self.uncalibrated is None else
-                self.uncalibrated.to_dict(),
-                'uncalibrated_why': self.uncalibrated_why or None}
+        return {
+            'rpe_delta_s': self.delta_s,
+            'rpe_delta_m': self.delta_m,
+            'units': {'translation': 'm', 'rotation': 'deg'},
+            'calibrated': self.calibrated.to_dict(),
+            'uncalibrated': None if self.uncalibrated is None else self.uncalibrated.to_dict(),
+            'uncalibrated_why': self.uncalibrated_why or None,
+        }
 
 
-def evaluate(cal: AlignedTrajectories, base: AlignedTrajectories | None, *,
-             delta_s: float = 1.0, delta_m: float = 1.0, why: str = '') -> Evaluation:
+def evaluate(
+    cal: AlignedTrajectories,
+    base: AlignedTrajectories | None,
+    *,
+    delta_s: float = 1.0,
+    delta_m: float = 1.0,
+    why: str = '',
+) -> Evaluation:
     """APE/RPE of the eye with the calibration (``cal``) and without it (``base``)."""
-    return Evaluation(delta_s, delta_m, PoseErrors.of(cal, delta_s, delta_m),
-                      None if base is None else PoseErrors.of(base, delta_s, delta_m), why)
+    return Evaluation(
+        delta_s,
+        delta_m,
+        PoseErrors.of(cal, delta_s, delta_m),
+        None if base is None else PoseErrors.of(base, delta_s, delta_m),
+        why,
+    )

@@ -34,10 +34,15 @@ def check_directory(path: str | Path, what: str) -> Path:
     return out
 
 
-def evaluate_and_write(result: CalibrationResult, out: dict[str, Any], *,
-                       export_dir: str | Path | None = None,
-                       report_dir: str | Path | None = None, delta_s: float = 1.0,
-                       delta_m: float = 1.0) -> None:
+def evaluate_and_write(
+    result: CalibrationResult,
+    out: dict[str, Any],
+    *,
+    export_dir: str | Path | None = None,
+    report_dir: str | Path | None = None,
+    delta_s: float = 1.0,
+    delta_m: float = 1.0,
+) -> None:
     """Add ``evaluation`` (APE/RPE with and without the calibration) to the result dictionary
     ``out``; write the exports and the report where asked (their paths go to
     ``out['files']``). Raises InputError when a directory cannot be written."""
@@ -50,6 +55,7 @@ def evaluate_and_write(result: CalibrationResult, out: dict[str, Any], *,
     files: dict[str, Any] = {}
     if export_dir:
         from .export import write_exports
+
         files['export'] = [str(p) for p in write_exports(export_dir, result, cal)]
     if report_dir:
         files['report'] = str(write_report(report_dir, result, out, cal, base))
@@ -57,11 +63,13 @@ def evaluate_and_write(result: CalibrationResult, out: dict[str, Any], *,
         out['files'] = files
 
 
-def write_report(directory: str | Path, result: CalibrationResult, out: dict[str, Any],
-                 cal=None, base=None) -> Path:
+def write_report(
+    directory: str | Path, result: CalibrationResult, out: dict[str, Any], cal=None, base=None
+) -> Path:
     """Write the report's PNGs and report.html into ``directory``; returns the page's path."""
     from . import plots
     from .html import render
+
     t0 = time.perf_counter()
     d = check_directory(directory, 'report directory')
     if cal is None:
@@ -72,8 +80,9 @@ def write_report(directory: str | Path, result: CalibrationResult, out: dict[str
         for name in FIGURES:
             path = d / f'{name}.png'
             if name == 'trajectories':
-                caption = plots.trajectories(cal, path, ape(cal)[0], base,
-                                             None if base is None else ape(base)[0])
+                caption = plots.trajectories(
+                    cal, path, ape(cal)[0], base, None if base is None else ape(base)[0]
+                )
             else:
                 caption = getattr(plots, name)(result, path)
             figures.append((path, caption))

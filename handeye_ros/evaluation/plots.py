@@ -26,6 +26,7 @@ HAND, EYE, REF = '#1f77b4', '#d62728', '#2ca02c'
 
 def _figure(rows: int, cols: int = 1, height: float = 3.0, width: float = 9.0):
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, height * rows), dpi=DPI, layout='constrained')
     return fig, fig.subplots(rows, cols, squeeze=False)
 
@@ -56,8 +57,14 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
     hand0 = int(used.hand.t_ns[0])
     t_after = (used.eye.t_ns[0] - hand0) * 1e-9 - used.time_offset_s + w_e.t_s
     ax[1, 0].plot(w_h.t_s[sh], np.degrees(w_h.speed[sh]), color=HAND, lw=0.7, label='hand')
-    ax[1, 0].plot(t_after[se], np.degrees(w_e.speed[se]), color=EYE, lw=0.7, alpha=0.8,
-                  label=f'eye, moved by dt = {result.time_offset_s * 1e3:+.2f} ms')
+    ax[1, 0].plot(
+        t_after[se],
+        np.degrees(w_e.speed[se]),
+        color=EYE,
+        lw=0.7,
+        alpha=0.8,
+        label=f'eye, moved by dt = {result.time_offset_s * 1e3:+.2f} ms',
+    )
     ax[1, 0].set_title('after: the eye on the hand clock')
     for a in ax[:2, 0]:
         a.set_xlabel('time [s]')
@@ -67,8 +74,12 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
     if ta.lags_s is not None and ta.correlation is not None and ta.correlation.size:
         s = _thin(ta.lags_s.size)
         c.plot(ta.lags_s[s], ta.correlation[s], color='k', lw=0.8)
-        c.axvline(ta.time_offset_s, color=EYE, lw=1.0,
-                  label=f'chosen {ta.time_offset_s:+.4f} s (r = {ta.peak_correlation:.3f})')
+        c.axvline(
+            ta.time_offset_s,
+            color=EYE,
+            lw=1.0,
+            label=f'chosen {ta.time_offset_s:+.4f} s (r = {ta.peak_correlation:.3f})',
+        )
         others = [(o, r) for o, r in ta.candidates if abs(o - ta.time_offset_s) > 1e-9]
         if others:
             o, r = others[0]
@@ -80,8 +91,10 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
     c.set_xlabel('time offset dt = eye clock - hand clock [s]')
     c.set_ylabel('correlation')
     _save(fig, path)
-    return ('Stage 1: the angular speed of both streams before and after the alignment, and '
-            'the correlation over the searched offsets with the chosen and the runner-up peak.')
+    return (
+        'Stage 1: the angular speed of both streams before and after the alignment, and '
+        'the correlation over the searched offsets with the chosen and the runner-up peak.'
+    )
 
 
 def clock(result: CalibrationResult, path: Path) -> str:
@@ -97,23 +110,40 @@ def clock(result: CalibrationResult, path: Path) -> str:
         used = fit.inliers.astype(bool)
         a.plot(t[used], fit.offsets_s[used] * 1e3, 'o', color=HAND, label='window (used)')
         if (~used).any():
-            a.plot(t[~used], fit.offsets_s[~used] * 1e3, 'x', color='0.5', label='window (not used)')
+            a.plot(
+                t[~used], fit.offsets_s[~used] * 1e3, 'x', color='0.5', label='window (not used)'
+            )
         tt = np.linspace(t.min(), t.max(), 50)
         stamps = t0 + np.rint(tt * 1e9).astype(np.int64)
-        a.plot(tt, result.time_offset_at(stamps) * 1e3, color=EYE,
-               label='result' + (f' (drift {result.clock_drift * 1e6:+.2f} ppm)'
-                                 if result.clock_drift is not None else ' (one offset)'))
+        a.plot(
+            tt,
+            result.time_offset_at(stamps) * 1e3,
+            color=EYE,
+            label='result'
+            + (
+                f' (drift {result.clock_drift * 1e6:+.2f} ppm)'
+                if result.clock_drift is not None
+                else ' (one offset)'
+            ),
+        )
         if np.isfinite(fit.drift):
-            a.plot(tt, (fit.offset_s + fit.drift * ((stamps - fit.stamp_ns) * 1e-9)) * 1e3,
-                   color='k', ls=':', label=f'line through the windows ({fit.drift * 1e6:+.2f} '
-                   f'+- {fit.drift_std * 1e6:.2f} ppm)')
+            a.plot(
+                tt,
+                (fit.offset_s + fit.drift * ((stamps - fit.stamp_ns) * 1e-9)) * 1e3,
+                color='k',
+                ls=':',
+                label=f'line through the windows ({fit.drift * 1e6:+.2f} '
+                f'+- {fit.drift_std * 1e6:.2f} ppm)',
+            )
         a.legend(fontsize='small')
     a.set_xlabel('eye time [s]')
     a.set_ylabel('time offset [ms]')
     a.set_title('time offset measured in windows along the recording')
     _save(fig, path)
-    return ('The offset measured in windows along the recording: a slope is a clock drift; '
-            'the line the result uses is drawn through them.')
+    return (
+        'The offset measured in windows along the recording: a slope is a clock drift; '
+        'the line the result uses is drawn through them.'
+    )
 
 
 def linear(result: CalibrationResult, path: Path) -> str:
@@ -121,6 +151,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     lin = result.linear
     m = lin.motions
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(10, 4.2), dpi=DPI, layout='constrained')
     a = fig.add_subplot(1, 2, 1)
     b = fig.add_subplot(1, 2, 2, projection='3d')
@@ -128,16 +159,30 @@ def linear(result: CalibrationResult, path: Path) -> str:
         _empty(a, 'no motions')
     else:
         from ..core.linear import motion_errors
+
         e_rot, e_trans = motion_errors(m, lin.q_HE[None], lin.p_HE[None])
         inl = lin.inliers.astype(bool)
-        a.loglog(np.degrees(e_rot[0, inl]), e_trans[0, inl] * 1e3, '.', color=HAND, ms=4,
-                 label=f'inliers ({inl.sum()})')
+        a.loglog(
+            np.degrees(e_rot[0, inl]),
+            e_trans[0, inl] * 1e3,
+            '.',
+            color=HAND,
+            ms=4,
+            label=f'inliers ({inl.sum()})',
+        )
         if (~inl).any():
-            a.loglog(np.degrees(e_rot[0, ~inl]), e_trans[0, ~inl] * 1e3, '.', color=EYE, ms=4,
-                     label=f'outliers ({(~inl).sum()})')
+            a.loglog(
+                np.degrees(e_rot[0, ~inl]),
+                e_trans[0, ~inl] * 1e3,
+                '.',
+                color=EYE,
+                ms=4,
+                label=f'outliers ({(~inl).sum()})',
+            )
         a.axvline(lin.inlier_rotation_deg, color='0.4', ls='--', lw=0.8)
-        a.axhline(lin.inlier_translation_m * 1e3, color='0.4', ls='--', lw=0.8,
-                  label='inlier thresholds')
+        a.axhline(
+            lin.inlier_translation_m * 1e3, color='0.4', ls='--', lw=0.8, label='inlier thresholds'
+        )
         a.legend(fontsize='small')
         # rotation axes of the hand motions (sign-free: the upper hemisphere of z)
         rv = _axes(m.qa)
@@ -145,18 +190,21 @@ def linear(result: CalibrationResult, path: Path) -> str:
         b.scatter(*rv[sel].T, s=6, color=HAND)
         if (~sel).any():
             b.scatter(*rv[~sel].T, s=6, color=EYE)
-        u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
-        b.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color='0.85',
-                         lw=0.4)
+        u, v = np.mgrid[0 : 2 * np.pi : 24j, 0 : np.pi : 12j]
+        b.plot_wireframe(
+            np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color='0.85', lw=0.4
+        )
         b.set_box_aspect((1, 1, 1))
     a.set_xlabel('rotation error of X B X^-1 A^-1 [deg]')
     a.set_ylabel('translation error [mm]')
     a.set_title(f'linear stage: {lin.n_inliers}/{lin.n_motions} inlier motions')
     b.set_title(f'rotation axes of the motions (spread {lin.axis_spread_deg:.0f} deg)')
     _save(fig, path)
-    return ('Stage 2: the error of every keyframe motion at the linear solution (inliers '
-            'blue, outliers red, dashed: the inlier thresholds), and the motions\' rotation '
-            'axes on the unit sphere: axes spread over the sphere make T_HE observable.')
+    return (
+        'Stage 2: the error of every keyframe motion at the linear solution (inliers '
+        "blue, outliers red, dashed: the inlier thresholds), and the motions' rotation "
+        'axes on the unit sphere: axes spread over the sphere make T_HE observable.'
+    )
 
 
 def _axes(q: np.ndarray) -> np.ndarray:
@@ -174,11 +222,13 @@ def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, n
 
     from ..core.association import eye_motion_residuals
     from ..core.geometry import matrix_from_quat
+
     used = result.used
     eye = used.eye
     k = np.flatnonzero(eye.interval_ok())
-    R_err, p_err, covered = eye_motion_residuals(used.hand, eye, k, k + 1, used.time_offset_s,
-                                                 matrix_from_quat(result.q_HE), result.p_HE)
+    R_err, p_err, covered = eye_motion_residuals(
+        used.hand, eye, k, k + 1, used.time_offset_s, matrix_from_quat(result.q_HE), result.p_HE
+    )
     t = eye.seconds(int(eye.t_ns[0]))[k[covered]]
     return t, Rotation.from_matrix(R_err[covered]).as_rotvec(), p_err[covered]
 
@@ -201,20 +251,20 @@ def residuals(result: CalibrationResult, path: Path) -> str:
     lags = np.arange(MAX_LAGS + 1)
     for k, name in enumerate('xyz'):
         c.plot(lags, _acf(p[:, k], MAX_LAGS), '.-', lw=0.7, label=f'translation {name}')
-    c.plot(lags, _acf(np.linalg.norm(r, axis=1), MAX_LAGS), 'k.-', lw=0.7,
-           label='rotation angle')
+    c.plot(lags, _acf(np.linalg.norm(r, axis=1), MAX_LAGS), 'k.-', lw=0.7, label='rotation angle')
     if t.size > 1:
-        c.axhspan(-2 / np.sqrt(t.size), 2 / np.sqrt(t.size), color='0.9',
-                  label='white-noise band')
+        c.axhspan(-2 / np.sqrt(t.size), 2 / np.sqrt(t.size), color='0.9', label='white-noise band')
     c.set_xlabel('lag [eye poses]')
     c.set_ylabel('autocorrelation')
     c.legend(loc='upper right', fontsize='small', ncol=2)
     _save(fig, path)
     bw = result.batch.bandwidth if result.batch is not None else None
-    return ('Residuals of every consecutive eye motion against the calibrated hand motion '
-            '(T_HE^-1 A T_HE vs B, eq. 16 with the hand interpolated), and their '
-            'autocorrelation: correlated residuals (VIO drift) are why the uncertainty uses a '
-            'long-run covariance' + (f' (bandwidth {bw} eye poses).' if bw is not None else '.'))
+    return (
+        'Residuals of every consecutive eye motion against the calibrated hand motion '
+        '(T_HE^-1 A T_HE vs B, eq. 16 with the hand interpolated), and their '
+        'autocorrelation: correlated residuals (VIO drift) are why the uncertainty uses a '
+        'long-run covariance' + (f' (bandwidth {bw} eye poses).' if bw is not None else '.')
+    )
 
 
 def _acf(x: np.ndarray, lags: int) -> np.ndarray:
@@ -224,15 +274,20 @@ def _acf(x: np.ndarray, lags: int) -> np.ndarray:
     if d <= 0:
         return out
     for k in range(min(lags, x.size - 1) + 1):
-        out[k] = float(np.dot(x[:x.size - k], x[k:])) / d
+        out[k] = float(np.dot(x[: x.size - k], x[k:])) / d
     return out
 
 
-def trajectories(al: AlignedTrajectories, path: Path, ape_t: np.ndarray,
-                 base: AlignedTrajectories | None = None,
-                 base_ape_t: np.ndarray | None = None) -> str:
+def trajectories(
+    al: AlignedTrajectories,
+    path: Path,
+    ape_t: np.ndarray,
+    base: AlignedTrajectories | None = None,
+    base_ape_t: np.ndarray | None = None,
+) -> str:
     """Top view, x/y/z over time and APE over time of the eye and the calibrated ground truth."""
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(10, 10), dpi=DPI, layout='constrained')
     grid = fig.add_gridspec(4, 2)
     top = fig.add_subplot(grid[:3, 0])
@@ -252,37 +307,53 @@ def trajectories(al: AlignedTrajectories, path: Path, ape_t: np.ndarray,
         a.plot(t[s], al.p_est[s, k], color=EYE, lw=0.8)
         a.set_ylabel(f'{"xyz"[k]} [m]')
     xyz[-1].set_xlabel('eye time [s]')
-    err.plot(t[s], ape_t[s] * 1e3, color='k', lw=0.8,
-             label=f'with the calibration (RMSE {np.sqrt(np.mean(ape_t ** 2)) * 1e3:.1f} mm)')
+    err.plot(
+        t[s],
+        ape_t[s] * 1e3,
+        color='k',
+        lw=0.8,
+        label=f'with the calibration (RMSE {np.sqrt(np.mean(ape_t**2)) * 1e3:.1f} mm)',
+    )
     if base is not None and base_ape_t is not None:
         tb = (base.t_ns - al.t_ns[0]) * 1e-9
         sb = _thin(tb.size)
-        err.plot(tb[sb], base_ape_t[sb] * 1e3, color='0.6', lw=0.8,
-                 label=f'without (dt = 0, no T_HE, SE(3) fit; RMSE '
-                       f'{np.sqrt(np.mean(base_ape_t ** 2)) * 1e3:.1f} mm)')
+        err.plot(
+            tb[sb],
+            base_ape_t[sb] * 1e3,
+            color='0.6',
+            lw=0.8,
+            label=f'without (dt = 0, no T_HE, SE(3) fit; RMSE '
+            f'{np.sqrt(np.mean(base_ape_t**2)) * 1e3:.1f} mm)',
+        )
     err.set_xlabel('eye time [s]')
     err.set_ylabel('APE [mm]')
     err.set_title('absolute position error over time')
     err.legend(fontsize='small')
     _save(fig, path)
-    return ('The eye and the MoCap ground truth mapped into the eye\'s world and clock '
-            '(T_WG T_GH(t - dt) T_HE): top view, x/y/z over time, and the position error over '
-            'time with and without the calibration.')
-
+    return (
+        "The eye and the MoCap ground truth mapped into the eye's world and clock "
+        '(T_WG T_GH(t - dt) T_HE): top view, x/y/z over time, and the position error over '
+        'time with and without the calibration.'
+    )
 
 
 def summary(rows: list[dict], path: Path) -> str:
     """Box plots of the successful runs' APE and RPE per algorithm and per sequence."""
     ok = [r for r in rows if r.get('status') == 'ok' and r.get('ape_mm') is not None]
-    metrics = (('ape_mm', 'APE [mm], calibrated'), ('rpe_1s_mm', 'RPE per 1 s [mm]'),
-               ('ape_uncalibrated_mm', 'APE [mm], dt = 0, no T_HE, SE(3) fit'))
+    metrics = (
+        ('ape_mm', 'APE [mm], calibrated'),
+        ('rpe_1s_mm', 'RPE per 1 s [mm]'),
+        ('ape_uncalibrated_mm', 'APE [mm], dt = 0, no T_HE, SE(3) fit'),
+    )
     fig, ax = _figure(len(metrics), 2, height=2.8, width=11.0)
     for row, (key, label) in enumerate(metrics):
         for col, group in enumerate(('algorithm', 'sequence')):
             a = ax[row, col]
             names = sorted({str(r.get(group) or '-') for r in ok})
-            data = [[r[key] for r in ok if str(r.get(group) or '-') == n and
-                     r.get(key) is not None] for n in names]
+            data = [
+                [r[key] for r in ok if str(r.get(group) or '-') == n and r.get(key) is not None]
+                for n in names
+            ]
             shown = [(n, d) for n, d in zip(names, data, strict=True) if d]
             if shown:
                 a.boxplot([d for _, d in shown], tick_labels=[n for n, _ in shown])

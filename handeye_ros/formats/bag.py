@@ -44,18 +44,19 @@ class Topic:
 #: (ROS 2 Humble's sqlite3 bags); a bag's own definitions take precedence when it has them.
 MOCAP4R2_MSGS = {
     'mocap4r2_msgs/msg/Marker': 'int8 USE_NAME=0\nint8 USE_INDEX=1\nint8 USE_BOTH=2\n'
-                                'int8 id_type\nint32 marker_index\nstring marker_name\n'
-                                'geometry_msgs/Point translation\n',
+    'int8 id_type\nint32 marker_index\nstring marker_name\n'
+    'geometry_msgs/Point translation\n',
     'mocap4r2_msgs/msg/RigidBody': 'string rigid_body_name\nmocap4r2_msgs/Marker[] markers\n'
-                                   'geometry_msgs/Pose pose\n',
+    'geometry_msgs/Pose pose\n',
     'mocap4r2_msgs/msg/RigidBodies': 'std_msgs/Header header\nuint32 frame_number\n'
-                                     'mocap4r2_msgs/RigidBody[] rigidbodies\n',
+    'mocap4r2_msgs/RigidBody[] rigidbodies\n',
 }
 
 
 def _typestore() -> Any:
     """Jazzy's types (tf2_msgs included) and mocap4r2_msgs."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
     store = get_typestore(Stores.ROS2_JAZZY)
     for name, text in MOCAP4R2_MSGS.items():
         store.register(get_types_from_msg(text, name))
@@ -77,8 +78,9 @@ class BagReader:
             self.reader = AnyReader([self.path], default_typestore=_typestore())
             self.reader.open()
         except (AnyReaderError, OSError, ValueError) as err:
-            raise InputError(f'{self.path}: cannot be read as a ROS 1 or ROS 2 bag ({err})') \
-                from None
+            raise InputError(
+                f'{self.path}: cannot be read as a ROS 1 or ROS 2 bag ({err})'
+            ) from None
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -124,23 +126,32 @@ class BagReader:
 
 # ----------------------------------------------------------------------------------- writing
 
-def rigid_bodies_message(store: Any, t_ns: int, frame_id: str,
-                         bodies: list[tuple[str, Any, Any]]) -> Any:
+
+def rigid_bodies_message(
+    store: Any, t_ns: int, frame_id: str, bodies: list[tuple[str, Any, Any]]
+) -> Any:
     """mocap4r2_msgs/RigidBodies (rosbags class) of (name, p x y z, q x y z w) bodies."""
     T = store.types
     return T['mocap4r2_msgs/msg/RigidBodies'](
         header=header(T, t_ns, frame_id),
         frame_number=0,
-        rigidbodies=[T['mocap4r2_msgs/msg/RigidBody'](
-            rigid_body_name=name, markers=[],
-            pose=T['geometry_msgs/msg/Pose'](
-                position=T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2]),
-                orientation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])))
-            for name, p, q in bodies])
+        rigidbodies=[
+            T['mocap4r2_msgs/msg/RigidBody'](
+                rigid_body_name=name,
+                markers=[],
+                pose=T['geometry_msgs/msg/Pose'](
+                    position=T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2]),
+                    orientation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3]),
+                ),
+            )
+            for name, p, q in bodies
+        ],
+    )
 
 
-def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
-                  child_frame_id: str) -> Iterator[tuple[int, Any]]:
+def pose_messages(
+    store: Any, traj: Trajectory, msgtype: str, frame_id: str, child_frame_id: str
+) -> Iterator[tuple[int, Any]]:
     """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes).
 
     A TFMessage holds one transform (frame_id -> child_frame_id), a RigidBodies message one
@@ -171,7 +182,8 @@ def pose_messages(store: Any, traj: Trajectory, msgtype: str, frame_id: str,
             continue
         zero = T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
         twist = T['geometry_msgs/msg/TwistWithCovariance'](
-            twist=T['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36))
+            twist=T['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36)
+        )
         yield t, T[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
 
 
@@ -184,9 +196,19 @@ def _latched_qos() -> Any:
         QosReliability,
         QosTime,
     )
+
     zero = QosTime(0, 0)
-    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
-               zero, zero, QosLiveliness.AUTOMATIC, zero, False)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        1,
+        QosReliability.RELIABLE,
+        QosDurability.TRANSIENT_LOCAL,
+        zero,
+        zero,
+        QosLiveliness.AUTOMATIC,
+        zero,
+        False,
+    )
 
 
 #: The QoS tf2's static broadcaster offers (transient local, reliable, keep last 1).
@@ -204,9 +226,11 @@ class BagWriter:
             raise InputError(f'{self.path}: exists already; choose a new path for the bag')
         if storage == 'ros1':
             from rosbags.rosbag1 import Writer as Writer1
+
             self.writer = Writer1(self.path)
         else:
             from rosbags.rosbag2 import StoragePlugin, Writer
+
             plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
             self.writer = Writer(self.path, version=9, storage_plugin=plugin)
         self._conns: dict[str, Any] = {}
@@ -226,8 +250,11 @@ class BagWriter:
         if topic not in self._conns:
             qos = (LATCHED_QOS,) if latched and self.storage != 'ros1' else ()
             self._conns[topic] = self.writer.add_connection(
-                topic, msgtype, typestore=self.store,
-                **({'offered_qos_profiles': qos} if qos else {}))
+                topic,
+                msgtype,
+                typestore=self.store,
+                **({'offered_qos_profiles': qos} if qos else {}),
+            )
         if self.storage == 'ros1':
             data = self.store.serialize_ros1(msg, msgtype)
         else:
@@ -235,8 +262,9 @@ class BagWriter:
         self.writer.write(self._conns[topic], int(t_ns), data)
 
 
-def write_recording(path: str | Path, streams: list[tuple[str, str, Trajectory, str, str]],
-                    storage: str = 'mcap') -> None:
+def write_recording(
+    path: str | Path, streams: list[tuple[str, str, Trajectory, str, str]], storage: str = 'mcap'
+) -> None:
     """Write trajectories as pose topics, interleaved by stamp as a recorder would log them.
 
     ``streams``: (topic, message type, trajectory, frame_id, child_frame_id) each.
@@ -245,17 +273,19 @@ def write_recording(path: str | Path, streams: list[tuple[str, str, Trajectory, 
         items = []
         for k, (topic, msgtype, traj, frame, child) in enumerate(streams):
             full = normalise_type(msgtype)
-            items += [(t, k, topic, full, m) for t, m in
-                      pose_messages(w.store, traj, full, frame, child)]
+            items += [
+                (t, k, topic, full, m) for t, m in pose_messages(w.store, traj, full, frame, child)
+            ]
         items.sort(key=lambda x: (x[0], x[1]))
         for t, _, topic, full, msg in items:
             w.write(topic, full, t, msg)
 
 
 #: The fixed rig -> marker transform of the /tf layout below (any fixed pose will do).
-RIG_TO_MARKER = ((0.05, -0.02, 0.11),  # 10, -20, 30 deg about x, y, z
-                 (0.12767944069578063, -0.14487812541736914, 0.2685358227515692,
-                  0.943714364147489))
+RIG_TO_MARKER = (
+    (0.05, -0.02, 0.11),  # 10, -20, 30 deg about x, y, z
+    (0.12767944069578063, -0.14487812541736914, 0.2685358227515692, 0.943714364147489),
+)
 #: Topics and selectors of the layouts below.
 TF_SELECTORS = {'hand': '/tf:world.marker', 'eye': '/tf:odom.imu'}
 RIGID_BODIES_TOPIC = '/mocap/rigid_bodies'
@@ -266,59 +296,84 @@ def tf_links(hand: Trajectory, eye: Trajectory) -> tuple[Trajectory, Trajectory]
     world -> rig, with rig -> marker static (RIG_TO_MARKER), and the eye as the inverse link
     imu -> odom; ``/tf:world.marker`` and ``/tf:odom.imu`` give them back."""
     from scipy.spatial.transform import Rotation
+
     s_p, s_q = RIG_TO_MARKER
     rot = Rotation.from_quat(hand.q_xyzw) * Rotation.from_quat(s_q).inv()
-    rig = Trajectory.from_arrays(hand.t_ns, hand.p_xyz - rot.apply(s_p), rot.as_quat(),
-                                 name='world->rig')
+    rig = Trajectory.from_arrays(
+        hand.t_ns, hand.p_xyz - rot.apply(s_p), rot.as_quat(), name='world->rig'
+    )
     inv = Rotation.from_quat(eye.q_xyzw).inv()
-    imu = Trajectory.from_arrays(eye.t_ns, -inv.apply(eye.p_xyz), inv.as_quat(),
-                                 name='imu->odom')
+    imu = Trajectory.from_arrays(eye.t_ns, -inv.apply(eye.p_xyz), inv.as_quat(), name='imu->odom')
     return rig, imu
 
 
-def write_tf_recording(path: str | Path, hand: Trajectory, eye: Trajectory,
-                       storage: str = 'mcap', slash: str = '', static_after: int = 5) -> None:
+def write_tf_recording(
+    path: str | Path,
+    hand: Trajectory,
+    eye: Trajectory,
+    storage: str = 'mcap',
+    slash: str = '',
+    static_after: int = 5,
+) -> None:
     """Both streams on /tf as :func:`tf_links` lays them out, interleaved by stamp, and the
     static rig -> marker on /tf_static after the first ``static_after`` messages (a recorder
     started before the static broadcaster). ``slash``: '/' gives ROS 1 frame names."""
     rig, imu = tf_links(hand, eye)
     with BagWriter(path, storage) as w:
-        items = [(t, 0, m) for t, m in pose_messages(w.store, rig, TF_TYPE, slash + 'world',
-                                                     'rig')]
+        items = [
+            (t, 0, m) for t, m in pose_messages(w.store, rig, TF_TYPE, slash + 'world', 'rig')
+        ]
         items += [(t, 1, m) for t, m in pose_messages(w.store, imu, TF_TYPE, 'imu', 'odom')]
         items.sort(key=lambda x: (x[0], x[1]))
-        static = w.store.types[TF_TYPE](transforms=[transform_stamped(
-            w.store.types, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER)])
+        static = w.store.types[TF_TYPE](
+            transforms=[
+                transform_stamped(
+                    w.store.types, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER
+                )
+            ]
+        )
         for k, (t, _, m) in enumerate(items):
             w.write('/tf', TF_TYPE, t, m)
             if k == static_after:
                 w.write('/tf_static', TF_TYPE, t, static)
 
 
-def write_rigid_bodies_recording(path: str | Path, hand: Trajectory, eye: Trajectory,
-                                 storage: str = 'mcap', lost_every: int = 0) -> None:
+def write_rigid_bodies_recording(
+    path: str | Path, hand: Trajectory, eye: Trajectory, storage: str = 'mcap', lost_every: int = 0
+) -> None:
     """The hand as the body 'rig' between 'wand' and 'table' in mocap4r2 RigidBodies messages
     (as a driver publishes each capture frame) on RIGID_BODIES_TOPIC, missing from every
     ``lost_every``-th frame (0: never); the eye as nav_msgs/Odometry on /vio/odom."""
     odom = 'nav_msgs/msg/Odometry'
     with BagWriter(path, storage) as w:
-        items = [(t, 1, '/vio/odom', odom, m)
-                 for t, m in pose_messages(w.store, eye, odom, 'odom', 'imu')]
-        for k, (t, p, q) in enumerate(zip(hand.t_ns.tolist(), hand.p_xyz.tolist(),
-                                          hand.q_xyzw.tolist(), strict=True)):
+        items = [
+            (t, 1, '/vio/odom', odom, m)
+            for t, m in pose_messages(w.store, eye, odom, 'odom', 'imu')
+        ]
+        for k, (t, p, q) in enumerate(
+            zip(hand.t_ns.tolist(), hand.p_xyz.tolist(), hand.q_xyzw.tolist(), strict=True)
+        ):
             bodies = [('wand', (0.3 * k % 7, 1.0, 0.5), (0.0, 0.0, 0.0, 1.0))]
             if not lost_every or k % lost_every != lost_every // 2:
                 bodies.append(('rig', p, q))
             bodies.append(('table', (1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
-            items.append((t, 0, RIGID_BODIES_TOPIC, RIGID_BODIES_TYPES[0],
-                          rigid_bodies_message(w.store, t, 'mocap', bodies)))
+            items.append(
+                (
+                    t,
+                    0,
+                    RIGID_BODIES_TOPIC,
+                    RIGID_BODIES_TYPES[0],
+                    rigid_bodies_message(w.store, t, 'mocap', bodies),
+                )
+            )
         items.sort(key=lambda x: (x[0], x[1]))
         for t, _, topic, msgtype, m in items:
             w.write(topic, msgtype, t, m)
 
 
-def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
-                     storage: str = 'mcap') -> None:
+def write_result_bag(
+    path: str | Path, result: dict[str, Any], stamp_ns: int, storage: str = 'mcap'
+) -> None:
     """The calibration as the node publishes it (see :mod:`handeye_ros.stream.messages`), all
     latched: the extrinsic on /tf_static (tf2_msgs/TFMessage, parent = hand frame, child = eye
     frame) and on /calibrator/extrinsic, its covariance, and the time offset on
@@ -327,14 +382,26 @@ def write_result_bag(path: str | Path, result: dict[str, Any], stamp_ns: int,
     Raises InputError when ``stamp_ns`` is no ROS time (builtin_interfaces/Time holds the
     seconds in an int32: 1970 to 2038; ROS 1 in a uint32)."""
     if not messages.is_ros_time(stamp_ns):
-        msg = (f'{path}: cannot write the result bag: its stamp {stamp_ns} ns is no ROS time, '
-               'whose seconds are an int32 (1970 to 2038)')
+        msg = (
+            f'{path}: cannot write the result bag: its stamp {stamp_ns} ns is no ROS time, '
+            'whose seconds are an int32 (1970 to 2038)'
+        )
         raise InputError(msg)
     with BagWriter(path, storage) as w:
         T = w.store.types
         out = messages.outputs(T, result, stamp_ns)
-        w.write('/tf_static', TF_TYPE, stamp_ns,
-                T[TF_TYPE](transforms=[out[messages.EXTRINSIC]]), latched=True)
+        w.write(
+            '/tf_static',
+            TF_TYPE,
+            stamp_ns,
+            T[TF_TYPE](transforms=[out[messages.EXTRINSIC]]),
+            latched=True,
+        )
         for name, m in out.items():
-            w.write(f'/{messages.NODE_NAME}/{name}', messages.OUTPUT_TYPES[name], stamp_ns, m,
-                    latched=True)
+            w.write(
+                f'/{messages.NODE_NAME}/{name}',
+                messages.OUTPUT_TYPES[name],
+                stamp_ns,
+                m,
+                latched=True,
+            )

@@ -63,8 +63,10 @@ def data_line_bounds(buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     ``#`` comment); None when a line starts with a blank (the line-by-line reader strips it)."""
     # newlines a block at a time: one comparison over 430 MB would make a 430 MB mask
     block = 1 << 24
-    nl = np.concatenate([np.flatnonzero(buf[k:k + block] == _NL) + k
-                         for k in range(0, buf.size, block)] or [np.zeros(0, np.intp)])
+    nl = np.concatenate(
+        [np.flatnonzero(buf[k : k + block] == _NL) + k for k in range(0, buf.size, block)]
+        or [np.zeros(0, np.intp)]
+    )
     starts = np.concatenate(([0], nl + 1))
     ends = np.concatenate((nl, [buf.size]))
     first = np.where(starts < ends, buf[np.minimum(starts, buf.size - 1)], _NL)
@@ -82,8 +84,12 @@ def split_stamps(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> Split
     length; a format that strips trailing zeros gives up to ten): each layout is read at once
     for all lines that have it, a column of digits at a time.
     """
-    out = SplitStamps(np.zeros(starts.size, np.int64), np.zeros(starts.size, np.int64),
-                      np.zeros(starts.size, bool), np.zeros(starts.size, bool))
+    out = SplitStamps(
+        np.zeros(starts.size, np.int64),
+        np.zeros(starts.size, np.int64),
+        np.zeros(starts.size, bool),
+        np.zeros(starts.size, bool),
+    )
     todo = np.arange(starts.size)
     for _ in range(MAX_LAYOUTS):
         if not todo.size:
@@ -106,27 +112,41 @@ _POW10 = 10 ** np.arange(19, dtype=np.int64)
 def _layout(buf: np.ndarray, start: int, end: int) -> tuple[int, int, int] | None:
     """(sign characters 0/1, position of the point (= length without one), length) of the
     stamp token of one line; None unless it is a plain decimal."""
-    line = bytes(buf[start:min(end, start + MAX_STAMP_CHARS + 1)])
+    line = bytes(buf[start : min(end, start + MAX_STAMP_CHARS + 1)])
     length = next((k for k, c in enumerate(line) if c in _TOKEN_END), len(line))
     token = line[:length]
     sign = int(token[:1] in (b'+', b'-'))
     body = token[sign:]
     dot = body.find(b'.')
     digits = body.replace(b'.', b'', 1)
-    if not digits or not digits.isdigit() or length > MAX_STAMP_CHARS or \
-            (dot if dot >= 0 else len(body)) > MAX_WHOLE_DIGITS:
+    if (
+        not digits
+        or not digits.isdigit()
+        or length > MAX_STAMP_CHARS
+        or (dot if dot >= 0 else len(body)) > MAX_WHOLE_DIGITS
+    ):
         return None
     return sign, sign + (dot if dot >= 0 else len(body)), length
 
 
-def _read_layout(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, sign: int, dot: int,
-                 length: int, out: SplitStamps, rows: np.ndarray) -> np.ndarray:
+def _read_layout(
+    buf: np.ndarray,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    sign: int,
+    dot: int,
+    length: int,
+    out: SplitStamps,
+    rows: np.ndarray,
+) -> np.ndarray:
     """Read the stamps of the lines that have this layout into ``out`` (at ``rows``); returns
     which lines had it."""
     fits = ends - starts > length  # a stamp is followed by the other columns
     at = starts[fits]
-    parts = [_layout_block(buf, at[k:k + CHUNK_LINES], sign, dot, length)
-             for k in range(0, at.size, CHUNK_LINES)]
+    parts = [
+        _layout_block(buf, at[k : k + CHUNK_LINES], sign, dot, length)
+        for k in range(0, at.size, CHUNK_LINES)
+    ]
     if not parts:
         return fits
     ok, whole, frac9, fractional, neg = (np.concatenate(p) for p in zip(*parts, strict=True))
@@ -137,8 +157,9 @@ def _read_layout(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, sign: in
     return fits
 
 
-def _layout_block(buf: np.ndarray, at: np.ndarray, sign: int, dot: int,
-                  length: int) -> tuple[np.ndarray, ...]:
+def _layout_block(
+    buf: np.ndarray, at: np.ndarray, sign: int, dot: int, length: int
+) -> tuple[np.ndarray, ...]:
     """(fits, whole, frac9, fractional, neg) of the stamps starting at ``at`` read with one
     layout: a block of lines at a time, so that every column is read from cache."""
     chars = buf[at[:, None] + np.arange(length + 1)]
@@ -177,7 +198,7 @@ def read_bulk(path: Path, data: bytes, fmt_of_first_row) -> tuple[str, BulkTable
     if bounds is None or not bounds[0].size:
         return None
     numbers, starts, ends = bounds
-    first_row = data[starts[0]:ends[0]].decode('utf-8', 'replace').strip()
+    first_row = data[starts[0] : ends[0]].decode('utf-8', 'replace').strip()
     fmt, delimiter = fmt_of_first_row(int(numbers[0]), first_row)
     stamps = split_stamps(buf, starts, ends)
     if stamps is None:
@@ -186,8 +207,14 @@ def read_bulk(path: Path, data: bytes, fmt_of_first_row) -> tuple[str, BulkTable
     try:
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')  # an empty result is caught below
-            values = np.loadtxt(path, delimiter=delimiter, usecols=range(1, 8), ndmin=2,
-                                comments='#', encoding='utf-8')
+            values = np.loadtxt(
+                path,
+                delimiter=delimiter,
+                usecols=range(1, 8),
+                ndmin=2,
+                comments='#',
+                encoding='utf-8',
+            )
     except (ValueError, UnicodeError):
         return None
     if values.shape[0] != numbers.size:

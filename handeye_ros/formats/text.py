@@ -37,10 +37,10 @@ from .bulk import SplitStamps, read_bulk
 
 FORMATS = ('auto', 'tum', 'euroc')
 #: Stamp units a file may use: nanoseconds per unit.
-STAMP_UNITS = {'s': 10 ** 9, 'ms': 10 ** 6, 'us': 10 ** 3, 'ns': 1}
+STAMP_UNITS = {'s': 10**9, 'ms': 10**6, 'us': 10**3, 'ns': 1}
 QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
 #: Integer TUM stamps above this are nanoseconds (1e14 s would be three million years).
-NANOSECOND_STAMP_THRESHOLD = 10 ** 14
+NANOSECOND_STAMP_THRESHOLD = 10**14
 INT64_MAX = np.iinfo(np.int64).max
 #: A file may hold up to this fraction of rows no pose stream can hold (a corrupt row, one
 #: written with every value scaled): they are dropped, and the notes name them; more, and the
@@ -54,8 +54,9 @@ def detect_format(path: str | Path) -> str:
     return _detect(Path(path), rows)
 
 
-def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto',
-                    quaternion_order: str = 'auto') -> Trajectory:
+def read_trajectory(
+    path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto', quaternion_order: str = 'auto'
+) -> Trajectory:
     """Read and validate a TUM or EuRoC trajectory file.
 
     ``stamp_unit``: 'auto' (the format's: s for TUM, ns for EuRoC) or one of
@@ -78,8 +79,10 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
         msg = f'{path}: unknown stamp unit {stamp_unit!r}; use auto, {", ".join(STAMP_UNITS)}'
         raise InputError(msg)
     if quaternion_order not in QUATERNION_ORDERS:
-        msg = (f'{path}: unknown quaternion order {quaternion_order!r}; use '
-               f'{", ".join(QUATERNION_ORDERS)}')
+        msg = (
+            f'{path}: unknown quaternion order {quaternion_order!r}; use '
+            f'{", ".join(QUATERNION_ORDERS)}'
+        )
         raise InputError(msg)
     data = _read_bytes(path)
 
@@ -96,8 +99,9 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
     else:
         numbers, values, split, fmt = _read_lines(path, data, fmt)
     del data
-    order = quaternion_order if quaternion_order != 'auto' else (
-        'wxyz' if fmt == 'euroc' else 'xyzw')
+    order = (
+        quaternion_order if quaternion_order != 'auto' else ('wxyz' if fmt == 'euroc' else 'xyzw')
+    )
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
     t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
@@ -108,22 +112,27 @@ def read_trajectory(path: str | Path, fmt: str = 'auto', stamp_unit: str = 'auto
                 _too_large(path, numbers, np.where(fits, 0, np.abs(t_ns)), 'as read')
         else:  # a few rows no pose stream holds: dropped, named (validation below refuses more)
             lines = ', '.join(str(numbers[k]) for k in np.flatnonzero(bad)[:5])
-            notes.append(f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
-                         f'(a stamp out of range or order, a non-finite value or a non-unit '
-                         f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})')
+            notes.append(
+                f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
+                f'(a stamp out of range or order, a non-finite value or a non-unit '
+                f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})'
+            )
             keep = ~bad
             t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
             numbers = np.asarray(numbers)[keep]
     keep = _last_of_repeated(t_ns)
     if not keep.all():
-        notes.append(f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of '
-                     'each was kept')
-    return Trajectory.from_arrays(t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path),
-                                  notes=tuple(notes))
+        notes.append(
+            f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of each was kept'
+        )
+    return Trajectory.from_arrays(
+        t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path), notes=tuple(notes)
+    )
 
 
-def _bad_rows(t_ns: np.ndarray, values: np.ndarray, q_xyzw: np.ndarray,
-              fits: np.ndarray) -> np.ndarray:
+def _bad_rows(
+    t_ns: np.ndarray, values: np.ndarray, q_xyzw: np.ndarray, fits: np.ndarray
+) -> np.ndarray:
     """(N,) bool: rows no pose stream can hold: a stamp that does not fit int64 ns, a
     non-finite value, a quaternion whose norm is off by more than the tolerance, or a stamp
     out of order with both neighbours while they are in order (one wild stamp, not an unsorted
@@ -158,16 +167,22 @@ def write_tum(path: str | Path, traj: Trajectory) -> None:
     sec, nsec = np.divmod(traj.t_ns, 1_000_000_000)
     with Path(path).open('w') as f:
         f.write('# timestamp[s] tx ty tz qx qy qz qw\n')
-        f.writelines(f'{s}.{ns:09d} {p[0]:.9f} {p[1]:.9f} {p[2]:.9f} '
-                    f'{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n' for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw, strict=True))
+        f.writelines(
+            f'{s}.{ns:09d} {p[0]:.9f} {p[1]:.9f} {p[2]:.9f} '
+            f'{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n'
+            for s, ns, p, q in zip(sec, nsec, traj.p_xyz, traj.q_xyzw, strict=True)
+        )
 
 
 def write_euroc(path: str | Path, traj: Trajectory) -> None:
     """Write a EuRoC ground-truth style CSV (quaternion ``w x y z``)."""
     with Path(path).open('w') as f:
         f.write('#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []\n')
-        f.writelines(f'{t},{p[0]:.9f},{p[1]:.9f},{p[2]:.9f},'
-                    f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n' for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True))
+        f.writelines(
+            f'{t},{p[0]:.9f},{p[1]:.9f},{p[2]:.9f},'
+            f'{q[3]:.12f},{q[0]:.12f},{q[1]:.12f},{q[2]:.12f}\n'
+            for t, p, q in zip(traj.t_ns, traj.p_xyz, traj.q_xyzw, strict=True)
+        )
 
 
 def _read_bytes(path: Path) -> bytes:
@@ -193,8 +208,9 @@ def _data_lines(path: Path, data: bytes | None = None) -> tuple[list[int], list[
     return numbers, rows
 
 
-def _read_lines(path: Path, data: bytes,
-                fmt: str) -> tuple[list[int], np.ndarray, SplitStamps, str]:
+def _read_lines(
+    path: Path, data: bytes, fmt: str
+) -> tuple[list[int], np.ndarray, SplitStamps, str]:
     """The file line by line (what :mod:`.bulk` leaves): (line numbers, the seven pose columns,
     the split stamps, the format), or an InputError naming the line at fault."""
     numbers, rows = _data_lines(path, data)
@@ -207,8 +223,9 @@ def _read_lines(path: Path, data: bytes,
     text = '\n'.join(rows)
     try:  # numpy's C parser; the slow line-by-line diagnosis runs only when it fails
         values = np.loadtxt(io.StringIO(text), delimiter=sep, usecols=range(1, 8), ndmin=2)
-        stamps = np.char.strip(np.loadtxt(io.StringIO(text), delimiter=sep, usecols=0,
-                                          dtype=str, ndmin=1))
+        stamps = np.char.strip(
+            np.loadtxt(io.StringIO(text), delimiter=sep, usecols=0, dtype=str, ndmin=1)
+        )
     except ValueError as err:
         _diagnose(path, numbers, rows, sep, fmt)
         raise InputError(f'{path}: cannot be parsed as {fmt.upper()}: {err}') from None
@@ -224,34 +241,40 @@ def _detect(path: Path, rows: list[str]) -> str:
         return 'euroc'
     if ',' not in first and len(first.split()) == 8:
         return 'tum'
-    msg = (f'{path}: unknown trajectory format (first data line: {first[:80]!r}); expected TUM '
-           '"t x y z qx qy qz qw" separated by spaces or EuRoC CSV "t[ns],x,y,z,qw,qx,qy,qz,..."')
+    msg = (
+        f'{path}: unknown trajectory format (first data line: {first[:80]!r}); expected TUM '
+        '"t x y z qx qy qz qw" separated by spaces or EuRoC CSV "t[ns],x,y,z,qw,qx,qy,qz,..."'
+    )
     raise InputError(msg)
 
 
-def _check_columns(path: Path, numbers: list[int], rows: list[str], sep: str | None,
-                   fmt: str) -> None:
+def _check_columns(
+    path: Path, numbers: list[int], rows: list[str], sep: str | None, fmt: str
+) -> None:
     """Refuse the first line with too few columns (or, for TUM, a count other than 8)."""
     want = 8
     for number, row in zip(numbers, rows, strict=True):
         n = len(row.split(sep))
         if n < want or (fmt == 'tum' and n != want):
-            msg = (f'{path}, line {number}: {n} columns; a {fmt.upper()} line has '
-                   f'{"exactly" if fmt == "tum" else "at least"} {want} '
-                   f'({"t x y z qx qy qz qw" if fmt == "tum" else "t[ns],x,y,z,qw,qx,qy,qz"})')
+            msg = (
+                f'{path}, line {number}: {n} columns; a {fmt.upper()} line has '
+                f'{"exactly" if fmt == "tum" else "at least"} {want} '
+                f'({"t x y z qx qy qz qw" if fmt == "tum" else "t[ns],x,y,z,qw,qx,qy,qz"})'
+            )
             raise InputError(msg)
 
 
-def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
-              fmt: str) -> None:
+def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None, fmt: str) -> None:
     """Find the first malformed line and raise an InputError naming it."""
     _check_columns(path, numbers, rows, sep, fmt)
     first = len(rows[0].split(sep))
     for number, row in zip(numbers, rows, strict=True):
         tokens = [t.strip() for t in row.split(sep)]
         if len(tokens) != first:
-            msg = (f'{path}, line {number}: {len(tokens)} columns where the first data line '
-                   f'has {first}')
+            msg = (
+                f'{path}, line {number}: {len(tokens)} columns where the first data line '
+                f'has {first}'
+            )
             raise InputError(msg)
         for token in tokens[:8]:
             try:
@@ -261,8 +284,9 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None,
                 raise InputError(msg) from None
 
 
-def parse_stamps(path: Path, numbers, split: SplitStamps, fmt: str,
-                 unit: str) -> tuple[np.ndarray, list[str], np.ndarray]:
+def parse_stamps(
+    path: Path, numbers, split: SplitStamps, fmt: str, unit: str
+) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Exact int64 nanoseconds of a stamp column, notes on the unit assumed, and which rows'
     stamps fit int64 ns in that unit (the others are 0 here; the caller drops or refuses them).
 
@@ -279,17 +303,26 @@ def parse_stamps(path: Path, numbers, split: SplitStamps, fmt: str,
         unit = 'ns' if fmt == 'euroc' else 's'
         fractional = split.fractional
         typical = int(np.median(whole)) if whole.size else 0
-        if fmt == 'tum' and not fractional.any() and whole.size and \
-                typical > NANOSECOND_STAMP_THRESHOLD and not neg.any():
+        if (
+            fmt == 'tum'
+            and not fractional.any()
+            and whole.size
+            and typical > NANOSECOND_STAMP_THRESHOLD
+            and not neg.any()
+        ):
             unit = 'ns'
         if fmt == 'euroc' and fractional.mean() > 0.5:  # a fraction of a ns means nothing
             unit = 's'
-            notes.append(f'{path}: the stamps have fractional parts, so they cannot be '
-                         'nanoseconds; read as seconds')
+            notes.append(
+                f'{path}: the stamps have fractional parts, so they cannot be '
+                'nanoseconds; read as seconds'
+            )
         if typical > INT64_MAX // STAMP_UNITS[unit]:
             fits = [u for u in ('ms', 'us', 'ns') if typical <= INT64_MAX // STAMP_UNITS[u]]
-            notes.append(f'{path}: stamps of {typical} cannot be '
-                         f'{"seconds" if unit == "s" else unit}; read as {fits[0]}')
+            notes.append(
+                f'{path}: stamps of {typical} cannot be '
+                f'{"seconds" if unit == "s" else unit}; read as {fits[0]}'
+            )
             unit = fits[0]
     scale = STAMP_UNITS[unit]
     ok = whole <= INT64_MAX // scale
@@ -301,9 +334,11 @@ def parse_stamps(path: Path, numbers, split: SplitStamps, fmt: str,
 
 def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'ns') -> None:
     k = int(np.argmax(whole))
-    msg = (f'{path}, line {numbers[k]}: a stamp ({unit}) is beyond what int64 nanoseconds can '
-           'hold (2^63 ns, the year 2262); check the stamp column and its unit '
-           '(--hand-stamp-unit / --eye-stamp-unit)')
+    msg = (
+        f'{path}, line {numbers[k]}: a stamp ({unit}) is beyond what int64 nanoseconds can '
+        'hold (2^63 ns, the year 2262); check the stamp column and its unit '
+        '(--hand-stamp-unit / --eye-stamp-unit)'
+    )
     raise InputError(msg)
 
 
@@ -311,8 +346,9 @@ def _split_of(whole: np.ndarray, frac: np.ndarray, neg: np.ndarray) -> SplitStam
     """SplitStamps of whole parts, fractional digit strings and signs."""
     frac = frac.astype(str)
     nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
-    return SplitStamps(whole, nine.astype(np.int64), np.char.str_len(np.char.rstrip(frac, '0')) > 0,
-                       neg)
+    return SplitStamps(
+        whole, nine.astype(np.int64), np.char.str_len(np.char.rstrip(frac, '0')) > 0, neg
+    )
 
 
 def _split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamps:
@@ -332,8 +368,10 @@ def _split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStam
     long = (n > 19) | ((n == 19) & (digits > str(INT64_MAX)))
     if long.any():
         k = int(np.flatnonzero(long)[0])
-        msg = (f'{path}, line {numbers[k]}: stamp {col[k]!r} is beyond what int64 nanoseconds '
-               'can hold (2^63 ns, the year 2262); check the stamp column and its unit')
+        msg = (
+            f'{path}, line {numbers[k]}: stamp {col[k]!r} is beyond what int64 nanoseconds '
+            'can hold (2^63 ns, the year 2262); check the stamp column and its unit'
+        )
         raise InputError(msg)
     return _split_of(whole_txt.astype(np.int64), parts[:, 2], neg)
 
@@ -353,8 +391,10 @@ def _split_decimal_fallback(path: Path, numbers: list[int], col: np.ndarray) -> 
         neg[k] = value < 0
         whole_part = int(abs(value))
         if whole_part > INT64_MAX:
-            msg = (f'{path}, line {numbers[k]}: stamp {token!r} is beyond what int64 '
-                   'nanoseconds can hold (2^63 ns, the year 2262); check the stamp column')
+            msg = (
+                f'{path}, line {numbers[k]}: stamp {token!r} is beyond what int64 '
+                'nanoseconds can hold (2^63 ns, the year 2262); check the stamp column'
+            )
             raise InputError(msg)
         whole[k] = whole_part
         text = format(abs(value) - whole_part, 'f')

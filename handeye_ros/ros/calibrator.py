@@ -15,18 +15,22 @@ def main(args: list[str] | None = None) -> int:
     """Run the node; returns the exit code (0; 1 for refused options; 2 for a bad command
     line)."""
     argv = sys.argv[1:] if args is None else list(args)
-    ours = argv[:argv.index('--ros-args')] if '--ros-args' in argv else argv
+    ours = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
     if '-h' in ours or '--help' in ours:
         from ..params import usage
+
         print(usage())
         return 0
     if ours:
-        print(f'calibrator: error: unknown argument {ours[0]!r}; parameters go after '
-              '--ros-args (-p NAME:=VALUE, --params-file FILE); see calibrator --help',
-              file=sys.stderr)
+        print(
+            f'calibrator: error: unknown argument {ours[0]!r}; parameters go after '
+            '--ros-args (-p NAME:=VALUE, --params-file FILE); see calibrator --help',
+            file=sys.stderr,
+        )
         return 2
     quiet_start()
     from .node import run
+
     if stop_requested():  # a signal while the imports ran
         return 0
     return run(args)

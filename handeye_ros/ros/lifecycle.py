@@ -48,6 +48,7 @@ def spin(node: Any, close: Callable[[], None] | None = None) -> None:
     node's own resources), the executor, the node, rclpy."""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:

@@ -75,9 +75,12 @@ from . import worker
 from .lifecycle import spin, stop_requested
 
 #: Latched result topics: late subscribers get the last result.
-LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                     reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 #: Parameters rclpy declares on every node.
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service', 'qos_overrides.')
 #: Seconds between two warnings about rejected messages of one stream.
@@ -87,18 +90,22 @@ REJECT_WARN_PERIOD_S = 5.0
 def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
     """A ParameterDescriptor with the option's description and range."""
     rng = spec.range_text()
-    d = ParameterDescriptor(name=name, description=spec.description + (
-        f' ({rng})' if rng and not spec.choices else ''),
-        read_only=name not in RUNTIME_KEYS)
+    d = ParameterDescriptor(
+        name=name,
+        description=spec.description + (f' ({rng})' if rng and not spec.choices else ''),
+        read_only=name not in RUNTIME_KEYS,
+    )
     if spec.choices:
         d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
     if spec.low is not None and spec.high is not None and not spec.optional:
         if spec.kind == 'float':
-            d.floating_point_range = [FloatingPointRange(
-                from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+            d.floating_point_range = [
+                FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
+            ]
         elif spec.kind == 'int':
-            d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
-                                            step=1)]
+            d.integer_range = [
+                IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
+            ]
     return d
 
 
@@ -132,14 +139,17 @@ class CalibratorNode(Node):
         self._type_warned = dict.fromkeys(STREAMS, self._started)
 
         self._types = RclpyTypes()
-        self._outputs = {name: self.create_publisher(self._types[t], f'~/{name}', LATCHED)
-                         for name, t in messages.OUTPUT_TYPES.items()}
+        self._outputs = {
+            name: self.create_publisher(self._types[t], f'~/{name}', LATCHED)
+            for name, t in messages.OUTPUT_TYPES.items()
+        }
         self._static_tf = self._static_broadcaster()
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # its own reentrant group: a callback group stays busy while a coroutine in it awaits,
         # and the default (mutually exclusive) group would then hold back every subscription
-        self.create_service(Trigger, '~/calibrate', self._on_calibrate,
-                            callback_group=ReentrantCallbackGroup())
+        self.create_service(
+            Trigger, '~/calibrate', self._on_calibrate, callback_group=ReentrantCallbackGroup()
+        )
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/save', self._on_save)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -160,24 +170,31 @@ class CalibratorNode(Node):
         self._pool = pool
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
-            f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved')
+            f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
+        )
 
     # ------------------------------------------------------------------ parameters
 
     def _declare_and_read(self) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
         values: dict[str, Any] = {}
-        defaults = {**CalibrationConfig().to_dict(), **StreamConfig().to_dict(),
-                    **NodeConfig().to_dict()}
+        defaults = {
+            **CalibrationConfig().to_dict(),
+            **StreamConfig().to_dict(),
+            **NodeConfig().to_dict(),
+        }
         for name, spec in all_specs().items():
             try:
-                p = self.declare_parameter(name, _default(defaults[name]),
-                                           descriptor(name, spec))
-            except (InvalidParameterValueException, InvalidParameterTypeException,
-                    ParameterException) as err:
+                p = self.declare_parameter(name, _default(defaults[name]), descriptor(name, spec))
+            except (
+                InvalidParameterValueException,
+                InvalidParameterTypeException,
+                ParameterException,
+            ) as err:
                 raise ConfigError(f'parameter {name}: {err}') from None
             values[name] = p.value
-        return split_options(values, (CalibrationConfig, StreamConfig, NodeConfig),
-                             source='parameters')
+        return split_options(
+            values, (CalibrationConfig, StreamConfig, NodeConfig), source='parameters'
+        )
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
         changes = {p.name: p.value for p in params if p.name in RUNTIME_KEYS}
@@ -186,10 +203,15 @@ class CalibratorNode(Node):
         try:
             ours = {k: v for k, v in changes.items() if k in RUNTIME_NODE_KEYS}
             calib = CalibrationConfig.from_mapping(
-                {**self.calib_cfg.to_dict(), **{k: v for k, v in changes.items()
-                                                if k not in ours}}, source='parameters')
-            node = NodeConfig.from_mapping({**self.node_cfg.to_dict(), **ours},
-                                           source='parameters')
+                {
+                    **self.calib_cfg.to_dict(),
+                    **{k: v for k, v in changes.items() if k not in ours},
+                },
+                source='parameters',
+            )
+            node = NodeConfig.from_mapping(
+                {**self.node_cfg.to_dict(), **ours}, source='parameters'
+            )
         except ConfigError as err:
             return SetParametersResult(successful=False, reason=str(err))
         self.calib_cfg, self.node_cfg = calib, node
@@ -199,13 +221,15 @@ class CalibratorNode(Node):
         """Name the parameters given (a params file, -p) that this node does not have: a
         misspelt name is otherwise silently ignored."""
         given = getattr(self, '_parameter_overrides', {})  # rclpy keeps them only here
-        unknown = sorted(n for n in given if not self.has_parameter(n)
-                         and not n.startswith(ROS_OWN_PARAMETERS))
+        unknown = sorted(
+            n for n in given if not self.has_parameter(n) and not n.startswith(ROS_OWN_PARAMETERS)
+        )
         for name in unknown:
             near = difflib.get_close_matches(name, list(all_specs()), n=1)
             self.get_logger().warning(
-                f'unknown parameter {name!r} ignored' + (f': did you mean {near[0]!r}?' if near
-                                                         else ' (calibrator --help lists them)'))
+                f'unknown parameter {name!r} ignored'
+                + (f': did you mean {near[0]!r}?' if near else ' (calibrator --help lists them)')
+            )
 
     # ------------------------------------------------------------------ subscriptions
 
@@ -218,8 +242,9 @@ class CalibratorNode(Node):
                     self.resolve_topic_name(topic)
                 except _rclpy.RCLError as err:
                     why = str(err).split('failed to resolve name: ', 1)[-1].split(', at ')[0]
-                    raise ConfigError(f'{stream}_topic {sel.text}: {topic!r} is no valid topic '
-                                      f'name: {why}') from None
+                    raise ConfigError(
+                        f'{stream}_topic {sel.text}: {topic!r} is no valid topic name: {why}'
+                    ) from None
 
     def _check_tf_selectors(self) -> None:
         """Say at start, not when data would arrive, that a tf selector cannot be read here:
@@ -227,16 +252,21 @@ class CalibratorNode(Node):
         for stream in STREAMS:
             sel = self.recorder.selectors[stream]
             declared = getattr(self.stream_cfg, f'{stream}_type')
-            is_tf = (normalise_type(declared) == TF_TYPE if declared != 'auto' else
-                     sel.item is not None and sel.topic.rstrip('/').rsplit('/', 1)[-1] == 'tf')
+            is_tf = (
+                normalise_type(declared) == TF_TYPE
+                if declared != 'auto'
+                else sel.item is not None and sel.topic.rstrip('/').rsplit('/', 1)[-1] == 'tf'
+            )
             if not is_tf:
                 continue
             sel.frames()  # a malformed pair is a ConfigError now
             try:
                 _message_class(TF_TYPE)
             except ConfigError as err:
-                raise ConfigError(f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
-                                  'ROS install: offline_calibrate --bag reads them') from None
+                raise ConfigError(
+                    f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
+                    'ROS install: offline_calibrate --bag reads them'
+                ) from None
 
     def _subscribe(self, stream: str, msgtype: str) -> None:
         """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
@@ -245,23 +275,38 @@ class CalibratorNode(Node):
         self.recorder.set_type(stream, msgtype)
         cls = _message_class(msgtype)
         qos = QoSProfile(
-            depth=self.node_cfg.qos_depth, history=HistoryPolicy.KEEP_LAST,
-            reliability=(ReliabilityPolicy.BEST_EFFORT
-                         if self.node_cfg.qos_reliability == 'best_effort'
-                         else ReliabilityPolicy.RELIABLE),
-            durability=DurabilityPolicy.VOLATILE)
+            depth=self.node_cfg.qos_depth,
+            history=HistoryPolicy.KEEP_LAST,
+            reliability=(
+                ReliabilityPolicy.BEST_EFFORT
+                if self.node_cfg.qos_reliability == 'best_effort'
+                else ReliabilityPolicy.RELIABLE
+            ),
+            durability=DurabilityPolicy.VOLATILE,
+        )
         sel = self.recorder.selectors[stream]
         self._subs[stream] = self.create_subscription(
-            cls, sel.topic, lambda msg, s=stream: self._on_pose(s, msg), qos,
+            cls,
+            sel.topic,
+            lambda msg, s=stream: self._on_pose(s, msg),
+            qos,
             event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)))
+                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
+            ),
+        )
         if sel.static_topic:
-            static_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST,
-                                    reliability=ReliabilityPolicy.RELIABLE,
-                                    durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            static_qos = QoSProfile(
+                depth=100,
+                history=HistoryPolicy.KEEP_LAST,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            )
             self._static_subs[stream] = self.create_subscription(
-                cls, sel.static_topic, lambda msg, s=stream: self._on_pose(s, msg, True),
-                static_qos)
+                cls,
+                sel.static_topic,
+                lambda msg, s=stream: self._on_pose(s, msg, True),
+                static_qos,
+            )
         self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
 
     def _on_incompatible_qos(self, stream: str, event: Any) -> None:
@@ -269,8 +314,10 @@ class CalibratorNode(Node):
         why = self._qos_mismatch(stream)
         if why is None:
             policy = QoSPolicyKind(event.last_policy_kind).name.lower()
-            why = (f'{stream} topic {self.recorder.selectors[stream].topic}: a publisher offers '
-                   f'a QoS this subscription cannot match ({policy}); nothing it sends arrives')
+            why = (
+                f'{stream} topic {self.recorder.selectors[stream].topic}: a publisher offers '
+                f'a QoS this subscription cannot match ({policy}); nothing it sends arrives'
+            )
         self._qos_problems[stream] = why
         self.get_logger().warning(why)
 
@@ -283,9 +330,11 @@ class CalibratorNode(Node):
         topic = self.recorder.selectors[stream].topic
         for info in self.get_publishers_info_by_topic(topic):
             if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
-                return (f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
-                        'and this node asks reliable delivery (qos_reliability: reliable), so '
-                        'nothing it sends arrives: set qos_reliability: best_effort')
+                return (
+                    f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
+                    'and this node asks reliable delivery (qos_reliability: reliable), so '
+                    'nothing it sends arrives: set qos_reliability: best_effort'
+                )
         return None
 
     def _discover_types(self) -> None:
@@ -309,7 +358,8 @@ class CalibratorNode(Node):
                     self.get_logger().info(
                         f'{stream}: {topic} learnt from its publisher; messages it sent before '
                         f'this subscription matched are not received (set {stream}_type: '
-                        f'{usable[0].rsplit("/", 1)[-1]} to subscribe at start)')
+                        f'{usable[0].rsplit("/", 1)[-1]} to subscribe at start)'
+                    )
                 except ConfigError as err:
                     self._sub_errors[stream] = str(err)
                     if now - self._type_warned[stream] > self.node_cfg.topic_wait:
@@ -318,8 +368,10 @@ class CalibratorNode(Node):
             elif now - self._type_warned[stream] > self.node_cfg.topic_wait:
                 self._type_warned[stream] = now
                 if types and not usable:
-                    why = (f'has type {", ".join(types)}, which carries no pose (supported: '
-                           f'{", ".join(SUPPORTED_TYPES)})')
+                    why = (
+                        f'has type {", ".join(types)}, which carries no pose (supported: '
+                        f'{", ".join(SUPPORTED_TYPES)})'
+                    )
                 elif usable:
                     why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
                 else:
@@ -329,8 +381,7 @@ class CalibratorNode(Node):
             self._graph_timer.cancel()
 
     def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
-        arrival = (self.get_clock().now().nanoseconds if stream in self.recorder.arrival
-                   else None)
+        arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
         reason = self.recorder.add(stream, msg, static, arrival)
         if reason is not None:
             now = time.monotonic()
@@ -339,7 +390,8 @@ class CalibratorNode(Node):
                 rejected = self.recorder.buffers[stream].rejected
                 self.get_logger().warning(
                     f'{stream}: rejected a message ({reason.replace("_", " ")}); rejected so '
-                    f'far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}')
+                    f'far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}'
+                )
 
     # ------------------------------------------------------------------ services
 
@@ -356,10 +408,14 @@ class CalibratorNode(Node):
                 topic = self.recorder.selectors[stream].topic
                 types = dict(self.get_topic_names_and_types()).get(topic)
                 if types:
-                    return (f'{stream} topic {topic} has type {", ".join(types)}, which carries '
-                            f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})')
-                return (f'{stream} topic {topic} has no publisher yet: check {stream}_topic, or '
-                        f'set {stream}_type to subscribe before one appears')
+                    return (
+                        f'{stream} topic {topic} has type {", ".join(types)}, which carries '
+                        f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})'
+                    )
+                return (
+                    f'{stream} topic {topic} has no publisher yet: check {stream}_topic, or '
+                    f'set {stream}_type to subscribe before one appears'
+                )
         return None
 
     def _start_worker(self) -> Future | None:
@@ -380,8 +436,9 @@ class CalibratorNode(Node):
                 raise InputError(why)
             snapshot = self.recorder.snapshot()
             t0 = time.perf_counter()
-            stage = (tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir
-                     else None)
+            stage = (
+                tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
+            )
             job = self._pool.submit(calibrate_snapshot, snapshot, self.calib_cfg, stage)
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._failed(str(err))
@@ -410,8 +467,9 @@ class CalibratorNode(Node):
                 self._drop_stage(_staged_dir(self._last_result))
                 kept = True
                 self._succeeded(d)
-                self.get_logger().info(f'calibrated in {time.perf_counter() - t0:.2f} s: '
-                                       f'{d["summary"]}')
+                self.get_logger().info(
+                    f'calibrated in {time.perf_counter() - t0:.2f} s: {d["summary"]}'
+                )
                 for w in d['warnings']:
                     self.get_logger().warning(w)
                 future.set_result((True, d['summary']))
@@ -423,8 +481,7 @@ class CalibratorNode(Node):
         job.add_done_callback(done)
         return future
 
-    async def _on_calibrate(self, request: Trigger.Request,
-                            response: Trigger.Response) -> Any:
+    async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         future = self._start_worker()
         if future is None:
             response.success = False
@@ -440,17 +497,21 @@ class CalibratorNode(Node):
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self.recorder.reset()
         response.success = True
-        response.message = ('buffers cleared' + (' (the running calibration works on its own '
-                                                 'copy and will still answer)'
-                                                 if self._busy.locked() else ''))
+        response.message = 'buffers cleared' + (
+            ' (the running calibration works on its own copy and will still answer)'
+            if self._busy.locked()
+            else ''
+        )
         return response
 
     def _on_save(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         if self._last_result is None:
             response.success = False
-            response.message = ('no result to save: call calibrate first' if self._last_error
-                                is None else f'no result to save: the calibration failed '
-                                f'({self._last_error})')
+            response.message = (
+                'no result to save: call calibrate first'
+                if self._last_error is None
+                else f'no result to save: the calibration failed ({self._last_error})'
+            )
             return response
         out, report = self.node_cfg.output_file, self.node_cfg.report_dir
         wrote = [out]
@@ -461,8 +522,9 @@ class CalibratorNode(Node):
                 shutil.copytree(staged, report, dirs_exist_ok=True)
                 wrote.append(str(Path(report) / 'report.html'))
             elif report:
-                wrote.append('no report (report_dir was set after this calibration: calibrate '
-                             'again)')
+                wrote.append(
+                    'no report (report_dir was set after this calibration: calibrate again)'
+                )
         except HandeyeError as err:
             response.success, response.message = False, str(err)
             return response
@@ -472,8 +534,9 @@ class CalibratorNode(Node):
             return response
         response.success, response.message = True, 'wrote ' + ', '.join(wrote)
         if self._last_error is not None:
-            response.message += (f' (the latest calibration failed: this is the result of '
-                                 f'{self._last_when})')
+            response.message += (
+                f' (the latest calibration failed: this is the result of {self._last_when})'
+            )
         return response
 
     @staticmethod
@@ -508,7 +571,8 @@ class CalibratorNode(Node):
         if messages.TIME_REFERENCE not in out:
             self.get_logger().warning(
                 'the time offset is not published as a TimeReference: its instant on one of '
-                'the clocks is no ROS time (before 1970); ~/time_offset has it')
+                'the clocks is no ROS time (before 1970); ~/time_offset has it'
+            )
         if self._static_tf is not None:
             self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
         self._publish_diagnostics()
@@ -526,9 +590,11 @@ class CalibratorNode(Node):
         try:
             cls = self._types[TF_TYPE]
         except ConfigError:
-            self.get_logger().info('tf2_msgs is not importable here: the extrinsic is published '
-                                   'on ~/extrinsic, not on /tf_static (publish_calibration FILE '
-                                   'writes it into a bag)')
+            self.get_logger().info(
+                'tf2_msgs is not importable here: the extrinsic is published '
+                'on ~/extrinsic, not on /tf_static (publish_calibration FILE '
+                'writes it into a bag)'
+            )
             return None
         return self.create_publisher(cls, '/tf_static', LATCHED)
 
@@ -545,20 +611,29 @@ class CalibratorNode(Node):
                 st.level, st.message = DiagnosticStatus.WARN, f'{rejected} messages rejected'
             else:
                 st.level, st.message = DiagnosticStatus.OK, f'{s.rate_hz:.1f} Hz'
-            st.values = [KeyValue(key=k, value=str(v)) for k, v in (
-                ('topic', getattr(self.stream_cfg, f'{stream}_topic')),
-                ('type', self.recorder.types[stream]),
-                ('rate_hz', f'{s.rate_hz:.2f}'), ('buffered_span_s', f'{s.span_s:.2f}'),
-                ('received', s.received), ('buffered', s.stored), ('dropped', s.dropped),
-                *((f'rejected_{k}', v) for k, v in s.rejected.items()))]
+            st.values = [
+                KeyValue(key=k, value=str(v))
+                for k, v in (
+                    ('topic', getattr(self.stream_cfg, f'{stream}_topic')),
+                    ('type', self.recorder.types[stream]),
+                    ('rate_hz', f'{s.rate_hz:.2f}'),
+                    ('buffered_span_s', f'{s.span_s:.2f}'),
+                    ('received', s.received),
+                    ('buffered', s.stored),
+                    ('dropped', s.dropped),
+                    *((f'rejected_{k}', v) for k, v in s.rejected.items()),
+                )
+            ]
             arr.status.append(st)
-        arr.status.append(result_status(name, self._last_result, self._last_when,
-                                        self._last_error))
+        arr.status.append(
+            result_status(name, self._last_result, self._last_when, self._last_error)
+        )
         self.pub_diag.publish(arr)
 
 
-def result_status(name: str, result: dict[str, Any] | None, when: str,
-                  error: str | None) -> DiagnosticStatus:
+def result_status(
+    name: str, result: dict[str, Any] | None, when: str, error: str | None
+) -> DiagnosticStatus:
     """The diagnostics of the calibration: the last attempt's outcome, and only then the
     numbers of the result the latched topics hold.
 
@@ -571,29 +646,39 @@ def result_status(name: str, result: dict[str, Any] | None, when: str,
     st = DiagnosticStatus(name=f'{name}: result', hardware_id=name)
     if error is not None:
         st.level, st.message = DiagnosticStatus.ERROR, error[:500]
-        stale = ('none' if result is None else
-                 f'stale: from the calibration of {when} ({result["quality"]["verdict"]}); '
-                 'the latest one failed')
+        stale = (
+            'none'
+            if result is None
+            else f'stale: from the calibration of {when} ({result["quality"]["verdict"]}); '
+            'the latest one failed'
+        )
         st.values = [KeyValue(key='latched_outputs', value=stale)]
         return st
     if result is None:
         st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
         return st
     q = result['quality']
-    st.level = {'good': DiagnosticStatus.OK, 'doubtful': DiagnosticStatus.WARN,
-                'failed': DiagnosticStatus.ERROR}[q['verdict']]
+    st.level = {
+        'good': DiagnosticStatus.OK,
+        'doubtful': DiagnosticStatus.WARN,
+        'failed': DiagnosticStatus.ERROR,
+    }[q['verdict']]
     st.message = result['summary'][:500]
-    st.values = [KeyValue(key=k, value=str(v)) for k, v in (
-        ('verdict', q['verdict']),
-        ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
-        ('time_offset_s', result['time_offset']),
-        ('translation_m', result['extrinsic']['translation']),
-        ('rotation_xyzw', result['extrinsic']['rotation']),
-        ('inliers', f'{result["linear"]["inliers"]}/{result["linear"]["motions"]}'),
-        ('peak_correlation', result['time_alignment']['peak_correlation']),
-        ('ape_rmse_m', result['metrics']['ape_rmse']),
-        ('warnings', len(result['warnings'])),
-        ('latched_outputs', f'current: from the calibration of {when}'))]
+    st.values = [
+        KeyValue(key=k, value=str(v))
+        for k, v in (
+            ('verdict', q['verdict']),
+            ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
+            ('time_offset_s', result['time_offset']),
+            ('translation_m', result['extrinsic']['translation']),
+            ('rotation_xyzw', result['extrinsic']['rotation']),
+            ('inliers', f'{result["linear"]["inliers"]}/{result["linear"]["motions"]}'),
+            ('peak_correlation', result['time_alignment']['peak_correlation']),
+            ('ape_rmse_m', result['metrics']['ape_rmse']),
+            ('warnings', len(result['warnings'])),
+            ('latched_outputs', f'current: from the calibration of {when}'),
+        )
+    ]
     return st
 
 
@@ -613,9 +698,11 @@ def _message_class(msgtype: str) -> Any:
     try:
         return getattr(importlib.import_module(f'{pkg}.msg'), name)
     except (ImportError, AttributeError):
-        raise ConfigError(f'{msgtype} cannot be imported in this Python ({sys.executable}): '
-                          f'install {pkg} (e.g. apt install ros-jazzy-{pkg.replace("_", "-")} '
-                          'and source /opt/ros/jazzy/setup.bash)') from None
+        raise ConfigError(
+            f'{msgtype} cannot be imported in this Python ({sys.executable}): '
+            f'install {pkg} (e.g. apt install ros-jazzy-{pkg.replace("_", "-")} '
+            'and source /opt/ros/jazzy/setup.bash)'
+        ) from None
 
 
 def _staged_dir(result: dict[str, Any] | None) -> str | None:
@@ -664,4 +751,5 @@ def run(args: list[str] | None = None) -> int:
 
 if __name__ == '__main__':
     from .calibrator import main
+
     sys.exit(main())

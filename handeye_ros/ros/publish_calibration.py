@@ -23,19 +23,31 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog='publish_calibration',
         description='A saved calibration back into ROS. Where tf2_msgs is importable (a ROS 2 '
-                    'install): T_HE latched on /tf_static and the calibrator\'s latched topics, '
-                    'until Ctrl-C. Where it is not (the PyPI wheels), or with --bag: the same '
-                    'messages in a new bag, recorded as latched.')
-    p.add_argument('file', metavar='FILE', help='the result (YAML or JSON) of ~/save or '
-                                                'offline_calibrate -o')
-    p.add_argument('--bag', metavar='PATH',
-                   help='write a bag at PATH instead of publishing (default where tf2_msgs '
-                        'cannot be imported: FILE without its suffix, plus _calibration)')
-    p.add_argument('--storage', choices=('mcap', 'sqlite3', 'ros1'), default='mcap',
-                   help='storage of the bag (default: mcap)')
-    p.add_argument('--namespace', default='/calibrator', metavar='NS',
-                   help='where the calibrator topics go, as the node publishes them '
-                        '(default: /calibrator)')
+        "install): T_HE latched on /tf_static and the calibrator's latched topics, "
+        'until Ctrl-C. Where it is not (the PyPI wheels), or with --bag: the same '
+        'messages in a new bag, recorded as latched.',
+    )
+    p.add_argument(
+        'file', metavar='FILE', help='the result (YAML or JSON) of ~/save or offline_calibrate -o'
+    )
+    p.add_argument(
+        '--bag',
+        metavar='PATH',
+        help='write a bag at PATH instead of publishing (default where tf2_msgs '
+        'cannot be imported: FILE without its suffix, plus _calibration)',
+    )
+    p.add_argument(
+        '--storage',
+        choices=('mcap', 'sqlite3', 'ros1'),
+        default='mcap',
+        help='storage of the bag (default: mcap)',
+    )
+    p.add_argument(
+        '--namespace',
+        default='/calibrator',
+        metavar='NS',
+        help='where the calibrator topics go, as the node publishes them (default: /calibrator)',
+    )
     return p
 
 
@@ -46,18 +58,23 @@ def main(args: list[str] | None = None) -> int:
     a = parser().parse_args(args)
     from ..core.errors import HandeyeError
     from ..report import read_result
+
     try:
         result = read_result(a.file)
         if a.bag is None and importlib.util.find_spec('tf2_msgs') is None:
             a.bag = str(Path(a.file).with_suffix('')) + '_calibration'
-            print(f'publish_calibration: tf2_msgs cannot be imported in this Python '
-                  f'({sys.executable}), so nothing can go on /tf_static here: writing the bag '
-                  f'{a.bag} instead (ros2 bag play it where ROS 2 is installed)',
-                  file=sys.stderr)
+            print(
+                f'publish_calibration: tf2_msgs cannot be imported in this Python '
+                f'({sys.executable}), so nothing can go on /tf_static here: writing the bag '
+                f'{a.bag} instead (ros2 bag play it where ROS 2 is installed)',
+                file=sys.stderr,
+            )
         if a.bag is not None:
             from ..formats.bag import write_result_bag
-            stamp = int(result.get('inputs', {}).get('eye', {}).get('last_stamp_ns')
-                        or time.time_ns())
+
+            stamp = int(
+                result.get('inputs', {}).get('eye', {}).get('last_stamp_ns') or time.time_ns()
+            )
             write_result_bag(a.bag, result, stamp, a.storage)
             print(f'wrote {a.bag}', file=sys.stderr)
             return 0
@@ -75,6 +92,7 @@ def _publish(result: dict, namespace: str) -> int:
 
     from ..stream import messages
     from .node import LATCHED, RclpyTypes
+
     rclpy.init()
     node = Node('calibration_publisher')
     types = RclpyTypes()
@@ -82,12 +100,17 @@ def _publish(result: dict, namespace: str) -> int:
     pubs = [node.create_publisher(types['tf2_msgs/msg/TFMessage'], '/tf_static', LATCHED)]
     pubs[0].publish(types['tf2_msgs/msg/TFMessage'](transforms=[out[messages.EXTRINSIC]]))
     for name, msg in out.items():
-        pubs.append(node.create_publisher(types[messages.OUTPUT_TYPES[name]],
-                                          f'{namespace}/{name}', LATCHED))
+        pubs.append(
+            node.create_publisher(
+                types[messages.OUTPUT_TYPES[name]], f'{namespace}/{name}', LATCHED
+            )
+        )
         pubs[-1].publish(msg)
     e = result['extrinsic']
-    node.get_logger().info(f'publishing {e["parent"]} -> {e["child"]} on /tf_static and the '
-                           f'calibration on {namespace}/*, latched; Ctrl-C to stop')
+    node.get_logger().info(
+        f'publishing {e["parent"]} -> {e["child"]} on /tf_static and the '
+        f'calibration on {namespace}/*, latched; Ctrl-C to stop'
+    )
     spin(node)
     return 0
 

@@ -33,9 +33,14 @@ from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
 from handeye_ros.stream import normalise_type
 
-_PACKAGES = {'PoseStamped': 'geometry_msgs', 'PoseWithCovarianceStamped': 'geometry_msgs',
-             'TransformStamped': 'geometry_msgs', 'Odometry': 'nav_msgs', 'TFMessage': 'tf2_msgs',
-             'RigidBodies': 'mocap4r2_msgs'}
+_PACKAGES = {
+    'PoseStamped': 'geometry_msgs',
+    'PoseWithCovarianceStamped': 'geometry_msgs',
+    'TransformStamped': 'geometry_msgs',
+    'Odometry': 'nav_msgs',
+    'TFMessage': 'tf2_msgs',
+    'RigidBodies': 'mocap4r2_msgs',
+}
 
 
 def message_class(cls_name: str):
@@ -45,11 +50,13 @@ def message_class(cls_name: str):
 def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     if cls_name == 'TFMessage':
         return message_class('TFMessage')(
-            transforms=[message('TransformStamped', t_ns, p, q, frame, child)])
+            transforms=[message('TransformStamped', t_ns, p, q, frame, child)]
+        )
     if cls_name == 'RigidBodies':
         import mocap4r2_msgs.msg as mc
+
         m = mc.RigidBodies()
-        m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10 ** 9), int(t_ns % 10 ** 9)
+        m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10**9), int(t_ns % 10**9)
         m.header.frame_id = frame
         for name, pp, qq in (('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0)), (child, p, q)):
             b = mc.RigidBody(rigid_body_name=name)
@@ -59,7 +66,7 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
             m.rigidbodies.append(b)
         return m
     m = message_class(cls_name)()
-    m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10 ** 9), int(t_ns % 10 ** 9)
+    m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10**9), int(t_ns % 10**9)
     m.header.frame_id = frame
     if cls_name == 'TransformStamped':
         m.child_frame_id = child
@@ -75,49 +82,99 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(prog='sim_publisher', description=__doc__.split('\n\n')[0],
-                                 epilog='Stamps are the recording\'s (they start near 0 s), '
-                                        'not the wall clock\'s.')
-    ap.add_argument('--seed', type=int, default=3, help='random seed of the recording '
-                                                        '(default: 3)')
-    ap.add_argument('--level', type=float, default=3.0,
-                    help='noise level 0-10 of the paper\'s protocol (default: 3)')
+    ap = argparse.ArgumentParser(
+        prog='sim_publisher',
+        description=__doc__.split('\n\n')[0],
+        epilog="Stamps are the recording's (they start near 0 s), not the wall clock's.",
+    )
+    ap.add_argument(
+        '--seed', type=int, default=3, help='random seed of the recording (default: 3)'
+    )
+    ap.add_argument(
+        '--level',
+        type=float,
+        default=3.0,
+        help="noise level 0-10 of the paper's protocol (default: 3)",
+    )
     ap.add_argument('--duration', type=float, default=40.0, help='length [s] (default: 40)')
-    ap.add_argument('--hand-rate', type=float, default=100.0,
-                    help='MoCap pose rate [Hz] (default: 100)')
-    ap.add_argument('--eye-rate', type=float, default=20.0,
-                    help='VIO pose rate [Hz] (default: 20)')
+    ap.add_argument(
+        '--hand-rate', type=float, default=100.0, help='MoCap pose rate [Hz] (default: 100)'
+    )
+    ap.add_argument(
+        '--eye-rate', type=float, default=20.0, help='VIO pose rate [Hz] (default: 20)'
+    )
     ap.add_argument('--hand-topic', default='/mocap/pose', help='default: /mocap/pose')
     ap.add_argument('--eye-topic', default='/vio/odom', help='default: /vio/odom')
-    ap.add_argument('--hand-type', default='PoseStamped',
-                    help='PoseStamped (default), PoseWithCovarianceStamped, TransformStamped, '
-                         'Odometry, TFMessage or RigidBodies (see above)')
-    ap.add_argument('--eye-type', default='Odometry',
-                    help='Odometry (default), one of the other one-pose types, or TFMessage')
-    ap.add_argument('--rate', type=float, default=1000.0,
-                    help='messages per second, both topics together (default: 1000)')
-    ap.add_argument('--nan-every', type=int, default=0,
-                    help='every k-th eye message has a NaN position (default: 0, none)')
-    ap.add_argument('--zero-stamps', choices=('hand', 'eye', 'both'), default=None,
-                    help='leave header.stamp at 0 on that stream, as some drivers do '
-                         '(default: stamp every message)')
-    ap.add_argument('--reliable', action='store_true', help='reliable publishers (default: '
-                                                            'best-effort hand, reliable eye)')
-    ap.add_argument('--bag', action='append', default=[], metavar='PATH[:STORAGE]',
-                    help='also write the same messages to a bag (mcap, sqlite3 or ros1); '
-                         'repeatable')
-    ap.add_argument('--wait-subscribers', type=float, default=10.0, metavar='SECONDS',
-                    help='how long to wait for a subscriber on both topics (default: 10)')
+    ap.add_argument(
+        '--hand-type',
+        default='PoseStamped',
+        help='PoseStamped (default), PoseWithCovarianceStamped, TransformStamped, '
+        'Odometry, TFMessage or RigidBodies (see above)',
+    )
+    ap.add_argument(
+        '--eye-type',
+        default='Odometry',
+        help='Odometry (default), one of the other one-pose types, or TFMessage',
+    )
+    ap.add_argument(
+        '--rate',
+        type=float,
+        default=1000.0,
+        help='messages per second, both topics together (default: 1000)',
+    )
+    ap.add_argument(
+        '--nan-every',
+        type=int,
+        default=0,
+        help='every k-th eye message has a NaN position (default: 0, none)',
+    )
+    ap.add_argument(
+        '--zero-stamps',
+        choices=('hand', 'eye', 'both'),
+        default=None,
+        help='leave header.stamp at 0 on that stream, as some drivers do '
+        '(default: stamp every message)',
+    )
+    ap.add_argument(
+        '--reliable',
+        action='store_true',
+        help='reliable publishers (default: best-effort hand, reliable eye)',
+    )
+    ap.add_argument(
+        '--bag',
+        action='append',
+        default=[],
+        metavar='PATH[:STORAGE]',
+        help='also write the same messages to a bag (mcap, sqlite3 or ros1); repeatable',
+    )
+    ap.add_argument(
+        '--wait-subscribers',
+        type=float,
+        default=10.0,
+        metavar='SECONDS',
+        help='how long to wait for a subscriber on both topics (default: 10)',
+    )
     args = ap.parse_args()
 
     nm, nd = noise_level(args.level)
-    rec = simulate(args.seed, duration_s=args.duration, hand_rate_hz=args.hand_rate,
-                   eye_rate_hz=args.eye_rate, noise_m=nm, noise_deg=nd)
+    rec = simulate(
+        args.seed,
+        duration_s=args.duration,
+        hand_rate_hz=args.hand_rate,
+        eye_rate_hz=args.eye_rate,
+        noise_m=nm,
+        noise_deg=nd,
+    )
     for spec in args.bag:
         path, _, storage = spec.partition(':')
-        write_recording(path, [(args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
-                               (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu')],
-                        storage or 'mcap')
+        write_recording(
+            path,
+            [
+                (args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
+                (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu'),
+            ],
+            storage or 'mcap',
+        )
     # what goes on the wire, and between which frames (see the module docstring)
     wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
     rig, imu = tf_links(rec.hand, rec.eye)
@@ -129,25 +186,39 @@ def main() -> int:
         wire['eye'] = (imu, 'imu', 'odom')
     rclpy.init()
     node = Node('recording_publisher')
-    hand_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE if args.reliable
-                          else ReliabilityPolicy.BEST_EFFORT)
-    pubs = {'hand': node.create_publisher(message_class(args.hand_type), args.hand_topic,
-                                          hand_qos),
-            'eye': node.create_publisher(message_class(args.eye_type), args.eye_topic,
-                                         QoSProfile(depth=1000))}
+    hand_qos = QoSProfile(
+        depth=1000,
+        reliability=ReliabilityPolicy.RELIABLE if args.reliable else ReliabilityPolicy.BEST_EFFORT,
+    )
+    pubs = {
+        'hand': node.create_publisher(message_class(args.hand_type), args.hand_topic, hand_qos),
+        'eye': node.create_publisher(
+            message_class(args.eye_type), args.eye_topic, QoSProfile(depth=1000)
+        ),
+    }
     if args.hand_type == 'TFMessage':
-        static = node.create_publisher(message_class('TFMessage'), '/tf_static', QoSProfile(
-            depth=1, reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        static.publish(message('TFMessage', int(rec.hand.t_ns[0]), *RIG_TO_MARKER, 'rig',
-                               'marker'))
+        static = node.create_publisher(
+            message_class('TFMessage'),
+            '/tf_static',
+            QoSProfile(
+                depth=1,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            ),
+        )
+        static.publish(
+            message('TFMessage', int(rec.hand.t_ns[0]), *RIG_TO_MARKER, 'rig', 'marker')
+        )
     deadline = time.monotonic() + args.wait_subscribers
-    while time.monotonic() < deadline and not all(p.get_subscription_count() for p in
-                                                    pubs.values()):
+    while time.monotonic() < deadline and not all(
+        p.get_subscription_count() for p in pubs.values()
+    ):
         time.sleep(0.05)
     time.sleep(0.3)  # let discovery settle on both sides
-    items = sorted([(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
-                   + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)])
+    items = sorted(
+        [(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
+        + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)]
+    )
     sent = {'hand': 0, 'eye': 0}
     t0 = time.monotonic()
     for j, (t, s, k) in enumerate(items):
@@ -157,20 +228,40 @@ def main() -> int:
         if name == 'eye' and args.nan_every and k % args.nan_every == args.nan_every - 1:
             p = np.array([math.nan, 0.0, 0.0])
         unset = args.zero_stamps in (name, 'both')
-        pubs[name].publish(message(args.hand_type if s == 0 else args.eye_type,
-                                   0 if unset else t, p,
-                                   traj.q_xyzw[k], frame, child))
+        pubs[name].publish(
+            message(
+                args.hand_type if s == 0 else args.eye_type,
+                0 if unset else t,
+                p,
+                traj.q_xyzw[k],
+                frame,
+                child,
+            )
+        )
         sent[name] += 1
         ahead = (j + 1) / args.rate - (time.monotonic() - t0)
         if ahead > 0:
             time.sleep(ahead)
     time.sleep(0.5)  # let the last messages leave
     t = rec.truth
-    print(json.dumps({'sent': sent, 'types': {'hand': normalise_type(args.hand_type),
-                                              'eye': normalise_type(args.eye_type)},
-                      'truth': {'time_offset': t.time_offset_s, 'q_HE': t.q_HE.tolist(),
-                                'p_HE': t.p_HE.tolist()},
-                      'seconds': time.monotonic() - t0}), flush=True)
+    print(
+        json.dumps(
+            {
+                'sent': sent,
+                'types': {
+                    'hand': normalise_type(args.hand_type),
+                    'eye': normalise_type(args.eye_type),
+                },
+                'truth': {
+                    'time_offset': t.time_offset_s,
+                    'q_HE': t.q_HE.tolist(),
+                    'p_HE': t.p_HE.tolist(),
+                },
+                'seconds': time.monotonic() - t0,
+            }
+        ),
+        flush=True,
+    )
     node.destroy_node()
     rclpy.try_shutdown()
     return 0

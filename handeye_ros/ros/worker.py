@@ -15,8 +15,11 @@ import signal
 
 #: What a calibration in the worker imports (the function it runs, the snapshot's class and
 #: the core with scipy.optimize): imported when the worker starts, not on the first call.
-MODULES = ('handeye_ros.evaluation.outputs', 'handeye_ros.stream.recorder',
-           'handeye_ros.core.pipeline')
+MODULES = (
+    'handeye_ros.evaluation.outputs',
+    'handeye_ros.stream.recorder',
+    'handeye_ros.core.pipeline',
+)
 
 
 def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
@@ -32,8 +35,9 @@ def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        pool = cf.ProcessPoolExecutor(max_workers=1, initializer=start,
-                                      mp_context=multiprocessing.get_context('spawn'))
+        pool = cf.ProcessPoolExecutor(
+            max_workers=1, initializer=start, mp_context=multiprocessing.get_context('spawn')
+        )
         pool.submit(int)  # spawns the worker (and multiprocessing's resource tracker) now
     finally:
         if ignore_sigint:
@@ -63,5 +67,6 @@ def stop_tracker() -> None:
     had a worker: left to itself it ends only when the node has exited, unreaped."""
     import gc
     from multiprocessing import resource_tracker
+
     gc.collect()  # the pool's semaphores unregister as they are collected; the tracker first
     resource_tracker._resource_tracker._stop()  # no public call; the standard tests use it

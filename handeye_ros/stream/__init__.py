@@ -6,5 +6,14 @@ from .config import StreamConfig
 from .convert import SUPPORTED_TYPES, UnsupportedTypeError, normalise_type, pose_of
 from .recorder import STREAMS, Recorder
 
-__all__ = ['STREAMS', 'SUPPORTED_TYPES', 'BufferStats', 'PoseBuffer', 'Recorder',
-           'StreamConfig', 'UnsupportedTypeError', 'normalise_type', 'pose_of']
+__all__ = [
+    'STREAMS',
+    'SUPPORTED_TYPES',
+    'BufferStats',
+    'PoseBuffer',
+    'Recorder',
+    'StreamConfig',
+    'UnsupportedTypeError',
+    'normalise_type',
+    'pose_of',
+]

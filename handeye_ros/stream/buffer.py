@@ -19,8 +19,15 @@ from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 #: Reasons a message is rejected (keys of BufferStats.rejected): zero_stamp, header.stamp
 #: left unset; stamp_repeated, the previous pose's stamp again; stamp_not_increasing, a stamp
 #: before the previous pose's.
-REJECT_REASONS = ('non_finite', 'zero_quaternion', 'non_unit_quaternion', 'zero_stamp',
-                  'stamp_repeated', 'stamp_not_increasing', 'not_in_message')
+REJECT_REASONS = (
+    'non_finite',
+    'zero_quaternion',
+    'non_unit_quaternion',
+    'zero_stamp',
+    'stamp_repeated',
+    'stamp_not_increasing',
+    'not_in_message',
+)
 
 
 @dataclass(frozen=True)
@@ -65,7 +72,7 @@ class PoseBuffer:
     def clear(self) -> None:
         """Forget every pose and reset the counters."""
         with self._lock:
-            self._head = 0   # index of the oldest pose
+            self._head = 0  # index of the oldest pose
             self._count = 0
             self._last: int | None = None
             self.received = 0
@@ -75,8 +82,9 @@ class PoseBuffer:
     def __len__(self) -> int:
         return self._count
 
-    def add(self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float,
-            qw: float) -> str | None:
+    def add(
+        self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float
+    ) -> str | None:
         """Store one pose; returns None, or the reason it was rejected."""
         with self._lock:
             self.received += 1
@@ -94,8 +102,10 @@ class PoseBuffer:
             # keep the span within max_duration: drop from the oldest end
             oldest_allowed = t_ns - self.max_duration_ns
             n_old = 0
-            while n_old < self._count - 1 and \
-                    self._t[(self._head + n_old) % self.capacity] < oldest_allowed:
+            while (
+                n_old < self._count - 1
+                and self._t[(self._head + n_old) % self.capacity] < oldest_allowed
+            ):
                 n_old += 1
             if n_old:
                 self._drop(n_old)
@@ -109,8 +119,9 @@ class PoseBuffer:
             self.rejected[reason] += 1
         return reason
 
-    def _check(self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float,
-               qw: float) -> str | None:
+    def _check(
+        self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float
+    ) -> str | None:
         # one sum is finite iff every term is (NaN and inf propagate): this runs per message
         if not math.isfinite(x + y + z + qx + qy + qz + qw):
             return 'non_finite'
@@ -151,5 +162,6 @@ class PoseBuffer:
                 rate = 1e9 / float(np.median(np.diff(t)))
             else:
                 span, rate = 0.0, 0.0
-            return BufferStats(self.received, n, self.dropped, dict(self.rejected), span, rate,
-                               self._last)
+            return BufferStats(
+                self.received, n, self.dropped, dict(self.rejected), span, rate, self._last
+            )

@@ -27,14 +27,30 @@ def _stamp(msg: Any) -> int:
 
 def _from_pose(t_ns: int, pose: Any) -> StampedPose:
     p, q = pose.position, pose.orientation
-    return (t_ns, float(p.x), float(p.y), float(p.z), float(q.x), float(q.y), float(q.z),
-            float(q.w))
+    return (
+        t_ns,
+        float(p.x),
+        float(p.y),
+        float(p.z),
+        float(q.x),
+        float(q.y),
+        float(q.z),
+        float(q.w),
+    )
 
 
 def _from_transform(t_ns: int, tf: Any) -> StampedPose:
     p, q = tf.translation, tf.rotation
-    return (t_ns, float(p.x), float(p.y), float(p.z), float(q.x), float(q.y), float(q.z),
-            float(q.w))
+    return (
+        t_ns,
+        float(p.x),
+        float(p.y),
+        float(p.z),
+        float(q.x),
+        float(q.y),
+        float(q.z),
+        float(q.w),
+    )
 
 
 _CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
@@ -43,6 +59,7 @@ _CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
     'geometry_msgs/msg/TransformStamped': lambda m: _from_transform(_stamp(m), m.transform),
     'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), m.pose.pose),
 }
+
 
 def frame_name(name: str) -> str:
     """A frame id as tf2 compares them: without the leading slash of ROS 1 names."""
@@ -80,8 +97,7 @@ def normalise_type(name: str) -> str:
     full = '/'.join(parts)
     if full in known:
         return full
-    msg = (f'message type {name!r} carries no pose this tool reads; supported: '
-           f'{", ".join(known)}')
+    msg = f'message type {name!r} carries no pose this tool reads; supported: {", ".join(known)}'
     raise UnsupportedTypeError(msg)
 
 

@@ -41,13 +41,15 @@ TIME_REFERENCE = 'time_reference'
 #: The node's default name: the output bag's topics are those of a node of this name.
 NODE_NAME = 'calibrator'
 #: Every output topic (relative to the node) and its type; all latched.
-OUTPUT_TYPES = {EXTRINSIC: 'geometry_msgs/msg/TransformStamped',
-                EXTRINSIC_WITH_COVARIANCE: 'geometry_msgs/msg/PoseWithCovarianceStamped',
-                TIME_OFFSET: 'std_msgs/msg/Float64',
-                TIME_REFERENCE: 'sensor_msgs/msg/TimeReference'}
+OUTPUT_TYPES = {
+    EXTRINSIC: 'geometry_msgs/msg/TransformStamped',
+    EXTRINSIC_WITH_COVARIANCE: 'geometry_msgs/msg/PoseWithCovarianceStamped',
+    TIME_OFFSET: 'std_msgs/msg/Float64',
+    TIME_REFERENCE: 'sensor_msgs/msg/TimeReference',
+}
 
 #: The last ROS time: builtin_interfaces/Time holds the seconds in an int32 (to 2038).
-ROS_TIME_MAX_NS = (2 ** 31 - 1) * 1_000_000_000 + 999_999_999
+ROS_TIME_MAX_NS = (2**31 - 1) * 1_000_000_000 + 999_999_999
 
 
 def is_ros_time(t_ns: int) -> bool:
@@ -65,28 +67,31 @@ def header(types: Types, t_ns: int, frame_id: str) -> Any:
     return types['std_msgs/msg/Header'](stamp=time(types, t_ns), frame_id=frame_id)
 
 
-def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any,
-                      q: Any) -> Any:
+def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any, q: Any) -> Any:
     """geometry_msgs/TransformStamped: the pose (p x y z, q x y z w) of ``child`` in
     ``parent`` at ``t_ns``."""
     return types['geometry_msgs/msg/TransformStamped'](
-        header=header(types, t_ns, parent), child_frame_id=child,
+        header=header(types, t_ns, parent),
+        child_frame_id=child,
         transform=types['geometry_msgs/msg/Transform'](
             translation=types['geometry_msgs/msg/Vector3'](
-                x=float(p[0]), y=float(p[1]), z=float(p[2])),
-            rotation=_quaternion(types, q)))
+                x=float(p[0]), y=float(p[1]), z=float(p[2])
+            ),
+            rotation=_quaternion(types, q),
+        ),
+    )
 
 
 def _quaternion(types: Types, q: Any) -> Any:
-    return types['geometry_msgs/msg/Quaternion'](x=float(q[0]), y=float(q[1]), z=float(q[2]),
-                                               w=float(q[3]))
+    return types['geometry_msgs/msg/Quaternion'](
+        x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
+    )
 
 
 def extrinsic(types: Types, result: dict[str, Any], t_ns: int) -> Any:
     """T_HE as geometry_msgs/TransformStamped (parent H, child E), stamped ``t_ns``."""
     e = result['extrinsic']
-    return transform_stamped(types, t_ns, e['parent'], e['child'], e['translation'],
-                             e['rotation'])
+    return transform_stamped(types, t_ns, e['parent'], e['child'], e['translation'], e['rotation'])
 
 
 def extrinsic_covariance(result: dict[str, Any]) -> np.ndarray:
@@ -101,7 +106,7 @@ def extrinsic_covariance(result: dict[str, Any]) -> np.ndarray:
         out = np.zeros(36)
         out[0] = -1.0
         return out
-    cov6 = np.asarray(cov, dtype=float)[1:, 1:]   # the first row and column are dt's
+    cov6 = np.asarray(cov, dtype=float)[1:, 1:]  # the first row and column are dt's
     J = np.eye(6)
     J[3:, 3:] = np.asarray(result['extrinsic']['matrix'], dtype=float)[:3, :3]
     return (J @ cov6 @ J.T).ravel()
@@ -111,12 +116,16 @@ def extrinsic_with_covariance(types: Types, result: dict[str, Any], t_ns: int) -
     """T_HE with its covariance (see :func:`extrinsic_covariance`), stamped ``t_ns``."""
     e = result['extrinsic']
     x, y, z = (float(v) for v in e['translation'])
-    pose = types['geometry_msgs/msg/Pose'](position=types['geometry_msgs/msg/Point'](x=x, y=y, z=z),
-                                         orientation=_quaternion(types, e['rotation']))
+    pose = types['geometry_msgs/msg/Pose'](
+        position=types['geometry_msgs/msg/Point'](x=x, y=y, z=z),
+        orientation=_quaternion(types, e['rotation']),
+    )
     return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
         header=header(types, t_ns, e['parent']),
         pose=types['geometry_msgs/msg/PoseWithCovariance'](
-            pose=pose, covariance=extrinsic_covariance(result)))
+            pose=pose, covariance=extrinsic_covariance(result)
+        ),
+    )
 
 
 def time_offset(types: Types, result: dict[str, Any]) -> Any:
@@ -140,7 +149,9 @@ def time_reference(types: Types, result: dict[str, Any]) -> Any | None:
         return None
     return types['sensor_msgs/msg/TimeReference'](
         header=header(types, t_eye, result['extrinsic']['child']),
-        time_ref=time(types, t_hand), source=result['extrinsic']['parent'])
+        time_ref=time(types, t_hand),
+        source=result['extrinsic']['parent'],
+    )
 
 
 def offset_of(msg: Any) -> float:
@@ -153,8 +164,10 @@ def outputs(types: Types, result: dict[str, Any], t_ns: int) -> dict[str, Any]:
     """Every output of one result (topic relative to the node -> message), the transforms
     stamped ``t_ns``. time_reference is left out when it cannot be stated (see
     :func:`time_reference`)."""
-    out = {EXTRINSIC: extrinsic(types, result, t_ns),
-           EXTRINSIC_WITH_COVARIANCE: extrinsic_with_covariance(types, result, t_ns),
-           TIME_OFFSET: time_offset(types, result),
-           TIME_REFERENCE: time_reference(types, result)}
+    out = {
+        EXTRINSIC: extrinsic(types, result, t_ns),
+        EXTRINSIC_WITH_COVARIANCE: extrinsic_with_covariance(types, result, t_ns),
+        TIME_OFFSET: time_offset(types, result),
+        TIME_REFERENCE: time_reference(types, result),
+    }
     return {k: v for k, v in out.items() if v is not None}

@@ -43,8 +43,9 @@ class Snapshot:
     streams: dict[str, Any]
     warnings: tuple[str, ...]
 
-    def result(self, config: CalibrationConfig,
-               progress: Callable[[str], None] | None = None) -> CalibrationResult:
+    def result(
+        self, config: CalibrationConfig, progress: Callable[[str], None] | None = None
+    ) -> CalibrationResult:
         """Calibrate the snapshot; the streams' dropped/rejected messages join the warnings.
         ``progress``: as :func:`~handeye_ros.core.pipeline.calibrate`'s."""
         result = calibrate(self.hand, self.eye, config, progress)
@@ -54,14 +55,19 @@ class Snapshot:
         """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams`` and a
         one-line ``summary``) with this snapshot's frame names."""
         f = self.frames
-        out = result.to_dict(hand_frame=f['hand'], eye_frame=f['eye'],
-                             hand_world=f['hand_world'], eye_world=f['eye_world'])
+        out = result.to_dict(
+            hand_frame=f['hand'],
+            eye_frame=f['eye'],
+            hand_world=f['hand_world'],
+            eye_world=f['eye_world'],
+        )
         out['streams'] = self.streams
         out['summary'] = result.summary()
         return out
 
-    def calibrate(self, config: CalibrationConfig,
-                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    def calibrate(
+        self, config: CalibrationConfig, progress: Callable[[str], None] | None = None
+    ) -> dict[str, Any]:
         """:meth:`result` as :meth:`describe`'s dictionary."""
         return self.describe(self.result(config, progress))
 
@@ -76,11 +82,16 @@ class Recorder:
     def __init__(self, config: StreamConfig):
         self.config = config
         self.selectors: dict[str, Selector] = {
-            name: parse_selector(getattr(config, name + '_topic')) for name in STREAMS}
+            name: parse_selector(getattr(config, name + '_topic')) for name in STREAMS
+        }
         self.buffers = {
-            name: PoseBuffer(f'{name} ({getattr(config, name + "_topic")})',
-                             config.buffer_size, config.buffer_duration)
-            for name in STREAMS}
+            name: PoseBuffer(
+                f'{name} ({getattr(config, name + "_topic")})',
+                config.buffer_size,
+                config.buffer_duration,
+            )
+            for name in STREAMS
+        }
         self.types: dict[str, str | None] = {name: None for name in STREAMS}
         self._convert: dict[str, Callable[[Any], StampedPose]] = {}
         self._tf: dict[str, TfChain] = {}
@@ -97,21 +108,27 @@ class Recorder:
         sel = self.selectors[stream]
         if msgtype == TF_TYPE:
             if sel.item is None:
-                raise ConfigError(f'{stream} topic {sel.topic} is {msgtype}: select the pose '
-                                  f'of a frame in another, as {sel.topic}:PARENT.CHILD')
+                raise ConfigError(
+                    f'{stream} topic {sel.topic} is {msgtype}: select the pose '
+                    f'of a frame in another, as {sel.topic}:PARENT.CHILD'
+                )
             self._tf[stream] = TfChain(*sel.frames(), sel.text)
             self.seen_frames[stream] = sel.frames()
             if sel.static_topic is None:
                 self.selectors[stream] = Selector(sel.text, sel.topic, sel.item, TF_STATIC)
         elif msgtype in RIGID_BODIES_TYPES:
             if sel.item is None or sel.static_topic is not None:
-                raise ConfigError(f'{stream} topic {sel.text} is {msgtype}: select one rigid '
-                                  f'body by its name, as {sel.topic}:NAME')
+                raise ConfigError(
+                    f'{stream} topic {sel.text} is {msgtype}: select one rigid '
+                    f'body by its name, as {sel.topic}:NAME'
+                )
             self._bodies[stream] = RigidBodyPicker(sel.item)
         else:
             if sel.item is not None:
-                raise ConfigError(f'{stream} topic {sel.topic} is {msgtype}, one pose per '
-                                  f'message: name the topic alone, without :{sel.item}')
+                raise ConfigError(
+                    f'{stream} topic {sel.topic} is {msgtype}, one pose per '
+                    f'message: name the topic alone, without :{sel.item}'
+                )
             self._convert[stream] = pose_of(msgtype)
         self.types[stream] = msgtype
 
@@ -125,8 +142,9 @@ class Recorder:
                 out.setdefault(topic, []).append((stream, topic == sel.static_topic))
         return out
 
-    def add(self, stream: str, msg: Any, static: bool = False,
-            arrival_ns: int | None = None) -> str | None:
+    def add(
+        self, stream: str, msg: Any, static: bool = False, arrival_ns: int | None = None
+    ) -> str | None:
         """Convert and buffer one message; returns None or why (one of) its pose(s) was
         rejected. ``static``: the message came on a tf selector's static topic.
         ``arrival_ns``: when it arrived (node clock, or the bag's record time); it replaces
@@ -161,17 +179,27 @@ class Recorder:
         """What the rejected stamps of a stream say about its publisher, with the way out;
         None when its stamps look sound."""
         buf = self.buffers[stream]
-        r, way_out = buf.rejected, (f'use_arrival_time: {stream} stamps them on arrival'
-                                    if stream not in self.arrival else '')
+        r, way_out = (
+            buf.rejected,
+            (
+                f'use_arrival_time: {stream} stamps them on arrival'
+                if stream not in self.arrival
+                else ''
+            ),
+        )
         if r['zero_stamp']:
-            return (f'{r["zero_stamp"]} message(s) had no stamp (header.stamp 0): the publisher '
-                    f'leaves it unset; {way_out or "their arrival times are zero too"}')
+            return (
+                f'{r["zero_stamp"]} message(s) had no stamp (header.stamp 0): the publisher '
+                f'leaves it unset; {way_out or "their arrival times are zero too"}'
+            )
         bad = r['stamp_repeated'] + r['stamp_not_increasing']
         if bad and bad >= 0.1 * buf.received:
-            return (f'{r["stamp_repeated"]} message(s) repeated the previous stamp and '
-                    f'{r["stamp_not_increasing"]} went back: the publisher stamps with a frozen '
-                    f'or coarse clock, or several sources share the topic'
-                    + (f'; {way_out}' if way_out else ''))
+            return (
+                f'{r["stamp_repeated"]} message(s) repeated the previous stamp and '
+                f'{r["stamp_not_increasing"]} went back: the publisher stamps with a frozen '
+                f'or coarse clock, or several sources share the topic'
+                + (f'; {way_out}' if way_out else '')
+            )
         return None
 
     def diagnose(self, stream: str) -> str | None:
@@ -207,19 +235,26 @@ class Recorder:
                 if why is not None and len(buf) == 0:
                     raise InputError(f'{name} stream {topic} gave no pose: {why}')
                 trouble = self.stamp_trouble(name)
-                msg = (f'{name} stream {topic}: {len(buf)} pose(s) buffered '
-                       f'({buf.received} received, {sum(buf.rejected.values())} rejected); '
-                       + (trouble if trouble else 'need a recording of both streams first'))
+                msg = (
+                    f'{name} stream {topic}: {len(buf)} pose(s) buffered '
+                    f'({buf.received} received, {sum(buf.rejected.values())} rejected); '
+                    + (trouble if trouble else 'need a recording of both streams first')
+                )
                 raise InputError(msg)
             trajectories[name] = buf.trajectory()
             if name in self._tf:
                 trajectories[name] = self._tf[name].finish(trajectories[name])
-        return Snapshot(trajectories['hand'], trajectories['eye'], self.frames(),
-                        self.stream_dict(),
-                        tuple(self.stream_warnings()))
+        return Snapshot(
+            trajectories['hand'],
+            trajectories['eye'],
+            self.frames(),
+            self.stream_dict(),
+            tuple(self.stream_warnings()),
+        )
 
-    def calibrate(self, config: CalibrationConfig,
-                  progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    def calibrate(
+        self, config: CalibrationConfig, progress: Callable[[str], None] | None = None
+    ) -> dict[str, Any]:
         """Calibrate on a snapshot of the buffers; the result dictionary (see Snapshot.calibrate).
 
         Raises HandeyeError subclasses with a user-facing reason (e.g. too little data).
@@ -232,31 +267,46 @@ class Recorder:
         for name, s in self.stats().items():
             topic = getattr(self.config, name + '_topic')
             if s.dropped:
-                out.append(f'{name} stream {topic}: the {s.dropped} oldest poses were dropped '
-                           f'(buffer_size {self.config.buffer_size}, buffer_duration '
-                           f'{self.config.buffer_duration:g} s)')
+                out.append(
+                    f'{name} stream {topic}: the {s.dropped} oldest poses were dropped '
+                    f'(buffer_size {self.config.buffer_size}, buffer_duration '
+                    f'{self.config.buffer_duration:g} s)'
+                )
             bad = {k: v for k, v in s.rejected.items() if v}
             if bad:
-                out.append(f'{name} stream {topic}: rejected messages: '
-                           + ', '.join(f'{v} {k.replace("_", " ")}' for k, v in bad.items()))
+                out.append(
+                    f'{name} stream {topic}: rejected messages: '
+                    + ', '.join(f'{v} {k.replace("_", " ")}' for k, v in bad.items())
+                )
             if name in self._tf:
                 out += self._tf[name].warnings()
             trouble = self.stamp_trouble(name)
             if trouble:
                 out.append(f'{name} stream {topic}: {trouble}')
             if name in self.arrival:
-                out.append(f'{name} stream {topic}: stamped on arrival (use_arrival_time), not '
-                           'by header.stamp: the transport delay is part of the time offset '
-                           'and its jitter adds noise')
+                out.append(
+                    f'{name} stream {topic}: stamped on arrival (use_arrival_time), not '
+                    'by header.stamp: the transport delay is part of the time offset '
+                    'and its jitter adds noise'
+                )
         return out
 
     def stream_dict(self) -> dict[str, Any]:
         """Per-stream bookkeeping for the result file."""
-        out = {name: {'topic': getattr(self.config, name + '_topic'), 'type': self.types[name],
-                      'stamps': 'arrival' if name in self.arrival else 'header',
-                      'received': s.received, 'buffered': s.stored, 'dropped': s.dropped,
-                      'rejected': s.rejected, 'span_s': s.span_s, 'rate_hz': s.rate_hz}
-               for name, s in self.stats().items()}
+        out = {
+            name: {
+                'topic': getattr(self.config, name + '_topic'),
+                'type': self.types[name],
+                'stamps': 'arrival' if name in self.arrival else 'header',
+                'received': s.received,
+                'buffered': s.stored,
+                'dropped': s.dropped,
+                'rejected': s.rejected,
+                'span_s': s.span_s,
+                'rate_hz': s.rate_hz,
+            }
+            for name, s in self.stats().items()
+        }
         for name, (world, body) in self.seen_frames.items():
             out[name]['frames'] = {'world': world, 'body': body}
         for name, chain in self._tf.items():

@@ -58,8 +58,10 @@ class Selector:
         parent, _, child = (self.item or '').partition('.')
         parent, child = frame_name(parent), frame_name(child)
         if not parent or not child:
-            raise ConfigError(f'{self.text}: a tf selector names two frames, as '
-                              f'{self.topic}:PARENT.CHILD (e.g. /tf:world.base_link)')
+            raise ConfigError(
+                f'{self.text}: a tf selector names two frames, as '
+                f'{self.topic}:PARENT.CHILD (e.g. /tf:world.base_link)'
+            )
         if parent == child:
             raise ConfigError(f'{self.text}: parent and child are the same frame {parent!r}')
         return parent, child
@@ -73,14 +75,18 @@ def parse_selector(text: str) -> Selector:
     text = text.strip()
     topic, sep, rest = text.partition(':')
     if not topic or (sep and not rest):
-        raise ConfigError(f'topic selector {text!r}: expected TOPIC, TOPIC:ITEM or '
-                          'TOPIC:PARENT.CHILD[:STATIC_TOPIC]')
+        raise ConfigError(
+            f'topic selector {text!r}: expected TOPIC, TOPIC:ITEM or '
+            'TOPIC:PARENT.CHILD[:STATIC_TOPIC]'
+        )
     if not sep:
         return Selector(text, topic)
     item, sep2, static = rest.partition(':')
     if sep2 and not static.startswith('/'):
-        raise ConfigError(f'topic selector {text!r}: the static topic after the second colon '
-                          'must be a topic name starting with /')
+        raise ConfigError(
+            f'topic selector {text!r}: the static topic after the second colon '
+            'must be a topic name starting with /'
+        )
     return Selector(text, topic, item, static or None)
 
 
@@ -100,8 +106,16 @@ class RigidBodyPicker:
         for body in msg.rigidbodies:
             if body.rigid_body_name == self.name:
                 p, q = body.pose.position, body.pose.orientation
-                return (_stamp(msg.header), float(p.x), float(p.y), float(p.z), float(q.x),
-                        float(q.y), float(q.z), float(q.w))
+                return (
+                    _stamp(msg.header),
+                    float(p.x),
+                    float(p.y),
+                    float(p.z),
+                    float(q.x),
+                    float(q.y),
+                    float(q.z),
+                    float(q.w),
+                )
             if len(self.seen) < 1000:
                 self.seen[body.rigid_body_name] = self.seen.get(body.rigid_body_name, 0) + 1
         return None
@@ -110,8 +124,9 @@ class RigidBodyPicker:
         if not self.seen:
             return f'no message held the rigid body {self.name!r}, nor any other'
         names = sorted(self.seen, key=lambda n: -self.seen[n])[:LISTED]
-        return (f'no message held the rigid body {self.name!r}; bodies seen: '
-                + ', '.join(f'{n!r} ({self.seen[n]} msgs)' for n in names))
+        return f'no message held the rigid body {self.name!r}; bodies seen: ' + ', '.join(
+            f'{n!r} ({self.seen[n]} msgs)' for n in names
+        )
 
 
 @dataclass
@@ -122,7 +137,7 @@ class _Edge:
     static: bool
     value: tuple[float, ...]
     count: int = 1
-    changed: int = 0   # times a static value was replaced by a different one
+    changed: int = 0  # times a static value was replaced by a different one
 
 
 class TfChain:
@@ -137,7 +152,7 @@ class TfChain:
         self.edges: dict[str, _Edge] = {}
         #: The chain as factors (frame of the edge, inverted), parent side first, once found.
         self.path: list[tuple[str, bool]] | None = None
-        self.moving: str | None = None   # the frame whose edge moves
+        self.moving: str | None = None  # the frame whose edge moves
         self.problem: str | None = None  # why the chain cannot give poses
         self._dirty = True
         self.early = 0  # samples of the moving link that came before the chain was complete
@@ -152,8 +167,15 @@ class TfChain:
             child = frame_name(tf.child_frame_id)
             parent = frame_name(tf.header.frame_id)
             t, r = tf.transform.translation, tf.transform.rotation
-            value = (float(t.x), float(t.y), float(t.z), float(r.x), float(r.y), float(r.z),
-                     float(r.w))
+            value = (
+                float(t.x),
+                float(t.y),
+                float(t.z),
+                float(r.x),
+                float(r.y),
+                float(r.z),
+                float(r.w),
+            )
             edge = self.edges.get(child)
             if edge is None or edge.parent != parent or edge.static != static:
                 if self.path is not None and child in dict(self.path):
@@ -161,7 +183,8 @@ class TfChain:
                     # (its samples are in the buffer); the change is said in the warnings
                     self.problem = self.problem or (
                         f'{child!r} changed parent or kind to {parent!r} '
-                        f'({"static" if static else "moving"}) during the recording')
+                        f'({"static" if static else "moving"}) during the recording'
+                    )
                     if edge is not None:
                         continue
                 self.edges[child] = _Edge(parent, static, value)
@@ -185,16 +208,18 @@ class TfChain:
         common = next((f for f in up_a if f in set(up_b)), None)
         if common is None:
             return
-        factors = [(f, True) for f in up_a[:up_a.index(common)]]
-        factors += [(f, False) for f in reversed(up_b[:up_b.index(common)])]
+        factors = [(f, True) for f in up_a[: up_a.index(common)]]
+        factors += [(f, False) for f in reversed(up_b[: up_b.index(common)])]
         moving = [f for f, _ in factors if not self.edges[f].static]
         if len(moving) != 1:
             names = ', '.join(f'{self.edges[f].parent}->{f}' for f in moving)
             self.problem = (
-                'every transform between them is static: the pose never moves' if not moving
+                'every transform between them is static: the pose never moves'
+                if not moving
                 else f'the chain passes {len(moving)} moving transforms ({names}): choose a '
                 'pair joined by one moving transform (combining several needs interpolating '
-                'them in time, which this tool does not do)')
+                'them in time, which this tool does not do)'
+            )
             return
         self.problem = None
         self.path, self.moving = factors, moving[0]
@@ -216,7 +241,7 @@ class TfChain:
         the chain climbs it (x_parent = L * D^(+-1) * R x_child)."""
         assert self.path is not None and self.moving is not None
         k = [f for f, _ in self.path].index(self.moving)
-        left, right = self._product(self.path[:k]), self._product(self.path[k + 1:])
+        left, right = self._product(self.path[:k]), self._product(self.path[k + 1 :])
         r = Rotation.from_quat(raw.q_xyzw)
         p = raw.p_xyz
         if self.path[k][1]:
@@ -242,8 +267,11 @@ class TfChain:
 
     def describe(self) -> list[str]:
         """The chain, parent side first, as 'parent->child (moving|static[, inverted])'."""
-        return [f'{self.edges[f].parent}->{f} ({"static" if self.edges[f].static else "moving"}'
-                f'{", inverted" if inv else ""})' for f, inv in (self.path or [])]
+        return [
+            f'{self.edges[f].parent}->{f} ({"static" if self.edges[f].static else "moving"}'
+            f'{", inverted" if inv else ""})'
+            for f, inv in (self.path or [])
+        ]
 
     def warnings(self) -> list[str]:
         """What the user should know about the chain the poses came from."""
@@ -251,15 +279,21 @@ class TfChain:
         if self.path is not None:
             changed = [f for f, _ in self.path if self.edges[f].changed]
             if changed:
-                out.append(f'{self.text}: the static transform(s) '
-                           + ', '.join(f'{self.edges[f].parent}->{f} ({self.edges[f].changed} '
-                                       'changes)' for f in changed)
-                           + ' changed during the recording; the last value is used')
+                out.append(
+                    f'{self.text}: the static transform(s) '
+                    + ', '.join(
+                        f'{self.edges[f].parent}->{f} ({self.edges[f].changed} changes)'
+                        for f in changed
+                    )
+                    + ' changed during the recording; the last value is used'
+                )
             if self.problem:
                 out.append(f'{self.text}: {self.problem}; the chain found first is kept')
             if self.early:
-                out.append(f'{self.text}: {self.early} moving transform(s) came before the '
-                           'chain was complete and were skipped')
+                out.append(
+                    f'{self.text}: {self.early} moving transform(s) came before the '
+                    'chain was complete and were skipped'
+                )
         return out
 
     def diagnose(self) -> str:
@@ -270,15 +304,29 @@ class TfChain:
             return f'{self.parent!r} to {self.child!r}: {self.problem}'
         if not self.edges:
             return 'no transform was received'
-        moving = sorted((f for f, e in self.edges.items() if not e.static),
-                        key=lambda f: -self.edges[f].count)
+        moving = sorted(
+            (f for f, e in self.edges.items() if not e.static), key=lambda f: -self.edges[f].count
+        )
         static = sorted(f for f, e in self.edges.items() if e.static)
-        missing = [f for f in (self.parent, self.child)
-                   if f not in self.edges and all(e.parent != f for e in self.edges.values())]
-        why = (f'no frame {", ".join(map(repr, missing))} in the tf tree' if missing else
-               f'{self.parent!r} and {self.child!r} are in different tf trees')
-        return (f'{why}; moving transforms: '
-                + (', '.join(f'{self.edges[f].parent}.{f} ({self.edges[f].count} msgs)'
-                             for f in moving[:LISTED]) or 'none')
-                + '; static transforms: '
-                + (', '.join(f'{self.edges[f].parent}.{f}' for f in static[:LISTED]) or 'none'))
+        missing = [
+            f
+            for f in (self.parent, self.child)
+            if f not in self.edges and all(e.parent != f for e in self.edges.values())
+        ]
+        why = (
+            f'no frame {", ".join(map(repr, missing))} in the tf tree'
+            if missing
+            else f'{self.parent!r} and {self.child!r} are in different tf trees'
+        )
+        return (
+            f'{why}; moving transforms: '
+            + (
+                ', '.join(
+                    f'{self.edges[f].parent}.{f} ({self.edges[f].count} msgs)'
+                    for f in moving[:LISTED]
+                )
+                or 'none'
+            )
+            + '; static transforms: '
+            + (', '.join(f'{self.edges[f].parent}.{f}' for f in static[:LISTED]) or 'none')
+        )

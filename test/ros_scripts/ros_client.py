@@ -56,29 +56,46 @@ def call(node: Node, names: list[str], concurrent: bool, gap_s: float = 0.0) -> 
 
 
 def latched(node: Node) -> dict:
-    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    qos = QoSProfile(
+        depth=1,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
     got: dict = {}
-    node.create_subscription(TransformStamped, '/calibrator/extrinsic',
-                             lambda m: got.__setitem__('extrinsic', m), qos)
-    node.create_subscription(Float64, '/calibrator/time_offset',
-                             lambda m: got.__setitem__('time_offset', m.data), qos)
-    node.create_subscription(PoseWithCovarianceStamped, '/calibrator/extrinsic_with_covariance',
-                             lambda m: got.__setitem__('covariance', list(m.pose.covariance)),
-                             qos)
+    node.create_subscription(
+        TransformStamped, '/calibrator/extrinsic', lambda m: got.__setitem__('extrinsic', m), qos
+    )
+    node.create_subscription(
+        Float64, '/calibrator/time_offset', lambda m: got.__setitem__('time_offset', m.data), qos
+    )
+    node.create_subscription(
+        PoseWithCovarianceStamped,
+        '/calibrator/extrinsic_with_covariance',
+        lambda m: got.__setitem__('covariance', list(m.pose.covariance)),
+        qos,
+    )
 
-    node.create_subscription(TimeReference, '/calibrator/time_reference',
-                             lambda m: got.__setitem__('time_reference', m), qos)
+    node.create_subscription(
+        TimeReference,
+        '/calibrator/time_reference',
+        lambda m: got.__setitem__('time_reference', m),
+        qos,
+    )
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for st in msg.status:
             values = {kv.key: kv.value for kv in st.values}
             if st.name.endswith(': result'):
-                got['diagnostics'] = {'level': int.from_bytes(st.level, 'little')
-                                      if isinstance(st.level, bytes) else int(st.level),
-                                      'message': st.message, 'values': values,
-                                      'verdict': values.get('verdict'),
-                                      'reasons': values.get('reasons', '')}
+                got['diagnostics'] = {
+                    'level': int.from_bytes(st.level, 'little')
+                    if isinstance(st.level, bytes)
+                    else int(st.level),
+                    'message': st.message,
+                    'values': values,
+                    'verdict': values.get('verdict'),
+                    'reasons': values.get('reasons', ''),
+                }
+
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     deadline = time.monotonic() + 10.0
     while len(got) < 5 and time.monotonic() < deadline:
@@ -86,40 +103,61 @@ def latched(node: Node) -> dict:
     if 'extrinsic' in got:
         m = got['extrinsic']
         t, r = m.transform.translation, m.transform.rotation
-        got['extrinsic'] = {'parent': m.header.frame_id, 'child': m.child_frame_id,
-                            'stamp_ns': m.header.stamp.sec * 10 ** 9 + m.header.stamp.nanosec,
-                            'translation': [t.x, t.y, t.z], 'rotation': [r.x, r.y, r.z, r.w]}
+        got['extrinsic'] = {
+            'parent': m.header.frame_id,
+            'child': m.child_frame_id,
+            'stamp_ns': m.header.stamp.sec * 10**9 + m.header.stamp.nanosec,
+            'translation': [t.x, t.y, t.z],
+            'rotation': [r.x, r.y, r.z, r.w],
+        }
     if 'time_reference' in got:
         m = got['time_reference']
         s, r = m.header.stamp, m.time_ref
         got['time_reference'] = {
-            'offset_ns': (s.sec - r.sec) * 10 ** 9 + s.nanosec - r.nanosec,
-            'stamp_ns': s.sec * 10 ** 9 + s.nanosec, 'frame_id': m.header.frame_id,
-            'source': m.source}
+            'offset_ns': (s.sec - r.sec) * 10**9 + s.nanosec - r.nanosec,
+            'stamp_ns': s.sec * 10**9 + s.nanosec,
+            'frame_id': m.header.frame_id,
+            'source': m.source,
+        }
     return got
 
 
 def tf_static(node: Node) -> list[dict]:
     from tf2_msgs.msg import TFMessage
-    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
-                     durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+    qos = QoSProfile(
+        depth=100,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
     got: list = []
     node.create_subscription(TFMessage, '/tf_static', got.append, qos)
     deadline = time.monotonic() + 20.0
     while not got and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
-    return [{'parent': t.header.frame_id, 'child': t.child_frame_id,
-             'translation': [t.transform.translation.x, t.transform.translation.y,
-                             t.transform.translation.z]}
-            for m in got for t in m.transforms]
+    return [
+        {
+            'parent': t.header.frame_id,
+            'child': t.child_frame_id,
+            'translation': [
+                t.transform.translation.x,
+                t.transform.translation.y,
+                t.transform.translation.z,
+            ],
+        }
+        for m in got
+        for t in m.transforms
+    ]
 
 
 def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
     client = AsyncParameterClient(node, '/calibrator')
     if not client.wait_for_services(timeout_sec=TIMEOUT_S):
         return [{'error': 'parameter services of /calibrator not available'}]
-    params = [Parameter(name, value=yaml.safe_load(value))
-              for name, value in (a.split(':=', 1) for a in assignments)]
+    params = [
+        Parameter(name, value=yaml.safe_load(value))
+        for name, value in (a.split(':=', 1) for a in assignments)
+    ]
     f = client.set_parameters(params)
     rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
     return [{'success': r.successful, 'message': r.reason} for r in f.result().results]
@@ -136,8 +174,12 @@ def main() -> int:
     elif mode == 'param':
         out = set_parameters(node, names)
     else:
-        out = call(node, names, concurrent=mode in ('concurrent', 'staggered'),
-                   gap_s=0.3 if mode == 'staggered' else 0.0)
+        out = call(
+            node,
+            names,
+            concurrent=mode in ('concurrent', 'staggered'),
+            gap_s=0.3 if mode == 'staggered' else 0.0,
+        )
     print(json.dumps(out), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()

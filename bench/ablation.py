@@ -5,7 +5,12 @@
     inter-frame and rotation-constrained (eta 1, 5, 10 deg) relative poses, each with and
     without the screw-congruence kernel, each with the paper's dual-quaternion solution and
     with our decoupled refit of rotation and translation on the same consensus.
-(3) The whole linear pipeline (offset estimated, then linear), the figure users get.
+(3) The whole linear pipeline (offset estimated, then stages 1-2 with every check, no batch
+    stage: ``CalibrationConfig(batch=False)``); bench/batch.py measures the batch stage.
+
+Every configuration is spelled out here (LINEAR, the keyword arguments of calibrate_linear),
+so a change of a default does not silently change what a row measures. Every (level, k) is its
+own recording (common.protocol_seed).
 
 Usage: python bench/ablation.py [--seeds 20] [--levels 0 1 ... 10]
 """
@@ -17,18 +22,29 @@ import time
 
 import common  # noqa: F401  (puts the package on sys.path)
 import numpy as np
-from common import emit, pyplot, save_plot, table
+from common import PROTOCOL_SEEDS, emit, protocol_seed, pyplot, save_plot, table
 
 from handeye_ros.core.association import associate
+from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.linear import build_motions, calibrate_linear
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, noise_level, simulate
 from handeye_ros.core.time_align import align_time
 
-#: (label, relative poses, eta deg, robust kernel, decoupled refit)
+#: The whole linear pipeline: stages 1 and 2 with the defaults otherwise.
+LINEAR = CalibrationConfig(batch=False)
+#: The paper's values for the linear stage (Section III-B): mu 5, RANSAC 200, 0.5 deg / 2 cm.
+PAPER = {
+    'mu': 5.0,
+    'ransac_iterations': 200,
+    'inlier_rotation_rad': np.deg2rad(0.5),
+    'inlier_translation_m': 0.02,
+}
+
+#: (label, relative poses, eta deg, robust kernel, adaptive inliers, decoupled refit)
 LINEAR_VARIANTS = [
-    (f'{name} {"+" if kernel else "-"}kernel{suffix}', strategy, eta, kernel, refit)
+    (f'{name} {"+" if kernel else "-"}kernel{suffix}', strategy, eta, kernel, adaptive, refit)
     for name, strategy, eta in (
         ('global', 'global', 5.0),
         ('interframe', 'interframe', 5.0),
@@ -37,7 +53,21 @@ LINEAR_VARIANTS = [
         ('rot eta=10', 'rotation', 10.0),
     )
     for kernel in (True, False)
-    for refit, suffix in ((False, ' (paper)'), (True, ' +refit'))
+    for adaptive, refit, suffix in (
+        (True, False, ' (dual quaternion)'),
+        (True, True, ' +refit'),
+    )
+] + [
+    # the paper's Algorithm 1 exactly: fixed thresholds, the dual-quaternion solution
+    (
+        f'rot eta=5 {"+" if kernel else "-"}kernel (paper exactly)',
+        'rotation',
+        5.0,
+        kernel,
+        False,
+        False,
+    )
+    for kernel in (True, False)
 ]
 
 
@@ -55,25 +85,30 @@ def main() -> None:
     for a, level in enumerate(levels):
         noise_m, noise_deg = noise_level(level)
         for b, seed in enumerate(seeds):
-            rec = simulate(seed, noise_m=noise_m, noise_deg=noise_deg)
+            rec = simulate(protocol_seed(level, seed), noise_m=noise_m, noise_deg=noise_deg)
             truth = rec.truth
             for fit, err in dt_err.items():
                 ta = align_time(rec.hand, rec.eye, peak_fit=fit)
                 err[a, b] = abs(ta.time_offset_s - truth.time_offset_s)
             pairs = associate(rec.hand, rec.eye, truth.time_offset_s)
             motions = {}
-            for c, (_, strategy, eta, kernel, refit) in enumerate(LINEAR_VARIANTS):
+            for c, (_, strategy, eta, kernel, adaptive, refit) in enumerate(LINEAR_VARIANTS):
                 if (strategy, eta) not in motions:
                     motions[strategy, eta] = build_motions(pairs, strategy, np.deg2rad(eta))
                 try:
                     s = calibrate_linear(
-                        motions[strategy, eta], robust_kernel=kernel, decoupled_refit=refit
+                        motions[strategy, eta],
+                        robust_kernel=kernel,
+                        adaptive_inliers=adaptive,
+                        decoupled_refit=refit,
+                        rng=np.random.default_rng(0),
+                        **PAPER,
                     )
                 except HandeyeError:  # a failed variant counts as missing
                     continue
                 e = calibration_error(truth, truth.time_offset_s, s.q_HE, s.p_HE)
                 lin[c, a, b] = e.translation_m, e.rotation_deg
-            res = calibrate(rec.hand, rec.eye)
+            res = calibrate(rec.hand, rec.eye, LINEAR)
             e = calibration_error(truth, res.time_offset_s, res.q_HE, res.p_HE)
             full[a, b] = e.time_offset_s, e.translation_m, e.rotation_deg
     elapsed = time.perf_counter() - t0
@@ -94,6 +129,7 @@ def main() -> None:
                 for a, lv in enumerate(levels)
             ],
         ),
+        PROTOCOL_SEEDS,
     )
     for k, (unit, scale) in enumerate((('mm', 1e3), ('deg', 1.0))):
         emit(
@@ -108,11 +144,13 @@ def main() -> None:
                     for c, n in enumerate(names)
                 ],
             ),
+            PROTOCOL_SEEDS + '; RANSAC rng seed 0',
         )
     emit(
         'ablation_pipeline',
         table(
-            f'Whole linear pipeline (offset estimated), mean over {len(seeds)} seeds',
+            f'Whole linear pipeline (offset estimated; stages 1-2, batch=False), mean over '
+            f'{len(seeds)} seeds',
             [
                 'level',
                 '|dt| ms',
@@ -131,6 +169,7 @@ def main() -> None:
                 for a, lv in enumerate(levels)
             ],
         ),
+        PROTOCOL_SEEDS + f'; RANSAC seed {LINEAR.seed}',
     )
     print(f'({elapsed:.1f} s)')
 
@@ -147,7 +186,11 @@ def main() -> None:
                 ax[k + 1].plot(
                     levels,
                     [_mean(lin[c, a, :, k]) * scale for a in range(len(levels))],
-                    ('o-' if '+kernel' in n else 'x--') if 'refit' in n else ':',
+                    ('o-' if '+kernel' in n else 'x--')
+                    if 'refit' in n
+                    else '-.'
+                    if 'exactly' in n
+                    else ':',
                     label=n,
                 )
             ax[k + 1].set(

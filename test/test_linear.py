@@ -41,17 +41,35 @@ def test_noise_free_is_exact() -> None:
     assert sol.n_inliers == sol.n_motions
 
 
-@pytest.mark.parametrize('strategy', ['rotation', 'global', 'interframe'])
-@pytest.mark.parametrize('robust_kernel', [True, False])
-def test_strategies_and_kernel_at_moderate_noise(strategy: str, robust_kernel: bool) -> None:
+def test_rotation_keyframes_beat_the_global_strategy() -> None:
+    """Level 5, seed 2 (measured: rotation 9.4 mm / 0.21 deg, inter-frame 8.7 mm / 0.17 deg,
+    global 86 mm / 5.1 deg; bench/ablation.py's level-5 means are alike). Tolerances: 1.5x the
+    measured errors for the two short-motion strategies; global motions carry the eye's whole
+    drift, so the paper's claim is checked as a ratio."""
     rec = recording(seed=2, level=5.0)
-    sol = calibrate_linear(_motions(rec, strategy), robust_kernel=robust_kernel)
-    err = _error(rec, sol)
-    if strategy == 'rotation':
-        assert err.translation_m < 0.02 and err.rotation_deg < 0.6
-    else:  # the paper's baselines: global motions carry the eye's whole drift (0.1 deg per
-        # frame and axis over 1160 frames: ~3.4 deg per axis), inter-frame motions are tiny
-        assert err.rotation_deg < 20.0
+    err = {
+        s: _error(rec, calibrate_linear(_motions(rec, s)))
+        for s in ('rotation', 'global', 'interframe')
+    }
+    for s in ('rotation', 'interframe'):
+        assert err[s].translation_m < 0.015 and err[s].rotation_deg < 0.32, (s, err[s])
+    assert err['global'].translation_m > 5 * err['rotation'].translation_m
+    assert err['global'].rotation_deg > 10 * err['rotation'].rotation_deg
+
+
+def test_kernel_weights_enter_the_dual_quaternion_solve() -> None:
+    """With the paper's dual-quaternion solution (no refit) the kernel's weights (eq. 12)
+    change the solution; both stay accurate on this clean-motion recording (measured with /
+    without: 6.6 / 9.3 mm, 0.30 / 0.17 deg: on smooth data the kernel is no better, see
+    docs/method.md)."""
+    rec = recording(seed=2, level=5.0)
+    m = _motions(rec)
+    on = calibrate_linear(m, robust_kernel=True, decoupled_refit=False)
+    off = calibrate_linear(m, robust_kernel=False, decoupled_refit=False)
+    assert np.linalg.norm(on.p_HE - off.p_HE) > 1e-4
+    for sol in (on, off):
+        e = _error(rec, sol)
+        assert e.translation_m < 0.015 and e.rotation_deg < 0.45, e
 
 
 def test_seeded_and_reproducible() -> None:

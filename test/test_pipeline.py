@@ -111,9 +111,11 @@ def test_wrong_fixed_offset_is_reported(error_s: float) -> None:
     cfg = CalibrationConfig(time_offset=rec.truth.time_offset_s + error_s)
     try:
         res = calibrate(rec.hand, rec.eye, cfg)
-    except DegenerateMotionError:
+    except DegenerateMotionError as err:  # 0.2 s: no motion agrees; the error names the offset
+        assert 'the time offset is wrong' in str(err)
         return
     assert any('disagrees with the angular-speed correlation' in w for w in res.warnings)
+    assert res.quality.verdict != 'good'
 
 
 def test_right_fixed_offset_gives_no_warning() -> None:

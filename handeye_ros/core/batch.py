@@ -111,12 +111,15 @@ class Noise:
 
 @dataclass(frozen=True)
 class SolverReport:
-    """How a solve ended: success, why (message), residual passes (nfev) and Jacobians (njev)."""
+    """How a solve ended: success, why (message), its iterations (each one Newton model, the
+    count ``batch_max_iterations`` bounds in both solvers), residual passes (nfev) and
+    Jacobian evaluations (njev)."""
 
     success: bool
     message: str
     nfev: int
     njev: int
+    iterations: int
 
 
 @dataclass(frozen=True)
@@ -632,7 +635,7 @@ def refine(
         std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
         cost_before=cost_before,
         cost_after=cost_after,
-        iterations=int(sol.njev or 0),
+        iterations=sol.iterations,
         evaluations=int(sol.nfev),
         termination=str(sol.message),
         success=bool(sol.success),
@@ -906,7 +909,9 @@ def _levenberg_marquardt_small(
     cur = sums_at(y)
     lam, nu, nfev = LM_LAMBDA0, 2.0, 1
     message, success = 'maximum number of iterations reached', False
+    iterations = 0
     for _ in range(max_iterations):
+        iterations += 1
         sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(cur.A)), 1e-300, None))
         D = np.diag(np.maximum(cur.D, 1e-12))
         if np.all(np.abs(np.linalg.solve(cur.A, -cur.g)) <= STEP_TOL_SIGMA * sigma):
@@ -939,7 +944,8 @@ def _levenberg_marquardt_small(
         if decrease <= LM_FTOL * cur.cost:
             message, success = 'relative cost change below tolerance', True
             break
-    return y, SolverReport(success=success, message=message, nfev=nfev, njev=nfev), cur
+    report = SolverReport(success, message, nfev=nfev, njev=nfev, iterations=iterations)
+    return y, report, cur
 
 
 def _eye_jacobians(
@@ -1187,7 +1193,7 @@ def _levenberg_marquardt(
         if decrease <= ftol * cost:
             message, success = 'relative cost change below tolerance', True
             break
-    return x, SolverReport(success=success, message=message, nfev=nfev, njev=njev)
+    return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
 
 
 def _huber_cost(r: np.ndarray, delta: float) -> float:

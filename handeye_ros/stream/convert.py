@@ -25,32 +25,17 @@ def _stamp(msg: Any) -> int:
     return int(s.sec) * 1_000_000_000 + int(s.nanosec)
 
 
+def stamped_pose(t_ns: int, p: Any, q: Any) -> StampedPose:
+    """``(t_ns, x, y, z, qx, qy, qz, qw)`` of a position (Point or Vector3) and a Quaternion."""
+    return (t_ns, *(float(v) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w)))
+
+
 def _from_pose(t_ns: int, pose: Any) -> StampedPose:
-    p, q = pose.position, pose.orientation
-    return (
-        t_ns,
-        float(p.x),
-        float(p.y),
-        float(p.z),
-        float(q.x),
-        float(q.y),
-        float(q.z),
-        float(q.w),
-    )
+    return stamped_pose(t_ns, pose.position, pose.orientation)
 
 
 def _from_transform(t_ns: int, tf: Any) -> StampedPose:
-    p, q = tf.translation, tf.rotation
-    return (
-        t_ns,
-        float(p.x),
-        float(p.y),
-        float(p.z),
-        float(q.x),
-        float(q.y),
-        float(q.z),
-        float(q.w),
-    )
+    return stamped_pose(t_ns, tf.translation, tf.rotation)
 
 
 _CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {

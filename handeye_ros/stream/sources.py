@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.errors import ConfigError
 from ..core.trajectory import Trajectory
-from .convert import StampedPose, frame_name
+from .convert import StampedPose, frame_name, stamped_pose
 
 #: The static topic of a tf selector that names none.
 TF_STATIC = '/tf_static'
@@ -105,17 +105,8 @@ class RigidBodyPicker:
         """The body's stamped pose, or None when this message lacks it (not tracked)."""
         for body in msg.rigidbodies:
             if body.rigid_body_name == self.name:
-                p, q = body.pose.position, body.pose.orientation
-                return (
-                    _stamp(msg.header),
-                    float(p.x),
-                    float(p.y),
-                    float(p.z),
-                    float(q.x),
-                    float(q.y),
-                    float(q.z),
-                    float(q.w),
-                )
+                pose = body.pose
+                return stamped_pose(_stamp(msg.header), pose.position, pose.orientation)
             if len(self.seen) < 1000:
                 self.seen[body.rigid_body_name] = self.seen.get(body.rigid_body_name, 0) + 1
         return None

@@ -190,7 +190,7 @@ def _from_layout(root: Path) -> list[RunSpec]:
 def code_fingerprint() -> str:
     """sha256 of this package's Python sources: a changed algorithm invalidates the cache."""
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parent  # the handeye_ros package
     for f in sorted(root.rglob('*.py')):
         h.update(str(f.relative_to(root)).encode())
         h.update(f.read_bytes())

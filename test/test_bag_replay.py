@@ -13,6 +13,8 @@ from conftest import recording, run_cli
 from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
 from handeye_ros.stream import PoseBuffer
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 
 @pytest.fixture(scope='module')
 def rec():

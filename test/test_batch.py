@@ -29,6 +29,7 @@ def test_noise_free_is_exact() -> None:
     assert err.time_offset_s < 2e-5 and err.translation_m < 1e-4 and err.rotation_deg < 1e-3
 
 
+@pytest.mark.slow
 def test_batch_refines_the_offset_and_reports_honest_uncertainty() -> None:
     lin_dt, bat_dt = [], []
     for seed in (1, 2, 3):
@@ -144,6 +145,7 @@ def test_given_noise_is_used() -> None:
     assert res.batch.eye_noise.translation == 0.002
 
 
+@pytest.mark.slow
 def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     # MoCap with white noise 0.1 mm / 0.0057 deg per axis, VIO at level 5: the full problem of
     # eq. 15 (control poses free) converges in a few steps, measures the MoCap noise, and lands
@@ -180,6 +182,7 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     assert fixed.batch.success
 
 
+@pytest.mark.slow
 def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
     # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)
     # columns against dense central differences, away from the start values

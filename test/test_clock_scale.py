@@ -45,6 +45,7 @@ def test_fit_drift_recovers_a_line_and_ignores_a_wrong_window() -> None:
     assert fit.significant  # 66 ms over the recording
 
 
+@pytest.mark.slow
 def test_line_fits_match_scipy_stats() -> None:
     """The two line fits written out in core/clock.py (to spare every run scipy.stats' 1.3 s
     import) give scipy's numbers, wild points included."""
@@ -65,6 +66,7 @@ def test_line_fits_match_scipy_stats() -> None:
         )
 
 
+@pytest.mark.slow
 def test_drift_significance_uses_the_t_quantile_of_its_windows() -> None:
     """A drift's sigma comes from a few windows' scatter: the bar is Student's t at the false
     alarm rate of 3 Gaussian sigmas, higher the fewer the windows."""
@@ -154,6 +156,7 @@ def test_scale_is_unobservable_without_translation() -> None:
 # ----------------------------------------------------------------------------- the pipeline
 
 
+@pytest.mark.slow
 def test_clock_drift_is_estimated_in_all_stages() -> None:
     """300 ppm over 3 minutes (54 ms end to end), noise level 3: with clock_drift, the drift
     within 5 ppm (the windows alone resolve ~3 ppm here, the batch stage better) and dt at the
@@ -176,6 +179,7 @@ def test_clock_drift_is_estimated_in_all_stages() -> None:
     )
 
 
+@pytest.mark.slow
 def test_default_run_names_a_drift_with_its_rate() -> None:
     rec = recording(seed=3, level=3.0, duration_s=180.0, clock_drift=300e-6)
     res = calibrate(rec.hand, rec.eye)
@@ -188,6 +192,7 @@ def test_default_run_names_a_drift_with_its_rate() -> None:
     assert res.to_dict()['clock']['drift_significant']
 
 
+@pytest.mark.slow
 def test_no_drift_is_not_named_and_the_option_costs_little() -> None:
     rec = recording(seed=5, level=3.0, duration_s=120.0)
     plain = calibrate(rec.hand, rec.eye)
@@ -277,6 +282,7 @@ def test_joint_solve_does_not_pretend_to_estimate_a_scale() -> None:
         refine(rec.hand, rec.eye, 0.0, rec.truth.q_HE, rec.truth.p_HE, joint=True, scale=True)
 
 
+@pytest.mark.slow
 def test_cli_flags_and_result_keys(tmp_path) -> None:
     rec = recording(seed=2, level=2.0, duration_s=60.0, scale=2.0)
     write_tum(tmp_path / 'h.txt', rec.hand)
@@ -300,6 +306,7 @@ def test_cli_flags_and_result_keys(tmp_path) -> None:
 # ----------------------------------------------------------------------------- real data
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not (REAL_DATA / 'SOURCES.md').is_file(), reason='no ../shared/data/real')
 def test_real_pair_with_drift_and_scale() -> None:
     """A real VIO (V2_01, stereo) against the real ground truth moved to the Vicon marker

@@ -21,6 +21,8 @@ from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.evaluate import EXIT_UNUSABLE
 from handeye_ros.formats import write_tum
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 
 def _write_runs(folder: Path, n: int, seed0: int = 200) -> list[dict]:
     runs = []

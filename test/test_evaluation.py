@@ -25,6 +25,8 @@ from handeye_ros.evaluation.aligned import AlignedTrajectories
 from handeye_ros.evaluation.metrics import ape, rpe, rpe_pairs
 from handeye_ros.formats import read_trajectory, write_tum
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 EVO_BIN = Path(sys.executable).parent
 #: evo's statistics are printed from the same float64 poses we write with 9 decimals (1e-9 m);
 #: the issue asks for 0.1 mm, the numbers agree far closer.

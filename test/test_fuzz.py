@@ -14,6 +14,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 from conftest import recording
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -95,6 +96,7 @@ option_value = st.one_of(
 )
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(
     values=st.dictionaries(
@@ -137,6 +139,7 @@ def trajectories(draw, name: str) -> Trajectory:
     return Trajectory.from_arrays(t.astype(np.int64), p, q, name)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(hand=trajectories('hand'), eye=trajectories('eye'))
 def test_calibrate_on_arbitrary_trajectories(hand: Trajectory, eye: Trajectory) -> None:
@@ -146,6 +149,7 @@ def test_calibrate_on_arbitrary_trajectories(hand: Trajectory, eye: Trajectory) 
         pass
 
 
+@pytest.mark.slow
 @settings(
     max_examples=25,
     deadline=None,

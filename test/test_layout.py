@@ -10,9 +10,11 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import pytest
 from conftest import ROOT, run_cli
 
 
+@pytest.mark.slow
 def test_core_and_offline_tool_do_not_import_rclpy() -> None:
     # nor evo: it is GPLv3 and a test-only dependency
     code = (
@@ -81,6 +83,7 @@ def test_no_layer_imports_from_a_layer_above() -> None:
     assert not upward, '\n'.join(upward)
 
 
+@pytest.mark.slow
 def test_public_api_is_small_documented_and_lazy() -> None:
     code = (
         'import sys, handeye_ros as h; before = "numpy" in sys.modules; '
@@ -116,6 +119,7 @@ def test_every_pin_lives_in_requirements_txt() -> None:
     assert all('==' in ln for ln in pins)
 
 
+@pytest.mark.slow
 def test_demo_runs() -> None:
     res = run_cli('--duration', '30', module='handeye_ros.demo')
     assert res.returncode == 0, res.stderr

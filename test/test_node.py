@@ -24,7 +24,10 @@ from ros_support import (
 
 from handeye_ros.core.simulate import Truth, calibration_error
 
-pytestmark = pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed')
+pytestmark = [
+    pytest.mark.ros,
+    pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed'),
+]
 
 
 @pytest.fixture(scope='module')

@@ -20,6 +20,8 @@ from handeye_ros.core.simulate import calibration_error, random_truth
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_euroc, write_tum
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 
 def _ok(res) -> None:
     assert res.returncode == 0, res.stderr

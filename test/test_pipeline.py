@@ -32,6 +32,7 @@ def test_noise_free_recovers_the_truth() -> None:
     assert res.warnings == ()
 
 
+@pytest.mark.slow
 def test_highest_noise_level() -> None:
     """Level 10 (5 mm / 0.2 deg per eye frame, cumulative): over three seeds the offset is
     within a few ms and the extrinsic within a few cm / ~1 deg (the bench's 20-seed means are

@@ -12,6 +12,7 @@ Round-off tolerances are a few hundred ulps of the quantities compared.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -190,6 +191,7 @@ def test_masked_ncc_equals_a_brute_force_pearson(
         assert abs(c - np.sum(a * b) / np.sqrt(var)) < 1e-8
 
 
+@pytest.mark.slow
 @FAST
 @given(seed=SEEDS, n=st.integers(2, 120), eta_deg=st.floats(0.5, 30.0))
 def test_keyframes_are_the_greedy_chain_of_eq_6(seed: int, n: int, eta_deg: float) -> None:

@@ -34,6 +34,7 @@ def test_verdict_is_the_worst_reason() -> None:
     assert Quality.from_reasons([], ['note']).verdict == 'good'
 
 
+@pytest.mark.slow
 def test_repetitive_motion_is_ambiguous_and_takes_the_smallest_offset() -> None:
     """A motion that repeats every 2 s: every 2 s of offset explains the data; the verdict
     says so and names the options that narrow the search, and the tie goes to the smallest."""

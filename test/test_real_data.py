@@ -22,6 +22,8 @@ from handeye_ros.formats import read_trajectory
 sys.path.insert(0, str(ROOT / 'bench'))
 import realdata
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 SHIFT_S = 0.1234
 
 

@@ -32,6 +32,8 @@ from handeye_ros.stream import Recorder, StreamConfig
 from handeye_ros.stream.messages import transform_stamped
 from handeye_ros.stream.sources import TfChain, parse_selector
 
+pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
+
 TF = 'tf2_msgs/msg/TFMessage'
 RB = 'mocap4r2_msgs/msg/RigidBodies'
 

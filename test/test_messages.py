@@ -83,7 +83,7 @@ def test_every_output_from_one_result_with_one_stamp() -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec('rclpy') is None, reason='rclpy not installed')
 def test_rclpy_classes_get_the_same_content() -> None:
-    from handeye_ros.ros.node import RclpyTypes
+    from handeye_ros.ros.types import RclpyTypes
 
     r = _result(87_300_123, True)
     ours, bag = messages.outputs(RclpyTypes(), r, 7), messages.outputs(_typestore().types, r, 7)

@@ -13,8 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from ..core.errors import InputError
 from ..core.trajectory import Trajectory
 from ..stream import SUPPORTED_TYPES, messages
@@ -25,7 +23,7 @@ from ..stream.convert import (
     UnsupportedTypeError,
     normalise_type,
 )
-from ..stream.messages import header, transform_stamped
+from ..stream.messages import transform_stamped
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
     from typing import Self
@@ -127,64 +125,14 @@ class BagReader:
 # ----------------------------------------------------------------------------------- writing
 
 
-def rigid_bodies_message(
-    store: Any, t_ns: int, frame_id: str, bodies: list[tuple[str, Any, Any]]
-) -> Any:
-    """mocap4r2_msgs/RigidBodies (rosbags class) of (name, p x y z, q x y z w) bodies."""
-    T = store.types
-    return T['mocap4r2_msgs/msg/RigidBodies'](
-        header=header(T, t_ns, frame_id),
-        frame_number=0,
-        rigidbodies=[
-            T['mocap4r2_msgs/msg/RigidBody'](
-                rigid_body_name=name,
-                markers=[],
-                pose=T['geometry_msgs/msg/Pose'](
-                    position=T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2]),
-                    orientation=T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3]),
-                ),
-            )
-            for name, p, q in bodies
-        ],
-    )
-
-
 def pose_messages(
     store: Any, traj: Trajectory, msgtype: str, frame_id: str, child_frame_id: str
 ) -> Iterator[tuple[int, Any]]:
-    """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes).
-
-    A TFMessage holds one transform (frame_id -> child_frame_id), a RigidBodies message one
-    body named child_frame_id."""
-    T = store.types
+    """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes;
+    :func:`handeye_ros.stream.messages.pose_message` builds each)."""
     msgtype = normalise_type(msgtype)
     for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
-        if msgtype == TF_TYPE:
-            tf = transform_stamped(T, t, frame_id, child_frame_id, p, q)
-            yield t, T[msgtype](transforms=[tf])
-            continue
-        if msgtype in RIGID_BODIES_TYPES:
-            yield t, rigid_bodies_message(store, t, frame_id, [(child_frame_id, p, q)])
-            continue
-        if msgtype == 'geometry_msgs/msg/TransformStamped':
-            yield t, transform_stamped(T, t, frame_id, child_frame_id, p, q)
-            continue
-        head = header(T, t, frame_id)
-        point = T['geometry_msgs/msg/Point'](x=p[0], y=p[1], z=p[2])
-        quat = T['geometry_msgs/msg/Quaternion'](x=q[0], y=q[1], z=q[2], w=q[3])
-        pose = T['geometry_msgs/msg/Pose'](position=point, orientation=quat)
-        if msgtype == 'geometry_msgs/msg/PoseStamped':
-            yield t, T[msgtype](header=head, pose=pose)
-            continue
-        pwc = T['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=np.zeros(36))
-        if msgtype == 'geometry_msgs/msg/PoseWithCovarianceStamped':
-            yield t, T[msgtype](header=head, pose=pwc)
-            continue
-        zero = T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
-        twist = T['geometry_msgs/msg/TwistWithCovariance'](
-            twist=T['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36)
-        )
-        yield t, T[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+        yield t, messages.pose_message(store.types, msgtype, t, p, q, frame_id, child_frame_id)
 
 
 def _latched_qos() -> Any:
@@ -363,7 +311,7 @@ def write_rigid_bodies_recording(
                     0,
                     RIGID_BODIES_TOPIC,
                     RIGID_BODIES_TYPES[0],
-                    rigid_bodies_message(w.store, t, 'mocap', bodies),
+                    messages.rigid_bodies(w.store.types, t, 'mocap', bodies),
                 )
             )
         items.sort(key=lambda x: (x[0], x[1]))

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import difflib
-import importlib
 import shutil
 import sys
 import tempfile
@@ -73,6 +72,7 @@ from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages,
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from . import worker
 from .lifecycle import spin, stop_requested
+from .types import RclpyTypes, message_class
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(
@@ -261,7 +261,7 @@ class CalibratorNode(Node):
                 continue
             sel.frames()  # a malformed pair is a ConfigError now
             try:
-                _message_class(TF_TYPE)
+                message_class(TF_TYPE)
             except ConfigError as err:
                 raise ConfigError(
                     f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
@@ -273,7 +273,7 @@ class CalibratorNode(Node):
         tf2's static broadcasters latch) once its type is known; raises ConfigError when
         the type does not fit the selector or its Python package cannot be imported."""
         self.recorder.set_type(stream, msgtype)
-        cls = _message_class(msgtype)
+        cls = message_class(msgtype)
         qos = QoSProfile(
             depth=self.node_cfg.qos_depth,
             history=HistoryPolicy.KEEP_LAST,
@@ -680,29 +680,6 @@ def result_status(
         )
     ]
     return st
-
-
-class RclpyTypes(dict):
-    """rclpy message classes by 'pkg/msg/Name', imported on first use (the ``types`` of
-    :mod:`handeye_ros.stream.messages`)."""
-
-    def __missing__(self, msgtype: str) -> Any:
-        cls = self[msgtype] = _message_class(msgtype)
-        return cls
-
-
-def _message_class(msgtype: str) -> Any:
-    """The rclpy class of 'pkg/msg/Name'; ConfigError naming the package when this Python
-    cannot import it (tf2_msgs and mocap4r2_msgs come with a ROS 2 install, not from PyPI)."""
-    pkg, _, name = msgtype.split('/')
-    try:
-        return getattr(importlib.import_module(f'{pkg}.msg'), name)
-    except (ImportError, AttributeError):
-        raise ConfigError(
-            f'{msgtype} cannot be imported in this Python ({sys.executable}): '
-            f'install {pkg} (e.g. apt install ros-jazzy-{pkg.replace("_", "-")} '
-            'and source /opt/ros/jazzy/setup.bash)'
-        ) from None
 
 
 def _staged_dir(result: dict[str, Any] | None) -> str | None:

@@ -91,7 +91,8 @@ def _publish(result: dict, namespace: str) -> int:
     from rclpy.node import Node
 
     from ..stream import messages
-    from .node import LATCHED, RclpyTypes
+    from .node import LATCHED
+    from .types import RclpyTypes
 
     rclpy.init()
     node = Node('calibration_publisher')

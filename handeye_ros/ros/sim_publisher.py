@@ -18,7 +18,6 @@ RigidBodies`` publishes the bodies 'wand' and 'rig' (the hand: ``TOPIC:rig``) in
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import sys
@@ -31,54 +30,25 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
-from handeye_ros.stream import normalise_type
+from handeye_ros.ros.types import RclpyTypes
+from handeye_ros.stream import messages, normalise_type
 
-_PACKAGES = {
-    'PoseStamped': 'geometry_msgs',
-    'PoseWithCovarianceStamped': 'geometry_msgs',
-    'TransformStamped': 'geometry_msgs',
-    'Odometry': 'nav_msgs',
-    'TFMessage': 'tf2_msgs',
-    'RigidBodies': 'mocap4r2_msgs',
-}
+#: rclpy message classes, imported on first use.
+TYPES = RclpyTypes()
+#: A second body in every RigidBodies message, as a MoCap tracking more than the rig sends.
+WAND = ('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0))
 
 
 def message_class(cls_name: str):
-    return getattr(importlib.import_module(f'{_PACKAGES[cls_name]}.msg'), cls_name)
+    return TYPES[normalise_type(cls_name)]
 
 
 def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
-    if cls_name == 'TFMessage':
-        return message_class('TFMessage')(
-            transforms=[message('TransformStamped', t_ns, p, q, frame, child)]
-        )
+    """One pose as a message of type ``cls_name`` (stream/messages.py builds it)."""
+    msgtype = normalise_type(cls_name)
     if cls_name == 'RigidBodies':
-        import mocap4r2_msgs.msg as mc
-
-        m = mc.RigidBodies()
-        m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10**9), int(t_ns % 10**9)
-        m.header.frame_id = frame
-        for name, pp, qq in (('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0)), (child, p, q)):
-            b = mc.RigidBody(rigid_body_name=name)
-            pos, rot = b.pose.position, b.pose.orientation
-            pos.x, pos.y, pos.z = (float(v) for v in pp)
-            rot.x, rot.y, rot.z, rot.w = (float(v) for v in qq)
-            m.rigidbodies.append(b)
-        return m
-    m = message_class(cls_name)()
-    m.header.stamp.sec, m.header.stamp.nanosec = int(t_ns // 10**9), int(t_ns % 10**9)
-    m.header.frame_id = frame
-    if cls_name == 'TransformStamped':
-        m.child_frame_id = child
-        tr, rot = m.transform.translation, m.transform.rotation
-    else:
-        pose = m.pose if cls_name == 'PoseStamped' else m.pose.pose
-        if cls_name == 'Odometry':
-            m.child_frame_id = child
-        tr, rot = pose.position, pose.orientation
-    tr.x, tr.y, tr.z = (float(v) for v in p)
-    rot.x, rot.y, rot.z, rot.w = (float(v) for v in q)
-    return m
+        return messages.rigid_bodies(TYPES, t_ns, frame, [WAND, (child, p, q)])
+    return messages.pose_message(TYPES, msgtype, t_ns, p, q, frame, child)
 
 
 def main() -> int:

@@ -1,7 +1,7 @@
 """ROS messages out of a result dictionary, for rclpy and rosbags alike.
 
 Every builder takes ``types``: a mapping from a 'pkg/msg/Name' type name to its message class.
-The node passes one that imports rclpy's classes (:class:`handeye_ros.ros.node.RclpyTypes`);
+The node passes one that imports rclpy's classes (:class:`handeye_ros.ros.types.RclpyTypes`);
 the bag writer passes its typestore's ``types``. Both kinds of class take every field as a keyword, so one builder
 serves the live topics and the output bag, and the two cannot disagree.
 
@@ -80,6 +80,58 @@ def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any, 
             rotation=_quaternion(types, q),
         ),
     )
+
+
+def pose(types: Types, p: Any, q: Any) -> Any:
+    """geometry_msgs/Pose of a position (x y z) and a quaternion (x y z w)."""
+    return types['geometry_msgs/msg/Pose'](
+        position=types['geometry_msgs/msg/Point'](x=float(p[0]), y=float(p[1]), z=float(p[2])),
+        orientation=_quaternion(types, q),
+    )
+
+
+def rigid_bodies(
+    types: Types, t_ns: int, frame_id: str, bodies: list[tuple[str, Any, Any]]
+) -> Any:
+    """mocap4r2_msgs/RigidBodies of (name, p x y z, q x y z w) bodies, in ``frame_id``."""
+    return types['mocap4r2_msgs/msg/RigidBodies'](
+        header=header(types, t_ns, frame_id),
+        frame_number=0,
+        rigidbodies=[
+            types['mocap4r2_msgs/msg/RigidBody'](rigid_body_name=name, markers=[],
+                                                  pose=pose(types, p, q))
+            for name, p, q in bodies
+        ],
+    )  # fmt: skip
+
+
+def pose_message(
+    types: Types, msgtype: str, t_ns: int, p: Any, q: Any, frame_id: str, child_frame_id: str
+) -> Any:
+    """One pose (child in frame_id) as a message of any supported type ('pkg/msg/Name'): a
+    TFMessage holds one transform, a RigidBodies message one body named child_frame_id, an
+    Odometry a zero twist; covariances are zero (unknown to a simulator or a file)."""
+    if msgtype == 'tf2_msgs/msg/TFMessage':
+        return types[msgtype](
+            transforms=[transform_stamped(types, t_ns, frame_id, child_frame_id, p, q)]
+        )
+    if msgtype.endswith('/msg/RigidBodies'):
+        return rigid_bodies(types, t_ns, frame_id, [(child_frame_id, p, q)])
+    if msgtype == 'geometry_msgs/msg/TransformStamped':
+        return transform_stamped(types, t_ns, frame_id, child_frame_id, p, q)
+    head = header(types, t_ns, frame_id)
+    if msgtype == 'geometry_msgs/msg/PoseStamped':
+        return types[msgtype](header=head, pose=pose(types, p, q))
+    pwc = types['geometry_msgs/msg/PoseWithCovariance'](
+        pose=pose(types, p, q), covariance=np.zeros(36)
+    )
+    if msgtype == 'geometry_msgs/msg/PoseWithCovarianceStamped':
+        return types[msgtype](header=head, pose=pwc)
+    zero = types['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
+    twist = types['geometry_msgs/msg/TwistWithCovariance'](
+        twist=types['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36)
+    )
+    return types[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
 
 
 def _quaternion(types: Types, q: Any) -> Any:

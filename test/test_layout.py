@@ -14,6 +14,14 @@ import pytest
 from conftest import ROOT, run_cli
 
 
+def _fresh_python(code: str) -> str:
+    """What ``code`` prints in a new interpreter on this checkout (sys.modules starts empty)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(
+        [sys.executable, '-c', code], capture_output=True, text=True, env=env, check=True, cwd=ROOT
+    ).stdout
+
+
 @pytest.mark.slow
 def test_core_and_offline_tool_do_not_import_rclpy() -> None:
     # nor evo: it is GPLv3 and a test-only dependency
@@ -24,11 +32,7 @@ def test_core_and_offline_tool_do_not_import_rclpy() -> None:
         'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags", '
         '"evo")))'
     )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run(
-        [sys.executable, '-c', code], capture_output=True, text=True, env=env, check=True, cwd=ROOT
-    ).stdout.strip()
-    assert out == '[]'
+    assert _fresh_python(code).strip() == '[]'
 
 
 #: One folder, one layer, lowest first: a module imports from its own layer or a lower one.
@@ -90,11 +94,7 @@ def test_public_api_is_small_documented_and_lazy() -> None:
         'names = [n for n in h.__all__ if getattr(h, n).__doc__]; '
         'print(before, names == h.__all__, "calibrate" in dir(h))'
     )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run(
-        [sys.executable, '-c', code], capture_output=True, text=True, env=env, check=True, cwd=ROOT
-    ).stdout.split()
-    assert out == ['False', 'True', 'True']
+    assert _fresh_python(code).split() == ['False', 'True', 'True']
 
 
 def test_package_xml_and_setup_agree() -> None:

@@ -186,18 +186,18 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
 def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
     # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)
     # columns against dense central differences, away from the start values
-    from handeye_ros.core.batch import _Problem
+    from handeye_ros.core.residuals import BatchProblem, Weights
 
     rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4, hand_noise_deg=0.004)
     t = rec.truth
-    prob = _Problem(rec.hand, rec.eye, t.time_offset_s + 3e-4, t.q_HE, t.p_HE + 0.003, 0.05, 4)
-    prob.w = np.array([1e3, 2e3, 500.0, 400.0])
+    prob = BatchProblem(rec.hand, rec.eye, t.time_offset_s + 3e-4, t.q_HE, t.p_HE + 0.003, 0.05, 4)
+    w = Weights(1e3, 2e3, 500.0, 400.0)
     x = np.random.default_rng(0).normal(size=prob.n) * 1e-3
-    J = prob.jacobian(x).toarray()
+    J = prob.jacobian(x, w).toarray()
     h = 1e-6
     J_fd = np.stack(
         [
-            (prob.residuals(x + h * e) - prob.residuals(x - h * e)) / (2 * h)
+            (prob.residuals(x + h * e, w) - prob.residuals(x - h * e, w)) / (2 * h)
             for e in np.eye(prob.n)
         ],
         axis=1,
@@ -231,15 +231,15 @@ def test_joint_solve_refuses_one_mocap_pose_per_knot() -> None:
 
 
 def test_analytic_eye_jacobian_matches_central_differences() -> None:
-    """The default solve's Jacobian in (dt, T_HE, drift, scale) (batch._Problem.eye_chunk:
+    """The default solve's Jacobian in (dt, T_HE, drift, scale) (BatchProblem.eye_chunk:
     spline body rate and velocity, chain rule through the relative pose) against central
     differences of the residuals, away from the solution so that no term vanishes."""
-    from handeye_ros.core import batch
+    from handeye_ros.core.residuals import BatchProblem
     from handeye_ros.core.simulate import simulate
 
     rec = simulate(3, duration_s=20.0, clock_drift=100e-6, scale=0.7)
     t = rec.truth
-    prob = batch._Problem(
+    prob = BatchProblem(
         rec.hand,
         rec.eye,
         t.time_offset_s + 0.002,

@@ -1,0 +1,496 @@
+"""Stage 3's least-squares problem (Section III-C): the residual blocks of eq. 16 and their
+Jacobians, for a cumulative B-spline T_GH(t) of the hand (:mod:`.spline`, eq. 14) and the eye
+predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (eq. 1)::
+
+    hand:  d(T_GH(t_h),  Z_h)
+    eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
+
+with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)``, each part divided by its stream's noise
+(:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.huber_lm`, the
+covariance at the solution in :mod:`.batch_covariance`, the orchestration in :mod:`.batch`.
+
+Parameters: the joint solve's x is (per control pose (dphi, dp); then y), and y = (dt,
+dtheta_X, dp_X, [drift], [scale]) are the updates of dt and T_HE (and the optional clock drift
+and scale) from their start values (:class:`ParameterLayout`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.spatial.transform import Rotation
+
+from .errors import BatchError
+from .geometry import (
+    Pose,
+    hat,
+    log_so3,
+    matrix_from_quat,
+    relative,
+    right_jacobian,
+)
+from .spline import PoseSpline, exp_so3, fit_spline
+from .trajectory import Trajectory
+
+#: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
+FD_STEP = 1e-6
+FD_STEP_S = 1e-7
+#: ... and in the clock drift (s/s): 1e-9 moves an eye pose 100 s from the reference by 1e-7 s.
+FD_STEP_DRIFT = 1e-9
+#: dt may move this far (s) from its start during the solve: eye pairs nearer than this to
+#: the spline's ends are left out, so that every eye pose keeps a spline segment.
+DT_MARGIN_S = 0.05
+#: MoCap poses the default solve's hand noise is measured on
+#: (:meth:`BatchProblem.hand_noise_residuals`).
+HAND_NOISE_SAMPLES = 200_000
+#: Eye pose pairs evaluated at once (:meth:`BatchProblem.eye_chunk`): small enough that the
+#: arrays of a chunk stay in cache and memory stays flat, large enough for numpy's per-call cost.
+EYE_CHUNK_PAIRS = 1 << 15
+#: Fewest eye residuals the stage accepts.
+MIN_EYE_RESIDUALS = 20
+
+
+@dataclass(frozen=True)
+class Weights:
+    """1/sigma of each residual part (1/rad, 1/m): a MoCap pose's rotation and translation,
+    an eye relative pose's rotation and translation. The solvers are handed them with the
+    residuals they weight; the problem itself holds none."""
+
+    hand_rotation: float = 1.0
+    hand_translation: float = 1.0
+    eye_rotation: float = 1.0
+    eye_translation: float = 1.0
+
+    @property
+    def hand(self) -> np.ndarray:
+        """(6,) per component of a hand residual."""
+        return np.repeat([self.hand_rotation, self.hand_translation], 3)
+
+    @property
+    def eye(self) -> np.ndarray:
+        """(6,) per component of an eye residual."""
+        return np.repeat([self.eye_rotation, self.eye_translation], 3)
+
+
+def eye_pairs(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive pose indices not spanning a gap or a break (as stage 1)."""
+    i = np.flatnonzero(traj.interval_ok())
+    return i, i + 1
+
+
+def _times(M: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """``M C`` for a stack M (N, 3, 3) and a constant C (3, 3), as one matrix product."""
+    return (M.reshape(-1, 3) @ C).reshape(M.shape)
+
+
+def _conjugate(C: np.ndarray, M: np.ndarray, right: bool = True) -> np.ndarray:
+    """``C M C^T`` (or ``C M`` with ``right`` False) for a constant C (3, 3) and a stack M
+    (N, 3, 3), as plain matrix products over the stack (numpy's stacked 3x3 matmul is several
+    times slower)."""
+    n = M.shape[0]
+    CM = (C @ np.swapaxes(M, 0, 1).reshape(3, 3 * n)).reshape(3, n, 3).swapaxes(0, 1)
+    if not right:
+        return CM
+    return (CM.reshape(3 * n, 3) @ C.T).reshape(n, 3, 3)
+
+
+def residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
+    """(N, 6): rotation (rad) and translation (m) differences of predicted and observed poses
+    (the spline's and the MoCap's, or relative ones of the eye)."""
+    dR = np.matmul(pred[0], np.swapaxes(obs[0], -1, -2))
+    return np.concatenate((log_so3(dR), pred[1] - obs[1]), axis=1)
+
+
+class BatchProblem:
+    """The least-squares problem of the module docstring, with its Jacobian."""
+
+    def __init__(
+        self,
+        hand: Trajectory,
+        eye: Trajectory,
+        dt0: float,
+        q0: np.ndarray,
+        p0: np.ndarray,
+        knot_spacing: float,
+        order: int,
+        drift_stamp_ns: int | None = None,
+        scale: bool = False,
+    ):
+        self.origin = int(hand.t_ns[0])
+        self.th = hand.seconds(self.origin)
+        te = eye.seconds(self.origin)
+        # the MoCap's rotations stay quaternions: an hour at 1 kHz as matrices is 260 MB, and
+        # only the joint solve needs them all (:attr:`hand_obs`)
+        qh, ph = hand.q_xyzw, hand.p_xyz
+        Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
+        self.spline0 = fit_spline(self.th, qh, ph, knot_spacing, order)
+        self.M = self.spline0.R.shape[0]
+        self.hand_q, self.hand_p = qh, ph
+        # eye pairs whose both ends stay inside the spline for any dt within the margin
+        ei, ej = eye_pairs(eye)
+        lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
+        inside = (te[ei] - dt0 >= lo) & (te[ej] - dt0 <= hi)
+        self.ei, self.ej = ei[inside], ej[inside]
+        if self.ei.size < MIN_EYE_RESIDUALS:
+            raise BatchError(
+                f'only {self.ei.size} consecutive eye pose pairs fall inside the '
+                f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
+                'little for the batch stage'
+            )
+        self.te = te
+        self.eye_obs = relative((Re, pe), self.ei, self.ej)
+        self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
+        self.n_spline = 6 * self.M
+        self.n = self.n_spline + 7
+        # optional entries of y after (dt, dtheta_X, dp_X): the clock drift about the reference
+        # stamp t_ref (eye clock) and the eye's scale correction (1 + y_s)
+        self.i_drift = 7 if drift_stamp_ns is not None else None
+        self.i_scale = 7 + int(drift_stamp_ns is not None) if scale else None
+        self.n_y = 7 + int(drift_stamp_ns is not None) + int(scale)
+        self.t_ref = (
+            0.0
+            if drift_stamp_ns is None
+            else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9
+        )
+
+    @property
+    def hand_obs(self) -> Pose:
+        """The MoCap poses as (R (N, 3, 3), p (N, 3)): made once, when the joint solve asks."""
+        obs = self.__dict__.get('_hand_obs')
+        if obs is None:
+            obs = self.__dict__['_hand_obs'] = (matrix_from_quat(self.hand_q), self.hand_p)
+        return obs
+
+    @property
+    def hand_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """Spline basis at every MoCap stamp (the knots never move; the times neither): made
+        once, when the joint solve first asks."""
+        basis = self.__dict__.get('_hand_basis')
+        if basis is None:
+            basis = self.__dict__['_hand_basis'] = self.spline0.basis(self.th)
+        return basis
+
+    def hand_noise_residuals(self) -> np.ndarray:
+        """Hand residuals of the spline fit (n, 6) at up to HAND_NOISE_SAMPLES MoCap poses evenly
+        spread: what the default solve needs of the hand is its noise level, which a robust
+        sigma of 2e5 residuals gives to 0.3 %; an hour of 1 kHz MoCap would take 10 s more."""
+        pick = np.unique(
+            np.linspace(0, self.th.size - 1, min(self.th.size, HAND_NOISE_SAMPLES)).astype(int)
+        )
+        obs = (matrix_from_quat(self.hand_q[pick]), self.hand_p[pick])
+        return residual_parts(self.spline0.evaluate(self.th[pick]), obs)
+
+    def extrinsic(self, y: np.ndarray) -> Pose:
+        """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
+        return self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]
+
+    def clock(self, y: np.ndarray) -> tuple[float, float]:
+        """(dt at t_ref, clock drift) of y."""
+        return self.dt0 + y[0], (0.0 if self.i_drift is None else float(y[self.i_drift]))
+
+    def scale(self, y: np.ndarray) -> float:
+        """The factor on the eye's translations (1 without a scale parameter)."""
+        return 1.0 if self.i_scale is None else 1.0 + float(y[self.i_scale])
+
+    def eye_times(self, y: np.ndarray, first: int = 0, stop: int | None = None) -> np.ndarray:
+        """The hand-clock times of the eye stamps first..stop-1: ``t - dt - drift (t - t_ref)``
+        (the linear clock of :mod:`.clock`)."""
+        dt, drift = self.clock(y)
+        te = self.te[first:stop]
+        return te - dt - drift * (te - self.t_ref)
+
+    # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
+    def unpack(self, x: np.ndarray) -> tuple[PoseSpline, np.ndarray]:
+        """(spline, y) of the full parameter vector (joint solve)."""
+        c = x[: self.n_spline].reshape(self.M, 6)
+        s0 = self.spline0
+        R = np.matmul(s0.R, exp_so3(c[:, :3]))
+        spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
+        return spline, x[self.n_spline :]
+
+    def hand_raw(self, spline: PoseSpline) -> np.ndarray:
+        """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
+        return residual_parts(spline.evaluate(self.th, self.hand_basis), self.hand_obs)
+
+    def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
+        and X; with a scale s, the predicted relative translations divided by it), a chunk
+        of pairs at a time (:meth:`eye_chunk`)."""
+        return np.concatenate(
+            [
+                self.eye_chunk(
+                    y, k, min(k + EYE_CHUNK_PAIRS, self.ei.size), jacobian=False, spline=spline
+                )[0]
+                for k in self.chunks()
+            ]
+        )
+
+    def eye_chunk(
+        self,
+        y: np.ndarray,
+        k0: int,
+        k1: int,
+        jacobian: bool = True,
+        rotation_only: bool = False,
+        spline: PoseSpline | None = None,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only)
+        predicted from ``spline`` (default: the hand's fit) and y, and with ``jacobian`` their
+        Jacobian (n, 6 or 3, n_y) in y, analytic (the spline held fixed). The pairs are taken a
+        chunk at a time so that no array holds more than a chunk (an hour at 200 Hz is 720 000
+        pairs).
+
+        With a scale s the metric prediction is brought to the eye's units (divided by s)
+        rather than the eye's noisy translations scaled: a scale on noisy observations shrinks
+        towards zero by their noise-to-motion ratio (attenuation; -1 % at 1.5 mm per 25 mm
+        frame step).
+
+        With ``Q = R_a^T R_b`` of the spline at the pair's hand times, ``u = Q p_X + R_a^T (p_b -
+        p_a)``, the predicted relative pose ``(R_X^T Q R_X, p = R_X^T (u - p_X))`` and r =
+        ``Log(R_rel R_obs^T) = R_X^T Log(Q R_X R_obs^T R_X^T)`` (left Jacobian J_l):
+
+        - X's rotation, ``R_X Exp(d)``: r by ``J_l^-1 (R_rel - I) d``, p by ``[p]x d``;
+        - X's position: p by ``R_X^T (Q - I) dp_X``;
+        - a hand time moving by dtau (dt: -1, drift: -(t - t_ref)) moves the spline by its body
+          rate w and velocity v: r by ``J_l^-1 R_X^T (Q w_b dtau_b - w_a dtau_a)``, p by
+          ``R_X^T ([u]x w_a dtau_a - Q [p_X]x w_b dtau_b + R_a^T (v_b dtau_b - v_a dtau_a))``;
+        - the scale s: the predicted translation p / s by ``-p / s^2``.
+        """
+        lo, hi = int(self.ei[k0]), int(self.ej[k1 - 1]) + 1
+        a, b = self.ei[k0:k1] - lo, self.ej[k0:k1] - lo
+        te = self.te[lo:hi]
+        times = self.eye_times(y, lo, hi)
+        sp = self.spline0 if spline is None else spline
+        basis = sp.basis(times)
+        if jacobian:
+            R, P, W, V = sp.evaluate_with_velocity(basis, sp.basis_derivative(times))
+        else:
+            R, P = sp.evaluate(times, basis)
+        RX, pX = self.extrinsic(y)
+        Ra_t = np.swapaxes(R[a], -1, -2)
+        Q = np.matmul(Ra_t, R[b])
+        # R_X^T Log(Q M) R_X-wise: M = R_X R_obs^T R_X^T needs only products with the constant
+        # R_X, which are one matrix product over all pairs at once
+        Robs_t = np.swapaxes(self.eye_obs[0][k0:k1], -1, -2)
+        M = _conjugate(RX, Robs_t)
+        r_rot = log_so3(np.matmul(Q, M)) @ RX  # (R_X^T v) row-wise
+        n = a.size
+        rows = 3 if rotation_only else 6
+        r = np.empty((n, rows))
+        r[:, :3] = r_rot
+        s = self.scale(y)
+        if not rotation_only:
+            u = Q @ pX + np.einsum('nij,nj->ni', Ra_t, P[b] - P[a])
+            p_rel = (u - pX) @ RX  # R_X^T (u - p_X), row-wise
+            r[:, 3:] = p_rel / s - self.eye_obs[1][k0:k1]
+        if not jacobian:
+            return r, None
+        J = np.zeros((n, rows, self.n_y))
+        Jl_inv = right_jacobian(-r_rot, inverse=True)
+        Jr_theta = right_jacobian(y[None, 1:4])[0]
+        rel_R = _conjugate(RX.T, Q)
+        J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
+        time_cols = [(0, -1.0, -1.0)]
+        if self.i_drift is not None:
+            time_cols.append(
+                (self.i_drift, -(te[a] - self.t_ref)[:, None], -(te[b] - self.t_ref)[:, None])
+            )
+        Wa, Wb = W[a], W[b]
+        QWb = np.einsum('nij,nj->ni', Q, Wb)
+        for col, fa, fb in time_cols:
+            J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
+        if rotation_only:
+            return r, J
+        J[:, 3:, 1:4] = _times(hat(p_rel), Jr_theta / s)
+        J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
+        if self.i_scale is not None:
+            J[:, 3:, self.i_scale] = -p_rel / s**2
+        dp_a = np.cross(u, Wa) - np.einsum('nij,nj->ni', Ra_t, V[a])
+        dp_b = np.einsum('nij,nj->ni', Ra_t, V[b]) - np.einsum('nij,nj->ni', Q, np.cross(pX, Wb))
+        for col, fa, fb in time_cols:
+            J[:, 3:, col] = (dp_a * fa + dp_b * fb) @ RX / s
+        return r, J
+
+    def chunks(self) -> range:
+        """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
+        return range(0, self.ei.size, EYE_CHUNK_PAIRS)
+
+    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
+        spline, y = self.unpack(x)
+        return self.hand_raw(spline), self.eye_raw_at(spline, y)
+
+    def eye_raw(self, y: np.ndarray) -> np.ndarray:
+        """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
+        fixed to the hand."""
+        return self.eye_raw_at(self.spline0, y)
+
+    def residuals(self, x: np.ndarray, w: Weights) -> np.ndarray:
+        """Weighted hand then eye residuals, flat (joint solve)."""
+        r_h, r_e = self.raw(x)
+        return np.concatenate(((r_h * w.hand).ravel(), (r_e * w.eye).ravel()))
+
+    def jacobian(self, x: np.ndarray, weights: Weights) -> csr_matrix:
+        """Sparse Jacobian of :meth:`residuals`: analytic in the control poses (through
+        :meth:`PoseSpline.evaluate_with_jacobian`), central differences in the 7 (dt, T_HE)
+        columns, which only the eye rows depend on.
+
+        With ``r = Log(R_pred R_obs^T)`` and R_pred moved to ``R_pred Exp(v)``, r moves by
+        ``Jl^-1(r) R_pred v``. Hand row h: v is the spline's body perturbation. Eye pair (a, b)
+        with ``Q = R_a^T R_b`` (spline rotations at t_a - dt, t_b - dt), ``T_HE = (R_X, p_X)``:
+        the relative rotation ``R_X^T Q R_X`` has ``R_pred v = R_X^T (Q eps_b - eps_a)`` and the
+        relative translation ``R_X^T (Q p_X + R_a^T (p_b - p_a) - p_X)`` moves by
+        ``R_X^T ([u]x eps_a - Q [p_X]x eps_b + R_a^T (dp_b - dp_a))`` with
+        ``u = Q p_X + R_a^T (p_b - p_a)``.
+        """
+        spline, y = self.unpack(x)
+        RX, pX = self.extrinsic(y)
+        k = spline.order
+        w = (
+            weights.hand_rotation,
+            weights.hand_translation,
+            weights.eye_rotation,
+            weights.eye_translation,
+        )
+        ent_r, ent_c, ent_v = [], [], []
+
+        # the parameters are R_m = R0_m Exp(c_m): a change dc is Exp(Jr(c_m) dc) on R_m
+        Jc = right_jacobian(x[: self.n_spline].reshape(self.M, 6)[:, :3])
+
+        def add(row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
+            """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2."""
+            if col_off == 0:
+                block = np.matmul(block, Jc[cp])
+            rr = row0[:, None, None, None] + np.arange(3)[:, None]
+            cc = 6 * cp[:, :, None, None] + col_off + np.arange(3)
+            rr, cc = np.broadcast_arrays(rr, cc)
+            ent_r.append(rr.ravel())
+            ent_c.append(cc.ravel())
+            ent_v.append(block.ravel())
+
+        # hand rows: rotation by the control rotations, position by the control positions
+        hb = self.hand_basis
+        R_s, _, JR, b = spline.evaluate_with_jacobian(hb)
+        r_rot = log_so3(np.matmul(R_s, np.swapaxes(self.hand_obs[0], -1, -2)))
+        cp = hb[0][:, None] + np.arange(k)
+        row = 6 * np.arange(self.th.size)
+        lead = np.matmul(right_jacobian(-r_rot, inverse=True), R_s)  # Jl^-1(r) R_s
+        add(row, cp, 0, w[0] * np.matmul(lead[:, None], JR))
+        add(row + 3, cp, 3, w[1] * b[..., None, None] * np.eye(3))
+        # eye rows
+        eb = self.spline0.basis(self.eye_times(y))
+        R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
+        ia, ib = self.ei, self.ej
+        Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
+        Q = np.matmul(np.swapaxes(Ra, -1, -2), Rb)
+        RXt = RX.T
+        rel_R = np.matmul(np.matmul(RXt, Q), RX)
+        r_eye = log_so3(np.matmul(rel_R, np.swapaxes(self.eye_obs[0], -1, -2)))
+        Jl_inv = right_jacobian(-r_eye, inverse=True)
+        u = np.einsum('nij,j->ni', Q, pX) + np.einsum('nji,nj->ni', Ra, pb - pa)
+        RXtRat = np.matmul(RXt, np.swapaxes(Ra, -1, -2))
+        row = 6 * (self.th.size + np.arange(ia.size))
+        for idx, sign_rot, d_trans in (
+            (ia, -1.0, np.matmul(RXt, hat(u))),
+            (ib, 1.0, -np.matmul(np.matmul(RXt, Q), hat(pX))),
+        ):
+            cp = eb[0][idx][:, None] + np.arange(k)
+            JRi = JR_e[idx]
+            # d r_rot / d eps: Jl^-1 R_X^T (-I for a, Q for b)
+            d_rot = np.matmul(Jl_inv, RXt if sign_rot < 0 else np.matmul(RXt, Q)) * sign_rot
+            add(row, cp, 0, w[2] * np.matmul(d_rot[:, None], JRi))
+            add(row + 3, cp, 0, w[3] * np.matmul(d_trans[:, None], JRi))
+            add(row + 3, cp, 3, w[3] * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None])
+        # (dt, dtheta_X, dp_X): central differences of the eye rows
+        w_eye = weights.eye
+
+        def eye_rows(yy: np.ndarray) -> np.ndarray:
+            return (self.eye_raw_at(spline, yy) * w_eye).ravel()
+
+        d = central_jacobian(eye_rows, y, np.arange(7))
+        ent_r.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
+        ent_c.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
+        ent_v.append(d.ravel())
+        m = 6 * (self.th.size + ia.size)
+        return csr_matrix(
+            (np.concatenate(ent_v), (np.concatenate(ent_r), np.concatenate(ent_c))),
+            shape=(m, self.n),
+        )
+
+
+@dataclass(frozen=True)
+class ParameterLayout:
+    """Which entries of y = (dt, dtheta_X (3), dp_X (3), [drift], [scale]) each step frees.
+
+    time: dt (unless fixed) and the drift, free in both steps of the decoupled solve; scale:
+    with the translation (step B). Every covariance is in the order of :attr:`all`.
+    """
+
+    time: tuple[int, ...]
+    scale: tuple[int, ...]
+    size: int
+
+    @classmethod
+    def of(cls, prob: BatchProblem, fix_time_offset: bool) -> ParameterLayout:
+        time_idx = (() if fix_time_offset else (0,)) + (
+            () if prob.i_drift is None else (prob.i_drift,)
+        )
+        return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
+
+    @property
+    def a(self) -> np.ndarray:
+        return np.array((*self.time, 1, 2, 3))
+
+    @property
+    def b(self) -> np.ndarray:
+        return np.array((*self.time, 4, 5, 6, *self.scale))
+
+    @property
+    def all(self) -> np.ndarray:
+        return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
+
+    @property
+    def steps(self) -> np.ndarray:
+        """Central-difference steps for the entries of y."""
+        h = np.full(self.size, FD_STEP)
+        h[0] = FD_STEP_S
+        if self.size > 7 and len(self.time) and self.time[-1] >= 7:
+            h[self.time[-1]] = FD_STEP_DRIFT
+        return h
+
+
+def weighted_eye_chunks(
+    prob: BatchProblem,
+    w: Weights,
+    y: np.ndarray,
+    rotation_only: bool = False,
+    raw: list[np.ndarray] | None = None,
+    every: int = 1,
+):
+    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
+    chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
+    ``raw`` when given."""
+    rows = 3 if rotation_only else 6
+    w_rows = w.eye[:rows]
+    for k in prob.chunks()[::every]:
+        r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True, rotation_only)
+        if raw is not None:
+            raw.append(r)
+        yield r * w_rows, J * w_rows[None, :, None]
+
+
+def central_jacobian(
+    fun, y: np.ndarray, cols: np.ndarray, steps: np.ndarray | None = None
+) -> np.ndarray:
+    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
+    dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
+    out = []
+    for idx in cols:
+        h = steps[idx] if steps is not None else (FD_STEP_S if idx == 0 else FD_STEP)
+        yp, ym = y.copy(), y.copy()
+        yp[idx] += h
+        ym[idx] -= h
+        out.append((fun(yp) - fun(ym)) / (2 * h))
+    return np.stack(out, axis=1)

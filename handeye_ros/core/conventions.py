@@ -52,7 +52,7 @@ from .association import associate
 from .errors import InputError, TimeAlignmentError
 from .geometry import matrix_from_quat, quat_from_matrix, relative
 from .keyframes import motion_indices
-from .linear import rotation_from_motions, translation_from_motions
+from .motion_refits import rotation_from_motions, translation_from_motions
 from .trajectory import Trajectory
 
 #: Rates a pose stream can have, Hz.

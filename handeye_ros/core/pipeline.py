@@ -38,6 +38,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .association import PosePairs, associate
+from .axxb import build_motions
 from .batch import BatchSolution, refine
 from .clock import DriftFit, covered_span, measure_drift
 from .config import CalibrationConfig
@@ -51,7 +52,8 @@ from .errors import (
 )
 from .eye_model import EyeModel
 from .geometry import matrix_from_quat, quat_angle
-from .linear import LinearSolution, build_motions, calibrate_linear, drift_weights
+from .linear import LinearSolution, calibrate_linear
+from .motion_refits import drift_weights
 from .quality import (
     AMBIGUOUS_PEAK_RATIO,
     AMBIGUOUS_SCORE_RATIO,

@@ -158,7 +158,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     if m is None or len(m) == 0:
         _empty(a, 'no motions')
     else:
-        from ..core.linear import motion_errors
+        from ..core.axxb import motion_errors
 
         e_rot, e_trans = motion_errors(m, lin.q_HE[None], lin.p_HE[None])
         inl = lin.inliers.astype(bool)

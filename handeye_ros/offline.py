@@ -307,6 +307,7 @@ def calibrate_args(
         snap = rec.snapshot()
         with _progress_bar(args.progress, len(STEPS)) as step:
             result = snap.result(calib, progress=step)
+        frames = snap.frames
         out = snap.describe(result)
         out['inputs']['bag'] = str(args.bag)
     else:
@@ -352,9 +353,13 @@ def calibrate_args(
         )
     if args.output_bag:
         from .formats.bag import write_result_bag
+        from .stream.messages import Published
 
         write_result_bag(
-            args.output_bag, out, out['inputs']['eye']['last_stamp_ns'], args.output_bag_storage
+            args.output_bag,
+            Published.from_result(result, frames),
+            result.eye.last_stamp_ns,
+            args.output_bag_storage,
         )
     return out, result
 
@@ -414,9 +419,9 @@ def main(argv: list[str] | None = None) -> int:
     from .report import format_report, write_result
 
     try:
-        result, _ = calibrate_args(args)
+        document, result = calibrate_args(args)
         if args.output:
-            write_result(args.output, result)
+            write_result(args.output, document)
     except HandeyeError as err:
         print(f'offline_calibrate: error: {err}', file=sys.stderr)
         return 1
@@ -443,18 +448,17 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 3
-    for w in result['warnings']:
+    for w in result.warnings:
         LOG.warning('%s', w)
     if args.json:
-        json.dump(result, sys.stdout, indent=2)
+        json.dump(document, sys.stdout, indent=2)
         sys.stdout.write('\n')
     else:
-        print(format_report(result))
-    verdict = result['quality']['verdict']
+        print(format_report(document))
+    verdict = result.quality.verdict
     if args.strict and verdict != 'good':
         print(
-            f'offline_calibrate: verdict {verdict} (--strict): '
-            + '; '.join(r['code'] for r in result['quality']['reasons']),
+            f'offline_calibrate: verdict {verdict} (--strict): ' + '; '.join(result.quality.codes),
             file=sys.stderr,
         )
         return 2

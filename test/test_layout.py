@@ -124,3 +124,34 @@ def test_demo_runs() -> None:
     res = run_cli('--duration', '30', module='handeye_ros.demo')
     assert res.returncode == 0, res.stderr
     assert 'result beside the truth' in res.stdout
+
+
+def _bench_results():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location('bench_results', ROOT / 'bench' / 'results.py')
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_results_md_figures_come_from_registered_benchmarks() -> None:
+    """Every generated block of bench/RESULTS.md names an output that a benchmark of
+    bench/results.py writes, and a refill replaces a block's body and nothing else."""
+    import fnmatch
+
+    res = _bench_results()
+    text = (ROOT / 'bench' / 'RESULTS.md').read_text()
+    names = res.blocks(text)
+    assert names, 'RESULTS.md has no generated block'
+    patterns = [o for _, _, outs, _ in res.BENCHMARKS.values() for o in outs]
+    for name in names:
+        assert any(fnmatch.fnmatch(name, p) for p in patterns), name
+    for script, _, _, _ in res.BENCHMARKS.values():
+        assert (ROOT / 'bench' / f'{script}.py').is_file(), script
+    doc = 'a\n<!-- bench: x -->\n```text\nold\n```\n<!-- /bench -->\nb\n'
+    new, changed, missing = res.refill(doc, {'x': 'new 1\nnew 2\n'})
+    assert new == 'a\n<!-- bench: x -->\n```text\nnew 1\nnew 2\n```\n<!-- /bench -->\nb\n'
+    assert (changed, missing) == (['x'], [])
+    assert res.refill(new, {'x': 'new 1\nnew 2'})[1] == []  # unchanged: not reported
+    assert res.refill(doc, {})[2] == ['x']

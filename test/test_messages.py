@@ -21,7 +21,7 @@ E = {
 }
 
 
-def _result(dt_ns: int, covariance: bool, eye_last_ns: int = 1_700_000_000_123_456_789) -> dict:
+def _document(dt_ns: int, covariance: bool, eye_last_ns: int = 1_700_000_000_123_456_789) -> dict:
     from scipy.spatial.transform import Rotation
 
     M = np.eye(4)
@@ -39,6 +39,11 @@ def _result(dt_ns: int, covariance: bool, eye_last_ns: int = 1_700_000_000_123_4
         'covariance': cov,
         'inputs': {'eye': {'last_stamp_ns': eye_last_ns}},
     }
+
+
+def _result(dt_ns: int, covariance: bool, eye_last_ns: int = 1_700_000_000_123_456_789):
+    """What the outputs are made of, read back from a result file's contents."""
+    return messages.Published.from_document(_document(dt_ns, covariance, eye_last_ns))
 
 
 @pytest.mark.parametrize('dt_ns', [87_300_123, -4_999_917_129_833, 0])
@@ -59,10 +64,10 @@ def test_time_reference_left_out_when_a_clock_is_no_ros_time() -> None:
 
 
 def test_covariance_in_ros_order_or_marked_unknown() -> None:
-    r = _result(0, True)
-    cov = messages.extrinsic_covariance(r).reshape(6, 6)
-    A = np.asarray(r['covariance']['matrix'])[1:, 1:]
-    R = np.asarray(r['extrinsic']['matrix'])[:3, :3]
+    d = _document(0, True)
+    cov = messages.extrinsic_covariance(messages.Published.from_document(d)).reshape(6, 6)
+    A = np.asarray(d['covariance']['matrix'])[1:, 1:]
+    R = np.asarray(d['extrinsic']['matrix'])[:3, :3]
     np.testing.assert_allclose(cov[:3, :3], A[:3, :3], atol=1e-12)  # translation as is
     np.testing.assert_allclose(cov[3:, 3:], R @ A[3:, 3:] @ R.T, atol=1e-12)  # to H's axes
     np.testing.assert_allclose(cov, cov.T, atol=1e-12)
@@ -99,7 +104,7 @@ def test_rclpy_classes_get_the_same_content() -> None:
 
 def test_read_result_round_trip_and_refusals(tmp_path) -> None:
     good = tmp_path / 'r.json'
-    write_result(good, _result(3, False))
+    write_result(good, _document(3, False))
     assert read_result(good)['extrinsic']['parent'] == 'marker'
     for name, text in (('a.yaml', 'extrinsic: 3\n'), ('b.yaml', '[1, 2\n'), ('c.yaml', '')):
         (tmp_path / name).write_text(text)
@@ -108,3 +113,33 @@ def test_read_result_round_trip_and_refusals(tmp_path) -> None:
         assert type(err.value).__name__ == 'InputError'
     with pytest.raises(Exception, match='cannot read'):
         read_result(tmp_path / 'missing.yaml')
+
+
+@pytest.mark.parametrize('options', [{}, {'clock_drift': True}, {'estimate_scale': True}])
+def test_a_result_and_its_file_publish_the_same(options: dict) -> None:
+    """The node publishes from the typed result, publish_calibration and the bag writer from
+    the result file: both must give the same messages. With a clock drift or a scale the
+    covariance is 8x8 or 9x9, and only its translation and rotation block is T_HE's (the
+    9x9 once gave a 64-value covariance that no message takes)."""
+    from handeye_ros.core.config import CalibrationConfig
+    from handeye_ros.core.pipeline import calibrate
+    from handeye_ros.core.simulate import simulate
+
+    rec = simulate(3, duration_s=40.0, clock_drift=50e-6, scale=0.8)
+    result = calibrate(rec.hand, rec.eye, CalibrationConfig(**options))
+    assert result.batch is not None
+    frames = {'hand': 'marker', 'eye': 'imu', 'hand_world': 'mocap', 'eye_world': 'odom'}
+    doc = result.to_dict(hand_frame='marker', eye_frame='imu')
+    typed = messages.Published.from_result(result, frames)
+    read = messages.Published.from_document(doc)
+    types = _typestore().types
+    a, b = messages.outputs(types, typed, 11), messages.outputs(types, read, 11)
+    assert set(a) == set(b) == set(messages.OUTPUT_TYPES)
+    assert a[messages.EXTRINSIC] == b[messages.EXTRINSIC]
+    assert a[messages.TIME_REFERENCE] == b[messages.TIME_REFERENCE]
+    assert a[messages.TIME_OFFSET] == b[messages.TIME_OFFSET]
+    cov_a = a[messages.EXTRINSIC_WITH_COVARIANCE].pose.covariance
+    np.testing.assert_array_equal(cov_a, b[messages.EXTRINSIC_WITH_COVARIANCE].pose.covariance)
+    assert cov_a.shape == (36,) and cov_a[0] > 0.0
+    # the detached result (what the node keeps) says the same
+    assert result.detached().to_dict(hand_frame='marker', eye_frame='imu') == doc

@@ -32,6 +32,19 @@ QUATERNION_NORM_TOLERANCE = 1e-2
 
 
 @dataclass(frozen=True)
+class TrajectoryInfo:
+    """What a result says of an input stream without holding its poses: its name (file or
+    topic), pose count, rate [Hz], span [s] and first and last stamps [ns, its own clock]."""
+
+    source: str
+    poses: int
+    rate_hz: float
+    duration_s: float
+    first_stamp_ns: int
+    last_stamp_ns: int
+
+
+@dataclass(frozen=True)
 class Trajectory:
     """Poses T_AB(t) of a frame B in a frame A.
 
@@ -136,6 +149,17 @@ class Trajectory:
     def rate_hz(self) -> float:
         """Median sampling rate, Hz (robust to gaps and dropped samples)."""
         return 1e9 / float(np.median(np.diff(self.t_ns)))
+
+    def info(self) -> TrajectoryInfo:
+        """The stream described without its poses (:class:`TrajectoryInfo`)."""
+        return TrajectoryInfo(
+            self.name,
+            len(self),
+            self.rate_hz,
+            self.duration_s,
+            int(self.t_ns[0]),
+            int(self.t_ns[-1]),
+        )
 
     def select(self, mask_or_index: np.ndarray) -> Trajectory:
         """A sub-trajectory (rows kept in order; no re-validation needed).

@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from ..core.config import CalibrationConfig
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
+from ..stream.recorder import SessionResult, Snapshot
 from .aligned import calibrated, uncalibrated
 from .metrics import ape, evaluate
 
@@ -46,11 +49,10 @@ def evaluate_and_write(
     """Add ``evaluation`` (APE/RPE with and without the calibration) to the result dictionary
     ``out``; write the exports and the report where asked (their paths go to
     ``out['files']``). Raises InputError when a directory cannot be written."""
-    if result.used is None:
+    evaluated = evaluation_of(result, delta_s, delta_m)
+    if evaluated is None:
         return
-    cal = calibrated(result)
-    base, why = uncalibrated(result)
-    ev = evaluate(cal, base, delta_s=delta_s, delta_m=delta_m, why=why)
+    ev, cal, base = evaluated
     out['evaluation'] = ev.to_dict()
     files: dict[str, Any] = {}
     if export_dir:
@@ -61,6 +63,17 @@ def evaluate_and_write(
         files['report'] = str(write_report(report_dir, result, out, cal, base))
     if files:
         out['files'] = files
+
+
+def evaluation_of(result: CalibrationResult, delta_s: float = 1.0, delta_m: float = 1.0):
+    """(APE/RPE evaluation with and without the calibration, the calibrated and the
+    uncalibrated aligned trajectories) of a result, or None when it has no poses
+    (:meth:`CalibrationResult.detached`)."""
+    if result.used is None:
+        return None
+    cal = calibrated(result)
+    base, why = uncalibrated(result)
+    return evaluate(cal, base, delta_s=delta_s, delta_m=delta_m, why=why), cal, base
 
 
 def write_report(
@@ -94,15 +107,23 @@ def write_report(
     return page
 
 
-def calibrate_snapshot(snapshot: Any, config: Any, stage_dir: str | None = None) -> dict[str, Any]:
+def calibrate_snapshot(
+    snapshot: Snapshot, config: CalibrationConfig, stage_dir: str | None = None
+) -> SessionResult:
     """The node's worker job: calibrate a :class:`~handeye_ros.stream.recorder.Snapshot`, add
-    the evaluation, and with ``stage_dir`` draw the report there (``files.report``), ready for
-    ``~/save`` to copy; the result dictionary (the CalibrationResult stays in the worker: an
-    hour of MoCap is too large to send back)."""
+    the evaluation, and with ``stage_dir`` draw the report there, ready for ``~/save`` to copy.
+    Returns the session's result detached from its poses (an hour of MoCap is too large to
+    send back to the node)."""
     result = snapshot.result(config)
-    out = snapshot.describe(result)
+    session = snapshot.session(result)
     try:
-        evaluate_and_write(result, out, report_dir=stage_dir)
+        evaluated = evaluation_of(result)
+        if evaluated is not None:
+            ev, cal, base = evaluated
+            session = replace(session, evaluation=ev)
+            if stage_dir:
+                page = write_report(stage_dir, result, session.to_dict(), cal, base)
+                session = replace(session, report=str(page))
     except Exception as err:  # noqa: BLE001  (the calibration matters more than its report)
-        out['warnings'].append(f'no evaluation or report: {type(err).__name__}: {err}')
-    return out
+        session = session.with_warning(f'no evaluation or report: {type(err).__name__}: {err}')
+    return replace(session, result=result.detached())

@@ -320,7 +320,7 @@ def write_rigid_bodies_recording(
 
 
 def write_result_bag(
-    path: str | Path, result: dict[str, Any], stamp_ns: int, storage: str = 'mcap'
+    path: str | Path, published: messages.Published, stamp_ns: int, storage: str = 'mcap'
 ) -> None:
     """The calibration as the node publishes it (see :mod:`handeye_ros.stream.messages`), all
     latched: the extrinsic on /tf_static (tf2_msgs/TFMessage, parent = hand frame, child = eye
@@ -337,7 +337,7 @@ def write_result_bag(
         raise InputError(msg)
     with BagWriter(path, storage) as w:
         T = w.store.types
-        out = messages.outputs(T, result, stamp_ns)
+        out = messages.outputs(T, published, stamp_ns)
         w.write(
             '/tf_static',
             TF_TYPE,

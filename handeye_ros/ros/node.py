@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import difflib
+import math
 import shutil
 import sys
 import tempfile
@@ -70,6 +71,7 @@ from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..report import write_result
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
+from ..stream.recorder import SessionResult
 from . import worker
 from .lifecycle import spin, stop_requested
 from .types import RclpyTypes, message_class
@@ -127,7 +129,7 @@ class CalibratorNode(Node):
         self._busy = threading.Lock()
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
-        self._last_result: dict[str, Any] | None = None
+        self._last_result: SessionResult | None = None
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
@@ -450,7 +452,7 @@ class CalibratorNode(Node):
         def done(job: cf.Future) -> None:  # in a pool thread
             kept = False
             try:
-                d = job.result()
+                session: SessionResult = job.result()
             except HandeyeError as err:
                 self._failed(str(err))
                 future.set_result((False, str(err)))
@@ -466,13 +468,13 @@ class CalibratorNode(Node):
             else:
                 self._drop_stage(_staged_dir(self._last_result))
                 kept = True
-                self._succeeded(d)
+                self._succeeded(session)
                 self.get_logger().info(
-                    f'calibrated in {time.perf_counter() - t0:.2f} s: {d["summary"]}'
+                    f'calibrated in {time.perf_counter() - t0:.2f} s: {session.summary}'
                 )
-                for w in d['warnings']:
+                for w in session.result.warnings:
                     self.get_logger().warning(w)
-                future.set_result((True, d['summary']))
+                future.set_result((True, session.summary))
             finally:
                 if not kept:  # a failed calibration leaves no report to keep
                     self._drop_stage(stage)
@@ -516,7 +518,7 @@ class CalibratorNode(Node):
         out, report = self.node_cfg.output_file, self.node_cfg.report_dir
         wrote = [out]
         try:
-            write_result(out, self._last_result)
+            write_result(out, self._last_result.to_dict())
             staged = _staged_dir(self._last_result)
             if report and staged:
                 shutil.copytree(staged, report, dirs_exist_ok=True)
@@ -558,13 +560,14 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ outputs
 
-    def _succeeded(self, d: dict[str, Any]) -> None:
+    def _succeeded(self, session: SessionResult) -> None:
         """A new result: every output at once, one stamp (in a pool thread; rclpy's publish
         is thread-safe)."""
-        self._last_result, self._last_error = d, None
+        self._last_result, self._last_error = session, None
         self._last_when = time.strftime('%Y-%m-%d %H:%M:%S')
         stamp = self.get_clock().now().nanoseconds
-        out = messages.outputs(self._types, d, stamp)
+        published = messages.Published.from_result(session.result, session.frames)
+        out = messages.outputs(self._types, published, stamp)
         for name, pub in self._outputs.items():
             if name in out:
                 pub.publish(out[name])
@@ -632,7 +635,7 @@ class CalibratorNode(Node):
 
 
 def result_status(
-    name: str, result: dict[str, Any] | None, when: str, error: str | None
+    name: str, session: SessionResult | None, when: str, error: str | None
 ) -> DiagnosticStatus:
     """The diagnostics of the calibration: the last attempt's outcome, and only then the
     numbers of the result the latched topics hold.
@@ -648,44 +651,50 @@ def result_status(
         st.level, st.message = DiagnosticStatus.ERROR, error[:500]
         stale = (
             'none'
-            if result is None
-            else f'stale: from the calibration of {when} ({result["quality"]["verdict"]}); '
+            if session is None
+            else f'stale: from the calibration of {when} ({session.result.quality.verdict}); '
             'the latest one failed'
         )
         st.values = [KeyValue(key='latched_outputs', value=stale)]
         return st
-    if result is None:
+    if session is None:
         st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
         return st
-    q = result['quality']
+    r = session.result
+    q = r.quality
     st.level = {
         'good': DiagnosticStatus.OK,
         'doubtful': DiagnosticStatus.WARN,
         'failed': DiagnosticStatus.ERROR,
-    }[q['verdict']]
-    st.message = result['summary'][:500]
+    }[q.verdict]
+    st.message = session.summary[:500]
+    pub = messages.Published.from_result(r, session.frames)
     st.values = [
         KeyValue(key=k, value=str(v))
         for k, v in (
-            ('verdict', q['verdict']),
-            ('reasons', '; '.join(f'{r["code"]}: {r["message"]}' for r in q['reasons'])),
-            ('time_offset_s', result['time_offset']),
-            ('translation_m', result['extrinsic']['translation']),
-            ('rotation_xyzw', result['extrinsic']['rotation']),
-            ('inliers', f'{result["linear"]["inliers"]}/{result["linear"]["motions"]}'),
-            ('peak_correlation', result['time_alignment']['peak_correlation']),
-            ('ape_rmse_m', result['metrics']['ape_rmse']),
-            ('warnings', len(result['warnings'])),
+            ('verdict', q.verdict),
+            ('reasons', '; '.join(f'{x.code}: {x.message}' for x in q.reasons)),
+            ('time_offset_s', pub.time_offset_s),
+            ('translation_m', [float(v) for v in pub.translation]),
+            ('rotation_xyzw', [float(v) for v in pub.rotation]),
+            ('inliers', f'{r.linear.n_inliers}/{r.linear.n_motions}'),
+            ('peak_correlation', _finite(r.time_alignment.peak_correlation)),
+            ('ape_rmse_m', r.metrics.ape_rmse_m),
+            ('warnings', len(r.warnings)),
             ('latched_outputs', f'current: from the calibration of {when}'),
         )
     ]
     return st
 
 
-def _staged_dir(result: dict[str, Any] | None) -> str | None:
+def _finite(x: float) -> float | None:
+    """As the result file writes it: an unknown value (NaN) is None."""
+    return float(x) if math.isfinite(x) else None
+
+
+def _staged_dir(session: SessionResult | None) -> str | None:
     """The folder where the worker drew a result's report, if it did."""
-    staged = ((result or {}).get('files') or {}).get('report')
-    return str(Path(staged).parent) if staged else None
+    return str(Path(session.report).parent) if session is not None and session.report else None
 
 
 def run(args: list[str] | None = None) -> int:

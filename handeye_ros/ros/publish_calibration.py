@@ -15,6 +15,7 @@ import importlib.util
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from .lifecycle import quiet_start, spin, stop_requested
 
@@ -58,9 +59,11 @@ def main(args: list[str] | None = None) -> int:
     a = parser().parse_args(args)
     from ..core.errors import HandeyeError
     from ..report import read_result
+    from ..stream.messages import Published
 
     try:
         result = read_result(a.file)
+        published = Published.from_document(result)
         if a.bag is None and importlib.util.find_spec('tf2_msgs') is None:
             a.bag = str(Path(a.file).with_suffix('')) + '_calibration'
             print(
@@ -75,7 +78,7 @@ def main(args: list[str] | None = None) -> int:
             stamp = int(
                 result.get('inputs', {}).get('eye', {}).get('last_stamp_ns') or time.time_ns()
             )
-            write_result_bag(a.bag, result, stamp, a.storage)
+            write_result_bag(a.bag, published, stamp, a.storage)
             print(f'wrote {a.bag}', file=sys.stderr)
             return 0
     except HandeyeError as err:
@@ -83,10 +86,11 @@ def main(args: list[str] | None = None) -> int:
         return 1
     if stop_requested():
         return 0
-    return _publish(result, a.namespace.rstrip('/'))
+    return _publish(published, a.namespace.rstrip('/'))
 
 
-def _publish(result: dict, namespace: str) -> int:
+def _publish(published: Any, namespace: str) -> int:
+    """Publish a :class:`~handeye_ros.stream.messages.Published` latched until a signal."""
     import rclpy
     from rclpy.node import Node
 
@@ -97,7 +101,7 @@ def _publish(result: dict, namespace: str) -> int:
     rclpy.init()
     node = Node('calibration_publisher')
     types = RclpyTypes()
-    out = messages.outputs(types, result, node.get_clock().now().nanoseconds)
+    out = messages.outputs(types, published, node.get_clock().now().nanoseconds)
     pubs = [node.create_publisher(types['tf2_msgs/msg/TFMessage'], '/tf_static', LATCHED)]
     pubs[0].publish(types['tf2_msgs/msg/TFMessage'](transforms=[out[messages.EXTRINSIC]]))
     for name, msg in out.items():
@@ -107,9 +111,8 @@ def _publish(result: dict, namespace: str) -> int:
             )
         )
         pubs[-1].publish(msg)
-    e = result['extrinsic']
     node.get_logger().info(
-        f'publishing {e["parent"]} -> {e["child"]} on /tf_static and the '
+        f'publishing {published.parent} -> {published.child} on /tf_static and the '
         f'calibration on {namespace}/*, latched; Ctrl-C to stop'
     )
     spin(node)

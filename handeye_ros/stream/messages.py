@@ -1,4 +1,4 @@
-"""ROS messages out of a result dictionary, for rclpy and rosbags alike.
+"""ROS messages out of a calibration result (:class:`Published`), for rclpy and rosbags alike.
 
 Every builder takes ``types``: a mapping from a 'pkg/msg/Name' type name to its message class.
 The node passes one that imports rclpy's classes (:class:`handeye_ros.ros.types.RclpyTypes`);
@@ -26,9 +26,13 @@ What the calibration publishes (the node's latched topics, the output bag and
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # the message builders serve sim_publisher, which needs no scipy
+    from ..core.result import CalibrationResult
 
 #: Message classes by their 'pkg/msg/Name'.
 Types = Mapping[str, Any]
@@ -140,69 +144,124 @@ def _quaternion(types: Types, q: Any) -> Any:
     )
 
 
-def extrinsic(types: Types, result: dict[str, Any], t_ns: int) -> Any:
+@dataclass(frozen=True)
+class Published:
+    """What the outputs state, typed (made from a result, or read back from a result file).
+
+    parent, child: the frames of T_HE (H, E); translation [m], rotation (x y z w, w >= 0) and
+    R (3, 3) of T_HE; time_offset_s / time_offset_ns: dt; instant_ns: the eye-clock instant
+    dt is stated at (:func:`time_reference`); covariance: (6, 6) of T_HE's translation and
+    rotation (tangent on the right, eye frame), or None without a batch stage.
+    """
+
+    parent: str
+    child: str
+    translation: np.ndarray
+    rotation: np.ndarray
+    R: np.ndarray
+    time_offset_s: float
+    time_offset_ns: int
+    instant_ns: int
+    covariance: np.ndarray | None
+
+    @classmethod
+    def from_result(cls, result: CalibrationResult, frames: Mapping[str, str]) -> Published:
+        """Of a result and the frame names (``hand``, ``eye``) it is published under; the
+        instant is the one dt refers to under a clock drift, else the eye's last stamp."""
+        from ..core.geometry import matrix_from_quat, quat_from_matrix
+
+        R = matrix_from_quat(result.q_HE)
+        model = result.eye_model
+        instant = (
+            model.time_offset_stamp_ns
+            if result.clock_drift is not None and model is not None
+            else result.eye.last_stamp_ns
+        )
+        b = result.batch
+        return cls(
+            parent=frames['hand'],
+            child=frames['eye'],
+            translation=np.asarray(result.p_HE, dtype=float),
+            rotation=quat_from_matrix(R),  # as the result file writes it (w >= 0)
+            R=R,
+            time_offset_s=float(result.time_offset_s),
+            time_offset_ns=int(result.time_offset_ns),
+            instant_ns=int(instant),
+            # the batch covariance's order: dt, translation, rotation[, drift][, scale]
+            covariance=None if b is None else np.asarray(b.covariance)[1:7, 1:7],
+        )
+
+    @classmethod
+    def from_document(cls, d: Mapping[str, Any]) -> Published:
+        """Of a result file's contents (:func:`handeye_ros.report.read_result`)."""
+        e = d['extrinsic']
+        cov = (d.get('covariance') or {}).get('matrix')
+        stamp = d.get('time_offset_stamp_ns')
+        return cls(
+            parent=e['parent'],
+            child=e['child'],
+            translation=np.asarray(e['translation'], dtype=float),
+            rotation=np.asarray(e['rotation'], dtype=float),
+            R=np.asarray(e['matrix'], dtype=float)[:3, :3],
+            time_offset_s=float(d['time_offset']),
+            time_offset_ns=int(d['time_offset_ns']),
+            instant_ns=int(stamp if stamp is not None else d['inputs']['eye']['last_stamp_ns']),
+            covariance=None if cov is None else np.asarray(cov, dtype=float)[1:7, 1:7],
+        )
+
+
+def extrinsic(types: Types, pub: Published, t_ns: int) -> Any:
     """T_HE as geometry_msgs/TransformStamped (parent H, child E), stamped ``t_ns``."""
-    e = result['extrinsic']
-    return transform_stamped(types, t_ns, e['parent'], e['child'], e['translation'], e['rotation'])
+    return transform_stamped(types, t_ns, pub.parent, pub.child, pub.translation, pub.rotation)
 
 
-def extrinsic_covariance(result: dict[str, Any]) -> np.ndarray:
+def extrinsic_covariance(pub: Published) -> np.ndarray:
     """The 36 covariance values of T_HE in ROS order: x, y, z, then rotations about the
     parent's (H) fixed X, Y, Z axes. [-1, 0, ...] when the result has none.
 
     The result's rotation covariance is in the tangent on the right of T_HE (eye frame);
     ROS wants fixed parent-frame axes: dtheta_H = R_HE dtheta_E.
     """
-    cov = (result.get('covariance') or {}).get('matrix')
-    if cov is None:
+    if pub.covariance is None:
         out = np.zeros(36)
         out[0] = -1.0
         return out
-    cov6 = np.asarray(cov, dtype=float)[1:, 1:]  # the first row and column are dt's
     J = np.eye(6)
-    J[3:, 3:] = np.asarray(result['extrinsic']['matrix'], dtype=float)[:3, :3]
-    return (J @ cov6 @ J.T).ravel()
+    J[3:, 3:] = pub.R
+    return (J @ pub.covariance @ J.T).ravel()
 
 
-def extrinsic_with_covariance(types: Types, result: dict[str, Any], t_ns: int) -> Any:
+def extrinsic_with_covariance(types: Types, pub: Published, t_ns: int) -> Any:
     """T_HE with its covariance (see :func:`extrinsic_covariance`), stamped ``t_ns``."""
-    e = result['extrinsic']
-    x, y, z = (float(v) for v in e['translation'])
+    x, y, z = (float(v) for v in pub.translation)
     pose = types['geometry_msgs/msg/Pose'](
         position=types['geometry_msgs/msg/Point'](x=x, y=y, z=z),
-        orientation=_quaternion(types, e['rotation']),
+        orientation=_quaternion(types, pub.rotation),
     )
     return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
-        header=header(types, t_ns, e['parent']),
+        header=header(types, t_ns, pub.parent),
         pose=types['geometry_msgs/msg/PoseWithCovariance'](
-            pose=pose, covariance=extrinsic_covariance(result)
+            pose=pose, covariance=extrinsic_covariance(pub)
         ),
     )
 
 
-def time_offset(types: Types, result: dict[str, Any]) -> Any:
+def time_offset(types: Types, pub: Published) -> Any:
     """dt [s] as std_msgs/Float64."""
-    return types['std_msgs/msg/Float64'](data=float(result['time_offset']))
+    return types['std_msgs/msg/Float64'](data=pub.time_offset_s)
 
 
-def offset_instant_ns(result: dict[str, Any]) -> int:
-    """The eye-clock instant [ns] the time offset is stated at: the stamp dt refers to under
-    a clock drift, else the eye stream's last stamp."""
-    stamp = result.get('time_offset_stamp_ns')
-    return int(stamp if stamp is not None else result['inputs']['eye']['last_stamp_ns'])
-
-
-def time_reference(types: Types, result: dict[str, Any]) -> Any | None:
+def time_reference(types: Types, pub: Published) -> Any | None:
     """dt as sensor_msgs/TimeReference (see the module docstring). Returns None when the
     instant on either clock is no ROS time (a boot clock minus a larger offset)."""
-    t_eye = offset_instant_ns(result)
-    t_hand = t_eye - int(result['time_offset_ns'])
+    t_eye = pub.instant_ns
+    t_hand = t_eye - pub.time_offset_ns
     if not (is_ros_time(t_eye) and is_ros_time(t_hand)):
         return None
     return types['sensor_msgs/msg/TimeReference'](
-        header=header(types, t_eye, result['extrinsic']['child']),
+        header=header(types, t_eye, pub.child),
         time_ref=time(types, t_hand),
-        source=result['extrinsic']['parent'],
+        source=pub.parent,
     )
 
 
@@ -212,14 +271,14 @@ def offset_of(msg: Any) -> float:
     return ((int(s.sec) - int(r.sec)) * 1_000_000_000 + int(s.nanosec) - int(r.nanosec)) * 1e-9
 
 
-def outputs(types: Types, result: dict[str, Any], t_ns: int) -> dict[str, Any]:
+def outputs(types: Types, pub: Published, t_ns: int) -> dict[str, Any]:
     """Every output of one result (topic relative to the node -> message), the transforms
     stamped ``t_ns``. time_reference is left out when it cannot be stated (see
     :func:`time_reference`)."""
     out = {
-        EXTRINSIC: extrinsic(types, result, t_ns),
-        EXTRINSIC_WITH_COVARIANCE: extrinsic_with_covariance(types, result, t_ns),
-        TIME_OFFSET: time_offset(types, result),
-        TIME_REFERENCE: time_reference(types, result),
+        EXTRINSIC: extrinsic(types, pub, t_ns),
+        EXTRINSIC_WITH_COVARIANCE: extrinsic_with_covariance(types, pub, t_ns),
+        TIME_OFFSET: time_offset(types, pub),
+        TIME_REFERENCE: time_reference(types, pub),
     }
     return {k: v for k, v in out.items() if v is not None}

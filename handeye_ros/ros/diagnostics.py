@@ -1,0 +1,99 @@
+"""The calibrator's /diagnostics: one status per stream (rate, buffered, rejected) and one for
+the calibration (the last attempt's outcome, and only then the numbers of the result the latched
+topics hold)."""
+
+from __future__ import annotations
+
+import math
+
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+from ..stream import messages
+from ..stream.buffer import BufferStats
+from ..stream.recorder import SessionResult
+
+
+def stream_status(
+    name: str, stream: str, s: BufferStats, topic: str, msgtype: str
+) -> DiagnosticStatus:
+    """One stream's status: WARN without data or with rejected messages, OK with its rate."""
+    st = DiagnosticStatus(name=f'{name}: {stream} stream', hardware_id=name)
+    rejected = sum(s.rejected.values())
+    if s.stored < 2:
+        st.level, st.message = DiagnosticStatus.WARN, 'no data'
+    elif rejected:
+        st.level, st.message = DiagnosticStatus.WARN, f'{rejected} messages rejected'
+    else:
+        st.level, st.message = DiagnosticStatus.OK, f'{s.rate_hz:.1f} Hz'
+    st.values = [
+        KeyValue(key=k, value=str(v))
+        for k, v in (
+            ('topic', topic),
+            ('type', msgtype),
+            ('rate_hz', f'{s.rate_hz:.2f}'),
+            ('buffered_span_s', f'{s.span_s:.2f}'),
+            ('received', s.received),
+            ('buffered', s.stored),
+            ('dropped', s.dropped),
+            *((f'rejected_{k}', v) for k, v in s.rejected.items()),
+        )
+    ]
+    return st
+
+
+def result_status(
+    name: str, session: SessionResult | None, when: str, error: str | None
+) -> DiagnosticStatus:
+    """The diagnostics of the calibration: the last attempt's outcome, and only then the
+    numbers of the result the latched topics hold.
+
+    - No calibration yet: OK.
+    - The last attempt failed: ERROR with its reason. The numbers of an earlier result are not
+      shown; ``latched_outputs`` says they are stale and where they come from.
+    - The last attempt succeeded: the verdict's level (good OK, doubtful WARN, failed ERROR)
+      and the result's numbers.
+    """
+    st = DiagnosticStatus(name=f'{name}: result', hardware_id=name)
+    if error is not None:
+        st.level, st.message = DiagnosticStatus.ERROR, error[:500]
+        stale = (
+            'none'
+            if session is None
+            else f'stale: from the calibration of {when} ({session.result.quality.verdict}); '
+            'the latest one failed'
+        )
+        st.values = [KeyValue(key='latched_outputs', value=stale)]
+        return st
+    if session is None:
+        st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
+        return st
+    r = session.result
+    q = r.quality
+    st.level = {
+        'good': DiagnosticStatus.OK,
+        'doubtful': DiagnosticStatus.WARN,
+        'failed': DiagnosticStatus.ERROR,
+    }[q.verdict]
+    st.message = session.summary[:500]
+    pub = messages.Published.from_result(r, session.frames)
+    st.values = [
+        KeyValue(key=k, value=str(v))
+        for k, v in (
+            ('verdict', q.verdict),
+            ('reasons', '; '.join(f'{x.code}: {x.message}' for x in q.reasons)),
+            ('time_offset_s', pub.time_offset_s),
+            ('translation_m', [float(v) for v in pub.translation]),
+            ('rotation_xyzw', [float(v) for v in pub.rotation]),
+            ('inliers', f'{r.linear.n_inliers}/{r.linear.n_motions}'),
+            ('peak_correlation', _finite(r.time_alignment.peak_correlation)),
+            ('ape_rmse_m', r.metrics.ape_rmse_m),
+            ('warnings', len(r.warnings)),
+            ('latched_outputs', f'current: from the calibration of {when}'),
+        )
+    ]
+    return st
+
+
+def _finite(x: float) -> float | None:
+    """As the result file writes it: an unknown value (NaN) is None."""
+    return float(x) if math.isfinite(x) else None

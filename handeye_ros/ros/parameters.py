@@ -1,0 +1,116 @@
+"""The calibrator's ROS parameters: declared from the option specs (description, range, read
+only unless changeable at run time), read into the three configurations, changed at run time,
+and names given but unknown (a misspelt key in a params file) said at start."""
+
+from __future__ import annotations
+
+import difflib
+from typing import Any
+
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterException,
+)
+from rclpy.node import Node
+
+from ..core.config import CalibrationConfig
+from ..core.errors import ConfigError
+from ..core.options import Spec, split_options
+from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
+from ..stream import StreamConfig
+
+#: Parameters rclpy declares on every node.
+ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service', 'qos_overrides.')
+
+
+def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
+    """A ParameterDescriptor with the option's description and range."""
+    rng = spec.range_text()
+    d = ParameterDescriptor(
+        name=name,
+        description=spec.description + (f' ({rng})' if rng and not spec.choices else ''),
+        read_only=name not in RUNTIME_KEYS,
+    )
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    if spec.low is not None and spec.high is not None and not spec.optional:
+        if spec.kind == 'float':
+            d.floating_point_range = [
+                FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
+            ]
+        elif spec.kind == 'int':
+            d.integer_range = [
+                IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
+            ]
+    return d
+
+
+def _default(value: Any) -> Any:
+    # ROS parameters have no null: an optional float is NaN when 'automatic'
+    return float('nan') if value is None else value
+
+
+def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
+    """Declare every option as a parameter of ``node`` and read the three configurations;
+    raises ConfigError naming a parameter whose value is refused."""
+    values: dict[str, Any] = {}
+    defaults = {
+        **CalibrationConfig().to_dict(),
+        **StreamConfig().to_dict(),
+        **NodeConfig().to_dict(),
+    }
+    for name, spec in all_specs().items():
+        try:
+            p = node.declare_parameter(name, _default(defaults[name]), descriptor(name, spec))
+        except (
+            InvalidParameterValueException,
+            InvalidParameterTypeException,
+            ParameterException,
+        ) as err:
+            raise ConfigError(f'parameter {name}: {err}') from None
+        values[name] = p.value
+    return split_options(
+        values, (CalibrationConfig, StreamConfig, NodeConfig), source='parameters'
+    )
+
+
+def apply_changes(
+    params: list[Any], calib: CalibrationConfig, node_cfg: NodeConfig
+) -> tuple[SetParametersResult, CalibrationConfig, NodeConfig]:
+    """Run-time parameter changes: (the answer, the new calibration and node
+    configurations); a refused value leaves both as they were."""
+    changes = {p.name: p.value for p in params if p.name in RUNTIME_KEYS}
+    if not changes:
+        return SetParametersResult(successful=True), calib, node_cfg
+    try:
+        ours = {k: v for k, v in changes.items() if k in RUNTIME_NODE_KEYS}
+        new_calib = CalibrationConfig.from_mapping(
+            {**calib.to_dict(), **{k: v for k, v in changes.items() if k not in ours}},
+            source='parameters',
+        )
+        new_node = NodeConfig.from_mapping({**node_cfg.to_dict(), **ours}, source='parameters')
+    except ConfigError as err:
+        return SetParametersResult(successful=False, reason=str(err)), calib, node_cfg
+    return SetParametersResult(successful=True), new_calib, new_node
+
+
+def warn_unknown(node: Node) -> None:
+    """Name the parameters given (a params file, -p) that the node does not have: a misspelt
+    name is otherwise silently ignored."""
+    given = getattr(node, '_parameter_overrides', {})  # rclpy keeps them only here
+    unknown = sorted(
+        n for n in given if not node.has_parameter(n) and not n.startswith(ROS_OWN_PARAMETERS)
+    )
+    for name in unknown:
+        near = difflib.get_close_matches(name, list(all_specs()), n=1)
+        node.get_logger().warning(
+            f'unknown parameter {name!r} ignored'
+            + (f': did you mean {near[0]!r}?' if near else ' (calibrator --help lists them)')
+        )

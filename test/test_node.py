@@ -353,6 +353,29 @@ def test_one_result_published_consistently(ros: Processes, install: Path, tmp_pa
     assert latched['time_reference']['offset_ns'] == linear['time_offset_ns']
     assert latched['diagnostics']['values']['time_offset_s'] == str(linear['time_offset'])
 
+    # with a scale (and a drift, when the recording is long enough to show one) the batch
+    # covariance is 8x8 or 9x9: T_HE's 6x6 block is published (the whole matrix once made the
+    # message fail and the calibrate call never answered)
+    third = tmp_path / 'third.yaml'
+    set_ = ros.run_json(
+        ros.script(
+            'ros_client.py',
+            'param',
+            'batch:=true',
+            'clock_drift:=true',
+            'estimate_scale:=true',
+            f'output_file:={third}',
+        ),
+        'param_drift',
+    )
+    assert all(r['success'] for r in set_), set_
+    answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='drift')
+    assert answer[0]['success'] and answer[1]['success'], answer
+    drift = yaml.safe_load(third.read_text())
+    assert drift['covariance']['order'][-1] == 'scale', drift['covariance']['order']
+    latched = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched_drift')
+    assert len(latched['covariance']) == 36 and latched['covariance'][0] > 0.0
+
     # a failed calibration: ERROR with its reason, no numbers of the old result, 'stale'
     failed = _call(
         ros, '/calibrator/reset', '/calibrator/calibrate', '/calibrator/save', name='failed'

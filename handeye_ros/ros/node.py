@@ -21,13 +21,15 @@ the latched topics of :mod:`handeye_ros.stream.messages` (``~/extrinsic``,
 and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latched
 messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
 (the result they come from and when). Status goes to /diagnostics.
+
+The parameters (declared from the option specs, changed at run time, misspelt names said) are
+in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
+:mod:`.worker`, the output messages in :mod:`handeye_ros.stream.messages`.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
-import difflib
-import math
 import shutil
 import sys
 import tempfile
@@ -37,20 +39,12 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
     SetParametersResult,
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.exceptions import (
-    InvalidParameterTypeException,
-    InvalidParameterValueException,
-    ParameterException,
-)
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import (
@@ -63,16 +57,13 @@ from rclpy.qos import (
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError, HandeyeError, InputError
-from ..core.options import Spec, split_options
 from ..evaluation.outputs import calibrate_snapshot
-from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..report import write_result
-from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig, messages, normalise_type
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, messages, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from ..stream.recorder import SessionResult
-from . import worker
+from . import diagnostics, parameters, worker
 from .lifecycle import spin, stop_requested
 from .types import RclpyTypes, message_class
 
@@ -83,37 +74,8 @@ LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-#: Parameters rclpy declares on every node.
-ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service', 'qos_overrides.')
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
-
-
-def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
-    """A ParameterDescriptor with the option's description and range."""
-    rng = spec.range_text()
-    d = ParameterDescriptor(
-        name=name,
-        description=spec.description + (f' ({rng})' if rng and not spec.choices else ''),
-        read_only=name not in RUNTIME_KEYS,
-    )
-    if spec.choices:
-        d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
-    if spec.low is not None and spec.high is not None and not spec.optional:
-        if spec.kind == 'float':
-            d.floating_point_range = [
-                FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high), step=0.0)
-            ]
-        elif spec.kind == 'int':
-            d.integer_range = [
-                IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)
-            ]
-    return d
-
-
-def _default(value: Any) -> Any:
-    # ROS parameters have no null: an optional float is NaN when 'automatic'
-    return float('nan') if value is None else value
 
 
 class CalibratorNode(Node):
@@ -123,7 +85,7 @@ class CalibratorNode(Node):
         """``pool``: the worker (:func:`.worker.new_pool`, started before rclpy.init); the
         node owns it from here and stops it in :meth:`close`."""
         super().__init__('calibrator', **kwargs)
-        self.calib_cfg, self.stream_cfg, self.node_cfg = self._declare_and_read()
+        self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
         self.recorder = Recorder(self.stream_cfg)
         self._check_tf_selectors()
         self._busy = threading.Lock()
@@ -168,7 +130,7 @@ class CalibratorNode(Node):
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
-        self._warn_unknown_parameters()
+        parameters.warn_unknown(self)
         self._pool = pool
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
@@ -177,61 +139,11 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ parameters
 
-    def _declare_and_read(self) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
-        values: dict[str, Any] = {}
-        defaults = {
-            **CalibrationConfig().to_dict(),
-            **StreamConfig().to_dict(),
-            **NodeConfig().to_dict(),
-        }
-        for name, spec in all_specs().items():
-            try:
-                p = self.declare_parameter(name, _default(defaults[name]), descriptor(name, spec))
-            except (
-                InvalidParameterValueException,
-                InvalidParameterTypeException,
-                ParameterException,
-            ) as err:
-                raise ConfigError(f'parameter {name}: {err}') from None
-            values[name] = p.value
-        return split_options(
-            values, (CalibrationConfig, StreamConfig, NodeConfig), source='parameters'
-        )
-
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
-        changes = {p.name: p.value for p in params if p.name in RUNTIME_KEYS}
-        if not changes:
-            return SetParametersResult(successful=True)
-        try:
-            ours = {k: v for k, v in changes.items() if k in RUNTIME_NODE_KEYS}
-            calib = CalibrationConfig.from_mapping(
-                {
-                    **self.calib_cfg.to_dict(),
-                    **{k: v for k, v in changes.items() if k not in ours},
-                },
-                source='parameters',
-            )
-            node = NodeConfig.from_mapping(
-                {**self.node_cfg.to_dict(), **ours}, source='parameters'
-            )
-        except ConfigError as err:
-            return SetParametersResult(successful=False, reason=str(err))
-        self.calib_cfg, self.node_cfg = calib, node
-        return SetParametersResult(successful=True)
-
-    def _warn_unknown_parameters(self) -> None:
-        """Name the parameters given (a params file, -p) that this node does not have: a
-        misspelt name is otherwise silently ignored."""
-        given = getattr(self, '_parameter_overrides', {})  # rclpy keeps them only here
-        unknown = sorted(
-            n for n in given if not self.has_parameter(n) and not n.startswith(ROS_OWN_PARAMETERS)
+        answer, self.calib_cfg, self.node_cfg = parameters.apply_changes(
+            params, self.calib_cfg, self.node_cfg
         )
-        for name in unknown:
-            near = difflib.get_close_matches(name, list(all_specs()), n=1)
-            self.get_logger().warning(
-                f'unknown parameter {name!r} ignored'
-                + (f': did you mean {near[0]!r}?' if near else ' (calibrator --help lists them)')
-            )
+        return answer
 
     # ------------------------------------------------------------------ subscriptions
 
@@ -606,90 +518,14 @@ class CalibratorNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         name = self.get_fully_qualified_name()
         for stream, s in self.recorder.stats().items():
-            st = DiagnosticStatus(name=f'{name}: {stream} stream', hardware_id=name)
-            rejected = sum(s.rejected.values())
-            if s.stored < 2:
-                st.level, st.message = DiagnosticStatus.WARN, 'no data'
-            elif rejected:
-                st.level, st.message = DiagnosticStatus.WARN, f'{rejected} messages rejected'
-            else:
-                st.level, st.message = DiagnosticStatus.OK, f'{s.rate_hz:.1f} Hz'
-            st.values = [
-                KeyValue(key=k, value=str(v))
-                for k, v in (
-                    ('topic', getattr(self.stream_cfg, f'{stream}_topic')),
-                    ('type', self.recorder.types[stream]),
-                    ('rate_hz', f'{s.rate_hz:.2f}'),
-                    ('buffered_span_s', f'{s.span_s:.2f}'),
-                    ('received', s.received),
-                    ('buffered', s.stored),
-                    ('dropped', s.dropped),
-                    *((f'rejected_{k}', v) for k, v in s.rejected.items()),
-                )
-            ]
-            arr.status.append(st)
+            topic = getattr(self.stream_cfg, f'{stream}_topic')
+            arr.status.append(
+                diagnostics.stream_status(name, stream, s, topic, self.recorder.types[stream])
+            )
         arr.status.append(
-            result_status(name, self._last_result, self._last_when, self._last_error)
+            diagnostics.result_status(name, self._last_result, self._last_when, self._last_error)
         )
         self.pub_diag.publish(arr)
-
-
-def result_status(
-    name: str, session: SessionResult | None, when: str, error: str | None
-) -> DiagnosticStatus:
-    """The diagnostics of the calibration: the last attempt's outcome, and only then the
-    numbers of the result the latched topics hold.
-
-    - No calibration yet: OK.
-    - The last attempt failed: ERROR with its reason. The numbers of an earlier result are not
-      shown; ``latched_outputs`` says they are stale and where they come from.
-    - The last attempt succeeded: the verdict's level (good OK, doubtful WARN, failed ERROR)
-      and the result's numbers.
-    """
-    st = DiagnosticStatus(name=f'{name}: result', hardware_id=name)
-    if error is not None:
-        st.level, st.message = DiagnosticStatus.ERROR, error[:500]
-        stale = (
-            'none'
-            if session is None
-            else f'stale: from the calibration of {when} ({session.result.quality.verdict}); '
-            'the latest one failed'
-        )
-        st.values = [KeyValue(key='latched_outputs', value=stale)]
-        return st
-    if session is None:
-        st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
-        return st
-    r = session.result
-    q = r.quality
-    st.level = {
-        'good': DiagnosticStatus.OK,
-        'doubtful': DiagnosticStatus.WARN,
-        'failed': DiagnosticStatus.ERROR,
-    }[q.verdict]
-    st.message = session.summary[:500]
-    pub = messages.Published.from_result(r, session.frames)
-    st.values = [
-        KeyValue(key=k, value=str(v))
-        for k, v in (
-            ('verdict', q.verdict),
-            ('reasons', '; '.join(f'{x.code}: {x.message}' for x in q.reasons)),
-            ('time_offset_s', pub.time_offset_s),
-            ('translation_m', [float(v) for v in pub.translation]),
-            ('rotation_xyzw', [float(v) for v in pub.rotation]),
-            ('inliers', f'{r.linear.n_inliers}/{r.linear.n_motions}'),
-            ('peak_correlation', _finite(r.time_alignment.peak_correlation)),
-            ('ape_rmse_m', r.metrics.ape_rmse_m),
-            ('warnings', len(r.warnings)),
-            ('latched_outputs', f'current: from the calibration of {when}'),
-        )
-    ]
-    return st
-
-
-def _finite(x: float) -> float | None:
-    """As the result file writes it: an unknown value (NaN) is None."""
-    return float(x) if math.isfinite(x) else None
 
 
 def _staged_dir(session: SessionResult | None) -> str | None:

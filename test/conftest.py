@@ -75,6 +75,21 @@ def run_main(*args: str) -> CliResult:
     return CliResult(code, out.getvalue(), err.getvalue())
 
 
+def cli_ok(res: CliResult) -> None:
+    """The offline tool succeeded, without a traceback."""
+    assert res.returncode == 0, res.stderr
+    assert 'Traceback' not in res.stderr
+
+
+def cli_fails(res: CliResult, *fragments: str) -> None:
+    """The offline tool refused with exit code 1 and one line naming every fragment."""
+    assert res.returncode == 1, (res.stdout, res.stderr)
+    assert 'Traceback' not in res.stderr
+    assert res.stderr.startswith('offline_calibrate: error: '), res.stderr
+    for fragment in fragments:
+        assert fragment in res.stderr, res.stderr
+
+
 @pytest.fixture(scope='session')
 def sim_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Recording]:
     """A 60 s recording at noise level 3 written as TUM files (hand, eye, recording)."""

@@ -13,26 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import recording, run_main
+from conftest import cli_fails, cli_ok, recording, run_main
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.geometry import compose
 from handeye_ros.core.simulate import random_truth
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_euroc, write_tum
-
-
-def _ok(res) -> None:
-    assert res.returncode == 0, res.stderr
-    assert 'Traceback' not in res.stderr
-
-
-def _fails(res, *fragments: str) -> None:
-    assert res.returncode == 1, (res.stdout, res.stderr)
-    assert 'Traceback' not in res.stderr
-    assert res.stderr.startswith('offline_calibrate: error: '), res.stderr
-    for fragment in fragments:
-        assert fragment in res.stderr, res.stderr
 
 
 @pytest.mark.slow  # calibrates a 60 s recording, 1-3 s a call
@@ -67,7 +54,7 @@ def test_options_and_config_file(sim_files, tmp_path: Path) -> None:
         '--peak-fit',
         'none',
     )
-    _ok(res)
+    cli_ok(res)
     d = json.loads(res.stdout)
     assert d['config']['eta'] == 6.0  # the command line wins over the file
     assert d['config']['seed'] == 3 and d['config']['robust_kernel'] is False
@@ -75,7 +62,7 @@ def test_options_and_config_file(sim_files, tmp_path: Path) -> None:
     fixed = run_main(
         '--hand', hand, '--eye', eye, '--json', '--time-offset', str(rec.truth.time_offset_s)
     )
-    _ok(fixed)
+    cli_ok(fixed)
     assert json.loads(fixed.stdout)['time_offset'] == rec.truth.time_offset_s
 
 
@@ -91,8 +78,8 @@ def test_euroc_input_and_sign_flips(sim_files, tmp_path: Path) -> None:
     write_euroc(csv, flipped)
     a = run_main('--hand', hand, '--eye', eye, '--json')
     b = run_main('--hand', csv, '--eye', eye, '--json')
-    _ok(a)
-    _ok(b)
+    cli_ok(a)
+    cli_ok(b)
     da, db = json.loads(a.stdout), json.loads(b.stdout)
     assert db['inputs']['hand']['source'] == str(csv)
     # both files round quaternions to 12 decimals, in different column orders: the two
@@ -125,19 +112,19 @@ def test_bad_file(sim_files, tmp_path: Path, case: str, which: str) -> None:
     bad = tmp_path / f'bad_{which}.txt'
     bad.write_text(content)
     args = {'hand': hand, 'eye': eye, which: bad}
-    _fails(run_main('--hand', args['hand'], '--eye', args['eye']), str(bad), message)
+    cli_fails(run_main('--hand', args['hand'], '--eye', args['eye']), str(bad), message)
 
 
 def test_missing_file_and_bad_config(sim_files, tmp_path: Path) -> None:
     hand, eye, _ = sim_files
-    _fails(run_main('--hand', tmp_path / 'nope.txt', '--eye', eye), 'nope.txt', 'no such file')
+    cli_fails(run_main('--hand', tmp_path / 'nope.txt', '--eye', eye), 'nope.txt', 'no such file')
     cfg = tmp_path / 'c.yaml'
     cfg.write_text('eta: 5\nkernel: on\n')
-    _fails(run_main('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'unknown option')
+    cli_fails(run_main('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'unknown option')
     cfg.write_text('eta: [1, 2\n')
-    _fails(run_main('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'not valid YAML')
-    _fails(run_main('--hand', hand, '--eye', eye, '--eta', '-1'), 'eta must lie in')
-    _fails(
+    cli_fails(run_main('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'not valid YAML')
+    cli_fails(run_main('--hand', hand, '--eye', eye, '--eta', '-1'), 'eta must lie in')
+    cli_fails(
         run_main('--hand', hand, '--eye', eye, '-o', tmp_path / 'no' / 'dir' / 'r.yaml'),
         'cannot write the result',
     )
@@ -148,7 +135,7 @@ def test_overlap_too_short(sim_files, tmp_path: Path) -> None:
     lines = Path(eye).read_text().splitlines()
     short = tmp_path / 'short_eye.txt'
     short.write_text('\n'.join(lines[:60]) + '\n')  # 3 s of eye poses
-    _fails(run_main('--hand', hand, '--eye', short), str(short), 'overlap')
+    cli_fails(run_main('--hand', hand, '--eye', short), str(short), 'overlap')
 
 
 @pytest.mark.slow  # calibrates a 60 s recording, 1-3 s a call
@@ -160,7 +147,7 @@ def test_offset_outside_the_window(tmp_path: Path) -> None:
     # window given excludes it, found again when the guess moves the window there
     write_tum(eye, Trajectory(rec.eye.t_ns + 800_000_000, rec.eye.p_xyz, rec.eye.q_xyzw))
     found = run_main('--hand', hand, '--eye', eye, '--json')
-    _ok(found)
+    cli_ok(found)
     assert json.loads(found.stdout)['time_offset'] == pytest.approx(
         rec.truth.time_offset_s + 0.8, abs=2e-3
     )
@@ -170,7 +157,7 @@ def test_offset_outside_the_window(tmp_path: Path) -> None:
     assert narrow.returncode == 1 and 'time_offset_guess' in narrow.stderr
     assert 'edge of the search window' in narrow.stderr or 'searched in' in narrow.stderr
     d = run_main('--hand', hand, '--eye', eye, '--json', '--time-offset-guess', '0.8')
-    _ok(d)
+    cli_ok(d)
     assert json.loads(d.stdout)['time_offset'] == pytest.approx(
         rec.truth.time_offset_s + 0.8, abs=3e-3
     )
@@ -196,7 +183,7 @@ def _small_rotation_files(tmp_path: Path) -> tuple[Path, Path]:
 
 def test_too_little_rotation(tmp_path: Path) -> None:
     hand, eye = _small_rotation_files(tmp_path)
-    _fails(run_main('--hand', hand, '--eye', eye), 'rotates too little', 'eta')
+    cli_fails(run_main('--hand', hand, '--eye', eye), 'rotates too little', 'eta')
 
 
 @pytest.mark.slow  # calibrates a 60 s recording, 1-3 s a call
@@ -204,7 +191,7 @@ def test_strict_exits_2_unless_good(sim_files, tmp_path: Path) -> None:
     """--strict: 0 for a good verdict; 2 (and the reason codes on stderr) for any other, here
     an eye written w x y z in a TUM file (corrected, but the file still holds the mistake)."""
     hand, eye, _ = sim_files
-    _ok(run_main('--hand', hand, '--eye', eye, '--strict'))
+    cli_ok(run_main('--hand', hand, '--eye', eye, '--strict'))
     traj = read_trajectory(eye)
     swapped = tmp_path / 'eye_wxyz.txt'
     swapped.write_text(
@@ -217,7 +204,9 @@ def test_strict_exits_2_unless_good(sim_files, tmp_path: Path) -> None:
     assert res.returncode == 2 and 'convention_corrected' in res.stderr, res.stderr
     assert 'VERDICT: DOUBTFUL' in res.stdout
     # stating the file's order explicitly: nothing to correct, good again
-    _ok(run_main('--hand', hand, '--eye', swapped, '--eye-quaternion-order', 'wxyz', '--strict'))
+    cli_ok(
+        run_main('--hand', hand, '--eye', swapped, '--eye-quaternion-order', 'wxyz', '--strict')
+    )
 
 
 @pytest.mark.slow  # calibrates a 60 s recording, 1-3 s a call
@@ -225,13 +214,13 @@ def test_binary_config_and_unwritable_bag_stamps(sim_files, tmp_path: Path) -> N
     hand, eye, rec = sim_files
     blob = tmp_path / 'options.bin'
     blob.write_bytes(bytes(range(256)) * 4)
-    _fails(run_main('--hand', hand, '--eye', eye, '--config', blob), 'not a text file')
+    cli_fails(run_main('--hand', hand, '--eye', eye, '--config', blob), 'not a text file')
     # stamps in 2065: fine for int64 ns and the calibration, not for a ROS time (int32 s)
     late = 3_000_000_000 * 10**9 - rec.hand.t_ns[0]
     h2, e2 = tmp_path / 'h.txt', tmp_path / 'e.txt'
     write_tum(h2, rec.hand.shifted(late))
     write_tum(e2, rec.eye.shifted(late))
-    _fails(
+    cli_fails(
         run_main('--hand', h2, '--eye', e2, '--output-bag', tmp_path / 'out'),
         'no ROS time',
         'int32',

@@ -11,30 +11,17 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import run_cli
+from conftest import cli_fails, cli_ok, run_cli
 
 from handeye_ros.core.simulate import calibration_error
 
 pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
 
 
-def _ok(res) -> None:
-    assert res.returncode == 0, res.stderr
-    assert 'Traceback' not in res.stderr
-
-
-def _fails(res, *fragments: str) -> None:
-    assert res.returncode == 1, (res.stdout, res.stderr)
-    assert 'Traceback' not in res.stderr
-    assert res.stderr.startswith('offline_calibrate: error: '), res.stderr
-    for fragment in fragments:
-        assert fragment in res.stderr, res.stderr
-
-
 def test_json_is_one_document_on_stdout(sim_files) -> None:
     hand, eye, rec = sim_files
     res = run_cli('--hand', hand, '--eye', eye, '--json', '-v')
-    _ok(res)
+    cli_ok(res)
     d = json.loads(res.stdout)  # the whole stdout is exactly one document
     assert 'stage 1' in res.stderr  # -v logs go to stderr
     err = calibration_error(
@@ -54,9 +41,9 @@ def test_output_files_hold_the_same_result(sim_files, tmp_path: Path) -> None:
     hand, eye, _ = sim_files
     out_yaml, out_json = tmp_path / 'r.yaml', tmp_path / 'r.json'
     res = run_cli('--hand', hand, '--eye', eye, '-o', out_yaml)
-    _ok(res)
+    cli_ok(res)
     assert 'time offset dt' in res.stdout  # the human report
-    _ok(run_cli('--hand', hand, '--eye', eye, '-o', out_json, '--json'))
+    cli_ok(run_cli('--hand', hand, '--eye', eye, '-o', out_json, '--json'))
     a, b = yaml.safe_load(out_yaml.read_text()), json.loads(out_json.read_text())
     for d in (a, b):
         d['batch'].pop('seconds')  # wall-clock time of that run
@@ -65,9 +52,9 @@ def test_output_files_hold_the_same_result(sim_files, tmp_path: Path) -> None:
 
 def test_help_and_module_entry() -> None:
     res = run_cli('--help')
-    _ok(res)
+    cli_ok(res)
     text = ' '.join(res.stdout.split())  # argparse wraps lines
     assert '--relative-poses' in text and 'T_WE(t) = T_WG * T_GH(t - dt) * T_HE' in text
-    _fails(run_cli('--hand', 'x'), '--hand FILE and --eye FILE, or --bag PATH')
+    cli_fails(run_cli('--hand', 'x'), '--hand FILE and --eye FILE, or --bag PATH')
     res = run_cli('--hand', 'x', '--eta', 'five')  # argparse usage errors exit 2
     assert res.returncode == 2 and 'Traceback' not in res.stderr and '--eta' in res.stderr

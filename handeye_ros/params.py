@@ -65,6 +65,14 @@ class NodeConfig(Options):
         low=0.1,
         high=86_400.0,
     )
+    type_probes: bool = option(
+        True,
+        'bool',
+        'with hand_type/eye_type auto: receive the first messages before the type is learnt '
+        '(one raw subscription per candidate type, each in a DDS participant of its own, '
+        'until the type is known); false loses what a publisher sends before the node has '
+        'subscribed',
+    )
 
 
 #: Node parameters that may change while the node runs: the algorithm options and where

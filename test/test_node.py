@@ -598,6 +598,44 @@ def test_unset_stamps_are_named_live(ros: Processes, install: Path, tmp_path: Pa
     assert any('stamped on arrival' in w for w in d['warnings']), d['warnings']
 
 
+def test_auto_types_lose_nothing(ros: Processes, install: Path, tmp_path: Path) -> None:
+    """hand_type/eye_type auto (the default) and a publisher that starts sending as soon as
+    a subscriber has matched, at 1 kHz + 200 Hz: the type probes match it, the node learns the
+    types and subscribes meanwhile, and the handover gives it every message, none twice (the
+    saved counts equal the sent ones). Without the probes the same publisher waits for the
+    node's own subscriptions instead: that case loses nothing either, so it is not a control;
+    bench/node_ingest.py measures what is lost without them when a publisher does not wait."""
+    saved = tmp_path / 'auto.yaml'
+    node = _start_node(ros, install, f'output_file:={saved}')
+    sent = ros.run_json(
+        _publisher(
+            ros,
+            '--seed',
+            '5',
+            '--level',
+            '2',
+            '--duration',
+            '10',
+            '--hand-rate',
+            '1000',
+            '--eye-rate',
+            '200',
+            '--rate',
+            '2000',
+        ),
+        'auto_pub',
+    )['sent']
+    answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='auto_call')
+    assert answer[0]['success'] and answer[1]['success'], answer
+    streams = yaml.safe_load(saved.read_text())['streams']
+    received = {s: streams[s]['received'] for s in ('hand', 'eye')}
+    assert received == sent, (received, sent)
+    assert ros.stop(node) == 0
+    log = ros.output(node)[1]
+    assert log.count('handed over from the type probe') == 2, log
+    assert 'Traceback' not in log
+
+
 def test_qos_mismatch_is_named(ros: Processes, install: Path) -> None:
     """'0 pose(s) buffered' from a reliable subscription to a best-effort MoCap publisher: the
     answer names the publisher's QoS and the parameter that fixes it, also once the publisher

@@ -22,6 +22,10 @@ and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latch
 messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
 (the result they come from and when). Status goes to /diagnostics.
 
+Auto-typed topics (``hand_type: auto``) are subscribed once the graph names their publisher's
+type; until then :mod:`.type_probes` receives them, and hands the node what came before its
+own subscription matched.
+
 The parameters (declared from the option specs, changed at run time, misspelt names said) are
 in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
 :mod:`.worker`, the output messages in :mod:`handeye_ros.stream.messages`.
@@ -54,6 +58,7 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
+from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -65,6 +70,7 @@ from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker
 from .lifecycle import spin, stop_requested
+from .type_probes import HANDOVER_TIMEOUT_S, Handover, TypeProbes, candidate_types
 from .types import RclpyTypes, message_class
 
 #: Latched result topics: late subscribers get the last result.
@@ -124,6 +130,9 @@ class CalibratorNode(Node):
             declared = getattr(self.stream_cfg, f'{stream}_type')
             if declared != 'auto':
                 self._subscribe(stream, normalise_type(declared))
+        #: streams switching from their type probe to their own subscription
+        self._handovers: dict[str, Handover] = {}
+        self._probes: TypeProbes | None = None
         self._graph_timer = None
         if len(self._subs) < len(STREAMS):
             self._graph_timer = self.create_timer(0.2, self._discover_types)
@@ -132,6 +141,8 @@ class CalibratorNode(Node):
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         parameters.warn_unknown(self)
         self._pool = pool
+        # last: nothing after it may fail, so a node that is not made leaves no probe behind
+        self._probes = self._start_probes()
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
@@ -182,13 +193,9 @@ class CalibratorNode(Node):
                     'ROS install: offline_calibrate --bag reads them'
                 ) from None
 
-    def _subscribe(self, stream: str, msgtype: str) -> None:
-        """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
-        tf2's static broadcasters latch) once its type is known; raises ConfigError when
-        the type does not fit the selector or its Python package cannot be imported."""
-        self.recorder.set_type(stream, msgtype)
-        cls = message_class(msgtype)
-        qos = QoSProfile(
+    def _pose_qos(self) -> QoSProfile:
+        """The QoS of the pose subscriptions (and of the type probes)."""
+        return QoSProfile(
             depth=self.node_cfg.qos_depth,
             history=HistoryPolicy.KEEP_LAST,
             reliability=(
@@ -198,12 +205,36 @@ class CalibratorNode(Node):
             ),
             durability=DurabilityPolicy.VOLATILE,
         )
+
+    def _start_probes(self) -> TypeProbes | None:
+        """Raw subscriptions for every candidate type of the auto-typed topics, so that their
+        first messages are not lost while the type is learnt (see :mod:`.type_probes`)."""
+        auto = [s for s in STREAMS if s not in self._subs]
+        if not auto or not self.node_cfg.type_probes:
+            return None
+        topics = {}
+        for stream in auto:
+            sel = self.recorder.selectors[stream]
+            topic = self.resolve_topic_name(sel.topic)
+            topics[topic] = candidate_types(sel.item is not None, self._types.__getitem__)
+        return TypeProbes(topics, self._types.__getitem__, self._pose_qos(), self.get_clock())
+
+    def _subscribe(self, stream: str, msgtype: str) -> None:
+        """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
+        tf2's static broadcasters latch) once its type is known; raises ConfigError when
+        the type does not fit the selector or its Python package cannot be imported."""
+        self.recorder.set_type(stream, msgtype)
+        cls = message_class(msgtype)
         sel = self.recorder.selectors[stream]
+        probes = self._probes if hasattr(self, '_probes') else None  # None while __init__ runs
+        early = probes.early.get((self.resolve_topic_name(sel.topic), msgtype)) if probes else None
+        if early is not None:
+            self._handovers[stream] = Handover(early, lambda raw: deserialize_message(raw, cls))
         self._subs[stream] = self.create_subscription(
             cls,
             sel.topic,
             lambda msg, s=stream: self._on_pose(s, msg),
-            qos,
+            self._pose_qos(),
             event_callbacks=SubscriptionEventCallbacks(
                 incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
             ),
@@ -253,13 +284,14 @@ class CalibratorNode(Node):
 
     def _discover_types(self) -> None:
         """Learn the message type of auto-typed topics from the graph."""
-        graph = dict(self.get_topic_names_and_types())
         now = time.monotonic()
+        for stream in list(self._handovers):
+            self._settle(stream, now)
         for stream in STREAMS:
             if stream in self._subs:
                 continue
             topic = self.recorder.selectors[stream].topic
-            types = graph.get(topic, [])
+            types = self._publisher_types(topic)
             usable = []
             for t in types:
                 try:
@@ -269,11 +301,13 @@ class CalibratorNode(Node):
             if len(usable) == 1:
                 try:
                     self._subscribe(stream, usable[0])
-                    self.get_logger().info(
-                        f'{stream}: {topic} learnt from its publisher; messages it sent before '
-                        f'this subscription matched are not received (set {stream}_type: '
-                        f'{usable[0].rsplit("/", 1)[-1]} to subscribe at start)'
-                    )
+                    if stream not in self._handovers:
+                        self.get_logger().info(
+                            f'{stream}: {topic} learnt from its publisher; messages it sent '
+                            'before this subscription matched are not received (set '
+                            f'{stream}_type: {usable[0].rsplit("/", 1)[-1]} to subscribe at '
+                            'start, or type_probes: true)'
+                        )
                 except ConfigError as err:
                     self._sub_errors[stream] = str(err)
                     if now - self._type_warned[stream] > self.node_cfg.topic_wait:
@@ -291,11 +325,56 @@ class CalibratorNode(Node):
                 else:
                     why = 'has no publisher yet'
                 self.get_logger().warning(f'{stream} topic {topic} {why}')
-        if len(self._subs) == len(STREAMS) and self._graph_timer is not None:
-            self._graph_timer.cancel()
+        if len(self._subs) == len(STREAMS) and not self._handovers:
+            if self._probes is not None:
+                self._probes.close()
+                self._probes = None
+            if self._graph_timer is not None:
+                self._graph_timer.cancel()
+
+    def _publisher_types(self, topic: str) -> list[str]:
+        """The types a topic's publishers send, in the order first seen (the graph's types
+        of a topic also hold its subscriptions', the type probes' among them)."""
+        types: list[str] = []
+        for info in self.get_publishers_info_by_topic(topic):
+            if info.topic_type not in types:
+                types.append(info.topic_type)
+        return types
+
+    def _settle(self, stream: str, now: float) -> None:
+        """Close a stream's handover from its probe once it can: the probe's messages from
+        before the subscription matched, then the subscription's own."""
+        handover = self._handovers[stream]
+        done = handover.settle(now)
+        if done is None:
+            return
+        del self._handovers[stream]
+        early, own = done
+        for msg, arrival in early + own:
+            self._add(stream, msg, False, arrival)
+        topic = self.recorder.selectors[stream].topic
+        if handover.outcome == 'caught up':
+            self.get_logger().info(
+                f'{stream}: {topic} handed over from the type probe: {len(early)} message(s) '
+                'received before the subscription matched, none lost'
+            )
+        else:
+            self.get_logger().warning(
+                f"{stream}: {topic}: the type probe did not see the subscription's first "
+                f'message within {HANDOVER_TIMEOUT_S:g} s; messages sent before the '
+                f'subscription matched may be missing (set {stream}_type to subscribe at start)'
+            )
 
     def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
+        handover = None if static else self._handovers.get(stream)
+        if handover is not None:
+            handover.hold(msg, arrival, time.monotonic())
+            self._settle(stream, time.monotonic())
+            return
+        self._add(stream, msg, static, arrival)
+
+    def _add(self, stream: str, msg: Any, static: bool, arrival: int | None) -> None:
         reason = self.recorder.add(stream, msg, static, arrival)
         if reason is not None:
             now = time.monotonic()
@@ -320,7 +399,7 @@ class CalibratorNode(Node):
                 return f'{stream}: {self._sub_errors[stream]}'
             if stream not in self._subs:
                 topic = self.recorder.selectors[stream].topic
-                types = dict(self.get_topic_names_and_types()).get(topic)
+                types = self._publisher_types(topic)
                 if types:
                     return (
                         f'{stream} topic {topic} has type {", ".join(types)}, which carries '
@@ -463,6 +542,9 @@ class CalibratorNode(Node):
         """Stop the worker process and wait for it (a running calibration is abandoned), so
         that no process outlives the node."""
         self._closing = True
+        if self._probes is not None:
+            self._probes.close()
+            self._probes = None
         if self._pool is not None:
             worker.stop(self._pool)
             # dropped, so that its queues' semaphores are released before the resource

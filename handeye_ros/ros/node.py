@@ -360,8 +360,8 @@ class CalibratorNode(Node):
             )
         else:
             self.get_logger().warning(
-                f"{stream}: {topic}: the type probe did not see the subscription's first "
-                f'message within {HANDOVER_TIMEOUT_S:g} s; messages sent before the '
+                f"{stream}: {topic}: the type probe held none of the subscription's first "
+                f'messages within {HANDOVER_TIMEOUT_S:g} s; messages sent before the '
                 f'subscription matched may be missing (set {stream}_type to subscribe at start)'
             )
 

@@ -14,10 +14,10 @@ serialised bytes, never deserialised there) on every auto-typed topic, spun by i
 The probe of the right type matches the publisher as early as a typed subscription made at the
 start would.
 
-When the node's own subscription delivers its first message, :class:`Handover` finds that
-message among the probe's by comparing whole messages (not stamps, which may be zero or
-repeated; not bytes, whose alignment padding the publisher need not initialise) and gives the
-node the probe's messages before it, then its own: nothing lost, nothing twice. If the probe
+When the node's own subscription delivers its first messages, :class:`Handover` finds where
+they begin among the probe's, comparing whole messages (not stamps, which may be zero or
+repeated), and gives the node the probe's messages before that point, then its own: nothing
+lost, nothing twice. If the probe
 never saw that message (it matched later, or not at all) the handover gives up after a bounded
 wait and says that earlier messages may be missing. The probes are shut down as soon as every
 auto-typed stream has been handed over.
@@ -56,22 +56,47 @@ def candidate_types(selects_item: bool, classes: Callable[[str], Any]) -> list[s
     return out
 
 
+def message_key(msg: Any) -> Any:
+    """A hashable value equal for equal messages: their fields, flattened into tuples.
+
+    Not the serialised bytes: rclpy's serialiser leaves the alignment padding uninitialised,
+    so equal messages may serialise differently (seen: PoseStamped after its frame id)."""
+    slots = getattr(msg, '__slots__', None)
+    if slots is None:
+        if isinstance(msg, list | tuple):
+            return tuple(message_key(m) for m in msg)
+        if hasattr(msg, 'tolist'):  # numpy and array.array fields
+            return tuple(msg.tolist())
+        return msg
+    return tuple(message_key(getattr(msg, name)) for name in slots)
+
+
 @dataclass
 class Handover:
     """One stream's switch from its probe's messages to its own subscription's.
 
     ``early``: the probe's (serialised message, arrival ns) of the stream's topic and type,
-    appended by the probe's thread; ``decode``: serialised bytes -> message. The node's own
-    messages are held in ``pending`` until :meth:`settle` finds the first of them among
-    ``early``."""
+    appended by the probe's thread; ``decode``: serialised bytes -> message; ``key``: a
+    message -> a hashable value equal for equal messages (:func:`message_key`).
+
+    The node's own messages are held in ``pending`` until :meth:`settle` finds where they
+    begin among ``early``: at the first probe message equal to *any* held one (the probe, a
+    thread sharing the GIL, may have dropped the node's very first). Every probe message
+    before it came before the node's first: had the probe held one of the node's messages
+    earlier, that one would have matched."""
 
     early: deque[tuple[bytes, int]]
     decode: Callable[[bytes], Any]
+    key: Callable[[Any], Any] = message_key
     pending: list[tuple[Any, int | None]] = field(default_factory=list)
+    #: the held messages' keys
+    keys: set[Any] = field(default_factory=set)
     since: float = 0.0
-    #: how many of ``early`` were decoded and found unequal to the node's first message
+    #: how many of ``early`` were looked at, and the first index of each one's key
     searched: int = 0
-    decoded: list[tuple[Any, int]] = field(default_factory=list)
+    seen: dict[Any, int] = field(default_factory=dict)
+    #: the first index in ``early`` of a message the node holds too
+    meet: int | None = None
     #: '' while open; 'caught up' or 'timed out' once settled
     outcome: str = ''
 
@@ -79,7 +104,14 @@ class Handover:
         """Keep one of the node's own messages until the handover settles."""
         if not self.pending:
             self.since = now
+        key = self.key(msg)
+        self.keys.add(key)
+        if key in self.seen:  # the probe had it already
+            self._meet(self.seen[key])
         self.pending.append((msg, arrival_ns))
+
+    def _meet(self, k: int) -> None:
+        self.meet = k if self.meet is None else min(self.meet, k)
 
     def settle(
         self, now: float, timeout: float = HANDOVER_TIMEOUT_S
@@ -88,28 +120,29 @@ class Handover:
         with their arrival; the node's own held messages), both in order."""
         if self.outcome or not self.pending:
             return None
-        first = self.pending[0][0]
         early = list(self.early)  # a snapshot: the probe's thread may still append
-        if len(early) == self.early.maxlen and self.searched:
-            # the ring wrapped while we searched: where we were is gone (a probe ahead by
-            # its whole depth); start again from what it holds
-            self.searched, self.decoded = 0, []
-        for raw, arrival in early[self.searched :]:
-            msg = self.decode(raw)
-            if msg == first:
-                self.outcome = 'caught up'
-                return self.decoded, self._release()
-            self.decoded.append((msg, arrival))
-            self.searched += 1
+        if len(early) == self.early.maxlen:
+            # the ring may have moved under the indices: look at it all again
+            self.searched, self.seen, self.meet = 0, {}, None
+        for k in range(self.searched, len(early)):
+            key = self.key(self.decode(early[k][0]))
+            self.seen.setdefault(key, k)
+            if key in self.keys:
+                self._meet(k)
+                break
+        self.searched = len(early)
+        if self.meet is not None:
+            return self._done('caught up', early[: self.meet])
         if now - self.since < timeout:
             return None
-        self.outcome = 'timed out'
-        self.decoded = []
-        return [], self._release()
+        return self._done('timed out', [])
 
-    def _release(self) -> list[tuple[Any, int | None]]:
-        pending, self.pending = self.pending, []
-        return pending
+    def _done(
+        self, outcome: str, before: list[tuple[bytes, int]]
+    ) -> tuple[list[tuple[Any, int]], list[tuple[Any, int | None]]]:
+        self.outcome = outcome
+        pending, self.pending, self.keys, self.seen = self.pending, [], set(), {}
+        return [(self.decode(raw), arrival) for raw, arrival in before], pending
 
 
 class TypeProbes:

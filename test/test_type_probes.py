@@ -54,6 +54,29 @@ def test_waits_for_a_lagging_probe_then_gives_up_after_the_timeout() -> None:
     assert h.outcome == 'timed out'
 
 
+def test_a_probe_that_still_receives_is_waited_for_up_to_the_limit() -> None:
+    """A probe far behind the node (its thread starved of the GIL on a loaded machine) keeps
+    the handover open while it receives, past the silence timeout; the limit ends it."""
+    ring = _ring(['m0'])
+    h = _handover(ring)
+    h.hold('m9', None, now=0.0)
+    for k in range(1, 9):  # one probe message a second: never silent for 2 s
+        ring.append((f'm{k}'.encode(), k))
+        assert h.settle(now=float(k), timeout=2.0) is None
+    ring.append((b'm9', 9))
+    early, own = h.settle(now=9.0, timeout=2.0)
+    assert [m for m, _ in early] == [f'm{k}' for k in range(9)] and own == [('m9', None)]
+
+    ring = _ring(['x0'])
+    h = _handover(ring)
+    h.hold('m0', None, now=0.0)
+    for k in range(1, 10):
+        ring.append((f'x{k}'.encode(), k))
+        assert h.settle(now=float(k), timeout=2.0, limit=10.0) is None
+    ring.append((b'x10', 10))
+    assert h.settle(now=10.0, timeout=2.0, limit=10.0) == ([], [('m0', None)])
+
+
 def test_identical_messages_are_not_handed_in_twice() -> None:
     """Zero stamps and a rig at rest make equal messages: the first equal one is where the
     node's own messages begin, so nothing the node received is added again."""

@@ -70,7 +70,13 @@ from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker
 from .lifecycle import spin, stop_requested
-from .type_probes import HANDOVER_TIMEOUT_S, Handover, TypeProbes, candidate_types
+from .type_probes import (
+    HANDOVER_LIMIT_S,
+    HANDOVER_TIMEOUT_S,
+    Handover,
+    TypeProbes,
+    candidate_types,
+)
 from .types import RclpyTypes, message_class
 
 #: Latched result topics: late subscribers get the last result.
@@ -361,8 +367,9 @@ class CalibratorNode(Node):
         else:
             self.get_logger().warning(
                 f"{stream}: {topic}: the type probe held none of the subscription's first "
-                f'messages within {HANDOVER_TIMEOUT_S:g} s; messages sent before the '
-                f'subscription matched may be missing (set {stream}_type to subscribe at start)'
+                f'messages (silent for {HANDOVER_TIMEOUT_S:g} s, or {HANDOVER_LIMIT_S:g} s in '
+                'all); messages sent before the subscription matched may be missing (set '
+                f'{stream}_type to subscribe at start)'
             )
 
     def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:

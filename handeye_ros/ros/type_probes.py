@@ -17,10 +17,10 @@ start would.
 When the node's own subscription delivers its first messages, :class:`Handover` finds where
 they begin among the probe's, comparing whole messages (not stamps, which may be zero or
 repeated), and gives the node the probe's messages before that point, then its own: nothing
-lost, nothing twice. If the probe
-never saw that message (it matched later, or not at all) the handover gives up after a bounded
-wait and says that earlier messages may be missing. The probes are shut down as soon as every
-auto-typed stream has been handed over.
+lost, nothing twice. If the probe receives nothing more and has shown none of the node's
+messages (it never matched), the handover gives up after a bounded wait and says that earlier
+messages may be missing. The probes are shut down as soon as every auto-typed stream has been
+handed over.
 """
 
 from __future__ import annotations
@@ -37,9 +37,14 @@ from ..stream.convert import MULTI_POSE_TYPES, SUPPORTED_TYPES
 #: Messages a probe keeps per topic and type (the newest; at 1 kHz, 20 s: the node subscribes
 #: within a graph poll, 0.2 s, of the type appearing).
 PROBE_DEPTH = 20_000
-#: Seconds the node's own messages wait for the probe to show where they start, before the
-#: handover gives up (and says so).
+#: Seconds the node's own messages wait for the probe to show where they start while the probe
+#: receives nothing new, before the handover gives up (and says so): a probe that still
+#: receives is behind the node (its thread shares the GIL), not lost.
 HANDOVER_TIMEOUT_S = 2.0
+#: Seconds they wait at most, however busy the probe.
+HANDOVER_LIMIT_S = 10.0
+#: Seconds a probe's thread waits for messages before it looks at its stop flag again.
+SPIN_WAIT_S = 0.05
 
 
 def candidate_types(selects_item: bool, classes: Callable[[str], Any]) -> list[str]:
@@ -92,6 +97,9 @@ class Handover:
     #: the held messages' keys
     keys: set[Any] = field(default_factory=set)
     since: float = 0.0
+    #: when the probe was last seen to receive, and the arrival of its newest message then
+    heard: float = 0.0
+    newest: int | None = None
     #: how many of ``early`` were looked at, and the first index of each one's key
     searched: int = 0
     seen: dict[Any, int] = field(default_factory=dict)
@@ -103,7 +111,8 @@ class Handover:
     def hold(self, msg: Any, arrival_ns: int | None, now: float) -> None:
         """Keep one of the node's own messages until the handover settles."""
         if not self.pending:
-            self.since = now
+            self.since = self.heard = now
+            self.newest = self.early[-1][1] if self.early else None
         key = self.key(msg)
         self.keys.add(key)
         if key in self.seen:  # the probe had it already
@@ -114,13 +123,17 @@ class Handover:
         self.meet = k if self.meet is None else min(self.meet, k)
 
     def settle(
-        self, now: float, timeout: float = HANDOVER_TIMEOUT_S
+        self, now: float, timeout: float = HANDOVER_TIMEOUT_S, limit: float = HANDOVER_LIMIT_S
     ) -> tuple[list[tuple[Any, int]], list[tuple[Any, int | None]]] | None:
         """None while open; else (the probe's messages that came before the node's first,
-        with their arrival; the node's own held messages), both in order."""
+        with their arrival; the node's own held messages), both in order. It gives up, with
+        no probe message, once the probe has received nothing new for ``timeout`` s while
+        the node's messages wait, or once they have waited ``limit`` s."""
         if self.outcome or not self.pending:
             return None
         early = list(self.early)  # a snapshot: the probe's thread may still append
+        if early and early[-1][1] != self.newest:
+            self.newest, self.heard = early[-1][1], now
         if len(early) == self.early.maxlen:
             # the ring may have moved under the indices: look at it all again
             self.searched, self.seen, self.meet = 0, {}, None
@@ -133,7 +146,7 @@ class Handover:
         self.searched = len(early)
         if self.meet is not None:
             return self._done('caught up', early[: self.meet])
-        if now - self.since < timeout:
+        if now - max(self.since, self.heard) < timeout and now - self.since < limit:
             return None
         return self._done('timed out', [])
 
@@ -164,6 +177,7 @@ class TypeProbes:
 
         self.early: dict[tuple[str, str], deque[tuple[bytes, int]]] = {}
         self._runs: list[tuple[Any, Any, Any, threading.Thread]] = []
+        self._stop = threading.Event()
         self._clock = clock
         by_type: dict[str, list[str]] = {}
         for topic, types in topics.items():
@@ -200,7 +214,7 @@ class TypeProbes:
             start_parameter_services=False,
         )
         thread = threading.Thread(
-            target=self._spin, args=(executor,), name=f'type-probe-{k}', daemon=True
+            target=self._spin, args=(executor, context), name=f'type-probe-{k}', daemon=True
         )
         self._runs.append((context, executor, node, thread))
         for topic in topics:
@@ -214,22 +228,31 @@ class TypeProbes:
     def _received(self, ring: deque[tuple[bytes, int]], raw: bytes) -> None:
         ring.append((raw, self._clock.now().nanoseconds))
 
-    @staticmethod
-    def _spin(executor: Any) -> None:
-        from rclpy.executors import ExternalShutdownException
+    def _spin(self, executor: Any, context: Any) -> None:
+        """Spin one probe until :meth:`close` says stop or its context is shut down.
 
+        In short waits, not ``executor.spin()``: a SIGINT or SIGTERM makes rclpy's handler
+        shut down *every* context of the process, these included, at any instant, and a wait
+        set made on a context shut down a moment before raises; the stop flag is checked
+        between waits, so that close() never destroys what a wait still uses."""
         try:
-            executor.spin()
-        except ExternalShutdownException:
-            pass
+            while not self._stop.is_set() and context.ok():
+                executor.spin_once(timeout_sec=SPIN_WAIT_S)
+        except Exception:
+            if context.ok() and not self._stop.is_set():
+                raise
+            # shut down under the wait (a signal): the end this thread was heading for
 
     def close(self) -> None:
-        """Shut every probe down and join its thread (idempotent)."""
+        """Stop every probe's thread, then destroy its executor, node and context
+        (idempotent; after a signal the contexts may already be shut down)."""
         runs, self._runs = self._runs, []
-        for context, _, _, _ in runs:
-            context.try_shutdown()
-        for _, executor, node, thread in runs:
+        self._stop.set()
+        for _, _, _, thread in runs:
             if thread.is_alive():
                 thread.join(timeout=5.0)
-            executor.shutdown()
-            node.destroy_node()
+        for context, executor, node, thread in runs:
+            if not thread.is_alive():  # else a wait still uses them: leave them to the exit
+                executor.shutdown()
+                node.destroy_node()
+            context.try_shutdown()

@@ -20,24 +20,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import random
 import signal
 import subprocess
 import sys
-import threading
 import time
 
-import common
+import common  # noqa: F401  (puts the repository on sys.path)
 from common import emit, table
+from node_ingest import Probe, start  # sets the LOCALHOST discovery range and a random domain
 
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-os.environ.pop('ROS_LOCALHOST_ONLY', None)
-os.environ.setdefault('ROS_DOMAIN_ID', str(random.randint(1, 101)))
-ENV = dict(
-    os.environ,
-    PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
-    PYTHONUNBUFFERED='1',
-)
 NODES = {
     'typed': ['-p', 'hand_type:=PoseStamped', '-p', 'eye_type:=Odometry'],
     'probed': [],
@@ -45,50 +36,6 @@ NODES = {
 }
 PUBLISHER = ['--level', '2', '--duration', '6', '--hand-rate', '1000', '--eye-rate', '200']
 RATE = '1200'
-
-
-class Diagnostics:
-    """The latest received counts of every node's streams, from /diagnostics."""
-
-    def __init__(self) -> None:
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
-
-        rclpy.init()
-        self.rclpy = rclpy
-        self.node = Node('bench_auto_types')
-        self.counts: dict[tuple[str, str], int] = {}
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on, 100)
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _on(self, msg) -> None:
-        for st in msg.status:
-            node, _, what = st.name.rpartition(': ')
-            values = {kv.key: kv.value for kv in st.values}
-            if what.endswith(' stream') and 'received' in values:
-                self.counts[node.strip('/'), what.split()[0]] = int(values['received'])
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5.0)
-        self.node.destroy_node()
-        self.rclpy.try_shutdown()
-
-
-def start(module: str, *args: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, '-m', module, *args],
-        env=ENV,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
 
 
 def stop(p: subprocess.Popen) -> str:
@@ -102,9 +49,9 @@ def stop(p: subprocess.Popen) -> str:
     return err
 
 
-def one_run(diag: Diagnostics, name: str, seed: int, waits: bool) -> dict:
+def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
     """Received and sent counts of one node and one publisher run, and its log's findings."""
-    diag.counts.clear()
+    probe.diag.clear()
     node = start(
         'handeye_ros.ros.calibrator',
         '--ros-args',
@@ -115,7 +62,9 @@ def one_run(diag: Diagnostics, name: str, seed: int, waits: bool) -> dict:
         *NODES[name],
     )
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and len(diag.counts) < 2:
+    while time.monotonic() < deadline and not all(
+        'received' in probe.stream(s, name) for s in ('hand', 'eye')
+    ):
         time.sleep(0.1)
     pub = start(
         'handeye_ros.ros.sim_publisher',
@@ -130,13 +79,12 @@ def one_run(diag: Diagnostics, name: str, seed: int, waits: bool) -> dict:
     out, _ = pub.communicate(timeout=300)
     sent = json.loads(out.strip().splitlines()[-1])['sent']
     time.sleep(2.5)  # two diagnostics periods
-    counts = dict(diag.counts)
     log = stop(node)
     return {
         'node': name,
         'waits': waits,
         'sent': sent,
-        'received': {s: counts.get((name, s), 0) for s in sent},
+        'received': {s: int(probe.stream(s, name).get('received', 0)) for s in sent},
         'traceback': 'Traceback' in log,
         'handovers': log.count('handed over from the type probe'),
         'timeouts': log.count('the type probe held none'),
@@ -147,7 +95,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--runs', type=int, default=5, help='publisher runs per mode (default: 5)')
     args = ap.parse_args()
-    diag = Diagnostics()
+    probe = Probe()
     rows = []
     seeds = []
     try:
@@ -156,7 +104,7 @@ def main() -> int:
             for k in range(args.runs):
                 seeds.append(100 + k)
                 for name in NODES:
-                    r = one_run(diag, name, 100 + k, waits)
+                    r = one_run(probe, name, 100 + k, waits)
                     runs[name].append(r)
                     print(json.dumps(r), flush=True)
             for name, rs in runs.items():
@@ -174,7 +122,7 @@ def main() -> int:
                     )
                 )
     finally:
-        diag.close()
+        probe.close()
     emit(
         'auto_types',
         table(

@@ -96,44 +96,18 @@ def main() -> None:
             res = calibrate(loaded[pa.name][0], eye)
             secs = time.perf_counter() - t0
             e = calibration_error(truth, res.time_offset_s, res.q_HE, res.p_HE)
+            head = [pa.name, pb.name, res.quality.verdict]
+            errs = [e.time_offset_s * 1e3, e.translation_m * 1e3, e.rotation_deg]
             if res.batch is None:
-                rows.append(
-                    [
-                        pa.name,
-                        pb.name,
-                        res.quality.verdict,
-                        e.time_offset_s * 1e3,
-                        e.translation_m * 1e3,
-                        e.rotation_deg,
-                        np.nan,
-                        np.nan,
-                        np.nan,
-                        'no batch',
-                        '',
-                        secs,
-                    ]
-                )
+                rows.append([*head, *errs, np.nan, np.nan, np.nan, 'no batch', '', secs])
                 continue
             c, cw = covered(res, truth), covered(res, truth, white=True)
             hits.append(c)
             hits_white.append(cw)
             s = res.batch.std
-            rows.append(
-                [
-                    pa.name,
-                    pb.name,
-                    res.quality.verdict,
-                    e.time_offset_s * 1e3,
-                    e.translation_m * 1e3,
-                    e.rotation_deg,
-                    s[0] * 1e3,
-                    np.linalg.norm(s[1:4]) * 1e3,
-                    np.degrees(np.linalg.norm(s[4:7])),
-                    ''.join('y' if x else 'n' for x in c),
-                    ''.join('y' if x else 'n' for x in cw),
-                    secs,
-                ]
-            )
+            sigmas = [s[0] * 1e3, np.linalg.norm(s[1:4]) * 1e3, np.degrees(np.linalg.norm(s[4:7]))]
+            marks = [''.join('y' if x else 'n' for x in hit) for hit in (c, cw)]
+            rows.append([*head, *errs, *sigmas, *marks, secs])
             print(f'  {pa.name} <- {pb.name}: {rows[-1][9]} (white {rows[-1][10]})', flush=True)
     h, hw = np.asarray(hits), np.asarray(hits_white)
     emit(

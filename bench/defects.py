@@ -425,6 +425,36 @@ def evaluate(
 KINDS = ('ok', 'flagged', 'honest', 'refused', 'WRONG', 'CRASH')
 
 
+class Tally:
+    """One table row: the outcomes of one case over its recordings, and a details line each."""
+
+    def __init__(self, case: str, details: list[list]) -> None:
+        self.case, self.details = case, details
+        self.counts: Counter[str] = Counter()
+        self.worst = np.zeros(3)
+        self.secs: list[float] = []
+
+    def add(self, recording: str, out: Outcome) -> None:
+        self.counts[out.kind] += 1
+        self.secs.append(out.seconds)
+        if out.kind in ('ok', 'flagged', 'honest', 'WRONG'):
+            self.worst = np.fmax(self.worst, out.errors)
+        reason = ('; '.join(out.reasons) or out.message)[:160]
+        self.details.append(
+            [recording, self.case, f'{out.kind}/{out.verdict}', *out.errors, reason]
+        )
+
+    def row(self) -> list:
+        counts = ', '.join(f'{k} {self.counts[k]}' for k in KINDS if self.counts[k])
+        print(f'  {self.case}: {counts}', flush=True)
+        return [
+            self.case,
+            *(self.counts[k] for k in KINDS),
+            *self.worst,
+            float(np.mean(self.secs)),
+        ]
+
+
 def defect_table(
     bases: list[Base], defects: dict[str, Inject], config: CalibrationConfig, details: list[list]
 ) -> list[list]:
@@ -443,36 +473,16 @@ def defect_table(
                     [b.name, 'reference', 'refused', np.nan, np.nan, np.nan, str(err)[:100]]
                 )
         for name, inject in defects.items():
-            counts: Counter[str] = Counter()
-            worst = np.zeros(3)
-            secs = []
+            tally = Tally(name, details)
             for k, b in enumerate(bases):
                 if b.name not in refs:
                     continue
                 rng = np.random.default_rng(1000 + k)
                 inj = inject(hand_stream(b.hand), eye_stream(b.eye), rng)
                 dt_ref, q_ref, p_ref = refs[b.name]
-                out = evaluate(
-                    inj.hand, inj.eye, workdir, config, (dt_ref + inj.extra_offset_s, q_ref, p_ref)
-                )
-                counts[out.kind] += 1
-                secs.append(out.seconds)
-                if out.kind in ('ok', 'flagged', 'honest', 'WRONG'):
-                    worst = np.fmax(worst, out.errors)
-                details.append(
-                    [
-                        b.name,
-                        name,
-                        f'{out.kind}/{out.verdict}',
-                        *out.errors,
-                        ('; '.join(out.reasons) or out.message)[:160],
-                    ]
-                )
-            rows.append([name, *(counts[k] for k in KINDS), *worst, float(np.mean(secs))])
-            print(
-                f'  {name}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS if counts[k]),
-                flush=True,
-            )
+                reference = (dt_ref + inj.extra_offset_s, q_ref, p_ref)
+                tally.add(b.name, evaluate(inj.hand, inj.eye, workdir, config, reference))
+            rows.append(tally.row())
     return rows
 
 
@@ -481,38 +491,13 @@ def motion_table(config: CalibrationConfig, details: list[list]) -> list[list]:
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
         for motion in MOTION_CASES:
-            counts: Counter[str] = Counter()
-            worst = np.zeros(3)
-            secs = []
+            tally = Tally(f'motion {motion}', details)
             for b in sim_bases(motion):
                 t = b.truth
-                out = evaluate(
-                    hand_stream(b.hand),
-                    eye_stream(b.eye),
-                    workdir,
-                    config,
-                    (t.time_offset_s, t.q_HE, t.p_HE),
-                )
-                counts[out.kind] += 1
-                secs.append(out.seconds)
-                if out.kind in ('ok', 'flagged', 'honest', 'WRONG'):
-                    worst = np.fmax(worst, out.errors)
-                details.append(
-                    [
-                        b.name,
-                        f'motion {motion}',
-                        f'{out.kind}/{out.verdict}',
-                        *out.errors,
-                        ('; '.join(out.reasons) or out.message)[:160],
-                    ]
-                )
-            rows.append(
-                [f'motion {motion}', *(counts[k] for k in KINDS), *worst, float(np.mean(secs))]
-            )
-            print(
-                f'  motion {motion}: ' + ', '.join(f'{k} {counts[k]}' for k in KINDS if counts[k]),
-                flush=True,
-            )
+                truth = (t.time_offset_s, t.q_HE, t.p_HE)
+                out = evaluate(hand_stream(b.hand), eye_stream(b.eye), workdir, config, truth)
+                tally.add(b.name, out)
+            rows.append(tally.row())
     return rows
 
 

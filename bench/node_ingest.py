@@ -58,7 +58,9 @@ class Probe:
         rclpy.init()
         self.rclpy, self.Trigger = rclpy, Trigger
         self.node = Node('bench_probe')
-        self.diag: dict[str, dict[str, str]] = {}
+        #: the latest status of each (node, 'hand stream' | 'eye stream' | ...), names as
+        #: /diagnostics gives them ('calibrator: hand stream' -> ('calibrator', 'hand stream'))
+        self.diag: dict[tuple[str, str], dict[str, str]] = {}
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
         self.client = self.node.create_client(Trigger, '/calibrator/calibrate')
         self.executor = SingleThreadedExecutor()
@@ -68,10 +70,12 @@ class Probe:
 
     def _on_diag(self, msg) -> None:
         for st in msg.status:
-            self.diag[st.name.rsplit(': ', 1)[-1]] = {kv.key: kv.value for kv in st.values}
+            node, _, what = st.name.rpartition(': ')
+            self.diag[node.strip('/ '), what] = {kv.key: kv.value for kv in st.values}
 
-    def stream(self, name: str) -> dict[str, str]:
-        return self.diag.get(f'{name} stream', {})
+    def stream(self, name: str, node: str = 'calibrator') -> dict[str, str]:
+        """The latest diagnostics of a node's stream ('hand' or 'eye')."""
+        return self.diag.get((node, f'{name} stream'), {})
 
     def calibrate(self) -> tuple[float, bool, str]:
         self.client.wait_for_service(timeout_sec=30.0)

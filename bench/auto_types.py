@@ -87,6 +87,7 @@ def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
         'received': {s: int(probe.stream(s, name).get('received', 0)) for s in sent},
         'traceback': 'Traceback' in log,
         'handovers': log.count('handed over from the type probe'),
+        'late': log.count('matched its publisher no earlier'),
         'timeouts': log.count('the type probe held none'),
     }
 
@@ -117,7 +118,9 @@ def main() -> int:
                         f'{got["hand"]} / {sent["hand"]}',
                         f'{got["eye"]} / {sent["eye"]}',
                         f'{sum(r["received"] != r["sent"] for r in rs)} / {len(rs)}',
-                        f'{sum(r["handovers"] for r in rs)} / {sum(r["timeouts"] for r in rs)}',
+                        ' / '.join(
+                            str(sum(r[k] for r in rs)) for k in ('handovers', 'late', 'timeouts')
+                        ),
                         sum(r['traceback'] for r in rs),
                     )
                 )
@@ -134,7 +137,7 @@ def main() -> int:
                 'hand',
                 'eye',
                 'runs with loss',
-                'handovers / timeouts',
+                'probe: handed over / late / timed out',
                 'tracebacks',
             ],
             rows,

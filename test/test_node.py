@@ -618,7 +618,8 @@ def test_auto_types_lose_nothing(ros: Processes, install: Path, tmp_path: Path) 
     types and subscribes meanwhile, and the handover gives it every message, none twice (the
     saved counts equal the sent ones). Without the probes the same publisher waits for the
     node's own subscriptions instead: that case loses nothing either, so it is not a control;
-    bench/node_ingest.py measures what is lost without them when a publisher does not wait."""
+    bench/auto_types.py measures what a publisher that does not wait loses to typed, probed
+    and unprobed nodes. test_type_probes.py tests the handover itself on every interleaving."""
     saved = tmp_path / 'auto.yaml'
     node = _start_node(ros, install, f'output_file:={saved}')
     sent = ros.run_json(
@@ -643,10 +644,18 @@ def test_auto_types_lose_nothing(ros: Processes, install: Path, tmp_path: Path) 
     assert answer[0]['success'] and answer[1]['success'], answer
     streams = yaml.safe_load(saved.read_text())['streams']
     received = {s: streams[s]['received'] for s in ('hand', 'eye')}
-    assert received == sent, (received, sent)
     assert ros.stop(node) == 0
     log = ros.output(node)[1]
-    assert log.count('handed over from the type probe') == 2, log
+    assert received == sent, (received, sent, log)
+    # each stream's probe either handed over what it received before the node's subscription
+    # matched, or matched no earlier itself (DDS discovery is per participant, and the probes'
+    # may find a new publisher seconds later than the node's: seen in 3 of 20 runs)
+    outcomes = (
+        'handed over from the type probe',
+        'matched its publisher no earlier',
+        'the type probe held none',
+    )
+    assert sum(log.count(o) for o in outcomes) == 2, log
     assert 'Traceback' not in log
 
 

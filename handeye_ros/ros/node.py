@@ -359,10 +359,16 @@ class CalibratorNode(Node):
         for msg, arrival in early + own:
             self._add(stream, msg, False, arrival)
         topic = self.recorder.selectors[stream].topic
-        if handover.outcome == 'caught up':
+        if handover.outcome == 'caught up' and early:
             self.get_logger().info(
                 f'{stream}: {topic} handed over from the type probe: {len(early)} message(s) '
-                'received before the subscription matched, none lost'
+                'received before the subscription matched'
+            )
+        elif handover.outcome == 'caught up':
+            # DDS discovery is per participant: the probe's may find the publisher later
+            self.get_logger().info(
+                f'{stream}: {topic}: the type probe matched its publisher no earlier than the '
+                'subscription did: nothing to hand over'
             )
         else:
             self.get_logger().warning(

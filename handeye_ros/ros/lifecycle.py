@@ -50,23 +50,31 @@ def spin(node: Any, close: Callable[[], None] | None = None) -> None:
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
+    executor = None
     try:
-        if not stop_requested():  # a signal just before rclpy's handlers were in place
+        # inside the try: a signal since rclpy.init has shut the context down, and an
+        # executor made on it raises; close() must run all the same (it stops the worker,
+        # without which the resource tracker is never reaped)
+        if not stop_requested():
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
             executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except _rclpy.RCLError:
         # rclpy's handler wakes the executor, then shuts the context down from its own
-        # thread: a wait set made in between fails ("the given context is not valid"; a
-        # known race, ros2/ros2cli#854). That is the stop we were asked for; else it is not.
+        # thread: a wait set (or an executor's guard condition) made in between fails ("the
+        # given context is not valid"; a known race, ros2/ros2cli#854). That is the stop we
+        # were asked for; else it is not.
         if rclpy.ok():
             raise
     finally:
         ignore_signals()
-        if close is not None:
-            close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if close is not None:
+                close()
+        finally:
+            if executor is not None:
+                executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown()

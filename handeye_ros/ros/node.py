@@ -555,15 +555,17 @@ class CalibratorNode(Node):
         """Stop the worker process and wait for it (a running calibration is abandoned), so
         that no process outlives the node."""
         self._closing = True
-        if self._probes is not None:
-            self._probes.close()
-            self._probes = None
-        if self._pool is not None:
-            worker.stop(self._pool)
-            # dropped, so that its queues' semaphores are released before the resource
-            # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
-            self._pool = None
-        self._drop_stage(_staged_dir(self._last_result))
+        try:
+            if self._probes is not None:
+                probes, self._probes = self._probes, None
+                probes.close()
+        finally:  # whatever the probes' end, the worker must stop: it outlives us otherwise
+            if self._pool is not None:
+                worker.stop(self._pool)
+                # dropped, so that its queues' semaphores are released before the resource
+                # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
+                self._pool = None
+            self._drop_stage(_staged_dir(self._last_result))
 
     # ------------------------------------------------------------------ outputs
 

@@ -87,7 +87,7 @@ def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
         'received': {s: int(probe.stream(s, name).get('received', 0)) for s in sent},
         'traceback': 'Traceback' in log,
         'handovers': log.count('handed over from the type probe'),
-        'late': log.count('matched its publisher no earlier'),
+        'not earlier': log.count('matched its publisher no earlier'),
         'timeouts': log.count('the type probe held none'),
     }
 
@@ -119,7 +119,8 @@ def main() -> int:
                         f'{got["eye"]} / {sent["eye"]}',
                         f'{sum(r["received"] != r["sent"] for r in rs)} / {len(rs)}',
                         ' / '.join(
-                            str(sum(r[k] for r in rs)) for k in ('handovers', 'late', 'timeouts')
+                            str(sum(r[k] for r in rs))
+                            for k in ('handovers', 'not earlier', 'timeouts')
                         ),
                         sum(r['traceback'] for r in rs),
                     )
@@ -137,7 +138,7 @@ def main() -> int:
                 'hand',
                 'eye',
                 'runs with loss',
-                'probe: handed over / late / timed out',
+                'probe: handed over / not earlier / timed out',
                 'tracebacks',
             ],
             rows,

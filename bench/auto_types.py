@@ -2,13 +2,15 @@
 "type discovery that loses nothing"). Printed, not asserted.
 
 A calibrator node, started as users start it, then a publisher process that appears after it.
-The node is one of ``typed`` (hand_type PoseStamped, eye_type Odometry: subscribed at start,
-the reference), ``probed`` (auto, the default: type probes, see
-handeye_ros/ros/type_probes.py) or ``unprobed`` (auto with type_probes false: it subscribes
-when the graph shows the type). The publisher sends a 1 kHz hand and a 200 Hz eye in real time
-(6 s), either as soon as a subscriber has matched it (``waits``: sim_publisher's default, 0.3 s
-after the first match) or 0.3 s after it appears, whoever listens (``does not wait``: as ros2
-bag play or a MoCap driver started on its own). Both sides are reliable, so that what is lost
+The publisher sends the ``likeliest`` types (PoseStamped hand, Odometry eye: what an
+auto-typed node subscribes at start) or ``others`` (TransformStamped, PoseWithCovarianceStamped:
+what only the type probes can receive before the graph names them). The node is one of
+``typed`` (hand_type and eye_type set to the published types: subscribed at start, the
+reference), ``probed`` (auto, the default; see handeye_ros/ros/type_probes.py) or
+``unprobed`` (auto with type_probes false). The publisher sends a 1 kHz hand and a 200 Hz eye
+in real time (6 s), either as soon as a subscriber has matched it (``waits``: sim_publisher's
+default, 0.3 s after the first match) or 0.3 s after it appears, whoever listens (``does not
+wait``: as ros2 bag play or a MoCap driver started on its own). Both sides are reliable, so that what is lost
 is lost to discovery, not to a queue (bench/node_ingest.py measures ingest under load). The
 node's received counts are read from its /diagnostics.
 
@@ -29,10 +31,11 @@ import common  # noqa: F401  (puts the repository on sys.path)
 from common import emit, table
 from node_ingest import Probe, start  # sets the LOCALHOST discovery range and a random domain
 
-NODES = {
-    'typed': ['-p', 'hand_type:=PoseStamped', '-p', 'eye_type:=Odometry'],
-    'probed': [],
-    'unprobed': ['-p', 'type_probes:=false'],
+NODES = ('typed', 'probed', 'unprobed')
+#: The published (hand, eye) types.
+TYPES = {
+    'likeliest': ('PoseStamped', 'Odometry'),
+    'others': ('TransformStamped', 'PoseWithCovarianceStamped'),
 }
 PUBLISHER = ['--level', '2', '--duration', '6', '--hand-rate', '1000', '--eye-rate', '200']
 RATE = '1200'
@@ -49,7 +52,13 @@ def stop(p: subprocess.Popen) -> str:
     return err
 
 
-def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
+def node_args(name: str, hand_type: str, eye_type: str) -> list[str]:
+    if name == 'typed':
+        return ['-p', f'hand_type:={hand_type}', '-p', f'eye_type:={eye_type}']
+    return ['-p', 'type_probes:=false'] if name == 'unprobed' else []
+
+
+def one_run(probe: Probe, name: str, seed: int, waits: bool, types: str) -> dict:
     """Received and sent counts of one node and one publisher run, and its log's findings."""
     probe.diag.clear()
     node = start(
@@ -59,7 +68,7 @@ def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
         f'__node:={name}',
         '-p',
         'qos_reliability:=reliable',
-        *NODES[name],
+        *node_args(name, *TYPES[types]),
     )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not all(
@@ -74,6 +83,10 @@ def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
         '--rate',
         RATE,
         '--reliable',
+        '--hand-type',
+        TYPES[types][0],
+        '--eye-type',
+        TYPES[types][1],
         *([] if waits else ['--wait-subscribers', '0']),
     )
     out, _ = pub.communicate(timeout=300)
@@ -83,13 +96,44 @@ def one_run(probe: Probe, name: str, seed: int, waits: bool) -> dict:
     return {
         'node': name,
         'waits': waits,
+        'types': types,
         'sent': sent,
         'received': {s: int(probe.stream(s, name).get('received', 0)) for s in sent},
         'traceback': 'Traceback' in log,
         'handovers': log.count('handed over from the type probe'),
         'not earlier': log.count('matched its publisher no earlier'),
+        'confirmed': log.count('as subscribed from the start'),
         'timeouts': log.count('the type probe held none'),
     }
+
+
+def mode_rows(probe: Probe, waits: bool, types: str, n: int, seeds: list[int]) -> list[tuple]:
+    """The table rows of one publisher mode and type set: each node over ``n`` runs."""
+    runs: dict[str, list[dict]] = {name: [] for name in NODES}
+    for k in range(n):
+        seeds.append(100 + k)
+        for name in NODES:
+            r = one_run(probe, name, 100 + k, waits, types)
+            runs[name].append(r)
+            print(json.dumps(r), flush=True)
+    rows = []
+    for name, rs in runs.items():
+        sent = {s: sum(r['sent'][s] for r in rs) for s in ('hand', 'eye')}
+        got = {s: sum(r['received'][s] for r in rs) for s in ('hand', 'eye')}
+        ends = ('confirmed', 'handovers', 'not earlier', 'timeouts')
+        rows.append(
+            (
+                'waits' if waits else 'does not wait',
+                types,
+                name,
+                f'{got["hand"]} / {sent["hand"]}',
+                f'{got["eye"]} / {sent["eye"]}',
+                f'{sum(r["received"] != r["sent"] for r in rs)} / {len(rs)}',
+                ' / '.join(str(sum(r[k] for r in rs)) for k in ends),
+                sum(r['traceback'] for r in rs),
+            )
+        )
+    return rows
 
 
 def main() -> int:
@@ -101,30 +145,8 @@ def main() -> int:
     seeds = []
     try:
         for waits in (True, False):
-            runs: dict[str, list[dict]] = {name: [] for name in NODES}
-            for k in range(args.runs):
-                seeds.append(100 + k)
-                for name in NODES:
-                    r = one_run(probe, name, 100 + k, waits)
-                    runs[name].append(r)
-                    print(json.dumps(r), flush=True)
-            for name, rs in runs.items():
-                sent = {s: sum(r['sent'][s] for r in rs) for s in ('hand', 'eye')}
-                got = {s: sum(r['received'][s] for r in rs) for s in ('hand', 'eye')}
-                rows.append(
-                    (
-                        'waits' if waits else 'does not wait',
-                        name,
-                        f'{got["hand"]} / {sent["hand"]}',
-                        f'{got["eye"]} / {sent["eye"]}',
-                        f'{sum(r["received"] != r["sent"] for r in rs)} / {len(rs)}',
-                        ' / '.join(
-                            str(sum(r[k] for r in rs))
-                            for k in ('handovers', 'not earlier', 'timeouts')
-                        ),
-                        sum(r['traceback'] for r in rs),
-                    )
-                )
+            for types in TYPES:
+                rows += mode_rows(probe, waits, types, args.runs, seeds)
     finally:
         probe.close()
     emit(
@@ -134,11 +156,12 @@ def main() -> int:
             f'200 Hz eye in real time, 6 s, reliable)',
             [
                 'publisher',
+                'types',
                 'node',
                 'hand',
                 'eye',
                 'runs with loss',
-                'probe: handed over / not earlier / timed out',
+                'first sub confirmed / probe handed over / not earlier / timed out',
                 'tracebacks',
             ],
             rows,

@@ -68,10 +68,10 @@ class NodeConfig(Options):
     type_probes: bool = option(
         True,
         'bool',
-        'with hand_type/eye_type auto: receive the first messages before the type is learnt '
-        '(one raw subscription per candidate type, each in a DDS participant of its own, '
-        'until the type is known); false loses what a publisher sends before the node has '
-        'subscribed',
+        'with hand_type/eye_type auto: receive the first messages of a type other than the '
+        'likeliest (hand PoseStamped, eye Odometry, subscribed at start) before the type is '
+        'learnt (raw subscriptions in DDS participants of their own, until the types are '
+        'known); false loses what such a publisher sends before the node has subscribed',
     )
 
 

@@ -612,17 +612,27 @@ def test_unset_stamps_are_named_live(ros: Processes, install: Path, tmp_path: Pa
     assert any('stamped on arrival' in w for w in d['warnings']), d['warnings']
 
 
-def test_auto_types_lose_nothing(ros: Processes, install: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize('types', ['likeliest', 'others'])
+def test_auto_types_lose_nothing(
+    ros: Processes, install: Path, tmp_path: Path, types: str
+) -> None:
     """hand_type/eye_type auto (the default) and a publisher that starts sending as soon as
-    a subscriber has matched, at 1 kHz + 200 Hz: the type probes match it, the node learns the
-    types and subscribes meanwhile, and the handover gives it every message, none twice (the
-    saved counts equal the sent ones). Without the probes the same publisher waits for the
-    node's own subscriptions instead: that case loses nothing either, so it is not a control;
-    bench/auto_types.py measures what a publisher that does not wait loses to typed, probed
-    and unprobed nodes. test_type_probes.py tests the handover itself on every interleaving."""
+    a subscriber has matched, at 1 kHz + 200 Hz; the saved counts must equal the sent ones.
+
+    ``likeliest``: the publisher sends PoseStamped and Odometry, the types the node subscribes
+    at start; the graph confirms them, as for a typed node. ``others``: TransformStamped and
+    PoseWithCovarianceStamped, which the node's first subscriptions cannot match. The
+    publisher starts because the type probes match it, the node's own subscriptions come
+    later, and only the handover gives the node the messages in between: each stream says
+    which of its three ends it had (bench/auto_types.py counts them over many runs).
+    test_type_probes.py tests the handover itself on every interleaving."""
     saved = tmp_path / 'auto.yaml'
     node = _start_node(ros, install, f'output_file:={saved}')
-    sent = ros.run_json(
+    published = {
+        'likeliest': [],
+        'others': ['--hand-type', 'TransformStamped', '--eye-type', 'PoseWithCovarianceStamped'],
+    }
+    pub = ros.run_json(
         _publisher(
             ros,
             '--seed',
@@ -637,25 +647,29 @@ def test_auto_types_lose_nothing(ros: Processes, install: Path, tmp_path: Path) 
             '200',
             '--rate',
             '2000',
+            *published[types],
         ),
         'auto_pub',
-    )['sent']
+    )
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='auto_call')
     assert answer[0]['success'] and answer[1]['success'], answer
     streams = yaml.safe_load(saved.read_text())['streams']
     received = {s: streams[s]['received'] for s in ('hand', 'eye')}
     assert ros.stop(node) == 0
     log = ros.output(node)[1]
-    assert received == sent, (received, sent, log)
-    # each stream's probe either handed over what it received before the node's subscription
-    # matched, or matched no earlier itself (DDS discovery is per participant, and the probes'
-    # may find a new publisher seconds later than the node's: seen in 3 of 20 runs)
-    outcomes = (
-        'handed over from the type probe',
-        'matched its publisher no earlier',
-        'the type probe held none',
-    )
-    assert sum(log.count(o) for o in outcomes) == 2, log
+    assert received == pub['sent'], (received, pub['sent'], log)
+    assert {s: streams[s]['type'] for s in received} == pub['types']
+    if types == 'likeliest':
+        assert log.count('as subscribed from the start') == 2, log
+    else:
+        # the probe handed over what came before the node's subscription matched, or had
+        # nothing to add (its DDS participant found the publisher no earlier than the node's)
+        outcomes = (
+            'handed over from the type probe',
+            'matched its publisher no earlier',
+            'the type probe held none',
+        )
+        assert sum(log.count(o) for o in outcomes) == 2, log
     assert 'Traceback' not in log
 
 

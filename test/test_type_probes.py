@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.ros.type_probes import Handover, candidate_types, message_key
+from handeye_ros.ros.type_probes import Handover, candidate_types, message_key, probe_slots
 from handeye_ros.stream.convert import MULTI_POSE_TYPES, SUPPORTED_TYPES
 
 
@@ -187,3 +187,21 @@ def test_handover_gives_each_message_once_in_order(n: int, data: st.DataObject) 
     got = [m for m, _ in early] + [m for m, _ in held] + own[j:]
     before = [m for m in probe_got if int(m[1:]) < node_from]
     assert got == before + own
+
+
+def test_probe_slots_hold_one_type_of_a_topic_each_and_no_more_than_needed() -> None:
+    """A DDS participant refuses a second type on one topic: the k-th candidates of every
+    topic share the k-th participant, so two topics of three candidates need three."""
+    topics = {'/hand': ['A', 'B', 'C'], '/eye': ['B', 'D'], '/other': []}
+    slots = probe_slots(topics)
+    assert slots == [
+        [('/hand', 'A'), ('/eye', 'B')],
+        [('/hand', 'B'), ('/eye', 'D')],
+        [('/hand', 'C')],
+    ]
+    for pairs in slots:
+        names = [t for t, _ in pairs]
+        assert len(names) == len(set(names))
+    assert sorted(p for pairs in slots for p in pairs) == sorted(
+        (t, m) for t, ms in topics.items() for m in ms
+    )

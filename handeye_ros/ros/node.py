@@ -22,9 +22,10 @@ and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latch
 messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
 (the result they come from and when). Status goes to /diagnostics.
 
-Auto-typed topics (``hand_type: auto``) are subscribed once the graph names their publisher's
-type; until then :mod:`.type_probes` receives them, and hands the node what came before its
-own subscription matched.
+Auto-typed topics (``hand_type: auto``) are subscribed at once with their likeliest type
+(:data:`.type_probes.LIKELY_TYPES`), which the graph then confirms or replaces; the other
+candidate types are held by :mod:`.type_probes`, which hands the node what came before its own
+subscription matched.
 
 The parameters (declared from the option specs, changed at run time, misspelt names said) are
 in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
@@ -73,6 +74,7 @@ from .lifecycle import spin, stop_requested
 from .type_probes import (
     HANDOVER_LIMIT_S,
     HANDOVER_TIMEOUT_S,
+    LIKELY_TYPES,
     Handover,
     TypeProbes,
     candidate_types,
@@ -132,15 +134,20 @@ class CalibratorNode(Node):
         self._closing = False
 
         self._check_topics()
+        #: auto-typed streams subscribed with their likeliest type, not yet confirmed by the
+        #: graph (a wrong guess matches no publisher, and gives way to the graph's type)
+        self._guessed: set[str] = set()
         for stream in STREAMS:
             declared = getattr(self.stream_cfg, f'{stream}_type')
             if declared != 'auto':
                 self._subscribe(stream, normalise_type(declared))
+            elif self.recorder.selectors[stream].item is None:
+                self._subscribe(stream, LIKELY_TYPES[stream], guess=True)
         #: streams switching from their type probe to their own subscription
         self._handovers: dict[str, Handover] = {}
         self._probes: TypeProbes | None = None
         self._graph_timer = None
-        if len(self._subs) < len(STREAMS):
+        if len(self._subs) < len(STREAMS) or self._guessed:
             self._graph_timer = self.create_timer(0.2, self._discover_types)
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
@@ -212,23 +219,31 @@ class CalibratorNode(Node):
             durability=DurabilityPolicy.VOLATILE,
         )
 
+    def _unknown(self) -> list[str]:
+        """The auto-typed streams whose type the graph has not named yet."""
+        return [s for s in STREAMS if s not in self._subs or s in self._guessed]
+
     def _start_probes(self) -> TypeProbes | None:
-        """Raw subscriptions for every candidate type of the auto-typed topics, so that their
-        first messages are not lost while the type is learnt (see :mod:`.type_probes`)."""
-        auto = [s for s in STREAMS if s not in self._subs]
+        """Raw subscriptions for every other candidate type of the auto-typed topics, so that
+        their first messages are not lost while the type is learnt (see :mod:`.type_probes`)."""
+        auto = self._unknown()
         if not auto or not self.node_cfg.type_probes:
             return None
         topics = {}
         for stream in auto:
             sel = self.recorder.selectors[stream]
             topic = self.resolve_topic_name(sel.topic)
-            topics[topic] = candidate_types(sel.item is not None, self._types.__getitem__)
+            types = candidate_types(sel.item is not None, self._types.__getitem__)
+            topics[topic] = [
+                t for t in types if stream not in self._guessed or t != LIKELY_TYPES[stream]
+            ]
         return TypeProbes(topics, self._types.__getitem__, self._pose_qos(), self.get_clock())
 
-    def _subscribe(self, stream: str, msgtype: str) -> None:
+    def _subscribe(self, stream: str, msgtype: str, guess: bool = False) -> None:
         """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
-        tf2's static broadcasters latch) once its type is known; raises ConfigError when
-        the type does not fit the selector or its Python package cannot be imported."""
+        tf2's static broadcasters latch) once its type is known, or with its likeliest type
+        (``guess``) until the graph says; raises ConfigError when the type does not fit the
+        selector or its Python package cannot be imported."""
         self.recorder.set_type(stream, msgtype)
         cls = message_class(msgtype)
         sel = self.recorder.selectors[stream]
@@ -258,7 +273,14 @@ class CalibratorNode(Node):
                 lambda msg, s=stream: self._on_pose(s, msg, True),
                 static_qos,
             )
-        self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
+        if guess:
+            self._guessed.add(stream)
+            self.get_logger().info(
+                f'{stream}: subscribed to {sel.text} as {msgtype}, its likeliest type, until '
+                'its publisher says which it has'
+            )
+        else:
+            self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
 
     def _on_incompatible_qos(self, stream: str, event: Any) -> None:
         """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
@@ -293,19 +315,22 @@ class CalibratorNode(Node):
         now = time.monotonic()
         for stream in list(self._handovers):
             self._settle(stream, now)
-        for stream in STREAMS:
-            if stream in self._subs:
-                continue
+        for stream in self._unknown():
             topic = self.recorder.selectors[stream].topic
             types = self._publisher_types(topic)
-            usable = []
-            for t in types:
+            usable = _pose_types(types)
+            guess = self.recorder.types[stream] if stream in self._guessed else None
+            if usable == [guess]:
+                self._guessed.discard(stream)
+                self.get_logger().info(
+                    f'{stream}: {topic} is {guess}, as subscribed from the start'
+                )
+            elif len(usable) == 1:
                 try:
-                    usable.append(normalise_type(t))
-                except UnsupportedTypeError:
-                    pass
-            if len(usable) == 1:
-                try:
+                    if guess is not None:
+                        # a wrong guess gives way: one participant holds one type of a topic
+                        self.destroy_subscription(self._subs.pop(stream))
+                        self._guessed.discard(stream)
                     self._subscribe(stream, usable[0])
                     if stream not in self._handovers:
                         self.get_logger().info(
@@ -328,10 +353,12 @@ class CalibratorNode(Node):
                     )
                 elif usable:
                     why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
+                    if guess in usable:
+                        why += f'; meanwhile the {guess} one is received'
                 else:
                     why = 'has no publisher yet'
                 self.get_logger().warning(f'{stream} topic {topic} {why}')
-        if len(self._subs) == len(STREAMS) and not self._handovers:
+        if not self._unknown() and not self._handovers:
             if self._probes is not None:
                 self._probes.close()
                 self._probes = None
@@ -402,26 +429,35 @@ class CalibratorNode(Node):
     # ------------------------------------------------------------------ services
 
     def _why_no_data(self) -> str | None:
+        unknown = self._unknown()
         for stream in STREAMS:
-            if stream in self._subs and len(self.recorder.buffers[stream]) < 2:
+            empty = len(self.recorder.buffers[stream]) < 2
+            if stream in self._subs and stream not in unknown and empty:
                 # the graph now, or what the QoS event said of a publisher since gone
                 why = self._qos_mismatch(stream) or self._qos_problems.get(stream)
                 if why is not None:
                     return why
             if stream in self._sub_errors and stream not in self._subs:
                 return f'{stream}: {self._sub_errors[stream]}'
-            if stream not in self._subs:
+            if stream in unknown and empty:
                 topic = self.recorder.selectors[stream].topic
                 types = self._publisher_types(topic)
-                if types:
+                usable = _pose_types(types)
+                if len(usable) > 1:
+                    return (
+                        f'{stream} topic {topic} has several pose types ({", ".join(usable)}): '
+                        f'set {stream}_type'
+                    )
+                if types and not usable:
                     return (
                         f'{stream} topic {topic} has type {", ".join(types)}, which carries '
                         f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})'
                     )
-                return (
-                    f'{stream} topic {topic} has no publisher yet: check {stream}_topic, or '
-                    f'set {stream}_type to subscribe before one appears'
-                )
+                if not types:
+                    return (
+                        f'{stream} topic {topic} has no publisher yet: check {stream}_topic, '
+                        f'or set {stream}_type to subscribe before one appears'
+                    )
         return None
 
     def _start_worker(self) -> Future | None:
@@ -616,13 +652,25 @@ class CalibratorNode(Node):
         name = self.get_fully_qualified_name()
         for stream, s in self.recorder.stats().items():
             topic = getattr(self.stream_cfg, f'{stream}_topic')
-            arr.status.append(
-                diagnostics.stream_status(name, stream, s, topic, self.recorder.types[stream])
-            )
+            msgtype = self.recorder.types[stream]
+            if stream in self._guessed:
+                msgtype += ' (likeliest; not yet seen on the graph)'
+            arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype))
         arr.status.append(
             diagnostics.result_status(name, self._last_result, self._last_when, self._last_error)
         )
         self.pub_diag.publish(arr)
+
+
+def _pose_types(types: list[str]) -> list[str]:
+    """Those of a topic's types this node reads poses from, normalised."""
+    usable = []
+    for t in types:
+        try:
+            usable.append(normalise_type(t))
+        except UnsupportedTypeError:
+            pass
+    return usable
 
 
 def _staged_dir(session: SessionResult | None) -> str | None:

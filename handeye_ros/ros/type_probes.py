@@ -1,16 +1,20 @@
 """The first messages of an auto-typed stream, received before its type is known.
 
 With ``hand_type: auto`` (or ``eye_type``) the node learns a topic's type from its publisher in
-the graph and subscribes then. A subscription receives a publisher's messages only once the two
-have matched, which takes a discovery handshake. A publisher that sends as soon as it appears
-(``ros2 bag play``, a MoCap driver started after the node) therefore lost its first messages to
-the node: the graph poll, the new subscription and the match take a fraction of a second, which
-is hundreds of poses at 1 kHz.
+the graph. A subscription receives a publisher's messages only once the two have matched, which
+takes a discovery handshake. A publisher that sends as soon as it appears (``ros2 bag play``, a
+MoCap driver started after the node) would therefore lose its first messages to a node that
+subscribes only once it knows the type: the graph poll, the new subscription and the match
+take a fraction of a second, which is hundreds of poses at 1 kHz.
 
-rclpy cannot subscribe to a topic before it knows the type, and one DDS participant refuses a
-second subscription of another type on the same topic. So :class:`TypeProbes` gives every
-candidate type its own rclpy context (its own participant) with a *raw* subscription (the
-serialised bytes, never deserialised there) on every auto-typed topic, spun by its own thread.
+Two things keep them. First, the node subscribes the stream's likeliest type at once, in its
+own participant (:data:`LIKELY_TYPES`: a MoCap pose as PoseStamped, a VIO as Odometry), exactly
+as a typed node does; the graph then confirms the guess or names another type, and the guess
+gives way. Second, for the other candidate types, rclpy cannot subscribe to a topic before it
+knows the type, and one DDS participant refuses a second subscription of another type on the
+same topic. So :class:`TypeProbes` holds *raw* subscriptions (the serialised bytes, never
+deserialised there) in contexts of their own (one DDS participant each, as few as the topic
+with the most candidates needs), each spun by its own thread.
 The probe of the right type matches the publisher as a typed subscription made at the start
 would, when its participant discovers the publisher's; discovery is per participant, and with
 unicast discovery (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) a probe's was seen to find a new
@@ -47,6 +51,24 @@ HANDOVER_TIMEOUT_S = 2.0
 HANDOVER_LIMIT_S = 10.0
 #: Seconds a probe's thread waits for messages before it looks at its stop flag again.
 SPIN_WAIT_S = 0.05
+
+
+#: The type a stream's plain pose topic most likely has, subscribed before the graph says
+#: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
+LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
+
+
+def probe_slots(topics: dict[str, Iterable[str]]) -> list[list[tuple[str, str]]]:
+    """The (topic, type) subscriptions of each probe participant: the k-th candidate type of
+    every topic in the k-th, so that no participant holds two types of one topic and there
+    are as few participants as the longest candidate list."""
+    slots: list[list[tuple[str, str]]] = []
+    for topic, types in topics.items():
+        for k, msgtype in enumerate(types):
+            if k == len(slots):
+                slots.append([])
+            slots[k].append((topic, msgtype))
+    return slots
 
 
 def candidate_types(selects_item: bool, classes: Callable[[str], Any]) -> list[str]:
@@ -164,9 +186,10 @@ class TypeProbes:
     """One raw subscription per (auto-typed topic, candidate type), each type in a context of
     its own, spun by a thread of its own; see the module docstring.
 
-    ``topics``: fully qualified topic -> candidate 'pkg/msg/Name' types; ``classes``: the rclpy
-    class of a type; ``qos``: the profile of the node's own subscriptions (its depth is
-    raised); ``clock``: the node's clock, for arrival stamps."""
+    ``topics``: fully qualified topic -> candidate 'pkg/msg/Name' types (:func:`probe_slots`
+    groups them into participants); ``classes``: the rclpy class of a type; ``qos``: the
+    profile of the node's own subscriptions (its depth is raised); ``clock``: the node's
+    clock, for arrival stamps."""
 
     def __init__(
         self,
@@ -181,10 +204,6 @@ class TypeProbes:
         self._runs: list[tuple[Any, Any, Any, threading.Thread]] = []
         self._stop = threading.Event()
         self._clock = clock
-        by_type: dict[str, list[str]] = {}
-        for topic, types in topics.items():
-            for t in types:
-                by_type.setdefault(t, []).append(topic)
         # deeper than the node's: a probe's thread shares the GIL with the node's executor
         probe_qos = QoSProfile(
             history=qos.history,
@@ -193,14 +212,16 @@ class TypeProbes:
             durability=qos.durability,
         )
         try:
-            for k, (msgtype, names) in enumerate(sorted(by_type.items())):
-                self._start(k, names, classes(msgtype), msgtype, probe_qos)
+            for k, pairs in enumerate(probe_slots(topics)):
+                self._start(k, pairs, classes, probe_qos)
         except BaseException:
             self.close()  # a signal during the start: no context or thread left behind
             raise
 
-    def _start(self, k: int, topics: list[str], cls: Any, msgtype: str, qos: Any) -> None:
-        """One candidate type's context, node, raw subscriptions and spinning thread."""
+    def _start(
+        self, k: int, pairs: list[tuple[str, str]], classes: Callable[[str], Any], qos: Any
+    ) -> None:
+        """One probe participant's context, node, raw subscriptions and spinning thread."""
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
@@ -219,10 +240,10 @@ class TypeProbes:
             target=self._spin, args=(executor, context), name=f'type-probe-{k}', daemon=True
         )
         self._runs.append((context, executor, node, thread))
-        for topic in topics:
+        for topic, msgtype in pairs:
             ring = self.early[topic, msgtype] = deque(maxlen=PROBE_DEPTH)
             node.create_subscription(
-                cls, topic, lambda raw, r=ring: self._received(r, raw), qos, raw=True
+                classes(msgtype), topic, lambda raw, r=ring: self._received(r, raw), qos, raw=True
             )
         executor.add_node(node)
         thread.start()

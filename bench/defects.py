@@ -103,23 +103,16 @@ class Stream:
         decimals = 0 if self.fmt == 'euroc' else self.stamp_decimals
         stamps = stamp_text(self.t_ns, self.unit, decimals)
         dp, dq = self.value_decimals
-        if self.fmt == 'tum':
-            qc = quat_columns(self.q, self.order)
-            lines = ['# timestamp tx ty tz qx qy qz qw']
-            lines += [
-                f'{s} {p[0]:.{dp}f} {p[1]:.{dp}f} {p[2]:.{dp}f} '
-                f'{q[0]:.{dq}f} {q[1]:.{dq}f} {q[2]:.{dq}f} {q[3]:.{dq}f}'
-                for s, p, q in zip(stamps, self.p, qc, strict=True)
-            ]
-        else:
-            # EuRoC's columns are q_w, q_x, q_y, q_z: 'wxyz' is right, 'xyzw' the mistake
-            qc = quat_columns(self.q, self.order)
-            lines = ['#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []']
-            lines += [
-                f'{s},{p[0]:.{dp}f},{p[1]:.{dp}f},{p[2]:.{dp}f},'
-                f'{q[0]:.{dq}f},{q[1]:.{dq}f},{q[2]:.{dq}f},{q[3]:.{dq}f}'
-                for s, p, q in zip(stamps, self.p, qc, strict=True)
-            ]
+        # EuRoC's columns are q_w, q_x, q_y, q_z: 'wxyz' is right there, 'xyzw' the mistake
+        qc = quat_columns(self.q, self.order)
+        sep, header = {
+            'tum': (' ', '# timestamp tx ty tz qx qy qz qw'),
+            'euroc': (',', '#timestamp [ns],p_x [m],p_y [m],p_z [m],q_w [],q_x [],q_y [],q_z []'),
+        }[self.fmt]
+        lines = [header] + [
+            sep.join([s, *(f'{v:.{dp}f}' for v in p), *(f'{v:.{dq}f}' for v in q)])
+            for s, p, q in zip(stamps, self.p, qc, strict=True)
+        ]
         path.write_text('\n'.join(lines) + '\n')
 
 

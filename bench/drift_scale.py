@@ -91,8 +91,7 @@ def drift_rows(cases, calibrate) -> list[list]:
                 e0.translation_m * 1e3,
                 e0.rotation_deg,
                 'yes' if named else 'no',
-                res.quality.verdict
-                + ('' if not res.quality.codes else ' (' + ','.join(res.quality.codes) + ')'),
+                res.quality.label(','),
                 f'{secs:.1f}',
             ]
         )
@@ -153,8 +152,7 @@ def scale_rows(cases, calibrate) -> list[list]:
                 sim3 if sim3 is not None else float('nan'),
                 e.translation_m * 1e3,
                 e.rotation_deg,
-                res.quality.verdict
-                + ('' if not res.quality.codes else ' (' + ','.join(res.quality.codes) + ')'),
+                res.quality.label(','),
                 f'{secs:.1f}',
             ]
         )

@@ -84,13 +84,7 @@ class Options:
             msg = f'{source}: expected a mapping of option names to values'
             raise ConfigError(msg)
         specs = cls.specs()
-        unknown = sorted(set(values) - set(specs))
-        if unknown:
-            msg = (
-                f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
-                f'{", ".join(specs)}'
-            )
-            raise ConfigError(msg)
+        _refuse_unknown(values, list(specs), source)
         clean = {k: _coerce(k, v, specs[k], source) for k, v in values.items()}
         try:
             return replace(cls(), **clean)  # type: ignore[call-arg]
@@ -100,6 +94,18 @@ class Options:
     def to_dict(self) -> dict[str, Any]:
         """Plain values, the inverse of :meth:`from_mapping`."""
         return asdict(self)  # type: ignore[call-overload]
+
+
+def _refuse_unknown(values: dict[str, Any], known: list[str], source: str) -> None:
+    """ConfigError naming the keys of ``values`` not in ``known``: a typo must not silently
+    fall back to a default."""
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        msg = (
+            f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
+            f'{", ".join(known)}'
+        )
+        raise ConfigError(msg)
 
 
 def _coerce(key: str, value: Any, spec: Spec, source: str) -> Any:
@@ -146,14 +152,7 @@ def split_options(
     """One flat mapping (a params file, node parameters, command-line options) as one instance
     of each option set in ``classes``; a key none of them knows is refused, naming ``source``.
     """
-    known = [name for cls in classes for name in cls.specs()]
-    unknown = sorted(set(values) - set(known))
-    if unknown:
-        msg = (
-            f'{source}: unknown option(s) {", ".join(unknown)}; known options are '
-            f'{", ".join(known)}'
-        )
-        raise ConfigError(msg)
+    _refuse_unknown(values, [name for cls in classes for name in cls.specs()], source)
     return tuple(
         cls.from_mapping({k: v for k, v in values.items() if k in cls.specs()}, source)
         for cls in classes

@@ -113,6 +113,10 @@ class Quality:
     def codes(self) -> tuple[str, ...]:
         return tuple(r.code for r in self.reasons)
 
+    def label(self, sep: str = ', ') -> str:
+        """The verdict and its reason codes, e.g. ``doubtful (residuals_correlated)``."""
+        return self.verdict + (f' ({sep.join(self.codes)})' if self.reasons else '')
+
     def to_dict(self) -> dict:
         return {
             'verdict': self.verdict,

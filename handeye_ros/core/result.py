@@ -150,14 +150,13 @@ class CalibrationResult:
                 f' (1-sigma {s[0] * 1e3:.2f} ms, {np.linalg.norm(s[1:4]) * 1e3:.1f} mm, '
                 f'{np.degrees(np.linalg.norm(s[4:7])):.2f} deg)'
             )
-        why = (' (' + ', '.join(self.quality.codes) + ')') if self.quality.reasons else ''
         extra = ''
         if self.clock_drift is not None:
             extra += f'; clock drift {self.clock_drift * 1e6:+.2f} ppm'
         if self.scale is not None:
             extra += f'; scale {self.scale:.4f}'
         return (
-            f'{self.quality.verdict}{why}: '
+            f'{self.quality.label()}: '
             f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
             f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
             f'peak correlation {self.time_alignment.peak_correlation:.3f}; '

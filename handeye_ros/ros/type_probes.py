@@ -41,7 +41,7 @@ from ..core.errors import ConfigError
 from ..stream.convert import MULTI_POSE_TYPES, SUPPORTED_TYPES
 
 #: Messages a probe keeps per topic and type (the newest; at 1 kHz, 20 s: the node subscribes
-#: within a graph poll, 0.2 s, of the type appearing).
+#: within a graph poll, GRAPH_POLL_S in the node, of the type appearing).
 PROBE_DEPTH = 20_000
 #: Seconds the node's own messages wait for the probe to show where they start while the probe
 #: receives nothing new, before the handover gives up (and says so): a probe that still

@@ -114,7 +114,7 @@ class Quality:
         return tuple(r.code for r in self.reasons)
 
     def label(self, sep: str = ', ') -> str:
-        """The verdict and its reason codes, e.g. ``doubtful (residuals_correlated)``."""
+        """The verdict and its reason codes, e.g. ``doubtful (ambiguous_offset)``."""
         return self.verdict + (f' ({sep.join(self.codes)})' if self.reasons else '')
 
     def to_dict(self) -> dict:

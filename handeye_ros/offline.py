@@ -90,11 +90,11 @@ def build_parser() -> argparse.ArgumentParser:
     for stream in ('hand', 'eye'):
         io.add_argument(
             f'--{stream}-stamp-unit',
-            choices=('auto', 's', 'ms', 'us', 'ns'),
+            choices=('auto', 'Gs', 's', 'ms', 'us', 'ns'),
             default='auto',
             help=f"unit of the {stream} file's stamps (default: "
             "the format's, seconds for TUM, nanoseconds for EuRoC; a unit the "
-            'data contradict is detected and named)',
+            'data contradict is detected and named; Gs: units of 1e9 s)',
         )
         io.add_argument(
             f'--{stream}-quaternion-order',

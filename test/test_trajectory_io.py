@@ -173,6 +173,33 @@ def test_repeated_stamps_keep_the_last_row_with_a_note(tmp_path: Path) -> None:
             None,
         ),
         ('1000 0 0 0 0 0 0 1\n1005 0 0 0 0 0 0 1\n', 'us', 1_000_000, None),
+        # Unix seconds divided by 1e9 in exponent form (TUM-VI room1 as published): every digit
+        # kept, the 18 fractional ones included (the bulk reader's plain-decimal layout too)
+        (
+            ''.join(f'1.52053030{k}199447678e+00 0 0 0 0 0 0 1\n' for k in range(3)),
+            'auto',
+            1_520_530_300_199_447_678,
+            'read as units of 1e9 s',
+        ),
+        (
+            ''.join(f'1.52053030{k}199447678 0 0 0 0 0 0 1\n' for k in range(3)),
+            'auto',
+            1_520_530_300_199_447_678,
+            'read as units of 1e9 s',
+        ),
+        (
+            '1.520530300199447678 0 0 0 0 0 0 1\n2.6 0 0 0 0 0 0 1\n',
+            'Gs',
+            1_520_530_300_199_447_678,
+            None,
+        ),
+        # a recording that starts near 1 s in seconds is seconds (its rate is plausible)
+        (
+            '1.5 0 0 0 0 0 0 1\n1.55 0 0 0 0 0 0 1\n1.6 0 0 0 0 0 0 1\n',
+            'auto',
+            1_500_000_000,
+            None,
+        ),
     ],
 )
 def test_stamp_units(tmp_path: Path, text: str, unit: str, ns: int, note: str | None) -> None:

@@ -38,13 +38,16 @@ class SplitStamps:
     """Decimal stamps split exactly: ``[-]whole.fraction`` in the file's unit.
 
     whole: (N,) int64; frac9: (N,) int64, the first nine fractional digits as billionths;
-    fractional: (N,) bool, any non-zero fractional digit; neg: (N,) bool, a minus sign.
+    fractional: (N,) bool, any non-zero fractional digit; neg: (N,) bool, a minus sign;
+    frac18: (N,) int64, the next nine fractional digits (billionths of a billionth), which
+    only a unit coarser than the second needs (stamps written in units of 1e9 s).
     """
 
     whole: np.ndarray
     frac9: np.ndarray
     fractional: np.ndarray
     neg: np.ndarray
+    frac18: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,7 @@ def split_stamps(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> Split
         np.zeros(starts.size, np.int64),
         np.zeros(starts.size, bool),
         np.zeros(starts.size, bool),
+        np.zeros(starts.size, np.int64),
     )
     todo = np.arange(starts.size)
     for _ in range(MAX_LAYOUTS):
@@ -149,18 +153,20 @@ def _read_layout(
     ]
     if not parts:
         return fits
-    ok, whole, frac9, fractional, neg = (np.concatenate(p) for p in zip(*parts, strict=True))
+    ok, whole, frac9, fractional, neg, frac18 = (
+        np.concatenate(p) for p in zip(*parts, strict=True)
+    )
     fits[fits] = ok
     mine = rows[fits]
     out.whole[mine], out.frac9[mine], out.fractional[mine] = whole[ok], frac9[ok], fractional[ok]
-    out.neg[mine] = neg[ok]
+    out.neg[mine], out.frac18[mine] = neg[ok], frac18[ok]
     return fits
 
 
 def _layout_block(
     buf: np.ndarray, at: np.ndarray, sign: int, dot: int, length: int
 ) -> tuple[np.ndarray, ...]:
-    """(fits, whole, frac9, fractional, neg) of the stamps starting at ``at`` read with one
+    """(fits, whole, frac9, fractional, neg, frac18) of the stamps starting at ``at`` read with one
     layout: a block of lines at a time, so that every column is read from cache."""
     chars = buf[at[:, None] + np.arange(length + 1)]
     ok = np.isin(chars[:, length], _TOKEN_END)
@@ -168,6 +174,7 @@ def _layout_block(
         ok &= np.isin(chars[:, 0], (_PLUS, _MINUS))
     whole = np.zeros(at.size, np.int64)
     frac9 = np.zeros(at.size, np.int64)
+    frac18 = np.zeros(at.size, np.int64)
     fractional = np.zeros(at.size, bool)
     for w in range(sign, length):
         c = chars[:, w]
@@ -182,9 +189,11 @@ def _layout_block(
             k = w - dot - 1
             if k < 9:
                 frac9 += digit * _POW10[8 - k]
+            elif k < 18:
+                frac18 += digit * _POW10[17 - k]
             fractional |= digit != 0
     neg = chars[:, 0] == _MINUS if sign else np.zeros(at.size, bool)
-    return ok, whole, frac9, fractional, neg
+    return ok, whole, frac9, fractional, neg, frac18
 
 
 def read_bulk(path: Path, data: bytes, fmt_of_first_row) -> tuple[str, BulkTable] | None:

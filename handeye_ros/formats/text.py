@@ -36,8 +36,13 @@ from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 from .bulk import SplitStamps, read_bulk
 
 FORMATS = ('auto', 'tum', 'euroc')
-#: Stamp units a file may use: nanoseconds per unit.
-STAMP_UNITS = {'s': 10**9, 'ms': 10**6, 'us': 10**3, 'ns': 1}
+#: Stamp units a file may use: nanoseconds per unit. 'Gs' is 1e9 s: Unix seconds divided by
+#: 1e9, as some comparisons publish them (TUM-VI room1 estimates: ``1.520530308199e+00``).
+STAMP_UNITS = {'Gs': 10**18, 's': 10**9, 'ms': 10**6, 'us': 10**3, 'ns': 1}
+#: A TUM stream read in seconds with stamps closer than this (s) cannot be a pose stream (a
+#: MHz rate); when its stamps read as 1e9 s are Unix times of these years, that is the unit.
+DENSEST_PERIOD_S = 1e-6
+UNIX_YEARS_S = (9.46e8, 4.1e9)  # 2000 to 2099
 QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
 #: Integer TUM stamps above this are nanoseconds (1e14 s would be three million years).
 NANOSECOND_STAMP_THRESHOLD = 10**14
@@ -311,6 +316,13 @@ def parse_stamps(
             and not neg.any()
         ):
             unit = 'ns'
+        if fmt == 'tum' and _in_gigaseconds(split):
+            unit = 'Gs'
+            notes.append(
+                f'{path}: the stamps ({typical}.{split.frac9[split.frac9.size // 2]:09d}...) '
+                'are Unix seconds divided by 1e9 (as seconds they would be a pose every '
+                'few picoseconds); read as units of 1e9 s'
+            )
         if fmt == 'euroc' and fractional.mean() > 0.5:  # a fraction of a ns means nothing
             unit = 's'
             notes.append(
@@ -326,10 +338,24 @@ def parse_stamps(
             unit = fits[0]
     scale = STAMP_UNITS[unit]
     ok = whole <= INT64_MAX // scale
-    digits = 9 - {'s': 0, 'ms': 3, 'us': 6, 'ns': 9}[unit]  # fractional digits that are >= 1 ns
-    frac_ns = split.frac9 // 10 ** (9 - digits)  # billionths of the unit to ns
+    # billionths of the unit to ns (truncated below 1 ns); a unit above the second also takes
+    # the next nine digits
+    if scale > 10**9:
+        frac_ns = split.frac9 * np.int64(scale // 10**9) + split.frac18 // (10**18 // scale)
+    else:
+        frac_ns = split.frac9 // np.int64(10**9 // scale)
     ns = np.where(ok, whole, 0) * np.int64(scale) + np.where(ok, frac_ns, 0)
     return np.where(neg, -ns, ns), notes, ok
+
+
+def _in_gigaseconds(split: SplitStamps) -> bool:
+    """Whether stamps read as seconds are a MHz stream that as units of 1e9 s are Unix times."""
+    if split.whole.size < 3 or split.neg.any() or split.whole.max() > 9:
+        return False
+    as_s = split.whole * np.int64(10**9) + split.frac9
+    step_s = float(np.median(np.diff(as_s))) * 1e-9
+    typical_s = float(np.median(split.whole + split.frac9 * 1e-9)) * 1e9
+    return 0.0 <= step_s < DENSEST_PERIOD_S and UNIX_YEARS_S[0] <= typical_s <= UNIX_YEARS_S[1]
 
 
 def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'ns') -> None:
@@ -344,10 +370,15 @@ def _too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'n
 
 def _split_of(whole: np.ndarray, frac: np.ndarray, neg: np.ndarray) -> SplitStamps:
     """SplitStamps of whole parts, fractional digit strings and signs."""
-    frac = frac.astype(str)
-    nine = np.char.ljust(frac, 9, '0').astype('U9')  # billionths of the unit
+    frac = np.char.ljust(frac.astype(str), 18, '0')
+    nine = frac.astype('U9')  # billionths of the unit
+    rest = np.array([f[9:18] for f in frac.tolist()], dtype='U9')
     return SplitStamps(
-        whole, nine.astype(np.int64), np.char.str_len(np.char.rstrip(frac, '0')) > 0, neg
+        whole,
+        nine.astype(np.int64),
+        np.char.str_len(np.char.rstrip(frac, '0')) > 0,
+        neg,
+        rest.astype(np.int64),
     )
 
 

@@ -28,6 +28,7 @@ The noise of each stream is estimated from its own residuals unless given.
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass, field, replace
 
@@ -61,9 +62,9 @@ FIRST_PASS_CHUNKS = 4
 #: Fewest MoCap poses per knot interval the joint solve accepts: with fewer, the control poses
 #: outnumber what the MoCap determines and its normal matrix is singular.
 MIN_HAND_POSES_PER_KNOT_JOINT = 2.0
-#: The longest gap-free part of the MoCap is used when it covers at least this fraction of the
-#: eye poses the whole MoCap covers.
-MIN_PIECE_COVERAGE = 0.5
+#: A gap-free part of the MoCap gets a spline of its own when it spans at least this many knot
+#: intervals (0.3 s at the default 0.05 s): DT_MARGIN_S at each end leaves eye pairs inside.
+MIN_PIECE_KNOTS = 6
 
 
 @dataclass(frozen=True)
@@ -188,7 +189,8 @@ def refine(
     Raises
     ------
     BatchError
-        When the input cannot support the stage (overlap too short, gaps in the hand stream).
+        When the input cannot support the stage (overlap too short, no gap-free part of the
+        hand long enough for a spline).
     """
     t_start = time.perf_counter()
     if joint and (drift_stamp_ns is not None or scale):
@@ -196,10 +198,10 @@ def refine(
             'the joint solve (batch_joint) does not estimate a clock drift or a '
             'scale; leave batch_joint off to estimate them'
         )
-    hand, piece_note = _continuous_piece(hand, eye, time_offset_s, knot_spacing, order)
-    _check_hand_stream(hand, knot_spacing, order, joint)
+    hand, pieces, piece_note = _hand_pieces(hand, eye, time_offset_s, knot_spacing, order)
+    _check_hand_rate(hand, knot_spacing, joint)
     prob = BatchProblem(
-        hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order, drift_stamp_ns, scale
+        hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order, drift_stamp_ns, scale, pieces
     )
     layout = ParameterLayout.of(prob, fix_time_offset)
     # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
@@ -459,48 +461,67 @@ def _bridged_s(hand: Trajectory, knot_spacing: float, order: int) -> float:
     return max(knot_spacing * (order - 1), hand.gap_limit_s())
 
 
-def _continuous_piece(
+def _hand_pieces(
     hand: Trajectory, eye: Trajectory, time_offset_s: float, knot_spacing: float, order: int
-) -> tuple[Trajectory, str]:
-    """The hand itself when it has no gap the spline cannot bridge; otherwise its gap-free part
-    that covers the most eye poses, with a note, when that part covers at least
-    MIN_PIECE_COVERAGE of them (a spline cannot bridge a gap, and eye residuals near one would
-    compare the VIO with an invented motion). Raises BatchError otherwise."""
+) -> tuple[Trajectory, list[tuple[int, int]], str]:
+    """The hand split at every gap the spline cannot bridge (:func:`_bridged_s`), as (the hand
+    without the parts too short for a spline of their own, the index ranges of the parts kept,
+    a note saying what was used). A spline cannot bridge a gap, and eye residuals across one
+    would compare the VIO with an invented motion; each gap-free part of at least
+    MIN_PIECE_KNOTS knot intervals gets a spline of its own instead, and the shared parameters
+    are solved on the eye pairs inside them. Raises BatchError, naming the parts and their
+    lengths, when no part is long enough."""
     step = np.diff(hand.t_ns) * 1e-9
     cuts = np.flatnonzero(step > _bridged_s(hand, knot_spacing, order))
     if not cuts.size:
-        return hand, ''
+        return hand, [(0, len(hand))], ''
     starts = np.concatenate(([0], cuts + 1))
     ends = np.concatenate((cuts + 1, [len(hand)]))
-    te = eye.t_ns - np.int64(round(time_offset_s * 1e9))
-    covered = [
-        int(np.sum((te >= hand.t_ns[a]) & (te <= hand.t_ns[b - 1])))
-        for a, b in zip(starts, ends, strict=True)
-    ]
-    total = int(np.sum((te >= hand.t_ns[0]) & (te <= hand.t_ns[-1])))
-    best = int(np.argmax(covered))
+    length = (hand.t_ns[ends - 1] - hand.t_ns[starts]) * 1e-9
+    shortest = MIN_PIECE_KNOTS * knot_spacing
+    usable = (length >= shortest) & (ends - starts > order)
     k = int(cuts[np.argmax(step[cuts])])
-    if covered[best] < MIN_PIECE_COVERAGE * max(total, 1):
-        raise BatchError(
-            f'{hand.name} has a gap of {step[k]:.3f} s (after pose {k}) and no '
-            'part without one covers half of the eye: the spline (knots every '
-            f'{knot_spacing:g} s) cannot bridge a gap; the batch stage needs a '
-            'continuous hand stream (or a larger knot_spacing)'
-        )
-    a, b = int(starts[best]), int(ends[best])
-    origin = int(hand.t_ns[0])
-    first, last = (hand.t_ns[a] - origin) * 1e-9, (hand.t_ns[b - 1] - origin) * 1e-9
-    note = (
-        f'{hand.name} has {cuts.size} gap(s) the spline cannot bridge (the longest '
-        f'{step[k]:.3f} s); the batch stage used its part from {first:.1f} to {last:.1f} s, '
-        f'which covers {covered[best]} of the {total} eye poses'
+    gaps = (
+        f'{hand.name} has {cuts.size} gap(s) the spline (knots every {knot_spacing:g} s) '
+        f'cannot bridge (the longest {step[k]:.3f} s, after pose {k})'
     )
-    return hand.select(slice(a, b)), note
+    if not usable.any():
+        raise BatchError(
+            f'{gaps}, and none of its {starts.size} gap-free parts is long enough for a '
+            f'spline of its own ({shortest:g} s): they last {_lengths(length)}'
+        )
+    te = eye.t_ns - np.int64(round(time_offset_s * 1e9))
+    covered = sum(
+        int(np.sum((te >= hand.t_ns[a]) & (te <= hand.t_ns[b - 1])))
+        for a, b in zip(starts[usable], ends[usable], strict=True)
+    )
+    total = int(np.sum((te >= hand.t_ns[0]) & (te <= hand.t_ns[-1])))
+    note = (
+        f'{gaps}: the batch stage fitted one spline to each of its {int(usable.sum())} '
+        f'gap-free parts of at least {shortest:g} s ({_lengths(length[usable])}), which cover '
+        f'{covered} of the {total} eye poses in its span'
+    )
+    if not usable.all():
+        note += f'; {int((~usable).sum())} shorter part(s) left out ({_lengths(length[~usable])})'
+    keep = np.concatenate(
+        [np.arange(a, b) for a, b in zip(starts[usable], ends[usable], strict=True)]
+    )
+    sizes = (ends - starts)[usable]
+    bounds = np.concatenate(([0], np.cumsum(sizes)))
+    spans = [(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
+    return hand.select(keep), spans, note
 
 
-def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int, joint: bool) -> None:
-    """Refuse a MoCap stream the spline cannot be fitted to: a gap longer than the spline
-    bridges, or (joint solve) fewer MoCap poses per knot interval than it needs."""
+def _lengths(seconds: np.ndarray) -> str:
+    """Part lengths for a message: each of a few, else their range and total."""
+    if seconds.size <= 4:
+        return ', '.join(f'{v:.2f} s' for v in seconds)
+    return f'{seconds.min():.2f} to {seconds.max():.2f} s, {seconds.sum():.1f} s in all'
+
+
+def _check_hand_rate(hand: Trajectory, knot_spacing: float, joint: bool) -> None:
+    """Refuse a MoCap stream the joint solve cannot fit a spline to: fewer MoCap poses per
+    knot interval than it needs (the gaps are :func:`_hand_pieces`')."""
     step = np.diff(hand.t_ns) * 1e-9
     period = float(np.median(step))
     if joint and knot_spacing < MIN_HAND_POSES_PER_KNOT_JOINT * period:
@@ -511,13 +532,4 @@ def _check_hand_stream(hand: Trajectory, knot_spacing: float, order: int, joint:
             f'every {knot_spacing:g} s: leave batch_joint off (the default solve '
             f'holds the spline to the MoCap) or set knot_spacing >= '
             f'{MIN_HAND_POSES_PER_KNOT_JOINT * period:.3g} s'
-        )
-    longest = float(step.max())
-    if longest > _bridged_s(hand, knot_spacing, order):
-        k = int(np.argmax(step))
-        raise BatchError(
-            f'{hand.name} has a gap of {longest:.3f} s (after pose {k}): the '
-            f'spline (knots every {knot_spacing:g} s) would have control points '
-            'without MoCap data there; the batch stage needs a continuous hand '
-            'stream (or a larger knot_spacing)'
         )

@@ -31,7 +31,7 @@ from .geometry import (
     relative,
     right_jacobian,
 )
-from .spline import PoseSpline, exp_so3, fit_spline
+from .spline import PoseSpline, exp_so3, fit_pieces
 from .trajectory import Trajectory
 
 #: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
@@ -117,7 +117,10 @@ class BatchProblem:
         order: int,
         drift_stamp_ns: int | None = None,
         scale: bool = False,
+        pieces: list[tuple[int, int]] | None = None,
     ):
+        """``pieces``: index ranges of the hand's gap-free parts, one spline each (default: one
+        spline through the whole hand)."""
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
@@ -125,19 +128,24 @@ class BatchProblem:
         # only the joint solve needs them all (:attr:`hand_obs`)
         qh, ph = hand.q_xyzw, hand.p_xyz
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
-        self.spline0 = fit_spline(self.th, qh, ph, knot_spacing, order)
+        pieces = pieces or [(0, len(hand))]
+        self.spline0 = fit_pieces(self.th, qh, ph, knot_spacing, order, pieces)
         self.M = self.spline0.R.shape[0]
         self.hand_q, self.hand_p = qh, ph
-        # eye pairs whose both ends stay inside the spline for any dt within the margin
+        # eye pairs whose both ends stay inside one piece of the spline for any dt within the
+        # margin: a pair across a MoCap gap would compare the VIO with an invented motion
         ei, ej = eye_pairs(eye)
-        lo, hi = self.spline0.t0 + DT_MARGIN_S, self.spline0.t_end - DT_MARGIN_S
-        inside = (te[ei] - dt0 >= lo) & (te[ej] - dt0 <= hi)
+        spans = np.array(self.spline0.spans())
+        k = np.clip(np.searchsorted(spans[:, 0], te[ei] - dt0, side='right') - 1, 0, None)
+        inside = (te[ei] - dt0 >= spans[k, 0] + DT_MARGIN_S) & (
+            te[ej] - dt0 <= spans[k, 1] - DT_MARGIN_S
+        )
         self.ei, self.ej = ei[inside], ej[inside]
         if self.ei.size < MIN_EYE_RESIDUALS:
             raise BatchError(
                 f'only {self.ei.size} consecutive eye pose pairs fall inside the '
-                f'hand spline (need {MIN_EYE_RESIDUALS}): the streams overlap too '
-                'little for the batch stage'
+                f'hand spline{"s" if len(spans) > 1 else ""} (need {MIN_EYE_RESIDUALS}): '
+                'the streams overlap too little for the batch stage'
             )
         self.te = te
         self.eye_obs = relative((Re, pe), self.ei, self.ej)
@@ -207,7 +215,7 @@ class BatchProblem:
         c = x[: self.n_spline].reshape(self.M, 6)
         s0 = self.spline0
         R = np.matmul(s0.R, exp_so3(c[:, :3]))
-        spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:])
+        spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:], s0.pieces)
         return spline, x[self.n_spline :]
 
     def hand_raw(self, spline: PoseSpline) -> np.ndarray:

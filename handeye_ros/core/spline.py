@@ -8,6 +8,11 @@ Kim et al. 1995, Sommer et al. 2020)::
     p(t) = p_i + sum_{j=1}^{k-1} Bc_j(s) (p_{i+j} - p_{i+j-1})
 
 with ``Bc_j`` the cumulative uniform B-spline basis. Everything is vectorised over times.
+
+A spline of *pieces* (:func:`fit_pieces`) is several such splines with one knot spacing, one
+per gap-free part of a stream, their control poses stacked: a time maps to the piece that
+starts last before it, and to that piece's control poses only, so nothing is interpolated
+across a gap (a MoCap dropout). The evaluation and its Jacobians are the same code.
 """
 
 from __future__ import annotations
@@ -149,6 +154,8 @@ class PoseSpline:
     dt : float, knot spacing (s)
     order : int, k (4: cubic)
     R, p : control rotations (M, 3, 3) and positions (M, 3)
+    pieces : None for one spline; else (starts (P,) s, first control pose (P,), segments (P,))
+        of the stacked pieces of :func:`fit_pieces`
     """
 
     t0: float
@@ -156,18 +163,36 @@ class PoseSpline:
     order: int
     R: np.ndarray
     p: np.ndarray
+    pieces: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def t_end(self) -> float:
         """End of the last segment (exclusive), s."""
+        if self.pieces is not None:
+            starts, _, n_seg = self.pieces
+            return float(starts[-1] + n_seg[-1] * self.dt)
         return self.t0 + (self.R.shape[0] - self.order + 1) * self.dt
 
+    def spans(self) -> list[tuple[float, float]]:
+        """(start, end) of each piece, s (one for a plain spline)."""
+        if self.pieces is None:
+            return [(self.t0, self.t_end)]
+        starts, _, n_seg = self.pieces
+        return [(float(a), float(a + n * self.dt)) for a, n in zip(starts, n_seg, strict=True)]
+
     def segments(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(segment index i, fraction s) of times t; times outside are clamped to the ends."""
-        u = (np.asarray(t, dtype=float) - self.t0) / self.dt
-        n_seg = self.R.shape[0] - self.order + 1
+        """(segment index i, fraction s) of times t; times outside are clamped to the ends (of
+        the piece that starts last before them)."""
+        t = np.asarray(t, dtype=float)
+        if self.pieces is None:
+            t0, first, n_seg = self.t0, 0, self.R.shape[0] - self.order + 1
+        else:
+            starts, firsts, counts = self.pieces
+            k = np.clip(np.searchsorted(starts, t, side='right') - 1, 0, starts.size - 1)
+            t0, first, n_seg = starts[k], firsts[k], counts[k]
+        u = (t - t0) / self.dt
         i = np.clip(np.floor(u).astype(int), 0, n_seg - 1)
-        return i, np.clip(u - i, 0.0, 1.0)
+        return first + i, np.clip(u - i, 0.0, 1.0)
 
     def _increments(self) -> tuple[np.ndarray, np.ndarray]:
         """Log of consecutive control rotations and position differences, computed once."""
@@ -320,6 +345,36 @@ def fit_spline(
     b = plain_basis(cumulative_basis(s, order))
     pc = _banded_least_squares(i, b, p, M, pc)
     return PoseSpline(t0, knot_spacing, order, Rc, pc)
+
+
+def fit_pieces(
+    t: np.ndarray,
+    R: np.ndarray,
+    p: np.ndarray,
+    knot_spacing: float,
+    order: int,
+    spans: list[tuple[int, int]],
+) -> PoseSpline:
+    """One spline (:func:`fit_spline`) per index range ``spans`` of the stamped poses, stacked
+    into a spline of pieces (see the module docstring); a single span gives the plain spline."""
+    if len(spans) == 1:
+        a, b = spans[0]
+        return fit_spline(t[a:b], R[a:b], p[a:b], knot_spacing, order)
+    parts = [fit_spline(t[a:b], R[a:b], p[a:b], knot_spacing, order) for a, b in spans]
+    sizes = np.array([s.R.shape[0] for s in parts])
+    pieces = (
+        np.array([s.t0 for s in parts]),
+        np.concatenate(([0], np.cumsum(sizes)[:-1])),
+        sizes - order + 1,
+    )
+    return PoseSpline(
+        parts[0].t0,
+        knot_spacing,
+        order,
+        np.concatenate([s.R for s in parts]),
+        np.concatenate([s.p for s in parts]),
+        pieces,
+    )
 
 
 def _banded_least_squares(

@@ -62,6 +62,12 @@ MIN_RESAMPLE_RATE_HZ = 20.0
 #: into one signal only); the rest are clipped at median + CLIP_SIGMAS.
 MASK_SIGMAS = 8.0
 CLIP_SIGMAS = 4.0
+#: ... where the median and MAD are also taken in blocks of this length (s), and a sample is
+#: held to the higher of the whole signal's level and its own block's (or a neighbour's): a
+#: recording of mixed pace (a minute of fast hand-held motion in the MoCap room, then ten of
+#: walking outdoors) keeps its fast minutes, which the whole signal's level would mask as
+#: spikes, while a spike stays a spike against its own block.
+LEVEL_BLOCK_S = 20.0
 #: Other local maxima of the correlation at least this fraction of the peak are candidates.
 CANDIDATE_RATIO = 0.7
 #: At most this many candidates besides the peak.
@@ -249,20 +255,50 @@ def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> 
     return 1.0 / rate
 
 
-def _clip(v: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _clip(v: np.ndarray, mask: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
     """A robust signal: samples beyond median + MASK_SIGMAS robust deviations (1.4826 MAD) are
     masked out like a gap, the others clipped at median + CLIP_SIGMAS (vectors by their
-    norm). Returns (values, mask)."""
+    norm), each at the higher of the whole signal's level and its block's
+    (:data:`LEVEL_BLOCK_S`). Returns (values, mask)."""
     if mask.sum() < 3:  # _standardise refuses it with its own message
         return v, mask
     mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
-    med = np.median(mag[mask])
-    dev = 1.4826 * np.median(np.abs(mag[mask] - med))
+    med, dev = _median_mad(mag[mask])
     if not dev > 0.0:
         return v, mask
-    mask = mask & (mag <= med + MASK_SIGMAS * dev)
-    scale = np.minimum(1.0, (med + CLIP_SIGMAS * dev) / np.maximum(mag, 1e-300))
+    mask_level, clip_level = _levels(mag, mask, step, med, dev)
+    mask = mask & (mag <= mask_level)
+    scale = np.minimum(1.0, clip_level / np.maximum(mag, 1e-300))
     return v * (scale if v.ndim == 1 else scale[:, None]), mask
+
+
+def _median_mad(values: np.ndarray) -> tuple[float, float]:
+    """Median and robust standard deviation (1.4826 MAD)."""
+    med = float(np.median(values))
+    return med, 1.4826 * float(np.median(np.abs(values - med)))
+
+
+def _levels(
+    mag: np.ndarray, mask: np.ndarray, step: float, med: float, dev: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample mask and clip levels: the whole signal's, raised to its block's where that
+    is higher (the highest of the block and its two neighbours, so that a block boundary
+    inside a fast stretch changes nothing)."""
+    n = max(1, round(LEVEL_BLOCK_S / step))
+    n_blocks = mag.size // n
+    levels = np.array([med + MASK_SIGMAS * dev, med + CLIP_SIGMAS * dev])
+    if n_blocks < 2:
+        return levels[0], levels[1]
+    block = np.tile(levels[:, None], n_blocks)
+    for b in range(n_blocks):
+        part = mag[b * n : (b + 1) * n][mask[b * n : (b + 1) * n]]
+        if part.size >= n // 4:  # a block mostly in a gap says nothing of its own
+            m, d = _median_mad(part)
+            block[:, b] = np.maximum(block[:, b], (m + MASK_SIGMAS * d, m + CLIP_SIGMAS * d))
+    padded = np.pad(block, ((0, 0), (1, 1)), mode='edge')
+    block = np.maximum(np.maximum(padded[:, :-2], padded[:, 1:-1]), padded[:, 2:])
+    index = np.minimum(np.arange(mag.size) // n, n_blocks - 1)
+    return block[0, index], block[1, index]
 
 
 def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
@@ -463,8 +499,8 @@ def _align(
     standardised, correlated over the searched lags, the peak and its candidates."""
     x, mx = resample(w_h, _grid(hand, step))
     y, my = resample(w_e, _grid(eye, step))
-    x, mx = _clip(x, mx)
-    y, my = _clip(y, my)
+    x, mx = _clip(x, mx, step)
+    y, my = _clip(y, my, step)
     x = _standardise(x, mx, hand.name)
     y = _standardise(y, my, eye.name)
     curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)

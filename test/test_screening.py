@@ -140,3 +140,32 @@ def test_too_many_outliers_are_refused_naming_the_stream() -> None:
     res = calibrate(rec.hand, bad, CalibrationConfig(max_outlier_fraction=0.5))
     assert res.screening[1].fraction > 0.2
     assert 'outliers_removed' in res.quality.codes
+
+
+def test_damaged_blocks_are_named_and_screened_or_refused() -> None:
+    """Blocks of rows whose x column holds ~1e9 m (a corrupted column, as in the published DSO
+    outdoors4 files): a small fraction is screened as damaged, named in the warnings, and the
+    calibration is as good as without it; a large one is refused with a message that says how
+    many rows, in how many blocks and what, instead of a RANSAC or convention failure."""
+    rec = recording(seed=4, level=2.0)
+    rng = np.random.default_rng(1)
+    n = len(rec.eye)
+
+    def wreck(blocks: list[tuple[int, int]]) -> Trajectory:
+        idx = np.concatenate([np.arange(a, b) for a, b in blocks])
+        p = rec.eye.p_xyz[idx].copy()
+        p[:, 0] = rng.uniform(1.0e9, 1.2e9, idx.size)
+        return _with(rec.eye, idx, p)
+
+    few = wreck([(100, 110), (500, 530)])  # 40 rows, 3 %
+    _, rep = screen(few, 'eye')
+    assert rep.counts['damaged'] == 40
+    res = calibrate(rec.hand, few)
+    assert any('40 of' in w and 'damaged, in 2 block(s)' in w for w in res.warnings)
+    err = calibration_error(rec.truth, res.time_offset_s, res.q_HE, res.p_HE)
+    assert err.translation_m < 0.005 and err.rotation_deg < 0.2 and err.time_offset_s < 2e-3
+    many = wreck([(50, 60), (200, 200 + n // 4)])
+    with pytest.raises(
+        InputError, match=r'rows \(2\d%\) are damaged, in 2 block\(s\).*x positions'
+    ):
+        calibrate(rec.hand, many)

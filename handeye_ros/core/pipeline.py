@@ -70,7 +70,7 @@ from .quality import (
 )
 from .result import CalibrationResult, UsedStreams
 from .scale import ScaleFit, observable, scale_prior, translation_and_scale
-from .screening import Screening, find_eye_breaks, screen
+from .screening import Screening, damaged, describe_damage, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
 from .time_align import TimeAlignment, align_time, align_time_vector
 from .trajectory import Trajectory
@@ -355,21 +355,36 @@ def _screen(
     out, reports = [], []
     for traj, stream in ((hand, 'hand'), (eye, 'eye')):
         kept, rep = screen(traj, stream, cfg.outlier_threshold)
-        _check_fraction(rep, traj, cfg)
+        wrecked = damaged(traj)
+        damage = describe_damage(traj, wrecked) if wrecked.any() else ''
+        _check_fraction(rep, traj, cfg, damage)
+        if damage:
+            run.warnings.append(f'{damage}; those rows were left out')
         out.append(kept)
         reports.append(rep)
     return out[0], out[1], (reports[0], reports[1])
 
 
-def _check_fraction(rep: Screening, traj: Trajectory, cfg: CalibrationConfig) -> None:
+def _check_fraction(
+    rep: Screening, traj: Trajectory, cfg: CalibrationConfig, damage: str = ''
+) -> None:
+    """Refuse a stream screening would take too much of; damaged rows are named first."""
     if rep.fraction > cfg.max_outlier_fraction:
         counts = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in rep.counts.items() if v)
         msg = (
-            f'{traj.name}: screening would remove {rep.fraction:.1%} of the {rep.stream} '
-            f'stream ({counts}), more than max_outlier_fraction '
-            f'{cfg.max_outlier_fraction:.0%}: the stream is not what the tool expects '
-            f'(check that it holds the {"MoCap" if rep.stream == "hand" else "VIO"} poses '
-            'of this recording), or raise max_outlier_fraction / outlier_threshold'
+            (
+                f'{damage}. Without them too little of the stream is left: screening would remove '
+                f'{rep.fraction:.1%} of it ({counts}), more than max_outlier_fraction '
+                f'{cfg.max_outlier_fraction:.0%}. Repair or re-export the file'
+            )
+            if damage
+            else (
+                f'{traj.name}: screening would remove {rep.fraction:.1%} of the {rep.stream} '
+                f'stream ({counts}), more than max_outlier_fraction '
+                f'{cfg.max_outlier_fraction:.0%}: the stream is not what the tool expects '
+                f'(check that it holds the {"MoCap" if rep.stream == "hand" else "VIO"} poses '
+                'of this recording), or raise max_outlier_fraction / outlier_threshold'
+            )
         )
         raise InputError(msg)
 

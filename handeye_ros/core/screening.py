@@ -26,7 +26,10 @@ so that wild poses in a row go one after the other. The test runs at three scale
 the poses 1, 2 and 3 away on each side, since the inner poses of a run of identical wild
 poses agree with each other at scale 1 (runs of up to five are found).
 
-Before it, rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a stream
+Before it, *damaged* rows are removed: rows whose position is physically absurd (beyond
+:data:`ABSURD_POSITION_M`, a corrupted column as in some published DSO files, where whole
+blocks of rows hold x ~ 1e9 m); :func:`describe_damage` says how many, where and what. Then
+rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a stream
 that is elsewhere are removed as placeholders, runs of any length: the convention of
 evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses
 repeated bit for bit are *not* removed: a slow rig written to the millimetre repeats its poses
@@ -67,8 +70,12 @@ SCALES = (1, 2, 3)
 #: The floors are at least this many times the worst residual the values' rounding can make.
 ROUNDING_MARGIN = 1.5
 
+#: A position component beyond this (m) is no pose any stream can hold: 10 000 km, beyond
+#: Earth-centred coordinates (6 400 km), which a GNSS-fused estimate may use.
+ABSURD_POSITION_M = 1e7
+
 #: Kinds of removed poses, as counted in :class:`Screening`.
-KINDS = ('placeholder', 'outlier', 'short_segment')
+KINDS = ('damaged', 'placeholder', 'outlier', 'short_segment')
 
 
 @dataclass(frozen=True)
@@ -288,6 +295,33 @@ def placeholders(traj: Trajectory, floors: tuple[float, float]) -> np.ndarray:
     return out
 
 
+def damaged(traj: Trajectory) -> np.ndarray:
+    """(N,) bool: rows with a physically absurd position (:data:`ABSURD_POSITION_M`)."""
+    return np.abs(traj.p_xyz).max(axis=1) > ABSURD_POSITION_M
+
+
+def describe_damage(traj: Trajectory, bad: np.ndarray) -> str:
+    """How many rows are damaged, in how many blocks, where and what (for a message)."""
+    k = np.flatnonzero(bad)
+    edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))
+    blocks = int(np.sum(edges == 1))
+    cols = ', '.join(
+        c
+        for c, far in zip(
+            'xyz', np.abs(traj.p_xyz[k]).max(axis=0) > ABSURD_POSITION_M, strict=True
+        )
+        if far
+    )
+    t = traj.seconds(int(traj.t_ns[0]))
+    return (
+        f'{traj.name}: {k.size} of {len(traj)} rows ({k.size / len(traj):.0%}) are damaged, '
+        f'in {blocks} block(s) from {t[k[0]]:.1f} s to {t[k[-1]]:.1f} s: their '
+        f'{cols} positions reach {np.abs(traj.p_xyz[k]).max():.3g} m (no pose stream holds values '
+        f'beyond {ABSURD_POSITION_M:.0e} m; first at pose {int(k[0])}: '
+        f'{np.round(traj.p_xyz[k[0]], 4).tolist()}): a corrupted column, not a motion'
+    )
+
+
 def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Trajectory, Screening]:
     """Remove isolated outliers from one stream (see module docstring).
 
@@ -304,9 +338,11 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     )
     thr_p = thr_r = float('nan')
     t = traj.seconds(int(traj.t_ns[0]))
-    held = placeholders(traj, floors)
+    wrecked = damaged(traj)
+    kinds[wrecked] = 'damaged'
+    held = placeholders(traj, floors) & ~wrecked
     kinds[held] = 'placeholder'
-    idx = idx[~held]
+    idx = idx[~(held | wrecked)]
     # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so
     # that isolated wild poses no longer spoil the wider extrapolations of good ones
     for d in SCALES:

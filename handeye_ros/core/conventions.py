@@ -55,8 +55,8 @@ from .keyframes import motion_indices
 from .motion_refits import rotation_from_motions, translation_from_motions
 from .trajectory import Trajectory
 
-#: Rates a pose stream can have, Hz.
-PLAUSIBLE_RATE_HZ = (0.5, 10_000.0)
+#: Rates a pose stream can have, Hz (a keyframe-only estimate down to one pose in 10 s).
+PLAUSIBLE_RATE_HZ = (0.1, 10_000.0)
 #: Two streams of one recording cover spans within this factor of each other (a MoCap may run
 #: longer than the VIO; a unit mistake is a factor 1000).
 SPAN_RATIO_MAX = 100.0

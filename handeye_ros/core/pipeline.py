@@ -73,7 +73,8 @@ from .scale import ScaleFit, observable, scale_prior, translation_and_scale
 from .screening import Screening, damaged, describe_damage, find_eye_breaks, screen
 from .selfcheck import Candidate, motion_consistency, score_candidates
 from .time_align import TimeAlignment, align_time, align_time_vector
-from .trajectory import Trajectory
+from .time_keyframes import align_time_keyframes
+from .trajectory import Trajectory, is_keyframe_only
 from .world import Metrics, align_worlds, evaluate
 
 LOG = logging.getLogger(__name__)
@@ -174,6 +175,9 @@ def calibrate(
             time_offset_ns=round(cfg.time_offset * 1e9),
         )
         run.warnings += _check_fixed_offset(hand, eye, cfg)
+    elif eye.keyframes:
+        guess, half = _window(cfg)
+        ta = align_time_keyframes(hand, eye, max_time_offset=half, time_offset_guess=guess)
     else:
         guess, half = _window(cfg)
         ta = align_time(
@@ -195,7 +199,7 @@ def calibrate(
     eye_c = eye.shifted(-shift_ns)
     model = EyeModel(shift_ns, stamp_ns=covered_span(hand, eye_c)[2])
     dt = 0.0
-    if cfg.clock_drift:
+    if cfg.clock_drift and not eye.keyframes:
         eye_c, model = _drift_from_windows(hand, eye_c, model, cfg)
     if cfg.estimate_scale:
         eye_c, model = _scale_from_rotations(hand, eye_c, model, cfg)
@@ -327,6 +331,17 @@ def _prepare(
         _corrected(found, run)
     note = epoch_note(hand, eye)
     if note:
+        run.warnings.append(note)
+        run.notes.append(note)
+    if is_keyframe_only(eye):
+        eye = replace(eye, keyframes=True)
+        step = np.diff(eye.t_ns) * 1e-9
+        note = (
+            f'{eye.name} holds keyframes only ({len(eye)} poses, {np.median(step):.2f} s apart '
+            f'at the median, up to {step.max():.2f} s): the time offset comes from the '
+            'rotation angles over keyframe pairs (screw congruence), not from the angular-speed '
+            'correlation; no vector refinement and no drift windows'
+        )
         run.warnings.append(note)
         run.notes.append(note)
     return hand, eye
@@ -472,7 +487,7 @@ def _refine_vector(
     run: _Run,
 ):
     """dt from the body angular velocities with stage 2's rotation, iterated with stage 2."""
-    if not cfg.vector_refinement or lin.unobservable:
+    if not cfg.vector_refinement or lin.unobservable or eye.keyframes:
         return dt, lin, pairs, None
     tv = None
     for _ in range(MAX_VECTOR_ITERATIONS):
@@ -655,6 +670,14 @@ def _clock_along(
     form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
     clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the
     reference stamp when the stamps moved, else None)."""
+    if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
+        if cfg.clock_drift:
+            run.doubt(
+                'unobservable',
+                'the clock drift is measured in windows of angular velocity, which a '
+                'keyframe-only eye does not give; one constant offset was estimated instead',
+            )
+        return eye, model, None, None
     R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
     clock = _absolute_clock(fit, model)

@@ -132,19 +132,16 @@ class BatchProblem:
         self.spline0 = fit_pieces(self.th, qh, ph, knot_spacing, order, pieces)
         self.M = self.spline0.R.shape[0]
         self.hand_q, self.hand_p = qh, ph
-        # eye pairs whose both ends stay inside one piece of the spline for any dt within the
-        # margin: a pair across a MoCap gap would compare the VIO with an invented motion
+        # eye pairs whose two ends each stay inside a piece of the spline for any dt within the
+        # margin: eq. 16 reads the hand at the two ends only, so a keyframe pair may span a
+        # MoCap gap, but no end may fall in one (the spline would invent the motion there)
         ei, ej = eye_pairs(eye)
-        spans = np.array(self.spline0.spans())
-        k = np.clip(np.searchsorted(spans[:, 0], te[ei] - dt0, side='right') - 1, 0, None)
-        inside = (te[ei] - dt0 >= spans[k, 0] + DT_MARGIN_S) & (
-            te[ej] - dt0 <= spans[k, 1] - DT_MARGIN_S
-        )
+        inside = self._inside(te[ei] - dt0) & self._inside(te[ej] - dt0)
         self.ei, self.ej = ei[inside], ej[inside]
         if self.ei.size < MIN_EYE_RESIDUALS:
             raise BatchError(
                 f'only {self.ei.size} consecutive eye pose pairs fall inside the '
-                f'hand spline{"s" if len(spans) > 1 else ""} (need {MIN_EYE_RESIDUALS}): '
+                f'hand spline{"s" if self.spline0.pieces is not None else ""} (need {MIN_EYE_RESIDUALS}): '
                 'the streams overlap too little for the batch stage'
             )
         self.te = te
@@ -162,6 +159,12 @@ class BatchProblem:
             if drift_stamp_ns is None
             else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9
         )
+
+    def _inside(self, t: np.ndarray) -> np.ndarray:
+        """Hand times (s) at least DT_MARGIN_S inside a piece of the spline."""
+        spans = np.array(self.spline0.spans())
+        k = np.clip(np.searchsorted(spans[:, 0], t, side='right') - 1, 0, None)
+        return (t >= spans[k, 0] + DT_MARGIN_S) & (t <= spans[k, 1] - DT_MARGIN_S)
 
     @property
     def hand_obs(self) -> Pose:

@@ -344,8 +344,9 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     kinds[held] = 'placeholder'
     idx = idx[~(held | wrecked)]
     # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so
-    # that isolated wild poses no longer spoil the wider extrapolations of good ones
-    for d in SCALES:
+    # that isolated wild poses no longer spoil the wider extrapolations of good ones; keyframes
+    # seconds apart are no smooth motion to interpolate (find_eye_breaks judges them)
+    for d in () if traj.keyframes else SCALES:
         for _ in range(HAMPEL_ROUNDS):
             if idx.size < 4 * d + 4:
                 break

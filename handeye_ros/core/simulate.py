@@ -16,6 +16,10 @@ translation), a periodic back-and-forth (``repetitive``: the same 2 s pattern ov
 whose angular speed repeats exactly), a slow hand (``slow``: ~3 deg/s, a tenth of the
 default, turning through large angles nonetheless), and a rig turned about all axes without
 moving through space (``in_place``: the marker stays put; a monocular scale is unobservable).
+
+Real recordings also come incomplete, which :func:`keyframes_only`, :func:`with_dropouts` and
+:func:`two_windows` make of a simulated one: an eye that keeps only keyframes at irregular
+stamps, a MoCap with occlusions, a MoCap that covers only the start and the end.
 """
 
 from __future__ import annotations
@@ -252,3 +256,41 @@ def _add_cumulative_error(
     steps_R = np.concatenate((R[:1], rel[0]))
     steps_p = np.concatenate((p[:1], rel[1]))
     return cumulative_compose(steps_R, steps_p)
+
+
+def keyframes_only(
+    eye: Trajectory, rng: np.random.Generator, rate_hz: tuple[float, float] = (0.3, 3.0)
+) -> Trajectory:
+    """The eye's poses a SLAM system that writes keyframes only would keep: each next one at an
+    interval drawn uniformly between 1 / rate_hz[1] and 1 / rate_hz[0] seconds."""
+    t = eye.seconds(int(eye.t_ns[0]))
+    keep, due = [], 0.0
+    for k, tk in enumerate(t):
+        if tk >= due:
+            keep.append(k)
+            due = tk + rng.uniform(1.0 / rate_hz[1], 1.0 / rate_hz[0])
+    return eye.select(np.array(keep))
+
+
+def with_dropouts(
+    hand: Trajectory,
+    rng: np.random.Generator,
+    fraction: float,
+    length_s: tuple[float, float] = (0.2, 5.0),
+) -> Trajectory:
+    """The hand with occlusions: gaps of uniform length in ``length_s`` at random places until
+    ``fraction`` of its span is gone."""
+    t = hand.seconds(int(hand.t_ns[0]))
+    gone = np.zeros(t.size, bool)
+    while gone.mean() < fraction:
+        length = rng.uniform(*length_s)
+        start = rng.uniform(t[0], t[-1] - length)
+        gone |= (t >= start) & (t < start + length)
+    return hand.select(~gone)
+
+
+def two_windows(hand: Trajectory, window_s: float) -> Trajectory:
+    """The hand during its first and last ``window_s`` seconds only (a MoCap room left and
+    re-entered)."""
+    t = hand.seconds(int(hand.t_ns[0]))
+    return hand.select((t <= window_s) | (t >= t[-1] - window_s))

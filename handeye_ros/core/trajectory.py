@@ -11,6 +11,10 @@ interpolation or a relative pose: a *gap* (longer than :data:`GAP_FACTOR` median
 stream stopped) and a *break* (the stream restarted in another world frame, e.g. a VIO reset:
 found by screening and stored in ``breaks``). :meth:`Trajectory.interval_ok` says which
 intervals may be used; :meth:`Trajectory.segment_ids` numbers the parts between breaks.
+
+A *keyframe* stream (``keyframes``: what many SLAM systems write, poses 0.05-5 s apart at
+irregular stamps; see :func:`is_keyframe_only`) has no gaps: every interval between two of its
+poses is a relative pose the estimator stands behind, however long; only its breaks split it.
 """
 
 from __future__ import annotations
@@ -25,6 +29,11 @@ from .errors import InputError
 #: differenced across it. 3.5 tolerates two consecutive dropped samples, which still give a fair
 #: average.
 GAP_FACTOR = 3.5
+#: A stream whose median period is longer than this (s), or whose gap-free intervals cover
+#: less than KEYFRAME_COVERAGE of its span, holds keyframes only: no angular speed can be
+#: resampled from it (hand-held motion has content up to a few Hz).
+KEYFRAME_PERIOD_S = 0.2
+KEYFRAME_COVERAGE = 0.5
 #: A quaternion whose norm differs from 1 by more than this is refused rather than normalised:
 #: text files round to ~6 decimals (deviation ~1e-6); a larger deviation means a wrong column
 #: order or corrupted data, and silently normalising it would hide that.
@@ -64,6 +73,8 @@ class Trajectory:
     notes : tuple of str
         What was done to the poses on the way in (repeated stamps dropped, a stamp unit
         assumed, ...), for the result's warnings.
+    keyframes : bool
+        The stream holds keyframes only: no interval is a gap (see the module docstring).
     """
 
     t_ns: np.ndarray
@@ -72,6 +83,7 @@ class Trajectory:
     name: str = 'trajectory'
     breaks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     notes: tuple[str, ...] = ()
+    keyframes: bool = False
 
     @classmethod
     def from_arrays(
@@ -173,7 +185,13 @@ class Trajectory:
             # kept pose m closes a break if some break lies between the previous kept pose and it
             breaks = np.flatnonzero(np.diff(self.segment_ids()[idx]) > 0)
         return Trajectory(
-            self.t_ns[idx], self.p_xyz[idx], self.q_xyzw[idx], self.name, breaks, self.notes
+            self.t_ns[idx],
+            self.p_xyz[idx],
+            self.q_xyzw[idx],
+            self.name,
+            breaks,
+            self.notes,
+            self.keyframes,
         )
 
     def with_breaks(self, breaks: np.ndarray) -> Trajectory:
@@ -197,7 +215,11 @@ class Trajectory:
     def interval_ok(self) -> np.ndarray:
         """(N - 1,) bool: intervals that are neither a gap nor a break (see module docstring)."""
         step = np.diff(self.t_ns)
-        ok = step <= GAP_FACTOR * float(np.median(step))
+        ok = (
+            np.ones(step.size, bool)
+            if self.keyframes
+            else step <= GAP_FACTOR * float(np.median(step))
+        )
         ok[self.breaks] = False
         return ok
 
@@ -206,6 +228,17 @@ class Trajectory:
         seg = np.zeros(len(self), dtype=int)
         seg[self.breaks + 1] = 1
         return np.cumsum(seg)
+
+
+def is_keyframe_only(traj: Trajectory) -> bool:
+    """Whether a stream holds keyframes only (:data:`KEYFRAME_PERIOD_S`,
+    :data:`KEYFRAME_COVERAGE`), from its stamps."""
+    step = np.diff(traj.t_ns) * 1e-9
+    if step.size < 2:
+        return False
+    median = float(np.median(step))
+    dense = float(step[step <= GAP_FACTOR * median].sum()) / max(float(step.sum()), 1e-300)
+    return median > KEYFRAME_PERIOD_S or dense < KEYFRAME_COVERAGE
 
 
 def segment_spans(labels: np.ndarray) -> list[tuple[int, int]]:

@@ -1,0 +1,290 @@
+"""Stage 1 for keyframe-only eyes: the time offset from rotation angles over keyframe pairs.
+
+Why: many SLAM systems write keyframes only (DSO, ORB-SLAM's ``KeyFrameTrajectory.txt``):
+poses 0.05-5 s apart at irregular stamps, from which no angular speed can be resampled, so the
+correlation of Section III-A has nothing to correlate. But the screw congruence theorem (eq. 9)
+needs no rate: the rotation angle of the eye's relative motion between two keyframes a, b
+equals the hand's over the same interval on the hand's clock, whatever T_HE and T_WG::
+
+    angle(R_WE(a)^T R_WE(b)) = angle(R_GH(a - dt)^T R_GH(b - dt))
+
+so dt is where the hand's angles over the shifted keyframe intervals agree with the eye's. Each
+pair needs the hand at its two ends only, so a MoCap dropout between them costs nothing.
+
+The search, over every lag at which the streams overlap (or the window asked for), as stage 1:
+
+1. the hand's orientation on a uniform grid of its own (the faster of its rate and 200 Hz),
+   with a mask of the grid points inside its gaps;
+2. for each lag on a coarse grid (COARSE_STEP_S, at most COARSE_PAIRS pairs spread over the
+   recording: an hour of 1 Hz keyframes over every lag would be 10^10 angle comparisons), a
+   score ``1 - mean(min(|angle_E - angle_H|, CAP_RAD)) / CAP_RAD``: 1 when all angles agree,
+   near 0 at a lag where they are unrelated; a lag counts where at least half as many pairs
+   fall inside the hand as at the best-covered lag;
+3. the best coarse lag, then every grid lag around it with all pairs, then a continuous
+   refinement: the mean squared angle difference of the pairs that agree there, with the hand
+   interpolated exactly (SLERP between its own poses), minimised by Brent's method.
+
+The result is a :class:`.time_align.TimeAlignment` with method 'keyframes', its curve the score
+(so the pipeline's checks of a weak or ambiguous peak read it as they read a correlation), and
+peak_correlation the Pearson correlation of the two angle sets at the offset.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.spatial.transform import Rotation, Slerp
+
+from .errors import TimeAlignmentError
+from .time_align import (
+    MAX_RESAMPLE_RATE_HZ,
+    MIN_OVERLAP_FRACTION,
+    TimeAlignment,
+    _candidates,
+    _Curve,
+    _second_peak_ratio,
+    _window,
+)
+from .trajectory import Trajectory
+
+#: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
+#: counts as disagreeing, however wildly (a VIO glitch, a MoCap swap).
+CAP_RAD = 0.2
+#: Lag step of the coarse search (s): an angle over an interval moves with the lag by at most
+#: the angular speed at its two ends (a few rad/s hand-held), 0.02 rad per 10 ms.
+COARSE_STEP_S = 0.02
+#: Most keyframe pairs the coarse search uses (spread evenly over the recording).
+COARSE_PAIRS = 2000
+#: Fewest keyframe pairs inside the hand at a lag for it to count.
+MIN_PAIRS = 20
+#: Below this Pearson correlation of the eye's and the hand's angles at the best offset, they
+#: do not agree anywhere searched (at the right offset it is 0.95-1; at a wrong one 0-0.3).
+MIN_AGREEMENT = 0.5
+#: Partners of each keyframe: the next one and the one after it.
+PARTNERS = (1, 2)
+#: Lags x pairs compared at once (memory of a chunk: 4 quaternions of 8 bytes each).
+CHUNK = 1 << 21
+
+
+def rotation_angles(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad, in [0, pi]) of ``R(q_a)^T R(q_b)`` for unit quaternions (..., 4):
+    ``2 acos |<q_a, q_b>|``."""
+    dot = np.abs(np.sum(q_a * q_b, axis=-1))
+    return 2.0 * np.arccos(np.minimum(dot, 1.0))
+
+
+def keyframe_pairs(eye: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (a, b) of each keyframe and its PARTNERS that no break separates."""
+    seg = eye.segment_ids()
+    a = np.concatenate([np.arange(len(eye) - d) for d in PARTNERS])
+    b = np.concatenate([np.arange(d, len(eye)) for d in PARTNERS])
+    same = seg[a] == seg[b]
+    return a[same], b[same]
+
+
+def align_time_keyframes(
+    hand: Trajectory,
+    eye: Trajectory,
+    *,
+    max_time_offset: float | None = None,
+    time_offset_guess: float | None = None,
+) -> TimeAlignment:
+    """dt (eye clock minus hand clock) of a keyframe-only eye (see the module docstring).
+
+    Raises
+    ------
+    TimeAlignmentError
+        When too few keyframe pairs fall inside the hand at any searched offset, when the eye
+        does not rotate, or when the best offset is at the edge of the searched ones.
+    """
+    a, b = keyframe_pairs(eye)
+    if a.size < MIN_PAIRS:
+        raise TimeAlignmentError(
+            f'{eye.name}: {len(eye)} keyframes give {a.size} keyframe pairs; the time offset '
+            f'of a keyframe-only eye needs at least {MIN_PAIRS}'
+        )
+    angle_e = rotation_angles(eye.q_xyzw[a], eye.q_xyzw[b])
+    if float(np.percentile(angle_e, 90)) < np.deg2rad(1.0):
+        raise TimeAlignmentError(
+            f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
+            'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
+        )
+    step = 1.0 / min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ)
+    grid_q, grid_ok = _hand_grid(hand, step)
+    te = eye.seconds(int(eye.t_ns[0]))
+    base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
+    # at lag k (dt = base + k step) the eye stamp te falls on hand grid point te / step - k
+    ga, gb = np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
+    k_lo, k_hi = int(ga.min()) - (grid_q.shape[0] - 1), int(gb.max())
+    window = _window(max_time_offset, time_offset_guess)
+    if window is not None:
+        k_lo = max(k_lo, int(np.ceil((window[0] - base_ns * 1e-9) / step)))
+        k_hi = min(k_hi, int(np.floor((window[1] - base_ns * 1e-9) / step)))
+    if k_hi - k_lo < 2:
+        raise _too_few(hand, eye, window)
+    m = max(1, round(COARSE_STEP_S / step))
+    pick = np.unique(np.linspace(0, a.size - 1, min(a.size, COARSE_PAIRS)).astype(int))
+    coarse = np.arange(k_lo, k_hi + 1, m)
+    c_score, c_count = _scores(grid_q, grid_ok, ga[pick], gb[pick], angle_e[pick], coarse)
+    need = max(MIN_PAIRS * pick.size / a.size, MIN_OVERLAP_FRACTION * c_count.max())
+    c_ok = c_count >= max(need, 1)
+    if not c_ok.any():
+        raise _too_few(hand, eye, window)
+    kc = int(np.argmax(np.where(c_ok, c_score, -np.inf)))
+    best = coarse[kc]
+    # every grid lag around the coarse best, with all pairs
+    fine = np.arange(max(k_lo, best - 2 * m), min(k_hi, best + 2 * m) + 1)
+    f_score, f_count = _scores(grid_q, grid_ok, ga, gb, angle_e, fine)
+    f_ok = f_count >= max(MIN_PAIRS, MIN_OVERLAP_FRACTION * c_count.max() * a.size / pick.size)
+    if not f_ok.any():
+        raise _too_few(hand, eye, window)
+    k = int(fine[int(np.argmax(np.where(f_ok, f_score, -np.inf)))])
+    eligible_lags = coarse[c_ok]
+    if k <= eligible_lags[0] or k >= eligible_lags[-1]:
+        where = 'the edge of the search window' if window else 'the edge of the lags searched'
+        raise TimeAlignmentError(
+            f'the keyframe rotation angles agree best at {where} (at '
+            f'{(base_ns * 1e-9 + k * step):+.3f} s): the time offset is probably outside it. '
+            + (
+                'Widen max_time_offset or move time_offset_guess'
+                if window
+                else 'Do the two recordings show the same motion?'
+            )
+        )
+    lag_s, agree = _refine(hand, eye, a, b, angle_e, k * step, step)
+    if not agree >= MIN_AGREEMENT:
+        where = 'in the search window' if window else 'at any offset'
+        raise TimeAlignmentError(
+            f'the rotation angles of the keyframe pairs of {eye.name} and of {hand.name} do not '
+            f'agree {where}: at the best offset ({(base_ns * 1e-9 + lag_s):+.3f} s) they '
+            f'correlate at {agree:.2f} (at the right one, 0.95 or more). '
+            + (
+                'The time offset is probably outside the window: widen max_time_offset or '
+                'move time_offset_guess'
+                if window
+                else 'Do the two recordings show the same motion?'
+            )
+        )
+    curve = _Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
+    scores = np.where(c_ok, c_score, -np.inf)
+    sel = np.flatnonzero(c_ok)
+    sel = slice(sel[0], sel[-1] + 1)
+    return TimeAlignment(
+        time_offset_s=base_ns * 1e-9 + lag_s,
+        method='keyframes',
+        peak_correlation=agree,
+        second_peak_ratio=_second_peak_ratio(scores[sel], kc - sel.start),
+        step_s=step,
+        window_s=window or (base_ns * 1e-9 + k_lo * step, base_ns * 1e-9 + k_hi * step),
+        lags_s=base_ns * 1e-9 + coarse[sel] * step,
+        correlation=c_score[sel],
+        candidates=tuple(
+            c for c in _candidates(curve, kc) if abs(c[0] - base_ns * 1e-9 - lag_s) > 2 * m * step
+        ),
+        time_offset_ns=base_ns + round(lag_s * 1e9),
+    )
+
+
+def _hand_grid(hand: Trajectory, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The hand's orientation (x y z w) on a uniform grid from its first stamp, and which grid
+    points lie inside a gap-free interval."""
+    th = hand.seconds(int(hand.t_ns[0]))
+    grid = step * np.arange(int(np.floor(th[-1] / step)) + 1)
+    q = Slerp(th, Rotation.from_quat(hand.q_xyzw))(grid).as_quat()
+    k = np.clip(np.searchsorted(th, grid, side='right') - 1, 0, th.size - 2)
+    return q, hand.interval_ok()[k]
+
+
+def _scores(
+    grid_q: np.ndarray,
+    grid_ok: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    angle_e: np.ndarray,
+    lags: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(score, pairs inside the hand) at each lag (grid steps), a chunk of lags at a time."""
+    n = grid_q.shape[0]
+    score, count = np.zeros(lags.size), np.zeros(lags.size, np.int64)
+    rows = max(1, CHUNK // max(ga.size, 1))
+    for s in range(0, lags.size, rows):
+        k = lags[s : s + rows, None]
+        ia, ib = ga[None, :] - k, gb[None, :] - k
+        inside = (ia >= 0) & (ib < n) & (ib >= 0) & (ia < n)
+        ia, ib = np.clip(ia, 0, n - 1), np.clip(ib, 0, n - 1)
+        inside &= grid_ok[ia] & grid_ok[ib]
+        diff = np.minimum(np.abs(rotation_angles(grid_q[ia], grid_q[ib]) - angle_e), CAP_RAD)
+        c = inside.sum(axis=1)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            score[s : s + rows] = 1.0 - np.where(inside, diff, 0.0).sum(axis=1) / (c * CAP_RAD)
+        count[s : s + rows] = c
+    return score, count
+
+
+def _refine(
+    hand: Trajectory,
+    eye: Trajectory,
+    a: np.ndarray,
+    b: np.ndarray,
+    angle_e: np.ndarray,
+    lag_s: float,
+    step: float,
+) -> tuple[float, float]:
+    """The lag (s, after the epoch difference) within one grid step of ``lag_s`` that minimises
+    the mean squared angle difference of the pairs that agree there, the hand interpolated
+    exactly; and the Pearson correlation of the eye's and the hand's angles at it."""
+    th = hand.seconds(int(hand.t_ns[0]))
+    slerp = Slerp(th, Rotation.from_quat(hand.q_xyzw))
+    ok = hand.interval_ok()
+    # at lag L a keyframe stamped te (s from the eye's first stamp) meets the hand at te - L
+    # (s from the hand's first stamp): dt = base + L, base the difference of the first stamps
+    te = eye.seconds(int(eye.t_ns[0]))
+
+    def at(lag: float, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Hand angles over the pairs ``use`` at a lag (NaN outside the hand), and inside."""
+        ta, tb = te[a[use]] - lag, te[b[use]] - lag
+        inside = np.ones(ta.size, bool)
+        for t in (ta, tb):
+            j = np.clip(np.searchsorted(th, t, side='right') - 1, 0, th.size - 2)
+            inside &= (t >= th[0]) & (t <= th[-1]) & ok[j]
+        ang = np.full(ta.size, np.nan)
+        if inside.any():
+            ang[inside] = rotation_angles(slerp(ta[inside]).as_quat(), slerp(tb[inside]).as_quat())
+        return ang, inside
+
+    every = np.ones(a.size, bool)
+    ang, inside = at(lag_s, every)
+    diff = np.abs(ang - angle_e)
+    use = inside & (diff < CAP_RAD)
+    if use.sum() >= MIN_PAIRS:  # the pairs that agree within 3 robust sigmas
+        sigma = 1.4826 * float(np.median(diff[use]))
+        use &= diff <= max(3.0 * sigma, np.deg2rad(0.05))
+
+    def cost(lag: float) -> float:
+        ang_u, in_u = at(lag, use)
+        d = np.where(in_u, ang_u - angle_e[use], CAP_RAD)
+        return float(np.mean(np.minimum(d * d, CAP_RAD**2)))
+
+    res = minimize_scalar(
+        cost, bounds=(lag_s - step, lag_s + step), method='bounded', options={'xatol': 1e-6}
+    )
+    lag = float(res.x) if res.success else lag_s
+    ang, inside = at(lag, every)
+    r = np.corrcoef(ang[inside], angle_e[inside])[0, 1] if inside.sum() > 2 else np.nan
+    return lag, float(r)
+
+
+def _too_few(
+    hand: Trajectory, eye: Trajectory, window: tuple[float, float] | None
+) -> TimeAlignmentError:
+    where = (
+        'at any offset'
+        if window is None
+        else f'at any offset in [{window[0]:+.3f}, {window[1]:+.3f}] s'
+    )
+    return TimeAlignmentError(
+        f'too few keyframe pairs of {eye.name} fall inside {hand.name} {where} (need '
+        f'{MIN_PAIRS}, and half as many as at the best-covered offset; hand covers '
+        f'{hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye starts '
+        f'{(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own clocks)'
+    )

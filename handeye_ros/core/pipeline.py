@@ -43,6 +43,7 @@ from .batch import BatchSolution, refine
 from .clock import DriftFit, covered_span, measure_drift
 from .config import CalibrationConfig
 from .conventions import Correction, check_orientations, check_stamp_units, epoch_note, reread
+from .coverage import mocap_coverage
 from .errors import (
     ConfigError,
     DegenerateMotionError,
@@ -285,6 +286,9 @@ def calibrate(
         pairs.t_eye_s.size,
         lin.n_motions,
     )
+    covered = mocap_coverage(hand, eye_c, dt)
+    if covered.note():
+        run.notes.append(covered.note())
     quality = Quality.from_reasons(run.reasons, run.notes)
     return CalibrationResult(
         time_offset_s=cfg.time_offset if fixed else shift_ns * 1e-9 + dt,
@@ -312,6 +316,7 @@ def calibrate(
         eye_model=model,
         clock=clock,
         used=UsedStreams(hand, eye_c, model.own_clock_ns(eye_c.t_ns, eye.t_ns), dt),
+        coverage=covered,
     )
 
 

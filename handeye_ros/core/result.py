@@ -18,6 +18,8 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
   null without ``estimate_scale``; ``clock`` (the offset measured in windows along the
   recording, and the drift it shows); ``std.clock_drift`` and ``std.scale``; the covariance's
   ``order`` gains ``clock_drift`` and ``scale`` when they were estimated by the batch stage.
+- 4: ``coverage`` (the MoCap's gaps inside the eye's span and the part of it the MoCap covers,
+  :mod:`.coverage`); ``time_alignment.method`` may be ``keyframes`` (a keyframe-only eye).
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -35,6 +37,7 @@ from .batch import BatchSolution
 from .clock import DriftFit, linear_clock
 from .config import CalibrationConfig
 from .conventions import Correction
+from .coverage import Coverage
 from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
 from .linear import LinearSolution
@@ -45,7 +48,7 @@ from .time_align import TimeAlignment
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
@@ -104,6 +107,7 @@ class CalibrationResult:
     eye_model: EyeModel | None = None
     clock: DriftFit | None = None
     used: UsedStreams | None = field(default=None, repr=False, compare=False)
+    coverage: Coverage | None = None
 
     @property
     def clock_drift(self) -> float | None:
@@ -341,6 +345,7 @@ class CalibrationResult:
                 for c in self.candidates
             ],
             'association': {'pairs': int(self.n_pairs)},
+            'coverage': None if self.coverage is None else self.coverage.to_dict(),
             'linear': {
                 'relative_poses': self.config.relative_poses,
                 'motions': int(lin.n_motions),

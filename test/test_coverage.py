@@ -1,0 +1,42 @@
+"""The MoCap's coverage of the eye's span (gaps inside it, the part covered), as the result
+reports it. The simulated eye spans the hand less 1 s at each end (58 s of a 60 s hand)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import recording
+
+from handeye_ros.core.coverage import mocap_coverage
+from handeye_ros.core.simulate import two_windows
+
+
+def test_whole_windows_and_a_dropout() -> None:
+    rec = recording(seed=1)
+    dt = rec.truth.time_offset_s
+    whole = mocap_coverage(rec.hand, rec.eye, dt)
+    assert whole.gaps == 0 and whole.fraction == pytest.approx(1.0, abs=1e-6)
+    assert whole.note() == ''
+    # 15 s at each end of the hand's 60 s: the eye's 58 s hold 2 x (15 - ~1) s of it
+    ends = mocap_coverage(two_windows(rec.hand, 15.0), rec.eye, dt)
+    assert ends.gaps == 1 and ends.longest_gap_s == pytest.approx(30.0, abs=0.05)
+    lead = (rec.eye.t_ns[0] - rec.hand.t_ns[0]) * 1e-9 - dt
+    tail = (rec.hand.t_ns[-1] - rec.eye.t_ns[-1]) * 1e-9 + dt
+    assert ends.covered_s == pytest.approx(30.0 - lead - tail, abs=0.05)
+    assert 'covers 48%' in ends.note() or 'covers 47%' in ends.note()
+    t = rec.hand.seconds(int(rec.hand.t_ns[0]))
+    hole = mocap_coverage(rec.hand.select(~((t > 20.0) & (t < 22.0))), rec.eye, dt)
+    assert hole.gaps == 1 and hole.gap_s == pytest.approx(2.0, abs=0.02)
+    assert hole.covered_s == pytest.approx(whole.covered_s - 2.0, abs=0.02)
+
+
+def test_in_the_result() -> None:
+    rec = recording(seed=2, level=2.0)
+    t = rec.hand.seconds(int(rec.hand.t_ns[0]))
+    from handeye_ros.core.pipeline import calibrate
+
+    d = calibrate(rec.hand.select(~((t > 30.0) & (t < 31.0))), rec.eye).to_dict()
+    assert d['coverage']['hand_gaps'] == 1
+    assert d['coverage']['hand_gap_s'] == pytest.approx(1.0, abs=0.02)
+    assert any('the MoCap covers 98%' in n for n in d['quality']['notes'])
+    assert np.isfinite(d['std']['time_offset'])

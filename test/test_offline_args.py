@@ -90,6 +90,49 @@ def test_euroc_input_and_sign_flips(sim_files, tmp_path: Path) -> None:
     )
 
 
+@pytest.mark.slow  # calibrates a 60 s recording three times
+def test_csv_in_seconds_is_read_in_tum_order(sim_files, tmp_path: Path) -> None:
+    """A comma-separated eye in seconds with t, x, y, z, qx, qy, qz, qw (the ETH hand-eye
+    tools' CSV) is read in TUM order, says so, and calibrates as the TUM file does; the same
+    CSV with w x y z columns is then read the other way round by the convention check, which
+    names it (and --eye-quaternion-order states it)."""
+    hand, eye, _ = sim_files
+    traj = read_trajectory(eye)
+    t = [f'{int(v) // 10**9}.{int(v) % 10**9:09d}' for v in traj.t_ns]
+    rows = np.column_stack((traj.p_xyz, traj.q_xyzw))
+    csv, wxyz = tmp_path / 'eye_xyzw.csv', tmp_path / 'eye_wxyz.csv'
+    csv.write_text(
+        '# t, x, y, z, qx, qy, qz, qw\n'
+        + ''.join(
+            f'{s},' + ','.join(f'{v:.12f}' for v in r) + '\n' for s, r in zip(t, rows, strict=True)
+        )
+    )
+    rows = rows[:, [0, 1, 2, 6, 3, 4, 5]]
+    wxyz.write_text(
+        ''.join(
+            f'{s},' + ','.join(f'{v:.12f}' for v in r) + '\n' for s, r in zip(t, rows, strict=True)
+        )
+    )
+    a = json.loads(run_main('--hand', hand, '--eye', eye, '--json').stdout)
+    res = run_main('--hand', hand, '--eye', csv, '--json')
+    cli_ok(res)
+    b = json.loads(res.stdout)
+    assert any('read as t, x, y, z, qx, qy, qz, qw' in w for w in b['warnings'])
+    assert b['quality']['verdict'] == a['quality']['verdict'] and not b['conventions']
+    assert b['time_offset'] == pytest.approx(a['time_offset'], abs=1e-6)
+    np.testing.assert_allclose(
+        b['extrinsic']['translation'], a['extrinsic']['translation'], atol=1e-5
+    )
+    res = run_main('--hand', hand, '--eye', wxyz, '--json')
+    cli_ok(res)
+    c = json.loads(res.stdout)
+    assert [x['assumed'] for x in c['conventions']] == ['wxyz']
+    assert 'convention_corrected' in [r['code'] for r in c['quality']['reasons']]
+    assert c['time_offset'] == pytest.approx(a['time_offset'], abs=1e-4)
+    res = run_main('--hand', hand, '--eye', wxyz, '--eye-quaternion-order', 'wxyz', '--json')
+    assert not json.loads(res.stdout)['conventions']
+
+
 BAD_FILES = {
     'empty': ('', 'holds no poses'),
     'one line': ('1403636579.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),

@@ -104,12 +104,21 @@ def read_trajectory(
     else:
         numbers, values, split, fmt = _read_lines(path, data, fmt)
     del data
-    order = (
-        quaternion_order if quaternion_order != 'auto' else ('wxyz' if fmt == 'euroc' else 'xyzw')
-    )
+    t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
+    order = quaternion_order
+    if order == 'auto':
+        order = 'wxyz' if fmt == 'euroc' else 'xyzw'
+        if fmt == 'euroc' and stamp_unit == 'auto' and split.fractional.mean() > 0.5:
+            # EuRoC's own files stamp in integer ns; a CSV in seconds comes from scripts and
+            # tools (the ETH hand-eye tools' t, x, y, z, qx, qy, qz, qw) that keep TUM's order
+            order = 'xyzw'
+            notes.append(
+                f'{path}: a comma-separated file stamped in seconds (EuRoC stamps in integer '
+                'nanoseconds): read as t, x, y, z, qx, qy, qz, qw (TUM order); if its '
+                'quaternion is w x y z, say so with --hand/eye-quaternion-order wxyz'
+            )
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
-    t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
     bad = _bad_rows(t_ns, values, q_xyzw, fits)
     if bad.any():
         if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:

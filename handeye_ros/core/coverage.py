@@ -15,6 +15,12 @@ import numpy as np
 
 from .trajectory import Trajectory, segment_spans
 
+#: The notes name the coverage when the MoCap misses more than this fraction of the eye's span,
+#: or has a gap this long (s): a few dropped frames cost nothing worth a sentence (the numbers
+#: are in the result's coverage section whatever they are).
+NOTE_FRACTION = 0.95
+NOTE_GAP_S = 0.5
+
 
 @dataclass(frozen=True)
 class Coverage:
@@ -46,8 +52,9 @@ class Coverage:
         }
 
     def note(self) -> str:
-        """One sentence for the result's notes ('' when the MoCap covers the eye whole)."""
-        if self.gaps == 0 and self.fraction > 0.99:
+        """One sentence for the result's notes ('' when the MoCap covers the eye all but a few
+        frames: NOTE_FRACTION, NOTE_GAP_S)."""
+        if self.fraction >= NOTE_FRACTION and self.longest_gap_s < NOTE_GAP_S:
             return ''
         return (
             f"the MoCap covers {self.fraction:.0%} of the eye's {self.eye_span_s:.0f} s "

@@ -217,14 +217,17 @@ def calibrate(
         )
         raise DegenerateMotionError(msg) from None
     scaled = None if cfg.estimate_scale else _scale_check(pairs, lin, cfg)
-    if scaled is not None and scaled.significant:
+    if scaled is not None and scaled.costs(cfg.precision_translation):
         # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
         # it at "breaks" would only hide that
         run.doubt('scale', _scale_message(scaled))
-    elif cfg.screening:
-        eye_c, lin, pairs, screening = _split_eye(
-            hand, eye_c, lin, pairs, cfg, screening, shift_ns, run
-        )
+    else:
+        if scaled is not None and scaled.clear:  # named, but it costs less than the precision
+            run.notes.append(_scale_message(scaled))
+        if cfg.screening:
+            eye_c, lin, pairs, screening = _split_eye(
+                hand, eye_c, lin, pairs, cfg, screening, shift_ns, run
+            )
     tv = None
     clock = None
     if not fixed:
@@ -821,8 +824,10 @@ def _scale_message(fit: ScaleFit) -> str:
         f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
         f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
         f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
-        f'{fit.rms_without * 1e3:.0f} mm without): a monocular VO, or positions in other '
-        'units. Estimate it with --scale (node parameter estimate_scale)'
+        f'{fit.rms_without * 1e3:.0f} mm without), and taking s = 1 moves the translation '
+        f'of T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose scale is '
+        f'off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
+        '--scale (node parameter estimate_scale)'
     )
 
 

@@ -120,3 +120,13 @@ def test_motion_without_rotation_is_refused() -> None:
     )
     with pytest.raises(TimeAlignmentError):
         align_time(still, rec.eye)
+
+
+def test_too_little_mocap_between_gaps_names_its_parts() -> None:
+    """MoCap in three 1-s parts of a 60-s recording: less than the 5 s stage 1 needs; the
+    refusal names the parts and their lengths (and the pipeline refuses with it)."""
+    rec = recording(seed=6, level=2.0)
+    t = rec.hand.seconds(int(rec.hand.t_ns[0]))
+    hand = rec.hand.select(((t > 10) & (t < 11)) | ((t > 30) & (t < 31)) | ((t > 50) & (t < 51)))
+    with pytest.raises(TimeAlignmentError, match=r'in 3 gap-free parts of 0\.9\d s, 0\.9\d s'):
+        align_time(hand, rec.eye)

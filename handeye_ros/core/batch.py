@@ -48,7 +48,7 @@ from .huber_lm import (
     normal_sums,
 )
 from .residuals import BatchProblem, ParameterLayout, Weights, weighted_eye_chunks
-from .trajectory import Trajectory
+from .trajectory import Trajectory, lengths_text
 from .uncertainty import LongRunCovariance
 
 __all__ = ['BatchError', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
@@ -488,7 +488,7 @@ def _hand_pieces(
     if not usable.any():
         raise BatchError(
             f'{gaps}, and none of its {starts.size} gap-free parts is long enough for a '
-            f'spline of its own ({shortest:g} s): they last {_lengths(length)}'
+            f'spline of its own ({shortest:g} s): they last {lengths_text(length)}'
         )
     te = eye.t_ns - np.int64(round(time_offset_s * 1e9))
     covered = sum(
@@ -498,11 +498,13 @@ def _hand_pieces(
     total = int(np.sum((te >= hand.t_ns[0]) & (te <= hand.t_ns[-1])))
     note = (
         f'{gaps}: the batch stage fitted one spline to each of its {int(usable.sum())} '
-        f'gap-free parts of at least {shortest:g} s ({_lengths(length[usable])}), which cover '
+        f'gap-free parts of at least {shortest:g} s ({lengths_text(length[usable])}), which cover '
         f'{covered} of the {total} eye poses in its span'
     )
     if not usable.all():
-        note += f'; {int((~usable).sum())} shorter part(s) left out ({_lengths(length[~usable])})'
+        note += (
+            f'; {int((~usable).sum())} shorter part(s) left out ({lengths_text(length[~usable])})'
+        )
     keep = np.concatenate(
         [np.arange(a, b) for a, b in zip(starts[usable], ends[usable], strict=True)]
     )
@@ -510,13 +512,6 @@ def _hand_pieces(
     bounds = np.concatenate(([0], np.cumsum(sizes)))
     spans = [(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
     return hand.select(keep), spans, note
-
-
-def _lengths(seconds: np.ndarray) -> str:
-    """Part lengths for a message: each of a few, else their range and total."""
-    if seconds.size <= 4:
-        return ', '.join(f'{v:.2f} s' for v in seconds)
-    return f'{seconds.min():.2f} to {seconds.max():.2f} s, {seconds.sum():.1f} s in all'
 
 
 def _check_hand_rate(hand: Trajectory, knot_spacing: float, joint: bool) -> None:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .trajectory import Trajectory, segment_spans
+from .trajectory import Trajectory, gap_free_parts
 
 #: The notes name the coverage when the MoCap misses more than this fraction of the eye's span,
 #: or has a gap this long (s): a few dropped frames cost nothing worth a sentence (the numbers
@@ -72,8 +72,7 @@ def mocap_coverage(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> C
     te = eye.seconds(origin) - time_offset_s
     lo, hi = float(te[0]), float(te[-1])
     ok = hand.interval_ok()
-    labels = np.concatenate(([0], np.cumsum(~ok)))
-    covered = sum(max(0.0, min(hi, th[b - 1]) - max(lo, th[a])) for a, b in segment_spans(labels))
+    covered = sum(max(0.0, min(hi, th[b - 1]) - max(lo, th[a])) for a, b in gap_free_parts(hand))
     gap = np.flatnonzero(~ok)
     start, stop = th[gap], th[gap + 1]
     inside = (stop > lo) & (start < hi)

@@ -41,7 +41,7 @@ from scipy import fft
 
 from .errors import TimeAlignmentError
 from .geometry import consecutive_rotvecs
-from .trajectory import Trajectory
+from .trajectory import Trajectory, gap_free_parts, lengths_text
 
 #: A lag is only considered where the two signals overlap on at least this fraction of the
 #: shorter one: with little overlap a normalised correlation is high by chance.
@@ -367,9 +367,9 @@ def _no_overlap(
     )
     msg = (
         f'{hand.name} and {eye.name} do not overlap in time by at least {need_s:.1f} s '
-        f'{where} (hand covers {hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye '
-        f'starts {(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own '
-        'clocks)'
+        f'{where} (hand covers {hand.duration_s:.1f} s{_parts(hand)}, eye '
+        f'{eye.duration_s:.1f} s{_parts(eye)}, eye starts '
+        f'{(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own clocks)'
         + (
             ''
             if window is None
@@ -378,6 +378,16 @@ def _no_overlap(
         )
     )
     return TimeAlignmentError(msg)
+
+
+def _parts(traj: Trajectory) -> str:
+    """', in N gap-free parts of ... s' for a stream with gaps ('' without)."""
+    parts = gap_free_parts(traj)
+    if len(parts) < 2:
+        return ''
+    return f' in {len(parts)} gap-free parts of ' + lengths_text(
+        [(traj.t_ns[b - 1] - traj.t_ns[a]) * 1e-9 for a, b in parts]
+    )
 
 
 def _peak(

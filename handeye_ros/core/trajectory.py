@@ -241,6 +241,19 @@ def is_keyframe_only(traj: Trajectory) -> bool:
     return median > KEYFRAME_PERIOD_S or dense < KEYFRAME_COVERAGE
 
 
+def gap_free_parts(traj: Trajectory) -> list[tuple[int, int]]:
+    """(start, stop) index ranges of the parts of a stream between its gaps and breaks."""
+    return segment_spans(np.concatenate(([0], np.cumsum(~traj.interval_ok()))))
+
+
+def lengths_text(seconds: np.ndarray) -> str:
+    """Part lengths for a message: each of a few, else their range and total."""
+    seconds = np.asarray(seconds, float)
+    if seconds.size <= 4:
+        return ', '.join(f'{v:.2f} s' for v in seconds)
+    return f'{seconds.min():.2f} to {seconds.max():.2f} s, {seconds.sum():.1f} s in all'
+
+
 def segment_spans(labels: np.ndarray) -> list[tuple[int, int]]:
     """(start, stop) index ranges of the runs of equal labels in a non-decreasing label array
     (the segments of :meth:`Trajectory.segment_ids`, or of pose pairs)."""

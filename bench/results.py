@@ -81,6 +81,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '20 min',
     ),
     'tf_inputs': ('tf_inputs', [], ['tf_inputs'], '5 min'),
+    'real_world': (
+        'real_world',
+        [],
+        ['real_world_tumvi', 'real_world_keyframes', 'real_world_sim'],
+        '5 min',
+    ),
     'node_ingest': (
         'node_ingest',
         [],

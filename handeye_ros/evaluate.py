@@ -29,6 +29,8 @@ LOG = logging.getLogger('handeye_ros.evaluate')  # not __name__: it is __main__ 
 #: Exit code when nothing could be run (a bad manifest or option).
 EXIT_UNUSABLE = 101
 MAX_EXIT_FAILED = 100
+#: How long a running cluster is given to show its first worker (s).
+WORKER_WAIT_S = 20.0
 #: Modules a LocalCluster's workers import as they start.
 WORKER_PRELOAD = (
     'handeye_ros.runs',
@@ -202,6 +204,41 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     return ordered
 
 
+class ClusterError(OSError):
+    """A running cluster that cannot run the tasks (it cannot import the package)."""
+
+
+def _check_cluster(client, address: str) -> None:
+    """Refuse a cluster whose scheduler or workers cannot import the package: they unpickle
+    every task, and without it each run would fail with "Error during deserialization of the
+    task graph" and nothing more."""
+    import importlib
+
+    where = []
+    try:
+        client.run_on_scheduler(importlib.import_module, WORKER_PRELOAD[0])
+    except Exception as err:  # noqa: BLE001  (any error the scheduler raises back)
+        where.append(f'its scheduler ({type(err).__name__}: {err})')
+    try:
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+    except TimeoutError:
+        pass  # said below
+    failed = client.run(importlib.import_module, WORKER_PRELOAD[0], on_error='return')
+    bad = sorted(w for w, r in failed.items() if isinstance(r, BaseException))
+    if bad:
+        where.append(f'{len(bad)} of its {len(failed)} workers ({", ".join(bad[:3])})')
+    if not failed:
+        where.append(f'it has no workers (none joined within {WORKER_WAIT_S:g} s)')
+    if where:
+        here = Path(__file__).resolve().parents[1]
+        raise ClusterError(
+            f'the Dask cluster at {address} cannot run handeye_ros: {"; ".join(where)}. '
+            'Its scheduler and workers must import the package: start them from the '
+            f'environment this tool runs in ({sys.prefix}/bin/dask scheduler, dask worker '
+            f'ADDRESS), or install it in theirs (pip install -e {here})'
+        )
+
+
 def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     """Run ``todo`` on a LocalCluster (or ``args.scheduler``); ``done(run, row)`` as each ends.
 
@@ -219,6 +256,11 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
     t0 = time.perf_counter()
     if args.scheduler:
         client = Client(args.scheduler, timeout='20s')
+        try:
+            _check_cluster(client, args.scheduler)
+        except ClusterError:
+            client.close()
+            raise
     else:
         n = args.workers or os.cpu_count() or 1
         # the workers import the package while the cluster starts, not in their first run

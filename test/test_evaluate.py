@@ -194,3 +194,132 @@ def test_a_worker_killed_mid_run_costs_only_a_retry(tmp_path: Path, monkeypatch)
     assert sorted(names) == sorted(f'{r["algorithm"]}/{r["sequence"]}/0' for r in runs)
     assert len(set(names)) == len(names) == 6  # no run lost, none twice
     assert all(r['status'] == 'ok' for r in rows), stdout
+
+
+def _dask_cluster(tmp: Path, preload: Path | None = None):
+    """A scheduler and a one-process worker started as a user would, from this venv's ``dask``
+    command on loopback (with ``preload`` in both when given); yields the address."""
+    import contextlib
+    import json
+
+    dask = Path(sys.executable).with_name('dask')
+    if not dask.is_file():
+        pytest.skip(f'no dask command beside {sys.executable}')
+    env = {k: v for k, v in os.environ.items() if k != 'PYTHONPATH'}
+    extra = ['--preload', str(preload)] if preload else []
+    info = tmp / 'scheduler.json'
+
+    @contextlib.contextmanager
+    def started():
+        procs = [
+            subprocess.Popen(
+                [
+                    str(dask),
+                    'scheduler',
+                    '--host',
+                    '127.0.0.1',
+                    '--port',
+                    '0',
+                    '--no-dashboard',
+                    '--scheduler-file',
+                    str(info),
+                    *extra,
+                ],
+                env=env,
+                cwd=tmp,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        ]
+        try:
+            deadline = time.monotonic() + 60
+            while not info.is_file() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            address = json.loads(info.read_text())['address']
+            procs.append(
+                subprocess.Popen(
+                    [
+                        str(dask),
+                        'worker',
+                        address,
+                        '--nworkers',
+                        '1',
+                        '--nthreads',
+                        '1',
+                        '--no-dashboard',
+                        '--host',
+                        '127.0.0.1',
+                        *extra,
+                    ],
+                    env=env,
+                    cwd=tmp,
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
+            )
+            yield address
+        finally:
+            for p in reversed(procs):
+                p.terminate()
+            for p in procs:
+                try:
+                    p.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+
+    return started()
+
+
+def _evaluate_outside(tmp: Path, *args: str) -> subprocess.CompletedProcess:
+    """The evaluate command of this venv run from a folder outside the repository, without
+    PYTHONPATH: the package must be installed (scripts/setup installs it editable)."""
+    env = {k: v for k, v in os.environ.items() if k != 'PYTHONPATH'}
+    cmd = Path(sys.executable).with_name('evaluate')
+    if not cmd.is_file():
+        pytest.skip(f'handeye_ros is not installed in {sys.prefix} (scripts/setup installs it)')
+    return subprocess.run(
+        [str(cmd), *args],
+        env=env,
+        cwd=tmp,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+
+
+def test_running_cluster_from_the_venv(tmp_path: Path) -> None:
+    """evaluate --scheduler against a scheduler and a worker started from the venv's dask
+    command: every run ok, from any directory."""
+    runs = _write_runs(tmp_path, 2, seed0=500)
+    manifest = tmp_path / 'm.yaml'
+    manifest.write_text(yaml.safe_dump({'runs': runs}))
+    with _dask_cluster(tmp_path) as address:
+        res = _evaluate_outside(
+            tmp_path, str(manifest), '-o', str(tmp_path / 'o'), '--scheduler', address
+        )
+    assert res.returncode == 0, res.stderr
+    assert [r['status'] for r in _rows(tmp_path / 'o')] == ['ok', 'ok']
+
+
+def test_cluster_that_cannot_import_the_package_is_named(tmp_path: Path) -> None:
+    """A cluster whose processes cannot import handeye_ros (a preload hides it, as an
+    environment without the package would): one line saying so and how to fix it, exit 101,
+    instead of every run failing with a deserialization error."""
+    hide = tmp_path / 'hide.py'
+    hide.write_text("import sys\nsys.modules['handeye_ros'] = None\n")
+    runs = _write_runs(tmp_path, 1, seed0=510)
+    manifest = tmp_path / 'm.yaml'
+    manifest.write_text(yaml.safe_dump({'runs': runs}))
+    with _dask_cluster(tmp_path, preload=hide) as address:
+        res = _evaluate_outside(
+            tmp_path, str(manifest), '-o', str(tmp_path / 'o'), '--scheduler', address
+        )
+    assert res.returncode == EXIT_UNUSABLE, res.stderr
+    assert 'Traceback' not in res.stderr
+    line = res.stderr.strip().splitlines()[-1]
+    assert (
+        line.startswith('evaluate: error: the Dask cluster at')
+        and 'cannot run handeye_ros' in line
+    )
+    assert 'its scheduler' in line and '1 of its 1 workers' in line and 'pip install -e' in line

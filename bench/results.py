@@ -94,7 +94,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '25 min',
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
-    'auto_types': ('auto_types', [], ['auto_types'], '15 min'),
 }
 
 BLOCK = re.compile(

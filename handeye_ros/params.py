@@ -65,14 +65,6 @@ class NodeConfig(Options):
         low=0.1,
         high=86_400.0,
     )
-    type_probes: bool = option(
-        True,
-        'bool',
-        'with hand_type/eye_type auto: receive the first messages of a type other than the '
-        'likeliest (hand PoseStamped, eye Odometry, subscribed at start) before the type is '
-        'learnt (raw subscriptions in DDS participants of their own, until the types are '
-        'known); false loses what such a publisher sends before the node has subscribed',
-    )
 
 
 #: Node parameters that may change while the node runs: the algorithm options and where
@@ -80,8 +72,13 @@ class NodeConfig(Options):
 RUNTIME_NODE_KEYS = frozenset({'output_file', 'report_dir'})
 RUNTIME_KEYS = frozenset(CalibrationConfig.specs()) | RUNTIME_NODE_KEYS
 
+#: Parameters earlier versions had, still in users' params files: ignored, with why.
+REMOVED = {
+    'type_probes': 'the type probes were removed: they changed nothing measurable '
+    '(bench/RESULTS.md); remove it from the params file',
+}
 #: Parameters the offline tool ignores in a node params file (ROS's own use_sim_time too).
-NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'}
+NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'} | frozenset(REMOVED)
 
 
 def all_specs() -> dict:

@@ -13,7 +13,6 @@ from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch import refine
 from handeye_ros.core.clock import (
-    DRIFT_NOTICE_S,
     DriftFit,
     fit_drift,
     least_squares_line,
@@ -357,12 +356,6 @@ def test_real_pair_with_drift_and_scale() -> None:
         hand, replace(est, p_xyz=est.p_xyz / 2), CalibrationConfig(estimate_scale=True)
     )
     assert half.scale == pytest.approx(2 * metric.scale, rel=5e-3)
-
-
-def test_drift_notice_is_the_issue_figure() -> None:
-    """The default run names drifts that move dt by more than 2 ms over the recording (the
-    accuracy the issue asks of dt at the ends)."""
-    assert DRIFT_NOTICE_S == 2e-3
 
 
 def test_world_metrics_survive_a_one_pose_segment() -> None:

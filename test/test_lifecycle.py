@@ -17,8 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_a_signal_between_rclpy_init_and_spin_still_closes() -> None:
-    """A Ctrl-C after rclpy.init and before the spin (the node's start: its type probes take
-    a second) leaves a context that rclpy's handler has shut down; an executor cannot be made
+    """A Ctrl-C after rclpy.init and before the spin (the node's start) leaves a context that rclpy's handler has shut down; an executor cannot be made
     on it. spin() must still call close() (which stops the worker; before, it did not, and
     the node hung on the worker's resource tracker: 1 in 100 stops of bench/node_lifecycle.py)
     and return quietly. Run in a fresh interpreter: rclpy's state is per process."""

@@ -1,7 +1,8 @@
 """Stage 3: continuous-time batch refinement of (dt, T_HE) with uncertainty (Section III-C).
 
 The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.spline`, eq. 14); the eye is
-predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (eq. 1) and compared with the eye's relative
+predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (the model of Section III-C, stated with
+eq. 15) and compared with the eye's relative
 poses between consecutive observations (eq. 16, so T_WG drops out); the hand with each MoCap
 pose. The residual blocks and their Jacobians are in :mod:`.residuals`, the Huber loss and the
 Levenberg-Marquardt solvers in :mod:`.huber_lm`, the covariance in :mod:`.batch_covariance`;

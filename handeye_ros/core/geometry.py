@@ -180,14 +180,6 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     return out
 
 
-def hat(v: np.ndarray) -> np.ndarray:
-    """Skew matrices [v]x (N, 3, 3) of vectors (N, 3): [v]x w = v x w."""
-    K = np.zeros(v.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2], K[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    K[..., 1, 0], K[..., 2, 0], K[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return K
-
-
 def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     """Right Jacobians Jr(v) of SO(3) (or their inverses), (N, 3, 3), for rotation vectors (N, 3).
 
@@ -198,7 +190,7 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     t = np.sqrt(t2)
     small = t < 1e-4
     s = np.where(small, 1.0, t)
-    K = hat(v)
+    K = skew(v)
     K2 = v[..., :, None] * v[..., None, :]  # K^2 = v v^T - |v|^2 I (no stacked matmul)
     K2[..., [0, 1, 2], [0, 1, 2]] -= t2[..., None]
     if inverse:

@@ -24,17 +24,19 @@ def motion_indices(
     if strategy not in STRATEGIES:
         msg = f'relative_poses must be one of {tuple(STRATEGIES)}, got {strategy!r}'
         raise ValueError(msg)
-    return STRATEGIES[strategy](R, eta_rad)
+    if strategy == 'rotation':
+        return rotation_keyframes(R, eta_rad)
+    return STRATEGIES[strategy](R)
 
 
-def global_pairs(R: np.ndarray, eta_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Every frame against the first (``eta_rad`` unused)."""
+def global_pairs(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every frame against the first."""
     j = np.arange(1, R.shape[0])
     return np.zeros_like(j), j
 
 
-def interframe_pairs(R: np.ndarray, eta_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Consecutive frames (``eta_rad`` unused)."""
+def interframe_pairs(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Consecutive frames."""
     i = np.arange(R.shape[0] - 1)
     return i, i + 1
 

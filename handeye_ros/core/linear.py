@@ -84,7 +84,7 @@ class LinearSolution:
     axis_spread_deg : float
         How far apart the rotation axes of the inlier motions are (for two axes, their angle).
     rotation_residual_deg, translation_residual_m : float
-        RMS of the inlier criteria (eq. 14) over the inliers at the solution.
+        RMS of the inlier criteria (eq. 13) over the inliers at the solution.
     inlier_rotation_deg, inlier_translation_m : float
         Inlier thresholds of the final consensus (the configured ones, or wider when adapted to
         the measured noise).

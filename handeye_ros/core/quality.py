@@ -81,8 +81,6 @@ FAILED_MOTION_ROTATION_DEG = 2.0
 FAILED_MOTION_TRANSLATION_M = 0.05
 FAILED_MOTION_TRANSLATION_FRACTION = 0.5
 
-VERDICTS = ('good', 'doubtful', 'failed')
-
 
 @dataclass(frozen=True)
 class Reason:

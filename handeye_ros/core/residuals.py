@@ -1,6 +1,7 @@
 """Stage 3's least-squares problem (Section III-C): the residual blocks of eq. 16 and their
 Jacobians, for a cumulative B-spline T_GH(t) of the hand (:mod:`.spline`, eq. 14) and the eye
-predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (eq. 1)::
+predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (the model of Section III-C, stated with
+eq. 15)::
 
     hand:  d(T_GH(t_h),  Z_h)
     eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
@@ -25,11 +26,11 @@ from scipy.spatial.transform import Rotation
 from .errors import BatchError
 from .geometry import (
     Pose,
-    hat,
     log_so3,
     matrix_from_quat,
     relative,
     right_jacobian,
+    skew,
 )
 from .spline import PoseSpline, exp_so3, fit_pieces
 from .trajectory import Trajectory
@@ -314,7 +315,7 @@ class BatchProblem:
             J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
         if rotation_only:
             return r, J
-        J[:, 3:, 1:4] = _times(hat(p_rel), Jr_theta / s)
+        J[:, 3:, 1:4] = _times(skew(p_rel), Jr_theta / s)
         J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
         if self.i_scale is not None:
             J[:, 3:, self.i_scale] = -p_rel / s**2
@@ -404,8 +405,8 @@ class BatchProblem:
         RXtRat = np.matmul(RXt, np.swapaxes(Ra, -1, -2))
         row = 6 * (self.th.size + np.arange(ia.size))
         for idx, sign_rot, d_trans in (
-            (ia, -1.0, np.matmul(RXt, hat(u))),
-            (ib, 1.0, -np.matmul(np.matmul(RXt, Q), hat(pX))),
+            (ia, -1.0, np.matmul(RXt, skew(u))),
+            (ib, 1.0, -np.matmul(np.matmul(RXt, Q), skew(pX))),
         ):
             cp = eb[0][idx][:, None] + np.arange(k)
             JRi = JR_e[idx]

@@ -1,1 +1,3 @@
-"""The ROS 2 front end (rclpy). Only :mod:`.node` imports rclpy; :mod:`.config` does not."""
+"""The ROS 2 front end (rclpy): the calibrator node (:mod:`.node`, started by :mod:`.calibrator`),
+its parameters (:mod:`.parameters`) and diagnostics (:mod:`.diagnostics`), sim_publisher and
+publish_calibration."""

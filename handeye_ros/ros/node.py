@@ -23,9 +23,9 @@ messages: /diagnostics then says ERROR with the reason, and names the latched ou
 (the result they come from and when). Status goes to /diagnostics.
 
 Auto-typed topics (``hand_type: auto``) are subscribed at once with their likeliest type
-(:data:`.type_probes.LIKELY_TYPES`), which the graph then confirms or replaces; the other
-candidate types are held by :mod:`.type_probes`, which hands the node what came before its own
-subscription matched.
+(:data:`LIKELY_TYPES`), as a typed node subscribes them; the graph then confirms the type, or
+the subscription gives way to the publisher's type. (Raw subscriptions of the other candidate
+types, to keep what came before, were measured to change nothing and were removed: RESULTS.md.)
 
 The parameters (declared from the option specs, changed at run time, misspelt names said) are
 in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
@@ -59,7 +59,6 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
-from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -71,14 +70,6 @@ from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker
 from .lifecycle import spin, stop_requested
-from .type_probes import (
-    HANDOVER_LIMIT_S,
-    HANDOVER_TIMEOUT_S,
-    LIKELY_TYPES,
-    Handover,
-    TypeProbes,
-    candidate_types,
-)
 from .types import RclpyTypes, message_class
 
 #: Latched result topics: late subscribers get the last result.
@@ -91,9 +82,11 @@ LATCHED = QoSProfile(
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
 #: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
-#: learnt there is subscribed at the next look, and what the publisher sends until then is
-#: lost unless a type probe holds it (1 kHz: up to 50 messages; one look costs ~0.02 ms).
+#: learnt there is subscribed at the next look (one look costs ~0.02 ms).
 GRAPH_POLL_S = 0.05
+#: The type a stream's plain pose topic most likely has, subscribed before the graph says
+#: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
+LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
 
 
 class CalibratorNode(Node):
@@ -147,9 +140,6 @@ class CalibratorNode(Node):
                 self._subscribe(stream, normalise_type(declared))
             elif self.recorder.selectors[stream].item is None:
                 self._subscribe(stream, LIKELY_TYPES[stream], guess=True)
-        #: streams switching from their type probe to their own subscription
-        self._handovers: dict[str, Handover] = {}
-        self._probes: TypeProbes | None = None
         self._graph_timer = None
         if len(self._subs) < len(STREAMS) or self._guessed:
             self._graph_timer = self.create_timer(GRAPH_POLL_S, self._discover_types)
@@ -158,8 +148,6 @@ class CalibratorNode(Node):
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         parameters.warn_unknown(self)
         self._pool = pool
-        # last: nothing after it may fail, so a node that is not made leaves no probe behind
-        self._probes = self._start_probes()
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
@@ -211,7 +199,7 @@ class CalibratorNode(Node):
                 ) from None
 
     def _pose_qos(self) -> QoSProfile:
-        """The QoS of the pose subscriptions (and of the type probes)."""
+        """The QoS of the pose subscriptions."""
         return QoSProfile(
             depth=self.node_cfg.qos_depth,
             history=HistoryPolicy.KEEP_LAST,
@@ -227,22 +215,6 @@ class CalibratorNode(Node):
         """The auto-typed streams whose type the graph has not named yet."""
         return [s for s in STREAMS if s not in self._subs or s in self._guessed]
 
-    def _start_probes(self) -> TypeProbes | None:
-        """Raw subscriptions for every other candidate type of the auto-typed topics, so that
-        their first messages are not lost while the type is learnt (see :mod:`.type_probes`)."""
-        auto = self._unknown()
-        if not auto or not self.node_cfg.type_probes:
-            return None
-        topics = {}
-        for stream in auto:
-            sel = self.recorder.selectors[stream]
-            topic = self.resolve_topic_name(sel.topic)
-            types = candidate_types(sel.item is not None, self._types.__getitem__)
-            topics[topic] = [
-                t for t in types if stream not in self._guessed or t != LIKELY_TYPES[stream]
-            ]
-        return TypeProbes(topics, self._types.__getitem__, self._pose_qos(), self.get_clock())
-
     def _subscribe(self, stream: str, msgtype: str, guess: bool = False) -> None:
         """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
         tf2's static broadcasters latch) once its type is known, or with its likeliest type
@@ -251,10 +223,6 @@ class CalibratorNode(Node):
         self.recorder.set_type(stream, msgtype)
         cls = message_class(msgtype)
         sel = self.recorder.selectors[stream]
-        probes = self._probes if hasattr(self, '_probes') else None  # None while __init__ runs
-        early = probes.early.get((self.resolve_topic_name(sel.topic), msgtype)) if probes else None
-        if early is not None:
-            self._handovers[stream] = Handover(early, lambda raw: deserialize_message(raw, cls))
         self._subs[stream] = self.create_subscription(
             cls,
             sel.topic,
@@ -317,8 +285,6 @@ class CalibratorNode(Node):
     def _discover_types(self) -> None:
         """Learn the message type of auto-typed topics from the graph."""
         now = time.monotonic()
-        for stream in list(self._handovers):
-            self._settle(stream, now)
         for stream in self._unknown():
             topic = self.recorder.selectors[stream].topic
             types = self._publisher_types(topic)
@@ -336,13 +302,11 @@ class CalibratorNode(Node):
                         self.destroy_subscription(self._subs.pop(stream))
                         self._guessed.discard(stream)
                     self._subscribe(stream, usable[0])
-                    if stream not in self._handovers:
-                        self.get_logger().info(
-                            f'{stream}: {topic} learnt from its publisher; messages it sent '
-                            'before this subscription matched are not received (set '
-                            f'{stream}_type: {usable[0].rsplit("/", 1)[-1]} to subscribe at '
-                            'start, or type_probes: true)'
-                        )
+                    self.get_logger().info(
+                        f'{stream}: {topic} learnt from its publisher; messages it sent '
+                        'before this subscription matched are not received (set '
+                        f'{stream}_type: {usable[0].rsplit("/", 1)[-1]} to subscribe at start)'
+                    )
                 except ConfigError as err:
                     self._sub_errors[stream] = str(err)
                     if now - self._type_warned[stream] > self.node_cfg.topic_wait:
@@ -362,60 +326,20 @@ class CalibratorNode(Node):
                 else:
                     why = 'has no publisher yet'
                 self.get_logger().warning(f'{stream} topic {topic} {why}')
-        if not self._unknown() and not self._handovers:
-            if self._probes is not None:
-                self._probes.close()
-                self._probes = None
-            if self._graph_timer is not None:
-                self._graph_timer.cancel()
+        if not self._unknown() and self._graph_timer is not None:
+            self._graph_timer.cancel()
 
     def _publisher_types(self, topic: str) -> list[str]:
         """The types a topic's publishers send, in the order first seen (the graph's types
-        of a topic also hold its subscriptions', the type probes' among them)."""
+        of a topic also hold its subscriptions')."""
         types: list[str] = []
         for info in self.get_publishers_info_by_topic(topic):
             if info.topic_type not in types:
                 types.append(info.topic_type)
         return types
 
-    def _settle(self, stream: str, now: float) -> None:
-        """Close a stream's handover from its probe once it can: the probe's messages from
-        before the subscription matched, then the subscription's own."""
-        handover = self._handovers[stream]
-        done = handover.settle(now)
-        if done is None:
-            return
-        del self._handovers[stream]
-        early, own = done
-        for msg, arrival in early + own:
-            self._add(stream, msg, False, arrival)
-        topic = self.recorder.selectors[stream].topic
-        if handover.outcome == 'caught up' and early:
-            self.get_logger().info(
-                f'{stream}: {topic} handed over from the type probe: {len(early)} message(s) '
-                'received before the subscription matched'
-            )
-        elif handover.outcome == 'caught up':
-            # DDS discovery is per participant: the probe's may find the publisher later
-            self.get_logger().info(
-                f'{stream}: {topic}: the type probe matched its publisher no earlier than the '
-                'subscription did: nothing to hand over'
-            )
-        else:
-            self.get_logger().warning(
-                f"{stream}: {topic}: the type probe held none of the subscription's first "
-                f'messages (silent for {HANDOVER_TIMEOUT_S:g} s, or {HANDOVER_LIMIT_S:g} s in '
-                'all); messages sent before the subscription matched may be missing (set '
-                f'{stream}_type to subscribe at start)'
-            )
-
     def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
-        handover = None if static else self._handovers.get(stream)
-        if handover is not None:
-            handover.hold(msg, arrival, time.monotonic())
-            self._settle(stream, time.monotonic())
-            return
         self._add(stream, msg, static, arrival)
 
     def _add(self, stream: str, msg: Any, static: bool, arrival: int | None) -> None:
@@ -595,17 +519,12 @@ class CalibratorNode(Node):
         """Stop the worker process and wait for it (a running calibration is abandoned), so
         that no process outlives the node."""
         self._closing = True
-        try:
-            if self._probes is not None:
-                probes, self._probes = self._probes, None
-                probes.close()
-        finally:  # whatever the probes' end, the worker must stop: it outlives us otherwise
-            if self._pool is not None:
-                worker.stop(self._pool)
-                # dropped, so that its queues' semaphores are released before the resource
-                # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
-                self._pool = None
-            self._drop_stage(_staged_dir(self._last_result))
+        if self._pool is not None:
+            worker.stop(self._pool)
+            # dropped, so that its queues' semaphores are released before the resource
+            # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
+            self._pool = None
+        self._drop_stage(_staged_dir(self._last_result))
 
     # ------------------------------------------------------------------ outputs
 

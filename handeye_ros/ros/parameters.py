@@ -23,7 +23,7 @@ from rclpy.node import Node
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError
 from ..core.options import Spec, split_options
-from ..params import RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
+from ..params import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..stream import StreamConfig
 
 #: Parameters rclpy declares on every node.
@@ -109,6 +109,9 @@ def warn_unknown(node: Node) -> None:
         n for n in given if not node.has_parameter(n) and not n.startswith(ROS_OWN_PARAMETERS)
     )
     for name in unknown:
+        if name in REMOVED:
+            node.get_logger().warning(f'parameter {name!r} ignored: {REMOVED[name]}')
+            continue
         near = difflib.get_close_matches(name, list(all_specs()), n=1)
         node.get_logger().warning(
             f'unknown parameter {name!r} ignored'

@@ -37,12 +37,15 @@ STREAM_OPTION_KEYS = (
 )
 
 
-def add_options(group: Any, cls: Any) -> None:
-    """Command-line options generated from an option set's specs (names, help, types)."""
+def add_options(group: Any, cls: Any, show_all: bool = True) -> None:
+    """Command-line options generated from an option set's specs (names, help, types); the
+    expert ones (:attr:`.core.options.Spec.expert`) parse alike but are listed only when
+    ``show_all``."""
     defaults = cls().to_dict()
     for name, spec in cls.specs().items():
         flag = name.replace('_', '-')
         text = spec.description.replace('%', '%%')  # argparse formats help with %
+        hidden = spec.expert and not show_all
         if spec.kind == 'bool':
             on = not defaults[name]
             names = [f'--{flag}' if on else f'--no-{flag}']
@@ -53,7 +56,7 @@ def add_options(group: Any, cls: Any) -> None:
                 dest=name,
                 action='store_const',
                 const=on,
-                help=f'{"" if on else "do not: "}{text}',
+                help=argparse.SUPPRESS if hidden else f'{"" if on else "do not: "}{text}',
             )
             continue
         default = 'estimated/automatic' if defaults[name] is None else defaults[name]
@@ -64,20 +67,45 @@ def add_options(group: Any, cls: Any) -> None:
             choices=spec.choices or None,
             type={'float': float, 'int': int, 'str': str}[spec.kind],
             metavar=None if spec.choices else name.split('_')[-1].upper(),
-            help=f'{text} (default {default}{", " + rng if rng else ""})',
+            help=argparse.SUPPRESS
+            if hidden
+            else f'{text} (default {default}{", " + rng if rng else ""})',
         )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser (kept apart from numpy and scipy so that --help is instant)."""
+class _HelpAll(argparse.Action):
+    """--help-all: the help with every option, the expert ones too."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any):
+        super().__init__(option_strings, dest, nargs=0, **kwargs)
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option_string: Any = None):
+        build_parser(show_all=True).print_help()
+        parser.exit()
+
+
+def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
+    """The argument parser (kept apart from numpy and scipy so that --help is instant).
+
+    ``show_all``: list the expert options too (--help-all); they parse either way.
+    """
     from .core.config import CalibrationConfig
+
+    def expert(text: str) -> str:
+        return text if show_all else argparse.SUPPRESS
 
     p = argparse.ArgumentParser(
         prog='offline_calibrate',
         description='Estimate the time offset dt and the extrinsic T_HE between a MoCap '
         'trajectory (hand, T_GH) and a VO/VIO trajectory (eye, T_WE), with '
         'T_WE(t) = T_WG * T_GH(t - dt) * T_HE.',
+        epilog=None
+        if show_all
+        else "--help-all lists the other options: the paper's ablation switches and the fine "
+        'tuning of each stage, the input conventions the tool otherwise detects, frame names, '
+        'and output details.',
     )
+    p.add_argument('--help-all', action=_HelpAll, help='show every option and exit')
     io = p.add_argument_group('input: two trajectory files, or one bag')
     io.add_argument('--hand', metavar='FILE', help='MoCap trajectory (T_GH), TUM or EuRoC')
     io.add_argument('--eye', metavar='FILE', help='VO/VIO trajectory (T_WE), TUM or EuRoC')
@@ -85,23 +113,27 @@ def build_parser() -> argparse.ArgumentParser:
         '--format',
         choices=('auto', 'tum', 'euroc'),
         default='auto',
-        help='file format of both inputs (default: detected from the content)',
+        help=expert('file format of both inputs (default: detected from the content)'),
     )
     for stream in ('hand', 'eye'):
         io.add_argument(
             f'--{stream}-stamp-unit',
             choices=('auto', 'Gs', 's', 'ms', 'us', 'ns'),
             default='auto',
-            help=f"unit of the {stream} file's stamps (default: "
-            "the format's, seconds for TUM, nanoseconds for EuRoC; a unit the "
-            'data contradict is detected and named; Gs: units of 1e9 s)',
+            help=expert(
+                f"unit of the {stream} file's stamps (default: "
+                "the format's, seconds for TUM, nanoseconds for EuRoC; a unit the "
+                'data contradict is detected and named; Gs: units of 1e9 s)'
+            ),
         )
         io.add_argument(
             f'--{stream}-quaternion-order',
             choices=('auto', 'xyzw', 'wxyz'),
             default='auto',
-            help=f"order of the {stream} file's quaternion "
-            "columns (default: the format's, x y z w for TUM, w x y z for EuRoC)",
+            help=expert(
+                f"order of the {stream} file's quaternion "
+                "columns (default: the format's, x y z w for TUM, w x y z for EuRoC)"
+            ),
         )
     io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')
     io.add_argument(
@@ -122,37 +154,41 @@ def build_parser() -> argparse.ArgumentParser:
     io.add_argument(
         '--hand-frame-id',
         metavar='FRAME',
-        help="parent frame of the extrinsic (default: from the bag's messages)",
+        help=expert("parent frame of the extrinsic (default: from the bag's messages)"),
     )
     io.add_argument(
         '--eye-frame-id',
         metavar='FRAME',
-        help="child frame of the extrinsic (default: from the bag's messages)",
+        help=expert("child frame of the extrinsic (default: from the bag's messages)"),
     )
     io.add_argument(
         '--hand-world-frame-id',
         metavar='FRAME',
-        help="the MoCap world frame (default: from the bag's messages)",
+        help=expert("the MoCap world frame (default: from the bag's messages)"),
     )
     io.add_argument(
         '--eye-world-frame-id',
         metavar='FRAME',
-        help="the VIO world frame (default: from the bag's messages)",
+        help=expert("the VIO world frame (default: from the bag's messages)"),
     )
     io.add_argument(
         '--use-arrival-time',
         choices=('none', 'hand', 'eye', 'both'),
-        help="with --bag: stamp that stream's poses with the bag's record time "
-        'instead of header.stamp (for publishers that leave it unset or '
-        'frozen; the transport delay then joins the time offset)',
+        help=expert(
+            "with --bag: stamp that stream's poses with the bag's record time "
+            'instead of header.stamp (for publishers that leave it unset or '
+            'frozen; the transport delay then joins the time offset)'
+        ),
     )
     io.add_argument(
         '--progress',
         action=argparse.BooleanOptionalAction,
         default=None,
-        help='progress bars while replaying a bag and calibrating, shown after '
-        f'{PROGRESS_DELAY_S:g} s (default: when stderr is a '
-        'terminal)',
+        help=expert(
+            'progress bars while replaying a bag and calibrating, shown after '
+            f'{PROGRESS_DELAY_S:g} s (default: when stderr is a '
+            'terminal)'
+        ),
     )
     out = p.add_argument_group('output')
     out.add_argument(
@@ -191,28 +227,30 @@ def build_parser() -> argparse.ArgumentParser:
         '--evaluation',
         action=argparse.BooleanOptionalAction,
         default=True,
-        help='add APE/RPE with and without the calibration to the result (default; '
-        'about 4 s for an hour of 200 Hz VIO); --export and --report imply it',
+        help=expert(
+            'add APE/RPE with and without the calibration to the result (default; '
+            'about 4 s for an hour of 200 Hz VIO); --export and --report imply it'
+        ),
     )
     out.add_argument(
         '--rpe-delta',
         metavar='SECONDS',
         type=float,
         default=1.0,
-        help='time step of the RPE per time (default 1 s)',
+        help=expert('time step of the RPE per time (default 1 s)'),
     )
     out.add_argument(
         '--rpe-distance',
         metavar='METRES',
         type=float,
         default=1.0,
-        help='path length of the RPE per distance (default 1 m)',
+        help=expert('path length of the RPE per distance (default 1 m)'),
     )
     out.add_argument(
         '--output-bag-storage',
         choices=('mcap', 'sqlite3', 'ros1'),
         default='mcap',
-        help='storage of --output-bag (default mcap)',
+        help=expert('storage of --output-bag (default mcap)'),
     )
     out.add_argument(
         '--config',
@@ -234,7 +272,7 @@ def build_parser() -> argparse.ArgumentParser:
     alg = p.add_argument_group(
         "algorithm (defaults: the paper's; same names as the node's parameters)"
     )
-    add_options(alg, CalibrationConfig)
+    add_options(alg, CalibrationConfig, show_all)
     return p
 
 

@@ -54,7 +54,14 @@ def test_help_and_module_entry() -> None:
     res = run_cli('--help')
     cli_ok(res)
     text = ' '.join(res.stdout.split())  # argparse wraps lines
-    assert '--relative-poses' in text and 'T_WE(t) = T_WG * T_GH(t - dt) * T_HE' in text
+    assert 'T_WE(t) = T_WG * T_GH(t - dt) * T_HE' in text and '--help-all' in text
+    # the options a user needs; the paper's ablation switches and fine tuning under --help-all
+    shown = [line for line in res.stdout.splitlines() if line.startswith('  -')]
+    assert len(shown) <= 25 and '--relative-poses' not in text, shown
+    every = run_cli('--help-all')
+    cli_ok(every)
+    assert '--relative-poses' in every.stdout and '--knot-spacing' in every.stdout
+    assert len([x for x in every.stdout.splitlines() if x.startswith('  -')]) > len(shown) + 40
     cli_fails(run_cli('--hand', 'x'), '--hand FILE and --eye FILE, or --bag PATH')
     res = run_cli('--hand', 'x', '--eta', 'five')  # argparse usage errors exit 2
     assert res.returncode == 2 and 'Traceback' not in res.stderr and '--eta' in res.stderr

@@ -68,6 +68,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=10_000.0,
         open_low=True,
+        expert=True,
     )
     clock_drift: bool = option(
         False,
@@ -89,6 +90,7 @@ class CalibrationConfig(Options):
         'correlation peak: quadratic (sub-sample fit, the paper) or none '
         '(integer peak, the baseline)',
         choices=PEAK_FITS,
+        expert=True,
     )
     relative_poses: str = option(
         'rotation',
@@ -96,6 +98,7 @@ class CalibrationConfig(Options):
         'relative motions: rotation (keyframes at least eta apart, the '
         'paper), global or interframe',
         choices=RELATIVE_POSES,
+        expert=True,
     )
     eta: float = option(
         5.0,
@@ -103,11 +106,17 @@ class CalibrationConfig(Options):
         'minimum rotation between keyframes [deg] (eq. 6); below 0.01 deg the rotation is noise',
         low=0.01,
         high=90.0,
+        expert=True,
     )
     robust_kernel: bool = option(
-        True, 'bool', 'weight motions by the screw-congruence kernel (eq. 10-12)'
+        True,
+        'bool',
+        'weight motions by the screw-congruence kernel (eq. 10-12)',
+        expert=True,
     )
-    mu: float = option(5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0)
+    mu: float = option(
+        5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0, expert=True
+    )
     ransac_iterations: int = option(
         200,
         'int',
@@ -115,6 +124,7 @@ class CalibrationConfig(Options):
         'memory stays flat, time grows with the count)',
         low=0,
         high=100_000,
+        expert=True,
     )
     inlier_rotation: float = option(
         0.5,
@@ -123,6 +133,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=180.0,
         open_low=True,
+        expert=True,
     )
     inlier_translation: float = option(
         0.02,
@@ -131,12 +142,14 @@ class CalibrationConfig(Options):
         low=0.0,
         high=100.0,
         open_low=True,
+        expert=True,
     )
     adaptive_inliers: bool = option(
         True,
         'bool',
         'widen the final consensus thresholds to the noise measured from the '
         'best model (never narrower than the configured ones)',
+        expert=True,
     )
     decoupled_refit: bool = option(
         True,
@@ -144,12 +157,14 @@ class CalibrationConfig(Options):
         're-estimate rotation (rotation-vector alignment) and translation '
         '(drift-weighted least squares) apart on the final consensus; false keeps the '
         'dual-quaternion solution',
+        expert=True,
     )
     batch: bool = option(
         True,
         'bool',
         'refine dt and T_HE by the continuous-time batch stage (Section III-C) and '
         'report their covariance; the linear result is kept, with a warning, if it fails',
+        expert=True,
     )
     knot_spacing: float = option(
         0.05,
@@ -158,19 +173,24 @@ class CalibrationConfig(Options):
         'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz',
         low=0.005,
         high=1.0,
+        expert=True,
     )
-    spline_order: int = option(4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6)
+    spline_order: int = option(
+        4, 'int', 'order of the hand B-spline (4: cubic)', low=3, high=6, expert=True
+    )
     batch_decoupled: bool = option(
         True,
         'bool',
         'batch stage: the rotation of T_HE from the rotation residuals alone, then '
         'dt and the translation from all residuals (false: all together)',
+        expert=True,
     )
     batch_joint: bool = option(
         False,
         'bool',
         'also free the spline control poses in the batch solve (the full joint '
         'problem; slower, the same result while the MoCap is much less noisy than the VIO)',
+        expert=True,
     )
     hand_noise_rotation: float | None = option(
         None,
@@ -180,6 +200,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=1.0,
         open_low=True,
+        expert=True,
     )
     hand_noise_translation: float | None = option(
         None,
@@ -189,6 +210,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=10.0,
         open_low=True,
+        expert=True,
     )
     eye_noise_rotation: float | None = option(
         None,
@@ -199,6 +221,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=1.0,
         open_low=True,
+        expert=True,
     )
     eye_noise_translation: float | None = option(
         None,
@@ -208,6 +231,7 @@ class CalibrationConfig(Options):
         low=0.0,
         high=10.0,
         open_low=True,
+        expert=True,
     )
     huber_delta: float = option(
         1.345,
@@ -216,15 +240,22 @@ class CalibrationConfig(Options):
         '(1.345: 95 % efficiency on Gaussian noise; below 0.01 it is an L1 loss already)',
         low=0.01,
         high=1000.0,
+        expert=True,
     )
     batch_max_iterations: int = option(
-        50, 'int', 'most solver iterations of the batch stage', low=1, high=10_000
+        50,
+        'int',
+        'most solver iterations of the batch stage',
+        low=1,
+        high=10_000,
+        expert=True,
     )
     screening: bool = option(
         True,
         'bool',
         'remove isolated pose outliers (placeholders, marker swaps, glitches) '
         'before stage 1 and split the eye at VIO resets found against the hand',
+        expert=True,
     )
     outlier_threshold: float = option(
         6.0,
@@ -233,6 +264,7 @@ class CalibrationConfig(Options):
         'the running median by this many robust standard deviations',
         low=3.0,
         high=1000.0,
+        expert=True,
     )
     max_outlier_fraction: float = option(
         0.15,
@@ -241,24 +273,33 @@ class CalibrationConfig(Options):
         low=0.0,
         high=1.0,
         open_low=True,
+        expert=True,
     )
     check_conventions: bool = option(
         True,
         'bool',
         'detect stamp units and quaternion orders or inverted poses the data '
         'contradict, and apply the reading the data support (the verdict then says so)',
+        expert=True,
     )
     invert_hand: bool = option(
-        False, 'bool', 'the hand poses are T_HG (marker to MoCap world), not T_GH'
+        False,
+        'bool',
+        'the hand poses are T_HG (marker to MoCap world), not T_GH',
+        expert=True,
     )
     invert_eye: bool = option(
-        False, 'bool', 'the eye poses are T_EW (VIO world in body), not T_WE'
+        False,
+        'bool',
+        'the eye poses are T_EW (VIO world in body), not T_WE',
+        expert=True,
     )
     vector_refinement: bool = option(
         True,
         'bool',
         're-estimate dt from the body angular velocities once stage 2 gives '
         'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2',
+        expert=True,
     )
     precision_time_offset: float = option(
         1e-3,
@@ -285,11 +326,14 @@ class CalibrationConfig(Options):
         high=180.0,
         open_low=True,
     )
-    min_motions: int = option(10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000)
+    min_motions: int = option(
+        10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000, expert=True
+    )
     seed: int = option(
         0,
         'int',
         'RANSAC seed: the same input and seed give the same result',
         low=0,
         high=2**31 - 1,
+        expert=True,
     )

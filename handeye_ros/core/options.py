@@ -25,7 +25,8 @@ class Spec:
 
     kind: 'float', 'int', 'bool' or 'str'; optional: None (or NaN) is allowed and means
     'automatic'; low/high: inclusive bounds, except low when open_low; choices: allowed strings;
-    alias: a second, shorter command-line flag.
+    alias: a second, shorter command-line flag; expert: an option few users need (an ablation
+    switch of the paper, fine tuning of a stage): the command line lists it under --help-all.
     """
 
     kind: str
@@ -36,6 +37,7 @@ class Spec:
     optional: bool = False
     choices: tuple[str, ...] = ()
     alias: str = ''  # a shorter command-line flag, e.g. 'scale' for --estimate-scale
+    expert: bool = False
 
     def range_text(self) -> str:
         """Human form of the bounds, e.g. '(0, 90]'."""

@@ -25,13 +25,13 @@ import numpy as np
 from common import PROTOCOL_SEEDS, emit, protocol_seed, pyplot, save_plot, table
 
 from handeye_ros.core.association import associate
-from handeye_ros.core.axxb import build_motions
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
-from handeye_ros.core.linear import calibrate_linear
+from handeye_ros.core.linear.axxb import build_motions
+from handeye_ros.core.linear.robust import calibrate_linear
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, noise_level, simulate
-from handeye_ros.core.time_align import align_time
+from handeye_ros.core.time.align import align_time
 
 #: The whole linear pipeline: stages 1 and 2 with the defaults otherwise.
 LINEAR = CalibrationConfig(batch=False)

@@ -21,7 +21,7 @@ from common import PROTOCOL_SEEDS, emit, protocol_seed, table
 from handeye_ros.core.association import PosePairs, associate
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import inverse, quat_from_matrix
-from handeye_ros.core.keyframes import rotation_keyframes
+from handeye_ros.core.linear.keyframes import rotation_keyframes
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
 

@@ -14,7 +14,7 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch import BatchError, refine
+from handeye_ros.core.batch.refine import BatchError, refine
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.pipeline import _check_batch, _Run, _run_batch, calibrate
@@ -213,7 +213,7 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
 def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
     # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)
     # columns against dense central differences, away from the start values
-    from handeye_ros.core.residuals import BatchProblem, Weights
+    from handeye_ros.core.batch.residuals import BatchProblem, Weights
 
     rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4, hand_noise_deg=0.004)
     t = rec.truth
@@ -261,7 +261,7 @@ def test_analytic_eye_jacobian_matches_central_differences() -> None:
     """The default solve's Jacobian in (dt, T_HE, drift, scale) (BatchProblem.eye_chunk:
     spline body rate and velocity, chain rule through the relative pose) against central
     differences of the residuals, away from the solution so that no term vanishes."""
-    from handeye_ros.core.residuals import BatchProblem
+    from handeye_ros.core.batch.residuals import BatchProblem
     from handeye_ros.core.simulate import simulate
 
     rec = simulate(3, duration_s=20.0, clock_drift=100e-6, scale=0.7)

@@ -11,20 +11,20 @@ import pytest
 from conftest import REAL_DATA, ROOT, recording, run_cli
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch import refine
-from handeye_ros.core.clock import (
+from handeye_ros.core.batch.refine import refine
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import ConfigError
+from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
+from handeye_ros.core.linear.scale import dual_quaternion_scale, translation_and_scale
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import calibration_error
+from handeye_ros.core.time.clock import (
     DriftFit,
     fit_drift,
     least_squares_line,
     repeated_medians_line,
     retime,
 )
-from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.core.errors import ConfigError
-from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
-from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.scale import dual_quaternion_scale, translation_and_scale
-from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import write_tum
 
@@ -46,7 +46,7 @@ def test_fit_drift_recovers_a_line_and_ignores_a_wrong_window() -> None:
 
 @pytest.mark.slow
 def test_line_fits_match_scipy_stats() -> None:
-    """The two line fits written out in core/clock.py (to spare every run scipy.stats' 1.3 s
+    """The two line fits written out in core/time/clock.py (to spare every run scipy.stats' 1.3 s
     import) give scipy's numbers, wild points included."""
     from scipy import stats
 

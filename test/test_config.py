@@ -22,7 +22,7 @@ def test_defaults_are_the_papers() -> None:
 
 def test_option_choices_are_the_owners_names() -> None:
     from handeye_ros.core.config import RELATIVE_POSES
-    from handeye_ros.core.keyframes import STRATEGIES
+    from handeye_ros.core.linear.keyframes import STRATEGIES
 
     assert RELATIVE_POSES == tuple(STRATEGIES)
 

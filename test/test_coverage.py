@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import recording
 
-from handeye_ros.core.coverage import mocap_coverage
+from handeye_ros.core.checks.coverage import mocap_coverage
 from handeye_ros.core.simulate import two_windows
 
 

@@ -14,10 +14,10 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.association import associate
-from handeye_ros.core.axxb import build_motions
 from handeye_ros.core.errors import DegenerateMotionError
 from handeye_ros.core.geometry import compose
-from handeye_ros.core.linear import calibrate_linear
+from handeye_ros.core.linear.axxb import build_motions
+from handeye_ros.core.linear.robust import calibrate_linear
 from handeye_ros.core.simulate import calibration_error, random_truth
 from handeye_ros.core.trajectory import Trajectory
 
@@ -158,7 +158,7 @@ def test_too_little_rotation() -> None:
 def test_sigma_ratio_scores_a_degenerate_system_last_not_never() -> None:
     """sigma7 / sigma6 (Algorithm 1's score); a null space wider than two dimensions (exact
     one-axis motions) scores 1, the worst, instead of 0 / 0; an empty system is NaN."""
-    from handeye_ros.core.axxb import sigma_ratio
+    from handeye_ros.core.linear.axxb import sigma_ratio
 
     s = np.array(
         [[4.0, 3, 2, 2, 1, 0.5, 0.01, 0.0], [4.0, 3, 2, 2, 1, 1e-17, 0.0, 0.0], [0.0] * 8]

@@ -17,13 +17,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.axxb import (
-    Motions,
-    constraint_gram,
-    motion_errors,
-    screw_log_weights,
-    solve_gram,
-)
 from handeye_ros.core.geometry import (
     compose,
     dual_quat_from_pose,
@@ -33,8 +26,15 @@ from handeye_ros.core.geometry import (
     quat_from_matrix,
     rotation_angle,
 )
-from handeye_ros.core.keyframes import rotation_keyframes
-from handeye_ros.core.time_align import _parabola_vertex, masked_normalised_correlation
+from handeye_ros.core.linear.axxb import (
+    Motions,
+    constraint_gram,
+    motion_errors,
+    screw_log_weights,
+    solve_gram,
+)
+from handeye_ros.core.linear.keyframes import rotation_keyframes
+from handeye_ros.core.time.align import _parabola_vertex, masked_normalised_correlation
 
 SEEDS = st.integers(0, 2**32 - 1)
 FAST = settings(max_examples=60, deadline=None)

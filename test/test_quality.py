@@ -12,12 +12,12 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
+from handeye_ros.core.checks.selfcheck import score_candidates
+from handeye_ros.core.checks.verdict import Quality, Reason
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.quality import Quality, Reason
-from handeye_ros.core.selfcheck import score_candidates
 from handeye_ros.core.simulate import calibration_error
-from handeye_ros.core.time_align import align_time, align_time_vector
+from handeye_ros.core.time.align import align_time, align_time_vector
 from handeye_ros.core.trajectory import Trajectory
 
 

@@ -13,10 +13,10 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
+from handeye_ros.core.checks.screening import find_eye_breaks, resolution, screen
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import InputError
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.screening import find_eye_breaks, resolution, screen
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
 

@@ -1,4 +1,4 @@
-"""The hand's B-spline (core/spline.py, eq. 14): its basis, its rates and its fit."""
+"""The hand's B-spline (core/batch/spline.py, eq. 14): its basis, its rates and its fit."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.spline import (
+from handeye_ros.core.batch.spline import (
     PoseSpline,
     cumulative_basis,
     cumulative_basis_derivative,

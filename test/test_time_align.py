@@ -15,7 +15,7 @@ from conftest import recording
 
 from handeye_ros.core.errors import TimeAlignmentError
 from handeye_ros.core.simulate import Truth, random_truth
-from handeye_ros.core.time_align import align_time
+from handeye_ros.core.time.align import align_time
 
 
 def _truth_with_offset(seed: int, dt: float) -> Truth:

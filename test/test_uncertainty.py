@@ -1,4 +1,4 @@
-"""The long-run covariance of :mod:`handeye_ros.core.uncertainty`, piece by piece.
+"""The long-run covariance of :mod:`handeye_ros.core.batch.long_run`, piece by piece.
 
 Tolerances are Monte Carlo ones: with T = 20 000 samples the sample variance of a mean has a
 relative standard error of ~1 % for white noise and ~5-10 % for AR(1) with rho = 0.8 at the
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from handeye_ros.core.uncertainty import (
+from handeye_ros.core.batch.long_run import (
     andrews_bandwidth,
     huber_psi,
     influence,

@@ -14,8 +14,11 @@ or Hamilton quaternions stored ``x y z w``; a pose is a tuple ``(R, p)`` of arra
 along the first axis (array-first, as scipy.spatial.transform). Stamps are int64 nanoseconds;
 float seconds only after subtracting a common origin.
 
-The stages, in :func:`.pipeline.calibrate`'s order: :mod:`.time_align` (stage 1, eq. 1),
-:mod:`.keyframes` and :mod:`.linear` (stage 2, eq. 2-13 and Algorithm 1), :mod:`.spline` and
-:mod:`.batch` (stage 3, eq. 14-16). docs/method.md maps every equation to its function and
-lists the departures from the paper.
+The layout follows the method. The stages, in :func:`.pipeline.calibrate`'s order: :mod:`.time`
+(stage 1, eq. 1, and eq. 9 for keyframe-only eyes), :mod:`.linear` (stage 2, eq. 2-13 and
+Algorithm 1), :mod:`.batch` (stage 3, eq. 14-16); :mod:`.checks` holds what real recordings need
+around them and the verdict. Beside them the foundations: poses and streams
+(:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options (:mod:`.options`,
+:mod:`.config`), the result (:mod:`.result`, :mod:`.world`, :mod:`.eye_model`) and the errors.
+docs/method.md maps every equation to its function and lists the departures from the paper.
 """

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from .options import Options, option
 
 PEAK_FITS = ('quadratic', 'none')
-#: Names of the relative-pose strategies, owned by :data:`.keyframes.STRATEGIES`; repeated here
+#: Names of the relative-pose strategies, owned by :data:`.linear.keyframes.STRATEGIES`; repeated here
 #: so that reading the options does not import numpy and scipy (instant --help).
 RELATIVE_POSES = ('rotation', 'global', 'interframe')
 

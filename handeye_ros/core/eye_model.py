@@ -2,7 +2,7 @@
 
 Every stage after stage 1 solves the paper's problem: one small constant offset and a metric
 eye. The pipeline gets there by moving the eye's stamps by stage 1's offset (integer ns),
-taking out a clock drift (:func:`.clock.retime`) and scaling its positions; this record keeps
+taking out a clock drift (:func:`.time.clock.retime`) and scaling its positions; this record keeps
 what was applied so that the result can be stated on the eye's own clock and scale::
 
     hand time of eye stamp t  =  t - time_offset - clock_drift (t - time_offset_stamp)
@@ -15,8 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .clock import retime
-from .scale import observable
+from .linear.scale import observable
+from .time.clock import retime
 from .trajectory import Trajectory
 
 
@@ -58,7 +58,7 @@ class EyeModel:
 
     @property
     def scale_observable(self) -> bool:
-        """Whether the estimated scale says anything (see :func:`.scale.observable`)."""
+        """Whether the estimated scale says anything (see :func:`.linear.scale.observable`)."""
         return self.scale_estimated and observable(self.scale, self.scale_std)
 
     @property

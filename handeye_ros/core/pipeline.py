@@ -4,28 +4,28 @@ The paper's three stages, wrapped in the checks real recordings need (each step 
 guards against):
 
 1. **Input conventions**: explicit inversions (``invert_hand`` / ``invert_eye``); stamp units
-   read against the streams' rates (:func:`.conventions.check_stamp_units`); clock epochs named.
-2. **Screening** of each stream (:func:`.screening.screen`): placeholders, marker swaps, glitches
+   read against the streams' rates (:func:`.checks.conventions.check_stamp_units`); clock epochs named.
+2. **Screening** of each stream (:func:`.checks.screening.screen`): placeholders, marker swaps, glitches
    removed and counted; a stream that would lose more than ``max_outlier_fraction`` is refused.
 3. **Stage 1** (Section III-A): angular-speed correlation over every lag the recordings allow
    (or a window), quadratic peak.
-4. **Orientation conventions** at that offset (:func:`.conventions.check_orientations`): the
+4. **Orientation conventions** at that offset (:func:`.checks.conventions.check_orientations`): the
    correlation of stage 1 is blind to a swapped quaternion order or inverted poses; AX = XB
    is not.
 5. The eye's stamps are moved by stage 1's offset (in integer nanoseconds), so that every later
    offset is a small correction in float seconds whatever the two clocks' epochs.
 6. **Stage 2** (Section III-B); then the eye's breaks (VIO resets) and leftover wild poses found
-   against the hand (:func:`.screening.find_eye_breaks`), and stage 2 again without them.
+   against the hand (:func:`.checks.screening.find_eye_breaks`), and stage 2 again without them.
 7. **Vector refinement** of the offset from the body angular velocities with stage 2's rotation
-   (:func:`.time_align.align_time_vector`), iterated with stage 2.
-8. **Self-check** (:mod:`.selfcheck`) when the candidate offsets (the correlation peak, its
+   (:func:`.time.align.align_time_vector`), iterated with stage 2.
+8. **Self-check** (:mod:`.checks.selfcheck`) when the candidate offsets (the correlation peak, its
    runner-ups, the vector refinement) differ: stage 2 at each, scored on one set of motions.
 9. **Stage 3** (Section III-C) from the winner, with a covariance that holds for residuals
-   correlated in time (:mod:`.uncertainty`). When it moves the offset or the extrinsic beyond
+   correlated in time (:mod:`.batch.long_run`). When it moves the offset or the extrinsic beyond
    its own sigmas, the self-check decides between it and the linear result (instead of a cap on
    how far it may move, which threw away refinements that were right).
 10. World alignment (per eye segment) and metrics at the final (dt, T_HE), and the verdict
-    (:mod:`.quality`).
+    (:mod:`.checks.verdict`).
 """
 
 from __future__ import annotations
@@ -38,24 +38,18 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .association import PosePairs, associate
-from .axxb import build_motions
-from .batch import BatchSolution, refine
-from .clock import DriftFit, covered_span, measure_drift
-from .config import CalibrationConfig
-from .conventions import Correction, check_orientations, check_stamp_units, epoch_note, reread
-from .coverage import mocap_coverage
-from .errors import (
-    ConfigError,
-    DegenerateMotionError,
-    HandeyeError,
-    InputError,
-    TimeAlignmentError,
+from .batch.refine import BatchSolution, refine
+from .checks.conventions import (
+    Correction,
+    check_orientations,
+    check_stamp_units,
+    epoch_note,
+    reread,
 )
-from .eye_model import EyeModel
-from .geometry import matrix_from_quat, quat_angle
-from .linear import LinearSolution, calibrate_linear
-from .motion_refits import drift_weights
-from .quality import (
+from .checks.coverage import mocap_coverage
+from .checks.screening import Screening, damaged, describe_damage, find_eye_breaks, screen
+from .checks.selfcheck import Candidate, motion_consistency, score_candidates
+from .checks.verdict import (
     AMBIGUOUS_PEAK_RATIO,
     AMBIGUOUS_SCORE_RATIO,
     FAILED_MOTION_ROTATION_DEG,
@@ -69,12 +63,24 @@ from .quality import (
     Quality,
     Reason,
 )
+from .config import CalibrationConfig
+from .errors import (
+    ConfigError,
+    DegenerateMotionError,
+    HandeyeError,
+    InputError,
+    TimeAlignmentError,
+)
+from .eye_model import EyeModel
+from .geometry import matrix_from_quat, quat_angle
+from .linear.axxb import build_motions
+from .linear.refits import drift_weights
+from .linear.robust import LinearSolution, calibrate_linear
+from .linear.scale import ScaleFit, observable, scale_prior, translation_and_scale
 from .result import CalibrationResult, UsedStreams
-from .scale import ScaleFit, observable, scale_prior, translation_and_scale
-from .screening import Screening, damaged, describe_damage, find_eye_breaks, screen
-from .selfcheck import Candidate, motion_consistency, score_candidates
-from .time_align import TimeAlignment, align_time, align_time_vector
-from .time_keyframes import align_time_keyframes
+from .time.align import TimeAlignment, align_time, align_time_vector
+from .time.clock import DriftFit, covered_span, measure_drift
+from .time.keyframes import align_time_keyframes
 from .trajectory import Trajectory, is_keyframe_only
 from .world import Metrics, align_worlds, evaluate
 
@@ -365,7 +371,7 @@ def _corrected(found: list[Correction], run: _Run) -> None:
 def _screen(
     hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: _Run
 ) -> tuple[Trajectory, Trajectory, tuple[Screening, Screening]]:
-    """Both streams screened (see :mod:`.screening`); refuse a stream that would lose too much."""
+    """Both streams screened (see :mod:`.checks.screening`); refuse a stream that would lose too much."""
     if not cfg.screening:
         return (
             hand,
@@ -746,7 +752,7 @@ def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:
 def _scale_from_rotations(
     hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
 ) -> tuple[Trajectory, EyeModel]:
-    """With estimate_scale, before stage 2: a first scale (:func:`.scale.scale_prior`) from the
+    """With estimate_scale, before stage 2: a first scale (:func:`.linear.scale.scale_prior`) from the
     rotation of T_HE that the rotations alone give (RANSAC with no translation threshold), so
     that stage 2's thresholds in metres mean metres."""
     pairs = associate(hand, eye, 0.0)
@@ -1029,7 +1035,7 @@ def _assess(
     cfg: CalibrationConfig,
     run: _Run,
 ) -> None:
-    """The remaining reasons of :mod:`.quality` (the others were added where they arose)."""
+    """The remaining reasons of :mod:`.checks.verdict` (the others were added where they arose)."""
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
             run.doubt(

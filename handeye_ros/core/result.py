@@ -19,7 +19,7 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
   recording, and the drift it shows); ``std.clock_drift`` and ``std.scale``; the covariance's
   ``order`` gains ``clock_drift`` and ``scale`` when they were estimated by the batch stage.
 - 4: ``coverage`` (the MoCap's gaps inside the eye's span and the part of it the MoCap covers,
-  :mod:`.coverage`); ``time_alignment.method`` may be ``keyframes`` (a keyframe-only eye).
+  :mod:`.checks.coverage`); ``time_alignment.method`` may be ``keyframes`` (a keyframe-only eye).
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -33,18 +33,18 @@ from typing import Any
 
 import numpy as np
 
-from .batch import BatchSolution
-from .clock import DriftFit, linear_clock
+from .batch.refine import BatchSolution
+from .checks.conventions import Correction
+from .checks.coverage import Coverage
+from .checks.screening import Screening
+from .checks.selfcheck import Candidate
+from .checks.verdict import Quality
 from .config import CalibrationConfig
-from .conventions import Correction
-from .coverage import Coverage
 from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
-from .linear import LinearSolution
-from .quality import Quality
-from .screening import Screening
-from .selfcheck import Candidate
-from .time_align import TimeAlignment
+from .linear.robust import LinearSolution
+from .time.align import TimeAlignment
+from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 

@@ -30,8 +30,8 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
-from .clock import linear_clock
 from .geometry import Pose, compose, inverse, quat_from_matrix
+from .time.clock import linear_clock
 from .trajectory import Trajectory
 
 #: Hand clock origin of simulated stamps: a realistic epoch, so that the int64 ns handling
@@ -53,7 +53,7 @@ class Truth:
     scale: float = 1.0
 
     def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
-        """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.clock`)."""
+        """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.time.clock`)."""
         return linear_clock(
             self.time_offset_s, self.clock_drift, self.time_offset_stamp_ns, t_eye_ns
         )

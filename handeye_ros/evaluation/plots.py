@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.result import CalibrationResult
-from ..core.time_align import angular_speed
+from ..core.time.align import angular_speed
 from .aligned import AlignedTrajectories
 
 #: Points per plotted line at most.
@@ -158,7 +158,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     if m is None or len(m) == 0:
         _empty(a, 'no motions')
     else:
-        from ..core.axxb import motion_errors
+        from ..core.linear.axxb import motion_errors
 
         e_rot, e_trans = motion_errors(m, lin.q_HE[None], lin.p_HE[None])
         inl = lin.inliers.astype(bool)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .trajectory import Trajectory, gap_free_parts
+from ..trajectory import Trajectory, gap_free_parts
 
 #: The notes name the coverage when the MoCap misses more than this fraction of the eye's span,
 #: or has a gap this long (s): a few dropped frames cost nothing worth a sentence (the numbers

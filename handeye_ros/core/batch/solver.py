@@ -1,5 +1,5 @@
 """The Huber loss and the Levenberg-Marquardt solvers of stage 3 (Section III-C: "Huber loss,
-Levenberg-Marquardt"), apart from the residuals they minimise (:mod:`.residuals`).
+Levenberg-Marquardt"), apart from the residuals they minimise (:mod:`.batch.residuals`).
 
 Two solvers, one Newton model of the Huber cost: rows within delta as in least squares, rows
 beyond it with their gradient clipped to +-delta and no curvature; the damping follows the gain
@@ -17,7 +17,7 @@ import numpy as np
 from scipy.sparse import csr_matrix, diags
 from scipy.sparse.linalg import splu
 
-from .uncertainty import huber_psi, huber_rho
+from .long_run import huber_psi, huber_rho
 
 #: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
 #: the normal matrix's diagonal) and the relative cost change that ends it.

@@ -6,7 +6,7 @@ in the 8 entries of X's dual quaternion: a 6x8 block per motion (eq. 4, :func:`c
 stacked into M (eq. 5), whose two-dimensional null space holds X; the unit constraints
 ``|q| = 1, q . q' = 0`` pick it out (Daniilidis 1999; :func:`solve_gram`). The screw-congruence
 kernel (eq. 7-11, :func:`screw_log_weights`) and the inlier criteria (eq. 13,
-:func:`motion_errors`) are what the robust estimation of :mod:`.linear` uses.
+:func:`motion_errors`) are what the robust estimation of :mod:`.linear.robust` uses.
 
 The singular values come from the eigendecomposition of ``M^T M`` (batched 8x8 Gram matrices,
 never M itself): docs/method.md lists it among the departures from the paper.
@@ -18,8 +18,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .association import PosePairs
-from .geometry import (
+from ..association import PosePairs
+from ..geometry import (
     Pose,
     dual_quat_from_pose,
     matrix_from_quat,

@@ -47,10 +47,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import median_filter
 
-from .association import eye_motion_errors
-from .chunked import chunked
-from .geometry import quat_angle, quat_slerp
-from .trajectory import Trajectory, segment_spans
+from ..association import eye_motion_errors
+from ..chunked import chunked
+from ..geometry import quat_angle, quat_slerp
+from ..trajectory import Trajectory, segment_spans
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
 SCALE_WINDOW_S = 2.0

@@ -24,7 +24,7 @@ The search, over every lag at which the streams overlap (or the window asked for
    refinement: the mean squared angle difference of the pairs that agree there, with the hand
    interpolated exactly (SLERP between its own poses), minimised by Brent's method.
 
-The result is a :class:`.time_align.TimeAlignment` with method 'keyframes', its curve the score
+The result is a :class:`.time.align.TimeAlignment` with method 'keyframes', its curve the score
 (so the pipeline's checks of a weak or ambiguous peak read it as they read a correlation), and
 peak_correlation the Pearson correlation of the two angle sets at the offset.
 """
@@ -35,8 +35,9 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation, Slerp
 
-from .errors import TimeAlignmentError
-from .time_align import (
+from ..errors import TimeAlignmentError
+from ..trajectory import Trajectory
+from .align import (
     MAX_RESAMPLE_RATE_HZ,
     MIN_OVERLAP_FRACTION,
     TimeAlignment,
@@ -45,7 +46,6 @@ from .time_align import (
     _second_peak_ratio,
     _window,
 )
-from .trajectory import Trajectory
 
 #: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
 #: counts as disagreeing, however wildly (a VIO glitch, a MoCap swap).

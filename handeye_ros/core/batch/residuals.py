@@ -1,5 +1,5 @@
 """Stage 3's least-squares problem (Section III-C): the residual blocks of eq. 16 and their
-Jacobians, for a cumulative B-spline T_GH(t) of the hand (:mod:`.spline`, eq. 14) and the eye
+Jacobians, for a cumulative B-spline T_GH(t) of the hand (:mod:`.batch.spline`, eq. 14) and the eye
 predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (the model of Section III-C, stated with
 eq. 15)::
 
@@ -7,8 +7,8 @@ eq. 15)::
     eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
 
 with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)``, each part divided by its stream's noise
-(:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.huber_lm`, the
-covariance at the solution in :mod:`.batch_covariance`, the orchestration in :mod:`.batch`.
+(:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.batch.solver`, the
+covariance at the solution in :mod:`.batch.covariance`, the orchestration in :mod:`.batch.refine`.
 
 Parameters: the joint solve's x is (per control pose (dphi, dp); then y), and y = (dt,
 dtheta_X, dp_X, [drift], [scale]) are the updates of dt and T_HE (and the optional clock drift
@@ -23,8 +23,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.spatial.transform import Rotation
 
-from .errors import BatchError
-from .geometry import (
+from ..errors import BatchError
+from ..geometry import (
     Pose,
     log_so3,
     matrix_from_quat,
@@ -32,8 +32,8 @@ from .geometry import (
     right_jacobian,
     skew,
 )
+from ..trajectory import Trajectory
 from .spline import PoseSpline, exp_so3, fit_pieces
-from .trajectory import Trajectory
 
 #: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
 FD_STEP = 1e-6
@@ -208,7 +208,7 @@ class BatchProblem:
 
     def eye_times(self, y: np.ndarray, first: int = 0, stop: int | None = None) -> np.ndarray:
         """The hand-clock times of the eye stamps first..stop-1: ``t - dt - drift (t - t_ref)``
-        (the linear clock of :mod:`.clock`)."""
+        (the linear clock of :mod:`.time.clock`)."""
         dt, drift = self.clock(y)
         te = self.te[first:stop]
         return te - dt - drift * (te - self.t_ref)

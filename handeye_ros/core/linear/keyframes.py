@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .trajectory import segment_spans
+from ..trajectory import segment_spans
 
 
 def motion_indices(

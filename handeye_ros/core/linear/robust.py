@@ -1,6 +1,6 @@
 """Stage 2: robust linear hand-eye calibration AX = XB with dual quaternions (Section III-B).
 
-Robustness on top of the dual-quaternion algebra of :mod:`.axxb` (eq. 2-13): the
+Robustness on top of the dual-quaternion algebra of :mod:`.linear.axxb` (eq. 2-13): the
 screw-congruence kernel weights (eq. 11-12) and RANSAC on 2-motion subsets scored by
 ``sigma7 / sigma6`` (Algorithm 1), with inlier thresholds adapted to the measured noise, the
 degenerate one-axis case and the optional scale.
@@ -8,7 +8,7 @@ degenerate one-axis case and the optional scale.
 One step beyond the paper, on by default (``decoupled_refit``): on the final consensus, the
 extrinsic is re-estimated with rotation and translation apart. The rotation aligns the rotation
 vectors of the inlier motions; the translation solves ``(R_A - I) t_X = R_X t_B - t_A`` by
-least squares weighted for a drifting eye (:mod:`.motion_refits`).
+least squares weighted for a drifting eye (:mod:`.linear.refits`).
 Why: in the dual-quaternion system the rotation also has to satisfy the dual rows, which carry
 the eye's translation error; a VIO's relative translations are far noisier than its relative
 rotations, so that error leaks into the rotation. On the real flights of bench/real_cases.py
@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import DegenerateMotionError
+from ..geometry import matrix_from_quat, pose_from_dual_quat
 from .axxb import (
     Motions,
     constraint_gram,
@@ -35,9 +37,7 @@ from .axxb import (
     sigma_ratio,
     solve_gram,
 )
-from .errors import DegenerateMotionError
-from .geometry import matrix_from_quat, pose_from_dual_quat
-from .motion_refits import (
+from .refits import (
     axis_spread_deg,
     degenerate_refit,
     drift_weights,
@@ -95,7 +95,7 @@ class LinearSolution:
     scale, scale_std, scale_dq : float
         With ``estimate_scale``: the factor s that makes the eye's translations metric (on top
         of any the eye already had), its least-squares standard deviation, and the
-        dual-quaternion path's s (:mod:`.scale`); 1, NaN, 1 otherwise.
+        dual-quaternion path's s (:mod:`.linear.scale`); 1, NaN, 1 otherwise.
     motions : Motions or None
         The motions the solution was found on (eye made metric by ``scale``), in the order of
         ``inliers``: for plots and diagnostics.
@@ -198,9 +198,9 @@ def calibrate_linear(
     rest.
 
     ``estimate_scale``: the eye's translations are metric only up to a factor s (a monocular
-    eye, :mod:`.scale`); both refits then solve for it: the translation refit in (t_X, s), the
+    eye, :mod:`.linear.scale`); both refits then solve for it: the translation refit in (t_X, s), the
     dual-quaternion one in (q', s) with its rotation fixed. RANSAC's thresholds in metres need
-    the eye near metric already (the pipeline scales it by :func:`.scale.scale_prior` first).
+    the eye near metric already (the pipeline scales it by :func:`.linear.scale.scale_prior` first).
 
     Raises
     ------

@@ -1,11 +1,11 @@
 """Stage 3: continuous-time batch refinement of (dt, T_HE) with uncertainty (Section III-C).
 
-The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.spline`, eq. 14); the eye is
+The hand trajectory is a cumulative B-spline T_GH(t) (:mod:`.batch.spline`, eq. 14); the eye is
 predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (the model of Section III-C, stated with
 eq. 15) and compared with the eye's relative
 poses between consecutive observations (eq. 16, so T_WG drops out); the hand with each MoCap
-pose. The residual blocks and their Jacobians are in :mod:`.residuals`, the Huber loss and the
-Levenberg-Marquardt solvers in :mod:`.huber_lm`, the covariance in :mod:`.batch_covariance`;
+pose. The residual blocks and their Jacobians are in :mod:`.batch.residuals`, the Huber loss and the
+Levenberg-Marquardt solvers in :mod:`.batch.solver`, the covariance in :mod:`.batch.covariance`;
 this module chooses what is solved, in which steps, with which noise, and says what it did.
 
 Why the hand residuals differ from eq. 15's relative form: the MoCap measures T_GH in G
@@ -16,7 +16,7 @@ increments: there the relative form is the right one.)
 
 By default the spline is fitted to the hand alone and (dt, T_HE) are solved on the eye
 residuals with it by a Huber Levenberg-Marquardt with the analytic Jacobian
-(:meth:`.residuals.BatchProblem.eye_chunk`), the eye pairs taken in chunks and their normal
+(:meth:`.batch.residuals.BatchProblem.eye_chunk`), the eye pairs taken in chunks and their normal
 equations summed (an hour of 200 Hz VIO is 720 000 pairs), in two steps: (dt, rotation of T_HE)
 on the rotation residuals, then (dt, translation) on all of them
 (:func:`_solve_offset_extrinsic` says why). ``joint`` solves the whole problem, control poses
@@ -35,10 +35,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .batch_covariance import eye_covariance, joint_covariance, joint_long_run
-from .errors import BatchError
-from .geometry import quat_from_matrix
-from .huber_lm import (
+from ..errors import BatchError
+from ..geometry import quat_from_matrix
+from ..trajectory import Trajectory, lengths_text
+from .covariance import eye_covariance, joint_covariance, joint_long_run
+from .long_run import LongRunCovariance
+from .residuals import BatchProblem, ParameterLayout, Weights, weighted_eye_chunks
+from .solver import (
     LM_FTOL,
     LM_FTOL_FIRST_PASS,
     NormalSums,
@@ -48,9 +51,6 @@ from .huber_lm import (
     levenberg_marquardt_sparse,
     normal_sums,
 )
-from .residuals import BatchProblem, ParameterLayout, Weights, weighted_eye_chunks
-from .trajectory import Trajectory, lengths_text
-from .uncertainty import LongRunCovariance
 
 __all__ = ['BatchError', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
 
@@ -86,7 +86,7 @@ class BatchSolution:
     covariance: (7, 7), order (dt [s], translation [m] x3, rotation [rad] x3); the rotation is
     the tangent of T_HE on the right, ``R_HE Exp(dtheta)`` (eye frame); then, when estimated,
     the clock drift [s/s] and the scale correction (a row and column each). It is the long-run
-    covariance of :mod:`.uncertainty`, which holds for residuals correlated in time.
+    covariance of :mod:`.batch.long_run`, which holds for residuals correlated in time.
     clock_drift, time_offset_stamp_ns: the drift [s/s] the stage added to the eye's clock and
     the eye stamp [ns] at which time_offset_s holds (None without a drift parameter).
     scale: the factor the stage put on the eye's translations (None without one).
@@ -135,7 +135,7 @@ class _Solve:
     x: the solution, the joint solve's full vector (control poses then y) or y alone;
     weights: the final 1/sigma of each stream; covariance: white, (n_y, n_y) in the order of
     y (zero rows for entries held fixed); long_run: the reported covariance
-    (:mod:`.uncertainty`); n_residuals, n_free: for the reduced chi^2; report: the last
+    (:mod:`.batch.long_run`); n_residuals, n_free: for the reduced chi^2; report: the last
     solver run's.
     """
 
@@ -183,7 +183,7 @@ def refine(
     own residuals.
 
     ``drift_stamp_ns``: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns)
-    with t the eye's stamps (:mod:`.clock`); ``scale``: also a factor on the eye's
+    with t the eye's stamps (:mod:`.time.clock`); ``scale``: also a factor on the eye's
     translations. Both are corrections to what the eye already has (0 and 1 to start), and
     only the default (not the joint) solve estimates them.
 
@@ -282,8 +282,8 @@ def _solve_offset_extrinsic(
     decoupled: bool,
 ) -> _Solve:
     """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
-    hand, with the analytic Jacobian of :meth:`.residuals.BatchProblem.eye_chunk`
-    (:func:`.huber_lm.levenberg_marquardt_dense`). Parameters y = (dt, dtheta_X, dp_X, ...)
+    hand, with the analytic Jacobian of :meth:`.batch.residuals.BatchProblem.eye_chunk`
+    (:func:`.batch.solver.levenberg_marquardt_dense`). Parameters y = (dt, dtheta_X, dp_X, ...)
     from the start values.
 
     ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
@@ -362,7 +362,7 @@ def _solve_joint(
     decoupled: bool,
 ) -> _Solve:
     """Control poses, dt and T_HE together: the whole problem of eq. 15
-    (:func:`.huber_lm.levenberg_marquardt_sparse`).
+    (:func:`.batch.solver.levenberg_marquardt_sparse`).
 
     ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
     steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,

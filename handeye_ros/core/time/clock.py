@@ -18,7 +18,7 @@ stamp is the mean of the window centres, where offset and drift are uncorrelated
 
 :func:`retime` moves the eye's stamps onto a clock without drift, so that every later stage
 solves the constant-offset problem of the paper; the batch stage then refines the drift as a
-parameter (:mod:`.batch`).
+parameter (:mod:`.batch.refine`).
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.special import ndtr, stdtrit
 
-from .errors import TimeAlignmentError
-from .time_align import AngularSpeed, align_time, align_time_vector, angular_speed
-from .trajectory import Trajectory
+from ..errors import TimeAlignmentError
+from ..trajectory import Trajectory
+from .align import AngularSpeed, align_time, align_time_vector, angular_speed
 
 #: Shortest window (s): stage 1 needs a few seconds of varied angular speed per window.
 MIN_WINDOW_S = 10.0

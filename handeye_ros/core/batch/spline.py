@@ -26,7 +26,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
-from .geometry import Pose, log_so3, quat_multiply, right_jacobian
+from ..geometry import Pose, log_so3, quat_multiply, right_jacobian
 
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
 ROTATION_FIT_ITERATIONS = 12

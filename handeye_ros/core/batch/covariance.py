@@ -1,9 +1,9 @@
-"""The covariance of stage 3's estimate (Section III-C), at the solution of :mod:`.batch`.
+"""The covariance of stage 3's estimate (Section III-C), at the solution of :mod:`.batch.refine`.
 
 White residuals give ``s^2 (J^T J)^-1``; for the decoupled two-step solve the covariance of the
 two-step estimate (:func:`two_step_from_normals`); for the joint solve the 7x7 block by a Schur
 complement over the spline (:func:`marginal_covariance`). The reported covariance is the
-long-run one of :mod:`.uncertainty`, from each eye pose pair's influence on the estimate,
+long-run one of :mod:`.batch.long_run`, from each eye pose pair's influence on the estimate,
 which holds for residuals correlated in time (a VIO's drift).
 """
 
@@ -13,15 +13,7 @@ import numpy as np
 from scipy.sparse import csc_matrix, diags
 from scipy.sparse.linalg import splu
 
-from .huber_lm import huber_cost
-from .residuals import (
-    BatchProblem,
-    ParameterLayout,
-    Weights,
-    central_jacobian,
-    weighted_eye_chunks,
-)
-from .uncertainty import (
+from .long_run import (
     LongRunCovariance,
     influence,
     influence_from_sums,
@@ -30,6 +22,14 @@ from .uncertainty import (
     long_run_covariance,
     two_step_from_sums,
 )
+from .residuals import (
+    BatchProblem,
+    ParameterLayout,
+    Weights,
+    central_jacobian,
+    weighted_eye_chunks,
+)
+from .solver import huber_cost
 
 
 def eye_covariance(
@@ -40,7 +40,7 @@ def eye_covariance(
     delta: float,
     decoupled: bool,
 ) -> tuple[np.ndarray, LongRunCovariance, float, int]:
-    """(white covariance, long-run covariance (:mod:`.uncertainty`), Huber cost, number of
+    """(white covariance, long-run covariance (:mod:`.batch.long_run`), Huber cost, number of
     residuals) of the default solve at y, in the order of y (zero rows for a fixed dt), from
     one pass over the eye pairs with their analytic Jacobian.
 
@@ -108,7 +108,7 @@ def _two_step_influences(psi_theta: np.ndarray, psi_b: np.ndarray, k: int) -> np
 
 
 def _long_run_in_y(psi: np.ndarray, layout: ParameterLayout) -> LongRunCovariance:
-    """Long-run covariance (:mod:`.uncertainty`) of influences psi (T, free), as matrices in
+    """Long-run covariance (:mod:`.batch.long_run`) of influences psi (T, free), as matrices in
     the order of y (zero rows and columns for the entries held fixed)."""
     lr = long_run_covariance(psi)
     full, white = np.zeros((layout.size,) * 2), np.zeros((layout.size,) * 2)
@@ -145,7 +145,7 @@ def eye_long_run(
     delta: float,
     decoupled: bool,
 ) -> LongRunCovariance:
-    """Long-run covariance (:mod:`.uncertainty`) of (dt, dtheta_X, dp_X, ...) from the eye
+    """Long-run covariance (:mod:`.batch.long_run`) of (dt, dtheta_X, dp_X, ...) from the eye
     residuals at the solution, as matrices in the order of y (zero rows for a fixed dt).
 
     ``r``: the weighted eye residuals, 6 rows per eye pose pair in time order; ``jac``: their

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import null_space
 
-from .geometry import matrix_from_quat, pose_from_dual_quat, skew
+from ..geometry import matrix_from_quat, pose_from_dual_quat, skew
 
 #: The scale is not observable when its relative standard deviation exceeds this: the hand
 #: barely translates, and t_X and s trade against each other.

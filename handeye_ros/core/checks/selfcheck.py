@@ -25,11 +25,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .association import eye_motion_errors
-from .geometry import matrix_from_quat
-from .keyframes import segment_motion_indices
-from .trajectory import Trajectory
-from .uncertainty import huber_rho
+from ..association import eye_motion_errors
+from ..batch.long_run import huber_rho
+from ..geometry import matrix_from_quat
+from ..linear.keyframes import segment_motion_indices
+from ..trajectory import Trajectory
 
 #: Huber threshold of the score, in units of the best median error.
 SCORE_HUBER = 3.0

@@ -48,12 +48,12 @@ from datetime import datetime, timezone
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .association import associate
-from .errors import InputError, TimeAlignmentError
-from .geometry import matrix_from_quat, quat_from_matrix, relative
-from .keyframes import motion_indices
-from .motion_refits import rotation_from_motions, translation_from_motions
-from .trajectory import Trajectory
+from ..association import associate
+from ..errors import InputError, TimeAlignmentError
+from ..geometry import matrix_from_quat, quat_from_matrix, relative
+from ..linear.keyframes import motion_indices
+from ..linear.refits import rotation_from_motions, translation_from_motions
+from ..trajectory import Trajectory
 
 #: Rates a pose stream can have, Hz (a keyframe-only estimate down to one pose in 10 s).
 PLAUSIBLE_RATE_HZ = (0.1, 10_000.0)

@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import fft
 
-from .errors import TimeAlignmentError
-from .geometry import consecutive_rotvecs
-from .trajectory import Trajectory, gap_free_parts, lengths_text
+from ..errors import TimeAlignmentError
+from ..geometry import consecutive_rotvecs
+from ..trajectory import Trajectory, gap_free_parts, lengths_text
 
 #: A lag is only considered where the two signals overlap on at least this fraction of the
 #: shorter one: with little overlap a normalised correlation is high by chance.

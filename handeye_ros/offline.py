@@ -453,6 +453,7 @@ def main(argv: list[str] | None = None) -> int:
         format='%(name)s: %(message)s',
         stream=sys.stderr,
     )
+    from .core.checks.verdict import Verdict
     from .core.errors import HandeyeError
     from .report import format_report, write_result
 
@@ -494,7 +495,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(format_report(document))
     verdict = result.quality.verdict
-    if args.strict and verdict != 'good':
+    if args.strict and verdict != Verdict.GOOD:
         print(
             f'offline_calibrate: verdict {verdict} (--strict): ' + '; '.join(result.quality.codes),
             file=sys.stderr,

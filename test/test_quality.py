@@ -13,7 +13,7 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.checks.selfcheck import score_candidates
-from handeye_ros.core.checks.verdict import Quality, Reason
+from handeye_ros.core.checks.verdict import SEVERITY, Code, Quality, Reason, Verdict
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
@@ -29,9 +29,15 @@ def test_clean_recording_is_good_with_no_reasons() -> None:
 
 
 def test_verdict_is_the_worst_reason() -> None:
-    q = Quality.from_reasons([Reason('a', 'doubtful', ''), Reason('b', 'failed', '')], [])
-    assert q.verdict == 'failed' and q.codes == ('b', 'a')
+    q = Quality.from_reasons([Reason(Code.SCALE, ''), Reason(Code.INCONSISTENT, '')], [])
+    assert q.verdict == 'failed' and q.codes == ('inconsistent', 'scale')
     assert Quality.from_reasons([], ['note']).verdict == 'good'
+    # every code has its severity in one table; only AX = XB failing fails a result
+    assert {c for c, v in SEVERITY.items() if v == Verdict.FAILED} == {Code.INCONSISTENT}
+    assert set(SEVERITY) == set(Code)
+    # the result's dictionary holds plain strings (YAML cannot write an Enum)
+    d = q.to_dict()
+    assert type(d['verdict']) is str and all(type(r['code']) is str for r in d['reasons'])
 
 
 @pytest.mark.slow

@@ -60,6 +60,7 @@ from .checks.verdict import (
     OUTLIER_FRACTION_DOUBTFUL,
     WEAK_CORRELATION,
     WEAK_EXCITATION_DEG,
+    Code,
     Quality,
     Reason,
 )
@@ -124,11 +125,9 @@ class _Run:
     corrections: list[Correction] = field(default_factory=list)
     candidates: list[Candidate] = field(default_factory=list)
 
-    def doubt(self, code: str, message: str) -> None:
-        self.reasons.append(Reason(code, 'doubtful', message))
-
-    def fail(self, code: str, message: str) -> None:
-        self.reasons.append(Reason(code, 'failed', message))
+    def reason(self, code: Code, message: str) -> None:
+        """A reason for the verdict (its severity is the code's: :data:`.checks.verdict.SEVERITY`)."""
+        self.reasons.append(Reason(code, message))
 
 
 #: The steps :func:`calibrate` reports to its ``progress`` callback, in order.
@@ -226,7 +225,7 @@ def calibrate(
     if scaled is not None and scaled.costs(cfg.precision_translation):
         # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
         # it at "breaks" would only hide that
-        run.doubt('scale', _scale_message(scaled))
+        run.reason(Code.SCALE, _scale_message(scaled))
     else:
         if scaled is not None and scaled.clear:  # named, but it costs less than the precision
             run.notes.append(_scale_message(scaled))
@@ -365,7 +364,7 @@ def _corrected(found: list[Correction], run: _Run) -> None:
     for c in found:
         run.corrections.append(c)
         run.warnings.append(c.message)
-        run.doubt('convention_corrected', c.message)
+        run.reason(Code.CONVENTION_CORRECTED, c.message)
 
 
 def _screen(
@@ -587,8 +586,8 @@ def _judge_tie(scored: list[Candidate], shift_ns: int, run: _Run) -> int:
     best = next(k for k, c in enumerate(scored) if c.chosen)
     win = scored[best]
     if not np.isfinite(win.score):
-        run.doubt(
-            'ambiguous_offset',
+        run.reason(
+            Code.AMBIGUOUS_OFFSET,
             'the candidate offsets could not be compared (too few motions covered at all of them)',
         )
         return best
@@ -608,8 +607,8 @@ def _judge_tie(scored: list[Candidate], shift_ns: int, run: _Run) -> int:
         )
         return best
     best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
-    run.doubt(
-        'ambiguous_offset',
+    run.reason(
+        Code.AMBIGUOUS_OFFSET,
         f'the motion repeats itself: the self-check cannot separate '
         f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
         'the search with time_offset_guess and max_time_offset (less than half the '
@@ -636,8 +635,8 @@ def _seed_check(
     try:
         other, _ = _linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
-        run.doubt(
-            'seed_dependent', f'with RANSAC seed {cfg.seed + 1} the linear stage fails ({err})'
+        run.reason(
+            Code.SEED_DEPENDENT, f'with RANSAC seed {cfg.seed + 1} the linear stage fails ({err})'
         )
         return None
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
@@ -647,8 +646,8 @@ def _seed_check(
         lim_t = max(lim_t, 3.0 * float(np.linalg.norm(batch.std[1:4])))
         lim_rot = max(lim_rot, 3.0 * float(np.degrees(np.linalg.norm(batch.std[4:7]))))
     if d_rot > lim_rot or d_t > lim_t:
-        run.doubt(
-            'seed_dependent',
+        run.reason(
+            Code.SEED_DEPENDENT,
             f'with RANSAC seed {cfg.seed + 1} the linear stage gives '
             f'an extrinsic {d_t * 1e3:.0f} mm / {d_rot:.2f} deg away: the motions do not '
             'single out one answer',
@@ -686,8 +685,8 @@ def _clock_along(
     reference stamp when the stamps moved, else None)."""
     if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
         if cfg.clock_drift:
-            run.doubt(
-                'unobservable',
+            run.reason(
+                Code.UNOBSERVABLE,
                 'the clock drift is measured in windows of angular velocity, which a '
                 'keyframe-only eye does not give; one constant offset was estimated instead',
             )
@@ -697,7 +696,7 @@ def _clock_along(
     clock = _absolute_clock(fit, model)
     if not cfg.clock_drift:
         if fit.significant:
-            run.doubt('clock_drift', _drift_message(fit))
+            run.reason(Code.CLOCK_DRIFT, _drift_message(fit))
         elif fit.estimated:
             run.notes.append(
                 f'the offset measured in {int(fit.inliers.sum())} windows along '
@@ -711,8 +710,8 @@ def _clock_along(
                 'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
             )
         else:
-            run.doubt(
-                'unobservable',
+            run.reason(
+                Code.UNOBSERVABLE,
                 f'the clock drift cannot be observed: {fit.why}. One '
                 'constant offset was estimated instead',
             )
@@ -845,8 +844,8 @@ def _assess_model(
         std = model.scale_std
         if not model.scale_observable:
             sd = f' +- {std:.2g}' if np.isfinite(std) else ''
-            run.doubt(
-                'unobservable',
+            run.reason(
+                Code.UNOBSERVABLE,
                 f"the eye's scale cannot be observed (s = "
                 f'{model.scale:.4g}{sd}): the hand translates too little for its '
                 'translations to be told from a lever arm, so the translation of T_HE '
@@ -855,8 +854,8 @@ def _assess_model(
     if cfg.clock_drift and model.drift_estimated and clock is not None:
         half = 0.5 * clock.span_s * model.drift_std
         if half > cfg.precision_time_offset:
-            run.doubt(
-                'imprecise',
+            run.reason(
+                Code.IMPRECISE,
                 f'the clock drift is {model.drift * 1e6:+.1f} +- '
                 f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
                 f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
@@ -947,7 +946,7 @@ def _check_batch(
         try:
             lin_b, _ = _linear(hand, eye, sol.time_offset_s, cfg)
         except HandeyeError as err:
-            run.doubt('stages_disagree', f'{what}, and stage 2 fails at its offset ({err})')
+            run.reason(Code.STAGES_DISAGREE, f'{what}, and stage 2 fails at its offset ({err})')
             return None
         hyps.append(
             (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
@@ -957,7 +956,7 @@ def _check_batch(
     run.candidates.extend(scored)
     score = [c.score for c in scored]
     if not np.all(np.isfinite(score)):
-        run.doubt('stages_disagree', f'{what}, and the self-check could not compare them')
+        run.reason(Code.STAGES_DISAGREE, f'{what}, and the self-check could not compare them')
         return sol
     offset_ok = not far_dt or score[1] <= AMBIGUOUS_SCORE_RATIO * score[0]
     extrinsic_ok = score[-1] <= BATCH_SCORE_FACTOR * score[-2]
@@ -968,8 +967,8 @@ def _check_batch(
             + ')'
         )
         return sol
-    run.doubt(
-        'stages_disagree',
+    run.reason(
+        Code.STAGES_DISAGREE,
         f'{what}; the self-check sides with the linear result (scores '
         + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
         + '), which is kept',
@@ -1038,8 +1037,8 @@ def _assess(
     """The remaining reasons of :mod:`.checks.verdict` (the others were added where they arose)."""
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
-            run.doubt(
-                'outliers_removed',
+            run.reason(
+                Code.OUTLIERS_REMOVED,
                 f'screening removed {rep.fraction:.1%} of the '
                 f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
             )
@@ -1049,38 +1048,38 @@ def _assess(
             )
     checked = any(c.chosen for c in run.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
-        run.doubt(
-            'ambiguous_offset',
+        run.reason(
+            Code.AMBIGUOUS_OFFSET,
             f'the correlation has a second peak at '
             f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
             'other candidate offset could be checked',
         )
     peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
     if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
-        run.doubt(
-            'weak_correlation',
+        run.reason(
+            Code.WEAK_CORRELATION,
             f'the angular velocities of the two streams hardly agree '
             f'(correlation {max(peaks):.2f}): check that both show the same motion',
         )
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
-        run.doubt(
-            'few_inliers', f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
+        run.reason(
+            Code.FEW_INLIERS, f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
         )
     if lin.unobservable:
-        run.doubt(
-            'unobservable',
+        run.reason(
+            Code.UNOBSERVABLE,
             'part of the extrinsic cannot be observed from this motion: '
             + '; '.join(lin.unobservable),
         )
     elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
-        run.doubt(
-            'weak_excitation',
+        run.reason(
+            Code.WEAK_EXCITATION,
             f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
             'deg: the extrinsic is weakly constrained; rotate about more different axes',
         )
     if cfg.batch and batch is None and not any(r.code == 'unobservable' for r in run.reasons):
-        run.doubt(
-            'no_uncertainty',
+        run.reason(
+            Code.NO_UNCERTAINTY,
             'the batch stage did not run, so the result has no uncertainty (see the warnings)',
         )
     if batch is not None:
@@ -1100,8 +1099,8 @@ def _assess(
             if v > n
         ]
         if over:
-            run.doubt(
-                'imprecise',
+            run.reason(
+                Code.IMPRECISE,
                 'the 1-sigma uncertainty exceeds the required precision: '
                 + ', '.join(over)
                 + '. More varied rotation (faster, about all axes) or '
@@ -1109,8 +1108,8 @@ def _assess(
                 'required',
             )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
-        run.doubt(
-            'residuals_not_white',
+        run.reason(
+            Code.RESIDUALS_NOT_WHITE,
             f'the residuals are strongly correlated in time (the '
             f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
             'something the model lacks (clock drift, a scale error) shapes them',
@@ -1123,8 +1122,8 @@ def _assess(
             and m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m
         )
     ):
-        run.fail(
-            'inconsistent',
+        run.reason(
+            Code.INCONSISTENT,
             f'AX = XB does not hold at the result: over {m.n_motions} '
             f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
             f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '

@@ -38,7 +38,7 @@ from .checks.conventions import Correction
 from .checks.coverage import Coverage
 from .checks.screening import Screening
 from .checks.selfcheck import Candidate
-from .checks.verdict import Quality
+from .checks.verdict import Quality, Verdict
 from .config import CalibrationConfig
 from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
@@ -102,7 +102,7 @@ class CalibrationResult:
     screening: tuple[Screening, Screening] | None = None
     corrections: tuple[Correction, ...] = ()
     candidates: tuple[Candidate, ...] = ()
-    quality: Quality = field(default_factory=lambda: Quality('good'))
+    quality: Quality = field(default_factory=lambda: Quality(Verdict.GOOD))
     seed_check: LinearSolution | None = None
     eye_model: EyeModel | None = None
     clock: DriftFit | None = None

@@ -9,7 +9,9 @@ import html
 from pathlib import Path
 from typing import Any
 
-VERDICT_COLOUR = {'good': '#1a7f37', 'doubtful': '#9a6700', 'failed': '#cf222e'}
+from ..core.checks.verdict import Verdict
+
+VERDICT_COLOUR = {Verdict.GOOD: '#1a7f37', Verdict.DOUBTFUL: '#9a6700', Verdict.FAILED: '#cf222e'}
 
 STYLE = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}

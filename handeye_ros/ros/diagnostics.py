@@ -8,6 +8,7 @@ import math
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from ..core.checks.verdict import Verdict
 from ..stream import messages
 from ..stream.buffer import BufferStats
 from ..stream.recorder import SessionResult
@@ -70,9 +71,9 @@ def result_status(
     r = session.result
     q = r.quality
     st.level = {
-        'good': DiagnosticStatus.OK,
-        'doubtful': DiagnosticStatus.WARN,
-        'failed': DiagnosticStatus.ERROR,
+        Verdict.GOOD: DiagnosticStatus.OK,
+        Verdict.DOUBTFUL: DiagnosticStatus.WARN,
+        Verdict.FAILED: DiagnosticStatus.ERROR,
     }[q.verdict]
     st.message = session.summary[:500]
     pub = messages.Published.from_result(r, session.frames)

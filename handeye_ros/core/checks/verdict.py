@@ -8,7 +8,8 @@ Every calibration ends with ``quality.verdict``:
 - ``failed``: the data contradict the result (the calibrated MoCap does not explain the VIO);
   the numbers are given only to help find out why.
 
-The reasons (``code``: what, and when):
+The reasons (``code``: what, and when; :class:`Code` names them, :data:`SEVERITY` gives each
+its verdict, and the thresholds below are the rules' numbers):
 
 ==========================  =========  =================================================
 code                        severity   when
@@ -59,6 +60,39 @@ settled clearly) are in ``notes``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
+
+
+class Verdict(StrEnum):
+    """How far a calibration can be trusted (a ``str``: compares and serialises as its value)."""
+
+    GOOD = 'good'
+    DOUBTFUL = 'doubtful'
+    FAILED = 'failed'
+
+
+class Code(StrEnum):
+    """Why a verdict is not better (the table of the module docstring)."""
+
+    CONVENTION_CORRECTED = 'convention_corrected'
+    OUTLIERS_REMOVED = 'outliers_removed'
+    AMBIGUOUS_OFFSET = 'ambiguous_offset'
+    WEAK_CORRELATION = 'weak_correlation'
+    STAGES_DISAGREE = 'stages_disagree'
+    FEW_INLIERS = 'few_inliers'
+    WEAK_EXCITATION = 'weak_excitation'
+    UNOBSERVABLE = 'unobservable'
+    SEED_DEPENDENT = 'seed_dependent'
+    NO_UNCERTAINTY = 'no_uncertainty'
+    IMPRECISE = 'imprecise'
+    CLOCK_DRIFT = 'clock_drift'
+    SCALE = 'scale'
+    RESIDUALS_NOT_WHITE = 'residuals_not_white'
+    INCONSISTENT = 'inconsistent'
+
+
+#: The verdict each reason makes: every code is doubtful but one.
+SEVERITY = {code: Verdict.DOUBTFUL for code in Code} | {Code.INCONSISTENT: Verdict.FAILED}
 
 #: Outlier fraction of a stream above which the verdict is doubtful: a tenth of a recording
 #: that no motion produced is a recording to look at, even when screening coped with it.
@@ -84,27 +118,30 @@ FAILED_MOTION_TRANSLATION_FRACTION = 0.5
 
 @dataclass(frozen=True)
 class Reason:
-    """Why the verdict is not better: a stable ``code``, its ``severity`` ('doubtful' or
-    'failed') and a ``message`` for people."""
+    """Why the verdict is not better: a stable ``code`` and a ``message`` for people; its
+    ``severity`` is the code's (:data:`SEVERITY`)."""
 
-    code: str
-    severity: str
+    code: Code
     message: str
+
+    @property
+    def severity(self) -> Verdict:
+        return SEVERITY[self.code]
 
 
 @dataclass(frozen=True)
 class Quality:
     """The verdict, its reasons (worst first) and notes that did not lower it."""
 
-    verdict: str
+    verdict: Verdict
     reasons: tuple[Reason, ...] = ()
     notes: tuple[str, ...] = field(default=())
 
     @classmethod
     def from_reasons(cls, reasons: list[Reason], notes: list[str]) -> Quality:
-        order = {'failed': 0, 'doubtful': 1}
-        reasons = sorted(reasons, key=lambda r: order[r.severity])
-        verdict = reasons[0].severity if reasons else 'good'
+        worst = list(Verdict)[::-1]  # failed first
+        reasons = sorted(reasons, key=lambda r: worst.index(r.severity))
+        verdict = reasons[0].severity if reasons else Verdict.GOOD
         return cls(verdict, tuple(reasons), tuple(notes))
 
     @property
@@ -117,9 +154,9 @@ class Quality:
 
     def to_dict(self) -> dict:
         return {
-            'verdict': self.verdict,
+            'verdict': str(self.verdict),
             'reasons': [
-                {'code': r.code, 'severity': r.severity, 'message': r.message}
+                {'code': str(r.code), 'severity': str(r.severity), 'message': r.message}
                 for r in self.reasons
             ],
             'notes': list(self.notes),

@@ -15,9 +15,11 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch.refine import BatchError, refine
+from handeye_ros.core.batch.stage import check_batch, run_batch
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.core.pipeline import _check_batch, _Run, _run_batch, calibrate
+from handeye_ros.core.findings import Findings
+from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 
 
@@ -135,17 +137,17 @@ def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
     q_bad = (Rotation.from_quat(rec.truth.q_HE) * Rotation.from_rotvec([0.35, 0, 0])).as_quat()
     bad_lin = replace(good.linear, q_HE=q_bad, p_HE=rec.truth.p_HE + [0.3, 0.0, 0.0])
     dt = rec.truth.time_offset_s
-    sol, _ = _run_batch(rec.hand, rec.eye, dt, q_bad, bad_lin.p_HE, CalibrationConfig())
+    sol, _ = run_batch(rec.hand, rec.eye, dt, q_bad, bad_lin.p_HE, CalibrationConfig())
     assert sol is not None
     assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m < 0.01
-    run = _Run()
-    assert _check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
+    run = Findings()
+    assert check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
     assert not run.reasons and any('supports it' in n for n in run.notes)
     # a batch solution far off a good linear result is refused
     bad_sol = replace(sol, q_HE=q_bad, p_HE=bad_lin.p_HE)
-    run = _Run()
+    run = Findings()
     assert (
-        _check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(), run) is None
+        check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(), run) is None
     )
     assert [r.code for r in run.reasons] == ['stages_disagree']
 

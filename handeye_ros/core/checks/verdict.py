@@ -61,6 +61,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # for the rules' signatures only: checks sit above the stages
+    from ..batch.refine import BatchSolution
+    from ..config import CalibrationConfig
+    from ..eye_model import EyeModel
+    from ..findings import Findings
+    from ..linear.robust import LinearSolution
+    from ..time.align import TimeAlignment
+    from ..time.clock import DriftFit
+    from ..world import Metrics
+    from .screening import Screening
 
 
 class Verdict(StrEnum):
@@ -161,3 +175,140 @@ class Quality:
             ],
             'notes': list(self.notes),
         }
+
+
+def assess(
+    ta: TimeAlignment,
+    tv: TimeAlignment | None,
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    screening: tuple[Screening, Screening],
+    metrics: Metrics,
+    cfg: CalibrationConfig,
+    run: Findings,
+) -> None:
+    """The reasons judged on the finished run: the screening's share, a peak no self-check
+    settled, weak correlation, few inliers, unobservable parts, weak excitation, no or too large
+    an uncertainty, residuals not white, AX = XB failing (the others are added where they arise,
+    their severities here: :data:`SEVERITY`)."""
+    for rep in screening:
+        if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
+            run.reason(
+                Code.OUTLIERS_REMOVED,
+                f'screening removed {rep.fraction:.1%} of the '
+                f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+            )
+        elif rep.n_removed:
+            run.notes.append(
+                f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses'
+            )
+    checked = any(c.chosen for c in run.candidates)
+    if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
+        run.reason(
+            Code.AMBIGUOUS_OFFSET,
+            f'the correlation has a second peak at '
+            f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
+            'other candidate offset could be checked',
+        )
+    peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
+    if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
+        run.reason(
+            Code.WEAK_CORRELATION,
+            f'the angular velocities of the two streams hardly agree '
+            f'(correlation {max(peaks):.2f}): check that both show the same motion',
+        )
+    if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
+        run.reason(
+            Code.FEW_INLIERS, f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
+        )
+    if lin.unobservable:
+        run.reason(
+            Code.UNOBSERVABLE,
+            'part of the extrinsic cannot be observed from this motion: '
+            + '; '.join(lin.unobservable),
+        )
+    elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
+        run.reason(
+            Code.WEAK_EXCITATION,
+            f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
+            'deg: the extrinsic is weakly constrained; rotate about more different axes',
+        )
+    if cfg.batch and batch is None and not any(r.code == 'unobservable' for r in run.reasons):
+        run.reason(
+            Code.NO_UNCERTAINTY,
+            'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+        )
+    if batch is not None:
+        s = batch.std
+        sd = (s[0], float(np.linalg.norm(s[1:4])), float(np.degrees(np.linalg.norm(s[4:7]))))
+        need = (cfg.precision_time_offset, cfg.precision_translation, cfg.precision_rotation)
+        over = [
+            f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
+            for name, v, n, k, unit in zip(
+                ('time offset', 'translation', 'rotation'),
+                sd,
+                need,
+                (1e3, 1e3, 1.0),
+                ('ms', 'mm', 'deg'),
+                strict=True,
+            )
+            if v > n
+        ]
+        if over:
+            run.reason(
+                Code.IMPRECISE,
+                'the 1-sigma uncertainty exceeds the required precision: '
+                + ', '.join(over)
+                + '. More varied rotation (faster, about all axes) or '
+                'a longer recording narrows it; the precision_* options set what is '
+                'required',
+            )
+    if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
+        run.reason(
+            Code.RESIDUALS_NOT_WHITE,
+            f'the residuals are strongly correlated in time (the '
+            f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
+            'something the model lacks (clock drift, a scale error) shapes them',
+        )
+    m = metrics
+    if m.n_motions and (
+        m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG
+        or (
+            m.motion_translation_m > FAILED_MOTION_TRANSLATION_M
+            and m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m
+        )
+    ):
+        run.reason(
+            Code.INCONSISTENT,
+            f'AX = XB does not hold at the result: over {m.n_motions} '
+            f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
+            f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '
+            f'{m.motion_length_m * 1e3:.0f} mm long)',
+        )
+
+
+def assess_model(
+    model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig, run: Findings
+) -> None:
+    """Reasons about the clock drift and the scale, when they were estimated."""
+    if cfg.estimate_scale:
+        std = model.scale_std
+        if not model.scale_observable:
+            sd = f' +- {std:.2g}' if np.isfinite(std) else ''
+            run.reason(
+                Code.UNOBSERVABLE,
+                f"the eye's scale cannot be observed (s = "
+                f'{model.scale:.4g}{sd}): the hand translates too little for its '
+                'translations to be told from a lever arm, so the translation of T_HE '
+                'is as uncertain. Move the rig through space, not only about itself',
+            )
+    if cfg.clock_drift and model.drift_estimated and clock is not None:
+        half = 0.5 * clock.span_s * model.drift_std
+        if half > cfg.precision_time_offset:
+            run.reason(
+                Code.IMPRECISE,
+                f'the clock drift is {model.drift * 1e6:+.1f} +- '
+                f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
+                f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
+                f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+            )

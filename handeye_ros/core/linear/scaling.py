@@ -1,0 +1,92 @@
+"""The eye's scale, as the pipeline uses it: with ``estimate_scale`` a first scale from the
+rotations before stage 2 and stage 2's on top of it; without it, the translation fit with and
+without a scale, to name an eye whose translations a scale explains (:mod:`.scale` holds the
+fits, :class:`..eye_model.EyeModel` applies them)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..association import PosePairs, associate
+from ..config import CalibrationConfig
+from ..eye_model import EyeModel
+from ..findings import Findings
+from ..geometry import matrix_from_quat
+from ..trajectory import Trajectory
+from .axxb import build_motions
+from .refits import drift_weights
+from .robust import LinearSolution, calibrate_linear
+from .scale import ScaleFit, observable, scale_prior, translation_and_scale
+
+
+def scale_from_rotations(
+    hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
+) -> tuple[Trajectory, EyeModel]:
+    """With estimate_scale, before stage 2: a first scale (:func:`.linear.scale.scale_prior`) from the
+    rotation of T_HE that the rotations alone give (RANSAC with no translation threshold), so
+    that stage 2's thresholds in metres mean metres."""
+    pairs = associate(hand, eye, 0.0)
+    m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    rot = calibrate_linear(
+        m,
+        robust_kernel=False,
+        ransac_iterations=cfg.ransac_iterations,
+        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
+        inlier_translation_m=np.inf,
+        min_motions=cfg.min_motions,
+        adaptive_inliers=False,
+        decoupled_refit=True,
+        rng=np.random.default_rng(cfg.seed),
+    )
+    if rot.unobservable:
+        return eye, model
+    k = rot.inliers
+    fit = scale_prior(m.A[0][k], m.A[1][k], m.B[1][k], rot.q_HE, drift_weights(m, k))
+    if not fit.observable:  # the eye stays as it is; the verdict will say why
+        return eye, replace(model, scale_std=fit.scale_std, scale_estimated=True)
+    return model.add_scale(eye, fit.scale, fit.scale_std)
+
+
+def fold_linear_scale(
+    eye: Trajectory, model: EyeModel, lin: LinearSolution, run: Findings
+) -> tuple[Trajectory, EyeModel]:
+    """Stage 2's scale (on top of the first one) into the eye, whose translations its T_HE
+    assumes."""
+    if not model.scale_observable or not observable(lin.scale, lin.scale_std):
+        std = lin.scale_std * model.scale if np.isfinite(lin.scale_std) else np.inf
+        return eye, replace(model, scale_std=max(std, model.scale_std))
+    if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
+        run.notes.append(
+            f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
+            f"the translation refit's {lin.scale:.4f} (relative to the first "
+            'estimate)'
+        )
+    return model.add_scale(eye, lin.scale, model.scale * lin.scale_std)
+
+
+def scale_check(pairs: PosePairs, lin: LinearSolution, cfg: CalibrationConfig) -> ScaleFit | None:
+    """Without estimate_scale: the translation part of AX = XB fitted with and without a scale
+    (all motions, Huber loss), to name an eye whose translations a scale explains."""
+    if lin.unobservable:
+        return None
+    m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    if len(m) < cfg.min_motions:
+        return None
+    every = np.ones(len(m), bool)
+    return translation_and_scale(
+        m.A[0], m.A[1], m.B[1], matrix_from_quat(lin.q_HE), drift_weights(m, every), robust=True
+    )
+
+
+def scale_message(fit: ScaleFit) -> str:
+    return (
+        f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
+        f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
+        f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
+        f'{fit.rms_without * 1e3:.0f} mm without), and taking s = 1 moves the translation '
+        f'of T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose scale is '
+        f'off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
+        '--scale (node parameter estimate_scale)'
+    )

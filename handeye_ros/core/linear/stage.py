@@ -1,0 +1,353 @@
+"""Stage 2 as the pipeline runs it (:class:`LinearStage`), and what attaches to it at named
+points: the eye moved onto the hand's clock by stage 1's offset (and, with ``clock_drift``,
+the drift from the windows; with ``estimate_scale``, a first scale); stage 2 (:mod:`.robust`);
+the scale check; the eye's breaks (VIO resets) found against the hand and stage 2 again
+without them; the vector refinement of the offset, iterated with stage 2; the self-check over
+the candidate offsets; the offset along the recording; stage 2's scale. The seed check runs
+once the answer is final (:func:`seed_check`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..association import PosePairs, associate
+from ..checks.screening import Screening, find_eye_breaks
+from ..checks.selfcheck import Candidate, score_candidates
+from ..checks.verdict import AMBIGUOUS_SCORE_RATIO, Code
+from ..config import CalibrationConfig
+from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
+from ..eye_model import EyeModel
+from ..findings import Findings
+from ..geometry import matrix_from_quat, quat_angle
+from ..prepare import Inputs, check_fraction
+from ..time.align import TimeAlignment, align_time_vector
+from ..time.clock import DriftFit, covered_span
+from ..time.drift import clock_along, drift_from_windows
+from ..time.stage import Offset
+from ..trajectory import Trajectory
+from .axxb import build_motions
+from .robust import LinearSolution, calibrate_linear
+from .scaling import fold_linear_scale, scale_check, scale_from_rotations, scale_message
+
+if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed check
+    from ..batch.refine import BatchSolution
+
+#: Two candidate offsets closer than this (s), or than DISTINCT_STEPS grid steps of stage 1,
+#: are one: the batch stage refines within that, and the self-check cannot separate offsets a
+#: few milliseconds apart on a slow motion anyway.
+SAME_OFFSET_S = 2e-3
+DISTINCT_STEPS = 3
+#: Stage 2 is run again when the vector refinement moved dt by more than this (s).
+LINEAR_REDO_S = 5e-3
+#: The vector refinement searches this far (s) on each side of the current offset.
+VECTOR_HALF_WINDOW_S = 0.15
+MAX_VECTOR_ITERATIONS = 3
+#: The linear stage with the next RANSAC seed must land within these (deg, m).
+SEED_ROTATION_DEG = 0.5
+SEED_TRANSLATION_M = 0.01
+
+
+@dataclass(frozen=True)
+class LinearStage:
+    """eye: T_WE on the hand's clock up to ``dt`` (stage 1's offset, any drift and scale taken
+    out), split at its breaks; model: what was applied to it; dt: the offset left [s];
+    solution: stage 2's answer; vector: the vector refinement's alignment (None when it did not
+    run); clock: the offset measured along the recording (None when not measured);
+    screening: what was removed from each stream, the eye's breaks and outliers included."""
+
+    eye: Trajectory
+    model: EyeModel
+    dt: float
+    solution: LinearSolution
+    vector: TimeAlignment | None
+    clock: DriftFit | None
+    screening: tuple[Screening, Screening]
+
+
+def linear_stage(
+    inputs: Inputs, offset: Offset, cfg: CalibrationConfig, run: Findings
+) -> LinearStage:
+    """Stage 2 and what attaches to it (see the module docstring)."""
+    hand, shift_ns, screening = offset.hand, offset.shift_ns, inputs.screening
+    # from here on the eye is on the hand's clock (up to stage 1's error): offsets are small
+    eye = offset.eye.shifted(-shift_ns)
+    model = EyeModel(shift_ns, stamp_ns=covered_span(hand, eye)[2])
+    dt = 0.0
+    if cfg.clock_drift and not eye.keyframes:
+        eye, model = drift_from_windows(hand, eye, model, cfg)
+    if cfg.estimate_scale:
+        eye, model = scale_from_rotations(hand, eye, model, cfg)
+    lin, pairs = _first_solve(hand, eye, offset, cfg)
+    scaled = None if cfg.estimate_scale else scale_check(pairs, lin, cfg)
+    if scaled is not None and scaled.costs(cfg.precision_translation):
+        # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
+        # it at "breaks" would only hide that
+        run.reason(Code.SCALE, scale_message(scaled))
+    else:
+        if scaled is not None and scaled.clear:  # named, but it costs less than the precision
+            run.notes.append(scale_message(scaled))
+        if cfg.screening:
+            eye, lin, pairs, screening = split_eye(
+                hand, eye, lin, pairs, cfg, screening, shift_ns, run
+            )
+    tv = clock = None
+    if not offset.fixed:
+        dt, lin, pairs, tv = refine_vector(hand, eye, dt, lin, pairs, cfg, run)
+        dt, lin, pairs = self_check(
+            hand, eye, offset.alignment, shift_ns, dt, lin, pairs, cfg, run
+        )
+        # the offset along the recording, with stage 2's rotation
+        eye, model, clock, moved = clock_along(hand, eye, model, dt, lin, cfg, run)
+        if moved is not None:
+            dt = moved
+            lin, pairs = solve_linear(hand, eye, dt, cfg)
+    if cfg.estimate_scale:
+        eye, model = fold_linear_scale(eye, model, lin, run)
+    return LinearStage(eye, model, dt, lin, tv, clock, screening)
+
+
+def _first_solve(
+    hand: Trajectory, eye: Trajectory, offset: Offset, cfg: CalibrationConfig
+) -> tuple[LinearSolution, PosePairs]:
+    """Stage 2 at stage 1's offset; a degenerate answer inside a narrowed search window says
+    that the offset may lie outside it."""
+    try:
+        return solve_linear(hand, eye, 0.0, cfg)
+    except DegenerateMotionError as err:
+        if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
+            raise
+        lo, hi = offset.alignment.window_s
+        msg = (
+            f'{err}. The time offset was searched in [{lo:+.3f}, {hi:+.3f}] s only: if it '
+            'lies outside, the correlation found a false peak there; widen max_time_offset '
+            'or move time_offset_guess (or leave both unset to search every lag)'
+        )
+        raise DegenerateMotionError(msg) from None
+
+
+def solve_linear(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    cfg: CalibrationConfig,
+    seed: int | None = None,
+    pairs: PosePairs | None = None,
+) -> tuple[LinearSolution, PosePairs]:
+    """Stage 2 at offset dt (``pairs``: the streams associated at dt, when already made)."""
+    pairs = associate(hand, eye, dt) if pairs is None else pairs
+    motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
+    lin = calibrate_linear(
+        motions,
+        robust_kernel=cfg.robust_kernel,
+        mu=cfg.mu,
+        ransac_iterations=cfg.ransac_iterations,
+        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
+        inlier_translation_m=cfg.inlier_translation,
+        min_motions=cfg.min_motions,
+        adaptive_inliers=cfg.adaptive_inliers,
+        decoupled_refit=cfg.decoupled_refit,
+        estimate_scale=cfg.estimate_scale,
+        rng=np.random.default_rng(cfg.seed if seed is None else seed),
+    )
+    return lin, pairs
+
+
+def split_eye(
+    hand: Trajectory,
+    eye: Trajectory,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    screening: tuple[Screening, Screening],
+    shift_ns: int,
+    run: Findings,
+):
+    """Breaks (VIO resets) and leftover wild poses of the eye, against the hand; stage 2 again
+    when any were found."""
+    found = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
+    if not (found.breaks_ns.size or found.outliers_ns.size or found.short_ns.size):
+        return eye, lin, pairs, screening
+    sh, se = screening
+    # the report keeps the eye's own stamps; this eye was moved by shift_ns
+    se = se.merged(found.outliers_ns + shift_ns, 'outlier').merged(
+        found.short_ns + shift_ns, 'short_segment', found.breaks_ns + shift_ns
+    )
+    check_fraction(se, eye, cfg)
+    if found.breaks_ns.size:
+        note = (
+            f'the eye stream was split at {found.breaks_ns.size} break(s) (a VIO reset or '
+            "jump of its world frame: its motion there disagrees with the hand's); no "
+            'motion or residual spans one'
+        )
+        run.warnings.append(note)
+        run.notes.append(note)
+    lin, pairs = solve_linear(hand, found.eye, 0.0, cfg)
+    return found.eye, lin, pairs, (sh, se)
+
+
+def refine_vector(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    run: Findings,
+):
+    """dt from the body angular velocities with stage 2's rotation, iterated with stage 2."""
+    if not cfg.vector_refinement or lin.unobservable or eye.keyframes:
+        return dt, lin, pairs, None
+    tv = None
+    for _ in range(MAX_VECTOR_ITERATIONS):
+        try:
+            tv = align_time_vector(
+                hand,
+                eye,
+                matrix_from_quat(lin.q_HE),
+                around_s=dt,
+                half_window_s=VECTOR_HALF_WINDOW_S,
+                resample_rate_hz=cfg.resample_rate_hz,
+            )
+        except TimeAlignmentError as err:
+            run.warnings.append(f'vector refinement of the time offset not used: {err}')
+            return dt, lin, pairs, tv
+        moved = tv.time_offset_s - dt
+        dt = tv.time_offset_s
+        if abs(moved) <= LINEAR_REDO_S:
+            break
+        lin, pairs = solve_linear(hand, eye, dt, cfg)
+    return dt, lin, pairs, tv
+
+
+def self_check(
+    hand: Trajectory,
+    eye: Trajectory,
+    ta: TimeAlignment,
+    shift_ns: int,
+    dt: float,
+    lin: LinearSolution,
+    pairs: PosePairs,
+    cfg: CalibrationConfig,
+    run: Findings,
+):
+    """Stage 2 at every distinct candidate offset, scored alike; the best one wins."""
+    same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
+    hyps = [(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin, pairs)]
+    proposals = [(0.0, 'correlation peak')] + [
+        (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
+    ]
+    for offset, source in proposals:
+        if any(abs(offset - h[0]) < same for h in hyps):
+            continue
+        try:
+            lin_c, pairs_c = solve_linear(hand, eye, offset, cfg)
+            if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
+                offset, lin_c, pairs_c, _ = refine_vector(
+                    hand, eye, offset, lin_c, pairs_c, cfg, Findings()
+                )
+        except HandeyeError as err:
+            run.notes.append(
+                f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
+            )
+            # counted in the result with the others, unscored
+            run.candidates.append(
+                Candidate(
+                    offset,
+                    f'{source}: rejected, stage 2 fails there',
+                    float('nan'),
+                    float('nan'),
+                    float('nan'),
+                    lin.q_HE,
+                    lin.p_HE,
+                )
+            )
+            continue
+        if not any(abs(offset - h[0]) < same for h in hyps):
+            hyps.append((offset, source, lin_c, pairs_c))
+    if len(hyps) == 1:
+        return dt, lin, pairs
+    scored = score_candidates(
+        hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], np.deg2rad(cfg.eta)
+    )
+    best = _judge_tie(scored, shift_ns, run)
+    run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
+    return hyps[best][0], hyps[best][2], hyps[best][3]
+
+
+def _judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
+    """Index of the winner. Candidates scoring within AMBIGUOUS_SCORE_RATIO of the best are a
+    tie (the verdict says so); a tie goes to the smallest offset, the likelier one when two
+    clocks were started together."""
+    best = next(k for k, c in enumerate(scored) if c.chosen)
+    win = scored[best]
+    if not np.isfinite(win.score):
+        run.reason(
+            Code.AMBIGUOUS_OFFSET,
+            'the candidate offsets could not be compared (too few motions covered at all of them)',
+        )
+        return best
+    tied = [
+        k
+        for k, c in enumerate(scored)
+        if np.isfinite(c.score) and c.score <= AMBIGUOUS_SCORE_RATIO * win.score
+    ]
+    text = ', '.join(
+        f'{shift_ns * 1e-9 + c.time_offset_s:+.4f} s ({c.source}, score {c.score:.3g})'
+        for c in scored
+    )
+    if len(tied) == 1:
+        run.notes.append(
+            f'self-check over the candidate offsets {text}: '
+            f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
+        )
+        return best
+    best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
+    run.reason(
+        Code.AMBIGUOUS_OFFSET,
+        f'the motion repeats itself: the self-check cannot separate '
+        f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
+        'the search with time_offset_guess and max_time_offset (less than half the '
+        'period of the motion), or record a less repetitive motion',
+    )
+    return best
+
+
+def seed_check(
+    hand: Trajectory,
+    eye: Trajectory,
+    dt: float,
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    cfg: CalibrationConfig,
+    run: Findings,
+    pairs: PosePairs | None = None,
+) -> LinearSolution | None:
+    """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
+    uncertainty (3 sigmas of the batch stage, and at least SEED_ROTATION_DEG /
+    SEED_TRANSLATION_M). ``pairs``: the streams associated at dt, when already made."""
+    if cfg.ransac_iterations == 0:
+        return None
+    try:
+        other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
+    except HandeyeError as err:
+        run.reason(
+            Code.SEED_DEPENDENT, f'with RANSAC seed {cfg.seed + 1} the linear stage fails ({err})'
+        )
+        return None
+    d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
+    d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
+    lim_rot, lim_t = SEED_ROTATION_DEG, SEED_TRANSLATION_M
+    if batch is not None:
+        lim_t = max(lim_t, 3.0 * float(np.linalg.norm(batch.std[1:4])))
+        lim_rot = max(lim_rot, 3.0 * float(np.degrees(np.linalg.norm(batch.std[4:7]))))
+    if d_rot > lim_rot or d_t > lim_t:
+        run.reason(
+            Code.SEED_DEPENDENT,
+            f'with RANSAC seed {cfg.seed + 1} the linear stage gives '
+            f'an extrinsic {d_t * 1e3:.0f} mm / {d_rot:.2f} deg away: the motions do not '
+            'single out one answer',
+        )
+    return other

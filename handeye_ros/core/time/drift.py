@@ -1,0 +1,109 @@
+"""The clock along the recording, as the pipeline uses it: with ``clock_drift`` the drift from
+stage 1 in windows before stage 2, and the offset measured in windows with stage 2's rotation
+after it (the vector form of stage 1); without it, a drift the windows show is named in the
+verdict (:mod:`.clock` measures, :class:`..eye_model.EyeModel` applies)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..checks.verdict import Code
+from ..config import CalibrationConfig
+from ..eye_model import EyeModel
+from ..findings import Findings
+from ..geometry import matrix_from_quat
+from ..linear.robust import LinearSolution
+from ..trajectory import Trajectory
+from .clock import DriftFit, measure_drift
+
+
+def drift_from_windows(
+    hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
+) -> tuple[Trajectory, EyeModel]:
+    """With clock_drift, before stage 2: the drift from stage 1 in windows (magnitudes: no
+    rotation of T_HE yet), taken out of the eye's stamps so that stage 2 sees one offset.
+    When it cannot be measured here, :func:`clock_along` says so."""
+    fit = measure_drift(hand, eye, None, cfg.resample_rate_hz)
+    if not fit.estimated:
+        return eye, model
+    return model.add_drift(eye, fit.drift, fit.drift_std)
+
+
+def clock_along(
+    hand: Trajectory,
+    eye: Trajectory,
+    model: EyeModel,
+    dt: float,
+    lin: LinearSolution,
+    cfg: CalibrationConfig,
+    run: Findings,
+):
+    """The offset measured in windows along the recording with stage 2's rotation (the vector
+    form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
+    clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the
+    reference stamp when the stamps moved, else None)."""
+    if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
+        if cfg.clock_drift:
+            run.reason(
+                Code.UNOBSERVABLE,
+                'the clock drift is measured in windows of angular velocity, which a '
+                'keyframe-only eye does not give; one constant offset was estimated instead',
+            )
+        return eye, model, None, None
+    R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
+    fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
+    clock = _absolute_clock(fit, model)
+    if not cfg.clock_drift:
+        if fit.significant:
+            run.reason(Code.CLOCK_DRIFT, _drift_message(fit))
+        elif fit.estimated:
+            run.notes.append(
+                f'the offset measured in {int(fit.inliers.sum())} windows along '
+                f'the recording is constant within its uncertainty (drift '
+                f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)'
+            )
+        return eye, model, clock, None
+    if not fit.estimated:
+        if model.drift_estimated:
+            run.warnings.append(
+                'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
+            )
+        else:
+            run.reason(
+                Code.UNOBSERVABLE,
+                f'the clock drift cannot be observed: {fit.why}. One '
+                'constant offset was estimated instead',
+            )
+        return eye, model, clock, None
+    eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
+    return eye, model, clock, float(fit.offset_at(model.stamp_ns))
+
+
+def _drift_message(fit: DriftFit) -> str:
+    n = int(fit.inliers.sum())
+    return (
+        f'the time offset drifts: measured in {n} windows along the recording it changes '
+        f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
+        f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
+        'result holds one mean offset, so the ends are off by about '
+        f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
+        'parameter clock_drift)'
+    )
+
+
+def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:
+    """A window fit measured on an eye the model was applied to, on the eye's own clock:
+    the model's drift added back to the offsets and the rate."""
+
+    def back(t_ns: np.ndarray | int) -> np.ndarray:
+        return model.drift * (np.asarray(t_ns) - np.int64(model.stamp_ns)) * 1e-9
+
+    out = fit.shifted(model.shift_ns)
+    return replace(
+        out,
+        offsets_s=out.offsets_s + back(fit.centres_ns),
+        offset_s=out.offset_s + float(back(fit.stamp_ns)),
+        drift=fit.drift + model.drift * (1.0 - fit.drift),
+    )

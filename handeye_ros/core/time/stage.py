@@ -1,0 +1,126 @@
+"""Stage 1 as the pipeline runs it (:class:`Offset`): the correlation of eq. 1 over every lag
+or a window (:mod:`.align`), the keyframe search of a keyframe-only eye (:mod:`.keyframes`), or
+the offset the user fixed (checked against the data); then the orientation conventions, which
+need an offset to be checked (AX = XB holds under one reading only)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..checks.conventions import check_orientations
+from ..checks.verdict import WEAK_CORRELATION
+from ..config import CalibrationConfig
+from ..errors import TimeAlignmentError
+from ..findings import Findings
+from ..prepare import Inputs
+from ..trajectory import Trajectory
+from .align import TimeAlignment, align_time
+from .keyframes import align_time_keyframes
+
+#: A search window given by its guess alone is this wide on each side (s).
+DEFAULT_HALF_WINDOW_S = 0.5
+#: A fixed offset further than this from the correlation peak is reported (s): a few grid
+#: steps, well above the peak's own error (< 2 ms on the paper's protocol).
+FIXED_OFFSET_DISAGREEMENT_S = 0.01
+
+
+@dataclass(frozen=True)
+class Offset:
+    """alignment: stage 1's result (or the offset fixed by the user); hand, eye: the streams
+    after the orientation conventions; fixed: the user gave the offset."""
+
+    alignment: TimeAlignment
+    hand: Trajectory
+    eye: Trajectory
+    fixed: bool
+
+    @property
+    def shift_ns(self) -> int:
+        """Stage 1's offset in integer ns, by which the later stages move the eye's stamps."""
+        return self.alignment.time_offset_ns
+
+
+def align_stage(inputs: Inputs, cfg: CalibrationConfig, run: Findings) -> Offset:
+    """Stage 1 (see the module docstring)."""
+    hand, eye = inputs.hand, inputs.eye
+    fixed = cfg.time_offset is not None
+    guess, half = search_window(cfg)
+    if fixed:
+        ta = TimeAlignment(
+            time_offset_s=cfg.time_offset,
+            method='fixed',
+            time_offset_ns=round(cfg.time_offset * 1e9),
+        )
+        run.warnings += check_fixed_offset(hand, eye, cfg)
+    elif eye.keyframes:
+        ta = align_time_keyframes(hand, eye, max_time_offset=half, time_offset_guess=guess)
+    else:
+        ta = align_time(
+            hand,
+            eye,
+            max_time_offset=half,
+            time_offset_guess=guess,
+            resample_rate_hz=cfg.resample_rate_hz,
+            peak_fit=cfg.peak_fit,
+        )
+    if cfg.check_conventions:
+        hand, eye, found = check_orientations(hand, eye, ta.time_offset_s, np.deg2rad(cfg.eta))
+        run.corrected(found)
+    return Offset(ta, hand, eye, fixed)
+
+
+def search_window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
+    """(guess, half-width) of stage 1's search; (None, None) searches every lag."""
+    if cfg.max_time_offset is None and cfg.time_offset_guess is None:
+        return None, None
+    return (
+        cfg.time_offset_guess or 0.0,
+        cfg.max_time_offset if cfg.max_time_offset is not None else DEFAULT_HALF_WINDOW_S,
+    )
+
+
+def check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> list[str]:
+    """Warn when a user-fixed offset disagrees with the angular-speed correlation.
+
+    Why: the linear stage cannot tell a wrong offset from a noisy eye (a 50 ms error still gives
+    most motions as inliers at moderate speed), so a wrong fixed value would pass silently.
+    """
+    half = cfg.max_time_offset or DEFAULT_HALF_WINDOW_S
+    try:
+        est = align_time(
+            hand,
+            eye,
+            max_time_offset=half,
+            time_offset_guess=cfg.time_offset,
+            resample_rate_hz=cfg.resample_rate_hz,
+        )
+    except TimeAlignmentError as err:
+        return [f'could not check the fixed time offset against the data: {err}']
+    if (
+        est.peak_correlation >= WEAK_CORRELATION
+        and abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S
+    ):
+        return [
+            (
+                f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
+                f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
+                f'(correlation {est.peak_correlation:.2f}); check the fixed value'
+            )
+        ]
+    return []
+
+
+def absolute(tv: TimeAlignment | None, shift_ns: int) -> TimeAlignment | None:
+    """The vector refinement's result on the original clocks."""
+    if tv is None:
+        return None
+    return replace(
+        tv,
+        time_offset_s=shift_ns * 1e-9 + tv.time_offset_s,
+        time_offset_ns=shift_ns + tv.time_offset_ns,
+        window_s=(shift_ns * 1e-9 + tv.window_s[0], shift_ns * 1e-9 + tv.window_s[1]),
+        lags_s=None if tv.lags_s is None else shift_ns * 1e-9 + tv.lags_s,
+        candidates=tuple((shift_ns * 1e-9 + c, r) for c, r in tv.candidates),
+    )

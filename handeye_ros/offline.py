@@ -15,16 +15,13 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import sys
-from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
+
+from .app import PROGRESS_DELAY_S
 
 LOG = logging.getLogger('handeye_ros.offline')  # not __name__: it is __main__ under -m
 
-#: A run shorter than this (s) shows no progress bar.
-PROGRESS_DELAY_S = 2.0
 #: Stream options given on the command line (the algorithm ones come from their specs).
 STREAM_OPTION_KEYS = (
     'hand_topic',
@@ -276,173 +273,35 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
     return p
 
 
-def load_options(path: str | None) -> dict[str, Any]:
-    """Options from a YAML file: a flat mapping or a ROS 2 params file for the node.
-
-    Node-only parameters (services, QoS, ...) are dropped, so one file configures both.
-    """
-    if path is None:
-        return {}
-    import yaml
-
-    from .core.errors import ConfigError
-    from .params import NODE_ONLY_KEYS
-
-    try:
-        data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
-    except OSError as err:
-        raise ConfigError(f'{path}: cannot read the options file ({err.strerror})') from None
-    except UnicodeDecodeError:
-        raise ConfigError(
-            f'{path}: not a text file; --config wants a YAML file of options'
-        ) from None
-    except yaml.YAMLError as err:
-        first = str(err).splitlines()[0] if str(err) else 'syntax error'
-        raise ConfigError(f'{path}: not valid YAML ({first})') from None
-    if not isinstance(data, dict):
-        raise ConfigError(f'{path}: expected a mapping of option names to values')
-    nodes = [
-        v['ros__parameters']
-        for v in data.values()
-        if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
-    ]
-    if nodes:
-        data = nodes[0]
-    return {k: v for k, v in data.items() if k not in NODE_ONLY_KEYS}
-
-
-def calibrate_args(
-    args: argparse.Namespace, extra_options: dict[str, Any] | None = None
-) -> tuple[dict[str, Any], Any]:
-    """Read, calibrate, evaluate, export and report; the result dictionary (with its
-    ``evaluation``) and the CalibrationResult. ``extra_options`` (a manifest's) override the
-    ``--config`` file and are overridden by the command line. Raises HandeyeError on bad
-    input."""
+def request_of(args: argparse.Namespace) -> Any:
+    """The application's request from the parsed command line: the ``--config`` file's options
+    overridden by those given on the command line."""
+    from .app import Request, load_options
     from .core.config import CalibrationConfig
-    from .core.errors import ConfigError
-    from .core.options import split_options
-    from .stream.config import StreamConfig
 
-    files = args.hand or args.eye
-    if (args.bag and files) or (not args.bag and not (args.hand and args.eye)):
-        raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
-    _check_outputs(args)
     options = load_options(args.config)
-    options.update(extra_options or {})
     keys = (*STREAM_OPTION_KEYS, *CalibrationConfig.specs())
     options.update({k: getattr(args, k) for k in keys if getattr(args, k) is not None})
-    calib, streams = split_options(
-        options, (CalibrationConfig, StreamConfig), source=args.config or 'options'
+    return Request(
+        hand=args.hand,
+        eye=args.eye,
+        bag=args.bag,
+        file_format=args.format,
+        hand_stamp_unit=args.hand_stamp_unit,
+        eye_stamp_unit=args.eye_stamp_unit,
+        hand_quaternion_order=args.hand_quaternion_order,
+        eye_quaternion_order=args.eye_quaternion_order,
+        options=options,
+        evaluation=args.evaluation,
+        rpe_delta=args.rpe_delta,
+        rpe_distance=args.rpe_distance,
+        export=args.export,
+        report=args.report,
+        output_bag=args.output_bag,
+        output_bag_storage=args.output_bag_storage,
+        progress=args.progress,
+        source=args.config or 'options',
     )
-    frames = streams.frames()  # files name no frames: the options or the fallbacks
-    if args.bag:
-        from .replay import replay
-
-        given = {s: f'{s}_topic' in options for s in ('hand', 'eye')}
-        from .core.pipeline import STEPS
-
-        rec = replay(args.bag, streams, given=given, progress=args.progress)
-        snap = rec.snapshot()
-        with _progress_bar(args.progress, len(STEPS)) as step:
-            result = snap.result(calib, progress=step)
-        frames = snap.frames
-        out = snap.describe(result)
-        out['inputs']['bag'] = str(args.bag)
-    else:
-        from .core.pipeline import STEPS, calibrate
-        from .formats import read_trajectory
-
-        with _progress_bar(args.progress, len(STEPS) + 2) as step:
-            step(f'reading {Path(args.hand).name}')
-            hand = read_trajectory(
-                args.hand, args.format, args.hand_stamp_unit, args.hand_quaternion_order
-            )
-            step(f'reading {Path(args.eye).name}')
-            eye = read_trajectory(
-                args.eye, args.format, args.eye_stamp_unit, args.eye_quaternion_order
-            )
-            LOG.info(
-                'hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz',
-                hand.name,
-                len(hand),
-                hand.rate_hz,
-                eye.name,
-                len(eye),
-                eye.rate_hz,
-            )
-            result = calibrate(hand, eye, calib, progress=step)
-        out = result.to_dict(
-            hand_frame=frames['hand'],
-            eye_frame=frames['eye'],
-            hand_world=frames['hand_world'],
-            eye_world=frames['eye_world'],
-        )
-        out['summary'] = result.summary()
-    from .evaluation.outputs import evaluate_and_write
-
-    if args.evaluation or args.export or args.report:
-        evaluate_and_write(
-            result,
-            out,
-            export_dir=args.export,
-            report_dir=args.report,
-            delta_s=args.rpe_delta,
-            delta_m=args.rpe_distance,
-        )
-    if args.output_bag:
-        from .formats.bag import write_result_bag
-        from .stream.messages import Published
-
-        write_result_bag(
-            args.output_bag,
-            Published.from_result(result, frames),
-            result.eye.last_stamp_ns,
-            args.output_bag_storage,
-        )
-    return out, result
-
-
-def _check_outputs(args: argparse.Namespace) -> None:
-    """Refuse absurd RPE steps and unwritable output directories before the calibration."""
-    from .core.errors import ConfigError
-    from .evaluation.outputs import check_directory
-
-    for name, value in (('--rpe-delta', args.rpe_delta), ('--rpe-distance', args.rpe_distance)):
-        if not (math.isfinite(value) and value > 0):
-            raise ConfigError(f'{name} must be a positive number, got {value:g}')
-    for flag, path in (('--export', args.export), ('--report', args.report)):
-        if path:
-            check_directory(path, flag)
-
-
-@contextmanager
-def _progress_bar(show: bool | None, steps: int):
-    """A step counter on stderr (tqdm) that appears only after PROGRESS_DELAY_S, so that short
-    runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``."""
-    from tqdm import tqdm
-
-    bar = tqdm(
-        total=steps,
-        desc='calibrating',
-        unit='step',
-        file=sys.stderr,
-        disable=None if show is None else not show,
-        delay=PROGRESS_DELAY_S,
-        bar_format='{desc}: {n}/{total} {bar} {elapsed} {postfix}',
-    )
-    started = [False]
-
-    def step(name: str) -> None:
-        if started[0]:
-            bar.update(1)
-        started[0] = True
-        bar.set_postfix_str(name, refresh=True)
-
-    try:
-        yield step
-        bar.update(1)
-    finally:
-        bar.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -458,7 +317,9 @@ def main(argv: list[str] | None = None) -> int:
     from .report import format_report, write_result
 
     try:
-        document, result = calibrate_args(args)
+        from .app import run
+
+        document, result = run(request_of(args))
         if args.output:
             write_result(args.output, document)
     except HandeyeError as err:

@@ -225,7 +225,8 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
 
     Never raises for bad input: the row says ``status: failed`` and why.
     """
-    from . import offline
+    from .app import Request
+    from .app import run as run_request
     from .core.errors import HandeyeError
     from .report import write_result
 
@@ -237,16 +238,20 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
         'trial': run.trial,
     }
     folder = Path(output) / 'runs' / run.slug()
-    argv = ['--bag', run.bag] if run.bag else ['--hand', run.hand or '', '--eye', run.eye or '']
-    argv += ['--export', str(folder / 'export')]
-    if run.report:
-        argv += ['--report', str(folder / 'report')]
+    request = Request(
+        hand=None if run.bag else run.hand or '',
+        eye=None if run.bag else run.eye or '',
+        bag=run.bag or None,
+        options=dict(run.options),
+        export=str(folder / 'export'),
+        report=str(folder / 'report') if run.report else None,
+        progress=None,
+    )
     try:
         # missing or unreadable files are named by the readers themselves
         if not (run.bag or (run.hand and run.eye)):
             raise ConfigError('a run needs hand and eye files, or a bag')
-        args = offline.build_parser().parse_args(argv)
-        out, _ = offline.calibrate_args(args, dict(run.options))
+        out, _ = run_request(request)
         write_result(folder / 'result.yaml', out)
         row.update(_row(out))
         row['status'], row['reason'] = 'ok', ''

@@ -1,0 +1,226 @@
+"""The application: calibrate from sources to a result with its outputs, one function under
+every front end that takes files or a bag (the offline tool's ``main``, ``evaluate``'s runs).
+
+A :class:`Request` says where the poses come from (two trajectory files, or a bag replayed
+through the node's own conversion and buffers), the options (the algorithm's and the streams',
+merged from a config file, a manifest and the command line by the caller) and what to write
+besides the result (evo exports, the report, a bag of the node's outputs). :func:`run` reads,
+calibrates, evaluates and writes, and returns the result's dictionary and the result. (The node
+calibrates its buffers through :func:`.evaluation.outputs.calibrate_snapshot`, on the same
+:meth:`.stream.recorder.Snapshot.result` as a bag here.)
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+#: A run shorter than this (s) shows no progress bar.
+PROGRESS_DELAY_S = 2.0
+
+
+@dataclass(frozen=True)
+class Request:
+    """What to calibrate and what to write.
+
+    hand, eye: trajectory files (TUM or EuRoC), or bag: a ROS 2 / ROS 1 bag; file_format,
+    *_stamp_unit, *_quaternion_order: the files' readings ('auto': detected); options: the
+    algorithm and stream options by name (unknown names are refused); evaluation: add APE/RPE
+    with and without the calibration (rpe_delta [s], rpe_distance [m]); export, report: folders
+    for evo-ready files and the HTML report; output_bag: a bag of the node's outputs, in
+    output_bag_storage; progress: a progress bar on stderr (None: when it is a terminal);
+    source: what the options came from, for messages.
+    """
+
+    hand: str | None = None
+    eye: str | None = None
+    bag: str | None = None
+    file_format: str = 'auto'
+    hand_stamp_unit: str = 'auto'
+    eye_stamp_unit: str = 'auto'
+    hand_quaternion_order: str = 'auto'
+    eye_quaternion_order: str = 'auto'
+    options: dict[str, Any] = field(default_factory=dict)
+    evaluation: bool = True
+    rpe_delta: float = 1.0
+    rpe_distance: float = 1.0
+    export: str | None = None
+    report: str | None = None
+    output_bag: str | None = None
+    output_bag_storage: str = 'mcap'
+    progress: bool | None = None
+    source: str = 'options'
+
+
+def run(req: Request) -> tuple[dict[str, Any], Any]:
+    """Read, calibrate, evaluate, export and report; the result dictionary (with its
+    ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
+    from .core.config import CalibrationConfig
+    from .core.errors import ConfigError
+    from .core.options import split_options
+    from .core.pipeline import STEPS
+    from .stream.config import StreamConfig
+
+    files = req.hand or req.eye
+    if (req.bag and files) or (not req.bag and not (req.hand and req.eye)):
+        raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
+    _check_outputs(req)
+    calib, streams = split_options(req.options, (CalibrationConfig, StreamConfig), req.source)
+    frames = streams.frames()  # files name no frames: the options or the fallbacks
+    if req.bag:
+        from .replay import replay
+
+        given = {s: f'{s}_topic' in req.options for s in ('hand', 'eye')}
+        rec = replay(req.bag, streams, given=given, progress=req.progress)
+        snap = rec.snapshot()
+        with _progress_bar(req.progress, len(STEPS)) as step:
+            result = snap.result(calib, progress=step)
+        frames = snap.frames
+        out = snap.describe(result)
+        out['inputs']['bag'] = str(req.bag)
+    else:
+        result = _calibrate_files(req, calib)
+        out = result.to_dict(
+            hand_frame=frames['hand'],
+            eye_frame=frames['eye'],
+            hand_world=frames['hand_world'],
+            eye_world=frames['eye_world'],
+        )
+        out['summary'] = result.summary()
+    _write_outputs(req, result, out, frames)
+    return out, result
+
+
+def _calibrate_files(req: Request, calib: Any) -> Any:
+    """Read the two trajectory files and calibrate them."""
+    import logging
+
+    from .core.pipeline import STEPS, calibrate
+    from .formats import read_trajectory
+
+    with _progress_bar(req.progress, len(STEPS) + 2) as step:
+        step(f'reading {Path(req.hand).name}')
+        hand = read_trajectory(
+            req.hand, req.file_format, req.hand_stamp_unit, req.hand_quaternion_order
+        )
+        step(f'reading {Path(req.eye).name}')
+        eye = read_trajectory(
+            req.eye, req.file_format, req.eye_stamp_unit, req.eye_quaternion_order
+        )
+        logging.getLogger('handeye_ros.offline').info(
+            'hand %s: %d poses at %.1f Hz; eye %s: %d poses at %.1f Hz',
+            hand.name,
+            len(hand),
+            hand.rate_hz,
+            eye.name,
+            len(eye),
+            eye.rate_hz,
+        )
+        return calibrate(hand, eye, calib, progress=step)
+
+
+def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> None:
+    """The evaluation (into ``out``), the exports, the report and the output bag."""
+    from .evaluation.outputs import evaluate_and_write
+
+    if req.evaluation or req.export or req.report:
+        evaluate_and_write(
+            result,
+            out,
+            export_dir=req.export,
+            report_dir=req.report,
+            delta_s=req.rpe_delta,
+            delta_m=req.rpe_distance,
+        )
+    if req.output_bag:
+        from .formats.bag import write_result_bag
+        from .stream.messages import Published
+
+        write_result_bag(
+            req.output_bag,
+            Published.from_result(result, frames),
+            result.eye.last_stamp_ns,
+            req.output_bag_storage,
+        )
+
+
+def _check_outputs(req: Request) -> None:
+    """Refuse absurd RPE steps and unwritable output directories before the calibration."""
+    from .core.errors import ConfigError
+    from .evaluation.outputs import check_directory
+
+    for name, value in (('--rpe-delta', req.rpe_delta), ('--rpe-distance', req.rpe_distance)):
+        if not (math.isfinite(value) and value > 0):
+            raise ConfigError(f'{name} must be a positive number, got {value:g}')
+    for flag, path in (('--export', req.export), ('--report', req.report)):
+        if path:
+            check_directory(path, flag)
+
+
+def load_options(path: str | None) -> dict[str, Any]:
+    """Options from a YAML file: a flat mapping or a ROS 2 params file for the node.
+
+    Node-only parameters (services, QoS, ...) are dropped, so one file configures both.
+    """
+    if path is None:
+        return {}
+    import yaml
+
+    from .core.errors import ConfigError
+    from .params import NODE_ONLY_KEYS
+
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}
+    except OSError as err:
+        raise ConfigError(f'{path}: cannot read the options file ({err.strerror})') from None
+    except UnicodeDecodeError:
+        raise ConfigError(
+            f'{path}: not a text file; --config wants a YAML file of options'
+        ) from None
+    except yaml.YAMLError as err:
+        first = str(err).splitlines()[0] if str(err) else 'syntax error'
+        raise ConfigError(f'{path}: not valid YAML ({first})') from None
+    if not isinstance(data, dict):
+        raise ConfigError(f'{path}: expected a mapping of option names to values')
+    nodes = [
+        v['ros__parameters']
+        for v in data.values()
+        if isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
+    ]
+    if nodes:
+        data = nodes[0]
+    return {k: v for k, v in data.items() if k not in NODE_ONLY_KEYS}
+
+
+@contextmanager
+def _progress_bar(show: bool | None, steps: int):
+    """A step counter on stderr (tqdm) that appears only after PROGRESS_DELAY_S, so that short
+    runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``."""
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=steps,
+        desc='calibrating',
+        unit='step',
+        file=sys.stderr,
+        disable=None if show is None else not show,
+        delay=PROGRESS_DELAY_S,
+        bar_format='{desc}: {n}/{total} {bar} {elapsed} {postfix}',
+    )
+    started = [False]
+
+    def step(name: str) -> None:
+        if started[0]:
+            bar.update(1)
+        started[0] = True
+        bar.set_postfix_str(name, refresh=True)
+
+    try:
+        yield step
+        bar.update(1)
+    finally:
+        bar.close()

@@ -48,7 +48,6 @@ def spin(node: Any, close: Callable[[], None] | None = None) -> None:
     node's own resources), the executor, the node, rclpy."""
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
     executor = None
     try:
@@ -61,11 +60,12 @@ def spin(node: Any, close: Callable[[], None] | None = None) -> None:
             executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except _rclpy.RCLError:
+    except RuntimeError:
         # rclpy's handler wakes the executor, then shuts the context down from its own
-        # thread: a wait set (or an executor's guard condition) made in between fails ("the
-        # given context is not valid"; a known race, ros2/ros2cli#854). That is the stop we
-        # were asked for; else it is not.
+        # thread: a wait set (or an executor's guard condition) made in between fails with an
+        # RCLError, a RuntimeError ("the given context is not valid"; a known race,
+        # ros2/ros2cli#854; rclpy exports the class only from its private modules). That is
+        # the stop we were asked for; else it is not.
         if rclpy.ok():
             raise
     finally:

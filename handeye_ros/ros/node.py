@@ -50,7 +50,6 @@ from rcl_interfaces.msg import (
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -170,7 +169,7 @@ class CalibratorNode(Node):
             for topic in sel.topics:
                 try:
                     self.resolve_topic_name(topic)
-                except _rclpy.RCLError as err:
+                except RuntimeError as err:  # rclpy's RCLError (exported privately only)
                     why = str(err).split('failed to resolve name: ', 1)[-1].split(', at ')[0]
                     raise ConfigError(
                         f'{stream}_topic {sel.text}: {topic!r} is no valid topic name: {why}'

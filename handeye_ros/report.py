@@ -76,6 +76,13 @@ def format_report(d: dict[str, Any]) -> str:
             f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
             f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)'
         )
+    cov = d.get('coverage')
+    if cov:
+        lines.append(
+            f"  MoCap coverage: {cov['fraction']:.0%} of the eye's {cov['eye_span_s']:.1f} s, "
+            f'{cov["hand_gaps"]} gap(s) inside it ({cov["hand_gap_s"]:.1f} s, the longest '
+            f'{cov["longest_hand_gap_s"]:.2f} s)'
+        )
     peak = ta['peak_correlation']
     lines += [
         '',

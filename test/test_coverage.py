@@ -40,3 +40,17 @@ def test_in_the_result() -> None:
     assert d['coverage']['hand_gap_s'] == pytest.approx(1.0, abs=0.02)
     assert any('the MoCap covers 98%' in n for n in d['quality']['notes'])
     assert np.isfinite(d['std']['time_offset'])
+
+
+def test_in_the_reports(tmp_path) -> None:
+    """The terminal report and the HTML report say the coverage, with the gaps."""
+    from handeye_ros.core.pipeline import calibrate
+    from handeye_ros.evaluation.html import _numbers
+    from handeye_ros.report import format_report
+
+    rec = recording(seed=3, level=2.0)
+    t = rec.hand.seconds(int(rec.hand.t_ns[0]))
+    d = calibrate(rec.hand.select(~((t > 25.0) & (t < 27.0))), rec.eye).to_dict()
+    text = format_report(d)
+    assert "MoCap coverage: 97% of the eye's" in text and '1 gap(s) inside it (2.0 s' in text
+    assert '1 gap(s), 2.0 s (longest 2.0' in _numbers(d)

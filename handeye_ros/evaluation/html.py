@@ -86,6 +86,18 @@ def _numbers(d: dict[str, Any]) -> str:
                 ' '.join(_f(v, '.3f', 57.29577951308232) for v in s['rotation']) + ' deg',
             )
         )
+    cov = d.get('coverage')
+    if cov:
+        rows.append(
+            (
+                "MoCap coverage of the eye's span",
+                f'{cov["fraction"]:.0%} of {cov["eye_span_s"]:.1f} s',
+                (
+                    f'{cov["hand_gaps"]} gap(s), {cov["hand_gap_s"]:.1f} s '
+                    f'(longest {cov["longest_hand_gap_s"]:.2f} s)'
+                ),
+            )
+        )
     body = ''.join(
         f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows
     )

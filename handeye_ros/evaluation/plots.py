@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.result import CalibrationResult
-from ..core.time.align import angular_speed
+from ..core.time.signals import angular_speed
 from .aligned import AlignedTrajectories
 
 #: Points per plotted line at most.

@@ -22,13 +22,8 @@ from .long_run import (
     long_run_covariance,
     two_step_from_sums,
 )
-from .residuals import (
-    BatchProblem,
-    ParameterLayout,
-    Weights,
-    central_jacobian,
-    weighted_eye_chunks,
-)
+from .parameters import ParameterLayout, weighted_eye_chunks
+from .residuals import BatchProblem, Weights, central_jacobian
 from .solver import huber_cost
 
 

@@ -432,67 +432,6 @@ class BatchProblem:
         )
 
 
-@dataclass(frozen=True)
-class ParameterLayout:
-    """Which entries of y = (dt, dtheta_X (3), dp_X (3), [drift], [scale]) each step frees.
-
-    time: dt (unless fixed) and the drift, free in both steps of the decoupled solve; scale:
-    with the translation (step B). Every covariance is in the order of :attr:`all`.
-    """
-
-    time: tuple[int, ...]
-    scale: tuple[int, ...]
-    size: int
-
-    @classmethod
-    def of(cls, prob: BatchProblem, fix_time_offset: bool) -> ParameterLayout:
-        time_idx = (() if fix_time_offset else (0,)) + (
-            () if prob.i_drift is None else (prob.i_drift,)
-        )
-        return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
-
-    @property
-    def a(self) -> np.ndarray:
-        return np.array((*self.time, 1, 2, 3))
-
-    @property
-    def b(self) -> np.ndarray:
-        return np.array((*self.time, 4, 5, 6, *self.scale))
-
-    @property
-    def all(self) -> np.ndarray:
-        return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
-
-    @property
-    def steps(self) -> np.ndarray:
-        """Central-difference steps for the entries of y."""
-        h = np.full(self.size, FD_STEP)
-        h[0] = FD_STEP_S
-        if self.size > 7 and len(self.time) and self.time[-1] >= 7:
-            h[self.time[-1]] = FD_STEP_DRIFT
-        return h
-
-
-def weighted_eye_chunks(
-    prob: BatchProblem,
-    w: Weights,
-    y: np.ndarray,
-    rotation_only: bool = False,
-    raw: list[np.ndarray] | None = None,
-    every: int = 1,
-):
-    """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
-    chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
-    ``raw`` when given."""
-    rows = 3 if rotation_only else 6
-    w_rows = w.eye[:rows]
-    for k in prob.chunks()[::every]:
-        r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True, rotation_only)
-        if raw is not None:
-            raw.append(r)
-        yield r * w_rows, J * w_rows[None, :, None]
-
-
 def central_jacobian(
     fun, y: np.ndarray, cols: np.ndarray, steps: np.ndarray | None = None
 ) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The eye's scale, as the pipeline uses it: with ``estimate_scale`` a first scale from the
 rotations before stage 2 and stage 2's on top of it; without it, the translation fit with and
 without a scale, to name an eye whose translations a scale explains (:mod:`.scale` holds the
-fits, :class:`..eye_model.EyeModel` applies them)."""
+fits, :class:`~handeye_ros.core.eye_model.EyeModel` applies them)."""
 
 from __future__ import annotations
 

@@ -8,13 +8,9 @@ cross-correlation ``c(tau) = sum_t |w_E|(t + tau) |w_H|(t)`` peaks at ``tau = dt
 a parabola through the peak and its two neighbours gives the sub-sample offset (the paper's
 quadratic fit).
 
-Both speeds are computed on each stream's own stamps (rotation angle of consecutive poses over
-their interval, at the interval midpoint so the finite difference is unbiased in time; never
-across a gap or a break), resampled onto a uniform grid *of their own* (each anchored at its
-stream's first stamp, so that the grids, the FFT and the memory follow the recordings' lengths
-and never the size of the offset: two clocks 1.4e9 s apart cost nothing more), clipped at a
-robust level, standardised, and correlated with a masked normalised cross-correlation (FFT),
-which stays correct across gaps and partial overlap.
+Both speeds are made on grids of their own, robust and standardised (:mod:`.signals`: two
+clocks 1.4e9 s apart cost nothing more), and correlated with a masked normalised
+cross-correlation (FFT), which stays correct across gaps and partial overlap.
 
 Beyond the paper, three things make the offset hard to fool:
 
@@ -40,67 +36,26 @@ import numpy as np
 from scipy import fft
 
 from ..errors import TimeAlignmentError
-from ..geometry import consecutive_rotvecs
 from ..trajectory import Trajectory, gap_free_parts, lengths_text
+from .signals import (
+    AngularSpeed,
+    angular_speed,
+    clip_signal,
+    grid,
+    grid_step,
+    resample,
+    standardise,
+)
 
 #: A lag is only considered where the two signals overlap on at least this fraction of the
 #: shorter one: with little overlap a normalised correlation is high by chance.
 MIN_OVERLAP_FRACTION = 0.5
 #: ... and on at least this many seconds.
 MIN_OVERLAP_S = 5.0
-#: The resampling rate is the faster stream's rate, capped here: 200 Hz resolves the shape of
-#: any hand-held motion (whose angular speed has little content above ~10 Hz) and bounds the
-#: FFT length of long recordings.
-MAX_RESAMPLE_RATE_HZ = 200.0
-#: Most samples of one resampled signal (2^23: 11.6 h at 200 Hz). Longer streams are resampled
-#: more coarsely, down to MIN_RESAMPLE_RATE_HZ; beyond that the span is refused, which also
-#: bounds the memory whatever the stamps say.
-MAX_GRID_SAMPLES = 2**23
-MIN_RESAMPLE_RATE_HZ = 20.0
-#: Signal samples beyond median + MASK_SIGMAS robust standard deviations (1.4826 MAD) are
-#: left out like a gap (a spike no motion made: leaving it in, even clipped, puts a plateau
-#: into one signal only); the rest are clipped at median + CLIP_SIGMAS.
-MASK_SIGMAS = 8.0
-CLIP_SIGMAS = 4.0
-#: ... where the median and MAD are also taken in blocks of this length (s), and a sample is
-#: held to the higher of the whole signal's level and its own block's (or a neighbour's): a
-#: recording of mixed pace (a minute of fast hand-held motion in the MoCap room, then ten of
-#: walking outdoors) keeps its fast minutes, which the whole signal's level would mask as
-#: spikes, while a spike stays a spike against its own block.
-LEVEL_BLOCK_S = 20.0
 #: Other local maxima of the correlation at least this fraction of the peak are candidates.
 CANDIDATE_RATIO = 0.7
 #: At most this many candidates besides the peak.
 MAX_CANDIDATES = 4
-
-
-@dataclass(frozen=True)
-class AngularSpeed:
-    """Body angular speed (or velocity) of one stream.
-
-    Attributes
-    ----------
-    t_s : ndarray, shape (M,)
-        Interval midpoints, seconds from the stream's first stamp, on the stream's own clock.
-    speed : ndarray, shape (M,) or (M, 3)
-        Rotation angle over the interval divided by its length, rad/s (the magnitude is
-        frame-independent), or the body angular velocity ``Log(R_k^T R_k+1) / dt`` (rad/s, in
-        the body frame).
-    valid : ndarray, shape (M,), bool
-        False for intervals that span a gap or a break.
-    """
-
-    t_s: np.ndarray
-    speed: np.ndarray
-    valid: np.ndarray
-
-    def part(self, traj: Trajectory, first: int, stop: int) -> AngularSpeed:
-        """The signal of the poses ``first..stop-1`` of the stream ``traj`` it was computed
-        from, with times from the first of them: what :func:`angular_speed` gives for that part
-        (a stream measured in windows is differenced once, not once per window)."""
-        shift = (int(traj.t_ns[first]) - int(traj.t_ns[0])) * 1e-9
-        k = slice(first, max(stop - 1, first))
-        return AngularSpeed(self.t_s[k] - shift, self.speed[k], self.valid[k])
 
 
 @dataclass(frozen=True)
@@ -142,47 +97,6 @@ class TimeAlignment:
     correlation: np.ndarray | None = None
     candidates: tuple[tuple[float, float], ...] = field(default=())
     time_offset_ns: int = 0
-
-
-def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
-    """Angular speed (or body angular velocity, ``vector``) from consecutive orientations, at
-    interval midpoints in seconds from the stream's first stamp (see :class:`AngularSpeed`)."""
-    # kept with the trajectory: stages 1 and 2 and the clock windows ask for the same stream's
-    # (an hour of 1 kHz MoCap is a second to difference)
-    cached = traj.__dict__.get('_angular_velocity')
-    if cached is None:
-        t = traj.seconds(int(traj.t_ns[0]))
-        dt = np.diff(t)
-        cached = AngularSpeed(
-            0.5 * (t[1:] + t[:-1]),
-            consecutive_rotvecs(traj.q_xyzw) / dt[:, None],
-            traj.interval_ok(),
-        )
-        object.__setattr__(traj, '_angular_velocity', cached)  # frozen: a cache, not state
-    if vector:
-        return cached
-    return AngularSpeed(cached.t_s, np.linalg.norm(cached.speed, axis=1), cached.valid)
-
-
-def resample(
-    sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Linear interpolation of a signal at ``grid_s + shift_s``.
-
-    Returns values (shape of the grid, with a trailing 3 for vectors) and a mask that is False
-    outside the signal's support and between two samples of which either lies in a gap.
-    """
-    t = grid_s + shift_s
-    k = np.searchsorted(sig.t_s, t)
-    inside = (k > 0) & (k < sig.t_s.size)
-    kc = np.clip(k, 1, sig.t_s.size - 1)
-    ok = inside & sig.valid[kc - 1] & sig.valid[kc]
-    if sig.speed.ndim == 1:
-        values = np.where(ok, np.interp(t, sig.t_s, sig.speed), 0.0)
-    else:
-        values = np.stack([np.interp(t, sig.t_s, sig.speed[:, a]) for a in range(3)], axis=1)
-        values[~ok] = 0.0
-    return values, ok
 
 
 def masked_normalised_correlation(
@@ -231,92 +145,6 @@ def masked_normalised_correlation(
         ncc = np.where((n > 1) & (var > 0.0), cov / np.sqrt(np.abs(var)), np.nan)
     lags = np.arange(-(nx - 1), ny)
     return lags, ncc, n
-
-
-def _grid(traj: Trajectory, step: float) -> np.ndarray:
-    """Uniform grid over a stream's span, seconds from its first stamp."""
-    return step * np.arange(int(np.floor(traj.duration_s / step)) + 1)
-
-
-def _step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None) -> float:
-    """Grid step: the faster stream's rate (at most 200 Hz), coarser for very long streams."""
-    rate = resample_rate_hz or min(max(hand.rate_hz, eye.rate_hz), MAX_RESAMPLE_RATE_HZ)
-    longest = max(hand.duration_s, eye.duration_s)
-    if longest * rate > MAX_GRID_SAMPLES:
-        rate = MAX_GRID_SAMPLES / longest
-        if rate < MIN_RESAMPLE_RATE_HZ:
-            msg = (
-                f'{hand.name} spans {hand.duration_s:.4g} s and {eye.name} '
-                f'{eye.duration_s:.4g} s: too long to correlate at {MIN_RESAMPLE_RATE_HZ:g} '
-                'Hz or more. Are the stamps in the unit the format expects (seconds for TUM, '
-                'nanoseconds for EuRoC)? Otherwise cut the recording into parts'
-            )
-            raise TimeAlignmentError(msg)
-    return 1.0 / rate
-
-
-def _clip(v: np.ndarray, mask: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """A robust signal: samples beyond median + MASK_SIGMAS robust deviations (1.4826 MAD) are
-    masked out like a gap, the others clipped at median + CLIP_SIGMAS (vectors by their
-    norm), each at the higher of the whole signal's level and its block's
-    (:data:`LEVEL_BLOCK_S`). Returns (values, mask)."""
-    if mask.sum() < 3:  # _standardise refuses it with its own message
-        return v, mask
-    mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
-    med, dev = _median_mad(mag[mask])
-    if not dev > 0.0:
-        return v, mask
-    mask_level, clip_level = _levels(mag, mask, step, med, dev)
-    mask = mask & (mag <= mask_level)
-    scale = np.minimum(1.0, clip_level / np.maximum(mag, 1e-300))
-    return v * (scale if v.ndim == 1 else scale[:, None]), mask
-
-
-def _median_mad(values: np.ndarray) -> tuple[float, float]:
-    """Median and robust standard deviation (1.4826 MAD)."""
-    med = float(np.median(values))
-    return med, 1.4826 * float(np.median(np.abs(values - med)))
-
-
-def _levels(
-    mag: np.ndarray, mask: np.ndarray, step: float, med: float, dev: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample mask and clip levels: the whole signal's, raised to its block's where that
-    is higher (the highest of the block and its two neighbours, so that a block boundary
-    inside a fast stretch changes nothing)."""
-    n = max(1, round(LEVEL_BLOCK_S / step))
-    n_blocks = mag.size // n
-    levels = np.array([med + MASK_SIGMAS * dev, med + CLIP_SIGMAS * dev])
-    if n_blocks < 2:
-        return levels[0], levels[1]
-    block = np.tile(levels[:, None], n_blocks)
-    for b in range(n_blocks):
-        part = mag[b * n : (b + 1) * n][mask[b * n : (b + 1) * n]]
-        if part.size >= n // 4:  # a block mostly in a gap says nothing of its own
-            m, d = _median_mad(part)
-            block[:, b] = np.maximum(block[:, b], (m + MASK_SIGMAS * d, m + CLIP_SIGMAS * d))
-    padded = np.pad(block, ((0, 0), (1, 1)), mode='edge')
-    block = np.maximum(np.maximum(padded[:, :-2], padded[:, 1:-1]), padded[:, 2:])
-    index = np.minimum(np.arange(mag.size) // n, n_blocks - 1)
-    return block[0, index], block[1, index]
-
-
-def _standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
-    """Zero mean, unit variance over the valid samples (keeps the FFT sums well scaled)."""
-    if mask.sum() < 3:
-        msg = f'{name}: too few samples to compute an angular speed signal'
-        raise TimeAlignmentError(msg)
-    mean = v[mask].mean(axis=0)
-    std = np.sqrt(np.sum(v[mask].var(axis=0)))
-    if not std > 1e-9:
-        msg = (
-            f'{name}: the angular speed is constant ({np.linalg.norm(mean):.3g} rad/s); the '
-            'time offset cannot be observed. Record a motion with varying rotation'
-        )
-        raise TimeAlignmentError(msg)
-    out = (v - mean) / std
-    out[~mask] = 0.0
-    return out
 
 
 @dataclass(frozen=True)
@@ -460,7 +288,7 @@ def align_time(
     if peak_fit not in ('quadratic', 'none'):
         msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
         raise ValueError(msg)
-    step = _step(hand, eye, resample_rate_hz)
+    step = grid_step(hand, eye, resample_rate_hz)
     w_h, w_e = signals or (angular_speed(hand), angular_speed(eye))
     return _align(
         hand, eye, w_h, w_e, step, max_time_offset, time_offset_guess, peak_fit, peak_fit
@@ -488,7 +316,7 @@ def align_time_vector(
     TimeAlignmentError
         As :func:`align_time`.
     """
-    step = _step(hand, eye, resample_rate_hz)
+    step = grid_step(hand, eye, resample_rate_hz)
     w_h, w_e = signals or (angular_speed(hand, vector=True), angular_speed(eye, vector=True))
     w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
     return _align(hand, eye, w_h, w_e, step, half_window_s, around_s, 'quadratic', 'vector')
@@ -507,12 +335,12 @@ def _align(
 ) -> TimeAlignment:
     """Stage 1 on two signals (magnitudes or vectors): each on its own grid, robust,
     standardised, correlated over the searched lags, the peak and its candidates."""
-    x, mx = resample(w_h, _grid(hand, step))
-    y, my = resample(w_e, _grid(eye, step))
-    x, mx = _clip(x, mx, step)
-    y, my = _clip(y, my, step)
-    x = _standardise(x, mx, hand.name)
-    y = _standardise(y, my, eye.name)
+    x, mx = resample(w_h, grid(hand, step))
+    y, my = resample(w_e, grid(eye, step))
+    x, mx = clip_signal(x, mx, step)
+    y, my = clip_signal(y, my, step)
+    x = standardise(x, mx, hand.name)
+    y = standardise(y, my, eye.name)
     curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
     window = _window(max_time_offset, time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)

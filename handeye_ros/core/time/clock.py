@@ -30,7 +30,8 @@ from scipy.special import ndtr, stdtrit
 
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
-from .align import AngularSpeed, align_time, align_time_vector, angular_speed
+from .align import align_time, align_time_vector
+from .signals import AngularSpeed, angular_speed
 
 #: Shortest window (s): stage 1 needs a few seconds of varied angular speed per window.
 MIN_WINDOW_S = 10.0

@@ -38,7 +38,6 @@ from scipy.spatial.transform import Rotation, Slerp
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import (
-    MAX_RESAMPLE_RATE_HZ,
     MIN_OVERLAP_FRACTION,
     TimeAlignment,
     _candidates,
@@ -46,6 +45,7 @@ from .align import (
     _second_peak_ratio,
     _window,
 )
+from .signals import MAX_RESAMPLE_RATE_HZ
 
 #: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
 #: counts as disagreeing, however wildly (a VIO glitch, a MoCap swap).

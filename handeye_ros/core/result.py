@@ -279,10 +279,8 @@ class CalibrationResult:
 
         The frame names label the transforms' parent and child (H, E, G and W).
         """
-        ta, lin, m = self.time_alignment, self.linear, self.metrics
         R_HE = matrix_from_quat(self.q_HE)
         R_EH, p_EH = inverse((R_HE, self.p_HE))
-        vec = self.vector_alignment
         return {
             'schema_version': SCHEMA_VERSION,
             'convention': CONVENTION,
@@ -305,23 +303,7 @@ class CalibrationResult:
                 'method': self.world.method,
                 'segments': self.world.segments,
             },
-            'time_alignment': {
-                'method': ta.method,
-                'peak_correlation': _num(ta.peak_correlation),
-                'second_peak_ratio': _num(ta.second_peak_ratio),
-                'step': _num(ta.step_s),
-                'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
-                'candidates': [
-                    {'time_offset': float(c), 'correlation': float(r)} for c, r in ta.candidates
-                ],
-                'vector': None
-                if vec is None
-                else {
-                    'time_offset': float(vec.time_offset_s),
-                    'peak_correlation': _num(vec.peak_correlation),
-                    'window': [_num(vec.window_s[0]), _num(vec.window_s[1])],
-                },
-            },
+            'time_alignment': self._time_alignment_dict(),
             'screening': self._screening_dict(),
             'conventions': [
                 {
@@ -346,37 +328,7 @@ class CalibrationResult:
             ],
             'association': {'pairs': int(self.n_pairs)},
             'coverage': None if self.coverage is None else self.coverage.to_dict(),
-            'linear': {
-                'relative_poses': self.config.relative_poses,
-                'motions': int(lin.n_motions),
-                'inliers': int(lin.n_inliers),
-                'inlier_thresholds': {
-                    'rotation_deg': lin.inlier_rotation_deg,
-                    'translation_m': lin.inlier_translation_m,
-                },
-                'extrinsic': {
-                    'translation': [float(v) for v in lin.p_HE],
-                    'rotation': [float(v) for v in positive_w(lin.q_HE)],
-                },
-                'decoupled_refit': self.config.decoupled_refit,
-                'dual_quaternion_solution': {
-                    'translation': [float(v) for v in lin.p_HE_dq],
-                    'rotation': [float(v) for v in positive_w(lin.q_HE_dq)],
-                },
-                'sigma_ratio': _num(lin.sigma_ratio),
-                'singular_values': [float(v) for v in lin.singular_values],
-                'axis_spread_deg': _num(lin.axis_spread_deg),
-                'rotation_residual_deg': _num(lin.rotation_residual_deg),
-                'translation_residual_m': _num(lin.translation_residual_m),
-                'unobservable': list(lin.unobservable),
-                'seed_check': None
-                if self.seed_check is None
-                else {
-                    'seed': self.config.seed + 1,
-                    'translation': [float(v) for v in self.seed_check.p_HE],
-                    'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)],
-                },
-            },
+            'linear': self._linear_dict(),
             'std': self._std_dict(),
             'covariance': None
             if self.batch is None
@@ -387,30 +339,91 @@ class CalibrationResult:
                 'matrix': [[float(v) for v in row] for row in self.batch.covariance],
             },
             'batch': self._batch_dict(),
-            'metrics': {
-                'ape_rmse': m.ape_rmse_m,
-                'are_rmse': m.are_rmse_deg,
-                'ape_max': m.ape_max_m,
-                'are_max': m.are_max_deg,
-                'poses': m.n_poses,
-                'motion_rotation_median': _num(m.motion_rotation_deg),
-                'motion_translation_median': _num(m.motion_translation_m),
-                'motion_length_median': _num(m.motion_length_m),
-                'motions': m.n_motions,
-                'units': {
-                    'ape': 'm',
-                    'are': 'deg',
-                    'motion_rotation': 'deg',
-                    'motion_translation': 'm',
-                    'motion_length': 'm',
-                },
-            },
+            'metrics': self._metrics_dict(),
             'inputs': {
                 name: _trajectory_info(info)
                 for name, info in (('hand', self.hand), ('eye', self.eye))
             },
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
+        }
+
+    def _linear_dict(self) -> dict[str, Any]:
+        """Stage 2: its motions, consensus, solutions and checks."""
+        lin = self.linear
+        return {
+            'relative_poses': self.config.relative_poses,
+            'motions': int(lin.n_motions),
+            'inliers': int(lin.n_inliers),
+            'inlier_thresholds': {
+                'rotation_deg': lin.inlier_rotation_deg,
+                'translation_m': lin.inlier_translation_m,
+            },
+            'extrinsic': {
+                'translation': [float(v) for v in lin.p_HE],
+                'rotation': [float(v) for v in positive_w(lin.q_HE)],
+            },
+            'decoupled_refit': self.config.decoupled_refit,
+            'dual_quaternion_solution': {
+                'translation': [float(v) for v in lin.p_HE_dq],
+                'rotation': [float(v) for v in positive_w(lin.q_HE_dq)],
+            },
+            'sigma_ratio': _num(lin.sigma_ratio),
+            'singular_values': [float(v) for v in lin.singular_values],
+            'axis_spread_deg': _num(lin.axis_spread_deg),
+            'rotation_residual_deg': _num(lin.rotation_residual_deg),
+            'translation_residual_m': _num(lin.translation_residual_m),
+            'unobservable': list(lin.unobservable),
+            'seed_check': None
+            if self.seed_check is None
+            else {
+                'seed': self.config.seed + 1,
+                'translation': [float(v) for v in self.seed_check.p_HE],
+                'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)],
+            },
+        }
+
+    def _metrics_dict(self) -> dict[str, Any]:
+        """APE / ARE of the eye against the calibrated hand, and AX = XB over the keyframe motions."""
+        m = self.metrics
+        return {
+            'ape_rmse': m.ape_rmse_m,
+            'are_rmse': m.are_rmse_deg,
+            'ape_max': m.ape_max_m,
+            'are_max': m.are_max_deg,
+            'poses': m.n_poses,
+            'motion_rotation_median': _num(m.motion_rotation_deg),
+            'motion_translation_median': _num(m.motion_translation_m),
+            'motion_length_median': _num(m.motion_length_m),
+            'motions': m.n_motions,
+            'units': {
+                'ape': 'm',
+                'are': 'deg',
+                'motion_rotation': 'deg',
+                'motion_translation': 'm',
+                'motion_length': 'm',
+            },
+        }
+
+    def _time_alignment_dict(self) -> dict[str, Any]:
+        """Stage 1: its method, peak, window and candidates, and the vector refinement."""
+        ta, vec = self.time_alignment, self.vector_alignment
+        return {
+            'method': ta.method,
+            'peak_correlation': _num(ta.peak_correlation),
+            'second_peak_ratio': _num(ta.second_peak_ratio),
+            'step': _num(ta.step_s),
+            'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
+            'candidates': [
+                {'time_offset': float(c), 'correlation': float(r)} for c, r in ta.candidates
+            ],
+            'vector': None
+            if vec is None
+            else {
+                'time_offset': float(vec.time_offset_s),
+                'peak_correlation': _num(vec.peak_correlation),
+                'window': [_num(vec.window_s[0]), _num(vec.window_s[1])],
+            },
         }
 
 

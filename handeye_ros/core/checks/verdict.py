@@ -217,6 +217,13 @@ def assess(
             f'the angular velocities of the two streams hardly agree '
             f'(correlation {max(peaks):.2f}): check that both show the same motion',
         )
+    _assess_linear(lin, run)
+    _assess_uncertainty(batch, cfg, run)
+    _assess_consistency(metrics, run)
+
+
+def _assess_linear(lin: LinearSolution, run: Findings) -> None:
+    """Stage 2's consensus and excitation."""
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
         run.reason(
             Code.FEW_INLIERS, f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
@@ -233,6 +240,12 @@ def assess(
             f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
             'deg: the extrinsic is weakly constrained; rotate about more different axes',
         )
+
+
+def _assess_uncertainty(
+    batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
+) -> None:
+    """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
     if cfg.batch and batch is None and not any(r.code == 'unobservable' for r in run.reasons):
         run.reason(
             Code.NO_UNCERTAINTY,
@@ -270,7 +283,10 @@ def assess(
             f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
             'something the model lacks (clock drift, a scale error) shapes them',
         )
-    m = metrics
+
+
+def _assess_consistency(m: Metrics, run: Findings) -> None:
+    """AX = XB at the result, over the keyframe motions: failing it fails the result."""
     if m.n_motions and (
         m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG
         or (

@@ -181,26 +181,9 @@ def calibrate_linear(
     weights (eq. 12), and scores that refinement by sigma7/sigma6; the best-scoring refinement
     wins. With ``ransac_iterations=0`` a single robust solve on all motions is returned.
 
-    With ``adaptive_inliers`` the consensus of the winner is taken once more with thresholds no
-    tighter than the configured ones but wide enough for the noise measured from the winner's
-    own residuals (``CHI3_Q99_OVER_MEDIAN`` times their median), and the system re-solved on it.
-    Why: the paper's 0.5 deg / 2 cm suit a good VIO over a 5 deg keyframe motion; a noisier eye
-    pushes most clean motions over them, and a solution from the few left is far noisier than
-    one from all clean motions. The median keeps true outliers (a minority) out.
-
-    With ``decoupled_refit`` the extrinsic is finally re-estimated on the consensus with
-    rotation (:func:`refit_rotation`) and translation (:func:`refit_translation_gls`) apart;
-    otherwise the dual-quaternion solution is the result. Either way the dual-quaternion
-    solution is kept in ``q_HE_dq, p_HE_dq``.
-
-    When the rotation axes of the consensus are all parallel (one rotation axis), the
-    determined part of T_HE comes from :func:`degenerate_refit` and ``unobservable`` names the
-    rest.
-
-    ``estimate_scale``: the eye's translations are metric only up to a factor s (a monocular
-    eye, :mod:`.linear.scale`); both refits then solve for it: the translation refit in (t_X, s), the
-    dual-quaternion one in (q', s) with its rotation fixed. RANSAC's thresholds in metres need
-    the eye near metric already (the pipeline scales it by :func:`.linear.scale.scale_prior` first).
+    Then ``adaptive_inliers`` widens the consensus to the noise measured from the winner
+    (:func:`_widened`), and the extrinsic is refitted on it (:func:`_refit`: ``decoupled_refit``,
+    one rotation axis, ``estimate_scale``).
 
     Raises
     ------
@@ -222,7 +205,57 @@ def calibrate_linear(
         w2 = np.exp(2.0 * (log_w - log_w.max()))
     else:
         w2 = np.ones(n)
+    q_HE, p_HE, inliers, sigma_best, ratio_best = _consensus(
+        m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
+    )
+    thr_rot, thr_trans = inlier_rotation_rad, inlier_translation_m
+    if adaptive_inliers:
+        widened = _widened(m, gram, w2, q_HE, p_HE, inliers, thr_rot, thr_trans)
+        (thr_rot, thr_trans), wider = widened
+        if wider is not None:
+            q_HE, p_HE, inliers, sigma_best, ratio_best = wider
+    spread = axis_spread_deg(m, inliers)
+    refit = _refit(m, inliers, q_HE, p_HE, spread, decoupled_refit, estimate_scale)
+    q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std = refit
+    if scale != 1.0:  # the inlier criteria of eq. 13 with the eye made metric
+        m = scaled_motions(m, scale)
+    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
+    return LinearSolution(
+        q_HE=q_HE,
+        p_HE=p_HE,
+        q_HE_dq=q_dq,
+        p_HE_dq=p_dq,
+        sigma_ratio=ratio_best,
+        singular_values=sigma_best,
+        n_motions=n,
+        n_inliers=int(inliers.sum()),
+        inliers=inliers,
+        axis_spread_deg=spread,
+        rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
+        translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
+        inlier_rotation_deg=float(np.degrees(thr_rot)),
+        inlier_translation_m=float(thr_trans),
+        warnings=tuple(warnings),
+        unobservable=unobservable,
+        scale=scale,
+        scale_std=scale_std,
+        scale_dq=scale_dq,
+        motions=m,
+    )
 
+
+def _consensus(
+    m: Motions,
+    gram: np.ndarray,
+    w2: np.ndarray,
+    ransac_iterations: int,
+    inlier_rotation_rad: float,
+    inlier_translation_m: float,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """Algorithm 1 proper: the best-scoring robust refinement among the RANSAC hypotheses
+    (or one robust solve on all motions): (q_HE, p_HE, inliers, singular values, sigma7/6)."""
+    n = len(m)
     if ransac_iterations > 0:
         counts, q1, qd1, ratio, (q0, p0) = _ransac(
             m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
@@ -247,19 +280,63 @@ def calibrate_linear(
     else:
         inliers = np.ones(n, dtype=bool)
     sigma_best = solve_gram(((inliers * w2) @ gram).reshape(8, 8))[2]
-    ratio_best = float(ratio[best])
-    thr_rot, thr_trans = inlier_rotation_rad, inlier_translation_m
-    if adaptive_inliers:
-        e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
-        thr_rot = max(thr_rot, CHI3_Q99_OVER_MEDIAN * float(np.median(e_rot[0])))
-        thr_trans = max(thr_trans, CHI3_Q99_OVER_MEDIAN * float(np.median(e_trans[0])))
-        wider = (e_rot[0] < thr_rot) & (e_trans[0] < thr_trans)
-        if wider.sum() > inliers.sum():
-            q2, qd2, s2 = solve_gram(((wider * w2) @ gram).reshape(8, 8))
-            q_HE, p_HE = pose_from_dual_quat(q2, qd2)
-            inliers, sigma_best, ratio_best = wider, s2, float(s2[6] / s2[5])
+    return q_HE, p_HE, inliers, sigma_best, float(ratio[best])
 
-    spread = axis_spread_deg(m, inliers)
+
+def _widened(
+    m: Motions,
+    gram: np.ndarray,
+    w2: np.ndarray,
+    q_HE: np.ndarray,
+    p_HE: np.ndarray,
+    inliers: np.ndarray,
+    thr_rot: float,
+    thr_trans: float,
+) -> tuple[tuple[float, float], tuple | None]:
+    """The winner's consensus taken once more with thresholds no tighter than the configured
+    ones but wide enough for the noise measured from the winner's own residuals
+    (``CHI3_Q99_OVER_MEDIAN`` times their median), and the system re-solved on it: ((rotation,
+    translation thresholds), (q_HE, p_HE, inliers, singular values, sigma7/6) or None when it
+    gathers no more motions).
+
+    Why: the paper's 0.5 deg / 2 cm suit a good VIO over a 5 deg keyframe motion; a noisier eye
+    pushes most clean motions over them, and a solution from the few left is far noisier than
+    one from all clean motions. The median keeps true outliers (a minority) out.
+    """
+    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
+    thr_rot = max(thr_rot, CHI3_Q99_OVER_MEDIAN * float(np.median(e_rot[0])))
+    thr_trans = max(thr_trans, CHI3_Q99_OVER_MEDIAN * float(np.median(e_trans[0])))
+    wider = (e_rot[0] < thr_rot) & (e_trans[0] < thr_trans)
+    if wider.sum() <= inliers.sum():
+        return (thr_rot, thr_trans), None
+    q2, qd2, s2 = solve_gram(((wider * w2) @ gram).reshape(8, 8))
+    q_HE, p_HE = pose_from_dual_quat(q2, qd2)
+    return (thr_rot, thr_trans), (q_HE, p_HE, wider, s2, float(s2[6] / s2[5]))
+
+
+def _refit(
+    m: Motions,
+    inliers: np.ndarray,
+    q_HE: np.ndarray,
+    p_HE: np.ndarray,
+    spread: float,
+    decoupled_refit: bool,
+    estimate_scale: bool,
+) -> tuple:
+    """The final extrinsic on the consensus; returns (q_HE, p_HE, q_dq, p_dq, unobservable,
+    warnings, scale, scale_dq, scale_std).
+
+    With ``decoupled_refit`` it is re-estimated with rotation (:func:`refit_rotation`) and
+    translation (:func:`refit_translation_gls`) apart; otherwise the dual-quaternion solution
+    is the result. Either way the dual-quaternion solution is kept (q_dq, p_dq). When the
+    rotation axes of the consensus are all parallel (one rotation axis), the determined part of
+    T_HE comes from :func:`degenerate_refit` and ``unobservable`` names the rest.
+
+    ``estimate_scale``: the eye's translations are metric only up to a factor s (a monocular
+    eye, :mod:`.scale`); both refits then solve for it: the translation refit in (t_X, s), the
+    dual-quaternion one in (q', s) with its rotation fixed. RANSAC's thresholds in metres need
+    the eye near metric already (the pipeline scales it by :func:`.scale.scale_prior` first).
+    """
     q_dq, p_dq = q_HE, p_HE
     unobservable: tuple[str, ...] = ()
     warnings = []
@@ -315,28 +392,4 @@ def calibrate_linear(
             f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
             'constrained; rotate about more different axes'
         )
-    if scale != 1.0:  # the inlier criteria of eq. 13 with the eye made metric
-        m = scaled_motions(m, scale)
-    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
-    return LinearSolution(
-        q_HE=q_HE,
-        p_HE=p_HE,
-        q_HE_dq=q_dq,
-        p_HE_dq=p_dq,
-        sigma_ratio=ratio_best,
-        singular_values=sigma_best,
-        n_motions=n,
-        n_inliers=int(inliers.sum()),
-        inliers=inliers,
-        axis_spread_deg=spread,
-        rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
-        translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
-        inlier_rotation_deg=float(np.degrees(thr_rot)),
-        inlier_translation_m=float(thr_trans),
-        warnings=tuple(warnings),
-        unobservable=unobservable,
-        scale=scale,
-        scale_std=scale_std,
-        scale_dq=scale_dq,
-        motions=m,
-    )
+    return q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std

@@ -141,30 +141,10 @@ def align_time_keyframes(
     k = int(fine[int(np.argmax(np.where(f_ok, f_score, -np.inf)))])
     eligible_lags = coarse[c_ok]
     if k <= eligible_lags[0] or k >= eligible_lags[-1]:
-        where = 'the edge of the search window' if window else 'the edge of the lags searched'
-        raise TimeAlignmentError(
-            f'the keyframe rotation angles agree best at {where} (at '
-            f'{(base_ns * 1e-9 + k * step):+.3f} s): the time offset is probably outside it. '
-            + (
-                'Widen max_time_offset or move time_offset_guess'
-                if window
-                else 'Do the two recordings show the same motion?'
-            )
-        )
+        raise _at_the_edge(base_ns * 1e-9 + k * step, window)
     lag_s, agree = _refine(hand, eye, a, b, angle_e, k * step, step)
     if not agree >= MIN_AGREEMENT:
-        where = 'in the search window' if window else 'at any offset'
-        raise TimeAlignmentError(
-            f'the rotation angles of the keyframe pairs of {eye.name} and of {hand.name} do not '
-            f'agree {where}: at the best offset ({(base_ns * 1e-9 + lag_s):+.3f} s) they '
-            f'correlate at {agree:.2f} (at the right one, 0.95 or more). '
-            + (
-                'The time offset is probably outside the window: widen max_time_offset or '
-                'move time_offset_guess'
-                if window
-                else 'Do the two recordings show the same motion?'
-            )
-        )
+        raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
     curve = _Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
     scores = np.where(c_ok, c_score, -np.inf)
     sel = np.flatnonzero(c_ok)
@@ -287,4 +267,38 @@ def _too_few(
         f'{MIN_PAIRS}, and half as many as at the best-covered offset; hand covers '
         f'{hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye starts '
         f'{(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own clocks)'
+    )
+
+
+def _at_the_edge(offset_s: float, window: tuple[float, float] | None) -> TimeAlignmentError:
+    where = 'the edge of the search window' if window else 'the edge of the lags searched'
+    return TimeAlignmentError(
+        f'the keyframe rotation angles agree best at {where} (at {offset_s:+.3f} s): the time '
+        'offset is probably outside it. '
+        + (
+            'Widen max_time_offset or move time_offset_guess'
+            if window
+            else 'Do the two recordings show the same motion?'
+        )
+    )
+
+
+def _no_agreement(
+    hand: Trajectory,
+    eye: Trajectory,
+    offset_s: float,
+    agree: float,
+    window: tuple[float, float] | None,
+) -> TimeAlignmentError:
+    where = 'in the search window' if window else 'at any offset'
+    return TimeAlignmentError(
+        f'the rotation angles of the keyframe pairs of {eye.name} and of {hand.name} do not '
+        f'agree {where}: at the best offset ({offset_s:+.3f} s) they correlate at {agree:.2f} '
+        '(at the right one, 0.95 or more). '
+        + (
+            'The time offset is probably outside the window: widen max_time_offset or '
+            'move time_offset_guess'
+            if window
+            else 'Do the two recordings show the same motion?'
+        )
     )

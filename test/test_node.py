@@ -690,3 +690,30 @@ def test_qos_mismatch_is_named(ros: Processes, install: Path) -> None:
         'best_effort' in answer['message']
         and 'set qos_reliability: best_effort' in answer['message']
     ), answer
+
+
+@pytest.mark.parametrize('how', ['ctrl-c', 'sigterm'])
+def test_sim_publisher_stops_quietly(ros: Processes, install: Path, how: str) -> None:
+    """Ctrl-C or SIGTERM while sim_publisher publishes: exit code 0, no traceback (it printed
+    an RCLError 'publisher's context is invalid' traceback and exited 1). Its truth prints the
+    quaternion with w >= 0, as every output of the package does."""
+    import os
+    import signal
+    import time
+
+    pub = ros.start(
+        _publisher(ros, '--duration', '60', '--rate', '500', '--wait-subscribers', '0'),
+        f'quiet_pub_{how}',
+    )
+    time.sleep(2.5)  # imports, simulation, and publishing under way
+    assert pub.poll() is None, ros.output(pub)
+    if how == 'ctrl-c':
+        os.killpg(pub.pid, signal.SIGINT)
+    else:
+        pub.send_signal(signal.SIGTERM)
+    pub.wait(timeout=30)
+    out, err = ros.output(pub)
+    assert pub.returncode == 0, (out, err)
+    assert 'Traceback' not in err, err
+    short = ros.run_json(_publisher(ros, '--duration', '3', '--wait-subscribers', '0'), 'w_pub')
+    assert short['truth']['q_HE'][3] >= 0.0

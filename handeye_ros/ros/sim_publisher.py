@@ -25,9 +25,11 @@ import time
 
 import numpy as np
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from handeye_ros.core.geometry import positive_w
 from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
 from handeye_ros.ros.types import RclpyTypes
@@ -51,11 +53,15 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     return messages.pose_message(TYPES, msgtype, t_ns, p, q, frame, child)
 
 
-def main() -> int:
+def parser() -> argparse.ArgumentParser:
+    """The command line."""
     ap = argparse.ArgumentParser(
         prog='sim_publisher',
         description=__doc__.split('\n\n')[0],
-        epilog="Stamps are the recording's (they start near 0 s), not the wall clock's.",
+        epilog="Stamps are the recording's (they start at 1.7e9 s, in November 2023), not the "
+        "wall clock's. TFMessage hands the hand as /tf:world.marker (world -> rig on the hand "
+        'topic, rig -> marker on /tf_static) and the eye as /tf:odom.imu; RigidBodies sends '
+        "the bodies 'wand' and 'rig' (the hand: TOPIC:rig).",
     )
     ap.add_argument(
         '--seed', type=int, default=3, help='random seed of the recording (default: 3)'
@@ -79,7 +85,7 @@ def main() -> int:
         '--hand-type',
         default='PoseStamped',
         help='PoseStamped (default), PoseWithCovarianceStamped, TransformStamped, '
-        'Odometry, TFMessage or RigidBodies (see above)',
+        'Odometry, TFMessage or RigidBodies (see below)',
     )
     ap.add_argument(
         '--eye-type',
@@ -124,38 +130,13 @@ def main() -> int:
         metavar='SECONDS',
         help='how long to wait for a subscriber on both topics (default: 10)',
     )
-    args = ap.parse_args()
+    return ap
 
-    nm, nd = noise_level(args.level)
-    rec = simulate(
-        args.seed,
-        duration_s=args.duration,
-        hand_rate_hz=args.hand_rate,
-        eye_rate_hz=args.eye_rate,
-        noise_m=nm,
-        noise_deg=nd,
-    )
-    for spec in args.bag:
-        path, _, storage = spec.partition(':')
-        write_recording(
-            path,
-            [
-                (args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
-                (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu'),
-            ],
-            storage or 'mcap',
-        )
-    # what goes on the wire, and between which frames (see the module docstring)
-    wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
-    rig, imu = tf_links(rec.hand, rec.eye)
-    if args.hand_type == 'TFMessage':
-        wire['hand'] = (rig, 'world', 'rig')
-    elif args.hand_type == 'RigidBodies':
-        wire['hand'] = (rec.hand, 'mocap', 'rig')
-    if args.eye_type == 'TFMessage':
-        wire['eye'] = (imu, 'imu', 'odom')
-    rclpy.init()
-    node = Node('recording_publisher')
+
+def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float]:
+    """Publish the recording's poses interleaved by stamp at ``args.rate`` per second, once a
+    subscriber is on both topics (or ``args.wait_subscribers`` has passed); (sent per stream,
+    seconds)."""
     hand_qos = QoSProfile(
         depth=1000,
         reliability=ReliabilityPolicy.RELIABLE if args.reliable else ReliabilityPolicy.BEST_EFFORT,
@@ -213,6 +194,54 @@ def main() -> int:
         if ahead > 0:
             time.sleep(ahead)
     time.sleep(0.5)  # let the last messages leave
+    return sent, time.monotonic() - t0
+
+
+def main() -> int:
+    """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM."""
+    args = parser().parse_args()
+
+    nm, nd = noise_level(args.level)
+    rec = simulate(
+        args.seed,
+        duration_s=args.duration,
+        hand_rate_hz=args.hand_rate,
+        eye_rate_hz=args.eye_rate,
+        noise_m=nm,
+        noise_deg=nd,
+    )
+    for spec in args.bag:
+        path, _, storage = spec.partition(':')
+        write_recording(
+            path,
+            [
+                (args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
+                (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu'),
+            ],
+            storage or 'mcap',
+        )
+    # what goes on the wire, and between which frames (see the module docstring)
+    wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
+    rig, imu = tf_links(rec.hand, rec.eye)
+    if args.hand_type == 'TFMessage':
+        wire['hand'] = (rig, 'world', 'rig')
+    elif args.hand_type == 'RigidBodies':
+        wire['hand'] = (rec.hand, 'mocap', 'rig')
+    if args.eye_type == 'TFMessage':
+        wire['eye'] = (imu, 'imu', 'odom')
+    rclpy.init()
+    node = Node('recording_publisher')
+    try:
+        sent, seconds = _publish(node, args, rec, wire)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    except RuntimeError:  # rclpy's RCLError: a signal shut the context down under a publish
+        if rclpy.ok():
+            raise
+        return 0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
     t = rec.truth
     print(
         json.dumps(
@@ -224,16 +253,14 @@ def main() -> int:
                 },
                 'truth': {
                     'time_offset': t.time_offset_s,
-                    'q_HE': t.q_HE.tolist(),
+                    'q_HE': positive_w(t.q_HE).tolist(),
                     'p_HE': t.p_HE.tolist(),
                 },
-                'seconds': time.monotonic() - t0,
+                'seconds': seconds,
             }
         ),
         flush=True,
     )
-    node.destroy_node()
-    rclpy.try_shutdown()
     return 0
 
 

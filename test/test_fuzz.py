@@ -15,10 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from conftest import recording
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from handeye_ros.core.checks.verdict import Quality
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
@@ -86,9 +88,12 @@ def test_reader_on_arbitrary_bytes(data: bytes) -> None:
         path = Path(tmp) / 'traj.csv'
         path.write_bytes(data)
         try:
-            read_trajectory(path)
+            traj = read_trajectory(path)
         except HandeyeError:
-            pass
+            return
+        # what it reads is a valid stream
+        assert np.all(np.diff(traj.t_ns) > 0) and np.isfinite(traj.p_xyz).all()
+        np.testing.assert_allclose(np.linalg.norm(traj.q_xyzw, axis=1), 1.0, atol=1e-9)
 
 
 option_value = st.one_of(
@@ -144,9 +149,16 @@ def trajectories(draw, name: str) -> Trajectory:
 @given(hand=trajectories('hand'), eye=trajectories('eye'))
 def test_calibrate_on_arbitrary_trajectories(hand: Trajectory, eye: Trajectory) -> None:
     try:
-        calibrate(hand, eye)
+        res = calibrate(hand, eye)
     except HandeyeError:
-        pass
+        return
+    # a result, when there is one, is coherent: finite numbers, a unit quaternion, the verdict
+    # of its worst reason, and a dictionary the writers can write
+    assert np.isfinite(res.time_offset_s) and np.isfinite(res.p_HE).all()
+    assert abs(np.linalg.norm(res.q_HE) - 1.0) < 1e-9
+    worst = Quality.from_reasons(list(res.quality.reasons), []).verdict
+    assert res.quality.verdict == worst
+    yaml.safe_dump(res.to_dict())
 
 
 @pytest.mark.slow

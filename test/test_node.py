@@ -78,7 +78,7 @@ def _call(ros: Processes, *services: str, mode: str = 'call', name: str = 'clien
 def test_live_calibration_matches_truth_and_bag_replay(
     ros: Processes, install: Path, tmp_path: Path
 ) -> None:
-    saved_path = tmp_path / 'node_result.yaml'
+    saved_path = tmp_path / 'runs' / 'today' / 'node_result.yaml'  # ~/save makes the folders
     report = tmp_path / 'report'
     node = _start_node(ros, install, f'output_file:={saved_path}', f'report_dir:={report}')
     bags = [

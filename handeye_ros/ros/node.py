@@ -485,6 +485,7 @@ class CalibratorNode(Node):
         out, report = self.node_cfg.output_file, self.node_cfg.report_dir
         wrote = [out]
         try:
+            Path(out).parent.mkdir(parents=True, exist_ok=True)  # a run-time path: make it
             write_result(out, self._last_result.to_dict())
             staged = _staged_dir(self._last_result)
             if report and staged:
@@ -499,7 +500,8 @@ class CalibratorNode(Node):
             return response
         except OSError as err:
             response.success = False
-            response.message = f'report_dir {report}: cannot write ({err.strerror or err})'
+            where = err.filename or report
+            response.message = f'{where}: cannot write ({err.strerror or err})'
             return response
         response.success, response.message = True, 'wrote ' + ', '.join(wrote)
         if self._last_error is not None:

@@ -45,7 +45,7 @@ from .align import (
     _second_peak_ratio,
     _window,
 )
-from .signals import MAX_RESAMPLE_RATE_HZ
+from .signals import MAX_RESAMPLE_RATE_HZ, grid_step
 
 #: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
 #: counts as disagreeing, however wildly (a VIO glitch, a MoCap swap).
@@ -53,8 +53,10 @@ CAP_RAD = 0.2
 #: Lag step of the coarse search (s): an angle over an interval moves with the lag by at most
 #: the angular speed at its two ends (a few rad/s hand-held), 0.02 rad per 10 ms.
 COARSE_STEP_S = 0.02
-#: Most keyframe pairs the coarse search uses (spread evenly over the recording).
+#: Most keyframe pairs the coarse search uses (spread evenly over the recording), and most lags
+#: x pairs it compares (an hour of keyframes over every lag: 360 000 lags x 2000 pairs).
 COARSE_PAIRS = 2000
+COARSE_WORK = 10**9
 #: Fewest keyframe pairs inside the hand at a lag for it to count.
 MIN_PAIRS = 20
 #: Below this Pearson correlation of the eye's and the hand's angles at the best offset, they
@@ -109,7 +111,8 @@ def align_time_keyframes(
             f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
             'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
         )
-    step = 1.0 / min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ)
+    # the hand's rate (the eye's is no grid), bounded as stage 1 bounds its grids by the spans
+    step = grid_step(hand, eye, min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ))
     grid_q, grid_ok = _hand_grid(hand, step)
     te = eye.seconds(int(eye.t_ns[0]))
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
@@ -123,8 +126,10 @@ def align_time_keyframes(
     if k_hi - k_lo < 2:
         raise _too_few(hand, eye, window)
     m = max(1, round(COARSE_STEP_S / step))
-    pick = np.unique(np.linspace(0, a.size - 1, min(a.size, COARSE_PAIRS)).astype(int))
     coarse = np.arange(k_lo, k_hi + 1, m)
+    # fewer pairs for very long searches, so that the coarse pass stays bounded
+    n_pick = min(a.size, COARSE_PAIRS, max(MIN_PAIRS * 10, COARSE_WORK // max(coarse.size, 1)))
+    pick = np.unique(np.linspace(0, a.size - 1, n_pick).astype(int))
     c_score, c_count = _scores(grid_q, grid_ok, ga[pick], gb[pick], angle_e[pick], coarse)
     need = max(MIN_PAIRS * pick.size / a.size, MIN_OVERLAP_FRACTION * c_count.max())
     c_ok = c_count >= max(need, 1)

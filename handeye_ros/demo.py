@@ -15,6 +15,7 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,13 @@ def main(argv: list[str] | None = None) -> int:
             return code
         result = json.loads(res.read_text())
 
-    t = rec.truth
+    _print_beside_truth(result, rec.truth)
+    return 0
+
+
+def _print_beside_truth(result: dict, t: Any) -> None:
+    """The result's dt and T_HE beside the simulation's truth, their errors, the reported
+    1-sigma and the verdict."""
     q = np.asarray(result['extrinsic']['rotation'])
     p_he = np.asarray(result['extrinsic']['translation'])
     err = calibration_error(t, result['time_offset'], q, p_he)
@@ -104,7 +111,6 @@ def main(argv: list[str] | None = None) -> int:
         )
     q = result['quality']
     print(f'verdict: {q["verdict"]}' + ''.join(f'\n  - {r["message"]}' for r in q['reasons']))
-    return 0
 
 
 def _vec(v: np.ndarray) -> str:

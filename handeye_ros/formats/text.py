@@ -105,18 +105,7 @@ def read_trajectory(
         numbers, values, split, fmt = _read_lines(path, data, fmt)
     del data
     t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
-    order = quaternion_order
-    if order == 'auto':
-        order = 'wxyz' if fmt == 'euroc' else 'xyzw'
-        if fmt == 'euroc' and stamp_unit == 'auto' and split.fractional.mean() > 0.5:
-            # EuRoC's own files stamp in integer ns; a CSV in seconds comes from scripts and
-            # tools (the ETH hand-eye tools' t, x, y, z, qx, qy, qz, qw) that keep TUM's order
-            order = 'xyzw'
-            notes.append(
-                f'{path}: a comma-separated file stamped in seconds (EuRoC stamps in integer '
-                'nanoseconds): read as t, x, y, z, qx, qy, qz, qw (TUM order); if its '
-                'quaternion is w x y z, say so with --hand/eye-quaternion-order wxyz'
-            )
+    order = _quaternion_order(path, fmt, stamp_unit, quaternion_order, split, notes)
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
     bad = _bad_rows(t_ns, values, q_xyzw, fits)
@@ -142,6 +131,25 @@ def read_trajectory(
     return Trajectory.from_arrays(
         t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path), notes=tuple(notes)
     )
+
+
+def _quaternion_order(
+    path: Path, fmt: str, stamp_unit: str, given: str, split: SplitStamps, notes: list[str]
+) -> str:
+    """The order of the file's quaternion columns: the one given, else the format's; a
+    comma-separated file stamped in seconds is read in TUM's order, with a note."""
+    if given != 'auto':
+        return given
+    if fmt == 'euroc' and stamp_unit == 'auto' and split.fractional.mean() > 0.5:
+        # EuRoC's own files stamp in integer ns; a CSV in seconds comes from scripts and tools
+        # (the ETH hand-eye tools' t, x, y, z, qx, qy, qz, qw) that keep TUM's order
+        notes.append(
+            f'{path}: a comma-separated file stamped in seconds (EuRoC stamps in integer '
+            'nanoseconds): read as t, x, y, z, qx, qy, qz, qw (TUM order); if its '
+            'quaternion is w x y z, say so with --hand/eye-quaternion-order wxyz'
+        )
+        return 'xyzw'
+    return 'wxyz' if fmt == 'euroc' else 'xyzw'
 
 
 def _bad_rows(

@@ -227,6 +227,22 @@ def refine(
             prob, layout, hn, eye_noise, huber_delta, max_iterations, decoupled
         )
         y = solved.x
+    return _solution(
+        prob, solved, y, decoupled, drift_stamp_ns, piece_note, time.perf_counter() - t_start
+    )
+
+
+def _solution(
+    prob: BatchProblem,
+    solved: _Solve,
+    y: np.ndarray,
+    decoupled: bool,
+    drift_stamp_ns: int | None,
+    piece_note: str,
+    seconds: float,
+) -> BatchSolution:
+    """The stage's answer from a solve: dt, T_HE, their covariance in the reported order
+    (dt, translation, rotation, [drift], [scale]), the noise, the solver's report."""
     sol = solved.report
     dof = max(solved.n_residuals - solved.n_free, 1)
     chi2 = 2.0 * solved.cost_after / dof
@@ -255,7 +271,7 @@ def refine(
         n_hand_residuals=int(prob.th.size),
         n_eye_residuals=int(prob.ei.size),
         n_control_points=prob.M,
-        seconds=time.perf_counter() - t_start,
+        seconds=seconds,
         reduced_chi2=chi2,
         decoupled=decoupled,
         warnings=tuple(warnings),

@@ -192,12 +192,11 @@ def calibrate_linear(
     """
     n = len(m)
     if n < max(min_motions, 2):
-        msg = (
+        raise DegenerateMotionError(
             f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
             'recording rotates too little for the keyframe rule. Rotate the rig more (about '
             'several axes), or lower eta'
         )
-        raise DegenerateMotionError(msg)
     rng = rng if rng is not None else np.random.default_rng(0)
     gram = constraint_gram(m).reshape(n, 64)
     if robust_kernel:

@@ -99,18 +99,7 @@ def align_time_keyframes(
         When too few keyframe pairs fall inside the hand at any searched offset, when the eye
         does not rotate, or when the best offset is at the edge of the searched ones.
     """
-    a, b = keyframe_pairs(eye)
-    if a.size < MIN_PAIRS:
-        raise TimeAlignmentError(
-            f'{eye.name}: {len(eye)} keyframes give {a.size} keyframe pairs; the time offset '
-            f'of a keyframe-only eye needs at least {MIN_PAIRS}'
-        )
-    angle_e = rotation_angles(eye.q_xyzw[a], eye.q_xyzw[b])
-    if float(np.percentile(angle_e, 90)) < np.deg2rad(1.0):
-        raise TimeAlignmentError(
-            f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
-            'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
-        )
+    a, b, angle_e = _eye_angles(eye)
     # the hand's rate (the eye's is no grid), bounded as stage 1 bounds its grids by the spans
     step = grid_step(hand, eye, min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ))
     grid_q, grid_ok = _hand_grid(hand, step)
@@ -168,6 +157,24 @@ def align_time_keyframes(
         ),
         time_offset_ns=base_ns + round(lag_s * 1e9),
     )
+
+
+def _eye_angles(eye: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The keyframe pairs (a, b) and the eye's rotation angle over each; refused when there are
+    too few, or when the keyframes hardly rotate."""
+    a, b = keyframe_pairs(eye)
+    if a.size < MIN_PAIRS:
+        raise TimeAlignmentError(
+            f'{eye.name}: {len(eye)} keyframes give {a.size} keyframe pairs; the time offset '
+            f'of a keyframe-only eye needs at least {MIN_PAIRS}'
+        )
+    angle_e = rotation_angles(eye.q_xyzw[a], eye.q_xyzw[b])
+    if float(np.percentile(angle_e, 90)) < np.deg2rad(1.0):
+        raise TimeAlignmentError(
+            f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
+            'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
+        )
+    return a, b, angle_e
 
 
 def _hand_grid(hand: Trajectory, step: float) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,8 @@ peak_correlation the Pearson correlation of the two angle sets at the offset.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation, Slerp
@@ -102,7 +104,8 @@ def align_time_keyframes(
     a, b, angle_e = _eye_angles(eye)
     # the hand's rate (the eye's is no grid), bounded as stage 1 bounds its grids by the spans
     step = grid_step(hand, eye, min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ))
-    grid_q, grid_ok = _hand_grid(hand, step)
+    orient = _HandOrientation.of(hand)
+    grid_q, grid_ok = _hand_grid(orient, step)
     te = eye.seconds(int(eye.t_ns[0]))
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
     # at lag k (dt = base + k step) the eye stamp te falls on hand grid point te / step - k
@@ -136,7 +139,7 @@ def align_time_keyframes(
     eligible_lags = coarse[c_ok]
     if k <= eligible_lags[0] or k >= eligible_lags[-1]:
         raise _at_the_edge(base_ns * 1e-9 + k * step, window)
-    lag_s, agree = _refine(hand, eye, a, b, angle_e, k * step, step)
+    lag_s, agree = _refine(orient, eye, a, b, angle_e, k * step, step)
     if not agree >= MIN_AGREEMENT:
         raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
     curve = _Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
@@ -177,14 +180,35 @@ def _eye_angles(eye: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return a, b, angle_e
 
 
-def _hand_grid(hand: Trajectory, step: float) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _HandOrientation:
+    """The hand's orientation as both passes read it, made once (an hour of 1 kHz MoCap is
+    3.6 million rotations): t_s, its stamps (s from its first); slerp, the interpolator between
+    its poses; ok, which intervals are gap-free."""
+
+    t_s: np.ndarray
+    slerp: Slerp
+    ok: np.ndarray
+
+    @classmethod
+    def of(cls, hand: Trajectory) -> _HandOrientation:
+        th = hand.seconds(int(hand.t_ns[0]))
+        return cls(th, Slerp(th, Rotation.from_quat(hand.q_xyzw)), hand.interval_ok())
+
+    def inside(self, t: np.ndarray) -> np.ndarray:
+        """Times (s) inside the hand's span and a gap-free interval of it."""
+        th = self.t_s
+        j = np.clip(np.searchsorted(th, t, side='right') - 1, 0, th.size - 2)
+        return (t >= th[0]) & (t <= th[-1]) & self.ok[j]
+
+
+def _hand_grid(hand: _HandOrientation, step: float) -> tuple[np.ndarray, np.ndarray]:
     """The hand's orientation (x y z w) on a uniform grid from its first stamp, and which grid
     points lie inside a gap-free interval."""
-    th = hand.seconds(int(hand.t_ns[0]))
+    th = hand.t_s
     grid = step * np.arange(int(np.floor(th[-1] / step)) + 1)
-    q = Slerp(th, Rotation.from_quat(hand.q_xyzw))(grid).as_quat()
     k = np.clip(np.searchsorted(th, grid, side='right') - 1, 0, th.size - 2)
-    return q, hand.interval_ok()[k]
+    return hand.slerp(grid).as_quat(), hand.ok[k]
 
 
 def _scores(
@@ -214,7 +238,7 @@ def _scores(
 
 
 def _refine(
-    hand: Trajectory,
+    hand: _HandOrientation,
     eye: Trajectory,
     a: np.ndarray,
     b: np.ndarray,
@@ -225,9 +249,6 @@ def _refine(
     """The lag (s, after the epoch difference) within one grid step of ``lag_s`` that minimises
     the mean squared angle difference of the pairs that agree there, the hand interpolated
     exactly; and the Pearson correlation of the eye's and the hand's angles at it."""
-    th = hand.seconds(int(hand.t_ns[0]))
-    slerp = Slerp(th, Rotation.from_quat(hand.q_xyzw))
-    ok = hand.interval_ok()
     # at lag L a keyframe stamped te (s from the eye's first stamp) meets the hand at te - L
     # (s from the hand's first stamp): dt = base + L, base the difference of the first stamps
     te = eye.seconds(int(eye.t_ns[0]))
@@ -235,12 +256,10 @@ def _refine(
     def at(lag: float, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Hand angles over the pairs ``use`` at a lag (NaN outside the hand), and inside."""
         ta, tb = te[a[use]] - lag, te[b[use]] - lag
-        inside = np.ones(ta.size, bool)
-        for t in (ta, tb):
-            j = np.clip(np.searchsorted(th, t, side='right') - 1, 0, th.size - 2)
-            inside &= (t >= th[0]) & (t <= th[-1]) & ok[j]
+        inside = hand.inside(ta) & hand.inside(tb)
         ang = np.full(ta.size, np.nan)
         if inside.any():
+            slerp = hand.slerp
             ang[inside] = rotation_angles(slerp(ta[inside]).as_quat(), slerp(tb[inside]).as_quat())
         return ang, inside
 

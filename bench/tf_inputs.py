@@ -39,16 +39,17 @@ import realdata
 from common import ROOT, emit, table
 from defects import SHIFT_S
 
-from handeye_ros.formats.bag import (
+from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
+
+sys.path.insert(0, str(ROOT / 'test'))  # the bag layouts the tests write
+from bag_layouts import (
     RIGID_BODIES_TOPIC,
     TF_SELECTORS,
-    BagWriter,
-    pose_messages,
-    write_recording,
     write_rigid_bodies_recording,
     write_tf_recording,
 )
-from handeye_ros.stream.messages import transform_stamped
+
+from handeye_ros.formats.messages import transform_stamped
 
 DEFAULT_PAIRS = ('V1_01 openvins', 'MH_03 stereo', 'V2_02 mono')
 TF_ARGS = ('--hand-topic', TF_SELECTORS['hand'], '--eye-topic', TF_SELECTORS['eye'])

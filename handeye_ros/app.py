@@ -138,7 +138,7 @@ def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict)
         )
     if req.output_bag:
         from .formats.bag import write_result_bag
-        from .stream.messages import Published
+        from .formats.messages import Published
 
         write_result_bag(
             req.output_bag,
@@ -171,7 +171,7 @@ def load_options(path: str | None) -> dict[str, Any]:
     import yaml
 
     from .core.errors import ConfigError
-    from .params import NODE_ONLY_KEYS
+    from .node_config import NODE_ONLY_KEYS
 
     try:
         data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}

@@ -314,7 +314,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     from .core.checks.verdict import Verdict
     from .core.errors import HandeyeError
-    from .report import format_report, write_result
+    from .evaluation.terminal import format_report
+    from .formats.result_file import write_result
 
     try:
         from .app import run

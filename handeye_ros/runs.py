@@ -228,7 +228,7 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     from .app import Request
     from .app import run as run_request
     from .core.errors import HandeyeError
-    from .report import write_result
+    from .formats.result_file import write_result
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {

@@ -173,10 +173,9 @@ def test_nan_poses_are_rejected_and_reported(tmp_path: Path, rec) -> None:
 
 
 def test_output_bag_holds_the_result(tmp_path: Path, rec) -> None:
+    from bag_layouts import offset_of
     from rosbags.highlevel import AnyReader
     from rosbags.interfaces import QosDurability
-
-    from handeye_ros.stream.messages import offset_of
 
     out = tmp_path / 'result_bag'
     d = _ok(

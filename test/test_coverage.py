@@ -46,7 +46,7 @@ def test_in_the_reports(tmp_path) -> None:
     """The terminal report and the HTML report say the coverage, with the gaps."""
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.evaluation.html import _numbers
-    from handeye_ros.report import format_report
+    from handeye_ros.evaluation.terminal import format_report
 
     rec = recording(seed=3, level=2.0)
     t = rec.hand.seconds(int(rec.hand.t_ns[0]))

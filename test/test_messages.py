@@ -8,10 +8,11 @@ import importlib.util
 
 import numpy as np
 import pytest
+from bag_layouts import offset_of
 
+from handeye_ros.formats import messages
 from handeye_ros.formats.bag import _typestore
-from handeye_ros.report import read_result, write_result
-from handeye_ros.stream import messages
+from handeye_ros.formats.result_file import read_result, write_result
 
 E = {
     'parent': 'marker',
@@ -53,7 +54,7 @@ def test_time_reference_holds_the_offset_to_the_nanosecond(dt_ns: int) -> None:
     assert ref.header.stamp.sec * 10**9 + ref.header.stamp.nanosec == 1_700_000_000_123_456_789
     stamp, time_ref = ref.header.stamp, ref.time_ref
     assert (stamp.sec - time_ref.sec) * 10**9 + stamp.nanosec - time_ref.nanosec == dt_ns
-    assert messages.offset_of(ref) == pytest.approx(dt_ns * 1e-9, abs=1e-12)
+    assert offset_of(ref) == pytest.approx(dt_ns * 1e-9, abs=1e-12)
 
 
 def test_time_reference_left_out_when_a_clock_is_no_ros_time() -> None:
@@ -93,9 +94,7 @@ def test_rclpy_classes_get_the_same_content() -> None:
     r = _result(87_300_123, True)
     ours, bag = messages.outputs(RclpyTypes(), r, 7), messages.outputs(_typestore().types, r, 7)
     assert type(ours[messages.TIME_REFERENCE]).__module__.startswith('sensor_msgs')
-    assert messages.offset_of(ours[messages.TIME_REFERENCE]) == messages.offset_of(
-        bag[messages.TIME_REFERENCE]
-    )
+    assert offset_of(ours[messages.TIME_REFERENCE]) == offset_of(bag[messages.TIME_REFERENCE])
     np.testing.assert_array_equal(
         ours[messages.EXTRINSIC_WITH_COVARIANCE].pose.covariance,
         bag[messages.EXTRINSIC_WITH_COVARIANCE].pose.covariance,

@@ -503,7 +503,7 @@ def test_publish_calibration_latched_or_as_a_bag(install: Path, tmp_path: Path) 
     from handeye_ros.core.config import CalibrationConfig
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.core.simulate import simulate
-    from handeye_ros.report import write_result
+    from handeye_ros.formats.result_file import write_result
 
     rec = simulate(2, duration_s=30.0)
     result = calibrate(rec.hand, rec.eye, CalibrationConfig(batch=False)).to_dict(

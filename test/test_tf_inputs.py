@@ -12,6 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_layouts import (
+    RIGID_BODIES_TOPIC,
+    TF_SELECTORS,
+    write_rigid_bodies_recording,
+    write_tf_recording,
+)
 from conftest import recording, run_cli
 from scipy.spatial.transform import Rotation
 
@@ -19,17 +25,13 @@ from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats.bag import (
     MOCAP4R2_MSGS,
-    RIGID_BODIES_TOPIC,
-    TF_SELECTORS,
     BagWriter,
     _typestore,
     pose_messages,
     write_recording,
-    write_rigid_bodies_recording,
-    write_tf_recording,
 )
+from handeye_ros.formats.messages import transform_stamped
 from handeye_ros.stream import Recorder, StreamConfig
-from handeye_ros.stream.messages import transform_stamped
 from handeye_ros.stream.sources import TfChain, parse_selector
 
 pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each

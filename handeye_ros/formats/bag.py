@@ -15,15 +15,14 @@ from typing import TYPE_CHECKING, Any
 
 from ..core.errors import InputError
 from ..core.trajectory import Trajectory
-from ..stream import SUPPORTED_TYPES, messages
+from ..stream import SUPPORTED_TYPES
 from ..stream.convert import (
     MULTI_POSE_TYPES,
-    RIGID_BODIES_TYPES,
     TF_TYPE,
     UnsupportedTypeError,
     normalise_type,
 )
-from ..stream.messages import transform_stamped
+from . import messages
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
     from typing import Self
@@ -129,7 +128,7 @@ def pose_messages(
     store: Any, traj: Trajectory, msgtype: str, frame_id: str, child_frame_id: str
 ) -> Iterator[tuple[int, Any]]:
     """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes;
-    :func:`handeye_ros.stream.messages.pose_message` builds each)."""
+    :func:`handeye_ros.formats.messages.pose_message` builds each)."""
     msgtype = normalise_type(msgtype)
     for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
         yield t, messages.pose_message(store.types, msgtype, t, p, q, frame_id, child_frame_id)
@@ -234,9 +233,6 @@ RIG_TO_MARKER = (
     (0.05, -0.02, 0.11),  # 10, -20, 30 deg about x, y, z
     (0.12767944069578063, -0.14487812541736914, 0.2685358227515692, 0.943714364147489),
 )
-#: Topics and selectors of the layouts below.
-TF_SELECTORS = {'hand': '/tf:world.marker', 'eye': '/tf:odom.imu'}
-RIGID_BODIES_TOPIC = '/mocap/rigid_bodies'
 
 
 def tf_links(hand: Trajectory, eye: Trajectory) -> tuple[Trajectory, Trajectory]:
@@ -255,74 +251,10 @@ def tf_links(hand: Trajectory, eye: Trajectory) -> tuple[Trajectory, Trajectory]
     return rig, imu
 
 
-def write_tf_recording(
-    path: str | Path,
-    hand: Trajectory,
-    eye: Trajectory,
-    storage: str = 'mcap',
-    slash: str = '',
-    static_after: int = 5,
-) -> None:
-    """Both streams on /tf as :func:`tf_links` lays them out, interleaved by stamp, and the
-    static rig -> marker on /tf_static after the first ``static_after`` messages (a recorder
-    started before the static broadcaster). ``slash``: '/' gives ROS 1 frame names."""
-    rig, imu = tf_links(hand, eye)
-    with BagWriter(path, storage) as w:
-        items = [
-            (t, 0, m) for t, m in pose_messages(w.store, rig, TF_TYPE, slash + 'world', 'rig')
-        ]
-        items += [(t, 1, m) for t, m in pose_messages(w.store, imu, TF_TYPE, 'imu', 'odom')]
-        items.sort(key=lambda x: (x[0], x[1]))
-        static = w.store.types[TF_TYPE](
-            transforms=[
-                transform_stamped(
-                    w.store.types, items[0][0], 'rig', slash + 'marker', *RIG_TO_MARKER
-                )
-            ]
-        )
-        for k, (t, _, m) in enumerate(items):
-            w.write('/tf', TF_TYPE, t, m)
-            if k == static_after:
-                w.write('/tf_static', TF_TYPE, t, static)
-
-
-def write_rigid_bodies_recording(
-    path: str | Path, hand: Trajectory, eye: Trajectory, storage: str = 'mcap', lost_every: int = 0
-) -> None:
-    """The hand as the body 'rig' between 'wand' and 'table' in mocap4r2 RigidBodies messages
-    (as a driver publishes each capture frame) on RIGID_BODIES_TOPIC, missing from every
-    ``lost_every``-th frame (0: never); the eye as nav_msgs/Odometry on /vio/odom."""
-    odom = 'nav_msgs/msg/Odometry'
-    with BagWriter(path, storage) as w:
-        items = [
-            (t, 1, '/vio/odom', odom, m)
-            for t, m in pose_messages(w.store, eye, odom, 'odom', 'imu')
-        ]
-        for k, (t, p, q) in enumerate(
-            zip(hand.t_ns.tolist(), hand.p_xyz.tolist(), hand.q_xyzw.tolist(), strict=True)
-        ):
-            bodies = [('wand', (0.3 * k % 7, 1.0, 0.5), (0.0, 0.0, 0.0, 1.0))]
-            if not lost_every or k % lost_every != lost_every // 2:
-                bodies.append(('rig', p, q))
-            bodies.append(('table', (1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
-            items.append(
-                (
-                    t,
-                    0,
-                    RIGID_BODIES_TOPIC,
-                    RIGID_BODIES_TYPES[0],
-                    messages.rigid_bodies(w.store.types, t, 'mocap', bodies),
-                )
-            )
-        items.sort(key=lambda x: (x[0], x[1]))
-        for t, _, topic, msgtype, m in items:
-            w.write(topic, msgtype, t, m)
-
-
 def write_result_bag(
     path: str | Path, published: messages.Published, stamp_ns: int, storage: str = 'mcap'
 ) -> None:
-    """The calibration as the node publishes it (see :mod:`handeye_ros.stream.messages`), all
+    """The calibration as the node publishes it (see :mod:`handeye_ros.formats.messages`), all
     latched: the extrinsic on /tf_static (tf2_msgs/TFMessage, parent = hand frame, child = eye
     frame) and on /calibrator/extrinsic, its covariance, and the time offset on
     /calibrator/time_offset and /calibrator/time_reference, stamped ``stamp_ns``.

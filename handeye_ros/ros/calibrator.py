@@ -17,7 +17,7 @@ def main(args: list[str] | None = None) -> int:
     argv = sys.argv[1:] if args is None else list(args)
     ours = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
     if '-h' in ours or '--help' in ours:
-        from ..params import usage
+        from ..node_config import usage
 
         print(usage())
         return 0

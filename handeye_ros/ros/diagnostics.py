@@ -9,7 +9,7 @@ import math
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from ..core.checks.verdict import Verdict
-from ..stream import messages
+from ..formats import messages
 from ..stream.buffer import BufferStats
 from ..stream.recorder import SessionResult
 

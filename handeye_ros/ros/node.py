@@ -16,7 +16,7 @@ slower. The worker is spawned, and imports the core, when the node starts, so a 
 start-up. Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running
 calibration is abandoned) is stopped and joined first.
 Every calibration, successful or not, updates every output together. A success publishes on
-the latched topics of :mod:`handeye_ros.stream.messages` (``~/extrinsic``,
+the latched topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
 ``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
 and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latched
 messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
@@ -29,7 +29,7 @@ types, to keep what came before, were measured to change nothing and were remove
 
 The parameters (declared from the option specs, changed at run time, misspelt names said) are
 in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
-:mod:`.worker`, the output messages in :mod:`handeye_ros.stream.messages`.
+:mod:`.worker`, the output messages in :mod:`handeye_ros.formats.messages`.
 """
 
 from __future__ import annotations
@@ -63,8 +63,9 @@ from std_srvs.srv import Trigger
 
 from ..core.errors import ConfigError, HandeyeError, InputError
 from ..evaluation.outputs import calibrate_snapshot
-from ..report import write_result
-from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, messages, normalise_type
+from ..formats import messages
+from ..formats.result_file import write_result
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker

@@ -23,7 +23,7 @@ from rclpy.node import Node
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError
 from ..core.options import Spec, split_options
-from ..params import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
+from ..node_config import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..stream import StreamConfig
 
 #: Parameters rclpy declares on every node.

@@ -3,7 +3,7 @@
 FILE is a result written by the node's ``~/save`` or by ``offline_calibrate -o``. Where
 tf2_msgs is importable (a ROS 2 install), it publishes the extrinsic T_HE latched on
 /tf_static, as tf2's static_transform_publisher does, together with the calibrator's own
-latched topics (see :mod:`handeye_ros.stream.messages`), and runs until Ctrl-C. Where tf2_msgs
+latched topics (see :mod:`handeye_ros.formats.messages`), and runs until Ctrl-C. Where tf2_msgs
 is not importable (the PyPI wheels), or with ``--bag``, it writes the same messages into a new
 bag instead, with /tf_static recorded as latched, so that a replay latches them.
 """
@@ -58,8 +58,8 @@ def main(args: list[str] | None = None) -> int:
     quiet_start()
     a = parser().parse_args(args)
     from ..core.errors import HandeyeError
-    from ..report import read_result
-    from ..stream.messages import Published
+    from ..formats.messages import Published
+    from ..formats.result_file import read_result
 
     try:
         result = read_result(a.file)
@@ -90,11 +90,11 @@ def main(args: list[str] | None = None) -> int:
 
 
 def _publish(published: Any, namespace: str) -> int:
-    """Publish a :class:`~handeye_ros.stream.messages.Published` latched until a signal."""
+    """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal."""
     import rclpy
     from rclpy.node import Node
 
-    from ..stream import messages
+    from ..formats import messages
     from .node import LATCHED
     from .types import RclpyTypes
 

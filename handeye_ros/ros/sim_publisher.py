@@ -31,9 +31,10 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from handeye_ros.core.geometry import positive_w
 from handeye_ros.core.simulate import noise_level, simulate
+from handeye_ros.formats import messages
 from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
 from handeye_ros.ros.types import RclpyTypes
-from handeye_ros.stream import messages, normalise_type
+from handeye_ros.stream import normalise_type
 
 #: rclpy message classes, imported on first use.
 TYPES = RclpyTypes()

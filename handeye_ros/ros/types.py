@@ -1,5 +1,5 @@
 """rclpy message classes by their 'pkg/msg/Name', for the builders of
-:mod:`handeye_ros.stream.messages` (the node, publish_calibration and sim_publisher)."""
+:mod:`handeye_ros.formats.messages` (the node, publish_calibration and sim_publisher)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from ..core.errors import ConfigError
 
 class RclpyTypes(dict):
     """rclpy message classes by 'pkg/msg/Name', imported on first use (the ``types`` of
-    :mod:`handeye_ros.stream.messages`)."""
+    :mod:`handeye_ros.formats.messages`)."""
 
     def __missing__(self, msgtype: str) -> Any:
         cls = self[msgtype] = message_class(msgtype)

@@ -22,9 +22,9 @@ from .long_run import (
     long_run_covariance,
     two_step_from_sums,
 )
+from .loss import huber_cost
 from .parameters import ParameterLayout, weighted_eye_chunks
 from .residuals import BatchProblem, Weights, central_jacobian
-from .solver import huber_cost
 
 
 def eye_covariance(

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .loss import huber_psi
+
 #: Largest AR(1) coefficient used in the bandwidth (a unit root has no long-run variance).
 MAX_RHO = 0.97
 #: The bandwidth is at most this fraction of the series.
@@ -56,17 +58,6 @@ class LongRunCovariance:
         """(p,) ratio of the long-run to the white standard deviations (>= 0)."""
         w = np.sqrt(np.clip(np.diag(self.white), 1e-300, None))
         return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
-
-
-def huber_rho(r: np.ndarray, delta: float) -> np.ndarray:
-    """Huber's loss per residual: r^2 / 2 within +-delta, linear beyond (continuous slope)."""
-    a = np.abs(r)
-    return np.where(a <= delta, 0.5 * a * a, delta * (a - 0.5 * delta))
-
-
-def huber_psi(r: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Huber's psi (the residual clipped at +-delta) and psi' (1 inside, 0 beyond)."""
-    return np.clip(r, -delta, delta), (np.abs(r) <= delta).astype(float)
 
 
 def influence(

@@ -39,6 +39,7 @@ from ..geometry import quat_from_matrix
 from ..trajectory import Trajectory
 from .covariance import eye_covariance, joint_covariance, joint_long_run
 from .long_run import LongRunCovariance
+from .loss import huber_cost
 from .parameters import ParameterLayout, weighted_eye_chunks
 from .pieces import check_hand_rate, hand_pieces
 from .residuals import BatchProblem, Weights
@@ -47,7 +48,6 @@ from .solver import (
     LM_FTOL_FIRST_PASS,
     NormalSums,
     SolverReport,
-    huber_cost,
     levenberg_marquardt_dense,
     levenberg_marquardt_sparse,
     normal_sums,

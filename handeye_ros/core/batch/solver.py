@@ -17,7 +17,7 @@ import numpy as np
 from scipy.sparse import csr_matrix, diags
 from scipy.sparse.linalg import splu
 
-from .long_run import huber_psi, huber_rho
+from .loss import huber_cost, huber_psi
 
 #: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
 #: the normal matrix's diagonal) and the relative cost change that ends it.
@@ -186,11 +186,6 @@ def levenberg_marquardt_sparse(
             message, success = 'relative cost change below tolerance', True
             break
     return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
-
-
-def huber_cost(r: np.ndarray, delta: float) -> float:
-    """The Huber cost of residuals r (any shape) at threshold delta."""
-    return float(np.sum(huber_rho(r, delta)))
 
 
 def normal_sums(

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..association import eye_motion_errors
-from ..batch.long_run import huber_rho
+from ..batch.loss import huber_rho
 from ..geometry import matrix_from_quat
 from ..linear.keyframes import segment_motion_indices
 from ..trajectory import Trajectory

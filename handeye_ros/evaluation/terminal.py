@@ -1,62 +1,9 @@
-"""Human-readable and file forms of a calibration result (YAML, JSON, a terminal report)."""
+"""The terminal report of a result dictionary (the HTML report is :mod:`.html`)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
-
-import yaml
-
-from .core.errors import InputError
-
-
-def write_result(path: str | Path, data: dict[str, Any]) -> None:
-    """Write the result dictionary as JSON (``.json``) or YAML (anything else)."""
-    path = Path(path)
-    try:
-        with path.open('w') as f:
-            if path.suffix.lower() == '.json':
-                json.dump(data, f, indent=2)
-                f.write('\n')
-            else:
-                yaml.safe_dump(data, f, sort_keys=False, default_flow_style=None)
-    except OSError as err:
-        raise InputError(f'{path}: cannot write the result ({err.strerror})') from None
-
-
-def read_result(path: str | Path) -> dict[str, Any]:
-    """A result file written by :func:`write_result` (``~/save``, ``offline_calibrate -o``).
-
-    Raises InputError naming what is missing when the file is no such result."""
-    path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())  # YAML reads JSON too
-    except OSError as err:
-        raise InputError(f'{path}: cannot read ({err.strerror})') from None
-    except yaml.YAMLError as err:
-        raise InputError(f'{path}: not YAML or JSON ({str(err).splitlines()[0]})') from None
-    e = data.get('extrinsic') if isinstance(data, dict) else None
-    try:
-        ok = (
-            isinstance(e, dict)
-            and isinstance(e['parent'], str)
-            and isinstance(e['child'], str)
-            and len(e['translation']) == 3
-            and len(e['rotation']) == 4
-            and all(isinstance(v, (int, float)) for v in [*e['translation'], *e['rotation']])
-            and isinstance(data['time_offset'], (int, float))
-            and isinstance(data['time_offset_ns'], int)
-        )
-    except (KeyError, TypeError):
-        ok = False
-    if not ok:
-        raise InputError(
-            f'{path}: not a handeye_ros result (needs extrinsic.parent, child, '
-            'translation [3], rotation [4], time_offset and time_offset_ns, as '
-            '~/save and offline_calibrate -o write them)'
-        )
-    return data
 
 
 def format_report(d: dict[str, Any]) -> str:

@@ -193,7 +193,7 @@ class Published:
 
     @classmethod
     def from_document(cls, d: Mapping[str, Any]) -> Published:
-        """Of a result file's contents (:func:`handeye_ros.report.read_result`)."""
+        """Of a result file's contents (:func:`handeye_ros.formats.result_file.read_result`)."""
         e = d['extrinsic']
         cov = (d.get('covariance') or {}).get('matrix')
         stamp = d.get('time_offset_stamp_ns')
@@ -263,12 +263,6 @@ def time_reference(types: Types, pub: Published) -> Any | None:
         time_ref=time(types, t_hand),
         source=pub.parent,
     )
-
-
-def offset_of(msg: Any) -> float:
-    """dt [s] from a TimeReference built by :func:`time_reference`."""
-    s, r = msg.header.stamp, msg.time_ref
-    return ((int(s.sec) - int(r.sec)) * 1_000_000_000 + int(s.nanosec) - int(r.nanosec)) * 1e-9
 
 
 def outputs(types: Types, pub: Published, t_ns: int) -> dict[str, Any]:

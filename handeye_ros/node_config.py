@@ -90,7 +90,7 @@ PARAMS_HEADER = """\
 # Parameters of the calibrator node (ros2 run handeye_ros calibrator --ros-args
 # --params-file config/calibrator.yaml). offline_calibrate --config reads the same file and
 # ignores the node-only block. Every value is the default. Units: s, m, deg, Hz, rad.
-# Generated from the option specs by handeye_ros.params.params_yaml(); do not edit.
+# Generated from the option specs by handeye_ros.node_config.params_yaml(); do not edit.
 """
 
 

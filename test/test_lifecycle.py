@@ -1,4 +1,5 @@
-"""lifecycle.spin at the moments a signal can reach it: the clean-up always runs."""
+"""calibrator.main under a signal at the moments the start is most fragile: it exits 0,
+quietly, and leaves no process behind."""
 
 from __future__ import annotations
 
@@ -15,37 +16,47 @@ pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: Runs calibrator.main with a SIGINT sent to itself as soon as ``{target}`` has returned,
+#: waits until rclpy's handler has shut the context down, then prints the exit code and the
+#: number of child processes left (the worker, multiprocessing's resource tracker).
+SCRIPT = """
+import multiprocessing, os, signal, time
+import rclpy
+from handeye_ros.ros import calibrator, node
 
-def test_a_signal_between_rclpy_init_and_spin_still_closes() -> None:
-    """A Ctrl-C after rclpy.init and before the spin (the node's start) leaves a context that rclpy's handler has shut down; an executor cannot be made
-    on it. spin() must still call close() (which stops the worker; before, it did not, and
-    the node hung on the worker's resource tracker: 1 in 100 stops of bench/node_lifecycle.py)
-    and return quietly. Run in a fresh interpreter: rclpy's state is per process."""
-    code = textwrap.dedent(
-        """
-        import os, signal, time
-        import rclpy
-        from handeye_ros.ros import lifecycle
-        lifecycle.quiet_start()
-        rclpy.init()
-        node = rclpy.create_node('lifecycle_test')
-        os.kill(os.getpid(), signal.SIGINT)  # rclpy's handler shuts the context down
-        deadline = time.monotonic() + 10
-        while rclpy.ok() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert not rclpy.ok() and lifecycle.stop_requested()
-        closed = []
-        lifecycle.spin(node, lambda: closed.append(True))
-        print('closed' if closed else 'not closed')
-        """
-    )
+owner, name = {target}
+real = getattr(owner, name)
+
+def signalled(*args, **kwargs):
+    out = real(*args, **kwargs)
+    os.kill(os.getpid(), signal.SIGINT)
+    deadline = time.monotonic() + 10
+    while rclpy.ok() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not rclpy.ok()
+    return out
+
+setattr(owner, name, signalled)
+code = calibrator.main([])
+print(code, len(multiprocessing.active_children()))
+"""
+
+TARGETS = {'init': "rclpy, 'init'", 'node': "node.CalibratorNode, '__init__'"}
+
+
+@pytest.mark.parametrize('where', sorted(TARGETS))
+def test_a_signal_during_the_start_exits_quietly_and_stops_the_worker(where: str) -> None:
+    """A Ctrl-C just after rclpy.init (the node not made yet: main stops the worker) or just
+    after the node is made (not spun: its close() stops the worker). Before the worker's stop ran in every path, the node hung on the worker's
+    resource tracker in 1 of 100 stops of bench/node_lifecycle.py. Run in a fresh interpreter:
+    rclpy's state is per process."""
     env = dict(
         os.environ,
         PYTHONPATH=str(ROOT),
         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
     )
     proc = subprocess.run(
-        [sys.executable, '-c', code],
+        [sys.executable, '-c', textwrap.dedent(SCRIPT.format(target=TARGETS[where]))],
         env=env,
         capture_output=True,
         text=True,
@@ -53,5 +64,5 @@ def test_a_signal_between_rclpy_init_and_spin_still_closes() -> None:
         check=False,
     )
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip().splitlines()[-1] == 'closed', proc.stdout
+    assert proc.stdout.split() == ['0', '0'], proc.stdout + proc.stderr
     assert 'Traceback' not in proc.stderr, proc.stderr

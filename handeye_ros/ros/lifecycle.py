@@ -6,7 +6,8 @@ module's initialisation it even turns into an ImportError), and a SIGTERM would 
 process with a code that is not 0. :func:`quiet_start` therefore replaces both handlers by one
 that only notes the signal; the start checks :func:`stop_requested` at the points where
 stopping is safe and then returns 0. Once rclpy is initialised, its own handlers shut the
-context down (spin returns and the clean-up runs) and call ours, which notes again, harmlessly.
+context down (spin returns and the ``finally`` of the main runs) and call ours, which notes
+again, harmlessly; :func:`ignore_signals` keeps a second Ctrl-C out of that clean-up.
 
 A signal in the interpreter's first ~0.1 s, before it runs any of this package's code (while it
 imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not ours.
@@ -15,8 +16,6 @@ imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not
 from __future__ import annotations
 
 import signal
-from collections.abc import Callable
-from typing import Any
 
 _state = {'stop': False}
 
@@ -41,40 +40,3 @@ def ignore_signals() -> None:
     """During the clean-up: a second Ctrl-C (or a signal forwarded twice) must not break it."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
-
-
-def spin(node: Any, close: Callable[[], None] | None = None) -> None:
-    """Spin ``node`` until a signal or an external shutdown, then clean up: ``close`` (the
-    node's own resources), the executor, the node, rclpy."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
-    executor = None
-    try:
-        # inside the try: a signal since rclpy.init has shut the context down, and an
-        # executor made on it raises; close() must run all the same (it stops the worker,
-        # without which the resource tracker is never reaped)
-        if not stop_requested():
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        # rclpy's handler wakes the executor, then shuts the context down from its own
-        # thread: a wait set (or an executor's guard condition) made in between fails with an
-        # RCLError, a RuntimeError ("the given context is not valid"; a known race,
-        # ros2/ros2cli#854; rclpy exports the class only from its private modules). That is
-        # the stop we were asked for; else it is not.
-        if rclpy.ok():
-            raise
-    finally:
-        ignore_signals()
-        try:
-            if close is not None:
-                close()
-        finally:
-            if executor is not None:
-                executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown()

@@ -14,7 +14,7 @@ the executor keeps taking messages meanwhile. A process rather than a thread: at
 executor holds the GIL most of the time, and a calibration thread beside it ran ten times
 slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
 start-up. Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running
-calibration is abandoned) is stopped and joined first.
+calibration is abandoned) is stopped and joined first (:meth:`CalibratorNode.close`).
 Every calibration, successful or not, updates every output together. A success publishes on
 the latched topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
 ``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
@@ -22,39 +22,32 @@ and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latch
 messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
 (the result they come from and when). Status goes to /diagnostics.
 
-Auto-typed topics (``hand_type: auto``) are subscribed at once with their likeliest type
-(:data:`LIKELY_TYPES`), as a typed node subscribes them; the graph then confirms the type, or
-the subscription gives way to the publisher's type. (Raw subscriptions of the other candidate
-types, to keep what came before, were measured to change nothing and were removed: RESULTS.md.)
-
-The parameters (declared from the option specs, changed at run time, misspelt names said) are
-in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`, the worker process in
-:mod:`.worker`, the output messages in :mod:`handeye_ros.formats.messages`.
+The subscriptions (types learnt from the graph, QoS, why a stream is empty) are in
+:mod:`.subscriptions`, the parameters (declared from the option specs, changed at run time,
+misspelt names said) in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`,
+the worker process in :mod:`.worker`, the output messages in
+:mod:`handeye_ros.formats.messages`, the start and stop in :mod:`.calibrator`.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import shutil
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import (
     SetParametersResult,
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
-    QoSPolicyKind,
     QoSProfile,
     ReliabilityPolicy,
 )
@@ -65,12 +58,12 @@ from ..core.errors import ConfigError, HandeyeError, InputError
 from ..evaluation.outputs import calibrate_snapshot
 from ..formats import messages
 from ..formats.result_file import write_result
-from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
-from ..stream.convert import TF_TYPE, UnsupportedTypeError
+from ..stream import STREAMS, Recorder
+from ..stream.convert import TF_TYPE
 from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker
-from .lifecycle import spin, stop_requested
-from .types import RclpyTypes, message_class
+from .subscriptions import Subscriptions
+from .types import RclpyTypes
 
 #: Latched result topics: late subscribers get the last result.
 LATCHED = QoSProfile(
@@ -81,12 +74,6 @@ LATCHED = QoSProfile(
 )
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
-#: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
-#: learnt there is subscribed at the next look (one look costs ~0.02 ms).
-GRAPH_POLL_S = 0.05
-#: The type a stream's plain pose topic most likely has, subscribed before the graph says
-#: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
-LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
 
 
 class CalibratorNode(Node):
@@ -98,7 +85,6 @@ class CalibratorNode(Node):
         super().__init__('calibrator', **kwargs)
         self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
         self.recorder = Recorder(self.stream_cfg)
-        self._check_tf_selectors()
         self._busy = threading.Lock()
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
@@ -106,12 +92,6 @@ class CalibratorNode(Node):
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
-        self._subs: dict[str, Any] = {}
-        self._static_subs: dict[str, Any] = {}
-        self._sub_errors: dict[str, str] = {}
-        self._qos_problems: dict[str, str] = {}
-        self._started = time.monotonic()
-        self._type_warned = dict.fromkeys(STREAMS, self._started)
 
         self._types = RclpyTypes()
         self._outputs = {
@@ -130,19 +110,7 @@ class CalibratorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._closing = False
 
-        self._check_topics()
-        #: auto-typed streams subscribed with their likeliest type, not yet confirmed by the
-        #: graph (a wrong guess matches no publisher, and gives way to the graph's type)
-        self._guessed: set[str] = set()
-        for stream in STREAMS:
-            declared = getattr(self.stream_cfg, f'{stream}_type')
-            if declared != 'auto':
-                self._subscribe(stream, normalise_type(declared))
-            elif self.recorder.selectors[stream].item is None:
-                self._subscribe(stream, LIKELY_TYPES[stream], guess=True)
-        self._graph_timer = None
-        if len(self._subs) < len(STREAMS) or self._guessed:
-            self._graph_timer = self.create_timer(GRAPH_POLL_S, self._discover_types)
+        self.poses = Subscriptions(self, self.recorder, self._on_pose)
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
@@ -161,184 +129,9 @@ class CalibratorNode(Node):
         )
         return answer
 
-    # ------------------------------------------------------------------ subscriptions
+    # ------------------------------------------------------------------ messages
 
-    def _check_topics(self) -> None:
-        """Every topic a selector names is a valid ROS name (ConfigError naming the rule)."""
-        for stream in STREAMS:
-            sel = self.recorder.selectors[stream]
-            for topic in sel.topics:
-                try:
-                    self.resolve_topic_name(topic)
-                except RuntimeError as err:  # rclpy's RCLError (exported privately only)
-                    why = str(err).split('failed to resolve name: ', 1)[-1].split(', at ')[0]
-                    raise ConfigError(
-                        f'{stream}_topic {sel.text}: {topic!r} is no valid topic name: {why}'
-                    ) from None
-
-    def _check_tf_selectors(self) -> None:
-        """Say at start, not when data would arrive, that a tf selector cannot be read here:
-        tf2_msgs comes with a ROS 2 install, not with the PyPI wheels."""
-        for stream in STREAMS:
-            sel = self.recorder.selectors[stream]
-            declared = getattr(self.stream_cfg, f'{stream}_type')
-            is_tf = (
-                normalise_type(declared) == TF_TYPE
-                if declared != 'auto'
-                else sel.item is not None and sel.topic.rstrip('/').rsplit('/', 1)[-1] == 'tf'
-            )
-            if not is_tf:
-                continue
-            sel.frames()  # a malformed pair is a ConfigError now
-            try:
-                message_class(TF_TYPE)
-            except ConfigError as err:
-                raise ConfigError(
-                    f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
-                    'ROS install: offline_calibrate --bag reads them'
-                ) from None
-
-    def _pose_qos(self) -> QoSProfile:
-        """The QoS of the pose subscriptions."""
-        return QoSProfile(
-            depth=self.node_cfg.qos_depth,
-            history=HistoryPolicy.KEEP_LAST,
-            reliability=(
-                ReliabilityPolicy.BEST_EFFORT
-                if self.node_cfg.qos_reliability == 'best_effort'
-                else ReliabilityPolicy.RELIABLE
-            ),
-            durability=DurabilityPolicy.VOLATILE,
-        )
-
-    def _unknown(self) -> list[str]:
-        """The auto-typed streams whose type the graph has not named yet."""
-        return [s for s in STREAMS if s not in self._subs or s in self._guessed]
-
-    def _subscribe(self, stream: str, msgtype: str, guess: bool = False) -> None:
-        """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
-        tf2's static broadcasters latch) once its type is known, or with its likeliest type
-        (``guess``) until the graph says; raises ConfigError when the type does not fit the
-        selector or its Python package cannot be imported."""
-        self.recorder.set_type(stream, msgtype)
-        cls = message_class(msgtype)
-        sel = self.recorder.selectors[stream]
-        self._subs[stream] = self.create_subscription(
-            cls,
-            sel.topic,
-            lambda msg, s=stream: self._on_pose(s, msg),
-            self._pose_qos(),
-            event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
-            ),
-        )
-        if sel.static_topic:
-            static_qos = QoSProfile(
-                depth=100,
-                history=HistoryPolicy.KEEP_LAST,
-                reliability=ReliabilityPolicy.RELIABLE,
-                durability=DurabilityPolicy.TRANSIENT_LOCAL,
-            )
-            self._static_subs[stream] = self.create_subscription(
-                cls,
-                sel.static_topic,
-                lambda msg, s=stream: self._on_pose(s, msg, True),
-                static_qos,
-            )
-        if guess:
-            self._guessed.add(stream)
-            self.get_logger().info(
-                f'{stream}: subscribed to {sel.text} as {msgtype}, its likeliest type, until '
-                'its publisher says which it has'
-            )
-        else:
-            self.get_logger().info(f'{stream}: subscribed to {sel.text} ({msgtype})')
-
-    def _on_incompatible_qos(self, stream: str, event: Any) -> None:
-        """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
-        why = self._qos_mismatch(stream)
-        if why is None:
-            policy = QoSPolicyKind(event.last_policy_kind).name.lower()
-            why = (
-                f'{stream} topic {self.recorder.selectors[stream].topic}: a publisher offers '
-                f'a QoS this subscription cannot match ({policy}); nothing it sends arrives'
-            )
-        self._qos_problems[stream] = why
-        self.get_logger().warning(why)
-
-    def _qos_mismatch(self, stream: str) -> str | None:
-        """The reason no message of a stream's publishers can arrive, read from the QoS they
-        offer in the graph; None when every one matches."""
-        sub = self._subs.get(stream)
-        if sub is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
-            return None
-        topic = self.recorder.selectors[stream].topic
-        for info in self.get_publishers_info_by_topic(topic):
-            if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
-                return (
-                    f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
-                    'and this node asks reliable delivery (qos_reliability: reliable), so '
-                    'nothing it sends arrives: set qos_reliability: best_effort'
-                )
-        return None
-
-    def _discover_types(self) -> None:
-        """Learn the message type of auto-typed topics from the graph."""
-        now = time.monotonic()
-        for stream in self._unknown():
-            topic = self.recorder.selectors[stream].topic
-            types = self._publisher_types(topic)
-            usable = _pose_types(types)
-            guess = self.recorder.types[stream] if stream in self._guessed else None
-            if usable == [guess]:
-                self._guessed.discard(stream)
-                self.get_logger().info(
-                    f'{stream}: {topic} is {guess}, as subscribed from the start'
-                )
-            elif len(usable) == 1:
-                try:
-                    if guess is not None:
-                        # a wrong guess gives way: one participant holds one type of a topic
-                        self.destroy_subscription(self._subs.pop(stream))
-                        self._guessed.discard(stream)
-                    self._subscribe(stream, usable[0])
-                    self.get_logger().info(
-                        f'{stream}: {topic} learnt from its publisher; messages it sent '
-                        'before this subscription matched are not received (set '
-                        f'{stream}_type: {usable[0].rsplit("/", 1)[-1]} to subscribe at start)'
-                    )
-                except ConfigError as err:
-                    self._sub_errors[stream] = str(err)
-                    if now - self._type_warned[stream] > self.node_cfg.topic_wait:
-                        self._type_warned[stream] = now
-                        self.get_logger().error(f'{stream}: {err}')
-            elif now - self._type_warned[stream] > self.node_cfg.topic_wait:
-                self._type_warned[stream] = now
-                if types and not usable:
-                    why = (
-                        f'has type {", ".join(types)}, which carries no pose (supported: '
-                        f'{", ".join(SUPPORTED_TYPES)})'
-                    )
-                elif usable:
-                    why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
-                    if guess in usable:
-                        why += f'; meanwhile the {guess} one is received'
-                else:
-                    why = 'has no publisher yet'
-                self.get_logger().warning(f'{stream} topic {topic} {why}')
-        if not self._unknown() and self._graph_timer is not None:
-            self._graph_timer.cancel()
-
-    def _publisher_types(self, topic: str) -> list[str]:
-        """The types a topic's publishers send, in the order first seen (the graph's types
-        of a topic also hold its subscriptions')."""
-        types: list[str] = []
-        for info in self.get_publishers_info_by_topic(topic):
-            if info.topic_type not in types:
-                types.append(info.topic_type)
-        return types
-
-    def _on_pose(self, stream: str, msg: Any, static: bool = False) -> None:
+    def _on_pose(self, stream: str, msg: Any, static: bool) -> None:
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
         self._add(stream, msg, static, arrival)
 
@@ -356,38 +149,6 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ services
 
-    def _why_no_data(self) -> str | None:
-        unknown = self._unknown()
-        for stream in STREAMS:
-            empty = len(self.recorder.buffers[stream]) < 2
-            if stream in self._subs and stream not in unknown and empty:
-                # the graph now, or what the QoS event said of a publisher since gone
-                why = self._qos_mismatch(stream) or self._qos_problems.get(stream)
-                if why is not None:
-                    return why
-            if stream in self._sub_errors and stream not in self._subs:
-                return f'{stream}: {self._sub_errors[stream]}'
-            if stream in unknown and empty:
-                topic = self.recorder.selectors[stream].topic
-                types = self._publisher_types(topic)
-                usable = _pose_types(types)
-                if len(usable) > 1:
-                    return (
-                        f'{stream} topic {topic} has several pose types ({", ".join(usable)}): '
-                        f'set {stream}_type'
-                    )
-                if types and not usable:
-                    return (
-                        f'{stream} topic {topic} has type {", ".join(types)}, which carries '
-                        f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})'
-                    )
-                if not types:
-                    return (
-                        f'{stream} topic {topic} has no publisher yet: check {stream}_topic, '
-                        f'or set {stream}_type to subscribe before one appears'
-                    )
-        return None
-
     def _start_worker(self) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
@@ -399,7 +160,7 @@ class CalibratorNode(Node):
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
-        why = self._why_no_data()
+        why = self.poses.why_no_data()
         stage = None
         try:
             if why is not None:
@@ -461,7 +222,7 @@ class CalibratorNode(Node):
         return response
 
     def _periodic_calibrate(self) -> None:
-        if self._why_no_data() is None:
+        if self.poses.why_no_data() is None:
             self._start_worker()
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
@@ -578,7 +339,7 @@ class CalibratorNode(Node):
         for stream, s in self.recorder.stats().items():
             topic = getattr(self.stream_cfg, f'{stream}_topic')
             msgtype = self.recorder.types[stream]
-            if stream in self._guessed:
+            if stream in self.poses.guessed:
                 msgtype += ' (likeliest; not yet seen on the graph)'
             arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype))
         arr.status.append(
@@ -587,61 +348,6 @@ class CalibratorNode(Node):
         self.pub_diag.publish(arr)
 
 
-def _pose_types(types: list[str]) -> list[str]:
-    """Those of a topic's types this node reads poses from, normalised."""
-    usable = []
-    for t in types:
-        try:
-            usable.append(normalise_type(t))
-        except UnsupportedTypeError:
-            pass
-    return usable
-
-
 def _staged_dir(session: SessionResult | None) -> str | None:
     """The folder where the worker drew a result's report, if it did."""
     return str(Path(session.report).parent) if session is not None and session.report else None
-
-
-def run(args: list[str] | None = None) -> int:
-    """Run the node until a signal or an external shutdown; returns the exit code (0, or 1
-    when the options are refused). The entry point, which installs the quiet signal handlers
-    of :mod:`.lifecycle` first, is :func:`handeye_ros.ros.calibrator.main`."""
-    pool = worker.new_pool()  # before rclpy.init: see worker's docstring
-    rclpy.init(args=args)
-    failure = None
-    node = None
-    try:
-        if not stop_requested():
-            node = CalibratorNode(pool)
-    except ConfigError as err:
-        failure = str(err)
-    except Exception:
-        if rclpy.ok() and not stop_requested():
-            worker.stop(pool)
-            rclpy.try_shutdown()
-            raise
-        # a signal during the start shut the context down under the constructor
-    if node is None:
-        worker.stop(pool)
-    # the node owns the pool now; no other reference may keep its semaphores alive until
-    # the resource tracker stops (worker.stop_tracker)
-    del pool
-    if node is None:
-        worker.stop_tracker()
-        rclpy.try_shutdown()
-        if failure is not None:
-            print(f'calibrator: error: {failure}', file=sys.stderr)
-            return 1
-        return 0
-    try:
-        spin(node, node.close)
-    finally:
-        worker.stop_tracker()
-    return 0
-
-
-if __name__ == '__main__':
-    from .calibrator import main
-
-    sys.exit(main())

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .lifecycle import quiet_start, spin, stop_requested
+from .lifecycle import ignore_signals, quiet_start, stop_requested
 
 
 def parser() -> argparse.ArgumentParser:
@@ -92,6 +92,7 @@ def main(args: list[str] | None = None) -> int:
 def _publish(published: Any, namespace: str) -> int:
     """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal."""
     import rclpy
+    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
 
     from ..formats import messages
@@ -99,23 +100,35 @@ def _publish(published: Any, namespace: str) -> int:
     from .types import RclpyTypes
 
     rclpy.init()
-    node = Node('calibration_publisher')
-    types = RclpyTypes()
-    out = messages.outputs(types, published, node.get_clock().now().nanoseconds)
-    pubs = [node.create_publisher(types['tf2_msgs/msg/TFMessage'], '/tf_static', LATCHED)]
-    pubs[0].publish(types['tf2_msgs/msg/TFMessage'](transforms=[out[messages.EXTRINSIC]]))
-    for name, msg in out.items():
-        pubs.append(
-            node.create_publisher(
-                types[messages.OUTPUT_TYPES[name]], f'{namespace}/{name}', LATCHED
-            )
+    node = None
+    try:
+        node = Node('calibration_publisher')
+        types = RclpyTypes()
+        out = messages.outputs(types, published, node.get_clock().now().nanoseconds)
+        tf = types['tf2_msgs/msg/TFMessage']
+        node.create_publisher(tf, '/tf_static', LATCHED).publish(
+            tf(transforms=[out[messages.EXTRINSIC]])
         )
-        pubs[-1].publish(msg)
-    node.get_logger().info(
-        f'publishing {published.parent} -> {published.child} on /tf_static and the '
-        f'calibration on {namespace}/*, latched; Ctrl-C to stop'
-    )
-    spin(node)
+        for name, msg in out.items():
+            topic = f'{namespace}/{name}'
+            node.create_publisher(types[messages.OUTPUT_TYPES[name]], topic, LATCHED).publish(msg)
+        node.get_logger().info(
+            f'publishing {published.parent} -> {published.child} on /tf_static and the '
+            f'calibration on {namespace}/*, latched; Ctrl-C to stop'
+        )
+        if not stop_requested():
+            rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except RuntimeError:
+        # a signal shut the context down under what was being made on it (see calibrator.main)
+        if rclpy.ok() and not stop_requested():
+            raise
+    finally:
+        ignore_signals()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
     return 0
 
 

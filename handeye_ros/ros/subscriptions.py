@@ -1,0 +1,283 @@
+"""The calibrator's pose subscriptions: each stream's topic subscribed with its declared type,
+or, for ``auto``, with its likeliest type until the graph names the publisher's; the QoS of
+pose streams; and, when a stream stays empty, the reason read from the graph (no publisher,
+no pose type, several pose types, a QoS that cannot match).
+
+Auto-typed topics (``hand_type: auto``) are subscribed at once with their likeliest type
+(:data:`LIKELY_TYPES`), as a typed node subscribes them; the graph then confirms the type, or
+the subscription gives way to the publisher's type. (Raw subscriptions of the other candidate
+types, to keep what came before, were measured to change nothing and were removed.)
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSPolicyKind,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from ..core.errors import ConfigError
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
+from ..stream.convert import TF_TYPE, UnsupportedTypeError
+from .types import message_class
+
+#: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
+#: learnt there is subscribed at the next look (one look costs ~0.02 ms).
+GRAPH_POLL_S = 0.05
+#: The type a stream's plain pose topic most likely has, subscribed before the graph says
+#: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
+LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
+
+
+class Subscriptions:
+    """The pose subscriptions of ``node``, feeding ``on_pose(stream, msg, static)``."""
+
+    def __init__(
+        self, node: Node, recorder: Recorder, on_pose: Callable[[str, Any, bool], None]
+    ) -> None:
+        self._node, self._recorder, self._on_pose = node, recorder, on_pose
+        self._log = node.get_logger()
+        self.subs: dict[str, Any] = {}
+        self._static_subs: dict[str, Any] = {}
+        self._sub_errors: dict[str, str] = {}
+        self._qos_problems: dict[str, str] = {}
+        self._type_warned = dict.fromkeys(STREAMS, time.monotonic())
+        #: auto-typed streams subscribed with their likeliest type, not yet confirmed by the
+        #: graph (a wrong guess matches no publisher, and gives way to the graph's type)
+        self.guessed: set[str] = set()
+        self.check_tf_selectors()
+        self.check_topics()
+        for stream in STREAMS:
+            declared = getattr(node.stream_cfg, f'{stream}_type')
+            if declared != 'auto':
+                self.subscribe(stream, normalise_type(declared))
+            elif recorder.selectors[stream].item is None:
+                self.subscribe(stream, LIKELY_TYPES[stream], guess=True)
+        self._graph_timer = None
+        if len(self.subs) < len(STREAMS) or self.guessed:
+            self._graph_timer = node.create_timer(GRAPH_POLL_S, self.discover_types)
+
+    def check_topics(self) -> None:
+        """Every topic a selector names is a valid ROS name (ConfigError naming the rule)."""
+        for stream in STREAMS:
+            sel = self._recorder.selectors[stream]
+            for topic in sel.topics:
+                try:
+                    self._node.resolve_topic_name(topic)
+                except RuntimeError as err:  # rclpy's RCLError (exported privately only)
+                    why = str(err).split('failed to resolve name: ', 1)[-1].split(', at ')[0]
+                    raise ConfigError(
+                        f'{stream}_topic {sel.text}: {topic!r} is no valid topic name: {why}'
+                    ) from None
+
+    def check_tf_selectors(self) -> None:
+        """Say at start, not when data would arrive, that a tf selector cannot be read here:
+        tf2_msgs comes with a ROS 2 install, not with the PyPI wheels."""
+        for stream in STREAMS:
+            sel = self._recorder.selectors[stream]
+            declared = getattr(self._node.stream_cfg, f'{stream}_type')
+            is_tf = (
+                normalise_type(declared) == TF_TYPE
+                if declared != 'auto'
+                else sel.item is not None and sel.topic.rstrip('/').rsplit('/', 1)[-1] == 'tf'
+            )
+            if not is_tf:
+                continue
+            sel.frames()  # a malformed pair is a ConfigError now
+            try:
+                message_class(TF_TYPE)
+            except ConfigError as err:
+                raise ConfigError(
+                    f'{stream}_topic {sel.text}: {err}. Bags with /tf need no '
+                    'ROS install: offline_calibrate --bag reads them'
+                ) from None
+
+    def _pose_qos(self) -> QoSProfile:
+        """The QoS of the pose subscriptions."""
+        return QoSProfile(
+            depth=self._node.node_cfg.qos_depth,
+            history=HistoryPolicy.KEEP_LAST,
+            reliability=(
+                ReliabilityPolicy.BEST_EFFORT
+                if self._node.node_cfg.qos_reliability == 'best_effort'
+                else ReliabilityPolicy.RELIABLE
+            ),
+            durability=DurabilityPolicy.VOLATILE,
+        )
+
+    def unknown(self) -> list[str]:
+        """The auto-typed streams whose type the graph has not named yet."""
+        return [s for s in STREAMS if s not in self.subs or s in self.guessed]
+
+    def subscribe(self, stream: str, msgtype: str, guess: bool = False) -> None:
+        """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
+        tf2's static broadcasters latch) once its type is known, or with its likeliest type
+        (``guess``) until the graph says; raises ConfigError when the type does not fit the
+        selector or its Python package cannot be imported."""
+        self._recorder.set_type(stream, msgtype)
+        cls = message_class(msgtype)
+        sel = self._recorder.selectors[stream]
+        self.subs[stream] = self._node.create_subscription(
+            cls,
+            sel.topic,
+            lambda msg, s=stream: self._on_pose(s, msg, False),
+            self._pose_qos(),
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
+            ),
+        )
+        if sel.static_topic:
+            static_qos = QoSProfile(
+                depth=100,
+                history=HistoryPolicy.KEEP_LAST,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+            self._static_subs[stream] = self._node.create_subscription(
+                cls,
+                sel.static_topic,
+                lambda msg, s=stream: self._on_pose(s, msg, True),
+                static_qos,
+            )
+        if guess:
+            self.guessed.add(stream)
+            self._log.info(
+                f'{stream}: subscribed to {sel.text} as {msgtype}, its likeliest type, until '
+                'its publisher says which it has'
+            )
+        else:
+            self._log.info(f'{stream}: subscribed to {sel.text} ({msgtype})')
+
+    def _on_incompatible_qos(self, stream: str, event: Any) -> None:
+        """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
+        why = self.qos_mismatch(stream)
+        if why is None:
+            policy = QoSPolicyKind(event.last_policy_kind).name.lower()
+            why = (
+                f'{stream} topic {self._recorder.selectors[stream].topic}: a publisher offers '
+                f'a QoS this subscription cannot match ({policy}); nothing it sends arrives'
+            )
+        self._qos_problems[stream] = why
+        self._log.warning(why)
+
+    def qos_mismatch(self, stream: str) -> str | None:
+        """The reason no message of a stream's publishers can arrive, read from the QoS they
+        offer in the graph; None when every one matches."""
+        sub = self.subs.get(stream)
+        if sub is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+            return None
+        topic = self._recorder.selectors[stream].topic
+        for info in self._node.get_publishers_info_by_topic(topic):
+            if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
+                return (
+                    f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
+                    'and this node asks reliable delivery (qos_reliability: reliable), so '
+                    'nothing it sends arrives: set qos_reliability: best_effort'
+                )
+        return None
+
+    def discover_types(self) -> None:
+        """Learn the message type of auto-typed topics from the graph."""
+        now = time.monotonic()
+        for stream in self.unknown():
+            topic = self._recorder.selectors[stream].topic
+            types = self.publisher_types(topic)
+            usable = _pose_types(types)
+            guess = self._recorder.types[stream] if stream in self.guessed else None
+            if usable == [guess]:
+                self.guessed.discard(stream)
+                self._log.info(f'{stream}: {topic} is {guess}, as subscribed from the start')
+            elif len(usable) == 1:
+                try:
+                    if guess is not None:
+                        # a wrong guess gives way: one participant holds one type of a topic
+                        self._node.destroy_subscription(self.subs.pop(stream))
+                        self.guessed.discard(stream)
+                    self.subscribe(stream, usable[0])
+                    self._log.info(
+                        f'{stream}: {topic} learnt from its publisher; messages it sent '
+                        'before this subscription matched are not received (set '
+                        f'{stream}_type: {usable[0].rsplit("/", 1)[-1]} to subscribe at start)'
+                    )
+                except ConfigError as err:
+                    self._sub_errors[stream] = str(err)
+                    if now - self._type_warned[stream] > self._node.node_cfg.topic_wait:
+                        self._type_warned[stream] = now
+                        self._log.error(f'{stream}: {err}')
+            elif now - self._type_warned[stream] > self._node.node_cfg.topic_wait:
+                self._type_warned[stream] = now
+                if types and not usable:
+                    why = (
+                        f'has type {", ".join(types)}, which carries no pose (supported: '
+                        f'{", ".join(SUPPORTED_TYPES)})'
+                    )
+                elif usable:
+                    why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
+                    if guess in usable:
+                        why += f'; meanwhile the {guess} one is received'
+                else:
+                    why = 'has no publisher yet'
+                self._log.warning(f'{stream} topic {topic} {why}')
+        if not self.unknown() and self._graph_timer is not None:
+            self._graph_timer.cancel()
+
+    def publisher_types(self, topic: str) -> list[str]:
+        """The types a topic's publishers send, in the order first seen (the graph's types
+        of a topic also hold its subscriptions')."""
+        types: list[str] = []
+        for info in self._node.get_publishers_info_by_topic(topic):
+            if info.topic_type not in types:
+                types.append(info.topic_type)
+        return types
+
+    def why_no_data(self) -> str | None:
+        unknown = self.unknown()
+        for stream in STREAMS:
+            empty = len(self._recorder.buffers[stream]) < 2
+            if stream in self.subs and stream not in unknown and empty:
+                # the graph now, or what the QoS event said of a publisher since gone
+                why = self.qos_mismatch(stream) or self._qos_problems.get(stream)
+                if why is not None:
+                    return why
+            if stream in self._sub_errors and stream not in self.subs:
+                return f'{stream}: {self._sub_errors[stream]}'
+            if stream in unknown and empty:
+                topic = self._recorder.selectors[stream].topic
+                types = self.publisher_types(topic)
+                usable = _pose_types(types)
+                if len(usable) > 1:
+                    return (
+                        f'{stream} topic {topic} has several pose types ({", ".join(usable)}): '
+                        f'set {stream}_type'
+                    )
+                if types and not usable:
+                    return (
+                        f'{stream} topic {topic} has type {", ".join(types)}, which carries '
+                        f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})'
+                    )
+                if not types:
+                    return (
+                        f'{stream} topic {topic} has no publisher yet: check {stream}_topic, '
+                        f'or set {stream}_type to subscribe before one appears'
+                    )
+        return None
+
+
+def _pose_types(types: list[str]) -> list[str]:
+    """Those of a topic's types this node reads poses from, normalised."""
+    usable = []
+    for t in types:
+        try:
+            usable.append(normalise_type(t))
+        except UnsupportedTypeError:
+            pass
+    return usable

@@ -200,15 +200,7 @@ def refine(
         hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order, drift_stamp_ns, scale, pieces
     )
     layout = ParameterLayout.of(prob, fix_time_offset)
-    # the hand's noise, from the spline fit's own residuals (per pose, as in the joint cost)
-    hn = Noise(
-        *_sigmas(
-            prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals(),
-            hand_noise,
-            prob.M,
-            prob.th.size,
-        )
-    )
+    hn = _hand_noise(prob, hand_noise, joint)
     if joint:
         solved = _solve_joint(
             prob,
@@ -230,6 +222,15 @@ def refine(
     return _solution(
         prob, solved, y, decoupled, drift_stamp_ns, piece_note, time.perf_counter() - t_start
     )
+
+
+def _hand_noise(
+    prob: BatchProblem, given: tuple[float | None, float | None], joint: bool
+) -> Noise:
+    """The hand's noise (rad, m): as given, else from the spline fit's own residuals (per pose,
+    as in the joint cost)."""
+    raw = prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals()
+    return Noise(*_sigmas(raw, given, prob.M, prob.th.size))
 
 
 def _solution(

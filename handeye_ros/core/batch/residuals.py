@@ -53,6 +53,51 @@ EYE_CHUNK_PAIRS = 1 << 15
 MIN_EYE_RESIDUALS = 20
 
 
+class _Triplets:
+    """The (row, column, value) entries of a sparse Jacobian, gathered block by block."""
+
+    def __init__(self, Jc: np.ndarray) -> None:
+        #: (M, 3, 3) right Jacobians of the control rotations' parameters
+        self.Jc = Jc
+        self.rows: list[np.ndarray] = []
+        self.cols: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+
+    def add(self, row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
+        """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2 (col_off 0:
+        a control rotation, whose parameter enters through its right Jacobian)."""
+        if col_off == 0:
+            block = np.matmul(block, self.Jc[cp])
+        rr = row0[:, None, None, None] + np.arange(3)[:, None]
+        cc = 6 * cp[:, :, None, None] + col_off + np.arange(3)
+        rr, cc = np.broadcast_arrays(rr, cc)
+        self.rows.append(rr.ravel())
+        self.cols.append(cc.ravel())
+        self.values.append(block.ravel())
+
+
+@dataclass
+class _ChunkPairs:
+    """What a chunk's eye residuals and their Jacobian share (see ``eye_chunk``): the pairs'
+    ends (a, b) in the chunk's eye times te [s]; Q = R_a^T R_b and R_a^T of the spline; T_HE
+    (RX, pX); the rotation residuals; the scale s; the spline's body rates W and velocities V;
+    and, with translations, u and the predicted relative translation p_rel."""
+
+    a: np.ndarray
+    b: np.ndarray
+    te: np.ndarray
+    Q: np.ndarray
+    Ra_t: np.ndarray
+    RX: np.ndarray
+    pX: np.ndarray
+    r_rot: np.ndarray
+    s: float
+    W: np.ndarray
+    V: np.ndarray
+    u: np.ndarray | None
+    p_rel: np.ndarray | None
+
+
 @dataclass(frozen=True)
 class Weights:
     """1/sigma of each residual part (1/rad, 1/m): a MoCap pose's rotation and translation,
@@ -257,18 +302,7 @@ class BatchProblem:
         With a scale s the metric prediction is brought to the eye's units (divided by s)
         rather than the eye's noisy translations scaled: a scale on noisy observations shrinks
         towards zero by their noise-to-motion ratio (attenuation; -1 % at 1.5 mm per 25 mm
-        frame step).
-
-        With ``Q = R_a^T R_b`` of the spline at the pair's hand times, ``u = Q p_X + R_a^T (p_b -
-        p_a)``, the predicted relative pose ``(R_X^T Q R_X, p = R_X^T (u - p_X))`` and r =
-        ``Log(R_rel R_obs^T) = R_X^T Log(Q R_X R_obs^T R_X^T)`` (left Jacobian J_l):
-
-        - X's rotation, ``R_X Exp(d)``: r by ``J_l^-1 (R_rel - I) d``, p by ``[p]x d``;
-        - X's position: p by ``R_X^T (Q - I) dp_X``;
-        - a hand time moving by dtau (dt: -1, drift: -(t - t_ref)) moves the spline by its body
-          rate w and velocity v: r by ``J_l^-1 R_X^T (Q w_b dtau_b - w_a dtau_a)``, p by
-          ``R_X^T ([u]x w_a dtau_a - Q [p_X]x w_b dtau_b + R_a^T (v_b dtau_b - v_a dtau_a))``;
-        - the scale s: the predicted translation p / s by ``-p / s^2``.
+        frame step). The Jacobian's derivation is :meth:`_eye_chunk_jacobian`'s.
         """
         lo, hi = int(self.ei[k0]), int(self.ej[k1 - 1]) + 1
         a, b = self.ei[k0:k1] - lo, self.ej[k0:k1] - lo
@@ -299,8 +333,28 @@ class BatchProblem:
             r[:, 3:] = p_rel / s - self.eye_obs[1][k0:k1]
         if not jacobian:
             return r, None
-        J = np.zeros((n, rows, self.n_y))
-        Jl_inv = right_jacobian(-r_rot, inverse=True)
+        translations = (None, None) if rotation_only else (u, p_rel)
+        pairs = _ChunkPairs(a, b, te, Q, Ra_t, RX, pX, r_rot, s, W, V, *translations)
+        return r, self._eye_chunk_jacobian(pairs, y, rows)
+
+    def _eye_chunk_jacobian(self, p: _ChunkPairs, y: np.ndarray, rows: int) -> np.ndarray:
+        """The Jacobian (n, rows, n_y) of :meth:`eye_chunk`'s residuals in y, analytic (the
+        spline held fixed).
+
+        With ``Q = R_a^T R_b`` of the spline at the pair's hand times, ``u = Q p_X + R_a^T (p_b -
+        p_a)``, the predicted relative pose ``(R_X^T Q R_X, p = R_X^T (u - p_X))`` and r =
+        ``Log(R_rel R_obs^T) = R_X^T Log(Q R_X R_obs^T R_X^T)`` (left Jacobian J_l):
+
+        - X's rotation, ``R_X Exp(d)``: r by ``J_l^-1 (R_rel - I) d``, p by ``[p]x d``;
+        - X's position: p by ``R_X^T (Q - I) dp_X``;
+        - a hand time moving by dtau (dt: -1, drift: -(t - t_ref)) moves the spline by its body
+          rate w and velocity v: r by ``J_l^-1 R_X^T (Q w_b dtau_b - w_a dtau_a)``, p by
+          ``R_X^T ([u]x w_a dtau_a - Q [p_X]x w_b dtau_b + R_a^T (v_b dtau_b - v_a dtau_a))``;
+        - the scale s: the predicted translation p / s by ``-p / s^2``.
+        """
+        a, b, te, Q, RX, pX, s = p.a, p.b, p.te, p.Q, p.RX, p.pX, p.s
+        J = np.zeros((a.size, rows, self.n_y))
+        Jl_inv = right_jacobian(-p.r_rot, inverse=True)
         Jr_theta = right_jacobian(y[None, 1:4])[0]
         rel_R = _conjugate(RX.T, Q)
         J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
@@ -309,21 +363,23 @@ class BatchProblem:
             time_cols.append(
                 (self.i_drift, -(te[a] - self.t_ref)[:, None], -(te[b] - self.t_ref)[:, None])
             )
-        Wa, Wb = W[a], W[b]
+        Wa, Wb = p.W[a], p.W[b]
         QWb = np.einsum('nij,nj->ni', Q, Wb)
         for col, fa, fb in time_cols:
             J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
-        if rotation_only:
-            return r, J
-        J[:, 3:, 1:4] = _times(skew(p_rel), Jr_theta / s)
+        if rows == 3:
+            return J
+        J[:, 3:, 1:4] = _times(skew(p.p_rel), Jr_theta / s)
         J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
         if self.i_scale is not None:
-            J[:, 3:, self.i_scale] = -p_rel / s**2
-        dp_a = np.cross(u, Wa) - np.einsum('nij,nj->ni', Ra_t, V[a])
-        dp_b = np.einsum('nij,nj->ni', Ra_t, V[b]) - np.einsum('nij,nj->ni', Q, np.cross(pX, Wb))
+            J[:, 3:, self.i_scale] = -p.p_rel / s**2
+        dp_a = np.cross(p.u, Wa) - np.einsum('nij,nj->ni', p.Ra_t, p.V[a])
+        dp_b = np.einsum('nij,nj->ni', p.Ra_t, p.V[b]) - np.einsum(
+            'nij,nj->ni', Q, np.cross(pX, Wb)
+        )
         for col, fa, fb in time_cols:
             J[:, 3:, col] = (dp_a * fa + dp_b * fb) @ RX / s
-        return r, J
+        return J
 
     def chunks(self) -> range:
         """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
@@ -358,40 +414,44 @@ class BatchProblem:
         ``u = Q p_X + R_a^T (p_b - p_a)``.
         """
         spline, y = self.unpack(x)
-        RX, pX = self.extrinsic(y)
-        k = spline.order
-        w = (
-            weights.hand_rotation,
-            weights.hand_translation,
-            weights.eye_rotation,
-            weights.eye_translation,
-        )
-        ent_r, ent_c, ent_v = [], [], []
-
         # the parameters are R_m = R0_m Exp(c_m): a change dc is Exp(Jr(c_m) dc) on R_m
-        Jc = right_jacobian(x[: self.n_spline].reshape(self.M, 6)[:, :3])
+        out = _Triplets(right_jacobian(x[: self.n_spline].reshape(self.M, 6)[:, :3]))
+        self._hand_blocks(spline, weights, out)
+        self._eye_blocks(spline, y, weights, out)
+        # (dt, dtheta_X, dp_X): central differences of the eye rows
+        w_eye = weights.eye
 
-        def add(row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
-            """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2."""
-            if col_off == 0:
-                block = np.matmul(block, Jc[cp])
-            rr = row0[:, None, None, None] + np.arange(3)[:, None]
-            cc = 6 * cp[:, :, None, None] + col_off + np.arange(3)
-            rr, cc = np.broadcast_arrays(rr, cc)
-            ent_r.append(rr.ravel())
-            ent_c.append(cc.ravel())
-            ent_v.append(block.ravel())
+        def eye_rows(yy: np.ndarray) -> np.ndarray:
+            return (self.eye_raw_at(spline, yy) * w_eye).ravel()
 
-        # hand rows: rotation by the control rotations, position by the control positions
+        d = central_jacobian(eye_rows, y, np.arange(7))
+        out.rows.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
+        out.cols.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
+        out.values.append(d.ravel())
+        m = 6 * (self.th.size + self.ei.size)
+        return csr_matrix(
+            (np.concatenate(out.values), (np.concatenate(out.rows), np.concatenate(out.cols))),
+            shape=(m, self.n),
+        )
+
+    def _hand_blocks(self, spline: PoseSpline, weights: Weights, out: _Triplets) -> None:
+        """The hand rows: rotation by the control rotations, position by the control
+        positions."""
         hb = self.hand_basis
         R_s, _, JR, b = spline.evaluate_with_jacobian(hb)
         r_rot = log_so3(np.matmul(R_s, np.swapaxes(self.hand_obs[0], -1, -2)))
-        cp = hb[0][:, None] + np.arange(k)
+        cp = hb[0][:, None] + np.arange(spline.order)
         row = 6 * np.arange(self.th.size)
         lead = np.matmul(right_jacobian(-r_rot, inverse=True), R_s)  # Jl^-1(r) R_s
-        add(row, cp, 0, w[0] * np.matmul(lead[:, None], JR))
-        add(row + 3, cp, 3, w[1] * b[..., None, None] * np.eye(3))
-        # eye rows
+        out.add(row, cp, 0, weights.hand_rotation * np.matmul(lead[:, None], JR))
+        out.add(row + 3, cp, 3, weights.hand_translation * b[..., None, None] * np.eye(3))
+
+    def _eye_blocks(
+        self, spline: PoseSpline, y: np.ndarray, weights: Weights, out: _Triplets
+    ) -> None:
+        """The eye rows' blocks in the control poses (see :meth:`jacobian`)."""
+        RX, pX = self.extrinsic(y)
+        w_rot, w_trans = weights.eye_rotation, weights.eye_translation
         eb = self.spline0.basis(self.eye_times(y))
         R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
         ia, ib = self.ei, self.ej
@@ -408,28 +468,15 @@ class BatchProblem:
             (ia, -1.0, np.matmul(RXt, skew(u))),
             (ib, 1.0, -np.matmul(np.matmul(RXt, Q), skew(pX))),
         ):
-            cp = eb[0][idx][:, None] + np.arange(k)
+            cp = eb[0][idx][:, None] + np.arange(spline.order)
             JRi = JR_e[idx]
             # d r_rot / d eps: Jl^-1 R_X^T (-I for a, Q for b)
             d_rot = np.matmul(Jl_inv, RXt if sign_rot < 0 else np.matmul(RXt, Q)) * sign_rot
-            add(row, cp, 0, w[2] * np.matmul(d_rot[:, None], JRi))
-            add(row + 3, cp, 0, w[3] * np.matmul(d_trans[:, None], JRi))
-            add(row + 3, cp, 3, w[3] * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None])
-        # (dt, dtheta_X, dp_X): central differences of the eye rows
-        w_eye = weights.eye
-
-        def eye_rows(yy: np.ndarray) -> np.ndarray:
-            return (self.eye_raw_at(spline, yy) * w_eye).ravel()
-
-        d = central_jacobian(eye_rows, y, np.arange(7))
-        ent_r.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
-        ent_c.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
-        ent_v.append(d.ravel())
-        m = 6 * (self.th.size + ia.size)
-        return csr_matrix(
-            (np.concatenate(ent_v), (np.concatenate(ent_r), np.concatenate(ent_c))),
-            shape=(m, self.n),
-        )
+            out.add(row, cp, 0, w_rot * np.matmul(d_rot[:, None], JRi))
+            out.add(row + 3, cp, 0, w_trans * np.matmul(d_trans[:, None], JRi))
+            out.add(
+                row + 3, cp, 3, w_trans * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None]
+            )
 
 
 def central_jacobian(

@@ -160,6 +160,23 @@ def _ransac(
     return counts, q1, qd1, ratio, (q0_all, p0_all)
 
 
+def _check_enough(n: int, min_motions: int) -> None:
+    """DegenerateMotionError unless there are ``min_motions`` (at least 2) motions."""
+    if n < max(min_motions, 2):
+        raise DegenerateMotionError(
+            f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
+            'recording rotates too little for the keyframe rule. Rotate the rig more (about '
+            'several axes), or lower eta'
+        )
+
+
+def _squared_weights(m: Motions, mu: float) -> np.ndarray:
+    """The robust kernel's weights (eq. 11) squared, scaled to a largest of 1 (the rows of
+    eq. 12 carry W, their Gram matrices W^2)."""
+    log_w = screw_log_weights(m, mu)
+    return np.exp(2.0 * (log_w - log_w.max()))
+
+
 def calibrate_linear(
     m: Motions,
     *,
@@ -191,19 +208,10 @@ def calibrate_linear(
         With fewer than ``min_motions`` motions, or when no hypothesis gathers a consensus.
     """
     n = len(m)
-    if n < max(min_motions, 2):
-        raise DegenerateMotionError(
-            f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
-            'recording rotates too little for the keyframe rule. Rotate the rig more (about '
-            'several axes), or lower eta'
-        )
+    _check_enough(n, min_motions)
     rng = rng if rng is not None else np.random.default_rng(0)
     gram = constraint_gram(m).reshape(n, 64)
-    if robust_kernel:
-        log_w = screw_log_weights(m, mu)
-        w2 = np.exp(2.0 * (log_w - log_w.max()))
-    else:
-        w2 = np.ones(n)
+    w2 = _squared_weights(m, mu) if robust_kernel else np.ones(n)
     q_HE, p_HE, inliers, sigma_best, ratio_best = _consensus(
         m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
     )

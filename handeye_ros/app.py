@@ -1,13 +1,13 @@
-"""The application: calibrate from sources to a result with its outputs, one function under
-every front end that takes files or a bag (the offline tool's ``main``, ``evaluate``'s runs).
+"""The application: calibrate from sources to a result with its outputs, the one function
+under every front end: the offline tool's ``main``, ``evaluate``'s runs and the node's worker.
 
-A :class:`Request` says where the poses come from (two trajectory files, or a bag replayed
-through the node's own conversion and buffers), the options (the algorithm's and the streams',
-merged from a config file, a manifest and the command line by the caller) and what to write
-besides the result (evo exports, the report, a bag of the node's outputs). :func:`run` reads,
-calibrates, evaluates and writes, and returns the result's dictionary and the result. (The node
-calibrates its buffers through :func:`.evaluation.outputs.calibrate_snapshot`, on the same
-:meth:`.stream.recorder.Snapshot.result` as a bag here.)
+A :class:`Request` says where the poses come from (two trajectory files, a bag replayed
+through the node's own conversion and buffers, or a snapshot of the node's buffers), the
+options (the algorithm's and the streams', merged from a config file, a manifest and the
+command line by the caller) and what to write besides the result (evo exports, the report, a
+bag of the node's outputs). :func:`run` reads, calibrates, evaluates and writes, and returns
+the result's dictionary and the result. The node's worker calls it through
+:func:`calibrate_buffers`.
 """
 
 from __future__ import annotations
@@ -54,6 +54,29 @@ class Request:
     output_bag_storage: str = 'mcap'
     progress: bool | None = None
     source: str = 'options'
+    snapshot: Any = None
+    outputs_required: bool = True
+
+
+@dataclass(frozen=True)
+class Calibrated:
+    """A calibration as the node keeps it between ``~/calibrate`` and ``~/save``: the result
+    dictionary as ``~/save`` writes it, the result without its poses
+    (:meth:`~handeye_ros.core.result.CalibrationResult.detached`: an hour of MoCap is too large
+    to send back from the worker) and its frame names (see StreamConfig.frames)."""
+
+    document: dict[str, Any]
+    result: Any
+    frames: dict[str, str]
+
+    @property
+    def summary(self) -> str:
+        return self.document['summary']
+
+    @property
+    def report(self) -> str | None:
+        """The report page drawn with the calibration, or None."""
+        return self.document.get('files', {}).get('report')
 
 
 def run(req: Request) -> tuple[dict[str, Any], Any]:
@@ -66,23 +89,13 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
     from .stream.config import StreamConfig
 
     files = req.hand or req.eye
-    if (req.bag and files) or (not req.bag and not (req.hand and req.eye)):
+    sources = sum((bool(req.bag), bool(files), req.snapshot is not None))
+    if sources != 1 or (files and not (req.hand and req.eye)):
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
     _check_outputs(req)
     calib, streams = split_options(req.options, (CalibrationConfig, StreamConfig), req.source)
     frames = streams.frames()  # files name no frames: the options or the fallbacks
-    if req.bag:
-        from .replay import replay
-
-        given = {s: f'{s}_topic' in req.options for s in ('hand', 'eye')}
-        rec = replay(req.bag, streams, given=given, progress=req.progress)
-        snap = rec.snapshot()
-        with _progress_bar(req.progress, len(STEPS)) as step:
-            result = snap.result(calib, progress=step)
-        frames = snap.frames
-        out = snap.describe(result)
-        out['inputs']['bag'] = str(req.bag)
-    else:
+    if files:
         result = _calibrate_files(req, calib)
         out = result.to_dict(
             hand_frame=frames['hand'],
@@ -91,8 +104,38 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
             eye_world=frames['eye_world'],
         )
         out['summary'] = result.summary()
-    _write_outputs(req, result, out, frames)
+    else:
+        snap = req.snapshot
+        if snap is None:
+            from .replay import replay
+
+            given = {s: f'{s}_topic' in req.options for s in ('hand', 'eye')}
+            snap = replay(req.bag, streams, given=given, progress=req.progress).snapshot()
+        with _progress_bar(req.progress, len(STEPS)) as step:
+            result = snap.result(calib, progress=step)
+        frames = snap.frames
+        out = snap.describe(result)
+        if req.bag:
+            out['inputs']['bag'] = str(req.bag)
+    result = _write_outputs(req, result, out, frames)
     return out, result
+
+
+def calibrate_buffers(
+    snapshot: Any, options: dict[str, Any], report_dir: str | None = None
+) -> Calibrated:
+    """The node's worker job: :func:`run` on a snapshot of the buffers, with the evaluation,
+    and with ``report_dir`` the report drawn there, ready for ``~/save`` to copy."""
+    req = Request(
+        snapshot=snapshot,
+        options=options,
+        report=report_dir,
+        progress=False,
+        source='parameters',
+        outputs_required=False,
+    )
+    out, result = run(req)
+    return Calibrated(out, result.detached(), snapshot.frames)
 
 
 def _calibrate_files(req: Request, calib: Any) -> Any:
@@ -123,19 +166,29 @@ def _calibrate_files(req: Request, calib: Any) -> Any:
         return calibrate(hand, eye, calib, progress=step)
 
 
-def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> None:
-    """The evaluation (into ``out``), the exports, the report and the output bag."""
+def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> Any:
+    """The evaluation (into ``out``), the exports, the report and the output bag; returns the
+    result, with a warning when a failed evaluation or report is not to stop the run."""
+    from dataclasses import replace
+
     from .evaluation.outputs import evaluate_and_write
 
-    if req.evaluation or req.export or req.report:
-        evaluate_and_write(
-            result,
-            out,
-            export_dir=req.export,
-            report_dir=req.report,
-            delta_s=req.rpe_delta,
-            delta_m=req.rpe_distance,
-        )
+    try:
+        if req.evaluation or req.export or req.report:
+            evaluate_and_write(
+                result,
+                out,
+                export_dir=req.export,
+                report_dir=req.report,
+                delta_s=req.rpe_delta,
+                delta_m=req.rpe_distance,
+            )
+    except Exception as err:
+        if req.outputs_required:
+            raise
+        note = f'no evaluation or report: {type(err).__name__}: {err}'
+        out['warnings'].append(note)
+        result = replace(result, warnings=(*result.warnings, note))
     if req.output_bag:
         from .formats.bag import write_result_bag
         from .formats.messages import Published
@@ -146,6 +199,7 @@ def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict)
             result.eye.last_stamp_ns,
             req.output_bag_storage,
         )
+    return result
 
 
 def _check_outputs(req: Request) -> None:

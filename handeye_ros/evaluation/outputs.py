@@ -6,14 +6,11 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..core.config import CalibrationConfig
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
-from ..stream.recorder import SessionResult, Snapshot
 from .aligned import calibrated, uncalibrated
 from .metrics import ape, evaluate
 
@@ -105,25 +102,3 @@ def write_report(
         raise InputError(f'report directory {d}: cannot write ({err.strerror or err})') from None
     LOG.info('report written in %.2f s: %s', time.perf_counter() - t0, page)
     return page
-
-
-def calibrate_snapshot(
-    snapshot: Snapshot, config: CalibrationConfig, stage_dir: str | None = None
-) -> SessionResult:
-    """The node's worker job: calibrate a :class:`~handeye_ros.stream.recorder.Snapshot`, add
-    the evaluation, and with ``stage_dir`` draw the report there, ready for ``~/save`` to copy.
-    Returns the session's result detached from its poses (an hour of MoCap is too large to
-    send back to the node)."""
-    result = snapshot.result(config)
-    session = snapshot.session(result)
-    try:
-        evaluated = evaluation_of(result)
-        if evaluated is not None:
-            ev, cal, base = evaluated
-            session = replace(session, evaluation=ev)
-            if stage_dir:
-                page = write_report(stage_dir, result, session.to_dict(), cal, base)
-                session = replace(session, report=str(page))
-    except Exception as err:  # noqa: BLE001  (the calibration matters more than its report)
-        session = session.with_warning(f'no evaluation or report: {type(err).__name__}: {err}')
-    return replace(session, result=result.detached())

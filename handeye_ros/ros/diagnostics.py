@@ -8,10 +8,10 @@ import math
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from ..app import Calibrated
 from ..core.checks.verdict import Verdict
 from ..formats import messages
 from ..stream.buffer import BufferStats
-from ..stream.recorder import SessionResult
 
 
 def stream_status(
@@ -43,7 +43,7 @@ def stream_status(
 
 
 def result_status(
-    name: str, session: SessionResult | None, when: str, error: str | None
+    name: str, session: Calibrated | None, when: str, error: str | None
 ) -> DiagnosticStatus:
     """The diagnostics of the calibration: the last attempt's outcome, and only then the
     numbers of the result the latched topics hold.

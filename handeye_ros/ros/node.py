@@ -54,13 +54,12 @@ from rclpy.qos import (
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
+from ..app import Calibrated, calibrate_buffers
 from ..core.errors import ConfigError, HandeyeError, InputError
-from ..evaluation.outputs import calibrate_snapshot
 from ..formats import messages
 from ..formats.result_file import write_result
 from ..stream import STREAMS, Recorder
 from ..stream.convert import TF_TYPE
-from ..stream.recorder import SessionResult
 from . import diagnostics, parameters, worker
 from .subscriptions import Subscriptions
 from .types import RclpyTypes
@@ -88,7 +87,7 @@ class CalibratorNode(Node):
         self._busy = threading.Lock()
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
-        self._last_result: SessionResult | None = None
+        self._last_result: Calibrated | None = None
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
@@ -170,7 +169,7 @@ class CalibratorNode(Node):
             stage = (
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
             )
-            job = self._pool.submit(calibrate_snapshot, snapshot, self.calib_cfg, stage)
+            job = self._pool.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage)
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._failed(str(err))
             future.set_result((False, str(err)))
@@ -181,7 +180,7 @@ class CalibratorNode(Node):
         def done(job: cf.Future) -> None:  # in a pool thread
             kept = False
             try:
-                session: SessionResult = job.result()
+                session: Calibrated = job.result()
             except HandeyeError as err:
                 self._failed(str(err))
                 future.set_result((False, str(err)))
@@ -248,7 +247,7 @@ class CalibratorNode(Node):
         wrote = [out]
         try:
             Path(out).parent.mkdir(parents=True, exist_ok=True)  # a run-time path: make it
-            write_result(out, self._last_result.to_dict())
+            write_result(out, self._last_result.document)
             staged = _staged_dir(self._last_result)
             if report and staged:
                 shutil.copytree(staged, report, dirs_exist_ok=True)
@@ -291,7 +290,7 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ outputs
 
-    def _succeeded(self, session: SessionResult) -> None:
+    def _succeeded(self, session: Calibrated) -> None:
         """A new result: every output at once, one stamp (in a pool thread; rclpy's publish
         is thread-safe)."""
         self._last_result, self._last_error = session, None
@@ -348,6 +347,6 @@ class CalibratorNode(Node):
         self.pub_diag.publish(arr)
 
 
-def _staged_dir(session: SessionResult | None) -> str | None:
+def _staged_dir(session: Calibrated | None) -> str | None:
     """The folder where the worker drew a result's report, if it did."""
     return str(Path(session.report).parent) if session is not None and session.report else None

@@ -13,9 +13,10 @@ import importlib
 import multiprocessing
 import signal
 
-#: What a calibration in the worker imports (the function it runs, the snapshot's class and
-#: the core with scipy.optimize): imported when the worker starts, not on the first call.
+#: What a calibration in the worker imports (the application, the evaluation, the snapshot's
+#: class and the core with scipy.optimize): imported when the worker starts, not on the first call.
 MODULES = (
+    'handeye_ros.app',
     'handeye_ros.evaluation.outputs',
     'handeye_ros.stream.recorder',
     'handeye_ros.core.pipeline',

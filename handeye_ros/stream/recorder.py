@@ -51,58 +51,18 @@ class Snapshot:
         result = calibrate(self.hand, self.eye, config, progress)
         return replace(result, warnings=result.warnings + self.warnings)
 
-    def session(self, result: CalibrationResult) -> SessionResult:
-        """``result`` with this snapshot's frame names and stream bookkeeping."""
-        return SessionResult(result, self.frames, self.streams)
-
     def describe(self, result: CalibrationResult) -> dict[str, Any]:
-        """The result dictionary of :meth:`SessionResult.to_dict`."""
-        return self.session(result).to_dict()
-
-
-@dataclass(frozen=True)
-class SessionResult:
-    """A snapshot's calibration as the node keeps it between calibrate and save.
-
-    result: the typed result (after the worker, :meth:`CalibrationResult.detached`: its pose
-    arrays stay in the worker, an hour of MoCap being too large to send back); frames: its
-    frame names (see StreamConfig.frames); streams: the streams' bookkeeping; evaluation: the
-    worker's APE/RPE (an ``evaluation.metrics.Evaluation``, a layer above this one) or None;
-    report: the page the worker drew, ready for ``~/save`` to copy, or None.
-    Serialised only where it is written (:meth:`to_dict`).
-    """
-
-    result: CalibrationResult
-    frames: dict[str, str]
-    streams: dict[str, Any]
-    evaluation: Any = None
-    report: str | None = None
-
-    @property
-    def summary(self) -> str:
-        return self.result.summary()
-
-    def with_warning(self, text: str) -> SessionResult:
-        """The same with one more warning (said in the result file and the log)."""
-        r = self.result
-        return replace(self, result=replace(r, warnings=(*r.warnings, text)))
-
-    def to_dict(self) -> dict[str, Any]:
-        """The result dictionary (schema of CalibrationResult.to_dict, plus ``streams``, a
-        one-line ``summary``, and ``evaluation`` and ``files`` when present)."""
+        """The result dictionary (schema of CalibrationResult.to_dict with this snapshot's
+        frame names, plus ``streams`` and a one-line ``summary``)."""
         f = self.frames
-        out = self.result.to_dict(
+        out = result.to_dict(
             hand_frame=f['hand'],
             eye_frame=f['eye'],
             hand_world=f['hand_world'],
             eye_world=f['eye_world'],
         )
         out['streams'] = self.streams
-        out['summary'] = self.summary
-        if self.evaluation is not None:
-            out['evaluation'] = self.evaluation.to_dict()
-        if self.report is not None:
-            out['files'] = {'report': self.report}
+        out['summary'] = result.summary()
         return out
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks.selfcheck import score_candidates
-from ..checks.verdict import AMBIGUOUS_SCORE_RATIO, Code
+from ..checks.verdict import Code, batch_moved, batch_supported
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..eye_model import EyeModel
@@ -20,15 +20,6 @@ from ..linear.robust import LinearSolution
 from ..linear.stage import LinearStage, solve_linear
 from ..trajectory import Trajectory
 from .refine import BatchSolution, refine
-
-#: The batch stage disagrees with the linear result when it moves dt by more than this many
-#: of its sigmas and at least BATCH_DT_MIN_S, or T_HE by more than 3 sigmas and at least these.
-BATCH_SIGMAS = 3.0
-BATCH_DT_MIN_S = 2e-3
-BATCH_TRANSLATION_MIN_M = 0.02
-BATCH_ROTATION_MIN_DEG = 1.0
-#: The batch stage's extrinsic is rejected when the self-check scores it this much worse.
-BATCH_SCORE_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -124,16 +115,10 @@ def check_batch(
 ) -> BatchSolution | None:
     """When the batch stage moves dt or T_HE beyond its own sigmas, let the self-check decide
     between it and the linear result. Returns the batch solution, or None when rejected."""
-    s = sol.std
     moved_dt = abs(sol.time_offset_s - dt)
     moved_t = float(np.linalg.norm(sol.p_HE - lin.p_HE))
     moved_r = float(np.degrees(quat_angle(sol.q_HE, lin.q_HE)))
-    far_dt = moved_dt > max(BATCH_SIGMAS * s[0], BATCH_DT_MIN_S)
-    far_x = moved_t > max(
-        BATCH_SIGMAS * float(np.linalg.norm(s[1:4])), BATCH_TRANSLATION_MIN_M
-    ) or moved_r > max(
-        BATCH_SIGMAS * float(np.degrees(np.linalg.norm(s[4:]))), BATCH_ROTATION_MIN_DEG
-    )
+    far_dt, far_x = batch_moved(moved_dt, moved_t, moved_r, sol.std)
     if not (far_dt or far_x):
         return sol
     what = (
@@ -160,9 +145,7 @@ def check_batch(
     if not np.all(np.isfinite(score)):
         run.reason(Code.STAGES_DISAGREE, f'{what}, and the self-check could not compare them')
         return sol
-    offset_ok = not far_dt or score[1] <= AMBIGUOUS_SCORE_RATIO * score[0]
-    extrinsic_ok = score[-1] <= BATCH_SCORE_FACTOR * score[-2]
-    if offset_ok and extrinsic_ok:
+    if batch_supported(score, far_dt):
         run.notes.append(
             f'{what}; the self-check supports it (scores '
             + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)

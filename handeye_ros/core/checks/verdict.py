@@ -26,21 +26,24 @@ ambiguous_offset            doubtful   two offsets explain the data almost equal
 weak_correlation            doubtful   the angular velocities hardly agree (correlation
                                        below 0.5)
 stages_disagree             doubtful   the batch stage moved the offset or the extrinsic
-                                       beyond its sigmas and the self-check sided against it
+                                       beyond its sigmas (BATCH_*) and the self-check sided
+                                       against it
 few_inliers                 doubtful   fewer than 20 % of the motions are RANSAC inliers
 weak_excitation             doubtful   the rotation axes spread less than 10 deg
 unobservable                doubtful   a component of T_HE, the clock drift or the scale
                                        cannot be determined (named)
 seed_dependent              doubtful   the linear stage's answer moves with the RANSAC seed
+                                       (beyond SEED_*)
 no_uncertainty              doubtful   the batch stage could not run: no sigmas
 imprecise                   doubtful   a 1-sigma exceeds the required precision
                                        (options precision_time_offset, _translation,
                                        _rotation; default 1 ms, 1 cm, 0.5 deg)
 clock_drift                 doubtful   without clock_drift: the offset measured in windows
-                                       changes along the recording by more than 2 ms and 3
-                                       of its sigmas (the rate is named)
+                                       changes along the recording by more than
+                                       DRIFT_NOTICE_S and DRIFT_SIGMAS (the rate is named)
 scale                       doubtful   without estimate_scale: a scale explains the eye's
-                                       translations (named with its value)
+                                       translations and is large, or moves T_HE by more
+                                       than precision_translation (named with its value)
 residuals_not_white         doubtful   the long-run covariance is more than
                                        INFLATION_DOUBTFUL times the white one (an
                                        unmodelled effect: clock drift, scale, ...)
@@ -52,6 +55,11 @@ inconsistent                failed     AX = XB does not hold: over the keyframe 
                                        motion (relative motions: the VIO's drift does not
                                        enter, unlike APE)
 ==========================  =========  =================================================
+
+Most rules run at the end (:func:`assess`, :func:`assess_model`); those met while a stage
+runs (scale, clock_drift, seed_dependent, stages_disagree, the self-check's tie) are the
+functions at the end of this module, which the stages call. ``unobservable`` and a failed
+rerun are said where the stage finds them: they have no threshold.
 
 Notes that do not lower the verdict (resets split, an epoch difference, a self-check that
 settled clearly) are in ``notes``.
@@ -71,10 +79,12 @@ if TYPE_CHECKING:  # for the rules' signatures only: checks sit above the stages
     from ..eye_model import EyeModel
     from ..findings import Findings
     from ..linear.robust import LinearSolution
+    from ..linear.scale import ScaleFit
     from ..time.align import TimeAlignment
     from ..time.clock import DriftFit
     from ..world import Metrics
     from .screening import Screening
+    from .selfcheck import Candidate
 
 
 class Verdict(StrEnum):
@@ -128,6 +138,24 @@ INFLATION_DOUBTFUL = 5.0
 FAILED_MOTION_ROTATION_DEG = 2.0
 FAILED_MOTION_TRANSLATION_M = 0.05
 FAILED_MOTION_TRANSLATION_FRACTION = 0.5
+#: clock_drift: the offset measured in windows changes between the first and the last eye pose
+#: by more than DRIFT_NOTICE_S (s) and its drift is beyond DRIFT_SIGMAS Gaussian sigmas
+#: (:attr:`~handeye_ros.core.time.clock.DriftFit.significant`).
+DRIFT_NOTICE_S = 2e-3
+DRIFT_SIGMAS = 3.0
+#: seed_dependent: the linear stage with the next RANSAC seed moves T_HE by more than
+#: SEED_SIGMAS of the batch stage's sigmas and at least these.
+SEED_SIGMAS = 3.0
+SEED_ROTATION_DEG = 0.5
+SEED_TRANSLATION_M = 0.01
+#: stages_disagree: the batch stage moved dt by more than BATCH_SIGMAS of its sigmas and at
+#: least BATCH_DT_MIN_S, or T_HE by more than BATCH_SIGMAS sigmas and at least these; the
+#: self-check then decides, and rejects its extrinsic when it scores BATCH_SCORE_FACTOR worse.
+BATCH_SIGMAS = 3.0
+BATCH_DT_MIN_S = 2e-3
+BATCH_TRANSLATION_MIN_M = 0.02
+BATCH_ROTATION_MIN_DEG = 1.0
+BATCH_SCORE_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -328,3 +356,129 @@ def assess_model(
                 f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
                 f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
             )
+
+
+# ---------------------------------------------------------------- rules met during the run
+# The stages meet these as they run (a fit, a rerun, a comparison) and add what they return to
+# the run's Findings; the rules above run once, at the end (assess, assess_model).
+
+
+def scale_reason(fit: ScaleFit, precision_m: float) -> Reason | None:
+    """SCALE, without estimate_scale: a scale explains the eye's translations
+    (:attr:`~handeye_ros.core.linear.scale.ScaleFit.clear`) and is large (``significant``) or
+    moves T_HE by more than ``precision_m`` when s = 1 is taken."""
+    if fit.clear and (fit.significant or fit.shift_m > precision_m):
+        return Reason(Code.SCALE, scale_message(fit))
+    return None
+
+
+def drift_reason(fit: DriftFit) -> Reason | None:
+    """CLOCK_DRIFT, without clock_drift: the offset measured in windows drifts
+    (:attr:`~handeye_ros.core.time.clock.DriftFit.significant`: DRIFT_NOTICE_S, DRIFT_SIGMAS)."""
+    return Reason(Code.CLOCK_DRIFT, drift_message(fit)) if fit.significant else None
+
+
+def seed_reason(
+    seed: int, d_rot_deg: float, d_t_m: float, batch_std: np.ndarray | None
+) -> Reason | None:
+    """SEED_DEPENDENT: stage 2 with RANSAC seed ``seed`` lands d_rot_deg / d_t_m away, beyond
+    SEED_SIGMAS of the batch stage's sigmas (``batch_std``: dt, p, theta) and at least
+    SEED_ROTATION_DEG / SEED_TRANSLATION_M."""
+    lim_rot, lim_t = SEED_ROTATION_DEG, SEED_TRANSLATION_M
+    if batch_std is not None:
+        lim_t = max(lim_t, SEED_SIGMAS * float(np.linalg.norm(batch_std[1:4])))
+        lim_rot = max(lim_rot, SEED_SIGMAS * float(np.degrees(np.linalg.norm(batch_std[4:7]))))
+    if d_rot_deg > lim_rot or d_t_m > lim_t:
+        return Reason(
+            Code.SEED_DEPENDENT,
+            f'with RANSAC seed {seed} the linear stage gives an extrinsic '
+            f'{d_t_m * 1e3:.0f} mm / {d_rot_deg:.2f} deg away: the motions do not single out '
+            'one answer',
+        )
+    return None
+
+
+def batch_moved(
+    moved_dt_s: float, moved_t_m: float, moved_r_deg: float, std: np.ndarray
+) -> tuple[bool, bool]:
+    """Whether the batch stage moved dt, and T_HE, beyond its own sigmas ``std`` (dt, p,
+    theta): BATCH_SIGMAS of them and at least BATCH_DT_MIN_S, BATCH_TRANSLATION_MIN_M,
+    BATCH_ROTATION_MIN_DEG. Either sends the question to the self-check."""
+    far_dt = moved_dt_s > max(BATCH_SIGMAS * std[0], BATCH_DT_MIN_S)
+    far_x = moved_t_m > max(
+        BATCH_SIGMAS * float(np.linalg.norm(std[1:4])), BATCH_TRANSLATION_MIN_M
+    ) or moved_r_deg > max(
+        BATCH_SIGMAS * float(np.degrees(np.linalg.norm(std[4:]))), BATCH_ROTATION_MIN_DEG
+    )
+    return bool(far_dt), bool(far_x)
+
+
+def batch_supported(score: list[float], far_dt: bool) -> bool:
+    """STAGES_DISAGREE unless this holds: the self-check's scores (linear stage, [linear stage
+    at the batch offset when dt moved,] batch stage) keep the batch offset within
+    AMBIGUOUS_SCORE_RATIO of the linear one and its extrinsic within BATCH_SCORE_FACTOR of
+    stage 2's at the same offset."""
+    offset_ok = not far_dt or score[1] <= AMBIGUOUS_SCORE_RATIO * score[0]
+    return offset_ok and score[-1] <= BATCH_SCORE_FACTOR * score[-2]
+
+
+def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
+    """Index of the winner. Candidates scoring within AMBIGUOUS_SCORE_RATIO of the best are a
+    tie (the verdict says so); a tie goes to the smallest offset, the likelier one when two
+    clocks were started together."""
+    best = next(k for k, c in enumerate(scored) if c.chosen)
+    win = scored[best]
+    if not np.isfinite(win.score):
+        run.reason(
+            Code.AMBIGUOUS_OFFSET,
+            'the candidate offsets could not be compared (too few motions covered at all of them)',
+        )
+        return best
+    tied = [
+        k
+        for k, c in enumerate(scored)
+        if np.isfinite(c.score) and c.score <= AMBIGUOUS_SCORE_RATIO * win.score
+    ]
+    text = ', '.join(
+        f'{shift_ns * 1e-9 + c.time_offset_s:+.4f} s ({c.source}, score {c.score:.3g})'
+        for c in scored
+    )
+    if len(tied) == 1:
+        run.notes.append(
+            f'self-check over the candidate offsets {text}: '
+            f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
+        )
+        return best
+    best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
+    run.reason(
+        Code.AMBIGUOUS_OFFSET,
+        f'the motion repeats itself: the self-check cannot separate '
+        f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
+        'the search with time_offset_guess and max_time_offset (less than half the '
+        'period of the motion), or record a less repetitive motion',
+    )
+    return best
+
+
+def scale_message(fit: ScaleFit) -> str:
+    return (
+        f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
+        f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
+        f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
+        f'{fit.rms_without * 1e3:.0f} mm without), and taking s = 1 moves the translation '
+        f'of T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose scale is '
+        f'off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
+        '--scale (node parameter estimate_scale)'
+    )
+
+
+def drift_message(fit: DriftFit) -> str:
+    n = int(fit.inliers.sum())
+    return (
+        f'the time offset drifts: measured in {n} windows along the recording it changes '
+        f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
+        f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
+        'result holds one mean offset, so the ends are off by about '
+        f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
+        'parameter clock_drift)'
+    )

@@ -76,11 +76,6 @@ class ScaleFit:
             return 0.0
         return float(np.linalg.norm(self.p_HE - self.p_HE_unscaled))
 
-    def costs(self, precision_m: float) -> bool:
-        """Whether a default run (s = 1) should be doubtful for this scale: a large one
-        (:attr:`significant`), or a clear one that moves T_HE by more than ``precision_m``."""
-        return self.clear and (self.significant or self.shift_m > precision_m)
-
     @property
     def observable(self) -> bool:
         return observable(self.scale, self.scale_std)

@@ -78,15 +78,3 @@ def scale_check(pairs: PosePairs, lin: LinearSolution, cfg: CalibrationConfig) -
     return translation_and_scale(
         m.A[0], m.A[1], m.B[1], matrix_from_quat(lin.q_HE), drift_weights(m, every), robust=True
     )
-
-
-def scale_message(fit: ScaleFit) -> str:
-    return (
-        f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
-        f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
-        f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
-        f'{fit.rms_without * 1e3:.0f} mm without), and taking s = 1 moves the translation '
-        f'of T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose scale is '
-        f'off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
-        '--scale (node parameter estimate_scale)'
-    )

@@ -16,7 +16,7 @@ import numpy as np
 from ..association import PosePairs, associate
 from ..checks.screening import Screening, find_eye_breaks
 from ..checks.selfcheck import Candidate, score_candidates
-from ..checks.verdict import AMBIGUOUS_SCORE_RATIO, Code
+from ..checks.verdict import Code, judge_tie, scale_message, scale_reason, seed_reason
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
@@ -30,7 +30,7 @@ from ..time.stage import Offset
 from ..trajectory import Trajectory
 from .axxb import build_motions
 from .robust import LinearSolution, calibrate_linear
-from .scaling import fold_linear_scale, scale_check, scale_from_rotations, scale_message
+from .scaling import fold_linear_scale, scale_check, scale_from_rotations
 
 if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed check
     from ..batch.refine import BatchSolution
@@ -45,9 +45,6 @@ LINEAR_REDO_S = 5e-3
 #: The vector refinement searches this far (s) on each side of the current offset.
 VECTOR_HALF_WINDOW_S = 0.15
 MAX_VECTOR_ITERATIONS = 3
-#: The linear stage with the next RANSAC seed must land within these (deg, m).
-SEED_ROTATION_DEG = 0.5
-SEED_TRANSLATION_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -82,10 +79,11 @@ def linear_stage(
         eye, model = scale_from_rotations(hand, eye, model, cfg)
     lin, pairs = _first_solve(hand, eye, offset, cfg)
     scaled = None if cfg.estimate_scale else scale_check(pairs, lin, cfg)
-    if scaled is not None and scaled.costs(cfg.precision_translation):
+    scale_doubt = None if scaled is None else scale_reason(scaled, cfg.precision_translation)
+    if scale_doubt is not None:
         # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
         # it at "breaks" would only hide that
-        run.reason(Code.SCALE, scale_message(scaled))
+        run.reasons.append(scale_doubt)
     else:
         if scaled is not None and scaled.clear:  # named, but it costs less than the precision
             run.notes.append(scale_message(scaled))
@@ -272,47 +270,9 @@ def self_check(
     scored = score_candidates(
         hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], np.deg2rad(cfg.eta)
     )
-    best = _judge_tie(scored, shift_ns, run)
+    best = judge_tie(scored, shift_ns, run)
     run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
     return hyps[best][0], hyps[best][2], hyps[best][3]
-
-
-def _judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
-    """Index of the winner. Candidates scoring within AMBIGUOUS_SCORE_RATIO of the best are a
-    tie (the verdict says so); a tie goes to the smallest offset, the likelier one when two
-    clocks were started together."""
-    best = next(k for k, c in enumerate(scored) if c.chosen)
-    win = scored[best]
-    if not np.isfinite(win.score):
-        run.reason(
-            Code.AMBIGUOUS_OFFSET,
-            'the candidate offsets could not be compared (too few motions covered at all of them)',
-        )
-        return best
-    tied = [
-        k
-        for k, c in enumerate(scored)
-        if np.isfinite(c.score) and c.score <= AMBIGUOUS_SCORE_RATIO * win.score
-    ]
-    text = ', '.join(
-        f'{shift_ns * 1e-9 + c.time_offset_s:+.4f} s ({c.source}, score {c.score:.3g})'
-        for c in scored
-    )
-    if len(tied) == 1:
-        run.notes.append(
-            f'self-check over the candidate offsets {text}: '
-            f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
-        )
-        return best
-    best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
-    run.reason(
-        Code.AMBIGUOUS_OFFSET,
-        f'the motion repeats itself: the self-check cannot separate '
-        f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
-        'the search with time_offset_guess and max_time_offset (less than half the '
-        'period of the motion), or record a less repetitive motion',
-    )
-    return best
 
 
 def seed_check(
@@ -326,8 +286,7 @@ def seed_check(
     pairs: PosePairs | None = None,
 ) -> LinearSolution | None:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
-    uncertainty (3 sigmas of the batch stage, and at least SEED_ROTATION_DEG /
-    SEED_TRANSLATION_M). ``pairs``: the streams associated at dt, when already made."""
+    uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`). ``pairs``: the streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
         return None
     try:
@@ -339,15 +298,7 @@ def seed_check(
         return None
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
-    lim_rot, lim_t = SEED_ROTATION_DEG, SEED_TRANSLATION_M
-    if batch is not None:
-        lim_t = max(lim_t, 3.0 * float(np.linalg.norm(batch.std[1:4])))
-        lim_rot = max(lim_rot, 3.0 * float(np.degrees(np.linalg.norm(batch.std[4:7]))))
-    if d_rot > lim_rot or d_t > lim_t:
-        run.reason(
-            Code.SEED_DEPENDENT,
-            f'with RANSAC seed {cfg.seed + 1} the linear stage gives '
-            f'an extrinsic {d_t * 1e3:.0f} mm / {d_rot:.2f} deg away: the motions do not '
-            'single out one answer',
-        )
+    doubt = seed_reason(cfg.seed + 1, d_rot, d_t, None if batch is None else batch.std)
+    if doubt is not None:
+        run.reasons.append(doubt)
     return other

@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.special import ndtr, stdtrit
 
+from ..checks.verdict import DRIFT_NOTICE_S, DRIFT_SIGMAS
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import align_time, align_time_vector
@@ -53,10 +54,6 @@ INLIER_SIGMAS = 4.0
 INLIER_FLOOR_S = 5e-4
 #: Windows whose correlation peak is below this say nothing about the offset.
 MIN_WINDOW_CORRELATION = 0.3
-#: A drift is named (default run) when it moves the offset between the first and the last eye
-#: pose by more than this (s) and by more than DRIFT_SIGMAS of its own uncertainty.
-DRIFT_NOTICE_S = 2e-3
-DRIFT_SIGMAS = 3.0
 
 
 def linear_clock(

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..checks.verdict import Code
+from ..checks.verdict import Code, drift_reason
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
 from ..findings import Findings
@@ -56,8 +56,9 @@ def clock_along(
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
     clock = _absolute_clock(fit, model)
     if not cfg.clock_drift:
-        if fit.significant:
-            run.reason(Code.CLOCK_DRIFT, _drift_message(fit))
+        doubt = drift_reason(fit)
+        if doubt is not None:
+            run.reasons.append(doubt)
         elif fit.estimated:
             run.notes.append(
                 f'the offset measured in {int(fit.inliers.sum())} windows along '
@@ -79,18 +80,6 @@ def clock_along(
         return eye, model, clock, None
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
     return eye, model, clock, float(fit.offset_at(model.stamp_ns))
-
-
-def _drift_message(fit: DriftFit) -> str:
-    n = int(fit.inliers.sum())
-    return (
-        f'the time offset drifts: measured in {n} windows along the recording it changes '
-        f'at {fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm, '
-        f'{fit.change_s * 1e3:+.1f} ms between the first and the last eye pose; the '
-        'result holds one mean offset, so the ends are off by about '
-        f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
-        'parameter clock_drift)'
-    )
 
 
 def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:

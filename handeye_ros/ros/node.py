@@ -177,39 +177,50 @@ class CalibratorNode(Node):
             self._busy.release()
             return future
 
-        def done(job: cf.Future) -> None:  # in a pool thread
-            kept = False
-            try:
-                session: Calibrated = job.result()
-            except HandeyeError as err:
-                self._failed(str(err))
-                future.set_result((False, str(err)))
-            except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
-                if self._closing:  # the node stopped it
-                    future.set_result((False, 'the node is shutting down'))
-                    return
-                self.get_logger().error(f'calibration worker failed: {err!r}')
-                if isinstance(err, cf.process.BrokenProcessPool):
-                    self._pool = worker.new_pool(ignore_sigint=False)
-                self._failed(f'internal error: {err!r}')
-                future.set_result((False, f'internal error: {err!r}'))
-            else:
-                self._drop_stage(_staged_dir(self._last_result))
-                kept = True
-                self._succeeded(session)
-                self.get_logger().info(
-                    f'calibrated in {time.perf_counter() - t0:.2f} s: {session.summary}'
-                )
-                for w in session.result.warnings:
-                    self.get_logger().warning(w)
-                future.set_result((True, session.summary))
-            finally:
-                if not kept:  # a failed calibration leaves no report to keep
-                    self._drop_stage(stage)
-                self._busy.release()
-
-        job.add_done_callback(done)
+        job.add_done_callback(lambda job: self._calibrated(job, future, stage, t0))
         return future
+
+    def _calibrated(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
+        """The worker's answer (in a pool thread): the outputs, the log, the service's answer.
+        A node stopping meanwhile has its context shut down under these publishes: nothing is
+        left to tell then, and the RCLError (a RuntimeError) is that stop, not a failure."""
+        try:
+            self._answer(job, future, stage, t0)
+        except RuntimeError:
+            if self.context.ok():
+                raise
+
+    def _answer(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
+        """See :meth:`_calibrated`; the report's staging folder is kept with a success."""
+        kept = False
+        try:
+            session: Calibrated = job.result()
+        except HandeyeError as err:
+            self._failed(str(err))
+            future.set_result((False, str(err)))
+        except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
+            if self._closing:  # the node stopped it
+                future.set_result((False, 'the node is shutting down'))
+                return
+            self.get_logger().error(f'calibration worker failed: {err!r}')
+            if isinstance(err, cf.process.BrokenProcessPool):
+                self._pool = worker.new_pool(ignore_sigint=False)
+            self._failed(f'internal error: {err!r}')
+            future.set_result((False, f'internal error: {err!r}'))
+        else:
+            self._drop_stage(_staged_dir(self._last_result))
+            kept = True
+            self._succeeded(session)
+            self.get_logger().info(
+                f'calibrated in {time.perf_counter() - t0:.2f} s: {session.summary}'
+            )
+            for w in session.result.warnings:
+                self.get_logger().warning(w)
+            future.set_result((True, session.summary))
+        finally:
+            if not kept:  # a failed calibration leaves no report to keep
+                self._drop_stage(stage)
+            self._busy.release()
 
     async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         future = self._start_worker()

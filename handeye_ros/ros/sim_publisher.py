@@ -47,7 +47,7 @@ def message_class(cls_name: str):
 
 
 def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
-    """One pose as a message of type ``cls_name`` (stream/messages.py builds it)."""
+    """One pose as a message of type ``cls_name`` (formats/messages.py builds it)."""
     msgtype = normalise_type(cls_name)
     if cls_name == 'RigidBodies':
         return messages.rigid_bodies(TYPES, t_ns, frame, [WAND, (child, p, q)])

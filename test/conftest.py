@@ -1,5 +1,10 @@
 """Shared fixtures: simulated recordings, the offline tool in a real subprocess and in process,
-real data."""
+real data.
+
+The tests mirror the package: test/core/{time,linear,batch,checks} the stages and the checks,
+test/core the foundations and the pipeline, test/stream, test/formats, test/evaluation,
+test/app the top-level modules (offline, evaluate), test/ros the node. At the top: the layout,
+lint and real-data tests and the helpers (ros_support.py, bag_layouts.py)."""
 
 from __future__ import annotations
 

@@ -155,3 +155,14 @@ def test_results_md_figures_come_from_registered_benchmarks() -> None:
     assert (changed, missing) == (['x'], [])
     assert res.refill(new, {'x': 'new 1\nnew 2'})[1] == []  # unchanged: not reported
     assert res.refill(doc, {})[2] == ['x']
+
+
+def test_the_tests_mirror_the_package() -> None:
+    """Every folder of tests is a folder of the package (test/app: its top-level modules)."""
+    for folder in sorted(p for p in (ROOT / 'test').rglob('*') if p.is_dir()):
+        rel = folder.relative_to(ROOT / 'test')
+        if rel.parts[0] in ('app', 'interfaces', 'ros_scripts', '__pycache__') or (
+            '__pycache__' in rel.parts
+        ):
+            continue
+        assert (ROOT / 'handeye_ros' / rel).is_dir(), f'test/{rel} mirrors no package folder'

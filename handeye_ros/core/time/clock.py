@@ -284,7 +284,7 @@ def repeated_medians_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     (hierarchical): the median over i of the median over j != i of the slopes through points
     i and j, and the median of y - slope x. Robust to nearly half the points being wild.
     (Written out for the few windows here: importing scipy.stats would take 1.3 s of every
-    run; test_clock_scale.py checks it against scipy's.)"""
+    run; test/core/time/test_clock.py checks it against scipy's.)"""
     dx = x[None, :] - x[:, None]
     dy = y[None, :] - y[:, None]
     with np.errstate(divide='ignore', invalid='ignore'):

@@ -664,7 +664,7 @@ def test_auto_types_lose_nothing(
 def test_qos_mismatch_is_named(ros: Processes, install: Path) -> None:
     """'0 pose(s) buffered' from a reliable subscription to a best-effort MoCap publisher: the
     answer names the publisher's QoS and the parameter that fixes it, also once the publisher
-    is gone. (Unset stamps: test_bag_replay, through the same Recorder.)"""
+    is gone. (Unset stamps: formats/test_bag.py, through the same Recorder.)"""
     _start_node(
         ros, install, 'qos_reliability:=reliable', 'hand_type:=PoseStamped', 'eye_type:=Odometry'
     )

@@ -14,7 +14,7 @@ import pytest
 pytest.importorskip('rclpy')
 pytestmark = pytest.mark.ros
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Runs calibrator.main with a SIGINT sent to itself as soon as ``{target}`` has returned,
 #: waits until rclpy's handler has shut the context down, then prints the exit code and the

@@ -33,11 +33,13 @@ import numpy as np
 from .association import associate
 from .batch.stage import Refined, batch_stage
 from .checks.coverage import mocap_coverage
+from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
 from .checks.verdict import Quality, assess, assess_model
 from .config import CalibrationConfig
 from .errors import ConfigError
 from .findings import Findings
+from .geometry import matrix_from_quat
 from .linear.stage import LinearStage, linear_stage, seed_check
 from .prepare import Inputs, prepare
 from .result import CalibrationResult, UsedStreams
@@ -150,8 +152,9 @@ def _finish(
     covered = mocap_coverage(hand, eye, dt)
     if covered.note():
         run.notes.append(covered.note())
+    time_offset_s = cfg.time_offset if offset.fixed else shift_ns * 1e-9 + dt
     return CalibrationResult(
-        time_offset_s=cfg.time_offset if offset.fixed else shift_ns * 1e-9 + dt,
+        time_offset_s=time_offset_s,
         q_HE=q_HE,
         p_HE=p_HE,
         world=world,
@@ -177,4 +180,28 @@ def _finish(
         clock=linear.clock,
         used=UsedStreams(hand, eye, refined.model.own_clock_ns(eye.t_ns, offset.eye.t_ns), dt),
         coverage=covered,
+        readiness=_readiness(offset, linear, eye, (dt, q_HE, p_HE), time_offset_s, cfg),
     )
+
+
+def _readiness(
+    offset: Offset,
+    linear: LinearStage,
+    eye: Trajectory,
+    solved: tuple[float, np.ndarray, np.ndarray],
+    time_offset_s: float,
+    cfg: CalibrationConfig,
+) -> Readiness:
+    """What the whole recording supports, from the calibration just made (:mod:`.checks.readiness`):
+    the same figures the node shows while recording."""
+    dt, q_HE, p_HE = solved
+    ta = offset.alignment
+    known = Known(
+        dt,
+        matrix_from_quat(q_HE),
+        p_HE,
+        linear.solution.n_motions,
+        getattr(ta, 'peak_correlation', float('nan')),
+        getattr(ta, 'second_peak_ratio', float('nan')),
+    )
+    return replace(readiness(offset.hand, eye, cfg, known), time_offset_s=time_offset_s)

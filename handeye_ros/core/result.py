@@ -20,6 +20,9 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
   ``order`` gains ``clock_drift`` and ``scale`` when they were estimated by the batch stage.
 - 4: ``coverage`` (the MoCap's gaps inside the eye's span and the part of it the MoCap covers,
   :mod:`.checks.coverage`); ``time_alignment.method`` may be ``keyframes`` (a keyframe-only eye).
+- 5: ``readiness`` (:mod:`.checks.readiness`): whether the recording supports the required
+  precision, the 1-sigmas it predicts, how far the device turned about each of its axes, and
+  what it lacks.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -36,6 +39,7 @@ import numpy as np
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
+from .checks.readiness import Readiness
 from .checks.screening import Screening
 from .checks.selfcheck import Candidate
 from .checks.verdict import Quality, Verdict
@@ -48,7 +52,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
@@ -108,6 +112,7 @@ class CalibrationResult:
     clock: DriftFit | None = None
     used: UsedStreams | None = field(default=None, repr=False, compare=False)
     coverage: Coverage | None = None
+    readiness: Readiness | None = None
 
     @property
     def clock_drift(self) -> float | None:
@@ -328,6 +333,7 @@ class CalibrationResult:
             ],
             'association': {'pairs': int(self.n_pairs)},
             'coverage': None if self.coverage is None else self.coverage.to_dict(),
+            'readiness': None if self.readiness is None else self.readiness.to_dict(),
             'linear': self._linear_dict(),
             'std': self._std_dict(),
             'covariance': None

@@ -98,6 +98,20 @@ def _numbers(d: dict[str, Any]) -> str:
                 ),
             )
         )
+    ready = d.get('readiness')
+    if ready:
+        sig = ready['sigma']
+        rows.append(
+            (
+                'readiness (what the recording supports)',
+                ('ready' if ready['ready'] else 'not ready: ' + _e('; '.join(ready['missing']))),
+                ' / '.join(
+                    '?' if v is None else f'{v:.2g}'
+                    for v in (sig['time_offset_ms'], sig['translation_mm'], sig['rotation_deg'])
+                )
+                + ' ms / mm / deg predicted',
+            )
+        )
     body = ''.join(
         f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows
     )

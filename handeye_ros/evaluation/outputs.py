@@ -17,7 +17,7 @@ from .metrics import ape, evaluate
 LOG = logging.getLogger(__name__)
 
 #: The report's PNG files, in page order, with the function that draws each.
-FIGURES = ('time_alignment', 'clock', 'linear', 'residuals', 'trajectories')
+FIGURES = ('time_alignment', 'clock', 'linear', 'excitation', 'residuals', 'trajectories')
 
 
 def check_directory(path: str | Path, what: str) -> Path:

@@ -207,6 +207,39 @@ def linear(result: CalibrationResult, path: Path) -> str:
     )
 
 
+def excitation(result: CalibrationResult, path: Path) -> str:
+    """How far the device (the eye) has turned about each of its axes, over the recording."""
+    fig, ax = _figure(1, height=3.2)
+    a = ax[0, 0]
+    used = result.used
+    if used is None or len(used.eye) < 3:
+        _empty(a, 'no eye poses')
+    else:
+        from ..core.geometry import consecutive_rotvecs
+
+        eye = used.eye
+        ok = eye.interval_ok()
+        turned = np.degrees(np.cumsum(np.abs(consecutive_rotvecs(eye.q_xyzw)) * ok[:, None], 0))
+        t = eye.seconds(int(eye.t_ns[0]))[1:]
+        k = _thin(t.size)
+        for col, (axis, color) in enumerate(zip('xyz', ('tab:red', 'tab:green', 'tab:blue'))):
+            a.plot(t[k], turned[k, col], color=color, label=f'about its {axis} axis')
+        a.legend(fontsize='small')
+    ready = result.readiness
+    title = 'rotation of the device about its axes'
+    if ready is not None:
+        title += ' (ready)' if ready.ready else ' (not ready)'
+    a.set_title(title)
+    a.set_xlabel('eye time [s]')
+    a.set_ylabel('turned so far [deg]')
+    _save(fig, path)
+    return (
+        'How far the device has turned about each of its own axes since the start: the '
+        'steep parts of a curve are the parts of the recording that carry T_HE about that '
+        'axis; a flat curve is an axis the motion never excited.'
+    )
+
+
 def _axes(q: np.ndarray) -> np.ndarray:
     v = np.asarray(q)[:, :3]
     n = np.linalg.norm(v, axis=1, keepdims=True)

@@ -61,6 +61,7 @@ def format_report(d: dict[str, Any]) -> str:
         ),
         *_evaluation_lines(d),
         *_screening_lines(d),
+        *readiness_lines(d.get('readiness')),
     ]
     files = d.get('files') or {}
     if files.get('export'):
@@ -146,3 +147,24 @@ def _mm(st: dict[str, Any]) -> str:
 
 def _deg(st: dict[str, Any]) -> str:
     return 'n/a' if st['rmse'] is None else f'{st["rmse"]:.2f}'
+
+
+def readiness_lines(r: dict[str, Any] | None) -> list[str]:
+    """What the recording supports (the ``readiness`` section; the node's status says the same
+    while recording)."""
+    if not r:
+        return []
+    s, t = r['sigma'], r['target']
+
+    def fig(v: float | None, fmt: str) -> str:
+        return '?' if v is None else format(v, fmt)
+
+    turned = ' '.join(f'{k} {v:.0f}' for k, v in r['rotation_deg'].items())
+    head = (
+        f'readiness: {"READY" if r["ready"] else "NOT READY"}, predicted 1-sigma '
+        f'{fig(s["time_offset_ms"], ".2g")} ms / {fig(s["translation_mm"], ".2g")} mm / '
+        f'{fig(s["rotation_deg"], ".2g")} deg (targets {t["time_offset_ms"]:g} / '
+        f'{t["translation_mm"]:g} / {t["rotation_deg"]:g}); the device turned {turned} deg '
+        f'about its x y z axes, {r["motions"]} keyframe motions'
+    )
+    return [head, *(f'  to do: {m}' for m in r['missing'])]

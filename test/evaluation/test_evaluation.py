@@ -23,6 +23,7 @@ from handeye_ros.core.geometry import compose, matrix_from_quat
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.evaluation.aligned import AlignedTrajectories
 from handeye_ros.evaluation.metrics import ape, rpe, rpe_pairs
+from handeye_ros.evaluation.outputs import FIGURES
 from handeye_ros.formats import read_trajectory, write_tum
 
 pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
@@ -266,6 +267,7 @@ def test_report_page_holds_every_plot(exported) -> None:
         'time_alignment.png',
         'clock.png',
         'linear.png',
+        'excitation.png',
         'residuals.png',
         'trajectories.png',
     ]
@@ -309,7 +311,7 @@ def test_report_renders_in_a_real_browser(exported, tmp_path: Path) -> None:
     found = re.search(r'<pre id="image-check">(.*?)</pre>', dom.stdout, re.DOTALL)
     assert found, dom.stderr[-2000:]
     images = json.loads(found.group(1).replace('&quot;', '"'))
-    assert len(images) == 5
+    assert [alt for alt, _, _ in images] == [*FIGURES]
     for alt, complete, width in images:
         assert complete and width > 500, (alt, complete, width)
     shot = tmp_path / 'report.png'

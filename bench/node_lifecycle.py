@@ -10,7 +10,7 @@ or a process manager does, then stops it at one of four moments:
 Half of the cycles stop it with Ctrl-C (SIGINT to the process group, as a terminal sends it),
 half with SIGTERM to the node alone (as systemd or `kill` do).
 
-Counted per cycle: the exit code, tracebacks on stderr, and the processes of the session still
+Counted per cycle: the exit code, tracebacks and warnings (a leaked semaphore, ...) on stderr, and the processes of the session still
 there 0.5 s after the node exited (the worker, multiprocessing's resource tracker, zombies).
 
 A last row sends Ctrl-C 0.05 s after the exec, before the interpreter has run any code of the
@@ -92,6 +92,8 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
     return {
         'rc': node.returncode,
         'tracebacks': err.count('Traceback'),
+        # e.g. the resource tracker's "leaked semaphore objects": a stop that is not clean
+        'warnings': err.count('Warning:'),
         'left': session_processes(node.pid),
         'stop_s': stop_s,
         'err': err,
@@ -115,7 +117,7 @@ def main() -> None:
             moment = MOMENTS[(k // 2) % len(MOMENTS)]
             r = cycle(probe, moment, how, rng)
             results.setdefault((how, moment), []).append(r)
-            if r['rc'] != 0 or r['tracebacks'] or r['left']:
+            if r['rc'] != 0 or r['tracebacks'] or r['warnings'] or r['left']:
                 print(
                     f'cycle {k} ({how}, {moment}): rc {r["rc"]}, left {r["left"]}\n'
                     f'{r["err"][-2000:]}',
@@ -136,6 +138,7 @@ def main() -> None:
                 len(rs),
                 sum(r['rc'] != 0 for r in rs),
                 sum(r['tracebacks'] for r in rs),
+                sum(r['warnings'] for r in rs),
                 sum(len(r['left']) for r in rs),
                 max(r['stop_s'] for r in rs),
             ]
@@ -148,6 +151,7 @@ def main() -> None:
             len(total),
             sum(r['rc'] != 0 for r in total),
             sum(r['tracebacks'] for r in total),
+            sum(r['warnings'] for r in total),
             sum(len(r['left']) for r in total),
             max(r['stop_s'] for r in total),
         ]
@@ -162,6 +166,7 @@ def main() -> None:
                 'cycles',
                 'exit code != 0',
                 'tracebacks',
+                'warnings',
                 'processes left',
                 'longest stop s',
             ],

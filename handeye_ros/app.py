@@ -138,6 +138,19 @@ def calibrate_buffers(
     return Calibrated(out, result.detached(), snapshot.frames)
 
 
+def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> dict[str, Any]:
+    """The node's status job: what a snapshot of the buffers supports
+    (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
+    section writes it."""
+    from .core.checks.readiness import readiness
+    from .core.config import CalibrationConfig
+    from .core.options import split_options
+    from .stream.config import StreamConfig
+
+    calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
+    return readiness(snapshot.hand, snapshot.eye, calib).to_dict()
+
+
 def _calibrate_files(req: Request, calib: Any) -> Any:
     """Read the two trajectory files and calibrate them."""
     import logging
@@ -253,7 +266,12 @@ def load_options(path: str | None) -> dict[str, Any]:
 @contextmanager
 def _progress_bar(show: bool | None, steps: int):
     """A step counter on stderr (tqdm) that appears only after PROGRESS_DELAY_S, so that short
-    runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``."""
+    runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``.
+    With ``show`` False no bar is made at all: tqdm's lock is a multiprocessing semaphore, which
+    a worker process that is stopped (the node's) would leave to its resource tracker."""
+    if show is False:
+        yield lambda name: None
+        return
     from tqdm import tqdm
 
     bar = tqdm(

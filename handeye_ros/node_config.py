@@ -40,6 +40,21 @@ class NodeConfig(Options):
         low=0.0,
         high=86_400.0,
     )
+    status_period: float = option(
+        1.0,
+        'float',
+        'period of the readiness status while recording [s]: excitation per axis of the device, '
+        'predicted 1-sigmas against the precision_* targets, what is missing; on ~/status, '
+        '/diagnostics and one log line; 0 disables',
+        low=0.0,
+        high=3600.0,
+    )
+    auto_calibrate: bool = option(
+        False,
+        'bool',
+        'calibrate as soon as the status is ready, then again as the buffers grow until the '
+        'reported sigmas stop improving (said in the status); ~/calibrate works at any time',
+    )
     diagnostics_period: float = option(
         1.0, 'float', 'period of the /diagnostics status [s]', low=0.05, high=3600.0
     )

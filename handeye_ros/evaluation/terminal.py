@@ -168,3 +168,32 @@ def readiness_lines(r: dict[str, Any] | None) -> list[str]:
         f'about its x y z axes, {r["motions"]} keyframe motions'
     )
     return [head, *(f'  to do: {m}' for m in r['missing'])]
+
+
+#: A bar is full when the device has turned this far about its axis (deg): display only; READY
+#: comes from the predicted sigmas.
+BAR_FULL_DEG = 360.0
+
+
+def status_line(r: dict[str, Any], width: int = 8) -> str:
+    """One line in the spirit of the camera calibrator's bars: rotation about each device axis,
+    keyframe motions, the predicted 1-sigmas against their targets, READY."""
+
+    def bar(v: float) -> str:
+        n = round(width * min(1.0, v / BAR_FULL_DEG))
+        return '#' * n + '.' * (width - n)
+
+    s, t = r['sigma'], r['target']
+
+    def fig(v: float | None) -> str:
+        return '?' if v is None else f'{v:.2g}'
+
+    axes = ' '.join(f'{k} [{bar(v)}] {v:.0f}' for k, v in r['rotation_deg'].items())
+    head = 'READY' if r['ready'] else 'not ready'
+    line = (
+        f'{head} | turned {axes} deg | {r["motions"]} motions | 1-sigma '
+        f'{fig(s["time_offset_ms"])} ms {fig(s["translation_mm"])} mm '
+        f'{fig(s["rotation_deg"])} deg (need {t["time_offset_ms"]:g} {t["translation_mm"]:g} '
+        f'{t["rotation_deg"]:g})'
+    )
+    return line + (f' | {r["missing"][0]}' if r['missing'] else '')

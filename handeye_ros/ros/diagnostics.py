@@ -43,11 +43,17 @@ def stream_status(
 
 
 def result_status(
-    name: str, session: Calibrated | None, when: str, error: str | None
+    name: str,
+    session: Calibrated | None,
+    when: str,
+    error: str | None,
+    calibrating_s: float | None = None,
 ) -> DiagnosticStatus:
     """The diagnostics of the calibration: the last attempt's outcome, and only then the
     numbers of the result the latched topics hold.
 
+    - A calibration running (``calibrating_s``: for how long): OK, ``calibrating``; the values
+      still describe the result the latched topics hold.
     - No calibration yet: OK.
     - The last attempt failed: ERROR with its reason. The numbers of an earlier result are not
       shown; ``latched_outputs`` says they are stale and where they come from.
@@ -57,6 +63,9 @@ def result_status(
     st = DiagnosticStatus(name=f'{name}: result', hardware_id=name)
     if error is not None:
         st.level, st.message = DiagnosticStatus.ERROR, error[:500]
+        if calibrating_s is not None:
+            st.message = f'calibrating ({calibrating_s:.1f} s); the last attempt failed: {error}'
+            st.message = st.message[:500]
         stale = (
             'none'
             if session is None
@@ -67,6 +76,8 @@ def result_status(
         return st
     if session is None:
         st.level, st.message = DiagnosticStatus.OK, 'no calibration yet'
+        if calibrating_s is not None:
+            st.message = f'calibrating ({calibrating_s:.1f} s)'
         return st
     r = session.result
     q = r.quality
@@ -76,6 +87,8 @@ def result_status(
         Verdict.FAILED: DiagnosticStatus.ERROR,
     }[q.verdict]
     st.message = session.summary[:500]
+    if calibrating_s is not None:
+        st.message = f'calibrating ({calibrating_s:.1f} s); the last result: ' + st.message[:400]
     pub = messages.Published.from_result(r, session.frames)
     st.values = [
         KeyValue(key=k, value=str(v))
@@ -98,3 +111,30 @@ def result_status(
 def _finite(x: float) -> float | None:
     """As the result file writes it: an unknown value (NaN) is None."""
     return float(x) if math.isfinite(x) else None
+
+
+def readiness_status(name: str, ready: dict | None, why_not: str | None) -> DiagnosticStatus:
+    """The readiness while recording (``~/status`` and /diagnostics): OK when ready, WARN with
+    the first thing to do otherwise; the values are the result's ``readiness`` section
+    flattened (``sigma.translation_mm``, ``rotation_deg.z``, ``missing.1``, ...)."""
+    st = DiagnosticStatus(name=f'{name}: readiness', hardware_id=name)
+    if ready is None:
+        st.level, st.message = DiagnosticStatus.WARN, why_not or 'waiting for data'
+        return st
+    st.level = DiagnosticStatus.OK if ready['ready'] else DiagnosticStatus.WARN
+    st.message = 'READY' if ready['ready'] else (ready['missing'] or ['not ready'])[0][:500]
+    st.values = [KeyValue(key=k, value=str(v)) for k, v in _flat(ready)]
+    return st
+
+
+def _flat(d: dict, prefix: str = '') -> list[tuple[str, object]]:
+    out: list[tuple[str, object]] = []
+    for k, v in d.items():
+        key = f'{prefix}{k}'
+        if isinstance(v, dict):
+            out += _flat(v, key + '.')
+        elif isinstance(v, list):
+            out += [(f'{key}.{i + 1}', x) for i, x in enumerate(v)]
+        else:
+            out.append((key, v))
+    return out

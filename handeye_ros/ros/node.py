@@ -61,6 +61,7 @@ from ..formats.result_file import write_result
 from ..stream import STREAMS, Recorder
 from ..stream.convert import TF_TYPE
 from . import diagnostics, parameters, worker
+from .status import ReadinessStatus
 from .subscriptions import Subscriptions
 from .types import RclpyTypes
 
@@ -109,16 +110,37 @@ class CalibratorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._closing = False
 
+        self._busy_since = 0.0
+        self._pool = pool
         self.poses = Subscriptions(self, self.recorder, self._on_pose)
+        self.status = ReadinessStatus(
+            self, self.node_cfg.status_period, self.node_cfg.auto_calibrate
+        )
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         parameters.warn_unknown(self)
-        self._pool = pool
         self.get_logger().info(
             f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
         )
+
+    @property
+    def closing(self) -> bool:
+        """Whether the node is stopping (its worker is being stopped)."""
+        return self._closing
+
+    def options(self) -> dict[str, Any]:
+        """The algorithm's options as the worker's jobs take them."""
+        return self.calib_cfg.to_dict()
+
+    def submit(self, fn: Any, *args: Any) -> cf.Future:
+        """A job for the worker pool (RuntimeError once it is shut down)."""
+        return self._pool.submit(fn, *args)
+
+    def calibrate(self) -> Future | None:
+        """Calibrate a snapshot of the buffers now, unless one runs (see :meth:`_start_worker`)."""
+        return self._start_worker()
 
     # ------------------------------------------------------------------ parameters
 
@@ -156,6 +178,7 @@ class CalibratorNode(Node):
         """
         if not self._busy.acquire(blocking=False):
             return None
+        self._busy_since = time.monotonic()
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
@@ -319,6 +342,7 @@ class CalibratorNode(Node):
             )
         if self._static_tf is not None:
             self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
+        self.status.calibrated(session)
         self._publish_diagnostics()
 
     def _failed(self, why: str) -> None:
@@ -352,9 +376,13 @@ class CalibratorNode(Node):
             if stream in self.poses.guessed:
                 msgtype += ' (likeliest; not yet seen on the graph)'
             arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype))
+        busy = time.monotonic() - self._busy_since if self._busy.locked() else None
         arr.status.append(
-            diagnostics.result_status(name, self._last_result, self._last_when, self._last_error)
+            diagnostics.result_status(
+                name, self._last_result, self._last_when, self._last_error, busy
+            )
         )
+        arr.status.append(self.status.status())
         self.pub_diag.publish(arr)
 
 

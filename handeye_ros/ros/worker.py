@@ -23,9 +23,14 @@ MODULES = (
 )
 
 
+#: Worker processes: one for calibrations, one for the status (either takes either job).
+WORKERS = 2
+
+
 def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
-    """A pool of one spawned worker (spawn, not fork: the node's DDS threads must not be
-    forked), started now and with the core imported, so that a call pays no start-up.
+    """A pool of WORKERS spawned workers (spawn, not fork: the node's DDS threads must not be
+    forked), started now and with the core imported, so that a call pays no start-up: a
+    calibration and the readiness status can run at once.
 
     ``ignore_sigint``: start it with SIGINT ignored (see the module docstring); only from the
     main thread and before rclpy.init. A pool renewed later (after a worker crashed) cannot,
@@ -37,9 +42,11 @@ def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         pool = cf.ProcessPoolExecutor(
-            max_workers=1, initializer=start, mp_context=multiprocessing.get_context('spawn')
+            max_workers=WORKERS, initializer=start, mp_context=multiprocessing.get_context('spawn')
         )
-        pool.submit(int)  # spawns the worker (and multiprocessing's resource tracker) now
+        # each call finds no idle worker (none has started yet) and spawns one, now
+        for _ in range(WORKERS):
+            pool.submit(int)
     finally:
         if ignore_sigint:
             signal.signal(signal.SIGINT, previous)

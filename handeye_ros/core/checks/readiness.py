@@ -38,7 +38,7 @@ from ..geometry import (
     skew,
 )
 from ..linear.stage import solve_linear
-from ..time.align import align_time
+from ..time.align import MIN_OVERLAP_S, align_time
 from ..trajectory import Trajectory
 from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION
 
@@ -52,6 +52,9 @@ SLOW_DPS = 30.0
 RECENT_S = 10.0
 #: A stream missing more than this fraction of its recent samples is said to drop out.
 DROPOUT_FRACTION = 0.05
+#: Shorter streams cannot be aligned in time: stage 1 wants MIN_OVERLAP_S of overlap at the
+#: offsets it searches, some of which overlap only partly.
+MIN_RECORDING_S = 2.0 * MIN_OVERLAP_S
 #: Residuals beyond this many robust sigmas are left out, as Huber's loss nearly does.
 OUTLIER_SIGMAS = 5.0
 
@@ -159,6 +162,12 @@ def readiness(
         return Readiness(
             False, nan3, target, **base, missing=('the device is held still: move it', *health)
         )
+    short = min(hand.duration_s, eye.duration_s)
+    if known is None and short < MIN_RECORDING_S:
+        keep = (
+            f'keep recording: {short:.0f} s of both streams so far, {MIN_RECORDING_S:.0f} s needed'
+        )
+        return Readiness(False, nan3, target, **base, missing=(keep, *health))
     try:
         known = known or _calibrate(hand, eye, cfg)
     except HandeyeError as err:

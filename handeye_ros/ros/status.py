@@ -1,0 +1,160 @@
+"""The calibrator's readiness status while recording, and its auto mode.
+
+Every ``status_period`` the node hands a snapshot of its buffers to its worker pool, which
+computes what they support (:mod:`handeye_ros.core.checks.readiness`: excitation about each
+axis of the device, the 1-sigmas a calibration now would have against the ``precision_*``
+targets, what is missing in the user's words). The answer is published on ``~/status``
+(diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is shown as one line: refreshed
+in place on a terminal, logged when it changes elsewhere. The node's executor only takes the
+snapshot: ingest never waits for the computation.
+
+With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
+time the buffered span has grown by GROWTH, until a result's reported sigmas improve on the
+previous one's by less than IMPROVEMENT: converged, said in the status. ``~/calibrate`` works
+at any time.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from ..app import Calibrated, readiness_of_buffers
+from ..core.errors import HandeyeError
+from ..evaluation.terminal import status_line
+from ..stream import STREAMS
+from . import diagnostics
+
+#: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
+GROWTH = 1.5
+#: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction.
+IMPROVEMENT = 0.1
+#: Off a terminal, the status line is logged when it changes, and at least this often (s).
+LOG_PERIOD_S = 10.0
+
+
+class ReadinessStatus:
+    """The status of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`)."""
+
+    def __init__(self, node: Any, period_s: float, auto: bool) -> None:
+        self._node = node
+        #: the last readiness (the result's ``readiness`` section), or None with why_not
+        self.last: dict[str, Any] | None = None
+        self.why_not = 'waiting for data'
+        self.auto = 'waiting for READY' if auto else 'off'
+        self._pending = False
+        self._span_calibrated = 0.0
+        self._sigmas: tuple[float, float, float] | None = None
+        self._logged = (0.0, '')
+        self._tty = sys.stderr.isatty()
+        self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
+        if period_s > 0.0:
+            node.create_timer(period_s, self.tick)
+
+    def tick(self) -> None:
+        """On the executor: maybe calibrate (auto mode), then ask the worker for a status."""
+        node = self._node
+        if self.auto in ('waiting for READY', 'calibrating') and self.last and self.last['ready']:
+            self._auto_calibrate()
+        if self._pending or node.closing:
+            return
+        empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
+        if empty:
+            self.last = None
+            self.why_not = node.poses.why_no_data() or (
+                f'waiting for data on the {" and ".join(empty)} stream'
+            )
+            self._publish()
+            return
+        try:
+            snapshot = node.recorder.snapshot()
+        except HandeyeError as err:
+            self.last, self.why_not = None, str(err)
+            self._publish()
+            return
+        self._pending = True
+        try:
+            job = node.submit(readiness_of_buffers, snapshot, node.options())
+        except RuntimeError:  # the pool is shut down: the node stops
+            self._pending = False
+            return
+        job.add_done_callback(self._done)
+
+    def _done(self, job: Any) -> None:
+        """In a pool thread: keep and publish the answer."""
+        try:
+            self.last, self.why_not = job.result(), ''
+        except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
+            self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
+        finally:
+            self._pending = False
+        try:
+            self._publish()
+        except RuntimeError:  # the context went down under the publish: the node stops
+            if self._node.context.ok():
+                raise
+
+    def _publish(self) -> None:
+        st = self.status()
+        self.pub.publish(st)
+        self._say(st.message if self.last is None else status_line(self.last))
+
+    def status(self) -> DiagnosticStatus:
+        """The status as ``~/status`` and /diagnostics carry it."""
+        st = diagnostics.readiness_status(
+            self._node.get_fully_qualified_name(), self.last, self.why_not
+        )
+        if self.auto != 'off':
+            st.values.append(diagnostics.KeyValue(key='auto_calibrate', value=self.auto))
+        return st
+
+    def _say(self, line: str) -> None:
+        """One line: redrawn in place on a terminal, else logged when it changes (and every
+        LOG_PERIOD_S)."""
+        if self.auto.startswith('converged'):
+            line += f' | {self.auto}'
+        if self._tty:
+            sys.stderr.write('\r' + line + '\x1b[K')
+            sys.stderr.flush()
+            return
+        now = time.monotonic()
+        last_t, last_key = self._logged
+        # said again when READY or the first thing to do changes, not for every new figure
+        todo = self.last['missing'] if self.last else [line]
+        key = line.split('|')[0] + (todo[0].split(':')[0][:60] if todo else '')
+        if key != last_key or now - last_t >= LOG_PERIOD_S:
+            self._logged = (now, key)
+            self._node.get_logger().info(f'status: {line}')
+
+    # ------------------------------------------------------------------ auto mode
+
+    def _auto_calibrate(self) -> None:
+        span = min(self._node.recorder.stats()[s].span_s for s in STREAMS)
+        if self._span_calibrated and span < GROWTH * self._span_calibrated:
+            return
+        if self._node.calibrate() is not None:
+            self._span_calibrated = span
+            self.auto = 'calibrating'
+
+    def calibrated(self, session: Calibrated) -> None:
+        """A new result: with auto mode, converged once its sigmas stop improving."""
+        batch = session.document.get('std')
+        if self.auto == 'off' or not batch:
+            return
+        sigmas = (
+            float(batch['time_offset']),
+            float(np.linalg.norm(batch['translation'])),
+            float(np.linalg.norm(batch['rotation'])),
+        )
+        before, self._sigmas = self._sigmas, sigmas
+        if before is not None and all(
+            new > (1.0 - IMPROVEMENT) * old for new, old in zip(sigmas, before, strict=True)
+        ):
+            self.auto = (
+                f'converged: the reported sigmas stopped improving ({sigmas[0] * 1e3:.2g} ms, '
+                f'{sigmas[1] * 1e3:.2g} mm, {np.degrees(sigmas[2]):.2g} deg)'
+            )

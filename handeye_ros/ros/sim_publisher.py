@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from handeye_ros.core.geometry import positive_w
-from handeye_ros.core.simulate import noise_level, simulate
+from handeye_ros.core.simulate import MOTIONS, noise_level, simulate
 from handeye_ros.formats import messages
 from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
 from handeye_ros.ros.types import RclpyTypes
@@ -74,6 +74,13 @@ def parser() -> argparse.ArgumentParser:
         help="noise level 0-10 of the paper's protocol (default: 3)",
     )
     ap.add_argument('--duration', type=float, default=40.0, help='length [s] (default: 40)')
+    ap.add_argument(
+        '--motion',
+        choices=MOTIONS,
+        default='random',
+        help='how the rig moves (default: random, about every axis); planar and one_axis '
+        'never let the calibration see every direction, which the status names',
+    )
     ap.add_argument(
         '--hand-rate', type=float, default=100.0, help='MoCap pose rate [Hz] (default: 100)'
     )
@@ -210,6 +217,7 @@ def main() -> int:
         eye_rate_hz=args.eye_rate,
         noise_m=nm,
         noise_deg=nd,
+        motion=args.motion,
     )
     for spec in args.bag:
         path, _, storage = spec.partition(':')

@@ -8,6 +8,8 @@ Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
        ros_client.py param NAME:=VALUE ...            (set /calibrator's parameters; YAML
                                                        values)
        ros_client.py tf_static                        (the latched /tf_static; needs tf2_msgs)
+       ros_client.py status SECONDS                   (every ~/status of /calibrator and when
+                                                       each new extrinsic came, for SECONDS)
 """
 
 from __future__ import annotations
@@ -150,6 +152,41 @@ def tf_static(node: Node) -> list[dict]:
     ]
 
 
+def status(node: Node, seconds: float) -> dict:
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    t0 = time.monotonic()
+    got: dict = {'status': [], 'extrinsic': []}
+
+    def on_status(m: DiagnosticStatus) -> None:
+        got['status'].append(
+            {
+                't': time.monotonic() - t0,
+                'level': int.from_bytes(m.level, 'little')
+                if isinstance(m.level, bytes)
+                else int(m.level),
+                'message': m.message,
+                'values': {kv.key: kv.value for kv in m.values},
+            }
+        )
+
+    qos = QoSProfile(
+        depth=1,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+    node.create_subscription(DiagnosticStatus, '/calibrator/status', on_status, 10)
+    node.create_subscription(
+        TransformStamped,
+        '/calibrator/extrinsic',
+        lambda m: got['extrinsic'].append(time.monotonic() - t0),
+        qos,
+    )
+    while time.monotonic() - t0 < seconds:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    return got
+
+
 def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
     client = AsyncParameterClient(node, '/calibrator')
     if not client.wait_for_services(timeout_sec=TIMEOUT_S):
@@ -171,6 +208,8 @@ def main() -> int:
         out = latched(node)
     elif mode == 'tf_static':
         out = tf_static(node)
+    elif mode == 'status':
+        out = status(node, float(names[0]))
     elif mode == 'param':
         out = set_parameters(node, names)
     else:

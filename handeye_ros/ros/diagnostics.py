@@ -20,7 +20,11 @@ def stream_status(
     """One stream's status: WARN without data or with rejected messages, OK with its rate."""
     st = DiagnosticStatus(name=f'{name}: {stream} stream', hardware_id=name)
     rejected = sum(s.rejected.values())
-    if s.stored < 2:
+    if s.stored < 2 and rejected:
+        kinds = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in s.rejected.items() if v)
+        st.level = DiagnosticStatus.WARN
+        st.message = f'no usable data: every message was rejected ({kinds})'
+    elif s.stored < 2:
         st.level, st.message = DiagnosticStatus.WARN, 'no data'
     elif rejected:
         st.level, st.message = DiagnosticStatus.WARN, f'{rejected} messages rejected'

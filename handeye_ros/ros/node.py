@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import shutil
+import sys
 import tempfile
 import threading
 import time
@@ -120,8 +121,9 @@ class CalibratorNode(Node):
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
         parameters.warn_unknown(self)
+        parameters.warn_unused_params_files(self, sys.argv)
         self.get_logger().info(
-            f'buffering hand {self.stream_cfg.hand_topic} and eye {self.stream_cfg.eye_topic}; '
+            f'buffering hand {self.poses.shown("hand")} and eye {self.poses.shown("eye")}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
         )
 
@@ -163,9 +165,14 @@ class CalibratorNode(Node):
             if now - self._reject_warned[stream] >= REJECT_WARN_PERIOD_S:
                 self._reject_warned[stream] = now
                 rejected = self.recorder.buffers[stream].rejected
+                hint = (
+                    ' (a publisher restarted? call ~/reset to start the buffers over)'
+                    if reason == 'stamp_not_increasing'
+                    else ''
+                )
                 self.get_logger().warning(
-                    f'{stream}: rejected a message ({reason.replace("_", " ")}); rejected so '
-                    f'far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}'
+                    f'{stream}: rejected a message ({reason.replace("_", " ")}){hint}; rejected '
+                    f'so far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}'
                 )
 
     # ------------------------------------------------------------------ services

@@ -5,6 +5,8 @@ and names given but unknown (a misspelt key in a params file) said at start."""
 from __future__ import annotations
 
 import difflib
+import itertools
+from pathlib import Path
 from typing import Any
 
 from rcl_interfaces.msg import (
@@ -117,3 +119,31 @@ def warn_unknown(node: Node) -> None:
             f'unknown parameter {name!r} ignored'
             + (f': did you mean {near[0]!r}?' if near else ' (calibrator --help lists them)')
         )
+
+
+def warn_unused_params_files(node: Node, argv: list[str]) -> None:
+    """Name a params file (``--params-file`` in ``argv``) none of whose sections applies to
+    this node: rclpy applies the sections named after the node (or ``/**``) and ignores the
+    others silently, so a misnamed section leaves every value at its default."""
+    import fnmatch
+
+    import yaml
+
+    full = node.get_fully_qualified_name()
+    for path in (b for a, b in itertools.pairwise(argv) if a == '--params-file'):
+        try:
+            sections = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            continue  # rclpy has said so already, or refused to start
+        if not isinstance(sections, dict):
+            continue
+        names = [str(k) for k in sections]
+        if not any(
+            fnmatch.fnmatchcase(full, '/' + k.lstrip('/').replace('**', '*')) for k in names
+        ):
+            near = difflib.get_close_matches(node.get_name(), [k.strip('/') for k in names], 1)
+            node.get_logger().warning(
+                f'params file {path}: no section for this node ({full}); its sections '
+                f'{", ".join(names)} were ignored, every parameter keeps its default'
+                + (f' (rename {near[0]!r} to {node.get_name()!r}?)' if near else '')
+            )

@@ -66,6 +66,17 @@ class Subscriptions:
         if len(self.subs) < len(STREAMS) or self.guessed:
             self._graph_timer = node.create_timer(GRAPH_POLL_S, self.discover_types)
 
+    def topic(self, stream: str) -> str:
+        """A stream's topic as the graph knows it: expanded and remapped (``--ros-args -r``)."""
+        return self._node.resolve_topic_name(self._recorder.selectors[stream].topic)
+
+    def shown(self, stream: str) -> str:
+        """A stream's selector for messages, with the remapped topic where it differs."""
+        sel = self._recorder.selectors[stream]
+        topic = self.topic(stream)
+        same = topic == self._node.resolve_topic_name(sel.topic, only_expand=True)
+        return sel.text if same else f'{topic} (remapped from {sel.text})'
+
     def check_topics(self) -> None:
         """Every topic a selector names is a valid ROS name (ConfigError naming the rule)."""
         for stream in STREAMS:
@@ -151,11 +162,11 @@ class Subscriptions:
         if guess:
             self.guessed.add(stream)
             self._log.info(
-                f'{stream}: subscribed to {sel.text} as {msgtype}, its likeliest type, until '
+                f'{stream}: subscribed to {self.shown(stream)} as {msgtype}, its likeliest type, until '
                 'its publisher says which it has'
             )
         else:
-            self._log.info(f'{stream}: subscribed to {sel.text} ({msgtype})')
+            self._log.info(f'{stream}: subscribed to {self.shown(stream)} ({msgtype})')
 
     def _on_incompatible_qos(self, stream: str, event: Any) -> None:
         """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
@@ -163,7 +174,7 @@ class Subscriptions:
         if why is None:
             policy = QoSPolicyKind(event.last_policy_kind).name.lower()
             why = (
-                f'{stream} topic {self._recorder.selectors[stream].topic}: a publisher offers '
+                f'{stream} topic {self.topic(stream)}: a publisher offers '
                 f'a QoS this subscription cannot match ({policy}); nothing it sends arrives'
             )
         self._qos_problems[stream] = why
@@ -175,11 +186,16 @@ class Subscriptions:
         sub = self.subs.get(stream)
         if sub is None or sub.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
             return None
-        topic = self._recorder.selectors[stream].topic
+        topic = self.topic(stream)
         for info in self._node.get_publishers_info_by_topic(topic):
             if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT:
+                who = (
+                    'its publisher'
+                    if info.node_name in ('', '_NODE_NAME_UNKNOWN_')
+                    else f'its publisher {info.node_namespace.rstrip("/")}/{info.node_name}'
+                )
                 return (
-                    f'{stream} topic {topic}: its publisher {info.node_name} is best_effort '
+                    f'{stream} topic {topic}: {who} is best_effort '
                     'and this node asks reliable delivery (qos_reliability: reliable), so '
                     'nothing it sends arrives: set qos_reliability: best_effort'
                 )
@@ -189,7 +205,7 @@ class Subscriptions:
         """Learn the message type of auto-typed topics from the graph."""
         now = time.monotonic()
         for stream in self.unknown():
-            topic = self._recorder.selectors[stream].topic
+            topic = self.topic(stream)
             types = self.publisher_types(topic)
             usable = _pose_types(types)
             guess = self._recorder.types[stream] if stream in self.guessed else None
@@ -251,7 +267,7 @@ class Subscriptions:
             if stream in self._sub_errors and stream not in self.subs:
                 return f'{stream}: {self._sub_errors[stream]}'
             if stream in unknown and empty:
-                topic = self._recorder.selectors[stream].topic
+                topic = self.topic(stream)
                 types = self.publisher_types(topic)
                 usable = _pose_types(types)
                 if len(usable) > 1:

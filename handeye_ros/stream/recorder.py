@@ -176,7 +176,8 @@ class Recorder:
         r, way_out = (
             buf.rejected,
             (
-                f'use_arrival_time: {stream} stamps them on arrival'
+                f'use_arrival_time: {stream} stamps them on arrival (a start parameter: '
+                'restart the node with it)'
                 if stream not in self.arrival
                 else ''
             ),
@@ -193,6 +194,11 @@ class Recorder:
                 f'{r["stamp_not_increasing"]} went back: the publisher stamps with a frozen '
                 f'or coarse clock, or several sources share the topic'
                 + (f'; {way_out}' if way_out else '')
+                + (
+                    '; a publisher restarted with an older clock needs ~/reset'
+                    if r['stamp_not_increasing']
+                    else ''
+                )
             )
         return None
 

@@ -494,6 +494,26 @@ def test_unknown_parameters_are_named(ros: Processes, install: Path) -> None:
     assert "unknown parameter 'qos_relability' ignored: did you mean 'qos_reliability'?" in err
 
 
+def test_misnamed_params_section_and_remapped_topics_are_said(
+    ros: Processes, install: Path, tmp_path: Path
+) -> None:
+    """A params file whose section names another node is said (rclpy ignores it silently),
+    and the logs name the remapped topic a stream is read from."""
+    bad = tmp_path / 'params.yaml'
+    bad.write_text('calibratr:\n  ros__parameters:\n    eta: 4.0\n')
+    exe = resolve_executable(ros.env, 'handeye_ros', 'calibrator')
+    node = ros.start(
+        [str(exe), '--ros-args', '--params-file', str(bad), '-r', '/mocap/pose:=/vicon/rig'],
+        'node',
+    )
+    assert wait_for(lambda: 'buffering hand' in ros.output(node)[1], timeout=30.0, step=0.2)
+    assert ros.stop(node) == 0
+    err = ros.output(node)[1]
+    assert 'no section for this node (/calibrator); its sections calibratr were ignored' in err
+    assert "(rename 'calibratr' to 'calibrator'?)" in err
+    assert 'buffering hand /vicon/rig (remapped from /mocap/pose)' in err
+
+
 def test_publish_calibration_latched_or_as_a_bag(install: Path, tmp_path: Path) -> None:
     """A saved result back into ROS: into a bag (latched /tf_static) where tf2_msgs cannot be
     imported; published latched on /tf_static where it can; a file that is no result is

@@ -87,6 +87,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['real_world_tumvi', 'real_world_keyframes', 'real_world_sim'],
         '5 min',
     ),
+    'readiness': ('readiness', [], ['readiness'], '10 min'),
     'node_ingest': (
         'node_ingest',
         [],

@@ -15,7 +15,9 @@ in the x-y plane), a turntable or pan unit (``one_axis``: rotation about one fix
 translation), a periodic back-and-forth (``repetitive``: the same 2 s pattern over and over,
 whose angular speed repeats exactly), a slow hand (``slow``: ~3 deg/s, a tenth of the
 default, turning through large angles nonetheless), and a rig turned about all axes without
-moving through space (``in_place``: the marker stays put; a monocular scale is unobservable).
+moving through space (``in_place``: the marker stays put; a monocular scale is unobservable),
+and a recording that starts poor and becomes rich (``planar_start``: planar for its first
+third, then about every axis, as a person who first only turns the device about one axis).
 
 Real recordings also come incomplete, which :func:`keyframes_only`, :func:`with_dropouts` and
 :func:`two_windows` make of a simulated one: an eye that keeps only keyframes at irregular
@@ -106,7 +108,7 @@ def random_truth(rng: np.random.Generator, max_time_offset_s: float = 0.1) -> Tr
 
 
 #: Hand motion shapes of :func:`simulate` (see the module docstring).
-MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow', 'in_place')
+MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow', 'in_place', 'planar_start')
 #: Period of the ``repetitive`` motion, seconds.
 REPETITIVE_PERIOD_S = 2.0
 
@@ -133,7 +135,16 @@ def smooth_motion(
     knots = (np.arange(n_ctrl + k + 1) - k) * knot_spacing_s - knot_spacing_s
     pos_ctrl = rng.normal(0.0, position_std_m, (n_ctrl, 3))
     rot_ctrl = rng.normal(0.0, rotation_std_rad, (n_ctrl, 3))
-    if motion == 'planar':
+    if motion == 'planar_start':
+        # the first third planar (yaw only, in the x-y plane), the rest about every axis,
+        # continuing from where the planar part left off
+        k0 = n_ctrl // 3
+        pos_ctrl[:k0, 2] = 0.0
+        yaw = np.cumsum(rng.normal(0.0, 2.0 * rotation_std_rad, k0))
+        rot_ctrl[:k0] = 0.0
+        rot_ctrl[:k0, 2] = yaw
+        rot_ctrl[k0:, 2] += yaw[-1]
+    elif motion == 'planar':
         pos_ctrl[:, 2] = 0.0
         # yaw only, but with a larger swing: a ground robot turns through whole circles
         rot_ctrl = np.zeros((n_ctrl, 3))

@@ -68,6 +68,10 @@ class Calibrated:
     document: dict[str, Any]
     result: Any
     frames: dict[str, str]
+    #: 'eye' and 'ground_truth' (the hand in the eye's world and clock, T_WG T_GH(t - dt)
+    #: T_HE), each (stamps int64 ns on the eye clock, p (N, 3), q (N, 4) x y z w), at most
+    #: MAX_PATH_POSES poses, in the eye's world frame; empty without an evaluation
+    paths: dict[str, tuple[Any, Any, Any]] = field(default_factory=dict)
 
     @property
     def summary(self) -> str:
@@ -135,7 +139,27 @@ def calibrate_buffers(
         outputs_required=False,
     )
     out, result = run(req)
-    return Calibrated(out, result.detached(), snapshot.frames)
+    return Calibrated(out, result.detached(), snapshot.frames, _paths(result))
+
+
+#: The node's paths hold at most this many poses (RViz draws a few thousand at ease).
+MAX_PATH_POSES = 2000
+
+
+def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
+    """The eye's path and the calibrated ground truth's (see :class:`Calibrated`)."""
+    from .core.geometry import quat_from_matrix
+    from .evaluation.aligned import calibrated
+
+    try:
+        al = calibrated(result)
+    except ValueError:
+        return {}
+    k = slice(None, None, max(1, -(-len(al) // MAX_PATH_POSES)))
+    return {
+        'eye': (al.t_ns[k], al.p_est[k], quat_from_matrix(al.R_est[k])),
+        'ground_truth': (al.t_ns[k], al.p_ref[k], quat_from_matrix(al.R_ref[k])),
+    }
 
 
 def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> dict[str, Any]:

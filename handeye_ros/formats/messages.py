@@ -94,6 +94,19 @@ def pose(types: Types, p: Any, q: Any) -> Any:
     )
 
 
+def path(types: Types, frame_id: str, t_ns: Any, p: Any, q: Any) -> Any:
+    """nav_msgs/Path of poses (stamps int64 ns, p (N, 3), q (N, 4) x y z w) in ``frame_id``,
+    stamped with its last pose."""
+    poses = [
+        types['geometry_msgs/msg/PoseStamped'](
+            header=header(types, int(t), frame_id), pose=pose(types, pk, qk)
+        )
+        for t, pk, qk in zip(t_ns, p, q, strict=True)
+    ]
+    last = int(t_ns[-1]) if len(poses) else 0
+    return types['nav_msgs/msg/Path'](header=header(types, last, frame_id), poses=poses)
+
+
 def rigid_bodies(
     types: Types, t_ns: int, frame_id: str, bodies: list[tuple[str, Any, Any]]
 ) -> Any:

@@ -73,6 +73,10 @@ LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+#: The latched nav_msgs/Path topics of each result (relative to the node), by path: the eye's
+#: trajectory and the calibrated ground truth (the hand in the eye's world and clock), both in
+#: the eye's world frame, for RViz or Foxglove to overlay.
+PATHS = {'eye': 'eye_path', 'ground_truth': 'ground_truth_path'}
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
 
@@ -98,6 +102,10 @@ class CalibratorNode(Node):
         self._outputs = {
             name: self.create_publisher(self._types[t], f'~/{name}', LATCHED)
             for name, t in messages.OUTPUT_TYPES.items()
+        }
+        self._paths = {
+            name: self.create_publisher(self._types['nav_msgs/msg/Path'], f'~/{name}', LATCHED)
+            for name in PATHS.values()
         }
         self._static_tf = self._static_broadcaster()
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -349,6 +357,10 @@ class CalibratorNode(Node):
             )
         if self._static_tf is not None:
             self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
+        world = session.frames['eye_world']
+        for key, name in PATHS.items():
+            if key in session.paths:
+                self._paths[name].publish(messages.path(self._types, world, *session.paths[key]))
         self.status.calibrated(session)
         self._publish_diagnostics()
 

@@ -772,6 +772,13 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
     first = [t for t in got['extrinsic'] if t >= t_ready]
     assert first and first[0] - t_ready < 2.0, (t_ready, got['extrinsic'])
     assert all(t >= t_ready for t in got['extrinsic'])  # nothing before READY
+    # the latched paths to overlay: the eye and the calibrated ground truth, same stamps
+    paths = _call(ros, mode='paths', name='paths')
+    eye, truth = paths['eye_path'], paths['ground_truth_path']
+    assert eye['frame'] == truth['frame'] and len(eye['xyz']) > 100
+    assert eye['stamps'] == truth['stamps']
+    gap = np.linalg.norm(np.array(eye['xyz']) - np.array(truth['xyz']), axis=1)
+    assert np.median(gap) < 0.1  # the eye's own drift at level 3: a few cm
 
 
 def test_a_planar_recording_never_becomes_ready_and_names_the_axis(

@@ -8,6 +8,7 @@ Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
        ros_client.py param NAME:=VALUE ...            (set /calibrator's parameters; YAML
                                                        values)
        ros_client.py tf_static                        (the latched /tf_static; needs tf2_msgs)
+       ros_client.py paths                            (the latched eye and ground-truth paths)
        ros_client.py status SECONDS                   (every ~/status of /calibrator and when
                                                        each new extrinsic came, for SECONDS)
 """
@@ -187,6 +188,32 @@ def status(node: Node, seconds: float) -> dict:
     return got
 
 
+def paths(node: Node) -> dict:
+    from nav_msgs.msg import Path
+
+    qos = QoSProfile(
+        depth=1,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+    got: dict = {}
+    for name in ('eye_path', 'ground_truth_path'):
+        node.create_subscription(
+            Path, f'/calibrator/{name}', lambda m, n=name: got.__setitem__(n, m), qos
+        )
+    deadline = time.monotonic() + 20.0
+    while len(got) < 2 and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    return {
+        n: {
+            'frame': m.header.frame_id,
+            'stamps': [p.header.stamp.sec * 10**9 + p.header.stamp.nanosec for p in m.poses],
+            'xyz': [[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in m.poses],
+        }
+        for n, m in got.items()
+    }
+
+
 def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
     client = AsyncParameterClient(node, '/calibrator')
     if not client.wait_for_services(timeout_sec=TIMEOUT_S):
@@ -208,6 +235,8 @@ def main() -> int:
         out = latched(node)
     elif mode == 'tf_static':
         out = tf_static(node)
+    elif mode == 'paths':
+        out = paths(node)
     elif mode == 'status':
         out = status(node, float(names[0]))
     elif mode == 'param':

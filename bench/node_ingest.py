@@ -7,6 +7,9 @@
 (b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while the publisher keeps sending: the
     service round trip, and whether anything was lost meanwhile.
 (c) Offline: a 10-minute mcap bag (200 Hz + 30 Hz) calibrated end to end by offline_calibrate.
+(d) The readiness status's cost (issue 28): (a) again with status_period 0 (--baseline-minutes),
+    and the CPU time of the node and of its worker processes over each run, against the wall
+    time: the difference is what the status costs.
 
 Every rclpy process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST on a random domain.
 Usage: python bench/node_ingest.py [--skip a b c] [--minutes 10]
@@ -36,6 +39,22 @@ ENV = dict(
     PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
     PYTHONUNBUFFERED='1',
 )
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time of a process so far [s] (0 once it is gone)."""
+    try:
+        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def children(pid: int) -> list[int]:
+    out = subprocess.run(
+        ['ps', '-o', 'pid=', '--ppid', str(pid)], capture_output=True, text=True, check=False
+    )
+    return [int(x) for x in out.stdout.split()]
 
 
 def rss_mb(pid: int) -> float:
@@ -119,8 +138,15 @@ def sent_counts(pub: subprocess.Popen) -> dict:
     return json.loads(out.strip().splitlines()[-1])['sent']
 
 
-def ingest(probe: Probe, minutes: float) -> None:
-    node = start('handeye_ros.ros.calibrator', '--ros-args', '-p', 'buffer_duration:=20.0')
+def ingest(probe: Probe, minutes: float, status_period: float = 1.0) -> list:
+    node = start(
+        'handeye_ros.ros.calibrator',
+        '--ros-args',
+        '-p',
+        'buffer_duration:=20.0',
+        '-p',
+        f'status_period:={status_period}',
+    )
     time.sleep(1.0)
     pub = start(
         'handeye_ros.ros.sim_publisher',
@@ -137,9 +163,13 @@ def ingest(probe: Probe, minutes: float) -> None:
     )
     samples = []
     t0 = time.monotonic()
+    cpu0 = cpu_s(node.pid), {c: cpu_s(c) for c in children(node.pid)}
     while pub.poll() is None:
         samples.append((time.monotonic() - t0, rss_mb(node.pid)))
         time.sleep(1.0)
+    wall = time.monotonic() - t0
+    cpu_node = cpu_s(node.pid) - cpu0[0]
+    cpu_workers = sum(cpu_s(c) - cpu0[1].get(c, 0.0) for c in children(node.pid))
     sent = sent_counts(pub)
     time.sleep(2.0)  # a diagnostics period
     rows = []
@@ -157,6 +187,11 @@ def ingest(probe: Probe, minutes: float) -> None:
             ]
         )
     stop(node)
+    lost = sum(r[3] for r in rows)
+    cost = [status_period, f'{wall / 60:.1f}', lost, 100 * cpu_node / wall]
+    cost += [100 * cpu_workers / wall, 100 * (cpu_node + cpu_workers) / wall]
+    if status_period == 0.0:
+        return cost
     emit(
         'node_ingest',
         table(
@@ -177,6 +212,7 @@ def ingest(probe: Probe, minutes: float) -> None:
             [[f'{t:.0f}', m] for t, m in marks],
         ),
     )
+    return cost
 
 
 def calibrate_while_ingesting(probe: Probe) -> None:
@@ -283,6 +319,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--skip', nargs='*', default=[], choices=['a', 'b', 'c'])
     p.add_argument('--minutes', type=float, default=10.0, help='length of (a) (default: 10)')
+    p.add_argument(
+        '--baseline-minutes',
+        type=float,
+        default=3.0,
+        help='length of (d), the run without the status (default: 3; 0 skips it)',
+    )
     args = p.parse_args()
     if 'c' not in args.skip:
         offline_bag()
@@ -290,7 +332,18 @@ def main() -> None:
         probe = Probe()
         try:
             if 'a' not in args.skip:
-                ingest(probe, args.minutes)
+                costs = [ingest(probe, args.minutes)]
+                if args.baseline_minutes > 0:
+                    costs.append(ingest(probe, args.baseline_minutes, status_period=0.0))
+                emit(
+                    'node_status_cost',
+                    table(
+                        '(d) CPU of the node and its workers during (a), with and without the '
+                        'readiness status (% of one core, over the wall time)',
+                        ['status_period s', 'minutes', 'lost', 'node %', 'workers %', 'total %'],
+                        costs,
+                    ),
+                )
             if 'b' not in args.skip:
                 calibrate_while_ingesting(probe)
         finally:

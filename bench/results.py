@@ -91,7 +91,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'node_ingest': (
         'node_ingest',
         [],
-        ['node_ingest', 'node_memory', 'node_calibrate', 'offline_bag'],
+        ['node_ingest', 'node_memory', 'node_status_cost', 'node_calibrate', 'offline_bag'],
         '25 min',
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),

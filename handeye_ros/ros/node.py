@@ -97,6 +97,8 @@ class CalibratorNode(Node):
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
+        #: when each stream's last message came (monotonic s; 0: never)
+        self.last_seen = dict.fromkeys(STREAMS, 0.0)
 
         self._types = RclpyTypes()
         self._outputs = {
@@ -163,6 +165,7 @@ class CalibratorNode(Node):
     # ------------------------------------------------------------------ messages
 
     def _on_pose(self, stream: str, msg: Any, static: bool) -> None:
+        self.last_seen[stream] = time.monotonic()
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
         self._add(stream, msg, static, arrival)
 

@@ -33,6 +33,8 @@ from . import diagnostics
 GROWTH = 1.5
 #: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction.
 IMPROVEMENT = 0.1
+#: A stream silent for this long (s) while the other one flows has stopped.
+STOPPED_S = 2.0
 #: Off a terminal, the status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
@@ -98,7 +100,23 @@ class ReadinessStatus:
             if self._node.context.ok():
                 raise
 
+    def stopped(self) -> list[str]:
+        """The streams that stopped while the other one still flows, said as advice."""
+        seen = self._node.last_seen
+        now = time.monotonic()
+        if not all(seen.values()):
+            return []
+        quiet = {s: now - t for s, t in seen.items() if now - t > STOPPED_S}
+        if len(quiet) != 1:  # both quiet: the recording has ended, or not begun
+            return []
+        ((s, ago),) = quiet.items()
+        who = {'hand': 'the MoCap stream', 'eye': 'the device stream'}[s]
+        return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
+
     def _publish(self) -> None:
+        stopped = self.stopped()
+        if stopped and self.last is not None:
+            self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
         st = self.status()
         self.pub.publish(st)
         self._say(st.message if self.last is None else status_line(self.last))

@@ -94,3 +94,19 @@ def test_the_result_carries_the_readiness_of_the_whole_recording() -> None:
     assert d['time_offset_s'] == pytest.approx(res.time_offset_s)
     assert set(d['rotation_deg']) == set(AXES)
     assert d['sigma']['time_offset_ms'] == pytest.approx(res.batch.std[0] * 1e3, rel=0.5)
+
+
+def test_the_status_line_and_report_lines_say_it_in_one_place() -> None:
+    """The node's line and the terminal report read the same ``readiness`` section."""
+    from handeye_ros.evaluation.terminal import readiness_lines, status_line
+
+    rec = recording(1, 5, duration_s=60.0, motion='planar', **RATES, **MOCAP)
+    d = readiness(rec.hand, rec.eye, CFG).to_dict()
+    line = status_line(d)
+    assert line.startswith('not ready | turned x [')
+    assert '(need 1 10 0.5)' in line and line.endswith(d['missing'][0])
+    report = readiness_lines(d)
+    assert report[0].startswith('readiness: NOT READY, predicted 1-sigma')
+    assert report[1:] == [f'  to do: {m}' for m in d['missing']]
+    empty = readiness(rec.hand.select(np.arange(2)), rec.eye, CFG).to_dict()
+    assert '1-sigma ? ms ? mm ? deg' in status_line(empty)

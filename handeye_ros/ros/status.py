@@ -1,6 +1,7 @@
 """The calibrator's readiness status while recording, and its auto mode.
 
-Every ``status_period`` the node hands a snapshot of its buffers to its worker pool, which
+Every ``status_period`` (less often when one computation costs more than MAX_DUTY of a core
+over the period) the node hands a snapshot of its buffers to its worker pool, which
 computes what they support (:mod:`handeye_ros.core.checks.readiness`: excitation about each
 axis of the device, the 1-sigmas a calibration now would have against the ``precision_*``
 targets, what is missing in the user's words). The answer is published on ``~/status``
@@ -33,6 +34,10 @@ from . import diagnostics
 GROWTH = 1.5
 #: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction.
 IMPROVEMENT = 0.1
+#: The status takes at most this share of one core on average: a computation that took c
+#: seconds of CPU is followed by none for c / MAX_DUTY (1 kHz + 200 Hz over 20 s: ~0.12 s,
+#: so every ~2.5 s instead of every second).
+MAX_DUTY = 0.05
 #: A stream silent for this long (s) while the other one flows has stopped.
 STOPPED_S = 2.0
 #: Off a terminal, the status line is logged when it changes, and at least this often (s).
@@ -49,6 +54,7 @@ class ReadinessStatus:
         self.why_not = 'waiting for data'
         self.auto = 'waiting for READY' if auto else 'off'
         self._pending = False
+        self._next = 0.0  # no status computed before (monotonic s)
         self._span_calibrated = 0.0
         self._sigmas: tuple[float, float, float] | None = None
         self._logged = (0.0, '')
@@ -62,7 +68,7 @@ class ReadinessStatus:
         node = self._node
         if self.auto in ('waiting for READY', 'calibrating') and self.last and self.last['ready']:
             self._auto_calibrate()
-        if self._pending or node.closing:
+        if self._pending or node.closing or time.monotonic() < self._next:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
         if empty:
@@ -89,7 +95,8 @@ class ReadinessStatus:
     def _done(self, job: Any) -> None:
         """In a pool thread: keep and publish the answer."""
         try:
-            self.last, self.why_not = job.result(), ''
+            (self.last, cpu_s), self.why_not = job.result(), ''
+            self._next = time.monotonic() + cpu_s / MAX_DUTY
         except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
         finally:

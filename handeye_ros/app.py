@@ -162,20 +162,17 @@ def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
     }
 
 
-def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> tuple[dict[str, Any], float]:
+def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> dict[str, Any]:
     """The node's status job: what a snapshot of the buffers supports
     (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
-    section writes it, and the CPU time it took [s]."""
-    import time
-
+    section writes it."""
     from .core.checks.readiness import readiness
     from .core.config import CalibrationConfig
     from .core.options import split_options
     from .stream.config import StreamConfig
 
-    t0 = time.process_time()
     calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
-    return readiness(snapshot.hand, snapshot.eye, calib).to_dict(), time.process_time() - t0
+    return readiness(snapshot.hand, snapshot.eye, calib).to_dict()
 
 
 def _calibrate_files(req: Request, calib: Any) -> Any:

@@ -34,9 +34,10 @@ from . import diagnostics
 GROWTH = 1.5
 #: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction.
 IMPROVEMENT = 0.1
-#: The status takes at most this share of one core on average: a computation that took c
-#: seconds of CPU is followed by none for c / MAX_DUTY (1 kHz + 200 Hz over 20 s: ~0.12 s,
-#: so every ~2.5 s instead of every second).
+#: The status takes at most this share of one core on average: one that took c seconds (the
+#: node's snapshot, and the worker's job from submit to answer: its transfer both ways
+#: included, in wall time, which is at least the CPU time) is followed by none for
+#: c / MAX_DUTY (1 kHz + 200 Hz over 20 s: ~0.15 s, so every ~3 s instead of every second).
 MAX_DUTY = 0.05
 #: A stream silent for this long (s) while the other one flows has stopped.
 STOPPED_S = 2.0
@@ -78,6 +79,7 @@ class ReadinessStatus:
             )
             self._publish()
             return
+        t0 = time.monotonic()
         try:
             snapshot = node.recorder.snapshot()
         except HandeyeError as err:
@@ -90,13 +92,14 @@ class ReadinessStatus:
         except RuntimeError:  # the pool is shut down: the node stops
             self._pending = False
             return
-        job.add_done_callback(self._done)
+        job.add_done_callback(lambda job: self._done(job, t0))
 
-    def _done(self, job: Any) -> None:
-        """In a pool thread: keep and publish the answer."""
+    def _done(self, job: Any, t0: float) -> None:
+        """In a pool thread: keep and publish the answer (asked for at ``t0``)."""
+        now = time.monotonic()
+        self._next = now + (now - t0) / MAX_DUTY
         try:
-            (self.last, cpu_s), self.why_not = job.result(), ''
-            self._next = time.monotonic() + cpu_s / MAX_DUTY
+            self.last, self.why_not = job.result(), ''
         except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
         finally:

@@ -162,17 +162,20 @@ def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
     }
 
 
-def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> dict[str, Any]:
+def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> tuple[dict[str, Any], float]:
     """The node's status job: what a snapshot of the buffers supports
     (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
-    section writes it."""
+    section writes it, and the CPU time the job took in its process (all threads) [s]."""
+    import time
+
+    t0 = time.process_time()
     from .core.checks.readiness import readiness
     from .core.config import CalibrationConfig
     from .core.options import split_options
     from .stream.config import StreamConfig
 
     calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
-    return readiness(snapshot.hand, snapshot.eye, calib).to_dict()
+    return readiness(snapshot.hand, snapshot.eye, calib).to_dict(), time.process_time() - t0
 
 
 def _calibrate_files(req: Request, calib: Any) -> Any:

@@ -98,7 +98,7 @@ class Readiness:
             return float(v) * k if np.isfinite(v) else None
 
         return {
-            'ready': self.ready,
+            'ready': bool(self.ready),
             'sigma': {
                 'time_offset_ms': num(self.sigma[0], 1e3),
                 'translation_mm': num(self.sigma[1], 1e3),
@@ -113,14 +113,14 @@ class Readiness:
             'hand_rotation_deg': dict(
                 zip(AXES, np.round(self.hand_rotation_deg, 1).tolist(), strict=True)
             ),
-            'angular_speed_dps': round(self.angular_speed_dps, 2),
-            'travel_m': round(self.travel_m, 3),
-            'motions': self.motions,
-            'span_s': round(self.span_s, 2),
-            'time_offset_s': self.time_offset_s,
+            'angular_speed_dps': round(float(self.angular_speed_dps), 2),
+            'travel_m': round(float(self.travel_m), 3),
+            'motions': int(self.motions),
+            'span_s': round(float(self.span_s), 2),
+            'time_offset_s': None if self.time_offset_s is None else float(self.time_offset_s),
             'peak_correlation': num(self.peak_correlation),
             'second_peak_ratio': num(self.second_peak_ratio),
-            'dropout': {k: round(v, 3) for k, v in self.dropout.items()},
+            'dropout': {k: round(float(v), 3) for k, v in self.dropout.items()},
             'missing': list(self.missing),
         }
 

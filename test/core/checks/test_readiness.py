@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import yaml
 from conftest import recording
 
 from handeye_ros.core.checks.readiness import AXES, readiness
@@ -94,6 +95,8 @@ def test_the_result_carries_the_readiness_of_the_whole_recording() -> None:
     assert d['time_offset_s'] == pytest.approx(res.time_offset_s)
     assert set(d['rotation_deg']) == set(AXES)
     assert d['sigma']['time_offset_ms'] == pytest.approx(res.batch.std[0] * 1e3, rel=0.5)
+    # plain types only: the result is written as YAML (yaml.safe_dump refuses numpy scalars)
+    assert yaml.safe_load(yaml.safe_dump(d)) == d
 
 
 def test_the_status_line_and_report_lines_say_it_in_one_place() -> None:

@@ -153,8 +153,15 @@ def eye_motion_residuals(
     X = (np.asarray(R_HE, dtype=float), np.asarray(p_HE, dtype=float))
     A = relative((R_h, p_h), i, j)
     B = relative((matrix_from_quat(eye.q_xyzw), eye.p_xyz), i, j)
-    err_R, err_p = compose(inverse(compose(compose(inverse(X), A), X)), B)
+    err_R, err_p = residual_motions(A, B, X)
     return err_R, err_p, ok[i] & ok[j]
+
+
+def residual_motions(A: tuple, B: tuple, X: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """``(X^-1 A X)^-1 B`` for hand motions A, eye motions B (rotations (M, 3, 3), translations
+    (M, 3)) and the extrinsic X = T_HE: the motion by which AX = XB (eq. 2) fails, in the eye
+    frame."""
+    return compose(inverse(compose(compose(inverse(X), A), X)), B)
 
 
 def eye_motion_errors(

@@ -150,10 +150,6 @@ class CalibratorNode(Node):
         """A job for the worker pool (RuntimeError once it is shut down)."""
         return self._pool.submit(fn, *args)
 
-    def calibrate(self) -> Future | None:
-        """Calibrate a snapshot of the buffers now, unless one runs (see :meth:`_start_worker`)."""
-        return self._start_worker()
-
     # ------------------------------------------------------------------ parameters
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
@@ -188,7 +184,7 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ services
 
-    def _start_worker(self) -> Future | None:
+    def calibrate(self) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
         Returns an rclpy Future that completes on the executor with (success, message), or
@@ -264,7 +260,7 @@ class CalibratorNode(Node):
             self._busy.release()
 
     async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
-        future = self._start_worker()
+        future = self.calibrate()
         if future is None:
             response.success = False
             response.message = 'a calibration is already running; call again when it has finished'
@@ -274,7 +270,7 @@ class CalibratorNode(Node):
 
     def _periodic_calibrate(self) -> None:
         if self.poses.why_no_data() is None:
-            self._start_worker()
+            self.calibrate()
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self.recorder.reset()

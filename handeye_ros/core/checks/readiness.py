@@ -24,18 +24,16 @@ from typing import Any
 
 import numpy as np
 
-from ..association import interpolate
+from ..association import interpolate, residual_motions
+from ..batch.spline import exp_so3
 from ..chunked import CHUNK_ROWS, chunked
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..geometry import (
-    compose,
     consecutive_rotvecs,
-    inverse,
     log_so3,
     matrix_from_quat,
     relative,
-    skew,
 )
 from ..linear.stage import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
@@ -338,23 +336,16 @@ def _jacobian(A: list[tuple], B: tuple, X: tuple, h: float) -> np.ndarray:
         d[k] = eps
         up, down = (X[0], X[1] + d), (X[0], X[1] - d)
         J[:, :, 1 + k] = (_residuals(A[0], B, up) - _residuals(A[0], B, down)) / (2 * eps)
-        up, down = (X[0] @ _exp(d), X[1]), (X[0] @ _exp(-d), X[1])
+        up, down = (X[0] @ exp_so3(d[None])[0], X[1]), (X[0] @ exp_so3(-d[None])[0], X[1])
         J[:, :, 4 + k] = (_residuals(A[0], B, up) - _residuals(A[0], B, down)) / (2 * eps)
     return J
 
 
 def _residuals(A: tuple, B: tuple, X: tuple) -> np.ndarray:
-    """(n, 6) residual motions ``(X^-1 A X)^-1 B`` as (Log of the rotation, translation): the
-    relative-pose residuals of eq. 16 in the eye frame."""
-    err_R, err_p = compose(inverse(compose(compose(inverse(X), A), X)), B)
+    """(n, 6) residual motions as (Log of the rotation, translation): the relative-pose
+    residuals of eq. 16 in the eye frame."""
+    err_R, err_p = residual_motions(A, B, X)
     return np.concatenate((log_so3(err_R), err_p), axis=1)
-
-
-def _exp(v: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues)."""
-    t = float(np.linalg.norm(v))
-    K = skew(v / t) if t > 0 else np.zeros((3, 3))
-    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
 
 
 def _robust_sigma(r: np.ndarray) -> float:

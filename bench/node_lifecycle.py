@@ -10,8 +10,11 @@ or a process manager does, then stops it at one of four moments:
 Half of the cycles stop it with Ctrl-C (SIGINT to the process group, as a terminal sends it),
 half with SIGTERM to the node alone (as systemd or `kill` do).
 
-Counted per cycle: the exit code, tracebacks and warnings (a leaked semaphore, ...) on stderr, and the processes of the session still
-there 0.5 s after the node exited (the worker, multiprocessing's resource tracker, zombies).
+Counted per cycle: the exit code, tracebacks and warnings (a leaked semaphore, ...) on stderr,
+the processes of the session still there 0.5 s after the node exited (the worker,
+multiprocessing's resource tracker, zombies), and, when stopped while calibrating, whether the
+pending ``~/calibrate`` call was answered (issue 28: "aborted: shutting down") by the time the
+node had exited.
 
 A last row sends Ctrl-C 0.05 s after the exec, before the interpreter has run any code of the
 package (it is still importing site and the ROS wheels' .pth bootstrapper): what CPython does
@@ -46,6 +49,7 @@ def session_processes(sid: int) -> list[str]:
 def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
     node = start('handeye_ros.ros.calibrator', '--ros-args', '-p', 'ransac_iterations:=100000')
     pub = None
+    pending = None
     if moment == 'starting':
         time.sleep(rng.uniform(0.25, 1.5))
     elif moment == 'interpreter start':
@@ -68,7 +72,7 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
             pub.wait(timeout=120)
             if moment == 'calibrating':
                 probe.client.wait_for_service(timeout_sec=30.0)
-                probe.client.call_async(probe.Trigger.Request())
+                pending = probe.client.call_async(probe.Trigger.Request())
                 time.sleep(rng.uniform(0.5, 1.5))
             else:
                 probe.calibrate()
@@ -88,7 +92,7 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
     if pub is not None and pub.poll() is None:
         pub.kill()
         pub.wait()
-    time.sleep(0.5)
+    time.sleep(0.5)  # also: an answer sent just before the exit arrives (the probe spins)
     return {
         'rc': node.returncode,
         'tracebacks': err.count('Traceback'),
@@ -97,7 +101,21 @@ def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:
         'left': session_processes(node.pid),
         'stop_s': stop_s,
         'err': err,
+        'pending': pending is not None,
+        'answered': pending is not None and pending.done(),
+        'answer': pending.result().message if pending is not None and pending.done() else '',
     }
+
+
+def answered(rs: list[dict]) -> str:
+    """'answered of pending' for the cycles that left a ~/calibrate call pending, with the
+    answers given ('' when none was pending)."""
+    pending = [r for r in rs if r['pending']]
+    if not pending:
+        return ''
+    said = sorted({r['answer'] for r in pending if r['answered']})
+    got = sum(r['answered'] for r in pending)
+    return f'{got} of {len(pending)}' + (f' ({"; ".join(said)})' if said else '')
 
 
 def main() -> None:
@@ -140,6 +158,7 @@ def main() -> None:
                 sum(r['tracebacks'] for r in rs),
                 sum(r['warnings'] for r in rs),
                 sum(len(r['left']) for r in rs),
+                answered(rs),
                 max(r['stop_s'] for r in rs),
             ]
         )
@@ -153,6 +172,7 @@ def main() -> None:
             sum(r['tracebacks'] for r in total),
             sum(r['warnings'] for r in total),
             sum(len(r['left']) for r in total),
+            answered(total),
             max(r['stop_s'] for r in total),
         ]
     )
@@ -168,6 +188,7 @@ def main() -> None:
                 'tracebacks',
                 'warnings',
                 'processes left',
+                'pending call answered',
                 'longest stop s',
             ],
             rows,

@@ -1,12 +1,20 @@
 """``ros2 run handeye_ros calibrator``: start the node (:mod:`.node`), spin it, stop it.
 
 The shape is the Jazzy examples' main (init, make the node, spin, and a try / except / finally
-that shuts down whatever happens), with three things they do not need:
+that shuts down whatever happens), with four things they do not need:
 - the worker process is started before ``rclpy.init`` (see :mod:`.worker`) and stopped in the
   ``finally``, so that no process outlives the node;
 - ``--help`` and a stray argument are answered before anything starts;
-- a signal while rclpy and scipy import is noted, not raised (:mod:`.lifecycle`), and the start
-  looks at it where stopping is safe: Ctrl-C or SIGTERM at any moment exit 0 and quietly.
+- the signals are ours, not rclpy's (``SignalHandlerOptions.NO``): a SIGINT or SIGTERM is only
+  noted (:mod:`.lifecycle`), while importing, starting or spinning alike, and the spin loop
+  looks at it at least every ``STOP_POLL_S``. rclpy's own handler would shut the context down at once,
+  from its thread, and a ``~/calibrate`` caller waiting for a running calibration could then
+  never be answered;
+- the stop therefore happens in order, on a context that still works: the worker is stopped
+  (a running calibration is abandoned), the pending ``~/calibrate`` calls are answered
+  "aborted: shutting down" and the executor spins until the answers are sent (at most
+  ``ANSWER_S``), then the node is destroyed and rclpy shut down. Ctrl-C or SIGTERM at any
+  moment exit 0 and quietly.
 """
 
 from __future__ import annotations
@@ -14,6 +22,14 @@ from __future__ import annotations
 import sys
 
 from .lifecycle import ignore_signals, quiet_start, stop_requested
+
+#: How often the spin loop looks for a noted signal (s): rclpy's wait does not return for a
+#: Python signal handler, so a timer this often ends it. (A timeout on spin_once would do it
+#: too, but rclpy makes a new timer for every wait then, hundreds a second at 1 kHz.)
+STOP_POLL_S = 0.1
+
+#: How long the stop spins to send the answers to pending ``~/calibrate`` calls (s).
+ANSWER_S = 2.0
 
 
 def main(args: list[str] | None = None) -> int:
@@ -35,7 +51,8 @@ def main(args: list[str] | None = None) -> int:
         return 2
     quiet_start()
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     from ..core.errors import ConfigError
     from . import worker
@@ -44,32 +61,29 @@ def main(args: list[str] | None = None) -> int:
     if stop_requested():  # a signal while the imports ran
         return 0
     pool = worker.new_pool()  # before rclpy.init: see worker's docstring
-    rclpy.init(args=args)
-    node = None
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = executor = None
     try:
         if not stop_requested():
             node = CalibratorNode(pool)
             pool = None  # the node owns it, and stops it in close()
-        # checked again: an executor made on a context a signal has shut down fails half-made
-        # and says so in a traceback from its __del__
-        if node is not None and not stop_requested():
-            rclpy.spin(node)
+            node.create_timer(STOP_POLL_S, lambda: None)  # ends a wait: see STOP_POLL_S
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+        while executor is not None and rclpy.ok() and not stop_requested():
+            executor.spin_once()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except ConfigError as err:
         print(f'calibrator: error: {err}', file=sys.stderr)
         return 1
-    except RuntimeError:
-        # rclpy's handler shuts the context down from its own thread: what is made on it in
-        # between (the node, the executor's wait set) fails with an RCLError, a RuntimeError
-        # ("the given context is not valid"; ros2/ros2cli#854). That is the stop we were asked
-        # for; else it is not.
-        if rclpy.ok() and not stop_requested():
-            raise
     finally:
         ignore_signals()  # a second Ctrl-C must not break the clean-up
         if node is not None:
-            node.close()
+            node.close()  # the worker stopped: every pending calibration has its answer
+            if executor is not None:
+                node.send_answers(executor, ANSWER_S)
+                executor.shutdown()
             node.destroy_node()
         if pool is not None:
             worker.stop(pool)

@@ -5,9 +5,12 @@ would print a KeyboardInterrupt traceback from wherever it struck (inside an ext
 module's initialisation it even turns into an ImportError), and a SIGTERM would kill the
 process with a code that is not 0. :func:`quiet_start` therefore replaces both handlers by one
 that only notes the signal; the start checks :func:`stop_requested` at the points where
-stopping is safe and then returns 0. Once rclpy is initialised, its own handlers shut the
-context down (spin returns and the ``finally`` of the main runs) and call ours, which notes
-again, harmlessly; :func:`ignore_signals` keeps a second Ctrl-C out of that clean-up.
+stopping is safe and then returns 0. The calibrator keeps this handler for its whole life
+(``rclpy.init`` without rclpy's handlers) and its spin loop looks at :func:`stop_requested`
+too, so that it can answer its callers before the context goes (:mod:`.calibrator`);
+publish_calibration lets rclpy's handlers take over once rclpy is initialised (they shut the
+context down, spin returns, and they call ours, which notes again, harmlessly).
+:func:`ignore_signals` keeps a second Ctrl-C out of the clean-up.
 
 A signal in the interpreter's first ~0.1 s, before it runs any of this package's code (while it
 imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not ours.
@@ -25,7 +28,8 @@ def _on_signal(signum: int, frame: object) -> None:
 
 
 def quiet_start() -> None:
-    """Note SIGINT and SIGTERM instead of acting on them, until rclpy takes over."""
+    """Note SIGINT and SIGTERM instead of acting on them (until rclpy's handlers, if any,
+    take over)."""
     _state['stop'] = False
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, _on_signal)

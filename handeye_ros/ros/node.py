@@ -14,7 +14,9 @@ the executor keeps taking messages meanwhile. A process rather than a thread: at
 executor holds the GIL most of the time, and a calibration thread beside it ran ten times
 slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
 start-up. Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running
-calibration is abandoned) is stopped and joined first (:meth:`CalibratorNode.close`).
+calibration is abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a
+``~/calibrate`` caller still waiting is answered "aborted: shutting down"
+(:meth:`CalibratorNode.send_answers`).
 Every calibration, successful or not, updates every output together. A success publishes on
 the latched topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
 ``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
@@ -80,6 +82,9 @@ PATHS = {'eye': 'eye_path', 'ground_truth': 'ground_truth_path'}
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
 
+#: The answer to a ``~/calibrate`` call whose calibration the node's stop abandoned.
+ABORTED = 'aborted: shutting down'
+
 
 class CalibratorNode(Node):
     """See the module docstring."""
@@ -120,6 +125,7 @@ class CalibratorNode(Node):
         self.create_service(Trigger, '~/save', self._on_save)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._closing = False
+        self._open_calls = 0  # ~/calibrate calls awaiting their calibration (executor thread)
 
         self._busy_since = 0.0
         self._pool = pool
@@ -192,10 +198,14 @@ class CalibratorNode(Node):
         """
         if not self._busy.acquire(blocking=False):
             return None
-        self._busy_since = time.monotonic()
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
+        if self._closing:  # a call taken while the stop answers the others: no worker left
+            future.set_result((False, ABORTED))
+            self._busy.release()
+            return future
+        self._busy_since = time.monotonic()
         why = self.poses.why_no_data()
         stage = None
         try:
@@ -218,17 +228,9 @@ class CalibratorNode(Node):
         return future
 
     def _calibrated(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
-        """The worker's answer (in a pool thread): the outputs, the log, the service's answer.
-        A node stopping meanwhile has its context shut down under these publishes: nothing is
-        left to tell then, and the RCLError (a RuntimeError) is that stop, not a failure."""
-        try:
-            self._answer(job, future, stage, t0)
-        except RuntimeError:
-            if self.context.ok():
-                raise
-
-    def _answer(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
-        """See :meth:`_calibrated`; the report's staging folder is kept with a success."""
+        """The worker's answer (in a pool thread): the outputs, the log, the service's answer;
+        the report's staging folder is kept with a success. The node's stop (close) ends a
+        running job here too: its caller is then answered ABORTED."""
         kept = False
         try:
             session: Calibrated = job.result()
@@ -237,7 +239,7 @@ class CalibratorNode(Node):
             future.set_result((False, str(err)))
         except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
             if self._closing:  # the node stopped it
-                future.set_result((False, 'the node is shutting down'))
+                future.set_result((False, ABORTED))
                 return
             self.get_logger().error(f'calibration worker failed: {err!r}')
             if isinstance(err, cf.process.BrokenProcessPool):
@@ -265,8 +267,20 @@ class CalibratorNode(Node):
             response.success = False
             response.message = 'a calibration is already running; call again when it has finished'
             return response
-        response.success, response.message = await future
+        self._open_calls += 1
+        try:
+            response.success, response.message = await future
+        finally:
+            # the executor sends the response in the same step, right after this returns
+            self._open_calls -= 1
         return response
+
+    def send_answers(self, executor: Any, timeout_s: float) -> None:
+        """At the stop, after :meth:`close`: spin until every ``~/calibrate`` call waiting
+        for a calibration has been answered (close() gave them ABORTED), at most timeout_s."""
+        deadline = time.monotonic() + timeout_s
+        while self._open_calls and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
 
     def _periodic_calibrate(self) -> None:
         if self.poses.why_no_data() is None:

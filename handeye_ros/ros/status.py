@@ -98,6 +98,9 @@ class ReadinessStatus:
 
     def _done(self, job: Any, snapshot_cpu: float) -> None:
         """In a pool thread: keep and publish the answer; the next one waits for its cost."""
+        if self._node.closing:  # the node stopped the worker under this job: nothing to say
+            self._pending = False
+            return
         try:
             (self.last, job_cpu), self.why_not = job.result(), ''
             self._next = time.monotonic() + (snapshot_cpu + job_cpu) / MAX_DUTY
@@ -105,11 +108,7 @@ class ReadinessStatus:
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
         finally:
             self._pending = False
-        try:
-            self._publish()
-        except RuntimeError:  # the context went down under the publish: the node stops
-            if self._node.context.ok():
-                raise
+        self._publish()
 
     def stopped(self) -> list[str]:
         """The streams that stopped while the other one still flows, said as advice."""

@@ -390,7 +390,8 @@ def test_one_result_published_consistently(ros: Processes, install: Path, tmp_pa
 def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) -> None:
     """Ctrl-C (SIGINT to the process group, as a terminal sends it) and SIGTERM (to the node,
     as a process manager sends it), while the node starts, idles, receives and calibrates:
-    exit code 0, no traceback, no process of the node left (the worker is stopped and joined)."""
+    exit code 0, no traceback, no process of the node left (the worker is stopped and joined),
+    and the caller of the abandoned calibration answered "aborted: shutting down"."""
     import os
     import signal
     import time
@@ -426,14 +427,21 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
         stop(node)
         runs.append((f'receiving {when} s', node, left(node)))
         ros.stop(pub)
-    # while a calibration runs in the worker (many RANSAC hypotheses make it last)
+    # while a calibration runs in the worker (many RANSAC hypotheses make it last): its
+    # caller is answered before the node goes
     node = _start_node(ros, install, 'ransac_iterations:=100000', name='busy')
     ros.run_json(_publisher(ros, '--seed', '5', '--level', '2', '--rate', '2000'), 'publisher')
     client = ros.start(ros.script('ros_client.py', 'call', '/calibrator/calibrate'), 'client')
-    time.sleep(2.0)
+    assert wait_for(lambda: 'sent' in ros.output(client)[1], 30), ros.output(client)
+    time.sleep(1.0)
     stop(node)
     runs.append(('calibrating', node, left(node)))
-    ros.stop(client)
+    try:
+        client.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f'no answer after the stop: {ros.output(client)}\n{ros.output(node)[1]}')
+    answer = json.loads(ros.output(client)[0].strip().splitlines()[-1])
+    assert answer == [{'success': False, 'message': 'aborted: shutting down'}], answer
     for label, p, rest in runs:
         err = ros.output(p)[1]
         assert p.returncode == 0, (label, p.returncode, err)

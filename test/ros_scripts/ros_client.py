@@ -53,6 +53,7 @@ def call(node: Node, names: list[str], concurrent: bool, gap_s: float = 0.0) -> 
         return [{'success': f.result().success, 'message': f.result().message} for f in futures]
     for c in clients:
         f = c.call_async(Trigger.Request())
+        print(f'sent {c.srv_name}', file=sys.stderr, flush=True)  # a test may wait for it
         rclpy.spin_until_future_complete(node, f, timeout_sec=TIMEOUT_S)
         out.append({'success': f.result().success, 'message': f.result().message})
     return out

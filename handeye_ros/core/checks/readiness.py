@@ -30,13 +30,13 @@ from ..chunked import CHUNK_ROWS, chunked
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..geometry import (
-    consecutive_rotvecs,
     log_so3,
     matrix_from_quat,
     relative,
 )
 from ..linear.stage import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
+from ..time.signals import angular_speed
 from ..trajectory import Trajectory
 from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION
 
@@ -55,6 +55,10 @@ DROPOUT_FRACTION = 0.05
 MIN_RECORDING_S = 2.0 * MIN_OVERLAP_S
 #: Residuals beyond this many robust sigmas are left out, as Huber's loss nearly does.
 OUTLIER_SIGMAS = 5.0
+#: At most this many consecutive eye pairs are differentiated; a longer recording uses every
+#: k-th pair and scales their information by k (a cost cap: 100 s at 200 Hz; neighbouring
+#: pairs carry nearly the same information, and an hour would otherwise cost seconds).
+MAX_PAIRS = 20_000
 
 
 @dataclass(frozen=True)
@@ -203,14 +207,15 @@ def _empty(target: tuple[float, float, float], why: str) -> Readiness:
 
 def _turned(traj: Trajectory) -> tuple[np.ndarray, float]:
     """(3,) how far the body turned about each of its axes (deg) and its RMS angular speed
-    (deg/s), over the intervals that are no gap."""
-    ok = traj.interval_ok()
-    rv = consecutive_rotvecs(traj.q_xyzw)[ok]
-    dt = np.diff(traj.t_ns)[ok] * 1e-9
-    if not rv.size:
+    (deg/s), over the intervals that are no gap (from stage 1's angular velocity, which the
+    trajectory keeps)."""
+    w = angular_speed(traj, vector=True)
+    if not np.any(w.valid):
         return np.zeros(3), 0.0
-    rms = float(np.degrees(np.sqrt(np.mean(np.sum((rv / dt[:, None]) ** 2, axis=1)))))
-    return np.degrees(np.sum(np.abs(rv), axis=0)), rms
+    rate = w.speed[w.valid]  # rad/s in the body frame
+    dt = np.diff(traj.t_ns)[w.valid] * 1e-9
+    rms = float(np.degrees(np.sqrt(np.mean(np.sum(rate**2, axis=1)))))
+    return np.degrees(np.sum(np.abs(rate * dt[:, None]), axis=0)), rms
 
 
 def _dropout(traj: Trajectory) -> float:
@@ -270,33 +275,40 @@ def _predict(
 ) -> tuple[tuple[float, float, float], float, list[str]]:
     """The predicted sigmas (dt s, translation m, rotation deg), the overlap (s) and the advice
     for each sigma over its target."""
-    i = np.flatnonzero(eye.interval_ok())
+    i = np.flatnonzero(eye.interval_ok())  # the pairs (i, i + 1)
+    scale = 1.0
+    if i.size > MAX_PAIRS:  # see MAX_PAIRS
+        every = i[:: -(-i.size // MAX_PAIRS)]
+        scale, i = i.size / every.size, every
     h = cfg.knot_spacing / 2.0
     dt0 = known.time_offset_s
-    hands = [_hand_at(hand, eye, dt0 + s) for s in (0.0, -h, h)]
+    ends = np.concatenate([i, i + 1])  # the eye poses the pairs use: starts, then ends
+    hands = [_hand_at(hand, eye.t_ns[ends], dt0 + s) for s in (0.0, -h, h)]
     covered = hands[0][2] & hands[1][2] & hands[2][2]
-    i_ok = i[covered[i] & covered[i + 1]]
-    if i_ok.size < 20:
+    k_ok = np.flatnonzero(covered[: i.size] & covered[i.size :])
+    if k_ok.size < 20:
         return (float('nan'),) * 3, 0.0, ['the streams overlap too little at the time offset']
-    span = float(np.sum(np.diff(eye.t_ns)[i_ok])) * 1e-9
-    eye_pose = (matrix_from_quat(eye.q_xyzw), eye.p_xyz)
+    span = float(np.sum(np.diff(eye.t_ns)[i[k_ok]])) * 1e-9 * scale
+    eye_pose = (matrix_from_quat(eye.q_xyzw[ends]), eye.p_xyz[ends])
     X = (np.asarray(known.R_HE, float), np.asarray(known.p_HE, float))
 
     def motions(k: slice) -> tuple[list[tuple], tuple]:
         """The hand's motions at dt, dt - h, dt + h and the eye's, of the pairs k."""
-        a, b = i_ok[k], i_ok[k] + 1
+        a = k_ok[k]
+        b = a + i.size
         return [relative(hp[:2], a, b) for hp in hands], relative(eye_pose, a, b)
 
-    r0 = chunked(lambda k: _residuals(*_first(motions(k)), X), i_ok.size)
+    r0 = chunked(lambda k: _residuals(*_first(motions(k)), X), k_ok.size)
     s_rot, s_t = _robust_sigma(r0[:, :3]), _robust_sigma(r0[:, 3:])
     w = np.array([1 / s_rot] * 3 + [1 / s_t] * 3)
     keep = np.all(np.abs(r0 * w) < OUTLIER_SIGMAS, axis=1)
     info = np.zeros((7, 7))
-    for start in range(0, i_ok.size, CHUNK_ROWS):
-        k = slice(start, min(start + CHUNK_ROWS, i_ok.size))
+    for start in range(0, k_ok.size, CHUNK_ROWS):
+        k = slice(start, min(start + CHUNK_ROWS, k_ok.size))
         A, B = motions(k)
         Jw = (_jacobian(A, B, X, h)[keep[k]] * w[None, :, None]).reshape(-1, 7)
         info += Jw.T @ Jw
+    info *= scale
     with np.errstate(all='ignore'):  # a direction no motion observes: infinite sigmas
         try:
             cov = np.linalg.inv(info)
@@ -315,9 +327,9 @@ def _predict(
     return sigma, span, _advice(sigma, cfg, cov_r, cov_p_eye, speed_dps)
 
 
-def _hand_at(hand: Trajectory, eye: Trajectory, dt: float):
-    """The hand's poses at the eye's stamps less dt, and where it covers them."""
-    return interpolate(hand, eye.t_ns - np.int64(round(dt * 1e9)))
+def _hand_at(hand: Trajectory, t_eye_ns: np.ndarray, dt: float):
+    """The hand's poses at eye stamps (ns) less dt, and where it covers them."""
+    return interpolate(hand, t_eye_ns - np.int64(round(dt * 1e9)))
 
 
 def _first(m: tuple[list[tuple], tuple]) -> tuple[tuple, tuple]:

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
+from .errors import InputError
 from .geometry import Pose, compose, inverse, quat_from_matrix
 from .time.clock import linear_clock
 from .trajectory import Trajectory
@@ -206,6 +207,11 @@ def simulate(
     ``scale``: the eye's positions are metric times 1 / scale (a monocular VO), so that
     ``scale`` is what a calibration should find.
     """
+    if not (np.isfinite(duration_s) and (duration_s - 2.0) * eye_rate_hz >= 2.0):
+        raise InputError(
+            f'a simulated recording of {duration_s} s holds no eye poses: the eye covers the '
+            'span less 1 s at each end, so it needs at least 2 s plus two eye periods (three eye poses)'
+        )
     rng = np.random.default_rng(seed)
     truth = truth if truth is not None else random_truth(rng)
     pos, rot = smooth_motion(rng, duration_s + 2.0, motion=motion)

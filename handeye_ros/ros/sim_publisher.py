@@ -29,6 +29,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from handeye_ros.core.errors import InputError
 from handeye_ros.core.geometry import positive_w
 from handeye_ros.core.simulate import MOTIONS, noise_level, simulate
 from handeye_ros.formats import messages
@@ -85,6 +86,15 @@ def parser() -> argparse.ArgumentParser:
         '--hand-rate', type=float, default=100.0, help='MoCap pose rate [Hz] (default: 100)'
     )
     ap.add_argument(
+        '--mocap-noise',
+        type=float,
+        nargs=2,
+        default=(0.0, 0.0),
+        metavar=('MM', 'DEG'),
+        help='white noise of the MoCap poses, position [mm] and rotation [deg] (default: '
+        '0 0; a marker rig in a good MoCap room: about 0.1 0.006)',
+    )
+    ap.add_argument(
         '--eye-rate', type=float, default=20.0, help='VIO pose rate [Hz] (default: 20)'
     )
     ap.add_argument('--hand-topic', default='/mocap/pose', help='default: /mocap/pose')
@@ -139,6 +149,32 @@ def parser() -> argparse.ArgumentParser:
         help='how long to wait for a subscriber on both topics (default: 10)',
     )
     return ap
+
+
+def parse(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line, its absurd values refused as argparse refuses a typo (exit 2)."""
+    ap = parser()
+    args = ap.parse_args(argv)
+    positive = {
+        '--duration': args.duration,
+        '--hand-rate': args.hand_rate,
+        '--eye-rate': args.eye_rate,
+        '--rate': args.rate,
+    }
+    for flag, v in positive.items():
+        if not (math.isfinite(v) and v > 0.0):
+            ap.error(
+                f'{flag} must be a positive number of {"seconds" if flag == "--duration" else "Hz"}, not {v}'
+            )
+    if not 0.0 <= args.level <= 10.0:
+        ap.error(f'--level is 0-10, not {args.level}')
+    if not all(math.isfinite(v) and v >= 0.0 for v in args.mocap_noise):
+        ap.error(f'--mocap-noise takes two amounts >= 0 (mm, deg), not {args.mocap_noise}')
+    if args.nan_every < 0 or not (
+        math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0.0
+    ):
+        ap.error('--nan-every and --wait-subscribers take amounts >= 0')
+    return args
 
 
 def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float]:
@@ -207,18 +243,23 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
 
 def main() -> int:
     """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM."""
-    args = parser().parse_args()
+    args = parse()
 
     nm, nd = noise_level(args.level)
-    rec = simulate(
-        args.seed,
-        duration_s=args.duration,
-        hand_rate_hz=args.hand_rate,
-        eye_rate_hz=args.eye_rate,
-        noise_m=nm,
-        noise_deg=nd,
-        motion=args.motion,
-    )
+    try:
+        rec = simulate(
+            args.seed,
+            duration_s=args.duration,
+            hand_rate_hz=args.hand_rate,
+            eye_rate_hz=args.eye_rate,
+            noise_m=nm,
+            noise_deg=nd,
+            hand_noise_m=args.mocap_noise[0] * 1e-3,
+            hand_noise_deg=args.mocap_noise[1],
+            motion=args.motion,
+        )
+    except InputError as err:
+        parser().error(str(err))
     for spec in args.bag:
         path, _, storage = spec.partition(':')
         write_recording(

@@ -488,6 +488,22 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
         check=False,
     )
     assert stray.returncode == 2 and "unknown argument 'eta:=3'" in stray.stderr
+    # sim_publisher's absurd values: argparse's exit 2 and what is wrong, no traceback
+    for bad, said in (
+        (['--rate', '-5'], '--rate must be a positive number'),
+        (['--duration', '1'], 'holds no eye poses'),
+        (['--mocap-noise', '-1', '0'], '--mocap-noise takes two amounts >= 0'),
+    ):
+        proc = subprocess.run(
+            [str(resolve_executable(env, 'handeye_ros', 'sim_publisher')), *bad],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
+        assert proc.returncode == 2 and said in proc.stderr, (bad, proc.stderr)
+        assert 'Traceback' not in proc.stderr, (bad, proc.stderr)
 
 
 def test_unknown_parameters_are_named(ros: Processes, install: Path) -> None:

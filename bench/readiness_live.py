@@ -1,0 +1,300 @@
+"""Readiness and auto_calibrate live, through sim_publisher over DDS (issue 28's figures;
+printed, not asserted).
+
+bench/readiness.py measures the readiness function on prefixes of recordings, without ROS.
+This runs what a user runs: for each seed, a calibrator node (auto_calibrate true, the
+defaults otherwise) and a sim_publisher that sends a recording in real time, planar for its
+first third and rich after (``--motion planar_start``). A probe in this process takes every
+``~/status`` and every new result (the latched ``~/time_offset``), and after each result calls
+``~/save`` and reads the saved file (the result, its reported 1-sigmas). Counted:
+- results (each one made because the status said READY) further from the truth than 3x the
+  targets (precision_*: 1 ms, 10 mm, 0.5 deg): must be 0;
+- the first result: the status's predicted 1-sigmas at the READY that started it, over the
+  result's reported ones (target: within a factor 2);
+- wall time from that READY status to the result (target: within 2 s);
+- later results: whether each improved on the one before, and whether the status said
+  "converged".
+
+The recording is bench/readiness.py's: hand 200 Hz with 0.1 mm / 0.006 deg MoCap noise, eye
+30 Hz at noise level 5, 90 s.
+
+Usage: python bench/readiness_live.py [--seeds 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import common  # noqa: F401  (first: puts the project on sys.path)
+import numpy as np
+import yaml
+from common import emit, table
+from node_ingest import ENV, start, stop
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.simulate import Truth, calibration_error
+
+DURATION_S = 90.0
+#: After the recording: how long results may still come (a calibration started at its end).
+GRACE_S = 4.0
+PUBLISHER = (
+    '--level', '5', '--motion', 'planar_start', '--duration', str(DURATION_S),
+    '--hand-rate', '200', '--eye-rate', '30', '--mocap-noise', '0.1', '0.006',
+    '--rate', '230',  # messages per second, both streams: real time
+)  # fmt: skip
+
+
+class LiveProbe:
+    """An rclpy node in this process: /calibrator's statuses and results, and ~/save."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64
+        from std_srvs.srv import Trigger
+
+        rclpy.init()
+        self.rclpy, self.Trigger = rclpy, Trigger
+        self.node = Node('bench_readiness_probe')
+        self.lock = threading.Lock()
+        self.statuses: list[tuple[float, dict]] = []
+        self.results: list[float] = []
+        self.node.create_subscription(DiagnosticStatus, '/calibrator/status', self._status, 50)
+        latched = QoSProfile(
+            depth=1,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+        self.node.create_subscription(
+            Float64, '/calibrator/time_offset', lambda _: self._stamp(self.results), latched
+        )
+        self.save = self.node.create_client(Trigger, '/calibrator/save')
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _status(self, msg) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        with self.lock:
+            self.statuses.append((time.monotonic(), {'message': msg.message, **values}))
+
+    def _stamp(self, into: list) -> None:
+        with self.lock:
+            into.append(time.monotonic())
+
+    def clear(self) -> None:
+        with self.lock:
+            self.statuses, self.results = [], []
+
+    def call_save(self) -> tuple[bool, str]:
+        self.save.wait_for_service(timeout_sec=30.0)
+        fut = self.save.call_async(self.Trigger.Request())
+        end = time.monotonic() + 30.0
+        while not fut.done() and time.monotonic() < end:
+            time.sleep(0.005)
+        return (fut.result().success, fut.result().message) if fut.done() else (False, 'timeout')
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.thread.join(timeout=5.0)
+        self.node.destroy_node()
+        self.rclpy.try_shutdown()
+
+
+def start_logged(log: Path, module: str, *args: str) -> subprocess.Popen:
+    """node_ingest.start with the output in a file: a node's log must not fill a pipe."""
+    with log.open('w') as f:
+        return subprocess.Popen(
+            [sys.executable, '-m', module, *args],
+            env=ENV,
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+
+
+def _sigmas(status: dict) -> np.ndarray:
+    """A status's predicted 1-sigmas (s, m, deg) from its flattened values."""
+    keys = ('sigma.time_offset_ms', 'sigma.translation_mm', 'sigma.rotation_deg')
+    v = [float(status[k]) if status.get(k, 'None') != 'None' else np.nan for k in keys]
+    return np.array(v) * np.array([1e-3, 1e-3, 1.0])
+
+
+def _reported(doc: dict) -> np.ndarray:
+    std = doc['std']
+    return np.array(
+        [
+            std['time_offset'],
+            float(np.linalg.norm(std['translation'])),
+            float(np.degrees(np.linalg.norm(std['rotation']))),
+        ]
+    )
+
+
+def run_seed(probe: LiveProbe, seed: int, out: Path) -> dict:
+    """One recording through the node; what happened, against the truth."""
+    probe.clear()
+    saved = out / f'seed{seed}.yaml'
+    node = start_logged(
+        out / f'node{seed}.log',
+        'handeye_ros.ros.calibrator',
+        '--ros-args',
+        '-p',
+        'auto_calibrate:=true',
+        '-p',
+        f'output_file:={saved}',
+    )
+    pub = start('handeye_ros.ros.sim_publisher', '--seed', str(seed), *PUBLISHER)
+    docs, seen, grace = [], 0, None
+    while grace is None or time.monotonic() < grace:
+        if grace is None and pub.poll() is not None:
+            grace = time.monotonic() + GRACE_S
+        with probe.lock:
+            n = len(probe.results)
+        if n > seen:
+            seen = n
+            ok, msg = probe.call_save()
+            docs.append((probe.results[n - 1], yaml.safe_load(saved.read_text()) if ok else msg))
+        time.sleep(0.05)
+    truth_line = json.loads(pub.stdout.read().strip().splitlines()[-1])
+    stop(node)
+    t = truth_line['truth']
+    truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
+    with probe.lock:
+        statuses = list(probe.statuses)
+    ready = [(w, s) for w, s in statuses if s['message'] == 'READY']
+    results = []
+    for when, doc in docs:
+        if not isinstance(doc, dict):
+            results.append({'when': when, 'error': doc})
+            continue
+        err = calibration_error(
+            truth,
+            doc['time_offset'],
+            doc['extrinsic']['rotation'],
+            doc['extrinsic']['translation'],
+        )
+        results.append(
+            {
+                'when': when,
+                'error': np.array([err.time_offset_s, err.translation_m, err.rotation_deg]),
+                'reported': _reported(doc) if doc.get('std') else None,
+                'verdict': doc.get('quality', {}).get('verdict'),
+            }
+        )
+    converged = any(s.get('auto_calibrate', '').startswith('converged') for _, s in statuses)
+    return {
+        'seed': seed,
+        # auto_calibrate starts at the first READY: the first result is that READY's
+        'first_ready': ready[0] if ready else None,
+        'results': results,
+        'converged': converged,
+        'rc': node.returncode,
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    p.add_argument('--seeds', type=int, default=20)
+    args = p.parse_args()
+    cfg = CalibrationConfig()
+    target = np.array(
+        [cfg.precision_time_offset, cfg.precision_translation, cfg.precision_rotation]
+    )
+    probe = LiveProbe()
+    runs = []
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for seed in range(args.seeds):
+                r = run_seed(probe, seed, Path(tmp))
+                runs.append(r)
+                print(
+                    f'seed {seed}: {len(r["results"])} result(s), converged {r["converged"]}',
+                    flush=True,
+                )
+    finally:
+        probe.close()
+    rows, ratios, latency, beyond, improved, later = [], [], [], 0, 0, 0
+    for r in runs:
+        res = [x for x in r['results'] if 'reported' in x]
+        for x in res:
+            beyond += bool(np.any(x['error'] > 3 * target))
+        first = res[0] if res else None
+        ratio = after = None
+        if first is not None and r['first_ready'] is not None:
+            after = first['when'] - r['first_ready'][0]
+            latency.append(after)
+            if first['reported'] is not None:
+                ratio = _sigmas(r['first_ready'][1]) / first['reported']
+                ratios.append(ratio)
+        for a, b in itertools.pairwise(res):
+            later += 1
+            if a['reported'] is not None and b['reported'] is not None:
+                improved += bool(np.all(b['reported'] <= a['reported']))
+        rows.append(
+            [
+                r['seed'],
+                len(res),
+                '-' if after is None else f'{after:.1f}',
+                '-'
+                if first is None
+                else ' '.join(f'{v:.3g}' for v in first['error'] * [1e3, 1e3, 1]),
+                '-' if ratio is None else ' '.join(f'{v:.2f}' for v in ratio),
+                'yes' if r['converged'] else 'no',
+            ]
+        )
+    ratios = np.array(ratios) if ratios else np.full((1, 3), np.nan)
+    summary = [
+        ['results beyond 3x the targets', beyond, '0'],
+        ['recordings with a result', sum(bool(r['results']) for r in runs), str(args.seeds)],
+        [
+            'first result after the READY that started it, max [s]',
+            f'{max(latency):.2f}' if latency else '-',
+            '2',
+        ],
+        [
+            'predicted / reported 1-sigma at the first result (dt, translation, rotation)',
+            ' '.join(
+                f'{a:.2f}-{b:.2f}' for a, b in zip(ratios.min(0), ratios.max(0), strict=True)
+            ),
+            '0.5-2',
+        ],
+        ['later results that improved every reported sigma', f'{improved} of {later}', ''],
+        ['recordings whose status said converged', sum(r['converged'] for r in runs), ''],
+        ['node exit codes != 0', sum(r['rc'] != 0 for r in runs), '0'],
+    ]
+    emit(
+        'readiness_live',
+        table(
+            f'auto_calibrate live ({args.seeds} seeds, planar for the first 30 s of '
+            f'{DURATION_S:.0f} s, in real time through sim_publisher)',
+            [
+                'seed',
+                'results',
+                'first result after READY [s]',
+                'its error (ms, mm, deg)',
+                'predicted / reported',
+                'converged',
+            ],
+            rows,
+        )
+        + '\n\n'
+        + table('Readiness live against the truth', ['figure', 'measured', 'target'], summary),
+        seeds=f'0..{args.seeds - 1}',
+    )
+
+
+if __name__ == '__main__':
+    main()

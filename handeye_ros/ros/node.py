@@ -190,11 +190,12 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ services
 
-    def calibrate(self) -> Future | None:
+    def calibrate(self, auto: bool = False) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
         Returns an rclpy Future that completes on the executor with (success, message), or
-        None when a calibration is already running.
+        None when a calibration is already running. ``auto``: started by auto mode, whose
+        result is published only when it improves (:meth:`ReadinessStatus.admit`).
         """
         if not self._busy.acquire(blocking=False):
             return None
@@ -224,10 +225,12 @@ class CalibratorNode(Node):
             self._busy.release()
             return future
 
-        job.add_done_callback(lambda job: self._calibrated(job, future, stage, t0))
+        job.add_done_callback(lambda job: self._calibrated(job, future, stage, t0, auto))
         return future
 
-    def _calibrated(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
+    def _calibrated(
+        self, job: cf.Future, future: Future, stage: str | None, t0: float, auto: bool
+    ) -> None:
         """The worker's answer (in a pool thread): the outputs, the log, the service's answer;
         the report's staging folder is kept with a success. The node's stop (close) ends a
         running job here too: its caller is then answered ABORTED."""
@@ -247,12 +250,18 @@ class CalibratorNode(Node):
             self._failed(f'internal error: {err!r}')
             future.set_result((False, f'internal error: {err!r}'))
         else:
+            took = f'{time.perf_counter() - t0:.2f} s'
+            if not self.status.admit(session, auto):
+                said = f'calibrated in {took}, not published: {session.summary}; ' + (
+                    'auto_calibrate keeps the published result, whose reported sigmas are smaller'
+                )
+                self.get_logger().info(said)
+                future.set_result((True, said))
+                return
             self._drop_stage(_staged_dir(self._last_result))
             kept = True
             self._succeeded(session)
-            self.get_logger().info(
-                f'calibrated in {time.perf_counter() - t0:.2f} s: {session.summary}'
-            )
+            self.get_logger().info(f'calibrated in {took}: {session.summary}')
             for w in session.result.warnings:
                 self.get_logger().warning(w)
             future.set_result((True, session.summary))
@@ -374,7 +383,6 @@ class CalibratorNode(Node):
         for key, name in PATHS.items():
             if key in session.paths:
                 self._paths[name].publish(messages.path(self._types, world, *session.paths[key]))
-        self.status.calibrated(session)
         self._publish_diagnostics()
 
     def _failed(self, why: str) -> None:

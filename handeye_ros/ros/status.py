@@ -10,9 +10,10 @@ in place on a terminal, logged when it changes elsewhere. The node's executor on
 snapshot: ingest never waits for the computation.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
-time the buffered span has grown by GROWTH, until a result's reported sigmas improve on the
-previous one's by less than IMPROVEMENT: converged, said in the status. ``~/calibrate`` works
-at any time.
+time the buffered span has grown by GROWTH. A later result of its own is published only when
+it improves on the published one (no reported sigma larger); once one improves by less than
+IMPROVEMENT, or not at all, auto mode has converged, said in the status, and stops.
+``~/calibrate`` works at any time, and its result is always published.
 """
 
 from __future__ import annotations
@@ -164,25 +165,47 @@ class ReadinessStatus:
         span = min(self._node.recorder.stats()[s].span_s for s in STREAMS)
         if self._span_calibrated and span < GROWTH * self._span_calibrated:
             return
-        if self._node.calibrate() is not None:
+        if self._node.calibrate(auto=True) is not None:
             self._span_calibrated = span
             self.auto = 'calibrating'
 
-    def calibrated(self, session: Calibrated) -> None:
-        """A new result: with auto mode, converged once its sigmas stop improving."""
+    def admit(self, session: Calibrated, auto: bool) -> bool:
+        """A new result, before it is published: whether it replaces the published one.
+
+        A result of ``~/calibrate`` always does. One that auto mode started does when none of
+        its reported sigmas is larger than the published result's; auto mode has converged
+        (said in the status) once a result of its own improves no sigma by IMPROVEMENT, or is
+        not admitted."""
         batch = session.document.get('std')
         if self.auto == 'off' or not batch:
-            return
+            return True
         sigmas = (
             float(batch['time_offset']),
             float(np.linalg.norm(batch['translation'])),
             float(np.linalg.norm(batch['rotation'])),
         )
-        before, self._sigmas = self._sigmas, sigmas
-        if before is not None and all(
-            new > (1.0 - IMPROVEMENT) * old for new, old in zip(sigmas, before, strict=True)
-        ):
-            self.auto = (
-                f'converged: the reported sigmas stopped improving ({sigmas[0] * 1e3:.2g} ms, '
-                f'{sigmas[1] * 1e3:.2g} mm, {np.degrees(sigmas[2]):.2g} deg)'
+        before = self._sigmas
+        admitted = (
+            not auto
+            or before is None
+            or all(new <= old for new, old in zip(sigmas, before, strict=True))
+        )
+        if admitted:
+            self._sigmas = sigmas
+        if (
+            auto
+            and before is not None
+            and (
+                not admitted
+                or all(
+                    new > (1.0 - IMPROVEMENT) * old
+                    for new, old in zip(sigmas, before, strict=True)
+                )
             )
+        ):
+            best = self._sigmas
+            self.auto = (
+                f'converged: the reported sigmas stopped improving ({best[0] * 1e3:.2g} ms, '
+                f'{best[1] * 1e3:.2g} mm, {np.degrees(best[2]):.2g} deg)'
+            )
+        return admitted

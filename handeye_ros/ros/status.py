@@ -184,28 +184,27 @@ class ReadinessStatus:
             float(np.linalg.norm(batch['translation'])),
             float(np.linalg.norm(batch['rotation'])),
         )
-        before = self._sigmas
-        admitted = (
-            not auto
-            or before is None
-            or all(new <= old for new, old in zip(sigmas, before, strict=True))
-        )
+        admitted, converged = judge(sigmas, self._sigmas, auto)
         if admitted:
             self._sigmas = sigmas
-        if (
-            auto
-            and before is not None
-            and (
-                not admitted
-                or all(
-                    new > (1.0 - IMPROVEMENT) * old
-                    for new, old in zip(sigmas, before, strict=True)
-                )
-            )
-        ):
+        if converged:
             best = self._sigmas
             self.auto = (
                 f'converged: the reported sigmas stopped improving ({best[0] * 1e3:.2g} ms, '
                 f'{best[1] * 1e3:.2g} mm, {np.degrees(best[2]):.2g} deg)'
             )
         return admitted
+
+
+def judge(
+    sigmas: tuple[float, ...], published: tuple[float, ...] | None, auto: bool
+) -> tuple[bool, bool]:
+    """A new result's reported 1-sigmas against the published result's (None: none yet):
+    whether it replaces it, and whether auto mode has converged with it (both only for a
+    result that auto mode started; see :meth:`ReadinessStatus.admit`)."""
+    if not auto or published is None:
+        return True, False
+    pairs = list(zip(sigmas, published, strict=True))
+    admitted = all(new <= old for new, old in pairs)
+    converged = not admitted or all(new > (1.0 - IMPROVEMENT) * old for new, old in pairs)
+    return admitted, converged

@@ -88,6 +88,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '5 min',
     ),
     'readiness': ('readiness', [], ['readiness'], '10 min'),
+    'readiness_live': ('readiness_live', [], ['readiness_live'], '50 min'),
     'node_ingest': (
         'node_ingest',
         [],

@@ -297,6 +297,7 @@ class CalibratorNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self.recorder.reset()
+        self.status.reset()
         response.success = True
         response.message = 'buffers cleared' + (
             ' (the running calibration works on its own copy and will still answer)'

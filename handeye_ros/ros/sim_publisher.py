@@ -117,6 +117,14 @@ def parser() -> argparse.ArgumentParser:
         help='messages per second, both topics together (default: 1000)',
     )
     ap.add_argument(
+        '--clock-jump',
+        type=float,
+        default=0.0,
+        metavar='SECONDS',
+        help="the device's stamps jump by SECONDS halfway through, while its messages keep "
+        'coming, as a clock that resynchronises (default: 0; on the wire only, not in --bag)',
+    )
+    ap.add_argument(
         '--nan-every',
         type=int,
         default=0,
@@ -166,6 +174,8 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
             ap.error(
                 f'{flag} must be a positive number of {"seconds" if flag == "--duration" else "Hz"}, not {v}'
             )
+    if not math.isfinite(args.clock_jump):
+        ap.error(f'--clock-jump takes seconds, not {args.clock_jump}')
     if not 0.0 <= args.level <= 10.0:
         ap.error(f'--level is 0-10, not {args.level}')
     if not all(math.isfinite(v) and v >= 0.0 for v in args.mocap_noise):
@@ -215,6 +225,7 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
         + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)]
     )
     sent = {'hand': 0, 'eye': 0}
+    jump_ns, jump_from = round(args.clock_jump * 1e9), len(rec.eye) // 2
     t0 = time.monotonic()
     for j, (t, s, k) in enumerate(items):
         name = 'hand' if s == 0 else 'eye'
@@ -223,6 +234,8 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
         if name == 'eye' and args.nan_every and k % args.nan_every == args.nan_every - 1:
             p = np.array([math.nan, 0.0, 0.0])
         unset = args.zero_stamps in (name, 'both')
+        if name == 'eye' and k >= jump_from:
+            t += jump_ns
         pubs[name].publish(
             message(
                 args.hand_type if s == 0 else args.eye_type,

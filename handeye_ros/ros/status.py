@@ -44,6 +44,9 @@ IMPROVEMENT = 0.1
 MAX_DUTY = 0.03
 #: A stream silent for this long (s) while the other one flows has stopped.
 STOPPED_S = 2.0
+#: The two streams' newest stamps may move against each other by this much (s, at least)
+#: before the status says a clock jumped: their periods and the executor's lag jitter them.
+JUMP_S = 1.0
 #: Off a terminal, the status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
@@ -62,6 +65,9 @@ class ReadinessStatus:
         self._span_calibrated = 0.0
         self._sigmas: tuple[float, float, float] | None = None
         self._logged = (0.0, '')
+        self._apart: float | None = None  # eye's newest stamp - hand's at the first snapshot
+        #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
+        self.jumped: list[str] = []
         self._tty = sys.stderr.isatty()
         self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
         if period_s > 0.0:
@@ -89,6 +95,7 @@ class ReadinessStatus:
             self.last, self.why_not = None, str(err)
             self._publish()
             return
+        self._clocks(snapshot.hand.t_ns, snapshot.eye.t_ns)
         self._pending = True
         try:
             job = node.submit(readiness_of_buffers, snapshot, node.options())
@@ -125,8 +132,34 @@ class ReadinessStatus:
         who = {'hand': 'the MoCap stream', 'eye': 'the device stream'}[s]
         return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
 
+    def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
+        """Whether the streams' newest stamps (int64 ns) moved against each other since the
+        first snapshot while both flow: a clock that jumped, or a stream whose every message
+        is now refused (a clock that went back). Kept in ``jumped`` until :meth:`reset`: the
+        buffers hold both clocks' times."""
+        period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
+        window = max(0.5 * JUMP_S, 3.0 * period)
+        now = time.monotonic()
+        if any(now - t > window for t in self._node.last_seen.values()):
+            return  # a stream is quiet: stopped() says so
+        apart = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
+        if self._apart is None:
+            self._apart = apart
+            return
+        moved = apart - self._apart
+        said = (
+            f"the device's stamps moved {moved:+.1f} s against the MoCap's while both streams "
+            "flow: a clock jumped, or one stream's messages are refused (see the log); call "
+            '~/reset to start over'
+        )
+        self.jumped = [said] if abs(moved) > max(JUMP_S, 2.0 * window) else []
+
+    def reset(self) -> None:
+        """The buffers were emptied: the clocks are compared afresh."""
+        self._apart, self.jumped = None, []
+
     def _publish(self) -> None:
-        stopped = self.stopped()
+        stopped = self.stopped() + self.jumped
         if stopped and self.last is not None:
             self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
         st = self.status()

@@ -815,3 +815,19 @@ def test_a_planar_recording_never_becomes_ready_and_names_the_axis(
     messages_seen = [s['message'] for s in got['status']]
     assert messages_seen and 'READY' not in messages_seen
     assert any(m.startswith('turn the device about its') for m in messages_seen), messages_seen
+
+
+def test_a_clock_that_jumps_is_said(ros: Processes, install: Path) -> None:
+    """The device's clock jumps 5 s forward halfway through while its messages keep coming
+    (sim_publisher --clock-jump, in real time): the status says so, and is not READY."""
+    _start_node(ros, install, 'status_period:=0.5', name='node')
+    time.sleep(2.0)
+    ros.start(
+        _publisher(ros, '--duration', '24', '--rate', '120', '--clock-jump', '5', '--level', '3'),
+        'pub',
+    )
+    got = _call(ros, '26', mode='status')
+    said = [s['message'] for s in got['status']]
+    jumped = [m for m in said if 'a clock jumped' in m]
+    assert jumped and "the device's stamps moved +5." in jumped[0], said
+    assert 'READY' not in said[said.index(jumped[0]) :], said

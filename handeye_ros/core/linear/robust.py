@@ -17,7 +17,9 @@ level 10 from 0.82 to 0.47 deg (bench/ablation.py). The dual-quaternion solution
 result. The kernel and the inlier test are the paper's; two more departures are disclosed in
 docs/method.md: the singular values come from the eigendecomposition of ``M^T M`` (batched 8x8
 Gram matrices, never M itself), and a RANSAC refinement is eligible for the sigma7/sigma6
-choice only when its consensus holds at least ``CONSENSUS_FRACTION`` of the largest one.
+choice only when its consensus holds at least ``CONSENSUS_FRACTION`` of the largest one and,
+where any eligible consensus spreads its rotation axes, only one that does
+(:func:`_well_spread`).
 """
 
 from __future__ import annotations
@@ -131,14 +133,18 @@ def _ransac(
     inlier_rotation_rad: float,
     inlier_translation_m: float,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, ...]:
     """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
     that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
-    with the number of hypotheses. Returns (counts, q1, qd1, ratio, hypotheses' (q0, p0))."""
+    with the number of hypotheses. Returns (counts, q1, qd1, ratio, the consensus' rotation
+    axis spread [deg], hypotheses' (q0, p0))."""
     n = len(m)
     first = rng.integers(0, n, iterations)
     second = (first + rng.integers(1, n, iterations)) % n
     counts = np.empty(iterations, dtype=int)
+    spread = np.empty(iterations)
+    norms = np.linalg.norm(m.qa[:, :3], axis=1)
+    axes = np.where(norms[:, None] > 1e-12, m.qa[:, :3] / np.maximum(norms, 1e-300)[:, None], 0.0)
     q1 = np.empty((iterations, 4))
     qd1 = np.empty((iterations, 4))
     ratio = np.empty(iterations)
@@ -156,8 +162,34 @@ def _ransac(
         qa, qda, sigma = solve_gram(((masks * w2) @ gram).reshape(-1, 8, 8))
         q1[a:b], qd1[a:b] = qa, qda
         ratio[a:b] = sigma_ratio(sigma)
+        spread[a:b] = _axis_spreads(axes, masks)
         q0_all[a:b], p0_all[a:b] = q0, p0
-    return counts, q1, qd1, ratio, (q0_all, p0_all)
+    return counts, q1, qd1, ratio, spread, (q0_all, p0_all)
+
+
+def _axis_spreads(axes: np.ndarray, masks: np.ndarray) -> np.ndarray:
+    """:func:`axis_spread_deg` of many consensus sets at once: ``axes`` (n, 3) unit hand
+    rotation axes (zero rows for no rotation), ``masks`` (k, n) -> (k,) degrees."""
+    scatter = (masks @ (axes[:, :, None] * axes[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
+    lam = np.linalg.eigvalsh(scatter)  # ascending
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r = np.where(lam[:, 2] > 0.0, np.maximum(lam[:, 1], 0.0) / lam[:, 2], 0.0)
+    return np.degrees(2.0 * np.arctan(np.sqrt(r)))
+
+
+def _well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:
+    """The eligible hypotheses whose consensus spreads its rotation axes the most, by tier:
+    at least WARN_AXIS_SPREAD_DEG where any does, else at least MIN_AXIS_SPREAD_DEG, else all.
+
+    Why: a consensus of motions about nearly one axis (a recording that was planar for a while)
+    is degenerate in the translation along that axis, and its sigma7/sigma6 is then no measure
+    of quality; it came out smallest and won over the consensus of the whole recording (the
+    live poor-then-rich runs of bench/readiness_live.py: 36 mm off, reported unobservable)."""
+    for floor in (WARN_AXIS_SPREAD_DEG, MIN_AXIS_SPREAD_DEG):
+        tier = eligible & (spread >= floor)
+        if tier.any():
+            return tier
+    return eligible
 
 
 def _check_enough(n: int, min_motions: int) -> None:
@@ -264,11 +296,11 @@ def _consensus(
     (or one robust solve on all motions): (q_HE, p_HE, inliers, singular values, sigma7/6)."""
     n = len(m)
     if ransac_iterations > 0:
-        counts, q1, qd1, ratio, (q0, p0) = _ransac(
+        counts, q1, qd1, ratio, spread, (q0, p0) = _ransac(
             m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
         )
     else:
-        counts = np.array([n])
+        counts, spread = np.array([n]), np.zeros(1)
         q1, qd1, sigma = solve_gram((w2 @ gram).reshape(1, 8, 8))
         ratio = sigma_ratio(sigma)
     eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
@@ -279,7 +311,7 @@ def _consensus(
             'eye poses are too noisy for these thresholds, or the time offset is wrong'
         )
         raise DegenerateMotionError(msg)
-    best = int(np.argmin(np.where(eligible, ratio, np.inf)))
+    best = int(np.argmin(np.where(_well_spread(eligible, spread), ratio, np.inf)))
     q_HE, p_HE = pose_from_dual_quat(q1[best], qd1[best])
     if ransac_iterations > 0:
         e_rot, e_trans = motion_errors(m, q0[best][None], p0[best][None])

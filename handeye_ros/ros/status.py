@@ -196,7 +196,7 @@ class ReadinessStatus:
     # ------------------------------------------------------------------ auto mode
 
     def _auto_calibrate(self) -> None:
-        span = min(self._node.recorder.stats()[s].span_s for s in STREAMS)
+        span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
         if self._span_calibrated and span < GROWTH * self._span_calibrated:
             return
         if self._node.calibrate(auto=True) is not None:

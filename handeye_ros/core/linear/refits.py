@@ -94,13 +94,24 @@ def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
     From the eigenvalues l1 >= l2 of the axes' scatter matrix: ``2 atan(sqrt(l2 / l1))``, which
     for two axes equals the angle between them and is 0 when all axes are parallel.
     """
-    v = m.qa[mask, :3]
+    return float(axis_spreads_deg(rotation_axes(m), np.asarray(mask, dtype=float)[None])[0])
+
+
+def rotation_axes(m: Motions) -> np.ndarray:
+    """(n, 3) unit hand rotation axes of the motions (zero rows for no rotation)."""
+    v = m.qa[:, :3]
     norms = np.linalg.norm(v, axis=1)
-    a = v[norms > 1e-12] / norms[norms > 1e-12, None]
-    if a.shape[0] < 2:
-        return 0.0
-    lam = np.linalg.eigvalsh(a.T @ a)[::-1]
-    return float(np.degrees(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[0]))))
+    return np.where(norms[:, None] > 1e-12, v / np.maximum(norms, 1e-300)[:, None], 0.0)
+
+
+def axis_spreads_deg(axes: np.ndarray, masks: np.ndarray) -> np.ndarray:
+    """:func:`axis_spread_deg` of many selections at once: ``axes`` from
+    :func:`rotation_axes`, ``masks`` (k, n) -> (k,) degrees."""
+    scatter = (masks @ (axes[:, :, None] * axes[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
+    lam = np.linalg.eigvalsh(scatter)  # ascending
+    with np.errstate(divide='ignore', invalid='ignore'):
+        r = np.where(lam[:, 2] > 0.0, np.maximum(lam[:, 1], 0.0) / lam[:, 2], 0.0)
+    return np.degrees(2.0 * np.arctan(np.sqrt(r)))
 
 
 def common_axis(v: np.ndarray) -> np.ndarray:

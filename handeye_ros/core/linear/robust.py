@@ -41,10 +41,12 @@ from .axxb import (
 )
 from .refits import (
     axis_spread_deg,
+    axis_spreads_deg,
     degenerate_refit,
     drift_weights,
     refit_rotation,
     refit_translation_gls,
+    rotation_axes,
 )
 from .scale import dual_quaternion_scale, translation_and_scale
 
@@ -143,8 +145,7 @@ def _ransac(
     second = (first + rng.integers(1, n, iterations)) % n
     counts = np.empty(iterations, dtype=int)
     spread = np.empty(iterations)
-    norms = np.linalg.norm(m.qa[:, :3], axis=1)
-    axes = np.where(norms[:, None] > 1e-12, m.qa[:, :3] / np.maximum(norms, 1e-300)[:, None], 0.0)
+    axes = rotation_axes(m)
     q1 = np.empty((iterations, 4))
     qd1 = np.empty((iterations, 4))
     ratio = np.empty(iterations)
@@ -162,19 +163,9 @@ def _ransac(
         qa, qda, sigma = solve_gram(((masks * w2) @ gram).reshape(-1, 8, 8))
         q1[a:b], qd1[a:b] = qa, qda
         ratio[a:b] = sigma_ratio(sigma)
-        spread[a:b] = _axis_spreads(axes, masks)
+        spread[a:b] = axis_spreads_deg(axes, masks)
         q0_all[a:b], p0_all[a:b] = q0, p0
     return counts, q1, qd1, ratio, spread, (q0_all, p0_all)
-
-
-def _axis_spreads(axes: np.ndarray, masks: np.ndarray) -> np.ndarray:
-    """:func:`axis_spread_deg` of many consensus sets at once: ``axes`` (n, 3) unit hand
-    rotation axes (zero rows for no rotation), ``masks`` (k, n) -> (k,) degrees."""
-    scatter = (masks @ (axes[:, :, None] * axes[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
-    lam = np.linalg.eigvalsh(scatter)  # ascending
-    with np.errstate(divide='ignore', invalid='ignore'):
-        r = np.where(lam[:, 2] > 0.0, np.maximum(lam[:, 1], 0.0) / lam[:, 2], 0.0)
-    return np.degrees(2.0 * np.arctan(np.sqrt(r)))
 
 
 def _well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:

@@ -90,16 +90,14 @@ class PoseBuffer:
     @property
     def span_s(self) -> float:
         """The buffered time span [s], from the oldest and the newest stamp (no copy: cheap
-        enough for every tick of the node's timers, unlike :meth:`stats`)."""
+        enough for every tick of the node's timers)."""
         with self._lock:
-            if self._count < 2:
-                return 0.0
-            return (
-                float(
-                    self._t[(self._head + self._count - 1) % self.capacity] - self._t[self._head]
-                )
-                * 1e-9
-            )
+            return self._span_s()
+
+    def _span_s(self) -> float:
+        """:attr:`span_s`, under the lock. ``_last`` is the newest stored stamp (a rejected
+        message does not change it)."""
+        return (self._last - int(self._t[self._head])) * 1e-9 if self._count >= 2 else 0.0
 
     def add(
         self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float
@@ -180,11 +178,15 @@ class PoseBuffer:
             if n >= 2:
                 k = min(n, RATE_WINDOW + 1)
                 newest = (self._head + n - k + np.arange(k)) % self.capacity
-                t = self._t[newest]
-                span = float(t[-1] - self._t[self._head]) * 1e-9
-                rate = 1e9 / float(np.median(np.diff(t)))
+                rate = 1e9 / float(np.median(np.diff(self._t[newest])))
             else:
-                span, rate = 0.0, 0.0
+                rate = 0.0
             return BufferStats(
-                self.received, n, self.dropped, dict(self.rejected), span, rate, self._last
+                self.received,
+                n,
+                self.dropped,
+                dict(self.rejected),
+                self._span_s(),
+                rate,
+                self._last,
             )

@@ -72,7 +72,7 @@ def main(args: list[str] | None = None) -> int:
             executor.add_node(node)
         while executor is not None and rclpy.ok() and not stop_requested():
             executor.spin_once()
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:  # a context shut down from elsewhere
         pass
     except ConfigError as err:
         print(f'calibrator: error: {err}', file=sys.stderr)

@@ -67,7 +67,7 @@ class ReadinessStatus:
         self._logged = (0.0, '')
         self._apart: float | None = None  # eye's newest stamp - hand's at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
-        self.jumped: list[str] = []
+        self._jumped: list[str] = []
         self._tty = sys.stderr.isatty()
         self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
         if period_s > 0.0:
@@ -135,7 +135,7 @@ class ReadinessStatus:
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
         """Whether the streams' newest stamps (int64 ns) moved against each other since the
         first snapshot while both flow: a clock that jumped, or a stream whose every message
-        is now refused (a clock that went back). Kept in ``jumped`` until :meth:`reset`: the
+        is now refused (a clock that went back). Kept in ``_jumped`` until :meth:`reset`: the
         buffers hold both clocks' times."""
         period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
         window = max(0.5 * JUMP_S, 3.0 * period)
@@ -152,14 +152,14 @@ class ReadinessStatus:
             "flow: a clock jumped, or one stream's messages are refused (see the log); call "
             '~/reset to start over'
         )
-        self.jumped = [said] if abs(moved) > max(JUMP_S, 2.0 * window) else []
+        self._jumped = [said] if abs(moved) > max(JUMP_S, 2.0 * window) else []
 
     def reset(self) -> None:
         """The buffers were emptied: the clocks are compared afresh."""
-        self._apart, self.jumped = None, []
+        self._apart, self._jumped = None, []
 
     def _publish(self) -> None:
-        stopped = self.stopped() + self.jumped
+        stopped = self.stopped() + self._jumped
         if stopped and self.last is not None:
             self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
         st = self.status()

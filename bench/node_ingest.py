@@ -111,15 +111,22 @@ class Probe:
         self.rclpy.try_shutdown()
 
 
-def start(module: str, *args: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, '-m', module, *args],
-        env=ENV,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
+def start(module: str, *args: str, log: Path | None = None) -> subprocess.Popen:
+    """``python -m module args`` in its own session; its output piped, or into ``log`` (a
+    long-running node's log must not fill a pipe nobody reads)."""
+    out = subprocess.PIPE if log is None else log.open('w')
+    try:
+        return subprocess.Popen(
+            [sys.executable, '-m', module, *args],
+            env=ENV,
+            stdout=out,
+            stderr=subprocess.PIPE if log is None else subprocess.STDOUT,
+            text=True,
+            start_new_session=True,
+        )
+    finally:
+        if log is not None:
+            out.close()  # the child has its own copy
 
 
 def stop(p: subprocess.Popen) -> None:

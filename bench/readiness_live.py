@@ -28,8 +28,6 @@ import argparse
 import itertools
 import json
 import pickle
-import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -39,7 +37,7 @@ import common  # first: puts the project on sys.path
 import numpy as np
 import yaml
 from common import emit, table
-from node_ingest import ENV, start, stop
+from node_ingest import start, stop
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.simulate import Truth, calibration_error
@@ -119,18 +117,6 @@ class LiveProbe:
         self.rclpy.try_shutdown()
 
 
-def start_logged(log: Path, module: str, *args: str) -> subprocess.Popen:
-    """node_ingest.start with the output in a file: a node's log must not fill a pipe."""
-    with log.open('w') as f:
-        return subprocess.Popen(
-            [sys.executable, '-m', module, *args],
-            env=ENV,
-            stdout=f,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
-
-
 def _sigmas(status: dict) -> np.ndarray:
     """A status's predicted 1-sigmas (s, m, deg) from its flattened values."""
     keys = ('sigma.time_offset_ms', 'sigma.translation_mm', 'sigma.rotation_deg')
@@ -155,14 +141,10 @@ def run_seed(
     """One recording through the node; what happened, against the truth."""
     probe.clear()
     saved = out / f'seed{seed}.yaml'
-    node = start_logged(
-        out / f'node{seed}.log',
+    node = start(
         'handeye_ros.ros.calibrator',
-        '--ros-args',
-        '-p',
-        'auto_calibrate:=true',
-        '-p',
-        f'output_file:={saved}',
+        *('--ros-args', '-p', 'auto_calibrate:=true', '-p', f'output_file:={saved}'),
+        log=out / f'node{seed}.log',
     )
     pub = start(
         'handeye_ros.ros.sim_publisher',

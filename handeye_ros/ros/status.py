@@ -44,8 +44,8 @@ IMPROVEMENT = 0.1
 MAX_DUTY = 0.03
 #: A stream silent for this long (s) while the other one flows has stopped.
 STOPPED_S = 2.0
-#: The two streams' newest stamps may move against each other by this much (s, at least)
-#: before the status says a clock jumped: their periods and the executor's lag jitter them.
+#: The two streams' stamps may move against their arrivals by this much (s, at least) before
+#: the status says a clock jumped: their periods and the executor's lag jitter them.
 JUMP_S = 1.0
 #: Off a terminal, the status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
@@ -133,26 +133,21 @@ class ReadinessStatus:
         return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
-        """Whether the streams' newest stamps (int64 ns) moved against each other since the
-        first snapshot while both flow: a clock that jumped, or a stream whose every message
-        is now refused (a clock that went back). Kept in ``_jumped`` until :meth:`reset`: the
-        buffers hold both clocks' times."""
-        period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
-        window = max(0.5 * JUMP_S, 3.0 * period)
-        now = time.monotonic()
-        if any(now - t > window for t in self._node.last_seen.values()):
-            return  # a stream is quiet: stopped() says so
-        apart = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
+        """Whether the streams' clocks moved against each other since the first snapshot
+        (:func:`clocks_apart`). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both
+        clocks' times."""
+        apart = clocks_apart(hand_ns, eye_ns, self._node.last_seen)
         if self._apart is None:
             self._apart = apart
             return
         moved = apart - self._apart
+        # arrivals jitter by the streams' periods and the executor's lag
+        period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
         said = (
-            f"the device's stamps moved {moved:+.1f} s against the MoCap's while both streams "
-            "flow: a clock jumped, or one stream's messages are refused (see the log); call "
-            '~/reset to start over'
+            f"the device's stamps moved {moved:+.1f} s against the MoCap's: a clock jumped, "
+            "or one stream's messages are refused (see the log); call ~/reset to start over"
         )
-        self._jumped = [said] if abs(moved) > max(JUMP_S, 2.0 * window) else []
+        self._jumped = [said] if abs(moved) > max(JUMP_S, 6.0 * period) else []
 
     def reset(self) -> None:
         """The buffers were emptied: the clocks are compared afresh."""
@@ -228,6 +223,16 @@ class ReadinessStatus:
                 f'{best[1] * 1e3:.2g} mm, {np.degrees(best[2]):.2g} deg)'
             )
         return admitted
+
+
+def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
+    """How far (s) the device's clock is ahead of the MoCap's, as far as arrivals tell: each
+    stream's newest accepted stamp (int64 ns) against when its last message came (``seen``,
+    monotonic s, refused messages included). Changes when a clock jumps, or when a stream's
+    every message is refused (a clock that went back); not when a stream pauses, or ends
+    before the other one: its stamp and its arrival stop together."""
+    stamps = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
+    return stamps - (seen['eye'] - seen['hand'])
 
 
 def judge(

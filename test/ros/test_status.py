@@ -1,13 +1,14 @@
 """auto_calibrate's rule for a later result (status.judge): published only when it improves,
-converged once it improves too little."""
+converged once it improves too little; and how the status tells that a clock jumped."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 pytest.importorskip('diagnostic_msgs')
 
-from handeye_ros.ros.status import IMPROVEMENT, judge
+from handeye_ros.ros.status import IMPROVEMENT, clocks_apart, judge
 
 
 @pytest.mark.parametrize(
@@ -29,3 +30,24 @@ from handeye_ros.ros.status import IMPROVEMENT, judge
 def test_a_later_auto_result(sigmas, published, auto, expected) -> None:
     assert IMPROVEMENT == 0.1
     assert judge(sigmas, published, auto) == expected
+
+
+def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
+    """A 100 Hz MoCap and a 20 Hz device published in real time (arrival = stamp + 5 ms)."""
+    hand = np.arange(0, 2000) * 10_000_000  # ns, 20 s
+    eye = np.arange(0, 400) * 50_000_000
+
+    def apart(h_end: float, e_end: float, e_seen: float, jump_s: float = 0.0) -> float:
+        h, e = hand[hand <= h_end * 1e9], eye[eye <= e_end * 1e9]
+        e_stamp = e.copy()
+        e_stamp[-1] += round(jump_s * 1e9)
+        seen = {'hand': h[-1] * 1e-9 + 0.005, 'eye': e_seen}
+        return clocks_apart(h, e_stamp, seen)
+
+    first = apart(10.0, 10.0, 10.005)
+    # the device's stream ends 1 s before the MoCap's: nothing moved
+    assert apart(19.0, 18.0, 18.005) == pytest.approx(first, abs=1e-9)
+    # its messages keep coming but are refused for 3 s (a clock that went back 3 s)
+    assert apart(19.0, 16.0, 19.005) - first == pytest.approx(-3.0, abs=1e-9)
+    # its clock jumped 5 s forward
+    assert apart(19.0, 19.0, 19.005, jump_s=5.0) - first == pytest.approx(5.0, abs=1e-9)

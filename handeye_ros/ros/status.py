@@ -11,8 +11,10 @@ snapshot: ingest never waits for the computation.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
 time the buffered span has grown by GROWTH. A later result of its own is published only when
-it improves on the published one (no reported sigma larger); once one improves by less than
-IMPROVEMENT, or not at all, auto mode has converged, said in the status, and stops.
+it improves on the published one (no reported sigma larger); once one improves no sigma by
+more than IMPROVEMENT of itself or of its target, or is not published, auto mode has
+converged, said in the status, and stops; so it does, said so, once the buffers are full (their
+span can no longer grow by GROWTH).
 ``~/calibrate`` works at any time, and its result is always published.
 """
 
@@ -33,7 +35,11 @@ from . import diagnostics
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
-#: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction.
+#: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction of
+#: itself or of its precision_* target, whichever is larger. Of itself: errors that are not
+#: white (drift, a MoCap bias) stop the sigmas at a floor. Of the target: white noise shrinks
+#: them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and this ends it once they are about
+#: half the targets, where more recording no longer matters to the verdict.
 IMPROVEMENT = 0.1
 #: The status takes at most this share of one core on average: one that cost c seconds of CPU
 #: (the node's snapshot, in its thread, and the worker's job, in all its threads: numpy's BLAS
@@ -150,8 +156,11 @@ class ReadinessStatus:
         self._jumped = [said] if abs(moved) > max(JUMP_S, 6.0 * period) else []
 
     def reset(self) -> None:
-        """The buffers were emptied: the clocks are compared afresh."""
+        """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
+        (a new recording: its first result is published whatever the last one reported)."""
         self._apart, self._jumped = None, []
+        if self.auto != 'off':
+            self.auto, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
 
     def _publish(self) -> None:
         stopped = self.stopped() + self._jumped
@@ -173,7 +182,7 @@ class ReadinessStatus:
     def _say(self, line: str) -> None:
         """One line: redrawn in place on a terminal, else logged when it changes (and every
         LOG_PERIOD_S)."""
-        if self.auto.startswith('converged'):
+        if self.auto.startswith(('converged', 'done')):
             line += f' | {self.auto}'
         if self._tty:
             sys.stderr.write('\r' + line + '\x1b[K')
@@ -191,8 +200,14 @@ class ReadinessStatus:
     # ------------------------------------------------------------------ auto mode
 
     def _auto_calibrate(self) -> None:
-        span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
+        buffers = [self._node.recorder.buffers[s] for s in STREAMS]
+        span = min(b.span_s for b in buffers)
         if self._span_calibrated and span < GROWTH * self._span_calibrated:
+            if any(b.dropped for b in buffers):  # a full buffer's span grows no more
+                self.auto = (
+                    f'done: the buffers are full ({span:.0f} s; buffer_duration, buffer_size), '
+                    'so later results would not see more data; ~/calibrate still works'
+                )
             return
         if self._node.calibrate(auto=True) is not None:
             self._span_calibrated = span
@@ -213,13 +228,20 @@ class ReadinessStatus:
             float(np.linalg.norm(batch['translation'])),
             float(np.linalg.norm(batch['rotation'])),
         )
-        admitted, converged = judge(sigmas, self._sigmas, auto)
+        cfg = self._node.calib_cfg
+        targets = (
+            cfg.precision_time_offset,
+            cfg.precision_translation,
+            float(np.radians(cfg.precision_rotation)),
+        )
+        admitted, converged = judge(sigmas, self._sigmas, auto, targets)
         if admitted:
             self._sigmas = sigmas
         if converged:
             best = self._sigmas
             self.auto = (
-                f'converged: the reported sigmas stopped improving ({best[0] * 1e3:.2g} ms, '
+                'converged: the reported sigmas no longer improve by '
+                f'{IMPROVEMENT:.0%} of themselves or of the targets ({best[0] * 1e3:.2g} ms, '
                 f'{best[1] * 1e3:.2g} mm, {np.degrees(best[2]):.2g} deg)'
             )
         return admitted
@@ -236,14 +258,19 @@ def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]
 
 
 def judge(
-    sigmas: tuple[float, ...], published: tuple[float, ...] | None, auto: bool
+    sigmas: tuple[float, ...],
+    published: tuple[float, ...] | None,
+    auto: bool,
+    targets: tuple[float, ...],
 ) -> tuple[bool, bool]:
-    """A new result's reported 1-sigmas against the published result's (None: none yet):
-    whether it replaces it, and whether auto mode has converged with it (both only for a
-    result that auto mode started; see :meth:`ReadinessStatus.admit`)."""
+    """A new result's reported 1-sigmas against the published result's (None: none yet), in
+    the targets' units: whether it replaces it, and whether auto mode has converged with it
+    (both only for a result that auto mode started; see :meth:`ReadinessStatus.admit`)."""
     if not auto or published is None:
         return True, False
-    pairs = list(zip(sigmas, published, strict=True))
-    admitted = all(new <= old for new, old in pairs)
-    converged = not admitted or all(new > (1.0 - IMPROVEMENT) * old for new, old in pairs)
+    rows = list(zip(sigmas, published, targets, strict=True))
+    admitted = all(new <= old for new, old, _ in rows)
+    converged = not admitted or all(
+        old - new <= IMPROVEMENT * max(old, target) for new, old, target in rows
+    )
     return admitted, converged

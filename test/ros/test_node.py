@@ -806,6 +806,28 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
     assert np.median(gap) < 0.1  # the eye's own drift at level 3: a few cm
 
 
+def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, install: Path) -> None:
+    """With 40-s buffers, auto mode's span stops growing once they are full: it says so in the
+    status (`done`) instead of waiting in silence, after at least one result. The publisher
+    runs at twice its real rate."""
+    _start_node(
+        ros,
+        install,
+        'auto_calibrate:=true',
+        'status_period:=0.5',
+        'buffer_duration:=40.0',
+        name='node',
+    )
+    time.sleep(2.0)
+    ros.start(_publisher(ros, '--duration', '70', '--rate', '240', '--level', '3'), 'pub')
+    got = _call(ros, '36', mode='status')
+    auto = [s['values'].get('auto_calibrate', '') for s in got['status']]
+    assert got['extrinsic'], auto[-3:]
+    done = [a for a in auto if a.startswith('done')]
+    assert done and 'buffers are full' in done[0], sorted(set(auto))
+    assert auto[-1].startswith('done')  # kept: the span grows no more
+
+
 def test_a_planar_recording_never_becomes_ready_and_names_the_axis(
     ros: Processes, install: Path
 ) -> None:

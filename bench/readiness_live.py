@@ -14,7 +14,8 @@ first third and rich after (``--motion planar_start``). A probe in this process 
 - wall time from that READY status to the result (target: within 2 s);
 - auto mode's later results, on longer rich recordings (``--long-seeds``, 240 s): each
   published one's reported sigmas (none may be larger than the one's before: a result that
-  does not improve is computed but not published), and whether the status said "converged".
+  does not improve is computed but not published), and whether the status said "converged"
+  (or "done": the buffers are full).
 
 The recording is bench/readiness.py's: hand 200 Hz with 0.1 mm / 0.006 deg MoCap noise, eye
 30 Hz at noise level 5, 90 s.
@@ -193,7 +194,7 @@ def run_seed(
         (
             s['auto_calibrate']
             for _, s in statuses
-            if s.get('auto_calibrate', '').startswith('conv')
+            if s.get('auto_calibrate', '').startswith(('converged', 'done'))
         ),
         '',
     )
@@ -283,7 +284,7 @@ def main() -> None:
                 r['seed'],
                 ', '.join(_fmt(x['reported'] * [1e3, 1e3, 1], '.2g') for x in res) or '-',
                 r['not_published'],
-                r['converged'] or 'no',
+                r['converged'].split(':')[0] or 'no',
             ]
         )
     every = [x for r in runs + longs for x in r['results']]

@@ -53,7 +53,8 @@ class NodeConfig(Options):
         False,
         'bool',
         'calibrate as soon as the status is ready, then again as the buffers grow until the '
-        'reported sigmas stop improving (said in the status); ~/calibrate works at any time',
+        'reported sigmas stop improving or the buffers are full (said in the status); '
+        '~/calibrate works at any time',
     )
     diagnostics_period: float = option(
         1.0, 'float', 'period of the /diagnostics status [s]', low=0.05, high=3600.0

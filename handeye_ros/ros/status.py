@@ -218,8 +218,8 @@ class ReadinessStatus:
 
         A result of ``~/calibrate`` always does. One that auto mode started does when none of
         its reported sigmas is larger than the published result's; auto mode has converged
-        (said in the status) once a result of its own improves no sigma by IMPROVEMENT, or is
-        not admitted."""
+        (said in the status) once a result of its own is not admitted, or improves no sigma by
+        more than IMPROVEMENT of itself or of its target (:func:`judge`)."""
         batch = session.document.get('std')
         if self.auto == 'off' or not batch:
             return True

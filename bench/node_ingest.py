@@ -3,13 +3,14 @@
 (a) Ingest: a separate publisher process sends a 1 kHz hand and a 200 Hz eye for 10 minutes
     (issue 13's figure; --minutes) in real time; the node's received counts against the
     published ones, and its resident memory over time with buffer_duration 20 s (the buffers
-    fill after 20 s, then drop the oldest).
+    fill after 20 s, then drop the oldest; --buffer-duration 1800 is the node's default).
 (b) ~/calibrate on a 5-minute buffer (200 Hz + 30 Hz) while the publisher keeps sending: the
     service round trip, and whether anything was lost meanwhile.
 (c) Offline: a 10-minute mcap bag (200 Hz + 30 Hz) calibrated end to end by offline_calibrate.
 (d) The readiness status's cost (issue 28): (a) again with status_period 0 (--baseline-minutes),
     and the CPU time of the node and of its worker processes over each run, against the wall
-    time: the difference is what the status costs.
+    time: the difference is what the status costs. With it, how often a status came (the
+    intervals between computed ~/status messages; MAX_DUTY spaces them out as they cost more).
 
 Every rclpy process runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST on a random domain.
 Usage: python bench/node_ingest.py [--skip a b c] [--minutes 10]
@@ -29,6 +30,7 @@ import time
 from pathlib import Path
 
 import common
+import numpy as np
 from common import emit, table
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -39,6 +41,10 @@ ENV = dict(
     PYTHONPATH=str(common.ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''),
     PYTHONUNBUFFERED='1',
 )
+
+#: The node's buffer_duration in (a) and (d) [s]: the buffers fill after 20 s, then the ring
+#: drops its oldest poses, the steady state of a long recording.
+BUFFER_S = 20.0
 
 
 def cpu_s(pid: int) -> float:
@@ -69,7 +75,7 @@ class Probe:
 
     def __init__(self) -> None:
         import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from std_srvs.srv import Trigger
@@ -81,6 +87,9 @@ class Probe:
         #: /diagnostics gives them ('calibrator: hand stream' -> ('calibrator', 'hand stream'))
         self.diag: dict[tuple[str, str], dict[str, str]] = {}
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
+        #: when each computed ~/status came (monotonic s; the ones with figures, not "waiting")
+        self.status_t: list[float] = []
+        self.node.create_subscription(DiagnosticStatus, '/calibrator/status', self._on_status, 10)
         self.client = self.node.create_client(Trigger, '/calibrator/calibrate')
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
@@ -91,6 +100,10 @@ class Probe:
         for st in msg.status:
             node, _, what = st.name.rpartition(': ')
             self.diag[node.strip('/ '), what] = {kv.key: kv.value for kv in st.values}
+
+    def _on_status(self, msg) -> None:
+        if any(kv.key == 'motions' for kv in msg.values):
+            self.status_t.append(time.monotonic())
 
     def stream(self, name: str, node: str = 'calibrator') -> dict[str, str]:
         """The latest diagnostics of a node's stream ('hand' or 'eye')."""
@@ -145,12 +158,12 @@ def sent_counts(pub: subprocess.Popen) -> dict:
     return json.loads(out.strip().splitlines()[-1])['sent']
 
 
-def ingest(probe: Probe, minutes: float, status_period: float = 1.0) -> list:
+def ingest(probe: Probe, minutes: float, buffer_s: float, status_period: float = 1.0) -> list:
     node = start(
         'handeye_ros.ros.calibrator',
         '--ros-args',
         '-p',
-        'buffer_duration:=20.0',
+        f'buffer_duration:={buffer_s}',
         '-p',
         f'status_period:={status_period}',
     )
@@ -169,6 +182,7 @@ def ingest(probe: Probe, minutes: float, status_period: float = 1.0) -> list:
         '2',
     )
     samples = []
+    probe.status_t.clear()
     t0 = time.monotonic()
     cpu0 = cpu_s(node.pid), {c: cpu_s(c) for c in children(node.pid)}
     while pub.poll() is None:
@@ -197,13 +211,20 @@ def ingest(probe: Probe, minutes: float, status_period: float = 1.0) -> list:
     lost = sum(r[3] for r in rows)
     cost = [status_period, f'{wall / 60:.1f}', lost, 100 * cpu_node / wall]
     cost += [100 * cpu_workers / wall, 100 * (cpu_node + cpu_workers) / wall]
+    gaps = np.diff(probe.status_t)
+    last = np.diff([t for t in probe.status_t if t > t0 + wall - 60.0])
+    cost += [
+        f'{np.median(gaps):.1f} / {np.max(gaps):.1f}' if gaps.size else '-',
+        f'{np.median(last):.1f}' if last.size else '-',
+    ]
     if status_period == 0.0:
         return cost
+    tag = '' if buffer_s == BUFFER_S else f'_buffers{buffer_s:g}s'
     emit(
-        'node_ingest',
+        f'node_ingest{tag}',
         table(
             f'(a) Ingest 1 kHz hand + 200 Hz eye for {minutes:g} min from a separate process '
-            '(buffer_duration 20 s)',
+            f'(buffer_duration {buffer_s:g} s)',
             ['stream', 'published', 'received', 'lost', 'buffered', 'dropped (buffer)', 'rate Hz'],
             rows,
         ),
@@ -212,7 +233,7 @@ def ingest(probe: Probe, minutes: float, status_period: float = 1.0) -> list:
     at = sorted({2, 10, 20, 30, *(round(total * f) for f in (0.25, 0.5, 0.75, 1.0))})
     marks = [s for s in samples if int(s[0]) in at]
     emit(
-        'node_memory',
+        f'node_memory{tag}',
         table(
             '(a) Node resident memory during ingest',
             ['t s', 'RSS MB'],
@@ -332,6 +353,12 @@ def main() -> None:
         default=3.0,
         help='length of (d), the run without the status (default: 3; 0 skips it)',
     )
+    p.add_argument(
+        '--buffer-duration',
+        type=float,
+        default=20.0,
+        help="the node's buffer_duration in (a) and (d) [s] (default: 20; the node's own: 1800)",
+    )
     args = p.parse_args()
     if 'c' not in args.skip:
         offline_bag()
@@ -339,15 +366,30 @@ def main() -> None:
         probe = Probe()
         try:
             if 'a' not in args.skip:
-                costs = [ingest(probe, args.minutes)]
+                costs = [ingest(probe, args.minutes, args.buffer_duration)]
                 if args.baseline_minutes > 0:
-                    costs.append(ingest(probe, args.baseline_minutes, status_period=0.0))
+                    costs.append(ingest(probe, args.baseline_minutes, args.buffer_duration, 0.0))
+                tag = (
+                    ''
+                    if args.buffer_duration == BUFFER_S
+                    else f'_buffers{args.buffer_duration:g}s'
+                )
                 emit(
-                    'node_status_cost',
+                    f'node_status_cost{tag}',
                     table(
                         '(d) CPU of the node and its workers during (a), with and without the '
-                        'readiness status (% of one core, over the wall time)',
-                        ['status_period s', 'minutes', 'lost', 'node %', 'workers %', 'total %'],
+                        'readiness status (% of one core, over the wall time; '
+                        f'buffer_duration {args.buffer_duration:g} s), and a status every',
+                        [
+                            'status_period s',
+                            'minutes',
+                            'lost',
+                            'node %',
+                            'workers %',
+                            'total %',
+                            'status every s (median / max)',
+                            'in the last minute (median)',
+                        ],
                         costs,
                     ),
                 )

@@ -102,8 +102,10 @@ class CalibratorNode(Node):
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
-        #: when each stream's last message came (monotonic s; 0: never)
+        #: when each stream's last message came (monotonic s; 0: never), and its last pose
+        #: that moved its clock (PoseBuffer.ticked): messages without a usable pose leave it
         self.last_seen = dict.fromkeys(STREAMS, 0.0)
+        self.last_ticked = dict.fromkeys(STREAMS, 0.0)
 
         self._types = RclpyTypes()
         self._outputs = {
@@ -167,9 +169,13 @@ class CalibratorNode(Node):
     # ------------------------------------------------------------------ messages
 
     def _on_pose(self, stream: str, msg: Any, static: bool) -> None:
-        self.last_seen[stream] = time.monotonic()
+        self.last_seen[stream] = now = time.monotonic()
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
+        buffer = self.recorder.buffers[stream]
+        ticked = buffer.ticked
         self._add(stream, msg, static, arrival)
+        if buffer.ticked != ticked:
+            self.last_ticked[stream] = now
 
     def _add(self, stream: str, msg: Any, static: bool, arrival: int | None) -> None:
         reason = self.recorder.add(stream, msg, static, arrival)

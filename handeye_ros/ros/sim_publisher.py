@@ -125,6 +125,16 @@ def parser() -> argparse.ArgumentParser:
         'coming, as a clock that resynchronises (default: 0; on the wire only, not in --bag)',
     )
     ap.add_argument(
+        '--mocap-dropout',
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=('START', 'SECONDS'),
+        help='the MoCap loses the marker SECONDS long from START s into the recording: its '
+        'messages keep coming with a NaN position, as drivers that keep publishing do '
+        '(default: none; on the wire only, not in --bag)',
+    )
+    ap.add_argument(
         '--nan-every',
         type=int,
         default=0,
@@ -174,6 +184,10 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
             ap.error(
                 f'{flag} must be a positive number of {"seconds" if flag == "--duration" else "Hz"}, not {v}'
             )
+    if args.mocap_dropout is not None and not all(
+        math.isfinite(v) and v >= 0.0 for v in args.mocap_dropout
+    ):
+        ap.error(f'--mocap-dropout takes two times >= 0 (s), not {args.mocap_dropout}')
     if not math.isfinite(args.clock_jump):
         ap.error(f'--clock-jump takes seconds, not {args.clock_jump}')
     if not 0.0 <= args.level <= 10.0:
@@ -226,6 +240,10 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
     )
     sent = {'hand': 0, 'eye': 0}
     jump_ns, jump_from = round(args.clock_jump * 1e9), len(rec.eye) // 2
+    lost = (0, 0)  # the MoCap dropout's stamps [ns), from the first hand stamp
+    if args.mocap_dropout is not None:
+        start, length = (round(v * 1e9) for v in args.mocap_dropout)
+        lost = (int(rec.hand.t_ns[0]) + start, int(rec.hand.t_ns[0]) + start + length)
     t0 = time.monotonic()
     for j, (t, s, k) in enumerate(items):
         name = 'hand' if s == 0 else 'eye'
@@ -233,6 +251,8 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
         p = traj.p_xyz[k]
         if name == 'eye' and args.nan_every and k % args.nan_every == args.nan_every - 1:
             p = np.array([math.nan, 0.0, 0.0])
+        if name == 'hand' and lost[0] <= t < lost[1]:
+            p = np.full(3, math.nan)
         unset = args.zero_stamps in (name, 'both')
         if name == 'eye' and k >= jump_from:
             t += jump_ns

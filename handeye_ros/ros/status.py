@@ -126,23 +126,34 @@ class ReadinessStatus:
         self._publish()
 
     def stopped(self) -> list[str]:
-        """The streams that stopped while the other one still flows, said as advice."""
-        seen = self._node.last_seen
+        """A stream that stopped while the other one still flows, said as advice: its
+        messages stopped, or they keep coming without a usable pose (a MoCap that lost the
+        marker and publishes NaN, or no longer names the body)."""
+        seen, ticked = self._node.last_seen, self._node.last_ticked
         now = time.monotonic()
-        if not all(seen.values()):
+        if not all(ticked.values()):
             return []
-        quiet = {s: now - t for s, t in seen.items() if now - t > STOPPED_S}
+        quiet = {s: now - t for s, t in ticked.items() if now - t > STOPPED_S}
         if len(quiet) != 1:  # both quiet: the recording has ended, or not begun
             return []
         ((s, ago),) = quiet.items()
-        who = {'hand': 'the MoCap stream', 'eye': 'the device stream'}[s]
-        return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
+        if now - seen[s] > STOPPED_S:
+            who = {'hand': 'the MoCap stream', 'eye': 'the device stream'}[s]
+            return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
+        return [
+            {
+                'hand': f'the MoCap lost the marker {ago:.0f} s ago: its messages hold no '
+                'usable pose (see the log); bring the device back into its view',
+                'eye': f"the device's messages have held no usable pose for {ago:.0f} s "
+                '(see the log): has its tracking failed?',
+            }[s]
+        ]
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
         """Whether the streams' clocks moved against each other since the first snapshot
         (:func:`clocks_apart`). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both
         clocks' times."""
-        apart = clocks_apart(hand_ns, eye_ns, self._node.last_seen)
+        apart = clocks_apart(hand_ns, eye_ns, self._node.last_ticked)
         if self._apart is None:
             self._apart = apart
             return
@@ -249,10 +260,11 @@ class ReadinessStatus:
 
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
     """How far (s) the device's clock is ahead of the MoCap's, as far as arrivals tell: each
-    stream's newest accepted stamp (int64 ns) against when its last message came (``seen``,
-    monotonic s, refused messages included). Changes when a clock jumps, or when a stream's
-    every message is refused (a clock that went back); not when a stream pauses, or ends
-    before the other one: its stamp and its arrival stop together."""
+    stream's newest accepted stamp (int64 ns) against when its last pose that moved its clock
+    came (``seen``, monotonic s: the node's ``last_ticked``, refusals for going back in time
+    included). Changes when a clock jumps, or when a stream's every message is refused for
+    going back (a clock that went back); not when a stream pauses, ends before the other one,
+    or loses its poses (a MoCap dropout): its stamp and its arrival stop together."""
     stamps = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
     return stamps - (seen['eye'] - seen['hand'])
 

@@ -81,6 +81,9 @@ class PoseBuffer:
             self._count = 0
             self._last: int | None = None
             self.received = 0
+            #: poses that moved the stream's clock: stored, or refused as going back in time
+            #: (a message without a pose, or with NaN, is no tick: a lost marker's)
+            self.ticked = 0
             self.dropped = 0
             self.rejected = dict.fromkeys(REJECT_REASONS, 0)
 
@@ -108,7 +111,9 @@ class PoseBuffer:
             reason = self._check(t_ns, x, y, z, qx, qy, qz, qw)
             if reason is not None:
                 self.rejected[reason] += 1
+                self.ticked += reason == 'stamp_not_increasing'
                 return reason
+            self.ticked += 1
             if self._count == self.capacity:
                 self._drop(1)
             tail = (self._head + self._count) % self.capacity

@@ -494,6 +494,7 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
         (['--rate', '-5'], '--rate must be a positive number'),
         (['--duration', '1'], 'holds no eye poses'),
         (['--mocap-noise', '-1', '0'], '--mocap-noise takes two amounts >= 0'),
+        (['--mocap-dropout', 'nan', '2'], '--mocap-dropout takes two times >= 0'),
     ):
         proc = subprocess.run(
             [str(resolve_executable(env, 'handeye_ros', 'sim_publisher')), *bad],
@@ -838,6 +839,23 @@ def test_a_planar_recording_never_becomes_ready_and_names_the_axis(
     messages_seen = [s['message'] for s in got['status']]
     assert messages_seen and 'READY' not in messages_seen
     assert any(m.startswith('turn the device about its') for m in messages_seen), messages_seen
+
+
+def test_a_mocap_dropout_is_said_while_it_lasts_and_is_no_clock_jump(
+    ros: Processes, install: Path
+) -> None:
+    """The MoCap loses the marker for 5 s while its driver keeps publishing (NaN positions,
+    sim_publisher --mocap-dropout, in real time): the status says so while it lasts, and a
+    stream whose stamps stop with its poses is no clock that jumped."""
+    _start_node(ros, install, 'status_period:=0.5', name='node')
+    time.sleep(2.0)
+    ros.start(
+        _publisher(ros, '--duration', '24', '--rate', '120', '--mocap-dropout', '10', '5'), 'pub'
+    )
+    got = _call(ros, '26', mode='status')
+    said = [s['message'] for s in got['status']]
+    assert not [m for m in said if 'a clock jumped' in m], said
+    assert [m for m in said if m.startswith('the MoCap lost the marker') and 'ago' in m], said
 
 
 @pytest.mark.parametrize('jump', ['5', '-5'])

@@ -271,6 +271,11 @@ def test_buffer_bounds_drop_oldest_and_count() -> None:
         'stamp_not_increasing': 1,
         'not_in_message': 0,
     }
+    # the stream's clock ticked for the 1000 stored poses and the one that went back in time
+    assert b2.ticked == 1001
+    b2.add(2 * 10**12, float('nan'), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)  # a lost marker's
+    b2.reject('not_in_message')
+    assert b2.ticked == 1001
 
 
 def test_unset_stamps_are_named_and_arrival_time_is_the_way_out(tmp_path: Path, rec) -> None:

@@ -95,6 +95,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['node_ingest', 'node_memory', 'node_status_cost', 'node_calibrate', 'offline_bag'],
         '25 min',
     ),
+    'node_ingest_default_buffers': (
+        'node_ingest',
+        ['--skip', 'b', 'c', '--buffer-duration', '1800', '--baseline-minutes', '0'],
+        ['node_ingest_buffers1800s', 'node_memory_buffers1800s', 'node_status_cost_buffers1800s'],
+        '12 min',
+    ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
 }
 

@@ -42,11 +42,12 @@ GROWTH = 1.5
 #: half the targets, where more recording no longer matters to the verdict.
 IMPROVEMENT = 0.1
 #: The status takes at most this share of one core on average: one that cost c seconds of CPU
-#: (the node's snapshot, in its thread, and the worker's job, in all its threads: numpy's BLAS
-#: runs several) is followed by none for c / MAX_DUTY. 3 % rather than the 5 % asked for: what
-#: is not measured (the snapshot's transfer to the worker and back, the publishing) cost the
-#: node up to 2 % of a core in bench/node_ingest.py at 4 %. 1 kHz + 200 Hz over 20 s: a status
-#: every ~4 s instead of every second; 200 Hz + 30 Hz over 90 s: every 1-2 s.
+#: (the node's snapshot, in its thread, and the worker's job, in all its threads) is followed
+#: by none for c / MAX_DUTY. 3 % rather than the 5 % asked for: what is not counted (the
+#: snapshot's transfer to the worker and back, the publishing) cost the node up to 2 % of a
+#: core in bench/node_ingest.py at 4 %. Measured there, 1 kHz + 200 Hz: a status every 2 s
+#: with 20-s buffers; with the default ones, every 34 s once 500 000 + 120 000 poses are
+#: buffered (each status recomputes everything buffered).
 MAX_DUTY = 0.03
 #: A stream silent for this long (s) while the other one flows has stopped.
 STOPPED_S = 2.0

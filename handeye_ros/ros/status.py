@@ -36,10 +36,11 @@ from . import diagnostics
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
 #: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction of
-#: itself or of its precision_* target, whichever is larger. Of itself: for sigmas that stop at
-#: a floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the target: white noise shrinks
-#: them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and this ends it once they are about
-#: half the targets, where more recording no longer matters to the verdict.
+#: itself or of its precision_* target, whichever is larger. Of itself: for sigmas that stop
+#: at a floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the
+#: target: white noise shrinks them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and
+#: this ends it once they are about half the targets, where more recording no longer matters
+#: to the verdict.
 IMPROVEMENT = 0.1
 #: The status takes at most this share of one core on average: one that cost c seconds of CPU
 #: (the node's snapshot, in its thread, and the worker's job, in all its threads) is followed

@@ -337,3 +337,8 @@ class CalibrationConfig(Options):
         high=2**31 - 1,
         expert=True,
     )
+
+    @property
+    def precision(self) -> tuple[float, float, float]:
+        """The verdict's 1-sigma targets: time offset [s], translation [m], rotation [deg]."""
+        return (self.precision_time_offset, self.precision_translation, self.precision_rotation)

@@ -50,7 +50,8 @@ IMPROVEMENT = 0.1
 #: with 20-s buffers; with the default ones, every 34 s once 500 000 + 120 000 poses are
 #: buffered (each status recomputes everything buffered).
 MAX_DUTY = 0.03
-#: A stream silent for this long (s) while the other one flows has stopped.
+#: A stream with no usable pose for this long (s) while the other one flows has stopped, or
+#: lost its poses (messages still coming).
 STOPPED_S = 2.0
 #: The two streams' stamps may move against their arrivals by this much (s, at least) before
 #: the status says a clock jumped: their periods and the executor's lag jitter them.
@@ -73,7 +74,7 @@ class ReadinessStatus:
         self._span_calibrated = 0.0
         self._sigmas: tuple[float, float, float] | None = None
         self._logged = (0.0, '')
-        self._apart: float | None = None  # eye's newest stamp - hand's at the first snapshot
+        self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
         self._tty = sys.stderr.isatty()
@@ -239,15 +240,9 @@ class ReadinessStatus:
         sigmas = (
             float(batch['time_offset']),
             float(np.linalg.norm(batch['translation'])),
-            float(np.linalg.norm(batch['rotation'])),
-        )
-        cfg = self._node.calib_cfg
-        targets = (
-            cfg.precision_time_offset,
-            cfg.precision_translation,
-            float(np.radians(cfg.precision_rotation)),
-        )
-        admitted, converged = judge(sigmas, self._sigmas, auto, targets)
+            float(np.degrees(np.linalg.norm(batch['rotation']))),
+        )  # s, m, deg: the targets' units
+        admitted, converged = judge(sigmas, self._sigmas, auto, self._node.calib_cfg.precision)
         if admitted:
             self._sigmas = sigmas
         if converged:
@@ -255,7 +250,7 @@ class ReadinessStatus:
             self.auto = (
                 'converged: the reported sigmas no longer improve by '
                 f'{IMPROVEMENT:.0%} of themselves or of the targets ({best[0] * 1e3:.2g} ms, '
-                f'{best[1] * 1e3:.2g} mm, {np.degrees(best[2]):.2g} deg)'
+                f'{best[1] * 1e3:.2g} mm, {best[2]:.2g} deg)'
             )
         return admitted
 

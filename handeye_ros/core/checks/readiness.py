@@ -145,7 +145,7 @@ def readiness(
 ) -> Readiness:
     """How far ``hand`` and ``eye`` (both on their own clocks) can calibrate, and what they
     lack; never raises for data that cannot calibrate (that is what it says)."""
-    target = (cfg.precision_time_offset, cfg.precision_translation, cfg.precision_rotation)
+    target = cfg.precision
     nan3 = (float('nan'),) * 3
     if len(hand) < 3 or len(eye) < 3:
         return _empty(target, 'no data yet: both streams need poses')

@@ -282,7 +282,7 @@ def _assess_uncertainty(
     if batch is not None:
         s = batch.std
         sd = (s[0], float(np.linalg.norm(s[1:4])), float(np.degrees(np.linalg.norm(s[4:7]))))
-        need = (cfg.precision_time_offset, cfg.precision_translation, cfg.precision_rotation)
+        need = cfg.precision
         over = [
             f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
             for name, v, n, k, unit in zip(

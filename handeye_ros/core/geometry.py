@@ -22,12 +22,16 @@ Pose = tuple[np.ndarray, np.ndarray]
 def matrix_from_quat(q_xyzw: np.ndarray) -> np.ndarray:
     """Rotation matrices, shape (..., 3, 3), from quaternions (..., 4) in x y z w order."""
     q = np.asarray(q_xyzw, dtype=float)
+    if not q.size:  # scipy 1.11 (Jazzy's) refuses an empty stack
+        return np.zeros(q.shape[:-1] + (3, 3))
     return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
 
 
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     """Quaternions (..., 4), x y z w with w >= 0, from rotation matrices (..., 3, 3)."""
     R = np.asarray(R, dtype=float)
+    if not R.size:  # scipy 1.11 (Jazzy's) refuses an empty stack
+        return np.zeros(R.shape[:-2] + (4,))
     q = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
     return positive_w(q)
 

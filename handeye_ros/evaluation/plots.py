@@ -389,7 +389,10 @@ def summary(rows: list[dict], path: Path) -> str:
             ]
             shown = [(n, d) for n, d in zip(names, data, strict=True) if d]
             if shown:
-                a.boxplot([d for _, d in shown], tick_labels=[n for n, _ in shown])
+                a.boxplot([d for _, d in shown])
+                # the labels apart: boxplot's keyword is labels before matplotlib 3.9 (Jazzy's
+                # 3.6) and tick_labels after
+                a.set_xticks(range(1, len(shown) + 1), [n for n, _ in shown])
                 a.tick_params(axis='x', labelrotation=30)
             else:
                 _empty(a, 'no successful runs')

@@ -181,8 +181,11 @@ def _layout_block(
         if w == dot:
             ok &= c == _DOT
             continue
-        digit = c - np.uint8(_ZERO)
-        ok &= digit <= 9  # the uint8 difference wraps above 9 for every other byte
+        byte_digit = c - np.uint8(_ZERO)
+        ok &= byte_digit <= 9  # the uint8 difference wraps above 9 for every other byte
+        # int64 before any product: numpy 1.x casts by value, so uint8 * int64(100) stayed
+        # uint8 there and wrapped at 256 (whole seconds 256, 512 or 768 s off)
+        digit = byte_digit.astype(np.int64)
         if w < dot:
             whole += digit * _POW10[dot - 1 - w]
         else:

@@ -1,6 +1,8 @@
 """ament_python build of handeye_ros (colcon build, or pip for the core alone).
 
-Versions are pinned in one place, requirements.txt; here only the names.
+Versions are pinned in one place, requirements.txt; here only the names, with the lower bounds
+of the ROS 2 Jazzy platform (Ubuntu 24.04's packages, requirements-jazzy.txt), which the suite
+also runs on.
 """
 
 from glob import glob
@@ -19,15 +21,21 @@ setup(
         (f'share/{PACKAGE}/config', glob('config/*.yaml') + glob('config/*.rviz')),
         (f'share/{PACKAGE}/launch', glob('launch/*.launch.py')),
     ],
-    python_requires='>=3.10',
-    install_requires=['numpy', 'scipy', 'pyyaml', 'rosbags', 'tqdm'],
+    python_requires='>=3.11',
+    install_requires=[
+        'numpy>=1.26.4',
+        'scipy>=1.11.4',
+        'pyyaml>=6.0.1',
+        'rosbags>=0.11.9',
+        'tqdm>=4.66.2',
+    ],
     extras_require={
         # the ROS 2 side (node, message conversion); from PyPI wheels or a Jazzy install
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces', 'ros-jazzy-std-srvs'],
         # the report's plots
-        'report': ['matplotlib'],
+        'report': ['matplotlib>=3.6.3'],
         # many recordings (handeye_ros.evaluate)
-        'evaluate': ['dask', 'distributed', 'matplotlib'],
+        'evaluate': ['dask', 'distributed', 'matplotlib>=3.6.3'],
         # evo (GPLv3) only checks our exports in the tests; the package never imports it
         'test': ['pytest', 'hypothesis', 'ruff', 'evo'],
         # comparison baselines, for bench/ only

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -212,7 +212,7 @@ def epoch_note(hand: Trajectory, eye: Trajectory) -> str | None:
     def kind(t_ns: int) -> str | None:
         s = t_ns * 1e-9
         if s > EPOCH_ABSOLUTE_S:
-            day = datetime.fromtimestamp(s, tz=timezone.utc).strftime('%Y-%m-%d')
+            day = datetime.fromtimestamp(s, tz=UTC).strftime('%Y-%m-%d')
             return f'an absolute epoch (as Unix time: {day})'
         if 0 <= s < EPOCH_RELATIVE_S:
             return f'time since boot or since the start ({s:.1f} s)'

@@ -23,19 +23,8 @@ import math
 import sys
 import time
 
-import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-from handeye_ros.core.errors import InputError
-from handeye_ros.core.geometry import positive_w
-from handeye_ros.core.simulate import MOTIONS, noise_level, simulate
-from handeye_ros.formats import messages
-from handeye_ros.formats.bag import RIG_TO_MARKER, tf_links, write_recording
-from handeye_ros.ros.types import RclpyTypes
-from handeye_ros.stream import normalise_type
+from .lifecycle import ignore_signals, quiet_start, stop_requested
+from .types import RclpyTypes
 
 #: rclpy message classes, imported on first use.
 TYPES = RclpyTypes()
@@ -44,11 +33,16 @@ WAND = ('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0))
 
 
 def message_class(cls_name: str):
+    from handeye_ros.stream import normalise_type
+
     return TYPES[normalise_type(cls_name)]
 
 
 def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     """One pose as a message of type ``cls_name`` (formats/messages.py builds it)."""
+    from handeye_ros.formats import messages
+    from handeye_ros.stream import normalise_type
+
     msgtype = normalise_type(cls_name)
     if cls_name == 'RigidBodies':
         return messages.rigid_bodies(TYPES, t_ns, frame, [WAND, (child, p, q)])
@@ -57,6 +51,8 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
 
 def parser() -> argparse.ArgumentParser:
     """The command line."""
+    from handeye_ros.core.simulate import MOTIONS
+
     ap = argparse.ArgumentParser(
         prog='sim_publisher',
         description=__doc__.split('\n\n')[0],
@@ -201,10 +197,15 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
-def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float]:
+def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float] | None:
     """Publish the recording's poses interleaved by stamp at ``args.rate`` per second, once a
-    subscriber is on both topics (or ``args.wait_subscribers`` has passed); (sent per stream,
-    seconds)."""
+    subscriber is on both topics (or ``args.wait_subscribers`` has passed, said on stderr);
+    (sent per stream, seconds), or None when a signal stopped it."""
+    import numpy as np
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from handeye_ros.formats.bag import RIG_TO_MARKER
+
     hand_qos = QoSProfile(
         depth=1000,
         reliability=ReliabilityPolicy.RELIABLE if args.reliable else ReliabilityPolicy.BEST_EFFORT,
@@ -232,11 +233,28 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
     while time.monotonic() < deadline and not all(
         p.get_subscription_count() for p in pubs.values()
     ):
+        if stop_requested():
+            return None
         time.sleep(0.05)
+    alone = [p.topic_name for p in pubs.values() if not p.get_subscription_count()]
+    if alone and args.wait_subscribers > 0:
+        print(
+            f'sim_publisher: nobody subscribes to {" and ".join(alone)} after '
+            f'{args.wait_subscribers:g} s (is the calibrator running, with these topics?): '
+            'publishing anyway',
+            file=sys.stderr,
+            flush=True,
+        )
     time.sleep(0.3)  # let discovery settle on both sides
     items = sorted(
         [(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
         + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)]
+    )
+    print(
+        f'sim_publisher: publishing {len(rec.hand)} MoCap poses on {args.hand_topic} and '
+        f'{len(rec.eye)} device poses on {args.eye_topic} at {args.rate:g} messages/s',
+        file=sys.stderr,
+        flush=True,
     )
     sent = {'hand': 0, 'eye': 0}
     jump_ns, jump_from = round(args.clock_jump * 1e9), len(rec.eye) // 2
@@ -246,6 +264,8 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
         lost = (int(rec.hand.t_ns[0]) + start, int(rec.hand.t_ns[0]) + start + length)
     t0 = time.monotonic()
     for j, (t, s, k) in enumerate(items):
+        if stop_requested():
+            return None
         name = 'hand' if s == 0 else 'eye'
         traj, frame, child = wire[name]
         p = traj.p_xyz[k]
@@ -274,9 +294,20 @@ def _publish(node: Node, args: argparse.Namespace, rec, wire: dict) -> tuple[dic
     return sent, time.monotonic() - t0
 
 
-def main() -> int:
-    """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM."""
-    args = parse()
+def main(argv: list[str] | None = None) -> int:
+    """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM, at any
+    moment (the signals are only noted, as the calibrator's: :mod:`.lifecycle`)."""
+    quiet_start()
+    argv = sys.argv if argv is None else ['sim_publisher', *argv]
+    # the ROS arguments (ros2 launch appends --ros-args to every node's command line) are rcl's
+    from rclpy.utilities import remove_ros_args
+
+    args = parse(remove_ros_args(argv)[1:])
+    from handeye_ros.core.errors import InputError
+    from handeye_ros.core.geometry import positive_w
+    from handeye_ros.core.simulate import noise_level, simulate
+    from handeye_ros.formats.bag import tf_links, write_recording
+    from handeye_ros.stream import normalise_type
 
     nm, nd = noise_level(args.level)
     try:
@@ -312,19 +343,22 @@ def main() -> int:
         wire['hand'] = (rec.hand, 'mocap', 'rig')
     if args.eye_type == 'TFMessage':
         wire['eye'] = (imu, 'imu', 'odom')
-    rclpy.init()
-    node = Node('recording_publisher')
+    if stop_requested():
+        return 0
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('recording_publisher')
     try:
-        sent, seconds = _publish(node, args, rec, wire)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    except RuntimeError:  # rclpy's RCLError: a signal shut the context down under a publish
-        if rclpy.ok():
-            raise
-        return 0
+        done = _publish(node, args, rec, wire)
     finally:
+        ignore_signals()
         node.destroy_node()
         rclpy.try_shutdown()
+    if done is None:
+        return 0
+    sent, seconds = done
     t = rec.truth
     print(
         json.dumps(

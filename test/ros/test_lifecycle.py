@@ -1,5 +1,5 @@
-"""calibrator.main under a signal at the moments the start is most fragile: it exits 0,
-quietly, and leaves no process behind."""
+"""calibrator.main and sim_publisher.main under a signal at the moments the start is most
+fragile: they exit 0, quietly, and leave no process behind."""
 
 from __future__ import annotations
 
@@ -65,3 +65,49 @@ def test_a_signal_during_the_start_exits_quietly_and_stops_the_worker(where: str
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ['0', '0'], proc.stdout + proc.stderr
     assert 'Traceback' not in proc.stderr, proc.stderr
+
+
+#: Runs sim_publisher.main with a SIGINT sent to itself as soon as ``{target}`` has returned
+#: (its imports and command line, its simulation, its node made while it waits for
+#: subscribers), then prints the exit code: it stops there, without publishing.
+PUBLISHER = """
+import os, signal, time
+import handeye_ros.core.simulate
+import rclpy
+from handeye_ros.ros import sim_publisher
+
+owner, name = {target}
+real = getattr(owner, name)
+
+def signalled(*args, **kwargs):
+    out = real(*args, **kwargs)
+    os.kill(os.getpid(), signal.SIGINT)
+    return out
+
+setattr(owner, name, signalled)
+print(sim_publisher.main(['--duration', '3', '--wait-subscribers', '30']))
+"""
+
+PUBLISHER_TARGETS = {
+    'parsed': "sim_publisher, 'parse'",
+    'simulated': "handeye_ros.core.simulate, 'simulate'",
+    'waiting': "rclpy, 'create_node'",
+}
+
+
+@pytest.mark.parametrize('where', sorted(PUBLISHER_TARGETS))
+def test_sim_publisher_stopped_while_it_starts_exits_quietly(where: str) -> None:
+    """Ctrl-C on sim_publisher in its first seconds: exit 0, no traceback, nothing published
+    (a KeyboardInterrupt traceback from inside an import before)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    proc = subprocess.run(
+        [sys.executable, '-c', textwrap.dedent(PUBLISHER.format(target=PUBLISHER_TARGETS[where]))],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ['0'], proc.stdout + proc.stderr
+    assert 'Traceback' not in proc.stderr and 'publishing' not in proc.stderr, proc.stderr

@@ -103,11 +103,16 @@ def all_specs() -> dict:
 
 
 PARAMS_HEADER = """\
-# Parameters of the calibrator node (ros2 run handeye_ros calibrator --ros-args
-# --params-file config/calibrator.yaml). offline_calibrate --config reads the same file and
-# ignores the node-only block. Every value is the default. Units: s, m, deg, Hz, rad.
-# Generated from the option specs by handeye_ros.node_config.params_yaml(); do not edit.
+# Parameters of the calibrator node, every one at its default. Copy this file, change what your
+# rig needs (the topics, the frames, auto_calibrate) and pass your copy:
+#   ros2 run handeye_ros calibrator --ros-args --params-file my_calibrator.yaml
+#   ros2 launch handeye_ros calibrator.launch.py params_file:=my_calibrator.yaml
+# The section /** applies to the node under any name or namespace. offline_calibrate --config
+# reads the same file and ignores the node-only block. Units: s, m, deg, Hz, rad. (The shipped
+# file is made from the option specs by handeye_ros.node_config.params_yaml().)
 """
+#: The params file's section: every node it is given to (a namespaced or renamed calibrator).
+PARAMS_SECTION = '/**'
 
 
 def _described(spec: Spec) -> str:
@@ -128,7 +133,7 @@ def params_yaml() -> str:
         ("algorithm (same names as offline_calibrate's options)", CalibrationConfig),
         ('node only', NodeConfig),
     )
-    lines = [PARAMS_HEADER.rstrip('\n'), 'calibrator:', '  ros__parameters:']
+    lines = [PARAMS_HEADER.rstrip('\n'), f'{PARAMS_SECTION}:', '  ros__parameters:']
     for title, cls in blocks:
         lines.append(f'    # --- {title} '.ljust(99, '-'))
         defaults = cls().to_dict()

@@ -94,6 +94,7 @@ class CalibratorNode(Node):
         node owns it from here and stops it in :meth:`close`."""
         super().__init__('calibrator', **kwargs)
         self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
+        parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
         self._busy = threading.Lock()
         #: the last successful result, when it came (wall clock), and the last failure's
@@ -138,7 +139,6 @@ class CalibratorNode(Node):
         self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
-        parameters.warn_unknown(self)
         parameters.warn_unused_params_files(self, sys.argv)
         self.get_logger().info(
             f'buffering hand {self.poses.shown("hand")} and eye {self.poses.shown("eye")}; '
@@ -322,14 +322,14 @@ class CalibratorNode(Node):
             )
             return response
         out, report = self.node_cfg.output_file, self.node_cfg.report_dir
-        wrote = [out]
+        wrote = [str(Path(out).absolute())]  # a relative path is the node's: say where
         try:
             Path(out).parent.mkdir(parents=True, exist_ok=True)  # a run-time path: make it
             write_result(out, self._last_result.document)
             staged = _staged_dir(self._last_result)
             if report and staged:
                 shutil.copytree(staged, report, dirs_exist_ok=True)
-                wrote.append(str(Path(report) / 'report.html'))
+                wrote.append(str((Path(report) / 'report.html').absolute()))
             elif report:
                 wrote.append(
                     'no report (report_dir was set after this calibration: calibrate again)'

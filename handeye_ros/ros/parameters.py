@@ -103,21 +103,25 @@ def apply_changes(
     return SetParametersResult(successful=True), new_calib, new_node
 
 
-def warn_unknown(node: Node) -> None:
-    """Name the parameters given (a params file, -p) that the node does not have: a misspelt
-    name is otherwise silently ignored."""
+def refuse_unknown(node: Node) -> None:
+    """Refuse the parameters given (``-p``, a params file) that the node does not have, with
+    ConfigError naming the one meant: a misspelt name would otherwise leave its value at the
+    default, silently. A removed parameter is only said."""
     given = getattr(node, '_parameter_overrides', {})  # rclpy keeps them only here
     unknown = sorted(
         n for n in given if not node.has_parameter(n) and not n.startswith(ROS_OWN_PARAMETERS)
     )
+    said = []
     for name in unknown:
         if name in REMOVED:
             node.get_logger().warning(f'parameter {name!r} ignored: {REMOVED[name]}')
             continue
         near = difflib.get_close_matches(name, list(all_specs()), n=1)
-        node.get_logger().warning(
-            f'unknown parameter {name!r} ignored'
-            + (f': did you mean {near[0]!r}?' if near else ' (calibrator --help lists them)')
+        said.append(f'{name!r}' + (f' (did you mean {near[0]!r}?)' if near else ''))
+    if said:
+        raise ConfigError(
+            f'unknown parameter{"s" if len(said) > 1 else ""} {", ".join(said)}; '
+            'calibrator --help lists them'
         )
 
 

@@ -5,8 +5,9 @@ over the period) the node hands a snapshot of its buffers to its worker pool, wh
 computes what they support (:mod:`handeye_ros.core.checks.readiness`: excitation about each
 axis of the device, the 1-sigmas a calibration now would have against the ``precision_*``
 targets, what is missing in the user's words). The answer is published on ``~/status``
-(diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is shown as one line: refreshed
-in place on a terminal, logged when it changes elsewhere. The node's executor only takes the
+(diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
+changes (and every LOG_PERIOD_S): never redrawn in place, which glued log lines onto it in a
+terminal and its redraws into one line under ``ros2 launch``. The node's executor only takes the
 snapshot: ingest never waits for the computation.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
@@ -20,7 +21,6 @@ span can no longer grow by GROWTH).
 
 from __future__ import annotations
 
-import sys
 import time
 from typing import Any
 
@@ -56,7 +56,7 @@ STOPPED_S = 2.0
 #: The two streams' stamps may move against their arrivals by this much (s, at least) before
 #: the status says a clock jumped: their periods and the executor's lag jitter them.
 JUMP_S = 1.0
-#: Off a terminal, the status line is logged when it changes, and at least this often (s).
+#: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
 
@@ -77,7 +77,6 @@ class ReadinessStatus:
         self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
-        self._tty = sys.stderr.isatty()
         self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
         if period_s > 0.0:
             node.create_timer(period_s, self.tick)
@@ -194,14 +193,9 @@ class ReadinessStatus:
         return st
 
     def _say(self, line: str) -> None:
-        """One line: redrawn in place on a terminal, else logged when it changes (and every
-        LOG_PERIOD_S)."""
+        """One line, logged when it changes (and every LOG_PERIOD_S)."""
         if self.auto.startswith(('converged', 'done')):
             line += f' | {self.auto}'
-        if self._tty:
-            sys.stderr.write('\r' + line + '\x1b[K')
-            sys.stderr.flush()
-            return
         now = time.monotonic()
         last_t, last_key = self._logged
         # said again when READY or the first thing to do changes, not for every new figure

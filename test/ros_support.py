@@ -31,24 +31,37 @@ def ros_available() -> bool:
     return shutil.which('colcon', path=str(Path(sys.prefix) / 'bin')) is not None
 
 
-def build_workspace(ws: Path) -> Path:
-    """colcon build of this repository into ``ws``; returns the install folder."""
+def build_workspace(ws: Path, env: dict[str, str] | None = None) -> Path:
+    """`colcon build` of this repository linked into ``ws/src``; returns the install folder.
+
+    Builds are serialised across processes (a file lock): colcon writes the package's
+    egg-info into the source folder, which the suites of both environments share."""
+    import fcntl
+
     (ws / 'src').mkdir(parents=True)
     (ws / 'src' / 'handeye_ros').symlink_to(ROOT)
-    env = dict(
-        os.environ,
-        AMENT_PREFIX_PATH=sys.prefix,
-        PATH=str(Path(sys.prefix) / 'bin') + os.pathsep + os.environ['PATH'],
-    )
-    proc = subprocess.run(
-        [str(Path(sys.prefix) / 'bin' / 'colcon'), 'build', '--event-handlers', 'console_direct-'],
-        cwd=ws,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    if env is None:
+        env = dict(
+            os.environ,
+            AMENT_PREFIX_PATH=sys.prefix,
+            PATH=str(Path(sys.prefix) / 'bin') + os.pathsep + os.environ['PATH'],
+        )
+    with open(ROOT / '.colcon.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        proc = subprocess.run(
+            [
+                str(Path(sys.prefix) / 'bin' / 'colcon'),
+                'build',
+                '--event-handlers',
+                'console_direct-',
+            ],
+            cwd=ws,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=False,
+        )
     if proc.returncode:
         raise RuntimeError(f'colcon build failed:\n{proc.stdout}\n{proc.stderr}')
     return ws / 'install'

@@ -107,12 +107,13 @@ PARAMS_HEADER = """\
 # rig needs (the topics, the frames, auto_calibrate) and pass your copy:
 #   ros2 run handeye_ros calibrator --ros-args --params-file my_calibrator.yaml
 #   ros2 launch handeye_ros calibrator.launch.py params_file:=my_calibrator.yaml
-# The section /** applies to the node under any name or namespace. offline_calibrate --config
+# The section /**/calibrator applies to the node in any namespace. offline_calibrate --config
 # reads the same file and ignores the node-only block. Units: s, m, deg, Hz, rad. (The shipped
 # file is made from the option specs by handeye_ros.node_config.params_yaml().)
 """
-#: The params file's section: every node it is given to (a namespaced or renamed calibrator).
-PARAMS_SECTION = '/**'
+#: The params file's section: the calibrator in any namespace. (Not /**: a -p value of another
+#: type than the file's is then silently dropped by rcl, the file's kept.)
+PARAMS_SECTION = '/**/calibrator'
 
 
 def _described(spec: Spec) -> str:

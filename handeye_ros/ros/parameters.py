@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import difflib
 import itertools
+import re
 from pathlib import Path
 from typing import Any
 
@@ -129,8 +130,6 @@ def warn_unused_params_files(node: Node, argv: list[str]) -> None:
     """Name a params file (``--params-file`` in ``argv``) none of whose sections applies to
     this node: rclpy applies the sections named after the node (or ``/**``) and ignores the
     others silently, so a misnamed section leaves every value at its default."""
-    import fnmatch
-
     import yaml
 
     full = node.get_fully_qualified_name()
@@ -142,12 +141,19 @@ def warn_unused_params_files(node: Node, argv: list[str]) -> None:
         if not isinstance(sections, dict):
             continue
         names = [str(k) for k in sections]
-        if not any(
-            fnmatch.fnmatchcase(full, '/' + k.lstrip('/').replace('**', '*')) for k in names
-        ):
+        if not any(section_applies(k, full) for k in names):
             near = difflib.get_close_matches(node.get_name(), [k.strip('/') for k in names], 1)
             node.get_logger().warning(
                 f'params file {path}: no section for this node ({full}); its sections '
                 f'{", ".join(names)} were ignored, every parameter keeps its default'
                 + (f' (rename {near[0]!r} to {node.get_name()!r}?)' if near else '')
             )
+
+
+def section_applies(key: str, node: str) -> bool:
+    """Whether a params file's section (``calibrator``, ``/rig/calibrator``, ``/**``,
+    ``/**/calibrator``) applies to the fully qualified ``node``, by rcl's wildcards: ``*`` one
+    name, ``/**`` any number of namespaces."""
+    pattern = re.escape('/' + key.lstrip('/'))
+    pattern = pattern.replace(r'/\*\*', '(?:/[^/]+)*').replace(r'\*', '[^/]+')
+    return re.fullmatch(pattern, node) is not None

@@ -33,7 +33,7 @@ def test_shipped_params_file_matches_the_defaults() -> None:
     text = (ROOT / 'config' / 'calibrator.yaml').read_text()
     assert text == params_yaml(), 'regenerate config/calibrator.yaml from params_yaml()'
     params = yaml.safe_load(text)
-    values = params['/**']['ros__parameters']
+    values = params['/**/calibrator']['ros__parameters']
     parts = (CalibrationConfig, StreamConfig, NodeConfig)
     assert set(values) == {k for cls in parts for k in cls.specs()}
     for cls in parts:

@@ -148,7 +148,8 @@ class CalibrationResult:
         )
 
     def summary(self) -> str:
-        """One line: verdict, offset, translation, rotation, inliers, quality."""
+        """One line: verdict, offset, translation, rotation, inliers, quality (the reasons'
+        sentences apart: :meth:`said`)."""
         t = ', '.join(f'{v:.4f}' for v in self.p_HE)
         # the sign of the YAML, the terminal and the messages (w >= 0), not the solver's
         q = ', '.join(f'{v:.4f}' for v in positive_w(self.q_HE))
@@ -166,7 +167,8 @@ class CalibrationResult:
             extra += f'; scale {self.scale:.4f}'
         return (
             f'{self.quality.label()}: '
-            f'time_offset {self.time_offset_s * 1e3:+.2f} ms; T_HE translation [{t}] m, '
+            f'time_offset {self.time_offset_s * 1e3:+.2f} ms (device clock minus MoCap '
+            f'clock); device in the marker frame (T_HE): translation [{t}] m, '
             f'rotation xyzw [{q}]; inliers {self.linear.n_inliers}/{self.linear.n_motions}; '
             f'peak correlation {self.time_alignment.peak_correlation:.3f}; '
             f'APE {self.metrics.ape_rmse_m * 1e3:.1f} mm, '
@@ -175,6 +177,11 @@ class CalibrationResult:
             + extra
             + (f'; {len(self.warnings)} warning(s)' if self.warnings else '')
         )
+
+    def said(self) -> str:
+        """The summary, then each reason of the verdict with what to do, as the node answers
+        and logs a calibration."""
+        return self.summary() + ''.join(f'. {r.code}: {r.message}' for r in self.quality.reasons)
 
     def _batch_dict(self) -> dict[str, Any]:
         b, c = self.batch, self.config

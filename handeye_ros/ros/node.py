@@ -257,20 +257,20 @@ class CalibratorNode(Node):
             future.set_result((False, f'internal error: {err!r}'))
         else:
             took = f'{time.perf_counter() - t0:.2f} s'
-            if not self.status.admit(session, auto):
-                said = f'calibrated in {took}, not published: {session.summary}; ' + (
-                    'auto_calibrate keeps the published result, whose reported sigmas are smaller'
-                )
+            said = session.result.said()  # the verdict's reasons with what to do
+            kept_back = self.status.admit(session, auto)
+            if kept_back:
+                said = f'calibrated in {took}, not published ({kept_back}): {said}'
                 self.get_logger().info(said)
                 future.set_result((True, said))
                 return
             self._drop_stage(_staged_dir(self._last_result))
             kept = True
             self._succeeded(session)
-            self.get_logger().info(f'calibrated in {took}: {session.summary}')
+            self.get_logger().info(f'calibrated in {took}: {said}')
             for w in session.result.warnings:
                 self.get_logger().warning(w)
-            future.set_result((True, session.summary))
+            future.set_result((True, said))
         finally:
             if not kept:  # a failed calibration leaves no report to keep
                 self._drop_stage(stage)

@@ -11,16 +11,21 @@ terminal and its redraws into one line under ``ros2 launch``. The node's executo
 snapshot: ingest never waits for the computation.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
-time the buffered span has grown by GROWTH. A later result of its own is published only when
-it improves on the published one (no reported sigma larger); once one improves no sigma by
-more than IMPROVEMENT of itself or of its target, or is not published, auto mode has
-converged, said in the status, and stops; so it does, said so, once the buffers are full (their
-span can no longer grow by GROWTH).
+time the buffered span has grown by GROWTH. A result is measured by its *precision ratio*, its
+largest reported 1-sigma over that sigma's ``precision_*`` target (:func:`precision_ratio`: below
+1, the verdict is not ``imprecise``). A later result of auto mode's own is published when its
+ratio is no larger than the published one's; once one improves it by no more than IMPROVEMENT
+of itself (or of 1, the targets), or is not published, auto mode has converged (said in the
+status); so it has, said so, once the buffers are full (their span can no longer grow by
+GROWTH). Converged or done, it calibrates again when the status's predicted ratio falls below
+the one predicted at its last calibration by more than RECALIBRATE of it (or of 1): richer
+motion than the data it converged on.
 ``~/calibrate`` works at any time, and its result is always published.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -35,13 +40,17 @@ from . import diagnostics
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
-#: With auto_calibrate: converged when no reported sigma shrinks by more than this fraction of
-#: itself or of its precision_* target, whichever is larger. Of itself: for sigmas that stop
-#: at a floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the
-#: target: white noise shrinks them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and
+#: With auto_calibrate: converged when the precision ratio shrinks by no more than this fraction
+#: of itself or of 1 (the targets), whichever is larger. Of itself: for sigmas that stop at a
+#: floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the
+#: targets: white noise shrinks them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and
 #: this ends it once they are about half the targets, where more recording no longer matters
 #: to the verdict.
 IMPROVEMENT = 0.1
+#: With auto_calibrate, converged or done: calibrate again when the predicted precision ratio
+#: has fallen by more than this fraction of itself or of 1 since the last calibration (twice
+#: IMPROVEMENT: a gain the last result could not have had, not the next 18 % of white noise).
+RECALIBRATE = 2 * IMPROVEMENT
 #: The status takes at most this share of one core on average: one that cost c seconds of CPU
 #: (the node's snapshot, in its thread, and the worker's job, in all its threads) is followed
 #: by none for c / MAX_DUTY. 3 % rather than the 5 % asked for: what is not counted (the
@@ -72,7 +81,10 @@ class ReadinessStatus:
         self._pending = False
         self._next = 0.0  # no status computed before (monotonic s)
         self._span_calibrated = 0.0
+        #: the published auto result's reported 1-sigmas (s, m, deg), and the status's
+        #: predicted precision ratio when auto mode last calibrated
         self._sigmas: tuple[float, float, float] | None = None
+        self._predicted_then = math.inf
         self._logged = (0.0, '')
         self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
@@ -84,8 +96,11 @@ class ReadinessStatus:
     def tick(self) -> None:
         """On the executor: maybe calibrate (auto mode), then ask the worker for a status."""
         node = self._node
-        if self.auto in ('waiting for READY', 'calibrating') and self.last and self.last['ready']:
-            self._auto_calibrate()
+        if self.last and self.last['ready']:
+            if self.auto in ('waiting for READY', 'calibrating'):
+                self._auto_calibrate()
+            elif self.auto.startswith(('converged', 'done')) and self._richer():
+                self._auto_calibrate(grown=True)
         if self._pending or node.closing or time.monotonic() < self._next:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
@@ -140,8 +155,13 @@ class ReadinessStatus:
             return []
         ((s, ago),) = quiet.items()
         if now - seen[s] > STOPPED_S:
-            who = {'hand': 'the MoCap stream', 'eye': 'the device stream'}[s]
-            return [f'{who} ({s}) stopped {ago:.0f} s ago: check its driver']
+            return [
+                {
+                    'hand': f'the MoCap has sent nothing for {ago:.0f} s: is the device inside '
+                    'its tracked volume? (else check the MoCap driver)',
+                    'eye': f'the device has sent nothing for {ago:.0f} s: check its VO/VIO',
+                }[s]
+            ]
         return [
             {
                 'hand': f'the MoCap lost the marker {ago:.0f} s ago: its messages hold no '
@@ -174,6 +194,7 @@ class ReadinessStatus:
         self._apart, self._jumped = None, []
         if self.auto != 'off':
             self.auto, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
+            self._predicted_then = math.inf
 
     def _publish(self) -> None:
         stopped = self.stopped() + self._jumped
@@ -207,10 +228,26 @@ class ReadinessStatus:
 
     # ------------------------------------------------------------------ auto mode
 
-    def _auto_calibrate(self) -> None:
+    def _predicted(self) -> float:
+        """The status's predicted precision ratio (inf while a sigma is unknown)."""
+        sigma = self.last['sigma'] if self.last else {}
+        values = (
+            sigma.get('time_offset_ms'),
+            sigma.get('translation_mm'),
+            sigma.get('rotation_deg'),
+        )
+        if any(v is None for v in values):
+            return math.inf
+        seconds_metres_degrees = (values[0] * 1e-3, values[1] * 1e-3, values[2])
+        return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
+
+    def _richer(self) -> bool:
+        return richer(self._predicted_then, self._predicted())
+
+    def _auto_calibrate(self, grown: bool = False) -> None:
         buffers = [self._node.recorder.buffers[s] for s in STREAMS]
         span = min(b.span_s for b in buffers)
-        if self._span_calibrated and span < GROWTH * self._span_calibrated:
+        if not grown and self._span_calibrated and span < GROWTH * self._span_calibrated:
             if any(b.dropped for b in buffers):  # a full buffer's span grows no more
                 self.auto = (
                     f'done: the buffers are full ({span:.0f} s; buffer_duration, buffer_size), '
@@ -219,34 +256,72 @@ class ReadinessStatus:
             return
         if self._node.calibrate(auto=True) is not None:
             self._span_calibrated = span
+            self._predicted_then = self._predicted()
             self.auto = 'calibrating'
 
-    def admit(self, session: Calibrated, auto: bool) -> bool:
-        """A new result, before it is published: whether it replaces the published one.
+    def admit(self, session: Calibrated, auto: bool) -> str:
+        """A new result, before it is published: '' when it replaces the published one, else
+        why not (with the numbers).
 
-        A result of ``~/calibrate`` always does. One that auto mode started does when none of
-        its reported sigmas is larger than the published result's; auto mode has converged
-        (said in the status) once a result of its own is not admitted, or improves no sigma by
-        more than IMPROVEMENT of itself or of its target (:func:`judge`)."""
+        A result of ``~/calibrate`` always does. One that auto mode started does when its
+        precision ratio is no larger than the published result's; auto mode has converged
+        (said in the status) once a result of its own is not admitted, or improves the ratio by
+        no more than IMPROVEMENT of itself or of 1 (:func:`judge`)."""
         batch = session.document.get('std')
         if self.auto == 'off' or not batch:
-            return True
+            return ''
         sigmas = (
             float(batch['time_offset']),
             float(np.linalg.norm(batch['translation'])),
             float(np.degrees(np.linalg.norm(batch['rotation']))),
         )  # s, m, deg: the targets' units
-        admitted, converged = judge(sigmas, self._sigmas, auto, self._node.calib_cfg.precision)
+        targets = self._node.calib_cfg.precision
+        published = self._sigmas
+        admitted, converged = judge(sigmas, published, auto, targets)
         if admitted:
             self._sigmas = sigmas
         if converged:
             best = self._sigmas
             self.auto = (
-                'converged: the reported sigmas no longer improve by '
-                f'{IMPROVEMENT:.0%} of themselves or of the targets ({best[0] * 1e3:.2g} ms, '
-                f'{best[1] * 1e3:.2g} mm, {best[2]:.2g} deg)'
+                f'converged: more of the same motion no longer improves the result by '
+                f'{IMPROVEMENT:.0%} of the targets (1-sigma {_sigmas_text(best)}); it calibrates '
+                'again if the motion gets richer'
             )
-        return admitted
+        if admitted:
+            return ''
+        return (
+            f'auto_calibrate keeps the published result: its largest sigma against its target, '
+            f"{_largest(sigmas, targets)}, is above the published one's, "
+            f'{_largest(published, targets)}'
+        )
+
+
+#: The three reported 1-sigmas, named and in the units they are said in.
+_SAID = (('time offset', 1e3, 'ms'), ('translation', 1e3, 'mm'), ('rotation', 1.0, 'deg'))
+
+
+def _sigmas_text(sigmas: tuple[float, ...]) -> str:
+    return ', '.join(f'{v * k:.2g} {unit}' for v, (_, k, unit) in zip(sigmas, _SAID, strict=True))
+
+
+def _largest(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> str:
+    """The sigma that sets the precision ratio, e.g. 'translation 6.7 mm of 10 mm'."""
+    k = int(np.argmax([s / t for s, t in zip(sigmas, targets, strict=True)]))
+    name, scale, unit = _SAID[k]
+    return f'{name} {sigmas[k] * scale:.2g} {unit} of {targets[k] * scale:.2g} {unit}'
+
+
+def richer(predicted_then: float, predicted_now: float) -> bool:
+    """Converged or done: whether the predicted precision ratio has fallen well below the one
+    predicted at auto mode's last calibration (:data:`RECALIBRATE`): richer motion."""
+    then, now = predicted_then, predicted_now
+    return bool(math.isfinite(then) and then - now > RECALIBRATE * max(then, 1.0))
+
+
+def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> float:
+    """The largest 1-sigma over its target (dt s, translation m, rotation deg): below 1, the
+    result is precise enough for the verdict."""
+    return max(s / t for s, t in zip(sigmas, targets, strict=True))
 
 
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
@@ -271,9 +346,7 @@ def judge(
     (both only for a result that auto mode started; see :meth:`ReadinessStatus.admit`)."""
     if not auto or published is None:
         return True, False
-    rows = list(zip(sigmas, published, targets, strict=True))
-    admitted = all(new <= old for new, old, _ in rows)
-    converged = not admitted or all(
-        old - new <= IMPROVEMENT * max(old, target) for new, old, target in rows
-    )
+    new, old = precision_ratio(sigmas, targets), precision_ratio(published, targets)
+    admitted = new <= old
+    converged = not admitted or old - new <= IMPROVEMENT * max(old, 1.0)
     return admitted, converged

@@ -1,5 +1,6 @@
-"""auto_calibrate's rule for a later result (status.judge): published only when it improves,
-converged once it improves too little; and how the status tells that a clock jumped."""
+"""auto_calibrate's rules (status.judge, status.richer): a later result published only when it
+improves the precision ratio, converged once it improves it too little, calibrated again when
+the predicted ratio falls well below; and how the status tells that a clock jumped."""
 
 from __future__ import annotations
 
@@ -8,7 +9,15 @@ import pytest
 
 pytest.importorskip('diagnostic_msgs')
 
-from handeye_ros.ros.status import GROWTH, IMPROVEMENT, clocks_apart, judge
+from handeye_ros.ros.status import (
+    GROWTH,
+    IMPROVEMENT,
+    RECALIBRATE,
+    clocks_apart,
+    judge,
+    precision_ratio,
+    richer,
+)
 
 
 @pytest.mark.parametrize(
@@ -17,13 +26,13 @@ from handeye_ros.ros.status import GROWTH, IMPROVEMENT, clocks_apart, judge
         # the first result, or one asked for by ~/calibrate: published, nothing judged
         ((1.0, 1.0, 1.0), None, True, (1.0, 1.0, 1.0), (True, False)),
         ((9.0, 9.0, 9.0), (1.0, 1.0, 1.0), False, (1.0, 1.0, 1.0), (True, False)),
-        # auto: every sigma smaller by more than IMPROVEMENT: published, keeps going
+        # auto: the precision ratio smaller by more than IMPROVEMENT: published, keeps going
         ((0.8, 0.8, 0.8), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, False)),
-        # one sigma still improves by more than IMPROVEMENT: keeps going
-        ((0.95, 0.8, 0.99), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, False)),
-        # every sigma smaller, none by IMPROVEMENT: published, converged
-        ((0.95, 0.95, 0.99), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, True)),
-        # one sigma larger: the published result stays, converged
+        # one sigma larger, the largest one smaller by more than IMPROVEMENT: keeps going
+        ((0.5, 0.5, 0.7), (1.0, 0.6, 0.6), True, (1.0, 1.0, 1.0), (True, False)),
+        # the ratio smaller, not by IMPROVEMENT: published, converged
+        ((0.95, 0.8, 0.99), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, True)),
+        # the ratio larger: the published result stays, converged
         ((0.5, 0.5, 1.01), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (False, True)),
         # far below the targets, 18 % less is under 10 % of the target: converged
         ((0.41, 0.41, 0.41), (0.5, 0.5, 0.5), True, (1.0, 1.0, 1.0), (True, True)),
@@ -34,6 +43,32 @@ from handeye_ros.ros.status import GROWTH, IMPROVEMENT, clocks_apart, judge
 def test_a_later_auto_result(sigmas, published, auto, targets, expected) -> None:
     assert IMPROVEMENT == 0.1
     assert judge(sigmas, published, auto, targets) == expected
+
+
+@pytest.mark.parametrize(
+    ('then', 'now', 'expected'),
+    [
+        # what a user met: converged at 6.7 mm / 0.32 deg (ratio 0.67), then minutes of
+        # richer motion predicted 0.6 mm / 0.04 deg (0.08)
+        (0.67, 0.08, True),
+        # white noise after converging at half the targets: another 1.5x of span is no reason
+        (0.5, 0.5 / np.sqrt(GROWTH), False),
+        # above the targets, a fifth of itself
+        (3.0, 2.3, True),
+        (3.0, 2.5, False),
+        # no prediction at the last calibration (a sigma unknown): nothing to compare
+        (float('inf'), 0.1, False),
+    ],
+)
+def test_converged_calibrates_again_when_the_prediction_falls_well_below(
+    then, now, expected
+) -> None:
+    assert RECALIBRATE == 2 * IMPROVEMENT
+    assert richer(then, now) is expected
+
+
+def test_the_precision_ratio_is_the_largest_sigma_over_its_target() -> None:
+    assert precision_ratio((0.5e-3, 6.7e-3, 0.32), (1e-3, 0.01, 0.5)) == pytest.approx(0.67)
 
 
 def test_white_noise_converges_once_the_sigmas_are_about_half_the_targets() -> None:

@@ -173,6 +173,9 @@ def readiness_lines(r: dict[str, Any] | None) -> list[str]:
 #: A bar is full when the device has turned this far about its axis (deg): display only; READY
 #: comes from the predicted sigmas.
 BAR_FULL_DEG = 360.0
+#: A predicted sigma beyond this many times its target is shown as a bound (an unobserved
+#: direction gives figures like 2.5e+10 mm, which mean nothing to the person moving the rig).
+SHOWN_TIMES_TARGET = 100.0
 
 
 def status_line(r: dict[str, Any], width: int = 8) -> str:
@@ -185,15 +188,16 @@ def status_line(r: dict[str, Any], width: int = 8) -> str:
 
     s, t = r['sigma'], r['target']
 
-    def fig(v: float | None) -> str:
-        return '?' if v is None else f'{v:.2g}'
+    def fig(key: str) -> str:
+        v, bound = s[key], SHOWN_TIMES_TARGET * t[key]
+        return '?' if v is None else f'>{bound:g}' if v > bound else f'{v:.2g}'
 
     axes = ' '.join(f'{k} [{bar(v)}] {v:.0f}' for k, v in r['rotation_deg'].items())
     head = 'READY' if r['ready'] else 'not ready'
     line = (
         f'{head} | turned {axes} deg | {r["motions"]} motions | 1-sigma '
-        f'{fig(s["time_offset_ms"])} ms {fig(s["translation_mm"])} mm '
-        f'{fig(s["rotation_deg"])} deg (need {t["time_offset_ms"]:g} {t["translation_mm"]:g} '
+        f'{fig("time_offset_ms")} ms {fig("translation_mm")} mm '
+        f'{fig("rotation_deg")} deg (need {t["time_offset_ms"]:g} {t["translation_mm"]:g} '
         f'{t["rotation_deg"]:g})'
     )
     return line + (f' | {r["missing"][0]}' if r['missing'] else '')

@@ -11,6 +11,7 @@ types, to keep what came before, were measured to change nothing and were remove
 
 from __future__ import annotations
 
+import difflib
 import time
 from collections.abc import Callable
 from typing import Any
@@ -241,7 +242,7 @@ class Subscriptions:
                     if guess in usable:
                         why += f'; meanwhile the {guess} one is received'
                 else:
-                    why = 'has no publisher yet'
+                    why = 'has no publisher yet' + self.near(topic)
                 self._log.warning(f'{stream} topic {topic} {why}')
         if not self.unknown() and self._graph_timer is not None:
             self._graph_timer.cancel()
@@ -281,11 +282,23 @@ class Subscriptions:
                         f'no pose this node reads (supported: {", ".join(SUPPORTED_TYPES)})'
                     )
                 if not types:
+                    source = {'hand': 'the MoCap driver', 'eye': 'the VO/VIO'}[stream]
                     return (
-                        f'{stream} topic {topic} has no publisher yet: check {stream}_topic, '
-                        f'or set {stream}_type to subscribe before one appears'
+                        f'{stream} topic {topic} has no publisher yet{self.near(topic)}: start '
+                        f'{source}, or set {stream}_topic'
                     )
         return None
+
+    def near(self, topic: str) -> str:
+        """' (did you mean /vio/odom?)' for a pose topic in the graph whose name is close to
+        ``topic`` (a misspelt topic), else ''."""
+        names = [
+            name
+            for name, types in self._node.get_topic_names_and_types()
+            if name != topic and _pose_types(types)
+        ]
+        near = difflib.get_close_matches(topic, names, n=1, cutoff=0.7)
+        return f' (did you mean {near[0]}?)' if near else ''
 
 
 def _pose_types(types: list[str]) -> list[str]:

@@ -30,13 +30,13 @@ from ..chunked import CHUNK_ROWS, chunked
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..geometry import (
+    consecutive_rotvecs,
     log_so3,
     matrix_from_quat,
     relative,
 )
 from ..linear.stage import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
-from ..time.signals import angular_speed
 from ..trajectory import Trajectory
 from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION
 
@@ -205,17 +205,28 @@ def _empty(target: tuple[float, float, float], why: str) -> Readiness:
     return Readiness(False, (float('nan'),) * 3, target, zero, zero, 0.0, 0.0, missing=(why,))
 
 
+#: The turn about each axis is summed over steps this long (s): summed over every pose's step,
+#: it summed each pose's noise too (a noisy planar recording 'turned' 859 deg about an axis
+#: it never turned about, and the advice then thought that axis done).
+TURN_STEP_S = 0.2
+
+
 def _turned(traj: Trajectory) -> tuple[np.ndarray, float]:
     """(3,) how far the body turned about each of its axes (deg) and its RMS angular speed
-    (deg/s), over the intervals that are no gap (from stage 1's angular velocity, which the
-    trajectory keeps)."""
-    w = angular_speed(traj, vector=True)
-    if not np.any(w.valid):
+    (deg/s), from its rotations over steps of about TURN_STEP_S that span no gap."""
+    if len(traj) < 2:
         return np.zeros(3), 0.0
-    rate = w.speed[w.valid]  # rad/s in the body frame
-    dt = np.diff(traj.t_ns)[w.valid] * 1e-9
+    period = float(np.median(np.diff(traj.t_ns))) * 1e-9
+    idx = np.arange(0, len(traj), max(1, round(TURN_STEP_S / max(period, 1e-9))))
+    gaps = np.concatenate(([0], np.cumsum(~traj.interval_ok())))
+    whole = gaps[idx[1:]] == gaps[idx[:-1]]  # no gap or break inside the step
+    if not np.any(whole):
+        return np.zeros(3), 0.0
+    turn = consecutive_rotvecs(traj.q_xyzw[idx])[whole]  # rad, body frame
+    seconds = np.diff(traj.t_ns[idx])[whole] * 1e-9
+    rate = turn / seconds[:, None]  # rad/s
     rms = float(np.degrees(np.sqrt(np.mean(np.sum(rate**2, axis=1)))))
-    return np.degrees(np.sum(np.abs(rate * dt[:, None]), axis=0)), rms
+    return np.degrees(np.sum(np.abs(turn), axis=0)), rms
 
 
 def _dropout(traj: Trajectory) -> float:
@@ -374,17 +385,13 @@ def _advice(
 ) -> list[str]:
     """What narrows each sigma that is over its target, in the device's axes."""
     out = []
-    weak = set()
-    if sigma[2] > cfg.precision_rotation:
-        weak.add(_widest(cov_r))
-    if sigma[1] > cfg.precision_translation:
-        weak.add(_widest(cov_p))
-    for k in sorted(weak):
-        others = ' and '.join(a for a in AXES if a != AXES[k])
-        out.append(
-            f'turn the device about its {others} axes too (so far it turned mostly about its '
-            f'{AXES[k]} axis, which leaves T_HE about and along {AXES[k]} unobserved)'
-        )
+    for cov, over in (
+        (cov_p, sigma[1] > cfg.precision_translation),
+        (cov_r, sigma[2] > cfg.precision_rotation),
+    ):
+        said = _turn_advice(cov, sigma[1]) if over else None
+        if said and said not in out:
+            out.append(said)
     if sigma[0] > cfg.precision_time_offset:
         fast = f' (now {speed_dps:.0f} deg/s)' if speed_dps < SLOW_DPS else ''
         out.append(
@@ -394,9 +401,33 @@ def _advice(
     return out
 
 
-def _widest(cov: np.ndarray) -> int:
-    """The device axis nearest to the covariance's widest direction."""
-    if not np.all(np.isfinite(cov)):
-        return int(np.argmax(np.diag(np.nan_to_num(cov, posinf=1e300))))
-    _, vecs = np.linalg.eigh(cov)
-    return int(np.argmax(np.abs(vecs[:, -1])))
+#: A T_HE covariance (in the device frame) whose widest 1-sigma is this many times its
+#: narrowest says the turns so far were about nearly one axis, the one it leaves unobserved.
+ONE_AXIS_RATIO = 3.0
+
+
+def _turn_advice(cov: np.ndarray, translation_sigma: float) -> str:
+    """Turns about one axis leave T_HE about and along it unobserved (the covariance's widest
+    direction u, in the device frame): say where that axis lies among the device's axes (the
+    bars are the turns' projections on them, so a diagonal axis fills two) and name the device
+    axis most across it to turn about. Without one widest direction: more turns about all."""
+    if np.all(np.isfinite(cov)):
+        vals, vecs = np.linalg.eigh(cov)
+        if vals[-1] < ONE_AXIS_RATIO**2 * max(vals[0], 0.0):
+            return (
+                'keep turning the device about all its axes: its offset from the marker is '
+                f'still uncertain by {translation_sigma * 1e3:.2g} mm'
+            )
+        u = np.abs(vecs[:, -1])
+    else:  # a direction no motion observes at all
+        u = np.abs(np.nan_to_num(np.diag(cov), posinf=1e300))
+    first, second, across = np.argsort(u)[::-1]
+    where = (
+        f'between its {AXES[min(first, second)]} and {AXES[max(first, second)]} axes'
+        if u[second] > 0.5 * u[first]
+        else f'near its {AXES[first]} axis'
+    )
+    return (
+        f'turn the device about its {AXES[across]} axis too (so far it turned mostly about one '
+        f"axis, {where}, which leaves the device's offset from the marker along it unobserved)"
+    )

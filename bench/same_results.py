@@ -9,9 +9,13 @@ no RANSAC), and the semi-synthetic real pairs of bench/realdata.py (skipped with
 Usage:
     python bench/same_results.py record FILE     # numbers of this tree, as JSON
     python bench/same_results.py compare FILE    # this tree against FILE; exit 1 on a difference
+    python bench/same_results.py compare FILE --tolerance 1e-6
 
-A field differs when ``|a - b| > 1e-9 * max(1, |a|, |b|)``; run times and anything measured
-in seconds of the machine are left out.
+A field differs when ``|a - b| > tolerance * max(1, |a|, |b|)`` (1e-9 unless given); run times
+and anything measured in seconds of the machine are left out. Across library versions (today's
+pins against the Jazzy platform's numpy 1.26 / scipy 1.11: ``scripts/setup --jazzy``), the
+same code sums in another order (BLAS, LAPACK, pocketfft), so compare there with the tolerance
+that order allows; the comparison prints the largest relative difference it saw.
 """
 
 from __future__ import annotations
@@ -98,22 +102,31 @@ def record() -> dict:
     return results
 
 
-def differs(a, b) -> bool:
-    if (
+def relative(a, b) -> float:
+    """|a - b| / max(1, |a|, |b|) of two numbers (0 for two NaN, inf for one)."""
+    if math.isnan(a) or math.isnan(b):
+        return 0.0 if math.isnan(a) and math.isnan(b) else math.inf
+    return abs(a - b) / max(1.0, abs(a), abs(b))
+
+
+def _numbers(a, b) -> bool:
+    return (
         isinstance(a, (int, float))
         and isinstance(b, (int, float))
         and not isinstance(a, bool)
         and not isinstance(b, bool)
-    ):
-        if math.isnan(a) or math.isnan(b):
-            return not (math.isnan(a) and math.isnan(b))
-        return abs(a - b) > TOLERANCE * max(1.0, abs(a), abs(b))
+    )
+
+
+def differs(a, b, tolerance: float = TOLERANCE) -> bool:
+    if _numbers(a, b):
+        return relative(a, b) > tolerance
     if isinstance(a, str) and isinstance(b, str):
         return _portable(a) != _portable(b)
     return a != b
 
 
-def compare(before: dict, after: dict) -> list[str]:
+def compare(before: dict, after: dict, tolerance: float = TOLERANCE) -> list[str]:
     lines = []
     for case in sorted(set(before) | set(after)):
         b, a = before.get(case), after.get(case)
@@ -123,25 +136,43 @@ def compare(before: dict, after: dict) -> list[str]:
         for key in sorted(set(a) | set(b)):
             if key not in a or key not in b:
                 lines.append(f'{case} {key}: only {"before" if key not in a else "after"}')
-            elif differs(b[key], a[key]):
+            elif differs(b[key], a[key], tolerance):
                 lines.append(f'{case} {key}: {b[key]!r} -> {a[key]!r}')
     return lines
 
 
+def largest(before: dict, after: dict) -> tuple[float, str]:
+    """The largest relative difference of the numbers both hold, and where."""
+    worst = (0.0, '-')
+    for case in set(before) & set(after):
+        b, a = before[case], after[case]
+        for key in set(a) & set(b):
+            if _numbers(b[key], a[key]):
+                worst = max(worst, (relative(b[key], a[key]), f'{case} {key}'))
+    return worst
+
+
 def main() -> int:
-    if len(sys.argv) != 3 or sys.argv[1] not in ('record', 'compare'):
+    args = sys.argv[1:]
+    tolerance = TOLERANCE
+    if len(args) == 4 and args[2] == '--tolerance':
+        tolerance = float(args.pop())
+        args.pop()
+    if len(args) != 2 or args[0] not in ('record', 'compare'):
         print(__doc__.split('Usage:')[1].strip(), file=sys.stderr)
         return 2
-    path = Path(sys.argv[2])
+    path = Path(args[1])
     now = json.loads(json.dumps(record()))  # the same float round trip as the file
-    if sys.argv[1] == 'record':
+    if args[0] == 'record':
         path.write_text(json.dumps({'provenance': common.provenance(), 'results': now}, indent=1))
         print(f'{len(now)} cases recorded in {path}')
         return 0
     before = json.loads(path.read_text())
-    lines = compare(before['results'], now)
+    lines = compare(before['results'], now, tolerance)
     print(f'before: {before["provenance"]}\nafter:  {common.provenance()}')
-    print('\n'.join(lines) if lines else f'{len(now)} cases: the same to {TOLERANCE:g}')
+    print('\n'.join(lines) if lines else f'{len(now)} cases: the same to {tolerance:g}')
+    worst, where = largest(before['results'], now)
+    print(f'largest relative difference: {worst:.2g} ({where})')
     return 1 if lines else 0
 
 

@@ -41,7 +41,7 @@ RUN_NODE = (
     '--params-file install/handeye_ros/share/handeye_ros/config/calibrator.yaml'
 )
 RUN_SIM = 'ros2 run handeye_ros sim_publisher'
-ECHO_STATUS = 'ros2 topic echo --once /calibrator/status'
+ECHO_STATUS = 'ros2 topic echo --once /calibrator/status diagnostic_msgs/msg/DiagnosticStatus'
 CALIBRATE = 'ros2 service call /calibrator/calibrate std_srvs/srv/Trigger'
 SET_OUTPUT = 'ros2 param set /calibrator output_file calibration.yaml'
 SAVE = 'ros2 service call /calibrator/save std_srvs/srv/Trigger'
@@ -232,10 +232,18 @@ def test_ros2_run_status_calibrate_param_set_and_save_as_typed(shell: Shell, ws:
     assert code == 0 and 'Traceback' not in out, out
     truth = yaml.safe_load(out.strip().splitlines()[-1])['truth']
 
-    code, out = shell.run(ECHO_STATUS, 'status')
-    status = yaml.safe_load(out.split('\n---')[0])
-    assert code == 0 and status['name'] == '/calibrator: readiness', out
-    assert status['message'] == 'READY', out  # 40 s of rich motion
+    # 40 s of rich motion: READY, once neither stream is the last one still flowing (the
+    # device's ends first, and for a moment 'has sent nothing' is true): echoed again until then
+    said = []
+
+    def ready() -> bool:
+        code, out = shell.run(ECHO_STATUS, f'status{len(said)}')
+        status = yaml.safe_load(out.split('\n---')[0])
+        assert code == 0 and status['name'] == '/calibrator: readiness', out
+        said.append(status['message'])
+        return status['message'] == 'READY'
+
+    assert wait_for(ready, 30, 0.0), said
 
     code, out = shell.run(CALIBRATE, 'calibrate')
     ok, message = _answer(out)

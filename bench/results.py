@@ -61,6 +61,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'real_cases': ('real_cases', [], ['real_vicon*', 'real_machine_hall*'], '5 min'),
     'coverage_real': ('coverage_real', [], ['coverage_real'], '10 min'),
+    'uncertainty_real': (
+        'uncertainty_real',
+        [],
+        ['uncertainty_pairs', 'uncertainty_terms', 'uncertainty_sim'],
+        '1 min',
+    ),
     'defects': (
         'defects',
         [],

@@ -276,8 +276,10 @@ class CalibrationResult:
                 'scale': '1',
             },
             'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
-            'poses) over the eye residuals',
+            'poses) over the eye residuals, with the errors correlated over the recording '
+            '(4 blocks refitted alone) and the eye scale as a nuisance',
             'white_inflation': [float(v) for v in b.inflation],
+            **_uncertainty_dict(b.uncertainty),
         }
 
     def to_dict(
@@ -475,3 +477,19 @@ def _trajectory_info(info: TrajectoryInfo) -> dict[str, Any]:
 def _num(x: float) -> float | None:
     """JSON has no NaN: unknown values become null."""
     return float(x) if np.isfinite(x) else None
+
+
+def _uncertainty_dict(u: Any) -> dict[str, Any]:
+    """The reported 1-sigma's terms (white, correlated, scale) per group (norms over the axes,
+    in the groups' units), the term that dominates each, and what could not be estimated."""
+    if u is None:
+        return {}
+    return {
+        'terms': {g: {k: float(v) for k, v in t.items()} for g, t in u.terms().items()},
+        'dominant': u.dominant(),
+        'block_factors': None if u.factors is None else dict(u.factors),
+        'eye_scale': (
+            None if u.scale is None else {'scale': float(u.scale[0]), 'std': float(u.scale[1])}
+        ),
+        'not_estimated': list(u.not_estimated),
+    }

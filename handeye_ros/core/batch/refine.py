@@ -37,6 +37,7 @@ import numpy as np
 from ..errors import BatchError
 from ..geometry import quat_from_matrix
 from ..trajectory import Trajectory
+from .correlated import Uncertainty
 from .covariance import eye_covariance, joint_covariance, joint_long_run
 from .long_run import LongRunCovariance
 from .loss import huber_cost
@@ -115,12 +116,15 @@ class BatchSolution:
     clock_drift: float | None = None
     time_offset_stamp_ns: int | None = None
     scale: float | None = None
+    #: the covariance's parts (:mod:`.correlated`), once the stage has added them
+    uncertainty: Uncertainty | None = None
 
     @property
     def inflation(self) -> np.ndarray:
         """(7,) long-run over white standard deviation (1: the residuals look white)."""
+        lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run
         w = np.sqrt(np.clip(np.diag(self.covariance_white), 1e-300, None))
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
+        return np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
 
 
 @dataclass(frozen=True)

@@ -472,6 +472,25 @@ def scale_message(fit: ScaleFit) -> str:
     )
 
 
+#: A metric eye whose scale the uncertainty's nuisance fit puts this far from 1, and beyond
+#: this many of its own sigmas, is named in a note (a VIO's scale error of a per cent).
+SCALE_NAMED = 0.01
+SCALE_NAMED_SIGMAS = 3.0
+
+
+def scale_uncertainty_note(scale: float, std: float, shift_m: float) -> str | None:
+    """The note that names a metric eye's scale error the uncertainty carries, or None."""
+    d = abs(scale - 1.0)
+    if not (d >= SCALE_NAMED and d > SCALE_NAMED_SIGMAS * std):
+        return None
+    return (
+        f"the eye's translations fit a scale s = {scale:.4f} +- {std:.2g} ({d:.1%} "
+        f'{"long" if scale > 1.0 else "short"}): taking s = 1 moves the translation of T_HE '
+        f'by {shift_m * 1e3:.1f} mm, which its uncertainty includes. Estimate it with --scale '
+        '(node parameter estimate_scale) if the eye is not metric'
+    )
+
+
 def drift_message(fit: DriftFit) -> str:
     n = int(fit.inliers.sum())
     return (

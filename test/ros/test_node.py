@@ -8,7 +8,6 @@ import json
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +53,14 @@ def _start_node(ros: Processes, install: Path, *params: str, name: str = 'node')
     for p in params:
         args += ['-p', p]
     return ros.start(args, name)
+
+
+def _wait_started(ros: Processes, node) -> None:
+    """Until the node says it buffers (its subscriptions made), with a deadline."""
+    assert wait_for(
+        lambda: 'buffering hand' in ros.output(node)[1] or node.poll() is not None, 60, 0.1
+    ), ros.output(node)
+    assert node.poll() is None, ros.output(node)
 
 
 def _publisher(ros: Processes, *args: str) -> list[str]:
@@ -776,7 +783,7 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
     then READY; auto_calibrate publishes its first result within 2 s of READY (one status
     period of 0.5 s, a calibration of ~0.2 s, DDS). The publisher sends at its real rate
     (100 + 20 poses a second), so the recording grows as a person's would."""
-    _start_node(
+    node = _start_node(
         ros,
         install,
         'auto_calibrate:=true',
@@ -784,7 +791,7 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
         'buffer_duration:=120.0',
         name='node',
     )
-    time.sleep(2.0)
+    _wait_started(ros, node)
     ros.start(_publisher(ros, '--duration', '35', '--rate', '120', '--level', '3'), 'pub')
     got = _call(ros, '40', mode='status')
     status = got['status']
@@ -811,18 +818,18 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
 
 
 def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, install: Path) -> None:
-    """With 40-s buffers, auto mode's span stops growing once they are full: it says so in the
-    status (`done`) instead of waiting in silence, after at least one result. The publisher
-    runs at twice its real rate."""
-    _start_node(
+    """With 20-s buffers, auto mode's span stops growing once they are full (before its
+    results converge): it says so in the status (`done`) instead of waiting in silence, after
+    at least one result. The publisher runs at twice its real rate."""
+    node = _start_node(
         ros,
         install,
         'auto_calibrate:=true',
         'status_period:=0.5',
-        'buffer_duration:=40.0',
+        'buffer_duration:=20.0',
         name='node',
     )
-    time.sleep(2.0)
+    _wait_started(ros, node)
     ros.start(_publisher(ros, '--duration', '70', '--rate', '240', '--level', '3'), 'pub')
     got = _call(ros, '36', mode='status')
     auto = [s['values'].get('auto_calibrate', '') for s in got['status']]
@@ -835,8 +842,8 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
 def test_a_planar_recording_never_becomes_ready_and_names_the_axis(
     ros: Processes, install: Path
 ) -> None:
-    _start_node(ros, install, 'status_period:=0.5', 'buffer_duration:=120.0', name='node')
-    time.sleep(2.0)
+    node = _start_node(ros, install, 'status_period:=0.5', 'buffer_duration:=120.0', name='node')
+    _wait_started(ros, node)
     ros.start(_publisher(ros, '--duration', '30', '--motion', 'planar', '--level', '3'), 'pub')
     got = _call(ros, '20', mode='status')
     messages_seen = [s['message'] for s in got['status']]
@@ -850,8 +857,8 @@ def test_a_mocap_dropout_is_said_while_it_lasts_and_is_no_clock_jump(
     """The MoCap loses the marker for 5 s while its driver keeps publishing (NaN positions,
     sim_publisher --mocap-dropout, in real time): the status says so while it lasts, and a
     stream whose stamps stop with its poses is no clock that jumped."""
-    _start_node(ros, install, 'status_period:=0.5', name='node')
-    time.sleep(2.0)
+    node = _start_node(ros, install, 'status_period:=0.5', name='node')
+    _wait_started(ros, node)
     ros.start(
         _publisher(ros, '--duration', '24', '--rate', '120', '--mocap-dropout', '10', '5'), 'pub'
     )
@@ -867,8 +874,8 @@ def test_a_clock_that_jumps_is_said(ros: Processes, install: Path, jump: str) ->
     coming (sim_publisher --clock-jump, in real time): the status says so, and is not READY.
     Back, the node refuses the device's messages for 5 s (their stamps do not increase), then
     buffers them 5 s behind: the newest stamps move alike."""
-    _start_node(ros, install, 'status_period:=0.5', name='node')
-    time.sleep(2.0)
+    node = _start_node(ros, install, 'status_period:=0.5', name='node')
+    _wait_started(ros, node)
     ros.start(
         _publisher(ros, '--duration', '24', '--rate', '120', '--clock-jump', jump, '--level', '3'),
         'pub',

@@ -25,9 +25,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..association import eye_motion_errors
+from ..association import eye_motion_errors, interpolate
 from ..batch.loss import huber_rho
-from ..geometry import matrix_from_quat
+from ..geometry import matrix_from_quat, rotation_angle
 from ..linear.keyframes import segment_motion_indices
 from ..trajectory import Trajectory
 
@@ -35,6 +35,12 @@ from ..trajectory import Trajectory
 SCORE_HUBER = 3.0
 #: Fewest common motions a comparison needs.
 MIN_COMMON_MOTIONS = 10
+#: A candidate offset at which the eye's keyframe motions and the hand's turn by angles this
+#: many times further apart than at the offset in hand (eq. 9: a rigid T_HE keeps each motion's
+#: angle, whatever it is) is rejected before stage 2 runs there; SCREW_FLOOR_DEG floors the
+#: offset in hand's own disagreement (noise-free data agree to round-off).
+SCREW_REJECT = 3.0
+SCREW_FLOOR_DEG = 0.05
 
 
 @dataclass(frozen=True)
@@ -63,6 +69,35 @@ def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarr
     do not depend on the offset, so every candidate is scored on the same ones."""
     return segment_motion_indices(
         matrix_from_quat(eye.q_xyzw), eye.segment_ids(), 'rotation', eta_rad
+    )
+
+
+def screw_disagreement(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, i: np.ndarray, j: np.ndarray
+) -> float:
+    """Median difference (deg) between the rotation angles of the eye's motions (i -> j) and
+    of the hand's over the same instants at ``time_offset_s`` (eq. 9's screw congruence, which
+    needs no T_HE); NaN when the hand covers fewer than MIN_COMMON_MOTIONS of them. A wrong
+    offset pairs motions that turn by unrelated angles: tens of degrees apart."""
+    shift = np.int64(round(time_offset_s * 1e9))
+    R_a, _, ok_a = interpolate(hand, eye.t_ns[i] - shift)
+    R_b, _, ok_b = interpolate(hand, eye.t_ns[j] - shift)
+    ok = ok_a & ok_b
+    if ok.sum() < MIN_COMMON_MOTIONS:
+        return float('nan')
+    R_e = matrix_from_quat(eye.q_xyzw[np.concatenate((i[ok], j[ok]))])
+    n = int(ok.sum())
+    hand_angle = rotation_angle(np.swapaxes(R_a[ok], -1, -2) @ R_b[ok])
+    eye_angle = rotation_angle(np.swapaxes(R_e[:n], -1, -2) @ R_e[n:])
+    return float(np.degrees(np.median(np.abs(hand_angle - eye_angle))))
+
+
+def screw_rejects(disagreement: float, in_hand: float) -> bool:
+    """Whether a candidate's screw disagreement rules it out against the offset in hand's."""
+    return bool(
+        np.isfinite(disagreement)
+        and np.isfinite(in_hand)
+        and disagreement > SCREW_REJECT * max(in_hand, SCREW_FLOOR_DEG)
     )
 
 

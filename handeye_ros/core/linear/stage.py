@@ -15,7 +15,13 @@ import numpy as np
 
 from ..association import PosePairs, associate
 from ..checks.screening import Screening, find_eye_breaks
-from ..checks.selfcheck import Candidate, score_candidates
+from ..checks.selfcheck import (
+    Candidate,
+    eye_keyframes,
+    score_candidates,
+    screw_disagreement,
+    screw_rejects,
+)
 from ..checks.verdict import Code, judge_tie, scale_message, scale_reason, seed_reason
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
@@ -237,8 +243,20 @@ def self_check(
     proposals = [(0.0, 'correlation peak')] + [
         (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
     ]
+    # eq. 9 first: an offset whose motions turn by other angles than the eye's is wrong
+    # whatever T_HE is, and costs no RANSAC to rule out
+    i, j = eye_keyframes(eye, np.deg2rad(cfg.eta))
+    in_hand = screw_disagreement(hand, eye, dt, i, j)
     for offset, source in proposals:
         if any(abs(offset - h[0]) < same for h in hyps):
+            continue
+        there = screw_disagreement(hand, eye, offset, i, j)
+        if screw_rejects(there, in_hand):
+            run.notes.append(
+                f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: '
+                f'the motions turn by angles {there:.2g} deg apart there in the median, '
+                f'{in_hand:.2g} deg at {(shift_ns * 1e-9 + dt):+.4f} s (eq. 9)'
+            )
             continue
         try:
             lin_c, pairs_c = solve_linear(hand, eye, offset, cfg)

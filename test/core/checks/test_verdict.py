@@ -12,7 +12,12 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.checks.selfcheck import score_candidates
+from handeye_ros.core.checks.selfcheck import (
+    eye_keyframes,
+    score_candidates,
+    screw_disagreement,
+    screw_rejects,
+)
 from handeye_ros.core.checks.verdict import SEVERITY, Code, Quality, Reason, Verdict
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
@@ -64,6 +69,28 @@ def test_self_check_prefers_the_true_offset() -> None:
     scored = score_candidates(rec.hand, rec.eye, hyps, np.deg2rad(5.0))
     assert [c.chosen for c in scored] == [False, True, False, False]
     assert scored[1].score < scored[2].score < scored[0].score
+
+
+def test_screw_congruence_rules_out_a_wrong_offset_without_an_extrinsic() -> None:
+    """Eq. 9: at the true offset the hand's and the eye's motions turn by the same angles
+    (noise level 2: a tenth of a degree); 0.5 s or 8 s away by degrees, far beyond the
+    rejection ratio. A repeating motion's period is no such offset: there they agree again, so
+    the self-check's scoring decides (test_repetitive_motion_is_ambiguous...)."""
+    rec = recording(seed=3, level=2.0)
+    dt = rec.truth.time_offset_s
+    eye = rec.eye.shifted(0)
+    i, j = eye_keyframes(eye, np.deg2rad(5.0))
+    at = screw_disagreement(rec.hand, eye, dt, i, j)
+    assert at < 0.3
+    for wrong in (0.5, 8.0):
+        there = screw_disagreement(rec.hand, eye, dt + wrong, i, j)
+        assert screw_rejects(there, at), (there, at)
+    assert not screw_rejects(at, screw_disagreement(rec.hand, eye, dt + 0.5, i, j))
+    periodic = recording(seed=2, level=2.0, motion='repetitive')
+    i, j = eye_keyframes(periodic.eye, np.deg2rad(5.0))
+    true = periodic.truth.time_offset_s
+    at = screw_disagreement(periodic.hand, periodic.eye, true, i, j)
+    assert not screw_rejects(screw_disagreement(periodic.hand, periodic.eye, true + 2.0, i, j), at)
 
 
 def test_vector_refinement_recovers_from_a_biased_magnitude_peak() -> None:

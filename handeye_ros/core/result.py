@@ -487,6 +487,7 @@ def _uncertainty_dict(u: Any) -> dict[str, Any]:
     return {
         'terms': {g: {k: float(v) for k, v in t.items()} for g, t in u.terms().items()},
         'dominant': u.dominant(),
+        'over_long_run': {g: float(v) for g, v in u.over_long_run().items()},
         'block_factors': None if u.factors is None else dict(u.factors),
         'eye_scale': (
             None if u.scale is None else {'scale': float(u.scale[0]), 'std': float(u.scale[1])}

@@ -85,6 +85,9 @@ class ReadinessStatus:
         #: predicted precision ratio when auto mode last calibrated
         self._sigmas: tuple[float, float, float] | None = None
         self._predicted_then = math.inf
+        #: the published result's reported over long-run sigma per group (std.over_long_run):
+        #: the predictions are long-run ones, and carry it
+        self._over_long_run: dict[str, float] = {}
         self._logged = (0.0, '')
         self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
@@ -135,6 +138,7 @@ class ReadinessStatus:
             return
         try:
             (self.last, job_cpu), self.why_not = job.result(), ''
+            self.last = with_correlated(self.last, self._over_long_run)
             self._next = time.monotonic() + (snapshot_cpu + job_cpu) / MAX_DUTY
         except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
@@ -269,6 +273,7 @@ class ReadinessStatus:
         no more than IMPROVEMENT of itself or of 1 (:func:`judge`)."""
         batch = session.document.get('std')
         if self.auto == 'off' or not batch:
+            self._over_long_run = dict((batch or {}).get('over_long_run') or {})
             return ''
         sigmas = (
             float(batch['time_offset']),
@@ -288,6 +293,7 @@ class ReadinessStatus:
                 'again if the motion gets richer'
             )
         if admitted:
+            self._over_long_run = dict(batch.get('over_long_run') or {})
             return ''
         return (
             f'auto_calibrate keeps the published result: its largest sigma against its target, '
@@ -309,6 +315,39 @@ def _largest(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> str:
     k = int(np.argmax([s / t for s, t in zip(sigmas, targets, strict=True)]))
     name, scale, unit = _SAID[k]
     return f'{name} {sigmas[k] * scale:.2g} {unit} of {targets[k] * scale:.2g} {unit}'
+
+
+#: The readiness's sigma keys (ms, mm, deg) by the result's groups.
+_SIGMA_KEYS = {
+    'time_offset': 'time_offset_ms',
+    'translation': 'translation_mm',
+    'rotation': 'rotation_deg',
+}
+
+
+def with_correlated(last: dict[str, Any], over: dict[str, float]) -> dict[str, Any]:
+    """The readiness with its predicted sigmas times the published result's reported over
+    long-run sigma (the errors correlated over the recording, the scale: what a prediction
+    from consecutive pairs cannot see), READY only if they still meet the targets."""
+    factors = {g: f for g, f in over.items() if f > 1.0 and g in _SIGMA_KEYS}
+    if not factors:
+        return last
+    sigma = dict(last['sigma'])
+    for group, f in factors.items():
+        key = _SIGMA_KEYS[group]
+        if sigma.get(key) is not None:
+            sigma[key] = sigma[key] * f
+    target = last['target']
+    meets = all(v is not None and v <= target[k] for k, v in sigma.items())
+    said = ', '.join(f'{g.replace("_", " ")} x{f:.2g}' for g, f in factors.items())
+    missing = list(last['missing'])
+    if last['ready'] and not meets:
+        missing.insert(
+            0,
+            f'keep recording: the last calibration found errors the white noise does not '
+            f'explain (its sigmas: {said}), and so the predictions are wider',
+        )
+    return {**last, 'sigma': sigma, 'ready': bool(last['ready'] and meets), 'missing': missing}
 
 
 def richer(predicted_then: float, predicted_now: float) -> bool:

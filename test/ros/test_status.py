@@ -17,6 +17,7 @@ from handeye_ros.ros.status import (
     judge,
     precision_ratio,
     richer,
+    with_correlated,
 )
 
 
@@ -105,3 +106,22 @@ def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
     assert apart(19.0, 16.0, 19.005) - first == pytest.approx(-3.0, abs=1e-9)
     # its clock jumped 5 s forward
     assert apart(19.0, 19.0, 19.005, jump_s=5.0) - first == pytest.approx(5.0, abs=1e-9)
+
+
+def test_the_predictions_carry_what_the_last_calibration_added_to_its_sigmas() -> None:
+    """The readiness predicts long-run sigmas from consecutive pairs; a calibration that found
+    errors correlated over the recording (or a scale) reported them 2x wider in translation:
+    the predictions are, and READY waits for them."""
+    last = {
+        'ready': True,
+        'sigma': {'time_offset_ms': 0.4, 'translation_mm': 6.0, 'rotation_deg': 0.2},
+        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
+        'missing': [],
+    }
+    same = with_correlated(last, {'time_offset': 1.0, 'translation': 1.0, 'rotation': 1.0})
+    assert same == last
+    wider = with_correlated(last, {'time_offset': 1.2, 'translation': 2.0, 'rotation': 1.0})
+    assert wider['sigma']['translation_mm'] == pytest.approx(12.0)
+    assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
+    assert not wider['ready'] and wider['missing'][0].startswith('keep recording')
+    assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place

@@ -70,6 +70,18 @@ class Uncertainty:
             }
         return out
 
+    def over_long_run(self) -> dict[str, float]:
+        """Per group, the reported 1-sigma (norm over its axes) over the long-run one: what
+        the blocks and the scale added (the readiness status carries it into its
+        predictions, which are long-run ones)."""
+        out = {}
+        for group, idx in GROUPS.items():
+            i = list(idx)
+            lr = float(np.trace(self.long_run[np.ix_(i, i)]))
+            total = float(np.trace(self.covariance[np.ix_(i, i)]))
+            out[group] = float(np.sqrt(total / lr)) if lr > 0.0 else 1.0
+        return out
+
     def dominant(self) -> dict[str, str]:
         """Per group, the term that contributes the most variance."""
         return {g: max(TERMS, key=lambda t: s[t]) for g, s in self.terms().items()}

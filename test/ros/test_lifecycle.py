@@ -16,14 +16,13 @@ pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: Runs calibrator.main with a SIGINT sent to itself as soon as ``{target}`` has returned,
-#: checks that the signal was noted (by the node's handler: rclpy's are not installed), then
-#: prints the exit code and the number of child processes left (the worker,
-#: multiprocessing's resource tracker).
+#: Runs ``{program}`` with a SIGINT sent to itself as soon as ``{target}`` has returned,
+#: after which ``{check}`` must hold, and prints what ``{program}`` prints.
 SCRIPT = """
 import multiprocessing, os, signal, time
 import rclpy
-from handeye_ros.ros import calibrator, lifecycle, node
+import handeye_ros.core.simulate
+from handeye_ros.ros import calibrator, lifecycle, node, sim_publisher
 
 owner, name = {target}
 real = getattr(owner, name)
@@ -32,14 +31,30 @@ def signalled(*args, **kwargs):
     out = real(*args, **kwargs)
     os.kill(os.getpid(), signal.SIGINT)
     time.sleep(0.05)
-    assert lifecycle.stop_requested() and rclpy.ok()
+    assert {check}
     return out
 
 setattr(owner, name, signalled)
-code = calibrator.main([])
-print(code, len(multiprocessing.active_children()))
+{program}
 """
 
+
+def _run(target: str, check: str, program: str) -> subprocess.CompletedProcess:
+    """SCRIPT in a fresh interpreter (rclpy's state is per process)."""
+    code = SCRIPT.format(target=target, check=check, program=program)
+    return subprocess.run(
+        [sys.executable, '-c', textwrap.dedent(code)],
+        env=dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+#: calibrator.main: the signal noted by the node's handler (rclpy's are not installed); it
+#: prints the exit code and the child processes left (the worker, the resource tracker).
+CALIBRATOR = 'print(calibrator.main([]), len(multiprocessing.active_children()))'
 TARGETS = {'init': "rclpy, 'init'", 'node': "node.CalibratorNode, '__init__'"}
 
 
@@ -49,44 +64,15 @@ def test_a_signal_during_the_start_exits_quietly_and_stops_the_worker(where: str
     after the node is made (not spun: its close() stops the worker). Before the worker's stop ran in every path, the node hung on the worker's
     resource tracker in 1 of 100 stops of bench/node_lifecycle.py. Run in a fresh interpreter:
     rclpy's state is per process."""
-    env = dict(
-        os.environ,
-        PYTHONPATH=str(ROOT),
-        ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-    )
-    proc = subprocess.run(
-        [sys.executable, '-c', textwrap.dedent(SCRIPT.format(target=TARGETS[where]))],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    proc = _run(TARGETS[where], 'lifecycle.stop_requested() and rclpy.ok()', CALIBRATOR)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ['0', '0'], proc.stdout + proc.stderr
     assert 'Traceback' not in proc.stderr, proc.stderr
 
 
-#: Runs sim_publisher.main with a SIGINT sent to itself as soon as ``{target}`` has returned
-#: (its imports and command line, its simulation, its node made while it waits for
-#: subscribers), then prints the exit code: it stops there, without publishing.
-PUBLISHER = """
-import os, signal, time
-import handeye_ros.core.simulate
-import rclpy
-from handeye_ros.ros import sim_publisher
-
-owner, name = {target}
-real = getattr(owner, name)
-
-def signalled(*args, **kwargs):
-    out = real(*args, **kwargs)
-    os.kill(os.getpid(), signal.SIGINT)
-    return out
-
-setattr(owner, name, signalled)
-print(sim_publisher.main(['--duration', '3', '--wait-subscribers', '30']))
-"""
+#: sim_publisher.main, signalled while it parses, simulates, and waits for subscribers (its
+#: node made): it prints the exit code, and stops there without publishing.
+PUBLISHER = "print(sim_publisher.main(['--duration', '3', '--wait-subscribers', '30']))"
 
 PUBLISHER_TARGETS = {
     'parsed': "sim_publisher, 'parse'",
@@ -99,15 +85,7 @@ PUBLISHER_TARGETS = {
 def test_sim_publisher_stopped_while_it_starts_exits_quietly(where: str) -> None:
     """Ctrl-C on sim_publisher in its first seconds: exit 0, no traceback, nothing published
     (a KeyboardInterrupt traceback from inside an import before)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    proc = subprocess.run(
-        [sys.executable, '-c', textwrap.dedent(PUBLISHER.format(target=PUBLISHER_TARGETS[where]))],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
+    proc = _run(PUBLISHER_TARGETS[where], 'lifecycle.stop_requested()', PUBLISHER)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ['0'], proc.stdout + proc.stderr
     assert 'Traceback' not in proc.stderr and 'publishing' not in proc.stderr, proc.stderr

@@ -5,6 +5,7 @@ part of the MoCap; :mod:`.residuals` the cost functions: the relative eye residu
 and their Jacobians (with the model ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` stated with eq. 15);
 :mod:`.loss` the Huber loss of eq. 15; :mod:`.solver` Levenberg-Marquardt;
 :mod:`.covariance` and :mod:`.long_run` the uncertainty of (dt, T_HE), the latter for residuals
-correlated in time; :mod:`.refine` the problem: what is solved, in which steps, with which
-noise.
+correlated in time, and :mod:`.correlated` what a real VIO adds to it (errors correlated over
+minutes, its scale); :mod:`.refine` the problem: what is solved, in which steps, with which
+noise; :mod:`.stage` the stage as the pipeline runs it.
 """

@@ -224,6 +224,10 @@ class CalibratorNode(Node):
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
             )
             job = self._pool.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage)
+            self.get_logger().info(
+                f'calibrating {len(snapshot.hand)} MoCap and {len(snapshot.eye)} device poses'
+                + (' (auto_calibrate)' if auto else '')
+            )
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._failed(str(err))
             future.set_result((False, str(err)))

@@ -448,10 +448,15 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
     runs.append(('receiving', node, left(node)))
     ros.stop(pub)
     # while a calibration runs in the worker (many RANSAC hypotheses make it last): its
-    # caller is answered before the node goes
+    # caller is answered before the node goes. The caller asks ~/save first: a client that
+    # joined the graph moments ago may not be matched by the node's response writer yet, and
+    # rmw_fastrtps drops a response it cannot match within 100 ms (1 stop in 6 under load)
     node = _start_node(ros, install, 'ransac_iterations:=100000', name='busy')
     ros.run_json(_publisher(ros, '--seed', '5', '--level', '2', '--rate', '2000'), 'publisher')
-    client = ros.start(ros.script('ros_client.py', 'call', '/calibrator/calibrate'), 'client')
+    client = ros.start(
+        ros.script('ros_client.py', 'call', '/calibrator/save', '/calibrator/calibrate'), 'client'
+    )
+    says(client, 'sent /calibrator/calibrate')
     says(node, 'calibrating ')
     stop(node)
     runs.append(('calibrating', node, left(node)))
@@ -460,7 +465,7 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
     except subprocess.TimeoutExpired:
         pytest.fail(f'no answer after the stop: {ros.output(client)}\n{ros.output(node)[1]}')
     answer = json.loads(ros.output(client)[0].strip().splitlines()[-1])
-    assert answer == [{'success': False, 'message': 'aborted: shutting down'}], answer
+    assert answer[-1] == {'success': False, 'message': 'aborted: shutting down'}, answer
     for label, p, rest in runs:
         err = ros.output(p)[1]
         assert p.returncode == 0, (label, p.returncode, err)

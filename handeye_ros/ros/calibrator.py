@@ -13,8 +13,8 @@ that shuts down whatever happens), with four things they do not need:
 - the stop therefore happens in order, on a context that still works: the worker is stopped
   (a running calibration is abandoned), the pending ``~/calibrate`` calls are answered
   "aborted: shutting down" and the executor spins until the answers are sent (at most
-  ``ANSWER_S``), then the node is destroyed and rclpy shut down. Ctrl-C or SIGTERM at any
-  moment exit 0 and quietly.
+  ``ANSWER_S``, then ``LINGER_S`` more), then the node is destroyed and rclpy shut down.
+  Ctrl-C or SIGTERM at any moment exit 0 and quietly.
 """
 
 from __future__ import annotations
@@ -30,6 +30,10 @@ STOP_POLL_S = 0.1
 
 #: How long the stop spins to send the answers to pending ``~/calibrate`` calls (s).
 ANSWER_S = 2.0
+#: How long it spins on once it has sent any (s): under load a response can miss its reader
+#: at the first attempt, and only a writer that still exists repeats it (1 stop in about 20
+#: of the loaded CI's left a caller unanswered without it).
+LINGER_S = 0.5
 
 
 def main(args: list[str] | None = None) -> int:
@@ -82,7 +86,7 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             node.close()  # the worker stopped: every pending calibration has its answer
             if executor is not None:
-                node.send_answers(executor, ANSWER_S)
+                node.send_answers(executor, ANSWER_S, LINGER_S)
                 executor.shutdown()
             node.destroy_node()
         if pool is not None:

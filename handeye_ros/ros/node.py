@@ -294,11 +294,23 @@ class CalibratorNode(Node):
             self._open_calls -= 1
         return response
 
-    def send_answers(self, executor: Any, timeout_s: float) -> None:
+    def send_answers(self, executor: Any, timeout_s: float, linger_s: float) -> None:
         """At the stop, after :meth:`close`: spin until every ``~/calibrate`` call waiting
-        for a calibration has been answered (close() gave them ABORTED), at most timeout_s."""
+        for a calibration has been answered (close() gave them ABORTED), at most timeout_s,
+        then on for linger_s when any was: a reliable DDS writer repeats a response its reader
+        missed only while it exists, and the node is destroyed right after this."""
+        waiting = self._open_calls
+        if not waiting:
+            return
         deadline = time.monotonic() + timeout_s
         while self._open_calls and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        self.get_logger().info(
+            f'stopping: {waiting - self._open_calls} ~/calibrate caller(s) answered '
+            f"'{ABORTED}'" + (f', {self._open_calls} not' if self._open_calls else '')
+        )
+        deadline = time.monotonic() + linger_s
+        while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
 
     def _periodic_calibrate(self) -> None:

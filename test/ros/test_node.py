@@ -460,6 +460,7 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
     says(node, 'calibrating ')
     stop(node)
     runs.append(('calibrating', node, left(node)))
+    assert "1 ~/calibrate caller(s) answered 'aborted: shutting down'" in ros.output(node)[1]
     try:
         client.wait(timeout=30)
     except subprocess.TimeoutExpired:

@@ -233,6 +233,8 @@ def _hand_noise(
 ) -> Noise:
     """The hand's noise (rad, m): as given, else from the spline fit's own residuals (per pose,
     as in the joint cost)."""
+    if given[0] is not None and given[1] is not None:  # no pass over the MoCap to measure it
+        return Noise(given[0], given[1], False)
     raw = prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals()
     return Noise(*_sigmas(raw, given, prob.M, prob.th.size))
 

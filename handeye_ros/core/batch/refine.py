@@ -53,6 +53,7 @@ from .solver import (
     levenberg_marquardt_sparse,
     normal_sums,
 )
+from .spline import PoseSpline
 
 __all__ = ['BatchError', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
 
@@ -118,6 +119,9 @@ class BatchSolution:
     scale: float | None = None
     #: the covariance's parts (:mod:`.correlated`), once the stage has added them
     uncertainty: Uncertainty | None = None
+    #: the hand's spline the solution was found on, for refits of the same hand (dropped once
+    #: the stage is done with it: an hour at 1 kHz has 72 000 control poses)
+    spline: PoseSpline | None = field(default=None, repr=False, compare=False)
 
     @property
     def inflation(self) -> np.ndarray:
@@ -169,6 +173,7 @@ def refine(
     decoupled: bool = True,
     drift_stamp_ns: int | None = None,
     scale: bool = False,
+    spline: PoseSpline | None = None,
 ) -> BatchSolution:
     """Refine dt and T_HE from the linear result (see the module docstring).
 
@@ -186,6 +191,9 @@ def refine(
     translations. Both are corrections to what the eye already has (0 and 1 to start), and
     only the default (not the joint) solve estimates them.
 
+    ``spline``: the hand's spline from an earlier solve on the same hand with the same
+    ``knot_spacing`` and ``order`` (:attr:`BatchSolution.spline`): the fit is not repeated.
+
     Raises
     ------
     BatchError
@@ -201,7 +209,17 @@ def refine(
     hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, knot_spacing, order)
     check_hand_rate(hand, knot_spacing, joint)
     prob = BatchProblem(
-        hand, eye, time_offset_s, q_HE, p_HE, knot_spacing, order, drift_stamp_ns, scale, pieces
+        hand,
+        eye,
+        time_offset_s,
+        q_HE,
+        p_HE,
+        knot_spacing,
+        order,
+        drift_stamp_ns,
+        scale,
+        pieces,
+        spline,
     )
     layout = ParameterLayout.of(prob, fix_time_offset)
     hn = _hand_noise(prob, hand_noise, joint)
@@ -287,6 +305,7 @@ def _solution(
         clock_drift=None if prob.i_drift is None else drift,
         time_offset_stamp_ns=drift_stamp_ns,
         scale=None if prob.i_scale is None else prob.scale(y),
+        spline=prob.spline0,
     )
 
 

@@ -164,9 +164,11 @@ class BatchProblem:
         drift_stamp_ns: int | None = None,
         scale: bool = False,
         pieces: list[tuple[int, int]] | None = None,
+        spline0: PoseSpline | None = None,
     ):
         """``pieces``: index ranges of the hand's gap-free parts, one spline each (default: one
-        spline through the whole hand)."""
+        spline through the whole hand); ``spline0``: the spline already fitted to this hand
+        with these knots and pieces (it depends on nothing else)."""
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
@@ -175,7 +177,9 @@ class BatchProblem:
         qh, ph = hand.q_xyzw, hand.p_xyz
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
         pieces = pieces or [(0, len(hand))]
-        self.spline0 = fit_pieces(self.th, qh, ph, knot_spacing, order, pieces)
+        if spline0 is None:
+            spline0 = fit_pieces(self.th, qh, ph, knot_spacing, order, pieces)
+        self.spline0 = spline0
         self.M = self.spline0.R.shape[0]
         self.hand_q, self.hand_p = qh, ph
         # eye pairs whose two ends each stay inside a piece of the spline for any dt within the

@@ -31,12 +31,11 @@ from .refine import BatchSolution, refine
 #: with fewer than MIN_BLOCK_POSES eye poses in a block the term is not estimated.
 BLOCKS = 4
 MIN_BLOCK_POSES = 100
-#: Each refit of the uncertainty's terms uses at most this many eye poses, and the MoCap at most
-#: this rate (a spline knot every knot_spacing holds 10 of its poses at 200 Hz), evenly decimated:
-#: they measure a ratio and a shift, not the estimate (an hour at 1 kHz + 200 Hz would refit 3.6
-#: million MoCap poses and 720 000 eye poses).
+#: Each refit of the uncertainty's terms uses at most this many eye poses, evenly decimated: they
+#: measure a ratio and a shift, not the estimate (an hour at 200 Hz has 720 000). All of them
+#: reuse the estimate's spline of the MoCap, which depends on the MoCap alone: fitting it again
+#: for each was half their cost.
 MAX_AUX_POSES = 20_000
-MAX_AUX_HAND_HZ = 200.0
 #: A scale refit whose s is uncertain by more than this leaves the scale term out (the eye's
 #: translations are too short to tell a scale from the lever arm; the result says so).
 SCALE_UNOBSERVABLE = 0.1
@@ -252,7 +251,11 @@ def with_correlated(
         not_estimated=tuple(missing),
     )
     return replace(
-        batch, covariance=cov, std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), uncertainty=unc
+        batch,
+        covariance=cov,
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+        uncertainty=unc,
+        spline=None,
     )
 
 
@@ -268,11 +271,6 @@ def _decimated(eye: Trajectory) -> Trajectory:
     return eye if every == 1 else eye.select(np.arange(0, len(eye), every))
 
 
-def _hand_decimated(hand: Trajectory) -> Trajectory:
-    every = max(1, int(hand.rate_hz // MAX_AUX_HAND_HZ))
-    return hand if every == 1 else hand.select(np.arange(0, len(hand), every))
-
-
 def _aux(
     hand: Trajectory,
     eye: Trajectory,
@@ -280,12 +278,12 @@ def _aux(
     cfg: CalibrationConfig,
     scale: bool = False,
 ) -> BatchSolution | None:
-    """A refit from the solution ``of`` with its noise (the default solve, as the estimate's;
-    the noise is not measured again: the long-run covariance does not depend on the weights'
-    scale, and measuring it took half a refit), or None."""
+    """A refit of ``eye`` (decimated) from the solution ``of``, on its spline of ``hand`` and
+    with its noise (the default solve, as the estimate's; the noise is not measured again: the
+    long-run covariance does not depend on the weights' scale), or None."""
     try:
         sol = refine(
-            _hand_decimated(hand),
+            hand,
             _decimated(eye),
             of.time_offset_s,
             of.q_HE,
@@ -299,6 +297,7 @@ def _aux(
             fix_time_offset=cfg.time_offset is not None,
             decoupled=cfg.batch_decoupled,
             scale=scale,
+            spline=of.spline,
         )
     except (HandeyeError, ValueError, np.linalg.LinAlgError, RuntimeError):
         return None
@@ -318,7 +317,7 @@ def _scale(
     """The scale term (:func:`.correlated.scale_term`) and the nuisance fit's (s, 1-sigma,
     shift), or (None, why not)."""
     # the shift and the covariances on the same (decimated) data
-    same = _decimated(eye) is eye and _hand_decimated(hand) is hand
+    same = _decimated(eye) is eye
     fixed = batch if same else _aux(hand, eye, batch, cfg)
     free = _aux(hand, eye, batch, cfg, scale=True)
     if fixed is None or free is None or not free.std[-1] < SCALE_UNOBSERVABLE:

@@ -31,6 +31,7 @@ from dataclasses import replace
 import numpy as np
 
 from .association import associate
+from .batch.pieces import check_joint_size
 from .batch.stage import Refined, batch_stage
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
@@ -80,6 +81,8 @@ def calibrate(
             'time_offset fixes one constant offset and clock_drift estimates one '
             'that changes along the recording: give one of them'
         )
+    if cfg.batch and cfg.batch_joint:
+        check_joint_size(hand)
     run = Findings()
     step = progress or (lambda name: None)
     clock = [time.perf_counter()]

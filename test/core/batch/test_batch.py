@@ -211,6 +211,21 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
     assert fixed.batch.success
 
 
+def test_joint_solve_refuses_a_long_mocap_before_any_stage(monkeypatch) -> None:
+    """A MoCap longer than the joint solve takes is refused at once, naming its size and the
+    way out; the default solve takes it."""
+    import handeye_ros.core.batch.pieces as pieces
+
+    rec = recording(seed=4, level=1.0, duration_s=20.0)
+    monkeypatch.setattr(pieces, 'MAX_HAND_POSES_JOINT', len(rec.hand) - 1)
+    steps = []
+    with pytest.raises(BatchError, match=f'at most {len(rec.hand) - 1:,} MoCap poses') as err:
+        calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True), progress=steps.append)
+    assert 'leave batch_joint off' in str(err.value) and f'{len(rec.hand):,}' in str(err.value)
+    assert steps == []  # before any stage
+    assert calibrate(rec.hand, rec.eye, CalibrationConfig()).batch is not None
+
+
 @pytest.mark.slow
 def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
     # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)

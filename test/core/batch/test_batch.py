@@ -214,7 +214,7 @@ def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
 def test_joint_solve_refuses_a_long_mocap_before_any_stage(monkeypatch) -> None:
     """A MoCap longer than the joint solve takes is refused at once, naming its size and the
     way out; the default solve takes it."""
-    import handeye_ros.core.batch.pieces as pieces
+    from handeye_ros.core.batch import pieces
 
     rec = recording(seed=4, level=1.0, duration_s=20.0)
     monkeypatch.setattr(pieces, 'MAX_HAND_POSES_JOINT', len(rec.hand) - 1)

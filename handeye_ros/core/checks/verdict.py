@@ -274,7 +274,7 @@ def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
 ) -> None:
     """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
-    if cfg.batch and batch is None and not any(r.code == 'unobservable' for r in run.reasons):
+    if cfg.batch and batch is None and not any(r.code == Code.UNOBSERVABLE for r in run.reasons):
         run.reason(
             Code.NO_UNCERTAINTY,
             'the batch stage did not run, so the result has no uncertainty (see the warnings)',

@@ -20,6 +20,13 @@ from handeye_ros.core.simulate import Recording, noise_level, simulate
 from handeye_ros.formats import write_tum
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# Under pytest-xdist each worker's nodes get a DDS domain of their own (the base domain, then
+# 101 further for each worker, within the 0-232 that Fast DDS's port mapping allows): live tests
+# running at once would otherwise see each other's /calibrator.
+if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0' and 'ROS_DOMAIN_ID' in os.environ:
+    _worker = int(os.environ['PYTEST_XDIST_WORKER'].removeprefix('gw'))
+    os.environ['ROS_DOMAIN_ID'] = str((int(os.environ['ROS_DOMAIN_ID']) + 101 * _worker) % 233)
 #: Read-only real recordings (../shared/data/real); tests using them skip when it is absent.
 REAL_DATA = ROOT.parent / 'shared' / 'data' / 'real'
 

@@ -62,7 +62,7 @@ def test_rotation_angle() -> None:
 
 
 def test_log_and_exp_so3_match_scipy_at_every_angle() -> None:
-    from handeye_ros.core.batch.spline import exp_so3
+    from handeye_ros.core.geometry import exp_so3
 
     rng = np.random.default_rng(7)
     v = rng.normal(size=(3000, 3)) * np.repeat([1e-9, 0.3, 1.0], 1000)[:, None]

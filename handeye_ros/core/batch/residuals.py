@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import BatchError
 from ..geometry import (
     Pose,
+    exp_so3,
     log_so3,
     matrix_from_quat,
     relative,
@@ -33,7 +34,7 @@ from ..geometry import (
     skew,
 )
 from ..trajectory import Trajectory
-from .spline import PoseSpline, exp_so3, fit_pieces
+from .spline import PoseSpline, fit_pieces
 
 #: Central-difference steps in T_HE (rad, m) and dt (s) for Jacobians of the eye residuals.
 FD_STEP = 1e-6

@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 
 from ..association import interpolate, residual_motions
-from ..batch.spline import exp_so3
 from ..chunked import CHUNK_ROWS, chunked
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..geometry import (
     consecutive_rotvecs,
+    exp_so3,
     log_so3,
     matrix_from_quat,
     relative,

@@ -107,6 +107,11 @@ class CalibratorNode(Node):
         #: that moved its clock (PoseBuffer.ticked): messages without a usable pose leave it
         self.last_seen = dict.fromkeys(STREAMS, 0.0)
         self.last_ticked = dict.fromkeys(STREAMS, 0.0)
+        #: that last pose's reception by DDS (system clock, s; 0: not said by the middleware)
+        #: and how late the node took it (s): a node too busy for the rates takes them late,
+        #: and its own arrival times would move with that backlog
+        self.last_received = dict.fromkeys(STREAMS, 0.0)
+        self.taken_late = dict.fromkeys(STREAMS, 0.0)
 
         self._types = RclpyTypes()
         self._outputs = {
@@ -168,7 +173,7 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ messages
 
-    def _on_pose(self, stream: str, msg: Any, static: bool) -> None:
+    def _on_pose(self, stream: str, msg: Any, static: bool, info: Any = None) -> None:
         self.last_seen[stream] = now = time.monotonic()
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
         buffer = self.recorder.buffers[stream]
@@ -176,6 +181,9 @@ class CalibratorNode(Node):
         self._add(stream, msg, static, arrival)
         if buffer.ticked != ticked:
             self.last_ticked[stream] = now
+            received = int((info or {}).get('received_timestamp', 0)) * 1e-9
+            self.last_received[stream] = received
+            self.taken_late[stream] = time.time() - received if received else 0.0
 
     def _add(self, stream: str, msg: Any, static: bool, arrival: int | None) -> None:
         reason = self.recorder.add(stream, msg, static, arrival)

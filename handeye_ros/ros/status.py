@@ -65,6 +65,8 @@ STOPPED_S = 2.0
 #: The two streams' stamps may move against their arrivals by this much (s, at least) before
 #: the status says a clock jumped: their periods and the executor's lag jitter them.
 JUMP_S = 1.0
+#: The node taking a stream's poses this much after DDS received them (s) is said.
+LATE_S = 1.0
 #: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
@@ -179,7 +181,14 @@ class ReadinessStatus:
         """Whether the streams' clocks moved against each other since the first snapshot
         (:func:`clocks_apart`). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both
         clocks' times."""
-        apart = clocks_apart(hand_ns, eye_ns, self._node.last_ticked)
+        node = self._node
+        # DDS's reception times where it gives them: the node's own times move with any
+        # backlog of its executor (a loaded machine: a 3-s backlog of the device stream read
+        # as a clock that jumped 3 s)
+        received = node.last_received
+        apart = clocks_apart(
+            hand_ns, eye_ns, received if all(received.values()) else node.last_ticked
+        )
         if self._apart is None:
             self._apart = apart
             return
@@ -200,8 +209,18 @@ class ReadinessStatus:
             self.auto, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
             self._predicted_then = math.inf
 
+    def late(self) -> list[str]:
+        """A stream the node takes more than LATE_S after DDS received it, said as advice: the
+        machine is too busy for the streams' rates, and poses beyond the queue are lost."""
+        return [
+            f'the node takes the {stream} poses {late:.1f} s after they arrive: this machine is '
+            'too busy for their rate (poses beyond the queue are lost); close other programs'
+            for stream, late in self._node.taken_late.items()
+            if late > LATE_S
+        ]
+
     def _publish(self) -> None:
-        stopped = self.stopped() + self._jumped
+        stopped = self.stopped() + self.late() + self._jumped
         if stopped and self.last is not None:
             self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
         st = self.status()
@@ -366,7 +385,8 @@ def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> fl
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
     """How far (s) the device's clock is ahead of the MoCap's, as far as arrivals tell: each
     stream's newest accepted stamp (int64 ns) against when its last pose that moved its clock
-    came (``seen``, monotonic s: the node's ``last_ticked``, refusals for going back in time
+    came (``seen``, s, one clock for both: DDS's reception times, the node's
+    ``last_received``, else its monotonic ``last_ticked``; refusals for going back in time
     included). Changes when a clock jumps, or when a stream's every message is refused for
     going back (a clock that went back); not when a stream pauses, ends before the other one,
     or loses its poses (a MoCap dropout): its stamp and its arrival stop together."""

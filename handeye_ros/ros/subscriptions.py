@@ -141,7 +141,7 @@ class Subscriptions:
         self.subs[stream] = self._node.create_subscription(
             cls,
             sel.topic,
-            lambda msg, s=stream: self._on_pose(s, msg, False),
+            lambda msg, info, s=stream: self._on_pose(s, msg, False, info),
             self._pose_qos(),
             event_callbacks=SubscriptionEventCallbacks(
                 incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
@@ -157,7 +157,7 @@ class Subscriptions:
             self._static_subs[stream] = self._node.create_subscription(
                 cls,
                 sel.static_topic,
-                lambda msg, s=stream: self._on_pose(s, msg, True),
+                lambda msg, info, s=stream: self._on_pose(s, msg, True, info),
                 static_qos,
             )
         if guess:

@@ -210,8 +210,9 @@ class ReadinessStatus:
             self._predicted_then = math.inf
 
     def late(self) -> list[str]:
-        """A stream the node takes more than LATE_S after DDS received it, said as advice: the
-        machine is too busy for the streams' rates, and poses beyond the queue are lost."""
+        """A stream the node takes more than LATE_S after DDS received it, said as advice (it
+        does not hold READY back: the poses buffered are sound): the machine is too busy for the
+        streams' rates, and poses beyond the queue are lost."""
         return [
             f'the node takes the {stream} poses {late:.1f} s after they arrive: this machine is '
             'too busy for their rate (poses beyond the queue are lost); close other programs'
@@ -220,9 +221,12 @@ class ReadinessStatus:
         ]
 
     def _publish(self) -> None:
-        stopped = self.stopped() + self.late() + self._jumped
+        stopped = self.stopped() + self._jumped
         if stopped and self.last is not None:
             self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
+        late = self.late()  # advice only: what the buffers hold is sound
+        if late and self.last is not None:
+            self.last = {**self.last, 'missing': [*self.last['missing'], *late]}
         st = self.status()
         self.pub.publish(st)
         self._say(st.message if self.last is None else status_line(self.last))

@@ -40,7 +40,8 @@ def _ok(res) -> None:
 
 
 def _evo(tool: str, *args: str, home: Path) -> subprocess.CompletedProcess:
-    """Run one of evo's command-line tools with its settings kept under ``home``."""
+    """Run one of evo's command-line tools in ``home``, its settings kept there too (what it
+    saves by name lands there: never in a folder another suite or worker shares)."""
     exe = EVO_BIN / tool
     if not exe.exists():
         pytest.skip(f'{tool} is not installed (evo is a test-only dependency: scripts/setup)')
@@ -51,6 +52,7 @@ def _evo(tool: str, *args: str, home: Path) -> subprocess.CompletedProcess:
         capture_output=True,
         text=True,
         env=env,
+        cwd=home,
         timeout=120,
         check=False,
     )
@@ -131,14 +133,8 @@ def test_evo_transform_right_applies_our_extrinsic(exported, tmp_path: Path) -> 
         '--save_as_tum',
         home=tmp_path,
     )
-    # evo writes <name>.tum into the working directory of the call... of the test process
-    moved = Path.cwd() / (Path(hand).stem + '.tum')
-    if not moved.exists():
-        moved = Path(hand).with_suffix('.tum')
-    try:
-        got = read_trajectory(moved, 'tum')
-    finally:
-        moved.unlink(missing_ok=True)
+    # evo writes <name>.tum into the working directory of the call
+    got = read_trajectory(tmp_path / (Path(hand).stem + '.tum'), 'tum')
     h = read_trajectory(hand, 'tum')
     X = (
         matrix_from_quat(np.asarray(d['extrinsic']['rotation'])),

@@ -213,11 +213,12 @@ class ReadinessStatus:
         """A stream the node takes more than LATE_S after DDS received it, said as advice (it
         does not hold READY back: the poses buffered are sound): the machine is too busy for the
         streams' rates, and poses beyond the queue are lost."""
+        now, ticked = time.monotonic(), self._node.last_ticked
         return [
             f'the node takes the {stream} poses {late:.1f} s after they arrive: this machine is '
             'too busy for their rate (poses beyond the queue are lost); close other programs'
             for stream, late in self._node.taken_late.items()
-            if late > LATE_S
+            if late > LATE_S and now - ticked[stream] < STOPPED_S  # a stream that flows
         ]
 
     def _publish(self) -> None:

@@ -15,11 +15,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from handeye_ros.core.simulate import Recording, noise_level, simulate
 from handeye_ros.formats import write_tum
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# The property tests draw the same examples on every run (a suite that passes passes again);
+# HYPOTHESIS_PROFILE=explore draws new ones, as hypothesis does by default.
+settings.register_profile('deterministic', derandomize=True)
+settings.register_profile('explore', derandomize=False)
+settings.load_profile(os.environ.get('HYPOTHESIS_PROFILE', 'deterministic'))
 
 # Under pytest-xdist each worker's nodes get a DDS domain of their own (the base domain, then
 # 101 further for each worker, within the 0-232 that Fast DDS's port mapping allows): live tests

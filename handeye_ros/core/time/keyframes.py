@@ -276,10 +276,12 @@ def _refine(
         d = np.where(in_u, ang_u - angle_e[use], CAP_RAD)
         return float(np.mean(np.minimum(d * d, CAP_RAD**2)))
 
-    res = minimize_scalar(
-        cost, bounds=(lag_s - step, lag_s + step), method='bounded', options={'xatol': 1e-6}
-    )
-    lag = float(res.x) if res.success else lag_s
+    lag = lag_s
+    if use.any():  # else no pair agrees at the coarse lag: nothing to refine it on
+        res = minimize_scalar(
+            cost, bounds=(lag_s - step, lag_s + step), method='bounded', options={'xatol': 1e-6}
+        )
+        lag = float(res.x) if res.success else lag_s
     ang, inside = at(lag, every)
     r = np.corrcoef(ang[inside], angle_e[inside])[0, 1] if inside.sum() > 2 else np.nan
     return lag, float(r)

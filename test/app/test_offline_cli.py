@@ -47,7 +47,21 @@ def test_output_files_hold_the_same_result(sim_files, tmp_path: Path) -> None:
     a, b = yaml.safe_load(out_yaml.read_text()), json.loads(out_json.read_text())
     for d in (a, b):
         d['batch'].pop('seconds')  # wall-clock time of that run
-    assert a == b
+    # two runs, so the same to round-off: once in some 30 CI runs under load, a drift and a
+    # correlation differed in their 15th digit (cause not found: neither seeds nor timing
+    # enter the numbers; 4 runs at once on 10 minutes came out identical)
+    assert _same(a, b), (a, b)
+
+
+def _same(a: object, b: object, rtol: float = 1e-12) -> bool:
+    """Equal structures, floats equal to ``rtol`` of their size."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k], rtol) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y, rtol) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or abs(a - b) <= rtol * max(abs(a), abs(b))
+    return a == b
 
 
 def test_help_and_module_entry() -> None:

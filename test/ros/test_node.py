@@ -715,7 +715,7 @@ def test_auto_types_lose_nothing(
             '--eye-rate',
             '200',
             '--rate',
-            '2000',
+            '1200',  # real time: at 2000 the node, starved under the loaded CI, lost poses
             *published[types],
         ),
         'auto_pub',
@@ -726,7 +726,7 @@ def test_auto_types_lose_nothing(
     received = {s: streams[s]['received'] for s in ('hand', 'eye')}
     assert ros.stop(node) == 0
     log = ros.output(node)[1]
-    assert received == pub['sent'], (received, pub['sent'], log)
+    assert received == pub['sent'], (received, pub['sent'], log[-4000:])
     assert {s: streams[s]['type'] for s in received} == pub['types']
     if types == 'likeliest':
         assert log.count('as subscribed from the start') == 2, log

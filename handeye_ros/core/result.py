@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .batch.correlated import BLOCKS
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
@@ -277,7 +278,7 @@ class CalibrationResult:
             },
             'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
             'poses) over the eye residuals, with the errors correlated over the recording '
-            '(4 blocks refitted alone) and the eye scale as a nuisance',
+            f'({BLOCKS} blocks refitted alone) and the eye scale as a nuisance',
             'white_inflation': [float(v) for v in b.inflation],
             **_uncertainty_dict(b.uncertainty),
         }

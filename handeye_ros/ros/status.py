@@ -140,7 +140,7 @@ class ReadinessStatus:
             return
         try:
             (self.last, job_cpu), self.why_not = job.result(), ''
-            self.last = with_correlated(self.last, self._over_long_run)
+            self.last = carry_over_long_run(self.last, self._over_long_run)
             self._next = time.monotonic() + (snapshot_cpu + job_cpu) / MAX_DUTY
         except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
@@ -349,7 +349,7 @@ _SIGMA_KEYS = {
 }
 
 
-def with_correlated(last: dict[str, Any], over: dict[str, float]) -> dict[str, Any]:
+def carry_over_long_run(last: dict[str, Any], over: dict[str, float]) -> dict[str, Any]:
     """The readiness with its predicted sigmas times the published result's reported over
     long-run sigma (the errors correlated over the recording, the scale: what a prediction
     from consecutive pairs cannot see), READY only if they still meet the targets."""

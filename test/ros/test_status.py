@@ -13,11 +13,11 @@ from handeye_ros.ros.status import (
     GROWTH,
     IMPROVEMENT,
     RECALIBRATE,
+    carry_over_long_run,
     clocks_apart,
     judge,
     precision_ratio,
     richer,
-    with_correlated,
 )
 
 
@@ -118,9 +118,9 @@ def test_the_predictions_carry_what_the_last_calibration_added_to_its_sigmas() -
         'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
         'missing': [],
     }
-    same = with_correlated(last, {'time_offset': 1.0, 'translation': 1.0, 'rotation': 1.0})
+    same = carry_over_long_run(last, {'time_offset': 1.0, 'translation': 1.0, 'rotation': 1.0})
     assert same == last
-    wider = with_correlated(last, {'time_offset': 1.2, 'translation': 2.0, 'rotation': 1.0})
+    wider = carry_over_long_run(last, {'time_offset': 1.2, 'translation': 2.0, 'rotation': 1.0})
     assert wider['sigma']['translation_mm'] == pytest.approx(12.0)
     assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
     assert not wider['ready'] and wider['missing'][0].startswith('keep recording')

@@ -22,15 +22,16 @@ from ..geometry import quat_angle
 from ..linear.robust import LinearSolution
 from ..linear.stage import LinearStage, solve_linear
 from ..trajectory import Trajectory
-from .correlated import Uncertainty, dispersion, inflated, scale_term
+from .correlated import (
+    BLOCKS,
+    MIN_BLOCK_POSES,
+    Uncertainty,
+    dispersion,
+    inflated,
+    scale_term,
+)
 from .refine import BatchSolution, refine
 
-#: The correlated term (:mod:`.correlated`) refits this many contiguous blocks of the covered
-#: eye poses (a quarter of the recording each: on the white simulations their dispersion
-#: ratio is 1.0 in the median, 1.2-1.45 at the 90th percentile, with 4 blocks of 15 or 30 s);
-#: with fewer than MIN_BLOCK_POSES eye poses in a block the term is not estimated.
-BLOCKS = 4
-MIN_BLOCK_POSES = 100
 #: Each refit of the uncertainty's terms uses at most this many eye poses, evenly decimated: they
 #: measure a ratio and a shift, not the estimate (an hour at 200 Hz has 720 000). All of them
 #: reuse the estimate's spline of the MoCap, which depends on the MoCap alone: fitting it again

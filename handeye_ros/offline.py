@@ -134,6 +134,13 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
         )
     io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')
     io.add_argument(
+        '--rig',
+        metavar='MANIFEST',
+        help="many recordings of one rig (evaluate's manifest or folder layout): one T_HE "
+        'shared by all, each its own time offset; recordings that disagree are named and left '
+        "out (-o: the rig result; --export DIR: each recording at the rig's T_HE)",
+    )
+    io.add_argument(
         '--hand-topic',
         metavar='SELECTOR',
         help='hand pose topic in the bag (default: /mocap/pose if present, else '
@@ -317,6 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     from .evaluation.terminal import format_report
     from .formats.result_file import write_result
 
+    if args.rig:
+        return _rig_main(args)
     try:
         from .app import run
 
@@ -362,6 +371,52 @@ def main(argv: list[str] | None = None) -> int:
             f'offline_calibrate: verdict {verdict} (--strict): ' + '; '.join(result.quality.codes),
             file=sys.stderr,
         )
+        return 2
+    return 0
+
+
+def _rig_main(args: argparse.Namespace) -> int:
+    """``--rig MANIFEST``: :func:`handeye_ros.rig.calibrate_rig` on the manifest's recordings,
+    the command line's options under each recording's own."""
+    from dataclasses import replace
+
+    from .core.errors import HandeyeError
+    from .evaluation.outputs import check_directory
+    from .formats.result_file import write_result
+    from .rig import calibrate_rig, rig_summary
+    from .runs import read_manifest
+
+    try:
+        if args.hand or args.eye or args.bag:
+            raise HandeyeError(
+                '--rig takes its recordings from the manifest: give no --hand, '
+                '--eye or --bag with it'
+            )
+        runs = read_manifest(args.rig)
+        if len(runs) < 2:
+            raise HandeyeError(
+                f'{args.rig}: a rig needs at least two recordings, it has '
+                f'{len(runs)}; calibrate one with --hand/--eye or --bag'
+            )
+        given = request_of(args).options
+        runs = [replace(r, options={**given, **r.options}) for r in runs]
+        output = check_directory(args.export, '--export') if args.export else None
+        document, _ = calibrate_rig(runs, output, report=bool(args.report))
+        if args.output:
+            write_result(args.output, document)
+    except HandeyeError as err:
+        print(f'offline_calibrate: error: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    if args.json:
+        json.dump(document, sys.stdout, indent=2)
+        sys.stdout.write('\n')
+    else:
+        print(rig_summary(document))
+    verdict = document['rig']['quality']['verdict']
+    if args.strict and verdict != 'good':
+        print(f'offline_calibrate: rig verdict {verdict} (--strict)', file=sys.stderr)
         return 2
     return 0
 

@@ -61,6 +61,21 @@ runs (scale, clock_drift, seed_dependent, stages_disagree, the self-check's tie)
 functions at the end of this module, which the stages call. ``unobservable`` and a failed
 rerun are said where the stage finds them: they have no threshold.
 
+A rig of many recordings (:mod:`..shared`) has its own verdict, from its own rules
+(:func:`assess_rig`; the groups are :mod:`.consistency`'s):
+
+==========================  =========  =================================================
+recording_left_out          doubtful   a recording gave no calibration, or its T_HE
+                                       disagrees with the others' (named with the
+                                       difference); the rig's T_HE is computed without it
+groups                      doubtful   the recordings form groups that agree within
+                                       themselves and not with each other (a moved
+                                       marker); the rig's T_HE is the largest group's,
+                                       each group is reported
+no_agreement                failed     fewer than two recordings agree, or the largest
+                                       groups are as large as each other
+==========================  =========  =================================================
+
 Notes that do not lower the verdict (resets split, an epoch difference, a self-check that
 settled clearly) are in ``notes``.
 """
@@ -113,10 +128,16 @@ class Code(StrEnum):
     SCALE = 'scale'
     RESIDUALS_NOT_WHITE = 'residuals_not_white'
     INCONSISTENT = 'inconsistent'
+    RECORDING_LEFT_OUT = 'recording_left_out'
+    GROUPS = 'groups'
+    NO_AGREEMENT = 'no_agreement'
 
 
-#: The verdict each reason makes: every code is doubtful but one.
-SEVERITY = {code: Verdict.DOUBTFUL for code in Code} | {Code.INCONSISTENT: Verdict.FAILED}
+#: The verdict each reason makes: every code is doubtful but two.
+SEVERITY = {code: Verdict.DOUBTFUL for code in Code} | {
+    Code.INCONSISTENT: Verdict.FAILED,
+    Code.NO_AGREEMENT: Verdict.FAILED,
+}
 
 #: Outlier fraction of a stream above which the verdict is doubtful: a tenth of a recording
 #: that no motion produced is a recording to look at, even when screening coped with it.
@@ -501,3 +522,38 @@ def drift_message(fit: DriftFit) -> str:
         f'{abs(fit.change_s) * 0.5e3:.1f} ms. Estimate the drift with --clock-drift (node '
         'parameter clock_drift)'
     )
+
+
+def assess_rig(
+    names: list[str], groups: tuple[tuple[int, ...], ...], why_not: dict[str, str]
+) -> Quality:
+    """The rig's verdict (the second table of the module docstring): ``names`` of the
+    recordings that gave a calibration, their ``groups`` (largest first), and ``why_not`` the
+    others' reasons; the messages of the left-out ones come with :mod:`.consistency`'s tests."""
+    reasons = [
+        Reason(Code.RECORDING_LEFT_OUT, f'{name}: left out, {why}')
+        for name, why in why_not.items()
+    ]
+    main = groups[0] if groups else ()
+    if len(main) < 2 or sum(len(g) == len(main) for g in groups) > 1:
+        said = ' and '.join(
+            '{' + ', '.join(names[k] for k in g) + '}' for g in groups if len(g) == len(main)
+        )
+        reasons.append(
+            Reason(
+                Code.NO_AGREEMENT,
+                'no group of recordings is the largest to agree on T_HE'
+                + (f': {said}' if said else ''),
+            )
+        )
+    if sum(len(g) > 1 for g in groups) > 1:
+        said = '; '.join(', '.join(names[k] for k in g) for g in groups if len(g) > 1)
+        reasons.append(
+            Reason(
+                Code.GROUPS,
+                f'the recordings form {sum(len(g) > 1 for g in groups)} groups that agree '
+                f'within themselves, not with each other (a moved marker?): {said}; the '
+                "rig's T_HE is the first group's, each group's is reported",
+            )
+        )
+    return Quality.from_reasons(reasons, [])

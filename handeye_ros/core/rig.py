@@ -1,0 +1,176 @@
+"""One rig, many recordings: one extrinsic T_HE shared by all, each recording its own clock.
+
+Beyond the paper, which calibrates one recording. A rig (one marker on one device) recorded
+several times has one T_HE; each recording has its own offset dt (and drift, scale) and its own
+worlds. The batch stage (Section III-C) of each recording leaves its estimate and covariance
+``C_i`` over (dt, translation, rotation[, drift][, scale]) (:class:`.batch.refine.BatchSolution`).
+Eliminating a recording's own parameters from its normal equations (the Schur complement over
+them) leaves, for the shared x = T_HE, the reduced system ``Lambda_i = (C_i[x, x])^-1`` about its
+own estimate ``x_i``. The joint T_HE minimises the sum of those reduced costs (eq. 16 summed over
+the recordings, to first order about each recording's solution):
+
+    x* = argmin_x  sum_i  (x_i [-] x)^T Lambda_i (x_i [-] x),     Cov(x*) = (sum_i Lambda_i)^-1
+
+and each recording's own parameters follow by back-substitution, the Gaussian conditioning of
+``C_i`` on x* (:func:`conditioned`). So a process needs only each recording's 7x7 (or 9x9)
+covariance, never its poses: that is how many recordings run on a cluster.
+
+Tangents are the batch stage's: x [-] y = (p_x - p_y, Log(R_y^T R_x)), translation [m] in the
+hand frame, rotation [rad] on the right (eye frame), in that order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
+
+#: Index of T_HE (translation, rotation) in a batch covariance (dt first).
+EXTRINSIC = slice(1, 7)
+#: Gauss-Newton rounds of the joint mean; it converges in 2-3 (the estimates differ by mm).
+MAX_ROUNDS = 20
+STEP_TOL = 1e-12
+
+
+@dataclass(frozen=True)
+class Member:
+    """One recording's own calibration, as the rig uses it.
+
+    time_offset_s: dt [s]; q_HE (x y z w), p_HE [m]: its own T_HE; covariance: its batch
+    covariance in ``order`` (time_offset, tx, ty, tz, rx, ry, rz[, clock_drift][, scale]);
+    values: the estimates in the same order where they are not T_HE (dt, drift, scale).
+    """
+
+    name: str
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    covariance: np.ndarray
+    order: tuple[str, ...]
+    values: dict[str, float]
+
+    @property
+    def extrinsic_covariance(self) -> np.ndarray:
+        """Its T_HE's 6x6 marginal (translation, rotation): the Schur complement of its
+        information over its own parameters, inverted."""
+        return self.covariance[EXTRINSIC, EXTRINSIC]
+
+    @classmethod
+    def from_document(cls, name: str, doc: Mapping[str, Any]) -> Member:
+        """Of a result document (:meth:`.result.CalibrationResult.to_dict`); ValueError when
+        it has no covariance (no batch stage) or one that is not positive definite."""
+        cov = doc.get('covariance')
+        if not cov:
+            raise ValueError('it has no covariance (the batch stage did not run)')
+        C = np.asarray(cov['matrix'], dtype=float)
+        order = tuple(cov['order'])
+        if not np.all(np.isfinite(C)) or np.any(np.linalg.eigvalsh(C[EXTRINSIC, EXTRINSIC]) <= 0):
+            raise ValueError('its covariance of T_HE is not positive definite')
+        e = doc['extrinsic']
+        names = {'time_offset': doc['time_offset'], 'clock_drift': doc.get('clock_drift')}
+        names['scale'] = doc.get('scale')
+        values = {k: float(names[k]) for k in order if k in names and names[k] is not None}
+        return cls(
+            name,
+            np.asarray(e['rotation'], dtype=float),
+            np.asarray(e['translation'], dtype=float),
+            C,
+            order,
+            values,
+        )
+
+
+@dataclass(frozen=True)
+class Joint:
+    """The T_HE the members share: q_HE (x y z w), p_HE [m], covariance 6x6 (translation,
+    rotation; :func:`fuse`) and the information it sums."""
+
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    covariance: np.ndarray
+    information: np.ndarray
+
+    @property
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance))
+
+
+def difference(q_a: np.ndarray, p_a: np.ndarray, q_b: np.ndarray, p_b: np.ndarray) -> np.ndarray:
+    """a [-] b: (p_a - p_b, Log(R_b^T R_a)), translation [m] then rotation [rad]."""
+    R_a, R_b = matrix_from_quat(q_a), matrix_from_quat(q_b)
+    return np.concatenate([np.asarray(p_a) - np.asarray(p_b), log_so3((R_b.T @ R_a)[None])[0]])
+
+
+def fuse(members: Sequence[Member]) -> Joint:
+    """The T_HE that fits every member's reduced system best (module docstring), by
+    Gauss-Newton on SE(3) from the most informative member."""
+    if not members:
+        raise ValueError('no recordings to fuse')
+    info = [np.linalg.inv(m.extrinsic_covariance) for m in members]
+    total = np.sum(info, axis=0)
+    first = int(np.argmax([np.linalg.det(L) for L in info]))
+    R, p = matrix_from_quat(members[first].q_HE), members[first].p_HE.astype(float)
+    for _ in range(MAX_ROUNDS):
+        q = quat_from_matrix(R)
+        g = sum(L @ difference(m.q_HE, m.p_HE, q, p) for m, L in zip(members, info, strict=True))
+        step = np.linalg.solve(total, g)
+        p, R = p + step[:3], R @ exp_so3(step[None, 3:])[0]
+        if np.linalg.norm(step) < STEP_TOL:
+            break
+    cov = np.linalg.inv(total)
+    return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T), total)
+
+
+def chi2_against(member: Member, others: Joint) -> tuple[float, np.ndarray]:
+    """Mahalanobis distance squared (6 dof) of a member's T_HE from a joint estimate that
+    does not include it (their errors independent), and the difference (member [-] joint)."""
+    d = difference(member.q_HE, member.p_HE, others.q_HE, others.p_HE)
+    S = member.extrinsic_covariance + others.covariance
+    return float(d @ np.linalg.solve(S, d)), d
+
+
+@dataclass(frozen=True)
+class Conditioned:
+    """A member's own parameters with T_HE fixed at the joint one: values and 1-sigma by name
+    (time_offset [s], clock_drift [s/s], scale), as :attr:`Member.order` names them."""
+
+    values: dict[str, float]
+    std: dict[str, float]
+
+
+def conditioned(member: Member, joint: Joint) -> Conditioned:
+    """Back-substitution: the member's own parameters y given the joint x (Gaussian
+    conditioning of its covariance on x, the Schur complement's second half):
+
+        y | x = y_i + K (x [-] x_i),   K = C_yx C_xx^-1,
+        Cov = C_yy - K C_xy + K Cov(x) K^T.
+    """
+    C = member.covariance
+    own = [k for k in range(C.shape[0]) if not EXTRINSIC.start <= k < EXTRINSIC.stop]
+    K = np.linalg.solve(member.extrinsic_covariance, C[own, EXTRINSIC].T).T
+    shift = K @ difference(joint.q_HE, joint.p_HE, member.q_HE, member.p_HE)
+    cov = joint_covariance(member, joint)
+    names = [member.order[k] for k in own]
+    return Conditioned(
+        {n: member.values[n] + float(s) for n, s in zip(names, shift, strict=True)},
+        {n: float(np.sqrt(max(cov[k, k], 0.0))) for n, k in zip(names, own, strict=True)},
+    )
+
+
+def joint_covariance(member: Member, joint: Joint) -> np.ndarray:
+    """The member's covariance in its own order once T_HE is the joint one: Cov(x) the joint's,
+    Cov(y, x) = K Cov(x), Cov(y) that of :func:`conditioned` (K as there)."""
+    C = member.covariance
+    n = C.shape[0]
+    own = [k for k in range(n) if not EXTRINSIC.start <= k < EXTRINSIC.stop]
+    C_yx, C_xx = C[own, EXTRINSIC], member.extrinsic_covariance
+    K = np.linalg.solve(C_xx, C_yx.T).T
+    out = np.zeros_like(C)
+    out[np.ix_(own, own)] = C[np.ix_(own, own)] - K @ C_yx.T + K @ joint.covariance @ K.T
+    out[own, EXTRINSIC] = K @ joint.covariance
+    out[EXTRINSIC, own] = out[own, EXTRINSIC].T
+    out[EXTRINSIC, EXTRINSIC] = joint.covariance
+    return 0.5 * (out + out.T)

@@ -1,0 +1,274 @@
+"""One rig, many recordings: ``offline_calibrate --rig MANIFEST`` and ``evaluate
+--shared-extrinsic``.
+
+The recordings of a manifest (:mod:`.runs`) share one T_HE; each keeps its own clock (dt, drift)
+and worlds. Two rounds, each one task per recording (:mod:`.core.shared` has the math):
+
+1. :func:`own_calibration`: the recording calibrated alone, as ``offline_calibrate`` does; only
+   its :class:`~handeye_ros.core.rig.Member` (estimate and covariance, a few hundred bytes)
+   leaves the process that holds its poses.
+2. :func:`.core.shared.solve_rig` in the calling process: the groups, the joint T_HE, the
+   verdict; then :func:`shared_outputs` per recording: its result at the rig's T_HE, with the
+   evaluation and the exports computed from it.
+
+On Dask (``evaluate``) a recording's poses stay on the worker that read them between the
+rounds; the calling process never holds them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: The rig's result file, beside the per-recording folders.
+RIG_FILE = 'rig.yaml'
+
+
+@dataclass(frozen=True)
+class Own:
+    """A recording calibrated alone: its result dictionary and result, or why there is none."""
+
+    name: str
+    document: dict[str, Any] | None
+    result: Any
+    reason: str = ''
+
+
+@dataclass(frozen=True)
+class Summary:
+    """What round 2 needs of a recording's own calibration: its member, or why it has none."""
+
+    name: str
+    member: Any
+    reason: str
+    verdict: str
+
+
+def own_calibration(run: Any) -> Own:
+    """Round 1: ``run`` (a :class:`~handeye_ros.runs.RunSpec`) calibrated alone, no outputs.
+    Never raises for bad input: the reason says why it gave nothing."""
+    from .app import Request
+    from .app import run as run_request
+    from .core.errors import ConfigError, HandeyeError
+
+    request = Request(
+        hand=None if run.bag else run.hand or '',
+        eye=None if run.bag else run.eye or '',
+        bag=run.bag or None,
+        options=dict(run.options),
+        evaluation=False,
+        progress=False,
+    )
+    try:
+        if not (run.bag or (run.hand and run.eye)):
+            raise ConfigError('a run needs hand and eye files, or a bag')
+        document, result = run_request(request)
+    except HandeyeError as err:
+        return Own(run.name, None, None, f'it failed: {err}')
+    except MemoryError:
+        return Own(run.name, None, None, 'it failed: out of memory')
+    return Own(run.name, document, result)
+
+
+def summary_of(own: Own) -> Summary:
+    """The member of a recording's own calibration (a failed verdict gives none)."""
+    from .core.rig import Member
+
+    if own.document is None:
+        return Summary(own.name, None, own.reason, '')
+    verdict = own.document['quality']['verdict']
+    if verdict == 'failed':
+        codes = ', '.join(r['code'] for r in own.document['quality']['reasons'])
+        return Summary(own.name, None, f'its own calibration failed ({codes})', verdict)
+    try:
+        return Summary(own.name, Member.from_document(own.name, own.document), '', verdict)
+    except ValueError as err:
+        return Summary(own.name, None, str(err), verdict)
+
+
+def shared_outputs(own: Own, member: Any, joint: Any, folder: str | None, report: bool) -> dict:
+    """Round 2: the recording's result dictionary at the rig's T_HE (``joint``; its own when
+    ``member`` is None: left out), with the evaluation; writes ``folder``/result.yaml and
+    ``folder``/export when ``folder`` is given."""
+    from .core.shared import at_shared
+    from .evaluation.outputs import evaluate_and_write
+    from .formats.result_file import write_result
+
+    if own.document is None:
+        return {}
+    doc, result = dict(own.document), own.result
+    if member is not None:
+        result = at_shared(result, member, joint)
+        d = own.document
+        doc.update(
+            result.to_dict(
+                hand_frame=d['extrinsic']['parent'],
+                eye_frame=d['extrinsic']['child'],
+                hand_world=d['world_alignment']['child'],
+                eye_world=d['world_alignment']['parent'],
+            )
+        )
+        doc['summary'] = result.summary()
+        doc['rig'] = {'own': _own_values(own.document)}
+    out = Path(folder) if folder else None
+    evaluate_and_write(
+        result,
+        doc,
+        export_dir=out / 'export' if out else None,
+        report_dir=out / 'report' if out and report else None,
+    )
+    if out:
+        write_result(out / 'result.yaml', doc)
+    return doc
+
+
+def _own_values(d: dict[str, Any]) -> dict[str, Any]:
+    s = d.get('std') or {}
+    return {
+        'time_offset': d['time_offset'],
+        'time_offset_std': s.get('time_offset'),
+        'translation': d['extrinsic']['translation'],
+        'rotation': d['extrinsic']['rotation'],
+        'translation_std': s.get('translation'),
+        'rotation_std': s.get('rotation'),
+        'verdict': d['quality']['verdict'],
+    }
+
+
+def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[str, Any]:
+    """The rig's result file (:data:`RIG_FILE`): its T_HE with covariance, its verdict, its
+    groups and every recording's own and conditioned values."""
+    from .core.geometry import matrix_from_quat
+    from .core.result import transform_dict
+
+    def extrinsic(j: Any) -> dict[str, Any]:
+        return {
+            **transform_dict(matrix_from_quat(j.q_HE), j.p_HE, *frames),
+            'std': {
+                'translation': [float(v) for v in j.std[:3]],
+                'rotation': [float(v) for v in j.std[3:]],
+            },
+        }
+
+    recordings = []
+    names = [m.name for m in rig.members]
+    for k, m in enumerate(rig.members):
+        test = rig.split.tests[k]
+        shared = rig.shared[k]
+        recordings.append(
+            {
+                'name': m.name,
+                'used': m.name in rig.used,
+                'own': {
+                    'time_offset': m.values['time_offset'],
+                    'time_offset_std': float(np.sqrt(m.covariance[0, 0])),
+                    'translation': [float(v) for v in m.p_HE],
+                    'rotation': [float(v) for v in m.q_HE],
+                },
+                'test': None
+                if test is None
+                else {
+                    'chi2': test.chi2,
+                    'translation_mm': test.translation_mm,
+                    'rotation_deg': test.rotation_deg,
+                },
+                'shared': None
+                if shared is None
+                else {
+                    'values': shared.values,
+                    'std': shared.std,
+                },
+            }
+        )
+    recordings += [
+        {'name': n, 'used': False, 'reason': why}
+        for n, why in rig.why_not.items()
+        if n not in names
+    ]
+    return {
+        'rig': {
+            'quality': rig.quality.to_dict(),
+            'extrinsic': None if rig.joint is None else extrinsic(rig.joint),
+            'covariance': None
+            if rig.joint is None
+            else {
+                'order': ['tx', 'ty', 'tz', 'rx', 'ry', 'rz'],
+                'matrix': [[float(v) for v in row] for row in rig.joint.covariance],
+            },
+            'used': list(rig.used),
+            'left_out': dict(rig.why_not),
+            'groups': [
+                {'recordings': [names[k] for k in g], 'extrinsic': extrinsic(j)}
+                for g, j in zip(rig.split.groups, rig.group_joints(), strict=True)
+            ]
+            if rig.split
+            else [],
+            'chi2_threshold': None if rig.split is None else rig.split.threshold,
+            'method': 'each recording calibrated alone; its T_HE marginal (Schur complement '
+            'over its own dt, drift, scale) fused by information; a recording whose T_HE '
+            'disagrees with the others beyond the chi-square threshold (6 dof, 1 % for the '
+            "whole rig) is left out; each recording's own parameters conditioned on the "
+            "rig's T_HE",
+            'units': {'translation': 'm', 'rotation': 'x y z w; std: rad, tangent on the right'},
+        },
+        'recordings': recordings,
+    }
+
+
+def rig_summary(doc: dict[str, Any]) -> str:
+    """A few lines for the terminal: the verdict with its reasons, T_HE, the recordings."""
+    r = doc['rig']
+    q = r['quality']
+    lines = [f'rig: {q["verdict"]} ({len(r["used"])} of {len(doc["recordings"])} recordings)']
+    if r['extrinsic']:
+        e = r['extrinsic']
+        t = ', '.join(f'{v:.4f}' for v in e['translation'])
+        rot = ', '.join(f'{v:.4f}' for v in e['rotation'])
+        st = e['std']
+        lines.append(
+            f'  T_HE translation [{t}] m (1-sigma {np.linalg.norm(st["translation"]) * 1e3:.2f} '
+            f'mm), rotation [{rot}] x y z w (1-sigma '
+            f'{np.degrees(np.linalg.norm(st["rotation"])):.3f} deg)'
+        )
+    lines += [f'  {reason["code"]}: {reason["message"]}' for reason in q['reasons']]
+    for rec in doc['recordings']:
+        if rec.get('shared'):
+            v, s = rec['shared']['values'], rec['shared']['std']
+            lines.append(
+                f'  {rec["name"]}: dt {v["time_offset"] * 1e3:+.3f} ms '
+                f'(1-sigma {s["time_offset"] * 1e3:.3f} ms)'
+            )
+    return '\n'.join(lines)
+
+
+def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tuple[dict, list]:
+    """Both rounds in this process, one recording after the other; the rig document and each
+    recording's result dictionary (written under ``output``/runs/<name>/ when given)."""
+    from .core.shared import solve_rig
+
+    owns = [own_calibration(r) for r in runs]
+    summaries = [summary_of(o) for o in owns]
+    rig = solve_rig(*members_of(summaries))
+    by_name = dict(zip((m.name for m in rig.members), rig.shared, strict=True))
+    docs = []
+    for run, own in zip(runs, owns, strict=True):
+        member = next((m for m in rig.members if m.name == run.name), None)
+        used = by_name.get(run.name) is not None
+        folder = str(output / 'runs' / run.slug()) if output else None
+        docs.append(shared_outputs(own, member if used else None, rig.joint, folder, report))
+    doc = rig_document(rig)
+    if output:
+        from .formats.result_file import write_result
+
+        write_result(output / RIG_FILE, doc)
+    return doc, docs
+
+
+def members_of(summaries: list[Summary]) -> tuple[list, dict[str, str]]:
+    """The members, and the reasons of those without one (for :func:`solve_rig`)."""
+    members = [s.member for s in summaries if s.member is not None]
+    failed = {s.name: s.reason for s in summaries if s.member is None}
+    return members, failed

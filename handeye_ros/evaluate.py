@@ -22,6 +22,8 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +83,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="write every run's report.html (a run can also ask with report: true)",
     )
     p.add_argument(
+        '--shared-extrinsic',
+        action='store_true',
+        help='the recordings are of one rig: one T_HE shared by all, each its own time '
+        'offset (rig.yaml); those that disagree are named and left out; every row is '
+        "evaluated at the rig's T_HE (no cache)",
+    )
+    p.add_argument(
         '--no-cache',
         action='store_true',
         help='calibrate every run again even when its inputs did not change',
@@ -121,7 +130,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.reports:
         runs = [replace(r, report=True) for r in runs]
     try:
-        rows = evaluate_runs(runs, output, args)
+        if args.shared_extrinsic and len(runs) < 2:
+            print(
+                f'evaluate: error: {args.manifest}: --shared-extrinsic needs at least two '
+                f'recordings, it has {len(runs)}',
+                file=sys.stderr,
+            )
+            return EXIT_UNUSABLE
+        rows = (evaluate_rig if args.shared_extrinsic else evaluate_runs)(runs, output, args)
     except KeyboardInterrupt:
         print(
             'evaluate: interrupted; finished runs are cached and will not run again',
@@ -147,14 +163,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     """Every run's row, in manifest order (cached rows reused); writes the tables and plots."""
     from tqdm import tqdm
 
-    from .runs import (
-        cache_key,
-        calibrate_run,
-        code_fingerprint,
-        read_cached,
-        write_cached,
-        write_tables,
-    )
+    from .runs import cache_key, calibrate_run, code_fingerprint, read_cached, write_cached
 
     cache = output / 'cache'
     code = code_fingerprint()
@@ -191,17 +200,24 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
             LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
         else:
             _on_dask(todo, output, args, done)
-    t0 = time.perf_counter()
     ordered = [rows[r.name] for r in runs]
-    write_tables(output, ordered)
+    _tables(output, ordered)
+    return ordered
+
+
+def _tables(output: Path, rows: list[dict[str, Any]]) -> None:
+    """results.csv, results.md and summary.png."""
+    from .runs import write_tables
+
+    t0 = time.perf_counter()
+    write_tables(output, rows)
     try:
         from .evaluation.plots import summary
 
-        summary(ordered, output / 'summary.png')
+        summary(rows, output / 'summary.png')
     except Exception as err:  # noqa: BLE001  (the table matters more than the picture)
         LOG.warning('summary plot not written: %s', err)
     LOG.info('timing: tables and plots %.2f s', time.perf_counter() - t0)
-    return ordered
 
 
 class ClusterError(OSError):
@@ -239,16 +255,10 @@ def _check_cluster(client, address: str) -> None:
         )
 
 
-def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
-    """Run ``todo`` on a LocalCluster (or ``args.scheduler``); ``done(run, row)`` as each ends.
-
-    A task whose worker died is rescheduled by Dask itself (the scheduler's allowed-failures);
-    if it keeps killing workers its row says so. Rows arrive once per future, whatever the
-    retries, so none is lost or duplicated.
-    """
-    from distributed import Client, LocalCluster, as_completed
-
-    from .runs import calibrate_run
+@contextmanager
+def _client(args: argparse.Namespace) -> Iterator[Any]:
+    """A Dask client on a LocalCluster (or ``args.scheduler``), closed on leaving."""
+    from distributed import Client, LocalCluster
 
     # the scheduler runs in this process: its INFO lines would bury the table's summary
     logging.getLogger('distributed').setLevel(logging.ERROR)
@@ -275,8 +285,29 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
         )
         client = Client(cluster)
     LOG.info('timing: cluster start %.2f s', time.perf_counter() - t0)
-    t0 = time.perf_counter()
     try:
+        yield client
+    finally:
+        t0 = time.perf_counter()
+        client.close()
+        if cluster is not None:
+            cluster.close()
+        LOG.info('timing: cluster stop %.2f s', time.perf_counter() - t0)
+
+
+def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
+    """Run ``todo`` on a LocalCluster (or ``args.scheduler``); ``done(run, row)`` as each ends.
+
+    A task whose worker died is rescheduled by Dask itself (the scheduler's allowed-failures);
+    if it keeps killing workers its row says so. Rows arrive once per future, whatever the
+    retries, so none is lost or duplicated.
+    """
+    from distributed import as_completed
+
+    from .runs import calibrate_run
+
+    with _client(args) as client:
+        t0 = time.perf_counter()
         futures = {
             client.submit(
                 calibrate_run, r, str(output), key=f'calibrate-{k}-{r.slug()}', pure=False
@@ -298,12 +329,55 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
                 }
             done(run, row)
         LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
-    finally:
-        t0 = time.perf_counter()
-        client.close()
-        if cluster is not None:
-            cluster.close()
-        LOG.info('timing: cluster stop %.2f s', time.perf_counter() - t0)
+
+
+def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
+    """``--shared-extrinsic``: the rig's two rounds (:mod:`handeye_ros.rig`) on Dask, or in
+    this process with ``--sequential``; writes rig.yaml, the tables and the plots; the rows at
+    the rig's T_HE. Nothing is cached: the rig changes with any of its recordings."""
+    from .rig import (
+        calibrate_rig,
+        finish,
+        own_calibration,
+        rig_summary,
+        role,
+        shared_outputs,
+        solve,
+        summary_of,
+    )
+    from .runs import rig_row
+
+    t0 = time.perf_counter()
+    if args.sequential:
+        document, docs = calibrate_rig(runs, output, report=args.reports)
+    else:
+        with _client(args) as client:
+            owns = [
+                client.submit(own_calibration, r, key=f'own-{k}-{r.slug()}', pure=False)
+                for k, r in enumerate(runs)
+            ]
+            rig = solve(client.gather([client.submit(summary_of, f) for f in owns]))
+            shared = [
+                client.submit(
+                    shared_outputs,
+                    own,
+                    rig.joint,
+                    *role(rig, r.name),
+                    str(output / 'runs' / r.slug()),
+                    r.report,
+                    key=f'shared-{k}-{r.slug()}',
+                    pure=False,
+                )
+                for k, (r, own) in enumerate(zip(runs, owns, strict=True))
+            ]
+            docs = client.gather(shared)
+            del owns  # the poses held on the workers go with the futures
+        document = finish(rig, runs, docs, output)
+    LOG.info('timing: rig %.2f s', time.perf_counter() - t0)
+    print(rig_summary(document))
+    rows = [rig_row(r, d, document) for r, d in zip(runs, docs, strict=True)]
+    _tables(output, rows)
+    return rows
 
 
 if __name__ == '__main__':

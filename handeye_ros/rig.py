@@ -39,12 +39,14 @@ class Own:
 
 @dataclass(frozen=True)
 class Summary:
-    """What round 2 needs of a recording's own calibration: its member, or why it has none."""
+    """What the rig needs of a recording's own calibration: its member; or, without one, why,
+    and whether it can follow the rig (an offset without a T_HE covariance)."""
 
     name: str
     member: Any
     reason: str
     verdict: str
+    follower: bool = False
 
 
 def own_calibration(run: Any) -> Own:
@@ -70,6 +72,8 @@ def own_calibration(run: Any) -> Own:
         return Own(run.name, None, None, f'it failed: {err}')
     except MemoryError:
         return Own(run.name, None, None, 'it failed: out of memory')
+    except Exception as err:  # noqa: BLE001  (a bug: the rig says so and goes on)
+        return Own(run.name, None, None, f'internal error: {type(err).__name__}: {err}')
     return Own(run.name, document, result)
 
 
@@ -83,15 +87,20 @@ def summary_of(own: Own) -> Summary:
     if verdict == 'failed':
         codes = ', '.join(r['code'] for r in own.document['quality']['reasons'])
         return Summary(own.name, None, f'its own calibration failed ({codes})', verdict)
+    if not own.document.get('covariance'):
+        return Summary(own.name, None, 'no covariance of its own T_HE', verdict, follower=True)
     try:
         return Summary(own.name, Member.from_document(own.name, own.document), '', verdict)
     except ValueError as err:
         return Summary(own.name, None, str(err), verdict)
 
 
-def shared_outputs(own: Own, member: Any, joint: Any, folder: str | None, report: bool) -> dict:
-    """Round 2: the recording's result dictionary at the rig's T_HE (``joint``; its own when
-    ``member`` is None: left out), with the evaluation; writes ``folder``/result.yaml and
+def shared_outputs(
+    own: Own, joint: Any, member: Any, take_rig: bool, folder: str | None, report: bool
+) -> dict:
+    """Round 2: the recording's result dictionary at the rig's T_HE ``joint`` when
+    ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
+    otherwise), else its own; with the evaluation. Writes ``folder``/result.yaml and
     ``folder``/export when ``folder`` is given."""
     from .core.shared import at_shared
     from .evaluation.outputs import evaluate_and_write
@@ -100,8 +109,8 @@ def shared_outputs(own: Own, member: Any, joint: Any, folder: str | None, report
     if own.document is None:
         return {}
     doc, result = dict(own.document), own.result
-    if member is not None:
-        result = at_shared(result, member, joint)
+    if take_rig:
+        result = at_shared(result, joint, member)
         d = own.document
         doc.update(
             result.to_dict(
@@ -112,7 +121,8 @@ def shared_outputs(own: Own, member: Any, joint: Any, folder: str | None, report
             )
         )
         doc['summary'] = result.summary()
-        doc['rig'] = {'own': _own_values(own.document)}
+        doc['quality'] = result.quality.to_dict()
+        doc['rig'] = {'own': _own_values(own.document), 'follower': member is None}
     out = Path(folder) if folder else None
     evaluate_and_write(
         result,
@@ -184,6 +194,16 @@ def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[st
             }
         )
     recordings += [
+        {
+            'name': n,
+            'used': False,
+            'follows': True,
+            'reason': 'no covariance of its own T_HE: '
+            "it takes the rig's T_HE and keeps its own offset",
+        }
+        for n in rig.followers
+    ]
+    recordings += [
         {'name': n, 'used': False, 'reason': why}
         for n, why in rig.why_not.items()
         if n not in names
@@ -199,6 +219,7 @@ def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[st
                 'matrix': [[float(v) for v in row] for row in rig.joint.covariance],
             },
             'used': list(rig.used),
+            'followers': list(rig.followers),
             'left_out': dict(rig.why_not),
             'groups': [
                 {'recordings': [names[k] for k in g], 'extrinsic': extrinsic(j)}
@@ -237,9 +258,14 @@ def rig_summary(doc: dict[str, Any]) -> str:
     for rec in doc['recordings']:
         if rec.get('shared'):
             v, s = rec['shared']['values'], rec['shared']['std']
+            sigma = s.get('time_offset')
             lines.append(
                 f'  {rec["name"]}: dt {v["time_offset"] * 1e3:+.3f} ms '
-                f'(1-sigma {s["time_offset"] * 1e3:.3f} ms)'
+                + (
+                    '(follows the rig: no sigma)'
+                    if sigma is None
+                    else f'(1-sigma {sigma * 1e3:.3f} ms)'
+                )
             )
     return '\n'.join(lines)
 
@@ -247,28 +273,55 @@ def rig_summary(doc: dict[str, Any]) -> str:
 def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tuple[dict, list]:
     """Both rounds in this process, one recording after the other; the rig document and each
     recording's result dictionary (written under ``output``/runs/<name>/ when given)."""
+    owns = [own_calibration(r) for r in runs]
+    rig = solve([summary_of(o) for o in owns])
+    docs = [
+        shared_outputs(own, rig.joint, *role(rig, run.name), _folder(output, run), report)
+        for run, own in zip(runs, owns, strict=True)
+    ]
+    return finish(rig, runs, docs, output), docs
+
+
+def solve(summaries: list[Summary]) -> Any:
+    """:func:`~handeye_ros.core.shared.solve_rig` on the recordings' summaries."""
     from .core.shared import solve_rig
 
-    owns = [own_calibration(r) for r in runs]
-    summaries = [summary_of(o) for o in owns]
-    rig = solve_rig(*members_of(summaries))
-    by_name = dict(zip((m.name for m in rig.members), rig.shared, strict=True))
-    docs = []
-    for run, own in zip(runs, owns, strict=True):
-        member = next((m for m in rig.members if m.name == run.name), None)
-        used = by_name.get(run.name) is not None
-        folder = str(output / 'runs' / run.slug()) if output else None
-        docs.append(shared_outputs(own, member if used else None, rig.joint, folder, report))
-    doc = rig_document(rig)
+    members = [s.member for s in summaries if s.member is not None]
+    followers = tuple(s.name for s in summaries if s.follower)
+    failed = {s.name: s.reason for s in summaries if s.member is None and not s.follower}
+    return solve_rig(members, failed, followers)
+
+
+def role(rig: Any, name: str) -> tuple[Any, bool]:
+    """(its member when it is one the rig's T_HE rests on, whether it takes the rig's T_HE)."""
+    k = next((k for k, m in enumerate(rig.members) if m.name == name), None)
+    if k is not None and rig.shared[k] is not None:
+        return rig.members[k], True
+    return None, rig.joint is not None and name in rig.followers
+
+
+def finish(rig: Any, runs: list, docs: list[dict], output: Path | None) -> dict:
+    """The rig document, once every recording's result at the rig's T_HE is known: a follower
+    whose motions the rig's T_HE does not explain is left out; written under ``output``."""
+    unfit = {}
+    for run, doc in zip(runs, docs, strict=True):
+        if run.name in rig.followers and doc:
+            said = [r['message'] for r in doc['quality']['reasons'] if r['code'] == 'inconsistent']
+            if said:
+                unfit[run.name] = said[-1]
+    if unfit:
+        rig = rig.leaving_out(unfit)
+    document = rig_document(rig)
+    offsets = {run.name: doc.get('time_offset') for run, doc in zip(runs, docs, strict=True)}
+    for rec in document['recordings']:
+        if rec.get('follows'):
+            rec['shared'] = {'values': {'time_offset': offsets[rec['name']]}, 'std': {}}
     if output:
         from .formats.result_file import write_result
 
-        write_result(output / RIG_FILE, doc)
-    return doc, docs
+        write_result(output / RIG_FILE, document)
+    return document
 
 
-def members_of(summaries: list[Summary]) -> tuple[list, dict[str, str]]:
-    """The members, and the reasons of those without one (for :func:`solve_rig`)."""
-    members = [s.member for s in summaries if s.member is not None]
-    failed = {s.name: s.reason for s in summaries if s.member is None}
-    return members, failed
+def _folder(output: Path | None, run: Any) -> str | None:
+    return str(output / 'runs' / run.slug()) if output else None

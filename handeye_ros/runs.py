@@ -72,6 +72,7 @@ COLUMNS = (
     'cached',
     'pid',
     'rss_mb',
+    'rig',
 )
 #: Bumped when a row's meaning changes, so that old cache entries are not reused.
 CACHE_VERSION = 1
@@ -268,6 +269,30 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     return row
 
 
+def rig_row(run: RunSpec, doc: dict[str, Any], rig: dict[str, Any]) -> dict[str, Any]:
+    """A run's row of ``evaluate --shared-extrinsic``: its result at the rig's T_HE (its own
+    when left out), and in ``rig`` its part in the rig (used, follows, left out: why)."""
+    row: dict[str, Any] = {
+        'name': run.name,
+        'algorithm': run.algorithm,
+        'sequence': run.sequence,
+        'trial': run.trial,
+    }
+    left_out = rig['rig']['left_out']
+    if doc:
+        row.update(_row(doc))
+        row['status'], row['reason'] = 'ok', ''
+    else:
+        row['status'], row['reason'] = 'failed', left_out.get(run.name, '')
+    if run.name in rig['rig']['used']:
+        row['rig'] = 'used'
+    elif run.name in rig['rig']['followers']:
+        row['rig'] = "follows (takes the rig's T_HE)"
+    else:
+        row['rig'] = f'left out: {left_out.get(run.name, "")}'
+    return row
+
+
 def _rss_mb() -> float | None:
     """This process's resident memory now (MB; Linux), to see a worker's memory stay flat."""
     try:
@@ -354,7 +379,7 @@ def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
         'rpe_1s_mm',
         'ape_uncalibrated_mm',
         'reason',
-    )
+    ) + (('rig',) if any(r.get('rig') for r in rows) else ())
     lines = ['| ' + ' | '.join(shown) + ' |', '|' + '---|' * len(shown)]
     for r in rows:
         cells = [_md(r.get(k)) for k in shown]

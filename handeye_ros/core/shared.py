@@ -22,7 +22,7 @@ import numpy as np
 from .association import associate
 from .checks.consistency import Split, Test, split
 from .checks.selfcheck import motion_consistency
-from .checks.verdict import Quality, assess_rig
+from .checks.verdict import Quality, assess_rig, motion_inconsistency
 from .result import CalibrationResult
 from .rig import Conditioned, Joint, Member, conditioned, fuse, joint_covariance
 from .world import align_worlds, evaluate
@@ -33,17 +33,33 @@ class Rig:
     """A rig's calibration.
 
     joint: the shared T_HE (of the members in ``split.groups[0]``); members: the recordings
-    that gave a calibration, in the given order; split: their groups and tests; shared: each
-    member's own parameters conditioned on the joint T_HE (None for one left out); why_not:
-    the recordings left out by name, with the reason; quality: the rig's verdict.
+    that gave a calibration with a covariance, in the given order; split: their groups and
+    tests; shared: each member's own parameters conditioned on the joint T_HE (None for one
+    left out); followers: recordings that gave an offset but no T_HE with a covariance (a
+    motion that leaves part of it unobservable): they take the rig's T_HE and add nothing to
+    it; why_not: the recordings left out by name, with the reason; quality: the rig's verdict.
     """
 
     joint: Joint | None
     members: tuple[Member, ...]
     split: Split | None
     shared: tuple[Conditioned | None, ...]
+    followers: tuple[str, ...]
     why_not: dict[str, str]
     quality: Quality
+
+    def leaving_out(self, why_not: dict[str, str]) -> Rig:
+        """The same rig with more recordings left out (followers whose motions the rig's T_HE
+        does not explain, found once their poses were at hand)."""
+        out = {**self.why_not, **why_not}
+        names = [m.name for m in self.members]
+        groups = self.split.groups if self.split else ()
+        return replace(
+            self,
+            followers=tuple(f for f in self.followers if f not in why_not),
+            why_not=out,
+            quality=assess_rig(names, groups, out),
+        )
 
     @property
     def used(self) -> tuple[str, ...]:
@@ -56,12 +72,15 @@ class Rig:
         return [fuse([self.members[k] for k in g]) for g in self.split.groups]
 
 
-def solve_rig(members: list[Member], failed: dict[str, str]) -> Rig:
+def solve_rig(
+    members: list[Member], failed: dict[str, str], followers: tuple[str, ...] = ()
+) -> Rig:
     """The rig from its recordings' calibrations (``failed``: those that gave none, by name,
-    with the reason): the module docstring's recipe."""
+    with the reason; ``followers``: see :class:`Rig`): the module docstring's recipe."""
     why_not = dict(failed)
     if not members:
-        return Rig(None, (), None, (), why_not, assess_rig([], (), why_not))
+        why_not |= {f: 'no recording gave the T_HE it could take' for f in followers}
+        return Rig(None, (), None, (), (), why_not, assess_rig([], (), why_not))
     s = split(members)
     main = s.groups[0]
     joint = fuse([members[k] for k in main])
@@ -70,7 +89,8 @@ def solve_rig(members: list[Member], failed: dict[str, str]) -> Rig:
             why_not[m.name] = _disagrees(t, s.threshold, len(main))
     names = [m.name for m in members]
     shared = tuple(conditioned(m, joint) if k in main else None for k, m in enumerate(members))
-    return Rig(joint, tuple(members), s, shared, why_not, assess_rig(names, s.groups, why_not))
+    quality = assess_rig(names, s.groups, why_not)
+    return Rig(joint, tuple(members), s, shared, tuple(followers), why_not, quality)
 
 
 def _disagrees(test: Test | None, limit: float, n_main: int) -> str:
@@ -83,12 +103,16 @@ def _disagrees(test: Test | None, limit: float, n_main: int) -> str:
     )
 
 
-def at_shared(result: CalibrationResult, member: Member, joint: Joint) -> CalibrationResult:
-    """``result`` (the recording's own, of which ``member`` was made) at the rig's T_HE."""
+def at_shared(result: CalibrationResult, joint: Joint, member: Member | None) -> CalibrationResult:
+    """``result`` (a recording's own) at the rig's T_HE ``joint``: its offset conditioned on it
+    when ``member`` (made of ``result``) is given, else (a follower) its own offset. Its verdict
+    fails when AX = XB does not hold at the rig's T_HE over its keyframe motions."""
     used = result.used
     if used is None:
         raise ValueError('this result does not hold the streams it was computed on')
-    delta = conditioned(member, joint).values['time_offset'] - result.time_offset_s
+    delta = 0.0
+    if member is not None:
+        delta = conditioned(member, joint).values['time_offset'] - result.time_offset_s
     dt = used.time_offset_s + delta
     q, p = joint.q_HE, joint.p_HE
     pairs = associate(used.hand, used.eye, dt)
@@ -103,8 +127,14 @@ def at_shared(result: CalibrationResult, member: Member, joint: Joint) -> Calibr
         motion_length_m=m_len,
         n_motions=n_mot,
     )
-    cov = joint_covariance(member, joint)
-    batch = result.batch and replace(result.batch, covariance=cov, std=np.sqrt(np.diag(cov)))
+    batch = result.batch
+    if member is not None and batch is not None:
+        cov = joint_covariance(member, joint)
+        batch = replace(batch, covariance=cov, std=np.sqrt(np.diag(cov)))
+    quality = result.quality
+    unfit = motion_inconsistency(metrics, "the rig's T_HE")
+    if unfit is not None:
+        quality = Quality.from_reasons([*quality.reasons, unfit], list(quality.notes))
     return replace(
         result,
         time_offset_s=result.time_offset_s + delta,
@@ -115,5 +145,6 @@ def at_shared(result: CalibrationResult, member: Member, joint: Joint) -> Calibr
         metrics=metrics,
         n_pairs=int(pairs.t_eye_s.size),
         batch=batch,
+        quality=quality,
         used=replace(used, time_offset_s=dt),
     )

@@ -336,6 +336,14 @@ def _assess_uncertainty(
 
 def _assess_consistency(m: Metrics, run: Findings) -> None:
     """AX = XB at the result, over the keyframe motions: failing it fails the result."""
+    reason = motion_inconsistency(m)
+    if reason is not None:
+        run.reasons.append(reason)
+
+
+def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None:
+    """The ``inconsistent`` reason when AX = XB fails over the keyframe motions at ``where``
+    (the thresholds FAILED_MOTION_*), else None."""
     if m.n_motions and (
         m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG
         or (
@@ -343,13 +351,14 @@ def _assess_consistency(m: Metrics, run: Findings) -> None:
             and m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m
         )
     ):
-        run.reason(
+        return Reason(
             Code.INCONSISTENT,
-            f'AX = XB does not hold at the result: over {m.n_motions} '
+            f'AX = XB does not hold at {where}: over {m.n_motions} '
             f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
             f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '
             f'{m.motion_length_m * 1e3:.0f} mm long)',
         )
+    return None
 
 
 def assess_model(

@@ -1,0 +1,121 @@
+"""One rig, many recordings from the command line: ``offline_calibrate --rig`` and ``evaluate
+--shared-extrinsic`` (on a real LocalCluster), with the bad manifests a user writes."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from conftest import cli_fails, cli_ok, recording, run_cli, run_main
+from scipy.spatial.transform import Rotation
+
+from handeye_ros.core.simulate import random_truth
+from handeye_ros.formats import write_tum
+from handeye_ros.formats.result_file import read_result
+
+pytestmark = pytest.mark.slow  # recordings calibrated in turn: seconds
+
+
+@pytest.fixture(scope='module')
+def rig(tmp_path_factory) -> tuple[Path, object]:
+    """Four recordings of one marker (level 3, 40 s, each its own clock and world), one whose
+    hand file is missing, one whose hand is another body (another recording's MoCap), and one
+    whose marker was turned by 3 deg."""
+    folder = tmp_path_factory.mktemp('rig')
+    base = random_truth(np.random.default_rng(11))
+    runs = []
+    for k in range(5):
+        truth = replace(
+            random_truth(np.random.default_rng([11, k])), q_HE=base.q_HE, p_HE=base.p_HE
+        )
+        if k == 4:
+            turned = Rotation.from_quat(base.q_HE) * Rotation.from_rotvec([0.0, 0.0, 0.05])
+            truth = replace(truth, q_HE=turned.as_quat())
+        rec = recording(seed=300 + k, level=3.0, duration_s=40.0, truth=truth)
+        write_tum(folder / f'hand{k}.txt', rec.hand)
+        write_tum(folder / f'eye{k}.txt', rec.eye)
+        runs.append({'name': f'rec{k}', 'hand': f'hand{k}.txt', 'eye': f'eye{k}.txt'})
+    runs[4]['name'] = 'turned'
+    runs.append({'name': 'missing', 'hand': 'nowhere.txt', 'eye': 'eye0.txt'})
+    other = recording(seed=399, level=3.0, duration_s=40.0)
+    write_tum(folder / 'other_body.txt', other.hand)
+    runs.append({'name': 'other body', 'hand': 'other_body.txt', 'eye': 'eye1.txt'})
+    path = folder / 'rig.yaml'
+    path.write_text(yaml.safe_dump({'runs': runs}))
+    return path, base
+
+
+def test_offline_rig_names_what_it_leaves_out_and_exports_each_at_the_rigs_extrinsic(
+    rig, tmp_path: Path
+) -> None:
+    manifest, base = rig
+    res = run_main('--rig', manifest, '--export', tmp_path / 'out', '-o', tmp_path / 'rig.yaml')
+    cli_ok(res)
+    assert res.stdout.startswith('rig: doubtful (4 of 7 recordings)'), res.stdout
+    doc = yaml.safe_load((tmp_path / 'rig.yaml').read_text())
+    r = doc['rig']
+    assert r['used'] == ['rec0', 'rec1', 'rec2', 'rec3']
+    assert set(r['left_out']) == {'turned', 'missing', 'other body'}
+    assert 'no such file' in r['left_out']['missing']
+    assert (
+        '3.0' in r['left_out']['turned'] or 'deg from the 4 that agree' in r['left_out']['turned']
+    )
+    # the rig's T_HE: level 3 noise, 4 x 40 s: within a few mm and a tenth of a degree
+    assert np.linalg.norm(np.subtract(r['extrinsic']['translation'], base.p_HE)) < 0.006
+    turn = Rotation.from_quat(r['extrinsic']['rotation']).inv() * Rotation.from_quat(base.q_HE)
+    assert np.degrees(turn.magnitude()) < 0.15
+    # each used recording: its result file at the rig's T_HE, its own values kept beside
+    one = read_result(tmp_path / 'out' / 'runs' / 'rec0' / 'result.yaml')
+    assert one['extrinsic']['translation'] == pytest.approx(r['extrinsic']['translation'])
+    assert one['rig']['own']['translation'] != one['extrinsic']['translation']
+    assert (tmp_path / 'out' / 'runs' / 'rec0' / 'export' / 'groundtruth.tum').is_file()
+    # the turned marker keeps its own result, evaluated with its own T_HE
+    own = read_result(tmp_path / 'out' / 'runs' / 'turned' / 'result.yaml')
+    assert 'rig' not in own
+    assert not (tmp_path / 'out' / 'runs' / 'missing').exists()
+
+
+def test_bad_rig_manifests_are_refused_with_the_reason(rig, tmp_path: Path) -> None:
+    manifest, _ = rig
+    one = tmp_path / 'one.yaml'
+    runs = yaml.safe_load(manifest.read_text())['runs'][:1]
+    for r in runs:
+        r['hand'] = str(manifest.parent / r['hand'])
+        r['eye'] = str(manifest.parent / r['eye'])
+    one.write_text(yaml.safe_dump({'runs': runs}))
+    cli_fails(run_main('--rig', one), 'a rig needs at least two recordings, it has 1')
+    cli_fails(run_main('--rig', manifest, '--hand', 'x.txt'), 'give no --hand, --eye or --bag')
+    cli_fails(run_main('--rig', tmp_path / 'absent.yaml'), 'no such manifest')
+
+
+def test_evaluate_shared_extrinsic_on_dask_matches_the_sequential_run(rig, tmp_path: Path) -> None:
+    manifest, _ = rig
+    tables = {}
+    for how in ('--sequential', '--workers=2'):
+        out = tmp_path / how.strip('-').split('=')[0]
+        res = run_cli(
+            manifest,
+            '-o',
+            out,
+            '--shared-extrinsic',
+            how,
+            module='handeye_ros.evaluate',
+            timeout=300,
+        )
+        assert 'Traceback' not in res.stderr, res.stderr
+        assert res.returncode == 2, res.stderr  # the missing file's and the other body's rows
+        assert 'rig: doubtful (4 of 7 recordings)' in res.stdout
+        with (out / 'results.csv').open() as f:
+            tables[how] = list(csv.DictReader(f))
+        assert (out / 'rig.yaml').is_file()
+    seq, dask = tables.values()
+    assert [r['rig'] for r in seq] == [r['rig'] for r in dask]
+    assert [r['rig'] for r in seq][:4] == ['used'] * 4
+    assert seq[5]['status'] == 'failed' and 'no such file' in seq[5]['reason']
+    assert seq[6]['status'] == 'failed' and 'RANSAC found no model' in seq[6]['reason']
+    assert [r['time_offset_ms'] for r in seq] == [r['time_offset_ms'] for r in dask]
+    assert [r['tx_m'] for r in seq[:4]] == [seq[0]['tx_m']] * 4

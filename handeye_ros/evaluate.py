@@ -374,6 +374,12 @@ def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dic
             del owns  # the poses held on the workers go with the futures
         document = finish(rig, runs, docs, output)
     LOG.info('timing: rig %.2f s', time.perf_counter() - t0)
+    try:
+        from .evaluation.rig_report import write_rig_report
+
+        write_rig_report(document, output)
+    except Exception as err:  # noqa: BLE001  (the rig's file matters more than its page)
+        LOG.warning('rig.html not written: %s', err)
     print(rig_summary(document))
     rows = [rig_row(r, d, document) for r, d in zip(runs, docs, strict=True)]
     _tables(output, rows)

@@ -138,7 +138,8 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
         metavar='MANIFEST',
         help="many recordings of one rig (evaluate's manifest or folder layout): one T_HE "
         'shared by all, each its own time offset; recordings that disagree are named and left '
-        "out (-o: the rig result; --export DIR: each recording at the rig's T_HE)",
+        "out (-o: the rig result; --export DIR: each recording at the rig's T_HE; --report "
+        'DIR: the rig page)',
     )
     io.add_argument(
         '--hand-topic',
@@ -401,9 +402,13 @@ def _rig_main(args: argparse.Namespace) -> int:
         given = request_of(args).options
         runs = [replace(r, options={**given, **r.options}) for r in runs]
         output = check_directory(args.export, '--export') if args.export else None
-        document, _ = calibrate_rig(runs, output, report=bool(args.report))
+        document, _ = calibrate_rig(runs, output)
         if args.output:
             write_result(args.output, document)
+        if args.report:
+            from .evaluation.rig_report import write_rig_report
+
+            write_rig_report(document, check_directory(args.report, '--report'))
     except HandeyeError as err:
         print(f'offline_calibrate: error: {err}', file=sys.stderr)
         return 1

@@ -172,11 +172,13 @@ def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[st
             {
                 'name': m.name,
                 'used': m.name in rig.used,
+                'reason': rig.why_not.get(m.name, ''),
                 'own': {
                     'time_offset': m.values['time_offset'],
                     'time_offset_std': float(np.sqrt(m.covariance[0, 0])),
                     'translation': [float(v) for v in m.p_HE],
                     'rotation': [float(v) for v in m.q_HE],
+                    'covariance': [[float(v) for v in row] for row in m.extrinsic_covariance],
                 },
                 'test': None
                 if test is None

@@ -53,8 +53,20 @@ def test_offline_rig_names_what_it_leaves_out_and_exports_each_at_the_rigs_extri
     rig, tmp_path: Path
 ) -> None:
     manifest, base = rig
-    res = run_main('--rig', manifest, '--export', tmp_path / 'out', '-o', tmp_path / 'rig.yaml')
+    res = run_main(
+        '--rig',
+        manifest,
+        '--export',
+        tmp_path / 'out',
+        '-o',
+        tmp_path / 'rig.yaml',
+        '--report',
+        tmp_path / 'page',
+    )
     cli_ok(res)
+    page = (tmp_path / 'page' / 'rig.html').read_text()
+    assert 'data:image/png;base64,' in page and page.count('<tr>') == 1 + 7
+    assert 'left out' in page and 'no such file' in page
     assert res.stdout.startswith('rig: doubtful (4 of 7 recordings)'), res.stdout
     doc = yaml.safe_load((tmp_path / 'rig.yaml').read_text())
     r = doc['rig']
@@ -111,7 +123,7 @@ def test_evaluate_shared_extrinsic_on_dask_matches_the_sequential_run(rig, tmp_p
         assert 'rig: doubtful (4 of 7 recordings)' in res.stdout
         with (out / 'results.csv').open() as f:
             tables[how] = list(csv.DictReader(f))
-        assert (out / 'rig.yaml').is_file()
+        assert (out / 'rig.yaml').is_file() and (out / 'rig.html').is_file()
     seq, dask = tables.values()
     assert [r['rig'] for r in seq] == [r['rig'] for r in dask]
     assert [r['rig'] for r in seq][:4] == ['used'] * 4

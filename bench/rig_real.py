@@ -1,0 +1,143 @@
+"""One rig, many recordings, on real VIO (issue 36): read, not tuned.
+
+- EuRoC: the rpg estimates vio_mono and vio_stereo on MH_01, MH_03, MH_05, V2_01, V2_02 against
+  each sequence's ground truth, both in the IMU frame (truth T_HE = I): one rig per estimator.
+  Each sequence's ground truth is its own estimate (they differ at the centimetre level), so the
+  figures are about consistency: the rig's sigma against a single sequence's, each sequence
+  inside the joint estimate's 3 sigma or named with its difference, the same named for both.
+- TUM-VI room1 + outdoors4, ORB-SLAM3 VIO, ``clock_drift`` (ground truth in the IMU frame,
+  truth I): the rig's T_HE against I.
+
+Per recording: its own T_HE's difference from I (mm, deg), its 1-sigma, its chi-square against
+the others of the largest group, and whether the rig uses it; per rig: T_HE against I, its
+1-sigma, the verdict with its reasons.
+
+Usage: python bench/rig_real.py
+"""
+
+from __future__ import annotations
+
+import common  # noqa: F401  (first: puts the project on sys.path)
+import numpy as np
+import realdata
+from common import emit, table
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.rig import Member, difference
+from handeye_ros.core.shared import solve_rig
+from handeye_ros.formats import read_trajectory
+
+TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
+EUROC = ('MH_01', 'MH_03', 'MH_05', 'V2_01', 'V2_02')
+IDENTITY = (np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))
+
+
+def rigs() -> dict[str, list[tuple[str, object]]]:
+    """Per rig, its recordings' (name, own result)."""
+    out = {}
+    for kind in ('mono', 'stereo'):
+        runs = []
+        for seq in EUROC:
+            pair = next(p for p in realdata.PAIRS if p.name == f'{seq} {kind}')
+            runs.append((seq, calibrate(*realdata.load(pair))))
+        out[f'EuRoC vio_{kind}'] = runs
+    drift = CalibrationConfig(clock_drift=True)
+    out['TUM-VI ORB-SLAM3'] = [
+        (
+            seq,
+            calibrate(
+                read_trajectory(TUMVI / f'{seq}_GT.tum'),
+                read_trajectory(TUMVI / f'orbslam-{seq}-vio.tum'),
+                drift,
+            ),
+        )
+        for seq in ('room1', 'outdoors4')
+    ]
+    return out
+
+
+def _mm_deg(v: np.ndarray) -> tuple[float, float]:
+    return float(np.linalg.norm(v[:3]) * 1e3), float(np.degrees(np.linalg.norm(v[3:])))
+
+
+def main() -> None:
+    rows, summary = [], []
+    for name, runs in rigs().items():
+        members = [Member.from_document(seq, res.to_dict()) for seq, res in runs]
+        rig = solve_rig(members, {})
+        for k, (m, (seq, res)) in enumerate(zip(members, runs, strict=True)):
+            own = difference(m.q_HE, m.p_HE, *IDENTITY)
+            test = rig.split.tests[k]
+            rows.append(
+                [
+                    name,
+                    seq,
+                    ' '.join(f'{v * 1e3:+.1f}' for v in m.p_HE),
+                    *_mm_deg(own),
+                    np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[:3])) * 1e3,
+                    np.degrees(np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[3:]))),
+                    '-' if test is None else test.chi2,
+                    'yes' if seq in rig.used else 'NO',
+                    res.quality.label(' '),
+                ]
+            )
+        joint = difference(rig.joint.q_HE, rig.joint.p_HE, *IDENTITY)
+        alone = np.median(
+            [np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[:3])) for m in members]
+        )
+        summary.append(
+            [
+                name,
+                ' '.join(f'{v * 1e3:+.1f}' for v in rig.joint.p_HE),
+                *_mm_deg(joint),
+                np.linalg.norm(rig.joint.std[:3]) * 1e3,
+                np.degrees(np.linalg.norm(rig.joint.std[3:])),
+                np.linalg.norm(rig.joint.std[:3]) / alone,
+                rig.split.threshold,
+                ' '.join(rig.used),
+                rig.quality.label(' '),
+            ]
+        )
+    emit(
+        'rig_real_recordings',
+        table(
+            'Real rigs: each recording alone (T_HE against the truth I)',
+            (
+                'rig',
+                'recording',
+                'own t mm',
+                'own err mm',
+                'own err deg',
+                'sigma mm',
+                'sigma deg',
+                'chi2',
+                'used',
+                'own verdict',
+            ),
+            rows,
+        ),
+    )
+    emit(
+        'rig_real',
+        table(
+            'Real rigs: the joint T_HE (against the truth I)',
+            (
+                'rig',
+                't mm',
+                'err mm',
+                'err deg',
+                'sigma mm',
+                'sigma deg',
+                'sigma / median alone',
+                'chi2 limit',
+                'used',
+                'verdict',
+            ),
+            summary,
+        ),
+    )
+
+
+if __name__ == '__main__':
+    main()

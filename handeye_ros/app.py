@@ -126,10 +126,15 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
 
 
 def calibrate_buffers(
-    snapshot: Any, options: dict[str, Any], report_dir: str | None = None
+    snapshot: Any,
+    options: dict[str, Any],
+    report_dir: str | None = None,
+    rig: tuple[str, str] | None = None,
 ) -> Calibrated:
     """The node's worker job: :func:`run` on a snapshot of the buffers, with the evaluation,
-    and with ``report_dir`` the report drawn there, ready for ``~/save`` to copy."""
+    and with ``report_dir`` the report drawn there, ready for ``~/save`` to copy. With ``rig``
+    (the rig file, this session's name) the session joins the rig file
+    (:func:`handeye_ros.rig.join_rig`) and the result is at the rig's T_HE."""
     req = Request(
         snapshot=snapshot,
         options=options,
@@ -138,7 +143,16 @@ def calibrate_buffers(
         source='parameters',
         outputs_required=False,
     )
-    out, result = run(req)
+    if rig is None:
+        out, result = run(req)
+    else:
+        from dataclasses import replace
+
+        from .rig import Own, join_rig
+
+        out, result = run(replace(req, evaluation=False, report=None))
+        out, result = join_rig(*rig, Own(rig[1], out, result))
+        result = _write_outputs(req, result, out, snapshot.frames)
     return Calibrated(out, result.detached(), snapshot.frames, _paths(result))
 
 

@@ -372,7 +372,7 @@ def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dic
             ]
             docs = client.gather(shared)
             del owns  # the poses held on the workers go with the futures
-        document = finish(rig, runs, docs, output)
+        document = finish(rig, [r.name for r in runs], docs, output)
     LOG.info('timing: rig %.2f s', time.perf_counter() - t0)
     try:
         from .evaluation.rig_report import write_rig_report

@@ -33,6 +33,14 @@ class NodeConfig(Options):
         'each calibration then draws its report in the worker, ready for ~/save; may be set '
         'while the node runs (the next calibration draws the report)',
     )
+    rig_file: str = option(
+        '',
+        'str',
+        'a rig file (offline_calibrate --rig -o, or one this node wrote; made when missing): '
+        'each ~/calibrate adds this session (the buffers since the start or ~/reset) to its '
+        "recordings, and the latched extrinsic becomes the rig's T_HE when the session agrees "
+        'with the rig (empty: off); may be set while the node runs',
+    )
     calibrate_period: float = option(
         0.0,
         'float',
@@ -85,7 +93,7 @@ class NodeConfig(Options):
 
 #: Node parameters that may change while the node runs: the algorithm options and where
 #: ~/save writes. The others shape subscriptions and buffers and are read once.
-RUNTIME_NODE_KEYS = frozenset({'output_file', 'report_dir'})
+RUNTIME_NODE_KEYS = frozenset({'output_file', 'report_dir', 'rig_file'})
 RUNTIME_KEYS = frozenset(CalibrationConfig.specs()) | RUNTIME_NODE_KEYS
 
 #: Parameters earlier versions had, still in users' params files: ignored, with why.

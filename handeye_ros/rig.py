@@ -95,19 +95,12 @@ def summary_of(own: Own) -> Summary:
         return Summary(own.name, None, str(err), verdict)
 
 
-def shared_outputs(
-    own: Own, joint: Any, member: Any, take_rig: bool, folder: str | None, report: bool
-) -> dict:
-    """Round 2: the recording's result dictionary at the rig's T_HE ``joint`` when
+def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any]:
+    """The recording's result dictionary and result at the rig's T_HE ``joint`` when
     ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
-    otherwise), else its own; with the evaluation. Writes ``folder``/result.yaml and
-    ``folder``/export when ``folder`` is given."""
+    otherwise), else its own; without the evaluation."""
     from .core.shared import at_shared
-    from .evaluation.outputs import evaluate_and_write
-    from .formats.result_file import write_result
 
-    if own.document is None:
-        return {}
     doc, result = dict(own.document), own.result
     if take_rig:
         result = at_shared(result, joint, member)
@@ -121,8 +114,21 @@ def shared_outputs(
             )
         )
         doc['summary'] = result.summary()
-        doc['quality'] = result.quality.to_dict()
         doc['rig'] = {'own': _own_values(own.document), 'follower': member is None}
+    return doc, result
+
+
+def shared_outputs(
+    own: Own, joint: Any, member: Any, take_rig: bool, folder: str | None, report: bool
+) -> dict:
+    """Round 2: :func:`at_rig` with the evaluation; writes ``folder``/result.yaml and
+    ``folder``/export (and ``folder``/report with ``report``) when ``folder`` is given."""
+    from .evaluation.outputs import evaluate_and_write
+    from .formats.result_file import write_result
+
+    if own.document is None:
+        return {}
+    doc, result = at_rig(own, joint, member, take_rig)
     out = Path(folder) if folder else None
     evaluate_and_write(
         result,
@@ -176,9 +182,7 @@ def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[st
                 'own': {
                     'time_offset': m.values['time_offset'],
                     'time_offset_std': float(np.sqrt(m.covariance[0, 0])),
-                    'translation': [float(v) for v in m.p_HE],
-                    'rotation': [float(v) for v in m.q_HE],
-                    'covariance': [[float(v) for v in row] for row in m.extrinsic_covariance],
+                    **m.to_dict(),
                 },
                 'test': None
                 if test is None
@@ -281,7 +285,7 @@ def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tupl
         shared_outputs(own, rig.joint, *role(rig, run.name), _folder(output, run), report)
         for run, own in zip(runs, owns, strict=True)
     ]
-    return finish(rig, runs, docs, output), docs
+    return finish(rig, [r.name for r in runs], docs, output), docs
 
 
 def solve(summaries: list[Summary]) -> Any:
@@ -302,19 +306,20 @@ def role(rig: Any, name: str) -> tuple[Any, bool]:
     return None, rig.joint is not None and name in rig.followers
 
 
-def finish(rig: Any, runs: list, docs: list[dict], output: Path | None) -> dict:
-    """The rig document, once every recording's result at the rig's T_HE is known: a follower
-    whose motions the rig's T_HE does not explain is left out; written under ``output``."""
+def finish(rig: Any, names: list[str], docs: list[dict], output: Path | None) -> dict:
+    """The rig document, once every recording's result at the rig's T_HE is known (``docs``,
+    by ``names``): a follower whose motions the rig's T_HE does not explain is left out;
+    written under ``output``."""
     unfit = {}
-    for run, doc in zip(runs, docs, strict=True):
-        if run.name in rig.followers and doc:
+    for name, doc in zip(names, docs, strict=True):
+        if name in rig.followers and doc:
             said = [r['message'] for r in doc['quality']['reasons'] if r['code'] == 'inconsistent']
             if said:
-                unfit[run.name] = said[-1]
+                unfit[name] = said[-1]
     if unfit:
         rig = rig.leaving_out(unfit)
     document = rig_document(rig)
-    offsets = {run.name: doc.get('time_offset') for run, doc in zip(runs, docs, strict=True)}
+    offsets = {name: doc.get('time_offset') for name, doc in zip(names, docs, strict=True)}
     for rec in document['recordings']:
         if rec.get('follows'):
             rec['shared'] = {'values': {'time_offset': offsets[rec['name']]}, 'std': {}}
@@ -323,6 +328,73 @@ def finish(rig: Any, runs: list, docs: list[dict], output: Path | None) -> dict:
 
         write_result(output / RIG_FILE, document)
     return document
+
+
+def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
+    """The node's rig (its ``rig_file`` parameter): this session's own calibration ``own``
+    joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
+    the file is made when missing) and the rig is solved again. Returns the session's result
+    dictionary (without the evaluation) and result at the rig's T_HE (its own when it is left
+    out), with a ``rig`` section saying what the rig rests on; writes the file. Raises ConfigError when ``path``
+    holds something else than a rig file."""
+    from .core.errors import ConfigError
+    from .core.rig import Member
+
+    file = Path(path)
+    earlier: list[Summary] = []
+    if file.is_file():
+        import yaml
+
+        try:
+            data = yaml.safe_load(file.read_text())
+            recs = data['recordings']
+            earlier = [
+                Summary(r['name'], Member.from_dict(r['name'], r['own']), '', '')
+                for r in recs
+                if r.get('own') and r['name'] != session
+            ]
+        except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as err:
+            raise ConfigError(
+                f'rig_file {path}: not a rig file ({type(err).__name__}: {err}); give a file '
+                'that offline_calibrate --rig -o or this node wrote, or a new path'
+            ) from None
+    rig = solve([*earlier, summary_of(own)])
+    member, take = role(rig, session)
+    doc, result = at_rig(own, rig.joint, member, take)
+    names = [s.name for s in earlier] + [session]
+    docs = [{}] * len(earlier) + [doc]
+    document = finish(rig, names, docs, None)
+    tmp = file.with_name(f'.{file.name}.tmp')
+    from .formats.result_file import write_result
+
+    write_result(tmp, document)
+    tmp.replace(file)
+    r = document['rig']
+    part = (
+        'used' if session in r['used'] else 'follows' if session in r['followers'] else 'left out'
+    )
+    doc['summary'] = doc.get('summary') or result.summary()
+    doc['summary'] += {
+        'used': f'; T_HE of the rig of {len(r["used"])} recordings ({file.name})',
+        'follows': f'; T_HE of the rig of {len(r["used"])} recordings ({file.name}): this '
+        "session's motion cannot observe it alone",
+        'left out': f'; left out of the rig ({file.name}): '
+        + r['left_out'].get(session, 'no rig T_HE'),
+    }[part]
+    doc['rig'] = {
+        **doc.get('rig', {}),
+        'file': str(file.absolute()),
+        'session': session,
+        'part': 'used'
+        if session in r['used']
+        else 'follows'
+        if session in r['followers']
+        else 'left out',
+        'recordings': len(r['used']),
+        'verdict': r['quality']['verdict'],
+        'reasons': [x['message'] for x in r['quality']['reasons']],
+    }
+    return doc, result
 
 
 def _folder(output: Path | None, run: Any) -> str | None:

@@ -20,5 +20,7 @@ Algorithm 1), :mod:`.batch` (stage 3, eq. 14-16); :mod:`.checks` holds what real
 around them and the verdict. Beside them the foundations: poses and streams
 (:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options (:mod:`.options`,
 :mod:`.config`), the result (:mod:`.result`, :mod:`.world`, :mod:`.eye_model`) and the errors.
+Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and :mod:`.shared`
+(the rig's recipe, and a recording's result at the rig's T_HE).
 docs/method.md maps every equation to its function and lists the departures from the paper.
 """

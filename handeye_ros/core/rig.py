@@ -82,6 +82,39 @@ class Member:
             values,
         )
 
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data for a rig file; :meth:`from_dict` reads it back."""
+        return {
+            'translation': [float(v) for v in self.p_HE],
+            'rotation': [float(v) for v in self.q_HE],
+            'values': dict(self.values),
+            'covariance': {
+                'order': list(self.order),
+                'matrix': [[float(v) for v in row] for row in self.covariance],
+            },
+        }
+
+    @classmethod
+    def from_dict(cls, name: str, d: Mapping[str, Any]) -> Member:
+        """Of :meth:`to_dict`'s data; ValueError when it is not that."""
+        try:
+            C = np.asarray(d['covariance']['matrix'], dtype=float)
+            out = cls(
+                name,
+                np.asarray(d['rotation'], dtype=float).reshape(4),
+                np.asarray(d['translation'], dtype=float).reshape(3),
+                C,
+                tuple(d['covariance']['order']),
+                {str(k): float(v) for k, v in d['values'].items()},
+            )
+        except (KeyError, TypeError, ValueError) as err:
+            raise ValueError(
+                f'not a recording of a rig file ({type(err).__name__}: {err})'
+            ) from None
+        if C.shape != (len(out.order),) * 2 or 'time_offset' not in out.values:
+            raise ValueError('not a recording of a rig file (its covariance does not fit)')
+        return out
+
 
 @dataclass(frozen=True)
 class Joint:

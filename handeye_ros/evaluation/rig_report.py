@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.rig import difference
+from ..core.rig import EXTRINSIC, difference
 from .html import STYLE, VERDICT_COLOUR, _e
 from .plots import _figure, _save
 
@@ -45,7 +45,7 @@ def figure(doc: dict[str, Any], path: Path) -> str:
             continue
         d = difference(np.asarray(own['rotation']), np.asarray(own['translation']), q0, p0)
         d = d * scale
-        C = np.asarray(own['covariance']) * np.outer(scale, scale)
+        C = np.asarray(own['covariance']['matrix'])[EXTRINSIC, EXTRINSIC] * np.outer(scale, scale)
         colour = colours['used' if rec['used'] else 'out']
         for row, off in ((0, 0), (1, 3)):
             for col, (i, j) in enumerate(PLANES):

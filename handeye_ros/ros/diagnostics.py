@@ -107,9 +107,22 @@ def result_status(
             ('ape_rmse_m', r.metrics.ape_rmse_m),
             ('warnings', len(r.warnings)),
             ('latched_outputs', f'current: from the calibration of {when}'),
+            *_rig_values(session.document.get('rig')),
         )
     ]
     return st
+
+
+def _rig_values(rig: dict | None) -> list[tuple[str, object]]:
+    """What a session's rig (the node's rig_file) rests on, when it has one."""
+    if not rig or 'file' not in rig:
+        return []
+    return [
+        ('rig_file', rig['file']),
+        ('rig_part', rig['part']),
+        ('rig_recordings', rig['recordings']),
+        ('rig_verdict', rig['verdict']),
+    ]
 
 
 def _finite(x: float) -> float | None:

@@ -103,6 +103,8 @@ class CalibratorNode(Node):
         self._last_when = ''
         self._last_error: str | None = None
         self._reject_warned = dict.fromkeys(STREAMS, 0.0)
+        #: this session's name in a rig file (rig_file): the buffers since the start or ~/reset
+        self._session = _session_name()
         #: when each stream's last message came (monotonic s; 0: never), and its last pose
         #: that moved its clock (PoseBuffer.ticked): messages without a usable pose leave it
         self.last_seen = dict.fromkeys(STREAMS, 0.0)
@@ -231,7 +233,10 @@ class CalibratorNode(Node):
             stage = (
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
             )
-            job = self._pool.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage)
+            rig = (self.node_cfg.rig_file, self._session) if self.node_cfg.rig_file else None
+            job = self._pool.submit(
+                calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig
+            )
             self.get_logger().info(
                 f'calibrating {len(snapshot.hand)} MoCap and {len(snapshot.eye)} device poses'
                 + (' (auto_calibrate)' if auto else '')
@@ -269,7 +274,7 @@ class CalibratorNode(Node):
             future.set_result((False, f'internal error: {err!r}'))
         else:
             took = f'{time.perf_counter() - t0:.2f} s'
-            said = session.result.said()  # the verdict's reasons with what to do
+            said = session.result.said() + _rig_said(session.document)
             kept_back = self.status.admit(session, auto)
             if kept_back:
                 said = f'calibrated in {took}, not published ({kept_back}): {said}'
@@ -327,6 +332,7 @@ class CalibratorNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         self.recorder.reset()
+        self._session = _session_name()
         self.status.reset()
         response.success = True
         response.message = 'buffers cleared' + (
@@ -455,6 +461,28 @@ class CalibratorNode(Node):
         )
         arr.status.append(self.status.status())
         self.pub_diag.publish(arr)
+
+
+def _rig_said(document: dict) -> str:
+    """What a result's rig (rig_file) rests on, for the ~/calibrate answer and the log."""
+    rig = document.get('rig') or {}
+    if 'file' not in rig:
+        return ''
+    if rig['part'] == 'left out':
+        return f'; this session is left out of the rig ({rig["file"]}): its own T_HE is published'
+    return (
+        f'; T_HE of the rig of {rig["recordings"]} recording(s) in {rig["file"]} ({rig["part"]})'
+    )
+
+
+def _session_name() -> str:
+    """A session's name in a rig file: when its buffers started (local time, to the ms)."""
+    now = time.time()
+    return (
+        'session '
+        + time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(now))
+        + (f'.{int(now * 1000) % 1000:03d}')
+    )
 
 
 def _staged_dir(session: Calibrated | None) -> str | None:

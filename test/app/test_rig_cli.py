@@ -131,3 +131,55 @@ def test_evaluate_shared_extrinsic_on_dask_matches_the_sequential_run(rig, tmp_p
     assert seq[6]['status'] == 'failed' and 'RANSAC found no model' in seq[6]['reason']
     assert [r['time_offset_ms'] for r in seq] == [r['time_offset_ms'] for r in dask]
     assert [r['tx_m'] for r in seq[:4]] == [seq[0]['tx_m']] * 4
+
+
+def _own(name: str, seed: int, truth) -> object:
+    from handeye_ros.core.pipeline import calibrate
+    from handeye_ros.rig import Own
+
+    rec = recording(seed=seed, level=3.0, duration_s=40.0, truth=truth)
+    result = calibrate(rec.hand, rec.eye)
+    return Own(name, result.to_dict(), result)
+
+
+def test_the_nodes_rig_file_grows_by_session_and_names_a_moved_marker(tmp_path: Path) -> None:
+    """join_rig, the node's worker step with rig_file: the first session is a rig of one; a
+    second of the same marker joins it (the result at the rig's T_HE); calibrating a session
+    again replaces its entry; a session of another marker is left out and keeps its own T_HE;
+    a file that is no rig file is refused."""
+    from handeye_ros.core.errors import ConfigError
+    from handeye_ros.rig import join_rig
+
+    base = random_truth(np.random.default_rng(21))
+    same = [
+        replace(random_truth(np.random.default_rng([21, k])), q_HE=base.q_HE, p_HE=base.p_HE)
+        for k in range(2)
+    ]
+    path = tmp_path / 'rigs' / 'lab.yaml'
+    path.parent.mkdir()
+    first = _own('session 1', 501, same[0])
+    doc, result = join_rig(str(path), 'session 1', first)
+    assert doc['rig']['part'] == 'used' and doc['rig']['recordings'] == 1
+    assert doc['rig']['verdict'] == 'good'
+    np.testing.assert_allclose(result.p_HE, first.result.p_HE, atol=1e-12)
+
+    second = _own('session 2', 502, same[1])
+    for _ in range(2):  # the second call replaces the session's entry
+        doc, result = join_rig(str(path), 'session 2', second)
+        assert doc['rig']['part'] == 'used' and doc['rig']['recordings'] == 2
+    saved = yaml.safe_load(path.read_text())
+    assert [r['name'] for r in saved['recordings']] == ['session 1', 'session 2']
+    np.testing.assert_allclose(result.p_HE, saved['rig']['extrinsic']['translation'])
+    assert 'T_HE of the rig of 2 recordings (lab.yaml)' in doc['summary']
+
+    moved = replace(same[0], p_HE=base.p_HE + [0.05, 0.0, 0.0])
+    third = _own('session 3', 503, moved)
+    doc, result = join_rig(str(path), 'session 3', third)
+    assert doc['rig']['part'] == 'left out' and doc['rig']['verdict'] == 'doubtful'
+    np.testing.assert_allclose(result.p_HE, third.result.p_HE, atol=1e-12)
+    assert 'left out of the rig (lab.yaml)' in doc['summary']
+
+    bad = tmp_path / 'not_a_rig.yaml'
+    bad.write_text('time_offset: 0.1\n')
+    with pytest.raises(ConfigError, match='not a rig file'):
+        join_rig(str(bad), 'session 1', first)

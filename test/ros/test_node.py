@@ -394,6 +394,40 @@ def test_one_result_published_consistently(ros: Processes, install: Path, tmp_pa
     assert failed[2]['success'] and 'the latest calibration failed' in failed[2]['message']
 
 
+def test_rig_file_gathers_sessions(ros: Processes, install: Path, tmp_path: Path) -> None:
+    """With rig_file, each ~/calibrate adds the session (the buffers since ~/reset) to the rig
+    file: the second session of the same marker (the same truth, another motion) makes the
+    latched extrinsic the rig's of two recordings, and the diagnostics say so."""
+    rig = tmp_path / 'rig.yaml'
+    _start_node(ros, install, f'rig_file:={rig}')
+    ros.run_json(_publisher(ros, '--seed', '4', '--level', '3', '--rate', '1000'), 'first')
+    first = _call(ros, '/calibrator/calibrate', name='calibrate_first')[0]
+    assert first['success'] and 'T_HE of the rig of 1 recording(s)' in first['message'], first
+    reset = _call(ros, '/calibrator/reset', name='reset')[0]
+    assert reset['success'], reset
+    # the same seed draws the same truth first, then another motion for another duration
+    truth = ros.run_json(
+        _publisher(ros, '--seed', '4', '--level', '3', '--rate', '1000', '--duration', '30'),
+        'second',
+    )['truth']
+    second = _call(ros, '/calibrator/calibrate', name='calibrate_second')[0]
+    assert second['success'] and 'T_HE of the rig of 2 recording(s)' in second['message'], second
+    saved = yaml.safe_load(rig.read_text())
+    assert len(saved['recordings']) == 2 and len(saved['rig']['used']) == 2
+    latched = ros.run_json(ros.script('ros_client.py', 'latched'), 'latched')
+    t = latched['extrinsic']['translation']
+    np.testing.assert_allclose(t, saved['rig']['extrinsic']['translation'], atol=1e-9)
+    assert latched['diagnostics']['values']['rig_recordings'] == '2'
+    assert latched['diagnostics']['values']['rig_part'] == 'used'
+    _assert_near_truth(
+        truth,
+        {
+            'time_offset': latched['time_offset'],
+            'extrinsic': {'translation': t, 'rotation': latched['extrinsic']['rotation']},
+        },
+    )
+
+
 @pytest.mark.parametrize('how', ['ctrl-c', 'sigterm'])
 def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) -> None:
     """Ctrl-C (SIGINT to the process group, as a terminal sends it) and SIGTERM (to the node,

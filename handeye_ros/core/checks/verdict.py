@@ -73,7 +73,8 @@ groups                      doubtful   the recordings form groups that agree wit
                                        marker); the rig's T_HE is the largest group's,
                                        each group is reported
 no_agreement                failed     fewer than two recordings agree, or the largest
-                                       groups are as large as each other
+                                       groups are as large as each other (a rig of one
+                                       recording and nothing else is not said)
 ==========================  =========  =================================================
 
 Notes that do not lower the verdict (resets split, an epoch difference, a self-check that
@@ -544,7 +545,9 @@ def assess_rig(
         for name, why in why_not.items()
     ]
     main = groups[0] if groups else ()
-    if len(main) < 2 or sum(len(g) == len(main) for g in groups) > 1:
+    # one recording alone is a rig of one (the node's first session): nothing to disagree with
+    alone = len(names) == 1 and not why_not
+    if not alone and (len(main) < 2 or sum(len(g) == len(main) for g in groups) > 1):
         said = ' and '.join(
             '{' + ', '.join(names[k] for k in g) + '}' for g in groups if len(g) == len(main)
         )

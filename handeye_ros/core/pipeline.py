@@ -30,7 +30,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .association import associate
+from .association import PosePairs, associate
 from .batch.pieces import check_joint_size
 from .batch.stage import Refined, batch_stage
 from .checks.coverage import mocap_coverage
@@ -46,7 +46,7 @@ from .prepare import Inputs, prepare
 from .result import CalibrationResult, UsedStreams
 from .time.stage import Offset, absolute, align_stage
 from .trajectory import Trajectory
-from .world import align_worlds, evaluate
+from .world import Metrics, WorldAlignment, align_worlds, evaluate
 
 LOG = logging.getLogger(__name__)
 
@@ -130,16 +130,7 @@ def _finish(
             'the positions do not span a plane; the world alignment T_WG was '
             'taken from the orientations'
         )
-    m_rot, m_trans, m_len, n_mot = motion_consistency(
-        hand, eye, dt, q_HE, p_HE, np.deg2rad(cfg.eta)
-    )
-    metrics = replace(
-        evaluate(pairs, q_HE, p_HE, world),
-        motion_rotation_deg=m_rot,
-        motion_translation_m=m_trans,
-        motion_length_m=m_len,
-        n_motions=n_mot,
-    )
+    metrics = metrics_at(hand, eye, pairs, world, (dt, q_HE, p_HE), cfg.eta)
     seed_lin = seed_check(hand, eye, dt, linear.solution, refined.batch, cfg, run, pairs)
     assess(
         offset.alignment,
@@ -184,6 +175,29 @@ def _finish(
         used=UsedStreams(hand, eye, refined.model.own_clock_ns(eye.t_ns, offset.eye.t_ns), dt),
         coverage=covered,
         readiness=_readiness(offset, linear, eye, (dt, q_HE, p_HE), time_offset_s, cfg),
+    )
+
+
+def metrics_at(
+    hand: Trajectory,
+    eye: Trajectory,
+    pairs: PosePairs,
+    world: WorldAlignment,
+    solved: tuple[float, np.ndarray, np.ndarray],
+    eta_deg: float,
+) -> Metrics:
+    """APE/ARE of the eye at (dt, T_HE) ``solved`` with its world alignment, and AX = XB over
+    the eye's keyframe motions (eq. 6, keyframes at ``eta_deg``)."""
+    dt, q_HE, p_HE = solved
+    m_rot, m_trans, m_len, n_mot = motion_consistency(
+        hand, eye, dt, q_HE, p_HE, np.deg2rad(eta_deg)
+    )
+    return replace(
+        evaluate(pairs, q_HE, p_HE, world),
+        motion_rotation_deg=m_rot,
+        motion_translation_m=m_trans,
+        motion_length_m=m_len,
+        n_motions=n_mot,
     )
 
 

@@ -21,11 +21,11 @@ import numpy as np
 
 from .association import associate
 from .checks.consistency import Split, Test, split
-from .checks.selfcheck import motion_consistency
 from .checks.verdict import Quality, assess_rig, motion_inconsistency
+from .pipeline import metrics_at
 from .result import CalibrationResult
 from .rig import Conditioned, Joint, Member, conditioned, fuse, joint_covariance
-from .world import align_worlds, evaluate
+from .world import align_worlds
 
 
 @dataclass(frozen=True)
@@ -117,16 +117,7 @@ def at_shared(result: CalibrationResult, joint: Joint, member: Member | None) ->
     q, p = joint.q_HE, joint.p_HE
     pairs = associate(used.hand, used.eye, dt)
     world = align_worlds(pairs, q, p)
-    m_rot, m_trans, m_len, n_mot = motion_consistency(
-        used.hand, used.eye, dt, q, p, np.deg2rad(result.config.eta)
-    )
-    metrics = replace(
-        evaluate(pairs, q, p, world),
-        motion_rotation_deg=m_rot,
-        motion_translation_m=m_trans,
-        motion_length_m=m_len,
-        n_motions=n_mot,
-    )
+    metrics = metrics_at(used.hand, used.eye, pairs, world, (dt, q, p), result.config.eta)
     batch = result.batch
     if member is not None and batch is not None:
         cov = joint_covariance(member, joint)

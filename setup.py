@@ -49,10 +49,10 @@ setup(
     entry_points={
         'console_scripts': [
             'calibrator = handeye_ros.ros.calibrator:main',
-            'offline_calibrate = handeye_ros.offline:main',
+            'offline_calibrate = handeye_ros.app.offline:main',
             'sim_publisher = handeye_ros.ros.sim_publisher:main',
-            'demo = handeye_ros.demo:main',
-            'evaluate = handeye_ros.evaluate:main',
+            'demo = handeye_ros.app.demo:main',
+            'evaluate = handeye_ros.app.evaluate:main',
             'publish_calibration = handeye_ros.ros.publish_calibration:main',
         ],
     },

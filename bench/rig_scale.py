@@ -32,7 +32,7 @@ from handeye_ros.formats import write_tum
 
 #: Runs evaluate's main and prints the calling process's own peak RSS (kB) at its end.
 WRAPPER = (
-    'import resource, sys; from handeye_ros.evaluate import main; code = main(sys.argv[1:]); '
+    'import resource, sys; from handeye_ros.app.evaluate import main; code = main(sys.argv[1:]); '
     'print("PEAK_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(code)'
 )
 

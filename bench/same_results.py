@@ -1,7 +1,7 @@
 """Same results before and after a refactor (issue 14): record every number a calibration
 returns on a fixed set of cases, then compare another commit's numbers with them to 1e-9.
 
-Cases: the built-in example (handeye_ros.demo's recording), the simulator at noise levels 0, 5
+Cases: the built-in example (handeye_ros.app.demo's recording), the simulator at noise levels 0, 5
 and 10 with the default configuration and with each stage switch that takes another code path
 (linear only, the joint batch solve, clock drift, scale, the paper's dual-quaternion solution,
 no RANSAC), and the semi-synthetic real pairs of bench/realdata.py (skipped without the data).
@@ -47,7 +47,7 @@ VARIANTS = {
     'paper_dq': {'decoupled_refit': False, 'adaptive_inliers': False, 'batch': False},
     'no_ransac': {'ransac_iterations': 0, 'batch': False},
 }
-DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/demo.py's defaults
+DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/app/demo.py's defaults
 
 
 def cases():

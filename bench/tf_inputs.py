@@ -156,7 +156,7 @@ def run(bag: Path, args: tuple[str, ...]) -> tuple[int, dict | None, str, float]
 
 def replay_rate(bag: Path, args: tuple[str, ...]) -> float:
     """Messages per second of the replay alone (in this process, best of 3)."""
-    from handeye_ros.replay import replay
+    from handeye_ros.app.replay import replay
     from handeye_ros.stream import StreamConfig
 
     cfg = StreamConfig(

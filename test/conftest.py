@@ -83,7 +83,7 @@ def run_main(*args: str) -> CliResult:
     import io
     import logging
 
-    from handeye_ros import offline
+    from handeye_ros.app import offline
 
     out, err = io.StringIO(), io.StringIO()
     root = logging.getLogger()

@@ -28,7 +28,7 @@ def test_core_and_offline_tool_do_not_import_rclpy() -> None:
     # nor evo: it is GPLv3 and a test-only dependency
     code = (
         'import sys, handeye_ros.core.pipeline, handeye_ros.core.simulate, '
-        'handeye_ros.offline, handeye_ros.formats, handeye_ros.evaluation.outputs, '
+        'handeye_ros.app.offline, handeye_ros.formats, handeye_ros.evaluation.outputs, '
         'handeye_ros.evaluation.plots, handeye_ros.evaluation.html; '
         'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags", '
         '"evo")))'
@@ -37,9 +37,16 @@ def test_core_and_offline_tool_do_not_import_rclpy() -> None:
 
 
 #: One folder, one layer, lowest first: a module imports from its own layer or a lower one.
-#: The package's own top-level modules (offline, replay, params, report, runs, demo, evaluate)
-#: are the application layer, between the libraries and the ROS front end.
-LAYERS = ('core', 'stream', 'formats', 'evaluation', '<top level>', 'ros')
+#: The application (app/: the command-line tools and what they share) sits between the
+#: libraries and the ROS front end; the top level holds only the ``python -m`` entry points.
+LAYERS = ('core', 'stream', 'formats', 'evaluation', 'app', '<top level>', 'ros')
+#: The top level's modules: the package's lazy API and the two ``python -m`` entry points the
+#: docs name (their code is in app/).
+TOP_LEVEL = {'__init__.py', 'offline.py', 'evaluate.py'}
+
+
+def test_the_top_level_holds_only_the_entry_points() -> None:
+    assert {p.name for p in (ROOT / 'handeye_ros').glob('*.py')} == TOP_LEVEL
 
 
 def _layer(module: str) -> int:
@@ -179,7 +186,7 @@ def test_every_pin_lives_in_requirements_txt() -> None:
 
 @pytest.mark.slow
 def test_demo_runs() -> None:
-    res = run_cli('--duration', '30', module='handeye_ros.demo')
+    res = run_cli('--duration', '30', module='handeye_ros.app.demo')
     assert res.returncode == 0, res.stderr
     assert 'result beside the truth' in res.stdout
 

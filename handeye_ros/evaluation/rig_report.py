@@ -1,4 +1,4 @@
-"""rig.html: a rig's page (:mod:`handeye_ros.rig`), one file that opens offline.
+"""rig.html: a rig's page (:mod:`handeye_ros.app.rig`), one file that opens offline.
 
 Its figure shows every recording's own T_HE around the rig's, as differences from it (own [-]
 rig: translation [mm] in the hand frame, rotation [deg] on the right), in three planes each,

@@ -1,7 +1,7 @@
 """ROS bags (ROS 2 sqlite3 and mcap, ROS 1) read and written with rosbags.
 
 Reading lists a bag's topics and yields its messages in the order they were recorded (the
-replay through the node's Recorder is :mod:`handeye_ros.replay`, above this layer and the
+replay through the node's Recorder is :mod:`handeye_ros.app.replay`, above this layer and the
 stream layer). Writing covers simulated recordings (for the demo and the tests) and the result
 (``/tf_static`` as tf2_msgs/TFMessage, latched).
 """

@@ -42,7 +42,7 @@ def main(args: list[str] | None = None) -> int:
     argv = sys.argv[1:] if args is None else list(args)
     ours = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
     if '-h' in ours or '--help' in ours:
-        from ..node_config import usage
+        from ..app.params_file import usage
 
         print(usage())
         return 0

@@ -8,10 +8,10 @@ import math
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from ..app import Calibrated
 from ..core.checks.verdict import Verdict
 from ..formats import messages
 from ..stream.buffer import BufferStats
+from .jobs import Calibrated
 
 
 def stream_status(

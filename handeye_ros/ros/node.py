@@ -57,13 +57,13 @@ from rclpy.qos import (
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from ..app import Calibrated, calibrate_buffers
 from ..core.errors import ConfigError, HandeyeError, InputError
 from ..formats import messages
 from ..formats.result_file import write_result
 from ..stream import STREAMS, Recorder
 from ..stream.convert import TF_TYPE
 from . import diagnostics, parameters, worker
+from .jobs import Calibrated, calibrate_buffers
 from .status import ReadinessStatus
 from .subscriptions import Subscriptions
 from .types import RclpyTypes

@@ -23,10 +23,10 @@ from rclpy.exceptions import (
 )
 from rclpy.node import Node
 
+from ..app.params_file import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError
 from ..core.options import Spec, split_options
-from ..node_config import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..stream import StreamConfig
 
 #: Parameters rclpy declares on every node.

@@ -32,11 +32,11 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from ..app import Calibrated, readiness_of_buffers
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
+from .jobs import Calibrated, readiness_of_buffers
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5

@@ -17,7 +17,7 @@ import signal
 #: What a calibration in the worker imports (the application, the evaluation, the snapshot's
 #: class and the core with scipy.optimize): imported when the worker starts, not on the first call.
 MODULES = (
-    'handeye_ros.app',
+    'handeye_ros.ros.jobs',
     'handeye_ros.evaluation.outputs',
     'handeye_ros.stream.recorder',
     'handeye_ros.core.pipeline',

@@ -17,8 +17,8 @@ import pytest
 import yaml
 from conftest import ROOT, recording, run_cli
 
+from handeye_ros.app.evaluate import EXIT_UNUSABLE
 from handeye_ros.core.trajectory import Trajectory
-from handeye_ros.evaluate import EXIT_UNUSABLE
 from handeye_ros.formats import write_tum
 
 pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each

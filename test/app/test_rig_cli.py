@@ -134,8 +134,8 @@ def test_evaluate_shared_extrinsic_on_dask_matches_the_sequential_run(rig, tmp_p
 
 
 def _own(name: str, seed: int, truth) -> object:
+    from handeye_ros.app.rig import Own
     from handeye_ros.core.pipeline import calibrate
-    from handeye_ros.rig import Own
 
     rec = recording(seed=seed, level=3.0, duration_s=40.0, truth=truth)
     result = calibrate(rec.hand, rec.eye)
@@ -147,8 +147,8 @@ def test_the_nodes_rig_file_grows_by_session_and_names_a_moved_marker(tmp_path: 
     second of the same marker joins it (the result at the rig's T_HE); calibrating a session
     again replaces its entry; a session of another marker is left out and keeps its own T_HE;
     a file that is no rig file is refused."""
+    from handeye_ros.app.rig import join_rig
     from handeye_ros.core.errors import ConfigError
-    from handeye_ros.rig import join_rig
 
     base = random_truth(np.random.default_rng(21))
     same = [

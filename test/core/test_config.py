@@ -8,9 +8,9 @@ import pytest
 import yaml
 from conftest import ROOT
 
+from handeye_ros.app.params_file import NodeConfig, params_yaml
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.node_config import NodeConfig, params_yaml
 from handeye_ros.stream.config import StreamConfig
 
 
@@ -29,7 +29,7 @@ def test_option_choices_are_the_owners_names() -> None:
 
 def test_shipped_params_file_matches_the_defaults() -> None:
     """config/calibrator.yaml documents every parameter at its default, and nothing unknown;
-    it is the generated text (regenerate with handeye_ros.node_config.params_yaml())."""
+    it is the generated text (regenerate with handeye_ros.app.params_file.params_yaml())."""
     text = (ROOT / 'config' / 'calibrator.yaml').read_text()
     assert text == params_yaml(), 'regenerate config/calibrator.yaml from params_yaml()'
     params = yaml.safe_load(text)

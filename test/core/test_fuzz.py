@@ -20,13 +20,13 @@ from conftest import recording
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from handeye_ros.app.offline import main as offline_main
 from handeye_ros.core.checks.verdict import Quality
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory, write_tum
-from handeye_ros.offline import main as offline_main
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from handeye_ros.node_config import PARAMS_SECTION
+from handeye_ros.app.params_file import PARAMS_SECTION
 from handeye_ros.ros.parameters import section_applies
 
 

@@ -7,7 +7,7 @@ options (the algorithm's and the streams', merged from a config file, a manifest
 command line by the caller) and what to write besides the result (evo exports, the report, a
 bag of the node's outputs). :func:`run` reads, calibrates, evaluates and writes, and returns
 the result's dictionary and the result. The node's worker calls it through
-:func:`calibrate_buffers`.
+:func:`handeye_ros.ros.jobs.calibrate_buffers`.
 """
 
 from __future__ import annotations
@@ -58,39 +58,14 @@ class Request:
     outputs_required: bool = True
 
 
-@dataclass(frozen=True)
-class Calibrated:
-    """A calibration as the node keeps it between ``~/calibrate`` and ``~/save``: the result
-    dictionary as ``~/save`` writes it, the result without its poses
-    (:meth:`~handeye_ros.core.result.CalibrationResult.detached`: an hour of MoCap is too large
-    to send back from the worker) and its frame names (see StreamConfig.frames)."""
-
-    document: dict[str, Any]
-    result: Any
-    frames: dict[str, str]
-    #: 'eye' and 'ground_truth' (the hand in the eye's world and clock, T_WG T_GH(t - dt)
-    #: T_HE), each (stamps int64 ns on the eye clock, p (N, 3), q (N, 4) x y z w), at most
-    #: MAX_PATH_POSES poses, in the eye's world frame; empty without an evaluation
-    paths: dict[str, tuple[Any, Any, Any]] = field(default_factory=dict)
-
-    @property
-    def summary(self) -> str:
-        return self.document['summary']
-
-    @property
-    def report(self) -> str | None:
-        """The report page drawn with the calibration, or None."""
-        return self.document.get('files', {}).get('report')
-
-
 def run(req: Request) -> tuple[dict[str, Any], Any]:
     """Read, calibrate, evaluate, export and report; the result dictionary (with its
     ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
-    from .core.config import CalibrationConfig
-    from .core.errors import ConfigError
-    from .core.options import split_options
-    from .core.pipeline import STEPS
-    from .stream.config import StreamConfig
+    from ..core.config import CalibrationConfig
+    from ..core.errors import ConfigError
+    from ..core.options import split_options
+    from ..core.pipeline import STEPS
+    from ..stream.config import StreamConfig
 
     files = req.hand or req.eye
     sources = sum((bool(req.bag), bool(files), req.snapshot is not None))
@@ -121,83 +96,16 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
         out = snap.describe(result)
         if req.bag:
             out['inputs']['bag'] = str(req.bag)
-    result = _write_outputs(req, result, out, frames)
+    result = write_outputs(req, result, out, frames)
     return out, result
-
-
-def calibrate_buffers(
-    snapshot: Any,
-    options: dict[str, Any],
-    report_dir: str | None = None,
-    rig: tuple[str, str] | None = None,
-) -> Calibrated:
-    """The node's worker job: :func:`run` on a snapshot of the buffers, with the evaluation,
-    and with ``report_dir`` the report drawn there, ready for ``~/save`` to copy. With ``rig``
-    (the rig file, this session's name) the session joins the rig file
-    (:func:`handeye_ros.rig.join_rig`) and the result is at the rig's T_HE."""
-    req = Request(
-        snapshot=snapshot,
-        options=options,
-        report=report_dir,
-        progress=False,
-        source='parameters',
-        outputs_required=False,
-    )
-    if rig is None:
-        out, result = run(req)
-    else:
-        from dataclasses import replace
-
-        from .rig import Own, join_rig
-
-        out, result = run(replace(req, evaluation=False, report=None))
-        out, result = join_rig(*rig, Own(rig[1], out, result))
-        result = _write_outputs(req, result, out, snapshot.frames)
-    return Calibrated(out, result.detached(), snapshot.frames, _paths(result))
-
-
-#: The node's paths hold at most this many poses (RViz draws a few thousand at ease).
-MAX_PATH_POSES = 2000
-
-
-def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
-    """The eye's path and the calibrated ground truth's (see :class:`Calibrated`)."""
-    from .core.geometry import quat_from_matrix
-    from .evaluation.aligned import calibrated
-
-    try:
-        al = calibrated(result)
-    except ValueError:
-        return {}
-    k = slice(None, None, max(1, -(-len(al) // MAX_PATH_POSES)))
-    return {
-        'eye': (al.t_ns[k], al.p_est[k], quat_from_matrix(al.R_est[k])),
-        'ground_truth': (al.t_ns[k], al.p_ref[k], quat_from_matrix(al.R_ref[k])),
-    }
-
-
-def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> tuple[dict[str, Any], float]:
-    """The node's status job: what a snapshot of the buffers supports
-    (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
-    section writes it, and the CPU time the job took in its process (all threads) [s]."""
-    import time
-
-    t0 = time.process_time()
-    from .core.checks.readiness import readiness
-    from .core.config import CalibrationConfig
-    from .core.options import split_options
-    from .stream.config import StreamConfig
-
-    calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
-    return readiness(snapshot.hand, snapshot.eye, calib).to_dict(), time.process_time() - t0
 
 
 def _calibrate_files(req: Request, calib: Any) -> Any:
     """Read the two trajectory files and calibrate them."""
     import logging
 
-    from .core.pipeline import STEPS, calibrate
-    from .formats import read_trajectory
+    from ..core.pipeline import STEPS, calibrate
+    from ..formats import read_trajectory
 
     with _progress_bar(req.progress, len(STEPS) + 2) as step:
         step(f'reading {Path(req.hand).name}')
@@ -220,12 +128,12 @@ def _calibrate_files(req: Request, calib: Any) -> Any:
         return calibrate(hand, eye, calib, progress=step)
 
 
-def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> Any:
+def write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> Any:
     """The evaluation (into ``out``), the exports, the report and the output bag; returns the
     result, with a warning when a failed evaluation or report is not to stop the run."""
     from dataclasses import replace
 
-    from .evaluation.outputs import evaluate_and_write
+    from ..evaluation.outputs import evaluate_and_write
 
     try:
         if req.evaluation or req.export or req.report:
@@ -244,8 +152,8 @@ def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict)
         out['warnings'].append(note)
         result = replace(result, warnings=(*result.warnings, note))
     if req.output_bag:
-        from .formats.bag import write_result_bag
-        from .formats.messages import Published
+        from ..formats.bag import write_result_bag
+        from ..formats.messages import Published
 
         write_result_bag(
             req.output_bag,
@@ -258,8 +166,8 @@ def _write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict)
 
 def _check_outputs(req: Request) -> None:
     """Refuse absurd RPE steps and unwritable output directories before the calibration."""
-    from .core.errors import ConfigError
-    from .evaluation.outputs import check_directory
+    from ..core.errors import ConfigError
+    from ..evaluation.outputs import check_directory
 
     for name, value in (('--rpe-delta', req.rpe_delta), ('--rpe-distance', req.rpe_distance)):
         if not (math.isfinite(value) and value > 0):
@@ -278,8 +186,8 @@ def load_options(path: str | None) -> dict[str, Any]:
         return {}
     import yaml
 
-    from .core.errors import ConfigError
-    from .node_config import NODE_ONLY_KEYS
+    from ..core.errors import ConfigError
+    from .params_file import NODE_ONLY_KEYS
 
     try:
         data = yaml.safe_load(Path(path).read_text(encoding='utf-8')) or {}

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .core.config import CalibrationConfig
-from .core.options import Options, Spec, option
-from .stream.config import StreamConfig
+from ..core.config import CalibrationConfig
+from ..core.options import Options, Spec, option
+from ..stream.config import StreamConfig
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,7 @@ PARAMS_HEADER = """\
 #   ros2 launch handeye_ros calibrator.launch.py params_file:=my_calibrator.yaml
 # The section /**/calibrator applies to the node in any namespace. offline_calibrate --config
 # reads the same file and ignores the node-only block. Units: s, m, deg, Hz, rad. (The shipped
-# file is made from the option specs by handeye_ros.node_config.params_yaml().)
+# file is made from the option specs by handeye_ros.app.params_file.params_yaml().)
 """
 #: The params file's section: the calibrator in any namespace. (Not /**: a -p value of another
 #: type than the file's is then silently dropped by rcl, the file's kept.)

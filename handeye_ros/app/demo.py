@@ -19,15 +19,15 @@ from typing import Any
 
 import numpy as np
 
+from ..core.simulate import calibration_error, noise_level, simulate
+from ..formats import write_tum
+from ..formats.bag import write_recording
 from . import offline
-from .core.simulate import calibration_error, noise_level, simulate
-from .formats import write_tum
-from .formats.bag import write_recording
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the example; returns the exit code."""
-    p = argparse.ArgumentParser(prog='handeye_ros.demo', description=__doc__.split('\n')[0])
+    p = argparse.ArgumentParser(prog='handeye_ros.app.demo', description=__doc__.split('\n')[0])
     p.add_argument('--seed', type=int, default=7, help='simulation seed')
     p.add_argument(
         '--level',

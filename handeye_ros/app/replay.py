@@ -12,17 +12,17 @@ import sys
 from dataclasses import replace as _replace
 from pathlib import Path
 
-from .core.errors import ConfigError, InputError
-from .formats.bag import BagReader, Topic
-from .stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
-from .stream.convert import (
+from ..core.errors import ConfigError, InputError
+from ..formats.bag import BagReader, Topic
+from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, StreamConfig
+from ..stream.convert import (
     MULTI_POSE_TYPES,
     RIGID_BODIES_TYPES,
     TF_TYPE,
     UnsupportedTypeError,
     normalise_type,
 )
-from .stream.sources import parse_selector
+from ..stream.sources import parse_selector
 
 #: Words that mark a topic as MoCap (hand) or VO/VIO (eye) when the topics are not given.
 HAND_WORDS = (

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .core.errors import ConfigError
+from ..core.errors import ConfigError
 
 #: Keys of a manifest run that are not calibration options.
 RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options', 'report')
@@ -226,10 +226,10 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
 
     Never raises for bad input: the row says ``status: failed`` and why.
     """
-    from .app import Request
-    from .app import run as run_request
-    from .core.errors import HandeyeError
-    from .formats.result_file import write_result
+    from ..core.errors import HandeyeError
+    from ..formats.result_file import write_result
+    from .request import Request
+    from .request import run as run_request
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {

@@ -52,9 +52,9 @@ class Summary:
 def own_calibration(run: Any) -> Own:
     """Round 1: ``run`` (a :class:`~handeye_ros.runs.RunSpec`) calibrated alone, no outputs.
     Never raises for bad input: the reason says why it gave nothing."""
-    from .app import Request
-    from .app import run as run_request
-    from .core.errors import ConfigError, HandeyeError
+    from ..core.errors import ConfigError, HandeyeError
+    from .request import Request
+    from .request import run as run_request
 
     request = Request(
         hand=None if run.bag else run.hand or '',
@@ -79,7 +79,7 @@ def own_calibration(run: Any) -> Own:
 
 def summary_of(own: Own) -> Summary:
     """The member of a recording's own calibration (a failed verdict gives none)."""
-    from .core.rig import Member
+    from ..core.rig import Member
 
     if own.document is None:
         return Summary(own.name, None, own.reason, '')
@@ -99,7 +99,7 @@ def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any
     """The recording's result dictionary and result at the rig's T_HE ``joint`` when
     ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
     otherwise), else its own; without the evaluation."""
-    from .core.shared import at_shared
+    from ..core.shared import at_shared
 
     doc, result = dict(own.document), own.result
     if take_rig:
@@ -123,8 +123,8 @@ def shared_outputs(
 ) -> dict:
     """Round 2: :func:`at_rig` with the evaluation; writes ``folder``/result.yaml and
     ``folder``/export (and ``folder``/report with ``report``) when ``folder`` is given."""
-    from .evaluation.outputs import evaluate_and_write
-    from .formats.result_file import write_result
+    from ..evaluation.outputs import evaluate_and_write
+    from ..formats.result_file import write_result
 
     if own.document is None:
         return {}
@@ -157,8 +157,8 @@ def _own_values(d: dict[str, Any]) -> dict[str, Any]:
 def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[str, Any]:
     """The rig's result file (:data:`RIG_FILE`): its T_HE with covariance, its verdict, its
     groups and every recording's own and conditioned values."""
-    from .core.geometry import matrix_from_quat
-    from .core.result import transform_dict
+    from ..core.geometry import matrix_from_quat
+    from ..core.result import transform_dict
 
     def extrinsic(j: Any) -> dict[str, Any]:
         return {
@@ -290,7 +290,7 @@ def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tupl
 
 def solve(summaries: list[Summary]) -> Any:
     """:func:`~handeye_ros.core.shared.solve_rig` on the recordings' summaries."""
-    from .core.shared import solve_rig
+    from ..core.shared import solve_rig
 
     members = [s.member for s in summaries if s.member is not None]
     followers = tuple(s.name for s in summaries if s.follower)
@@ -324,7 +324,7 @@ def finish(rig: Any, names: list[str], docs: list[dict], output: Path | None) ->
         if rec.get('follows'):
             rec['shared'] = {'values': {'time_offset': offsets[rec['name']]}, 'std': {}}
     if output:
-        from .formats.result_file import write_result
+        from ..formats.result_file import write_result
 
         write_result(output / RIG_FILE, document)
     return document
@@ -337,8 +337,8 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     dictionary (without the evaluation) and result at the rig's T_HE (its own when it is left
     out), with a ``rig`` section saying what the rig rests on; writes the file. Raises ConfigError when ``path``
     holds something else than a rig file."""
-    from .core.errors import ConfigError
-    from .core.rig import Member
+    from ..core.errors import ConfigError
+    from ..core.rig import Member
 
     file = Path(path)
     earlier: list[Summary] = []
@@ -365,7 +365,7 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     docs = [{}] * len(earlier) + [doc]
     document = finish(rig, names, docs, None)
     tmp = file.with_name(f'.{file.name}.tmp')
-    from .formats.result_file import write_result
+    from ..formats.result_file import write_result
 
     write_result(tmp, document)
     tmp.replace(file)

@@ -1,0 +1,14 @@
+"""The application: what the command-line tools and the node's worker share, above the core.
+
+- :mod:`.request`: a :class:`~.request.Request` (two files, a bag, or the node's buffers) and
+  :func:`~.request.run`, the one function under every front end; the options file.
+- :mod:`.offline`: ``offline_calibrate`` (argparse -> Request); :mod:`.demo` its built-in
+  example.
+- :mod:`.replay`: a bag replayed through the node's own conversion and buffers.
+- :mod:`.runs` and :mod:`.evaluate`: many recordings (a manifest, one run each, the table) on
+  Dask.
+- :mod:`.rig`: one rig over many recordings (``--rig``, ``--shared-extrinsic``, the node's
+  ``rig_file``).
+- :mod:`.params_file`: the node's own options and the params file, which the offline tool reads
+  too (hence here, below :mod:`handeye_ros.ros`).
+"""

@@ -1,0 +1,105 @@
+"""The calibrator's worker jobs (run in :mod:`.worker`'s processes, so no rclpy here): a
+calibration of a snapshot of the buffers, with its outputs, and the readiness status of one.
+
+Both call the application (:mod:`handeye_ros.app.request`) as the offline tool does; what comes
+back to the node is small: the result without its poses and the paths drawn in RViz.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..app.request import Request, run, write_outputs
+
+
+@dataclass(frozen=True)
+class Calibrated:
+    """A calibration as the node keeps it between ``~/calibrate`` and ``~/save``: the result
+    dictionary as ``~/save`` writes it, the result without its poses
+    (:meth:`~handeye_ros.core.result.CalibrationResult.detached`: an hour of MoCap is too large
+    to send back from the worker) and its frame names (see StreamConfig.frames)."""
+
+    document: dict[str, Any]
+    result: Any
+    frames: dict[str, str]
+    #: 'eye' and 'ground_truth' (the hand in the eye's world and clock, T_WG T_GH(t - dt)
+    #: T_HE), each (stamps int64 ns on the eye clock, p (N, 3), q (N, 4) x y z w), at most
+    #: MAX_PATH_POSES poses, in the eye's world frame; empty without an evaluation
+    paths: dict[str, tuple[Any, Any, Any]] = field(default_factory=dict)
+
+    @property
+    def summary(self) -> str:
+        return self.document['summary']
+
+    @property
+    def report(self) -> str | None:
+        """The report page drawn with the calibration, or None."""
+        return self.document.get('files', {}).get('report')
+
+
+def calibrate_buffers(
+    snapshot: Any,
+    options: dict[str, Any],
+    report_dir: str | None = None,
+    rig: tuple[str, str] | None = None,
+) -> Calibrated:
+    """The node's worker job: :func:`run` on a snapshot of the buffers, with the evaluation,
+    and with ``report_dir`` the report drawn there, ready for ``~/save`` to copy. With ``rig``
+    (the rig file, this session's name) the session joins the rig file
+    (:func:`handeye_ros.app.rig.join_rig`) and the result is at the rig's T_HE."""
+    req = Request(
+        snapshot=snapshot,
+        options=options,
+        report=report_dir,
+        progress=False,
+        source='parameters',
+        outputs_required=False,
+    )
+    if rig is None:
+        out, result = run(req)
+    else:
+        from dataclasses import replace
+
+        from ..app.rig import Own, join_rig
+
+        out, result = run(replace(req, evaluation=False, report=None))
+        out, result = join_rig(*rig, Own(rig[1], out, result))
+        result = write_outputs(req, result, out, snapshot.frames)
+    return Calibrated(out, result.detached(), snapshot.frames, _paths(result))
+
+
+#: The node's paths hold at most this many poses (RViz draws a few thousand at ease).
+MAX_PATH_POSES = 2000
+
+
+def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
+    """The eye's path and the calibrated ground truth's (see :class:`Calibrated`)."""
+    from ..core.geometry import quat_from_matrix
+    from ..evaluation.aligned import calibrated
+
+    try:
+        al = calibrated(result)
+    except ValueError:
+        return {}
+    k = slice(None, None, max(1, -(-len(al) // MAX_PATH_POSES)))
+    return {
+        'eye': (al.t_ns[k], al.p_est[k], quat_from_matrix(al.R_est[k])),
+        'ground_truth': (al.t_ns[k], al.p_ref[k], quat_from_matrix(al.R_ref[k])),
+    }
+
+
+def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> tuple[dict[str, Any], float]:
+    """The node's status job: what a snapshot of the buffers supports
+    (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
+    section writes it, and the CPU time the job took in its process (all threads) [s]."""
+    import time
+
+    t0 = time.process_time()
+    from ..core.checks.readiness import readiness
+    from ..core.config import CalibrationConfig
+    from ..core.options import split_options
+    from ..stream.config import StreamConfig
+
+    calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
+    return readiness(snapshot.hand, snapshot.eye, calib).to_dict(), time.process_time() - t0

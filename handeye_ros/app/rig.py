@@ -335,8 +335,8 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
     the file is made when missing) and the rig is solved again. Returns the session's result
     dictionary (without the evaluation) and result at the rig's T_HE (its own when it is left
-    out), with a ``rig`` section saying what the rig rests on; writes the file. Raises ConfigError when ``path``
-    holds something else than a rig file."""
+    out), with a ``rig`` section saying what the rig rests on; writes the file. Raises
+    ConfigError when ``path`` holds something else than a rig file."""
     from ..core.errors import ConfigError
     from ..core.rig import Member
 

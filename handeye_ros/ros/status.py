@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
+from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
@@ -299,11 +300,7 @@ class ReadinessStatus:
         if self.auto == 'off' or not batch:
             self._over_long_run = dict((batch or {}).get('over_long_run') or {})
             return ''
-        sigmas = (
-            float(batch['time_offset']),
-            float(np.linalg.norm(batch['translation'])),
-            float(np.degrees(np.linalg.norm(batch['rotation']))),
-        )  # s, m, deg: the targets' units
+        sigmas = sigmas_of(np.r_[batch['time_offset'], batch['translation'], batch['rotation']])
         targets = self._node.calib_cfg.precision
         published = self._sigmas
         admitted, converged = judge(sigmas, published, auto, targets)
@@ -336,7 +333,7 @@ def _sigmas_text(sigmas: tuple[float, ...]) -> str:
 
 def _largest(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> str:
     """The sigma that sets the precision ratio, e.g. 'translation 6.7 mm of 10 mm'."""
-    k = int(np.argmax([s / t for s, t in zip(sigmas, targets, strict=True)]))
+    k = int(np.argmax(precision_ratios(sigmas, targets)))
     name, scale, unit = _SAID[k]
     return f'{name} {sigmas[k] * scale:.2g} {unit} of {targets[k] * scale:.2g} {unit}'
 
@@ -379,12 +376,6 @@ def richer(predicted_then: float, predicted_now: float) -> bool:
     predicted at auto mode's last calibration (:data:`RECALIBRATE`): richer motion."""
     then, now = predicted_then, predicted_now
     return bool(math.isfinite(then) and then - now > RECALIBRATE * max(then, 1.0))
-
-
-def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> float:
-    """The largest 1-sigma over its target (dt s, translation m, rotation deg): below 1, the
-    result is precise enough for the verdict."""
-    return max(s / t for s, t in zip(sigmas, targets, strict=True))
 
 
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:

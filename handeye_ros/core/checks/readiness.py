@@ -38,7 +38,7 @@ from ..geometry import (
 from ..linear.stage import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
 from ..trajectory import Trajectory
-from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION
+from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION, precision_ratio, precision_ratios
 
 #: The device's axes, as the advice names them.
 AXES = ('x', 'y', 'z')
@@ -185,7 +185,7 @@ def readiness(
         blocks.append(
             'the motion repeats itself, so the time offset is ambiguous: vary the motion'
         )
-    ok = all(np.isfinite(s) and s <= t for s, t in zip(sigma, target, strict=True))
+    ok = precision_ratio(sigma, target) <= 1.0
     return Readiness(
         ok and not blocks,
         sigma,
@@ -385,14 +385,12 @@ def _advice(
 ) -> list[str]:
     """What narrows each sigma that is over its target, in the device's axes."""
     out = []
-    for cov, over in (
-        (cov_p, sigma[1] > cfg.precision_translation),
-        (cov_r, sigma[2] > cfg.precision_rotation),
-    ):
+    ratio = precision_ratios(sigma, cfg.precision)
+    for cov, over in ((cov_p, ratio[1] > 1.0), (cov_r, ratio[2] > 1.0)):
         said = _turn_advice(cov, sigma[1]) if over else None
         if said and said not in out:
             out.append(said)
-    if sigma[0] > cfg.precision_time_offset:
+    if ratio[0] > 1.0:
         fast = f' (now {speed_dps:.0f} deg/s)' if speed_dps < SLOW_DPS else ''
         out.append(
             f'turn the device faster and more abruptly{fast}: the time offset is uncertain by '

@@ -292,6 +292,29 @@ def _assess_linear(lin: LinearSolution, run: Findings) -> None:
         )
 
 
+def sigmas_of(std: np.ndarray) -> tuple[float, float, float]:
+    """The three 1-sigmas the precision targets judge, from a batch std (dt [s], translation
+    [m] x3, rotation [rad] x3): dt [s], the translation's norm [m], the rotation's [deg]."""
+    return (
+        float(std[0]),
+        float(np.linalg.norm(std[1:4])),
+        float(np.degrees(np.linalg.norm(std[4:7]))),
+    )
+
+
+def precision_ratios(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> list[float]:
+    """Each 1-sigma (:func:`sigmas_of`) over its target (``CalibrationConfig.precision``):
+    above 1 it is ``imprecise``. An unknown sigma (NaN) is no ratio (NaN)."""
+    return [s / t for s, t in zip(sigmas, targets, strict=True)]
+
+
+def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> float:
+    """The largest of :func:`precision_ratios`, inf while a sigma is unknown: at most 1 is
+    precise enough, for the verdict, the readiness and the node's auto mode alike."""
+    ratios = precision_ratios(sigmas, targets)
+    return float('inf') if not all(np.isfinite(ratios)) else max(ratios)
+
+
 def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
 ) -> None:
@@ -302,20 +325,19 @@ def _assess_uncertainty(
             'the batch stage did not run, so the result has no uncertainty (see the warnings)',
         )
     if batch is not None:
-        s = batch.std
-        sd = (s[0], float(np.linalg.norm(s[1:4])), float(np.degrees(np.linalg.norm(s[4:7]))))
-        need = cfg.precision
+        sd, need = sigmas_of(batch.std), cfg.precision
         over = [
             f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
-            for name, v, n, k, unit in zip(
+            for name, v, n, k, unit, r in zip(
                 ('time offset', 'translation', 'rotation'),
                 sd,
                 need,
                 (1e3, 1e3, 1.0),
                 ('ms', 'mm', 'deg'),
+                precision_ratios(sd, need),
                 strict=True,
             )
-            if v > n
+            if r > 1.0
         ]
         if over:
             run.reason(

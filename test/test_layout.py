@@ -251,3 +251,16 @@ def test_the_launch_file_and_rviz_config_match_the_node() -> None:
     topics = {d['Topic']['Value'] for d in manager['Displays'] if 'Topic' in d}
     assert topics == {f'/calibrator/{name}' for name in PATHS.values()}
     assert manager['Global Options']['Fixed Frame'] == FALLBACK_FRAMES['eye_world']
+
+
+def test_only_the_verdict_makes_reasons() -> None:
+    """Every reason of a verdict is made by a rule of core/checks/verdict.py: the stages hand it
+    their findings and append what it returns (one place for every verdict rule)."""
+    made = []
+    for path in sorted((ROOT / 'handeye_ros').rglob('*.py')):
+        if path.relative_to(ROOT).as_posix() == 'handeye_ros/core/checks/verdict.py':
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, 'id', None) == 'Reason':
+                made.append(f'{path.relative_to(ROOT)}:{node.lineno}')
+    assert not made, made

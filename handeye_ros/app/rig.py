@@ -2,14 +2,15 @@
 --shared-extrinsic``.
 
 The recordings of a manifest (:mod:`.runs`) share one T_HE; each keeps its own clock (dt, drift)
-and worlds. Two rounds, each one task per recording (:mod:`.core.shared` has the math):
+and worlds. Two rounds, each one task per recording (:mod:`handeye_ros.core.shared` has the
+math):
 
 1. :func:`own_calibration`: the recording calibrated alone, as ``offline_calibrate`` does; only
    its :class:`~handeye_ros.core.rig.Member` (estimate and covariance, a few hundred bytes)
    leaves the process that holds its poses.
-2. :func:`.core.shared.solve_rig` in the calling process: the groups, the joint T_HE, the
-   verdict; then :func:`shared_outputs` per recording: its result at the rig's T_HE, with the
-   evaluation and the exports computed from it.
+2. :func:`handeye_ros.core.shared.solve_rig` in the calling process: the groups, the joint
+   T_HE, the verdict; then :func:`shared_outputs` per recording: its result at the rig's T_HE,
+   with the evaluation and the exports computed from it.
 
 On Dask (``evaluate``) a recording's poses stay on the worker that read them between the
 rounds; the calling process never holds them.
@@ -50,7 +51,7 @@ class Summary:
 
 
 def own_calibration(run: Any) -> Own:
-    """Round 1: ``run`` (a :class:`~handeye_ros.runs.RunSpec`) calibrated alone, no outputs.
+    """Round 1: ``run`` (a :class:`~handeye_ros.app.runs.RunSpec`) calibrated alone, no outputs.
     Never raises for bad input: the reason says why it gave nothing."""
     from ..core.errors import ConfigError, HandeyeError
     from .request import Request
@@ -335,8 +336,9 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
     the file is made when missing) and the rig is solved again. Returns the session's result
     dictionary (without the evaluation) and result at the rig's T_HE (its own when it is left
-    out), with a ``rig`` section saying what the rig rests on; writes the file. Raises
-    ConfigError when ``path`` holds something else than a rig file."""
+    out), with a ``rig`` section saying what the rig rests on; writes the file. The file keeps
+    the recordings with an estimate of their own (followers and failures are said once, in the
+    session's answer). Raises ConfigError when ``path`` holds something else than a rig file."""
     from ..core.errors import ConfigError
     from ..core.rig import Member
 

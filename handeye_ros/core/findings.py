@@ -8,26 +8,25 @@ from dataclasses import dataclass, field
 
 from .checks.conventions import Correction
 from .checks.selfcheck import Candidate
-from .checks.verdict import Code, Reason
+from .checks.verdict import Reason, convention_corrected
 
 
 @dataclass
 class Findings:
-    """What the pipeline learns on the way, for the result and the verdict."""
+    """What the pipeline learns on the way, for the result and the verdict. Its reasons are
+    made by the rules of :mod:`.checks.verdict` only (test_layout checks it)."""
 
     warnings: list[str] = field(default_factory=list)
     reasons: list[Reason] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     corrections: list[Correction] = field(default_factory=list)
     candidates: list[Candidate] = field(default_factory=list)
-
-    def reason(self, code: Code, message: str) -> None:
-        """A reason for the verdict (its severity is the code's: :data:`.checks.verdict.SEVERITY`)."""
-        self.reasons.append(Reason(code, message))
+    #: stage 2 named the eye's scale (a reason or a note): the batch stage does not again
+    scale_named: bool = False
 
     def corrected(self, found: list[Correction]) -> None:
         """Readings of the input that were corrected: each a warning and a reason."""
         for c in found:
             self.corrections.append(c)
             self.warnings.append(c.message)
-            self.reason(Code.CONVENTION_CORRECTED, c.message)
+            self.reasons.append(convention_corrected(c.message))

@@ -8,8 +8,8 @@ on it; :func:`.checks.verdict.assess_rig` gives the verdict.
 
 :func:`at_shared`: the recording keeps its poses, screening, eye model (drift, scale) and
 verdict; its T_HE becomes the rig's, its offset the one conditioned on it
-(:func:`.rig.conditioned`), and what follows from both is computed again: the world alignment T_WG (eye segments each their own), the
-metrics and the keyframe motions' agreement. The batch covariance becomes the joint problem's
+(:func:`.rig.conditioned`), and what follows from both is computed again: the world alignment
+T_WG (eye segments each their own), the metrics and the keyframe motions' agreement. The batch covariance becomes the joint problem's
 (:func:`.rig.joint_covariance`), so the result's sigmas are the rig's.
 """
 

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..checks.selfcheck import score_candidates
-from ..checks.verdict import Code, batch_moved, batch_supported, scale_uncertainty_note
+from ..checks.verdict import batch_moved, batch_supported, scale_uncertainty_note, stages_disagree
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..eye_model import EyeModel
@@ -76,10 +76,7 @@ def batch_stage(
             batch = with_correlated(hand, eye, batch, cfg)
             unc = batch.uncertainty
             run.notes.extend(f'uncertainty: {w}' for w in unc.not_estimated)
-            named = any(r.code == Code.SCALE for r in run.reasons) or any(
-                n.startswith("the eye's translations look scaled") for n in run.notes
-            )
-            if unc.scale is not None and not named:  # stage 2 did not name it already
+            if unc.scale is not None and not run.scale_named:  # stage 2 did not name it
                 s, std, shift = unc.scale
                 note = scale_uncertainty_note(s, std, float(np.linalg.norm(shift[1:4])))
                 if note:
@@ -164,7 +161,7 @@ def check_batch(
         try:
             lin_b, _ = solve_linear(hand, eye, sol.time_offset_s, cfg)
         except HandeyeError as err:
-            run.reason(Code.STAGES_DISAGREE, f'{what}, and stage 2 fails at its offset ({err})')
+            run.reasons.append(stages_disagree(what, failed=str(err)))
             return None
         hyps.append(
             (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
@@ -174,7 +171,7 @@ def check_batch(
     run.candidates.extend(scored)
     score = [c.score for c in scored]
     if not np.all(np.isfinite(score)):
-        run.reason(Code.STAGES_DISAGREE, f'{what}, and the self-check could not compare them')
+        run.reasons.append(stages_disagree(what))
         return sol
     if batch_supported(score, far_dt):
         run.notes.append(
@@ -183,12 +180,7 @@ def check_batch(
             + ')'
         )
         return sol
-    run.reason(
-        Code.STAGES_DISAGREE,
-        f'{what}; the self-check sides with the linear result (scores '
-        + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
-        + '), which is kept',
-    )
+    run.reasons.append(stages_disagree(what, scored=scored))
     return None
 
 

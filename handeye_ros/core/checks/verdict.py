@@ -193,6 +193,11 @@ class Reason:
         return SEVERITY[self.code]
 
 
+def _say(run: Findings, code: Code, message: str) -> None:
+    """A reason for the verdict, added to the findings (only the rules here make reasons)."""
+    run.reasons.append(Reason(code, message))
+
+
 @dataclass(frozen=True)
 class Quality:
     """The verdict, its reasons (worst first) and notes that did not lower it."""
@@ -243,7 +248,8 @@ def assess(
     their severities here: :data:`SEVERITY`)."""
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
-            run.reason(
+            _say(
+                run,
                 Code.OUTLIERS_REMOVED,
                 f'screening removed {rep.fraction:.1%} of the '
                 f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
@@ -254,7 +260,8 @@ def assess(
             )
     checked = any(c.chosen for c in run.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
-        run.reason(
+        _say(
+            run,
             Code.AMBIGUOUS_OFFSET,
             f'the correlation has a second peak at '
             f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
@@ -262,7 +269,8 @@ def assess(
         )
     peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
     if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
-        run.reason(
+        _say(
+            run,
             Code.WEAK_CORRELATION,
             f'the angular velocities of the two streams hardly agree '
             f'(correlation {max(peaks):.2f}): check that both show the same motion',
@@ -275,17 +283,21 @@ def assess(
 def _assess_linear(lin: LinearSolution, run: Findings) -> None:
     """Stage 2's consensus and excitation."""
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
-        run.reason(
-            Code.FEW_INLIERS, f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers'
+        _say(
+            run,
+            Code.FEW_INLIERS,
+            f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers',
         )
     if lin.unobservable:
-        run.reason(
+        _say(
+            run,
             Code.UNOBSERVABLE,
             'part of the extrinsic cannot be observed from this motion: '
             + '; '.join(lin.unobservable),
         )
     elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
-        run.reason(
+        _say(
+            run,
             Code.WEAK_EXCITATION,
             f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
             'deg: the extrinsic is weakly constrained; rotate about more different axes',
@@ -320,7 +332,8 @@ def _assess_uncertainty(
 ) -> None:
     """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
     if cfg.batch and batch is None and not any(r.code == Code.UNOBSERVABLE for r in run.reasons):
-        run.reason(
+        _say(
+            run,
             Code.NO_UNCERTAINTY,
             'the batch stage did not run, so the result has no uncertainty (see the warnings)',
         )
@@ -340,7 +353,8 @@ def _assess_uncertainty(
             if r > 1.0
         ]
         if over:
-            run.reason(
+            _say(
+                run,
                 Code.IMPRECISE,
                 'the 1-sigma uncertainty exceeds the required precision: '
                 + ', '.join(over)
@@ -349,7 +363,8 @@ def _assess_uncertainty(
                 'required',
             )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
-        run.reason(
+        _say(
+            run,
             Code.RESIDUALS_NOT_WHITE,
             f'the residuals are strongly correlated in time (the '
             f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
@@ -392,7 +407,8 @@ def assess_model(
         std = model.scale_std
         if not model.scale_observable:
             sd = f' +- {std:.2g}' if np.isfinite(std) else ''
-            run.reason(
+            _say(
+                run,
                 Code.UNOBSERVABLE,
                 f"the eye's scale cannot be observed (s = "
                 f'{model.scale:.4g}{sd}): the hand translates too little for its '
@@ -402,7 +418,8 @@ def assess_model(
     if cfg.clock_drift and model.drift_estimated and clock is not None:
         half = 0.5 * clock.span_s * model.drift_std
         if half > cfg.precision_time_offset:
-            run.reason(
+            _say(
+                run,
                 Code.IMPRECISE,
                 f'the clock drift is {model.drift * 1e6:+.1f} +- '
                 f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
@@ -482,7 +499,8 @@ def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
     best = next(k for k, c in enumerate(scored) if c.chosen)
     win = scored[best]
     if not np.isfinite(win.score):
-        run.reason(
+        _say(
+            run,
             Code.AMBIGUOUS_OFFSET,
             'the candidate offsets could not be compared (too few motions covered at all of them)',
         )
@@ -503,7 +521,8 @@ def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
         )
         return best
     best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
-    run.reason(
+    _say(
+        run,
         Code.AMBIGUOUS_OFFSET,
         f'the motion repeats itself: the self-check cannot separate '
         f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
@@ -591,3 +610,44 @@ def assess_rig(
             )
         )
     return Quality.from_reasons(reasons, [])
+
+
+def convention_corrected(message: str) -> Reason:
+    """CONVENTION_CORRECTED: a reading of the input was assumed (the file keeps the mistake)."""
+    return Reason(Code.CONVENTION_CORRECTED, message)
+
+
+def seed_failed(seed: int, error: str) -> Reason:
+    """SEED_DEPENDENT: stage 2 with RANSAC seed ``seed`` finds no answer at all."""
+    return Reason(Code.SEED_DEPENDENT, f'with RANSAC seed {seed} the linear stage fails ({error})')
+
+
+def drift_unobservable(why: str | None) -> Reason:
+    """UNOBSERVABLE, with clock_drift: the drift cannot be measured (``why``; None: the eye
+    has keyframes only, and the windows need angular velocities)."""
+    if why is None:
+        return Reason(
+            Code.UNOBSERVABLE,
+            'the clock drift is measured in windows of angular velocity, which a '
+            'keyframe-only eye does not give; one constant offset was estimated instead',
+        )
+    return Reason(
+        Code.UNOBSERVABLE,
+        f'the clock drift cannot be observed: {why}. One constant offset was estimated instead',
+    )
+
+
+def stages_disagree(what: str, failed: str | None = None, scored: list | None = None) -> Reason:
+    """STAGES_DISAGREE: the batch stage moved the answer (``what``) and the self-check does
+    not support it: stage 2 ``failed`` at the batch's offset, the scores could not be compared
+    (``scored`` None), or they side with the linear result (``scored``: the candidates)."""
+    if failed is not None:
+        return Reason(Code.STAGES_DISAGREE, f'{what}, and stage 2 fails at its offset ({failed})')
+    if scored is None:
+        return Reason(Code.STAGES_DISAGREE, f'{what}, and the self-check could not compare them')
+    return Reason(
+        Code.STAGES_DISAGREE,
+        f'{what}; the self-check sides with the linear result (scores '
+        + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
+        + '), which is kept',
+    )

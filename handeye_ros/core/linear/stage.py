@@ -22,7 +22,7 @@ from ..checks.selfcheck import (
     screw_disagreement,
     screw_rejects,
 )
-from ..checks.verdict import Code, judge_tie, scale_message, scale_reason, seed_reason
+from ..checks.verdict import judge_tie, scale_message, scale_reason, seed_failed, seed_reason
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
@@ -90,9 +90,11 @@ def linear_stage(
         # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
         # it at "breaks" would only hide that
         run.reasons.append(scale_doubt)
+        run.scale_named = True
     else:
         if scaled is not None and scaled.clear:  # named, but it costs less than the precision
             run.notes.append(scale_message(scaled))
+            run.scale_named = True
         if cfg.screening:
             eye, lin, pairs, screening = split_eye(
                 hand, eye, lin, pairs, cfg, screening, shift_ns, run
@@ -310,9 +312,7 @@ def seed_check(
     try:
         other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
-        run.reason(
-            Code.SEED_DEPENDENT, f'with RANSAC seed {cfg.seed + 1} the linear stage fails ({err})'
-        )
+        run.reasons.append(seed_failed(cfg.seed + 1, str(err)))
         return None
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..checks.verdict import Code, drift_reason
+from ..checks.verdict import drift_reason, drift_unobservable
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
 from ..findings import Findings
@@ -46,11 +46,7 @@ def clock_along(
     reference stamp when the stamps moved, else None)."""
     if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
         if cfg.clock_drift:
-            run.reason(
-                Code.UNOBSERVABLE,
-                'the clock drift is measured in windows of angular velocity, which a '
-                'keyframe-only eye does not give; one constant offset was estimated instead',
-            )
+            run.reasons.append(drift_unobservable(None))
         return eye, model, None, None
     R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
@@ -72,11 +68,7 @@ def clock_along(
                 'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
             )
         else:
-            run.reason(
-                Code.UNOBSERVABLE,
-                f'the clock drift cannot be observed: {fit.why}. One '
-                'constant offset was estimated instead',
-            )
+            run.reasons.append(drift_unobservable(fit.why))
         return eye, model, clock, None
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
     return eye, model, clock, float(fit.offset_at(model.stamp_ns))

@@ -43,7 +43,7 @@ from .checks.coverage import Coverage
 from .checks.readiness import Readiness
 from .checks.screening import Screening
 from .checks.selfcheck import Candidate
-from .checks.verdict import Quality, Verdict
+from .checks.verdict import Quality, Verdict, drift_significant
 from .config import CalibrationConfig
 from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
@@ -234,7 +234,7 @@ class CalibrationResult:
             'measured_drift': _num(c.drift),
             'measured_drift_std': _num(c.drift_std),
             'change_over_recording': _num(c.change_s) if c.estimated else None,
-            'drift_significant': bool(c.significant),
+            'drift_significant': drift_significant(c),
             'not_estimated_because': c.why or None,
             'units': {'time_offset': 's', 'measured_drift': 's/s', 'change_over_recording': 's'},
         }

@@ -162,7 +162,7 @@ FAILED_MOTION_TRANSLATION_M = 0.05
 FAILED_MOTION_TRANSLATION_FRACTION = 0.5
 #: clock_drift: the offset measured in windows changes between the first and the last eye pose
 #: by more than DRIFT_NOTICE_S (s) and its drift is beyond DRIFT_SIGMAS Gaussian sigmas
-#: (:attr:`~handeye_ros.core.time.clock.DriftFit.significant`).
+#: (:func:`drift_significant`).
 DRIFT_NOTICE_S = 2e-3
 DRIFT_SIGMAS = 3.0
 #: seed_dependent: the linear stage with the next RANSAC seed moves T_HE by more than
@@ -442,10 +442,32 @@ def scale_reason(fit: ScaleFit, precision_m: float) -> Reason | None:
     return None
 
 
+def drift_significant(fit: DriftFit) -> bool:
+    """Whether the drift moves the offset by more than DRIFT_NOTICE_S over the recording and
+    is further from zero than its own uncertainty explains: beyond the Student-t quantile
+    (n - 2 degrees of freedom, n the windows fitted) at the false-alarm rate of DRIFT_SIGMAS
+    Gaussian sigmas (:func:`drift_threshold_sigmas`)."""
+    return bool(
+        fit.estimated
+        and abs(fit.change_s) > DRIFT_NOTICE_S
+        and abs(fit.drift) > drift_threshold_sigmas(fit) * fit.drift_std
+    )
+
+
+def drift_threshold_sigmas(fit: DriftFit) -> float:
+    """How many of its sigmas a drift must reach to be significant. The sigma is itself
+    estimated from a few windows' scatter; at 3 Gaussian sigmas 15 windows need 3.8, 6
+    windows 6.4."""
+    from scipy.special import ndtr, stdtrit
+
+    dof = int(np.sum(fit.inliers)) - 2
+    return float(stdtrit(dof, ndtr(DRIFT_SIGMAS))) if dof > 0 else float('inf')
+
+
 def drift_reason(fit: DriftFit) -> Reason | None:
     """CLOCK_DRIFT, without clock_drift: the offset measured in windows drifts
-    (:attr:`~handeye_ros.core.time.clock.DriftFit.significant`: DRIFT_NOTICE_S, DRIFT_SIGMAS)."""
-    return Reason(Code.CLOCK_DRIFT, drift_message(fit)) if fit.significant else None
+    (:func:`drift_significant`)."""
+    return Reason(Code.CLOCK_DRIFT, drift_message(fit)) if drift_significant(fit) else None
 
 
 def seed_reason(

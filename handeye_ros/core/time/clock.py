@@ -26,9 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.special import ndtr, stdtrit
 
-from ..checks.verdict import DRIFT_NOTICE_S, DRIFT_SIGMAS
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import align_time, align_time_vector
@@ -96,25 +94,6 @@ class DriftFit:
     def change_s(self) -> float:
         """How far the offset moves between the first and the last covered eye pose [s]."""
         return float(self.drift * self.span_s)
-
-    @property
-    def significant(self) -> bool:
-        """Whether the drift moves the offset by more than DRIFT_NOTICE_S over the recording
-        and is further from zero than its own uncertainty explains: beyond the Student-t
-        quantile (n - 2 degrees of freedom, n the windows fitted) at the false-alarm rate of
-        DRIFT_SIGMAS Gaussian sigmas. The sigma is itself estimated from a few windows' scatter;
-        at 3 Gaussian sigmas 15 windows need 3.8, 6 windows 6.4."""
-        return (
-            self.estimated
-            and abs(self.change_s) > DRIFT_NOTICE_S
-            and abs(self.drift) > self.threshold_sigmas * self.drift_std
-        )
-
-    @property
-    def threshold_sigmas(self) -> float:
-        """How many of its sigmas a drift must reach to be :attr:`significant`."""
-        dof = int(np.sum(self.inliers)) - 2
-        return float(stdtrit(dof, ndtr(DRIFT_SIGMAS))) if dof > 0 else float('inf')
 
     def offset_at(self, t_ns: np.ndarray | int) -> np.ndarray | float:
         """dt [s] at eye stamps t_ns (the clock this fit was measured on)."""

@@ -16,8 +16,10 @@ float seconds only after subtracting a common origin.
 
 The layout follows the method. The stages, in :func:`.pipeline.calibrate`'s order: :mod:`.time`
 (stage 1, eq. 1, and eq. 9 for keyframe-only eyes), :mod:`.linear` (stage 2, eq. 2-13 and
-Algorithm 1), :mod:`.batch` (stage 3, eq. 14-16); :mod:`.checks` holds what real recordings need
-around them and the verdict. Beside them the foundations: poses and streams
+Algorithm 1), :mod:`.batch` (stage 3, eq. 14-16): the paper's math, which never imports what
+is above it; :mod:`.checks` holds what real recordings need around them and the verdict; and
+:mod:`.stages` wires each stage with its checks as the pipeline runs it (test_layout keeps that
+order). Beside them the foundations: poses and streams
 (:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options (:mod:`.options`,
 :mod:`.config`), the result (:mod:`.result`, :mod:`.world`, :mod:`.eye_model`) and the errors.
 Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and :mod:`.shared`

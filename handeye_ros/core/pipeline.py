@@ -1,20 +1,21 @@
 """The whole calibration: the one function every front end (offline tool, node) calls.
 
-:func:`calibrate` reads as the method. Each step returns a record the next one reads, and every
-finding (a warning, a reason of the verdict, a note) goes into one :class:`.findings.Findings`:
+:func:`calibrate` reads as the method. Each step (:mod:`.stages`) returns a record the next one
+reads, and every finding (a warning, a reason of the verdict, a note) goes into one
+:class:`.stages.findings.Findings`:
 
-1. **Inputs** (:func:`.prepare.prepare`): explicit inversions, stamp units read against the
+1. **Inputs** (:func:`.stages.prepare.prepare`): explicit inversions, stamp units read against the
    streams' rates, clock epochs named, a keyframe-only eye recognised, each stream screened
    (damaged rows, placeholders, marker swaps, glitches).
-2. **Stage 1** (Section III-A, :func:`.time.stage.align_stage`): the angular-speed correlation
+2. **Stage 1** (Section III-A, :func:`.stages.time.align_stage`): the angular-speed correlation
    over every lag (or a window), quadratic peak; the keyframe search for a keyframe-only eye;
    then the orientation conventions at that offset (the correlation is blind to a swapped
    quaternion order or inverted poses; AX = XB is not).
-3. **Stage 2** (Section III-B, :func:`.linear.stage.linear_stage`) on the eye moved onto the
+3. **Stage 2** (Section III-B, :func:`.stages.linear.linear_stage`) on the eye moved onto the
    hand's clock, with what attaches to it: the eye's breaks (VIO resets), the vector refinement
    of the offset, the self-check over the candidate offsets, the offset along the recording
    (drift), the scale.
-4. **Stage 3** (Section III-C, :func:`.batch.stage.batch_stage`) from stage 2's answer, with a
+4. **Stage 3** (Section III-C, :func:`.stages.batch.batch_stage`) from stage 2's answer, with a
    covariance that holds for residuals correlated in time; the self-check decides when it moves
    the answer beyond its own sigmas.
 5. **The result** (:func:`_finish`): the world alignment and metrics at the final (dt, T_HE),
@@ -32,19 +33,19 @@ import numpy as np
 
 from .association import PosePairs, associate
 from .batch.pieces import check_joint_size
-from .batch.stage import Refined, batch_stage
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
 from .checks.verdict import Quality, assess, assess_model
 from .config import CalibrationConfig
 from .errors import ConfigError
-from .findings import Findings
 from .geometry import matrix_from_quat
-from .linear.stage import LinearStage, linear_stage, seed_check
-from .prepare import Inputs, prepare
 from .result import CalibrationResult, UsedStreams
-from .time.stage import Offset, absolute, align_stage
+from .stages.batch import Refined, batch_stage
+from .stages.findings import Findings
+from .stages.linear import LinearStage, linear_stage, seed_check
+from .stages.prepare import Inputs, prepare
+from .stages.time import Offset, absolute, align_stage
 from .trajectory import Trajectory
 from .world import Metrics, WorldAlignment, align_worlds, evaluate
 

@@ -35,7 +35,7 @@ from ..geometry import (
     matrix_from_quat,
     relative,
 )
-from ..linear.stage import solve_linear
+from ..linear.solve import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
 from ..trajectory import Trajectory
 from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION, precision_ratio, precision_ratios

@@ -85,15 +85,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:  # for the rules' signatures only: checks sit above the stages
+if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math below
     from ..batch.refine import BatchSolution
     from ..config import CalibrationConfig
     from ..eye_model import EyeModel
-    from ..findings import Findings
     from ..linear.robust import LinearSolution
     from ..linear.scale import ScaleFit
     from ..time.align import TimeAlignment
@@ -191,6 +190,15 @@ class Reason:
     @property
     def severity(self) -> Verdict:
         return SEVERITY[self.code]
+
+
+class Findings(Protocol):
+    """What the rules read and add to: the stages' findings
+    (:class:`~handeye_ros.core.stages.findings.Findings`, which sits above the checks)."""
+
+    reasons: list[Reason]
+    notes: list[str]
+    candidates: list[Candidate]
 
 
 def _say(run: Findings, code: Code, message: str) -> None:

@@ -15,12 +15,12 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch.refine import BatchError, refine
-from handeye_ros.core.batch.stage import check_batch, run_batch
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
-from handeye_ros.core.findings import Findings
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
+from handeye_ros.core.stages.batch import check_batch, run_batch
+from handeye_ros.core.stages.findings import Findings
 
 
 def test_noise_free_is_exact() -> None:

@@ -1,4 +1,4 @@
-"""The eye's scale (core/linear/scale.py, core/linear/scaling.py): the fits on exact motions,
+"""The eye's scale (core/linear/scale.py, core/stages/scale.py): the fits on exact motions,
 the pipeline with and without estimate_scale, bad input."""
 
 from __future__ import annotations

@@ -13,11 +13,11 @@ from ..checks.conventions import check_orientations
 from ..checks.verdict import WEAK_CORRELATION
 from ..config import CalibrationConfig
 from ..errors import TimeAlignmentError
-from ..findings import Findings
-from ..prepare import Inputs
+from ..time.align import TimeAlignment, align_time
+from ..time.keyframes import align_time_keyframes
 from ..trajectory import Trajectory
-from .align import TimeAlignment, align_time
-from .keyframes import align_time_keyframes
+from .findings import Findings
+from .prepare import Inputs
 
 #: A search window given by its guess alone is this wide on each side (s).
 DEFAULT_HALF_WINDOW_S = 0.5

@@ -12,11 +12,11 @@ import numpy as np
 from ..checks.verdict import drift_reason, drift_unobservable
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
-from ..findings import Findings
 from ..geometry import matrix_from_quat
 from ..linear.robust import LinearSolution
+from ..time.clock import DriftFit, measure_drift
 from ..trajectory import Trajectory
-from .clock import DriftFit, measure_drift
+from .findings import Findings
 
 
 def drift_from_windows(

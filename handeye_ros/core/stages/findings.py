@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .checks.conventions import Correction
-from .checks.selfcheck import Candidate
-from .checks.verdict import Reason, convention_corrected
+from ..checks.conventions import Correction
+from ..checks.selfcheck import Candidate
+from ..checks.verdict import Reason, convention_corrected
 
 
 @dataclass

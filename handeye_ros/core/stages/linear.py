@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..association import PosePairs, associate
+from ..association import PosePairs
 from ..checks.screening import Screening, find_eye_breaks
 from ..checks.selfcheck import (
     Candidate,
@@ -26,17 +26,17 @@ from ..checks.verdict import judge_tie, scale_message, scale_reason, seed_failed
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
-from ..findings import Findings
 from ..geometry import matrix_from_quat, quat_angle
-from ..prepare import Inputs, check_fraction
+from ..linear.robust import LinearSolution
+from ..linear.solve import solve_linear
 from ..time.align import TimeAlignment, align_time_vector
 from ..time.clock import DriftFit, covered_span
-from ..time.drift import clock_along, drift_from_windows
-from ..time.stage import Offset
 from ..trajectory import Trajectory
-from .axxb import build_motions
-from .robust import LinearSolution, calibrate_linear
-from .scaling import fold_linear_scale, scale_check, scale_from_rotations
+from .clock import clock_along, drift_from_windows
+from .findings import Findings
+from .prepare import Inputs, check_fraction
+from .scale import fold_linear_scale, scale_check, scale_from_rotations
+from .time import Offset
 
 if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed check
     from ..batch.refine import BatchSolution
@@ -132,33 +132,6 @@ def _first_solve(
             'or move time_offset_guess (or leave both unset to search every lag)'
         )
         raise DegenerateMotionError(msg) from None
-
-
-def solve_linear(
-    hand: Trajectory,
-    eye: Trajectory,
-    dt: float,
-    cfg: CalibrationConfig,
-    seed: int | None = None,
-    pairs: PosePairs | None = None,
-) -> tuple[LinearSolution, PosePairs]:
-    """Stage 2 at offset dt (``pairs``: the streams associated at dt, when already made)."""
-    pairs = associate(hand, eye, dt) if pairs is None else pairs
-    motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
-    lin = calibrate_linear(
-        motions,
-        robust_kernel=cfg.robust_kernel,
-        mu=cfg.mu,
-        ransac_iterations=cfg.ransac_iterations,
-        inlier_rotation_rad=np.deg2rad(cfg.inlier_rotation),
-        inlier_translation_m=cfg.inlier_translation,
-        min_motions=cfg.min_motions,
-        adaptive_inliers=cfg.adaptive_inliers,
-        decoupled_refit=cfg.decoupled_refit,
-        estimate_scale=cfg.estimate_scale,
-        rng=np.random.default_rng(cfg.seed if seed is None else seed),
-    )
-    return lin, pairs
 
 
 def split_eye(

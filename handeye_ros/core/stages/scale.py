@@ -12,13 +12,13 @@ import numpy as np
 from ..association import PosePairs, associate
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
-from ..findings import Findings
 from ..geometry import matrix_from_quat
+from ..linear.axxb import build_motions
+from ..linear.refits import drift_weights
+from ..linear.robust import LinearSolution, calibrate_linear
+from ..linear.scale import ScaleFit, observable, scale_prior, translation_and_scale
 from ..trajectory import Trajectory
-from .axxb import build_motions
-from .refits import drift_weights
-from .robust import LinearSolution, calibrate_linear
-from .scale import ScaleFit, observable, scale_prior, translation_and_scale
+from .findings import Findings
 
 
 def scale_from_rotations(

@@ -12,17 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..checks.selfcheck import score_candidates
-from ..checks.verdict import batch_moved, batch_supported, scale_uncertainty_note, stages_disagree
-from ..config import CalibrationConfig
-from ..errors import HandeyeError
-from ..eye_model import EyeModel
-from ..findings import Findings
-from ..geometry import quat_angle
-from ..linear.robust import LinearSolution
-from ..linear.stage import LinearStage, solve_linear
-from ..trajectory import Trajectory
-from .correlated import (
+from ..batch.correlated import (
     BLOCKS,
     MIN_BLOCK_POSES,
     Uncertainty,
@@ -30,7 +20,18 @@ from .correlated import (
     inflated,
     scale_term,
 )
-from .refine import BatchSolution, refine
+from ..batch.refine import BatchSolution, refine
+from ..checks.selfcheck import score_candidates
+from ..checks.verdict import batch_moved, batch_supported, scale_uncertainty_note, stages_disagree
+from ..config import CalibrationConfig
+from ..errors import HandeyeError
+from ..eye_model import EyeModel
+from ..geometry import quat_angle
+from ..linear.robust import LinearSolution
+from ..linear.solve import solve_linear
+from ..trajectory import Trajectory
+from .findings import Findings
+from .linear import LinearStage
 
 #: Each refit of the uncertainty's terms uses at most this many eye poses, evenly decimated: they
 #: measure a ratio and a shift, not the estimate (an hour at 200 Hz has 720 000). All of them

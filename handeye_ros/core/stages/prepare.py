@@ -8,12 +8,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .checks.conventions import check_stamp_units, epoch_note, reread
-from .checks.screening import Screening, damaged, describe_damage, screen
-from .config import CalibrationConfig
-from .errors import InputError
+from ..checks.conventions import check_stamp_units, epoch_note, reread
+from ..checks.screening import Screening, damaged, describe_damage, screen
+from ..config import CalibrationConfig
+from ..errors import InputError
+from ..trajectory import Trajectory, TrajectoryInfo, is_keyframe_only
 from .findings import Findings
-from .trajectory import Trajectory, TrajectoryInfo, is_keyframe_only
 
 
 @dataclass(frozen=True)

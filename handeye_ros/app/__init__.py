@@ -8,7 +8,7 @@
 - :mod:`.runs` and :mod:`.evaluate`: many recordings (a manifest, one run each, the table) on
   Dask.
 - :mod:`.rig`: one rig over many recordings (``--rig``, ``--shared-extrinsic``, the node's
-  ``rig_file``).
+  ``rig_file``); :mod:`.rig_file` the rig's file.
 - :mod:`.params_file`: the node's own options and the params file, which the offline tool reads
   too (hence here, below :mod:`handeye_ros.ros`).
 """

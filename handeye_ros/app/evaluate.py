@@ -339,12 +339,12 @@ def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dic
         calibrate_rig,
         finish,
         own_calibration,
-        rig_summary,
         role,
         shared_outputs,
         solve,
         summary_of,
     )
+    from .rig_file import rig_summary
     from .runs import rig_row
 
     t0 = time.perf_counter()

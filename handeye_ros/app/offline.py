@@ -384,7 +384,8 @@ def _rig_main(args: argparse.Namespace) -> int:
     from ..core.errors import HandeyeError
     from ..evaluation.outputs import check_directory
     from ..formats.result_file import write_result
-    from .rig import calibrate_rig, rig_summary
+    from .rig import calibrate_rig
+    from .rig_file import rig_summary
     from .runs import read_manifest
 
     try:

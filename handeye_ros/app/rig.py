@@ -22,10 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-#: The rig's result file, beside the per-recording folders.
-RIG_FILE = 'rig.yaml'
+from ..core.checks.verdict import Code
+from .rig_file import RIG_FILE, read_members, rig_document, write_rig_file
 
 
 @dataclass(frozen=True)
@@ -155,128 +153,6 @@ def _own_values(d: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[str, Any]:
-    """The rig's result file (:data:`RIG_FILE`): its T_HE with covariance, its verdict, its
-    groups and every recording's own and conditioned values."""
-    from ..core.geometry import matrix_from_quat
-    from ..core.result import transform_dict
-
-    def extrinsic(j: Any) -> dict[str, Any]:
-        return {
-            **transform_dict(matrix_from_quat(j.q_HE), j.p_HE, *frames),
-            'std': {
-                'translation': [float(v) for v in j.std[:3]],
-                'rotation': [float(v) for v in j.std[3:]],
-            },
-        }
-
-    recordings = []
-    names = [m.name for m in rig.members]
-    for k, m in enumerate(rig.members):
-        test = rig.split.tests[k]
-        shared = rig.shared[k]
-        recordings.append(
-            {
-                'name': m.name,
-                'used': m.name in rig.used,
-                'reason': rig.why_not.get(m.name, ''),
-                'own': {
-                    'time_offset': m.values['time_offset'],
-                    'time_offset_std': float(np.sqrt(m.covariance[0, 0])),
-                    **m.to_dict(),
-                },
-                'test': None
-                if test is None
-                else {
-                    'chi2': test.chi2,
-                    'translation_mm': test.translation_mm,
-                    'rotation_deg': test.rotation_deg,
-                },
-                'shared': None
-                if shared is None
-                else {
-                    'values': shared.values,
-                    'std': shared.std,
-                },
-            }
-        )
-    recordings += [
-        {
-            'name': n,
-            'used': False,
-            'follows': True,
-            'reason': 'no covariance of its own T_HE: '
-            "it takes the rig's T_HE and keeps its own offset",
-        }
-        for n in rig.followers
-    ]
-    recordings += [
-        {'name': n, 'used': False, 'reason': why}
-        for n, why in rig.why_not.items()
-        if n not in names
-    ]
-    return {
-        'rig': {
-            'quality': rig.quality.to_dict(),
-            'extrinsic': None if rig.joint is None else extrinsic(rig.joint),
-            'covariance': None
-            if rig.joint is None
-            else {
-                'order': ['tx', 'ty', 'tz', 'rx', 'ry', 'rz'],
-                'matrix': [[float(v) for v in row] for row in rig.joint.covariance],
-            },
-            'used': list(rig.used),
-            'followers': list(rig.followers),
-            'left_out': dict(rig.why_not),
-            'groups': [
-                {'recordings': [names[k] for k in g], 'extrinsic': extrinsic(j)}
-                for g, j in zip(rig.split.groups, rig.group_joints(), strict=True)
-            ]
-            if rig.split
-            else [],
-            'chi2_threshold': None if rig.split is None else rig.split.threshold,
-            'method': 'each recording calibrated alone; its T_HE marginal (Schur complement '
-            'over its own dt, drift, scale) fused by information; a recording whose T_HE '
-            'disagrees with the others beyond the chi-square threshold (6 dof, 1 % for the '
-            "whole rig) is left out; each recording's own parameters conditioned on the "
-            "rig's T_HE",
-            'units': {'translation': 'm', 'rotation': 'x y z w; std: rad, tangent on the right'},
-        },
-        'recordings': recordings,
-    }
-
-
-def rig_summary(doc: dict[str, Any]) -> str:
-    """A few lines for the terminal: the verdict with its reasons, T_HE, the recordings."""
-    r = doc['rig']
-    q = r['quality']
-    lines = [f'rig: {q["verdict"]} ({len(r["used"])} of {len(doc["recordings"])} recordings)']
-    if r['extrinsic']:
-        e = r['extrinsic']
-        t = ', '.join(f'{v:.4f}' for v in e['translation'])
-        rot = ', '.join(f'{v:.4f}' for v in e['rotation'])
-        st = e['std']
-        lines.append(
-            f'  T_HE translation [{t}] m (1-sigma {np.linalg.norm(st["translation"]) * 1e3:.2f} '
-            f'mm), rotation [{rot}] x y z w (1-sigma '
-            f'{np.degrees(np.linalg.norm(st["rotation"])):.3f} deg)'
-        )
-    lines += [f'  {reason["code"]}: {reason["message"]}' for reason in q['reasons']]
-    for rec in doc['recordings']:
-        if rec.get('shared'):
-            v, s = rec['shared']['values'], rec['shared']['std']
-            sigma = s.get('time_offset')
-            lines.append(
-                f'  {rec["name"]}: dt {v["time_offset"] * 1e3:+.3f} ms '
-                + (
-                    '(follows the rig: no sigma)'
-                    if sigma is None
-                    else f'(1-sigma {sigma * 1e3:.3f} ms)'
-                )
-            )
-    return '\n'.join(lines)
-
-
 def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tuple[dict, list]:
     """Both rounds in this process, one recording after the other; the rig document and each
     recording's result dictionary (written under ``output``/runs/<name>/ when given)."""
@@ -314,7 +190,9 @@ def finish(rig: Any, names: list[str], docs: list[dict], output: Path | None) ->
     unfit = {}
     for name, doc in zip(names, docs, strict=True):
         if name in rig.followers and doc:
-            said = [r['message'] for r in doc['quality']['reasons'] if r['code'] == 'inconsistent']
+            said = [
+                r['message'] for r in doc['quality']['reasons'] if r['code'] == Code.INCONSISTENT
+            ]
             if said:
                 unfit[name] = said[-1]
     if unfit:
@@ -339,38 +217,15 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     out), with a ``rig`` section saying what the rig rests on; writes the file. The file keeps
     the recordings with an estimate of their own (followers and failures are said once, in the
     session's answer). Raises ConfigError when ``path`` holds something else than a rig file."""
-    from ..core.errors import ConfigError
-    from ..core.rig import Member
-
     file = Path(path)
-    earlier: list[Summary] = []
-    if file.is_file():
-        import yaml
-
-        try:
-            data = yaml.safe_load(file.read_text())
-            recs = data['recordings']
-            earlier = [
-                Summary(r['name'], Member.from_dict(r['name'], r['own']), '', '')
-                for r in recs
-                if r.get('own') and r['name'] != session
-            ]
-        except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as err:
-            raise ConfigError(
-                f'rig_file {path}: not a rig file ({type(err).__name__}: {err}); give a file '
-                'that offline_calibrate --rig -o or this node wrote, or a new path'
-            ) from None
+    earlier = [Summary(m.name, m, '', '') for m in read_members(file, path) if m.name != session]
     rig = solve([*earlier, summary_of(own)])
     member, take = role(rig, session)
     doc, result = at_rig(own, rig.joint, member, take)
     names = [s.name for s in earlier] + [session]
     docs = [{}] * len(earlier) + [doc]
     document = finish(rig, names, docs, None)
-    tmp = file.with_name(f'.{file.name}.tmp')
-    from ..formats.result_file import write_result
-
-    write_result(tmp, document)
-    tmp.replace(file)
+    write_rig_file(file, document)
     r = document['rig']
     part = (
         'used' if session in r['used'] else 'follows' if session in r['followers'] else 'left out'

@@ -5,7 +5,7 @@ recordings need around it (:mod:`..checks`), in :func:`..pipeline.calibrate`'s o
 
 - :mod:`.prepare`: the inputs (stamp units, epochs, keyframe-only eyes, screening);
 - :mod:`.time`: stage 1 and the orientation conventions at its offset;
-- :mod:`.clock`: the offset along the recording (drift) around stage 2;
+- :mod:`.drift`: the offset along the recording (drift) around stage 2;
 - :mod:`.scale`: the eye's scale around stage 2;
 - :mod:`.linear`: stage 2 with the eye's breaks, the vector refinement of the offset, the
   self-check over the candidate offsets and the seed check;

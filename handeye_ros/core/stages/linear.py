@@ -32,7 +32,7 @@ from ..linear.solve import solve_linear
 from ..time.align import TimeAlignment, align_time_vector
 from ..time.clock import DriftFit, covered_span
 from ..trajectory import Trajectory
-from .clock import clock_along, drift_from_windows
+from .drift import clock_along, drift_from_windows
 from .findings import Findings
 from .prepare import Inputs, check_fraction
 from .scale import fold_linear_scale, scale_check, scale_from_rotations

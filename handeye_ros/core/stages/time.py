@@ -1,6 +1,6 @@
 """Stage 1 as the pipeline runs it (:class:`Offset`): the correlation of eq. 1 over every lag
-or a window (:mod:`.align`), the keyframe search of a keyframe-only eye (:mod:`.keyframes`), or
-the offset the user fixed (checked against the data); then the orientation conventions, which
+or a window (:mod:`..time.align`), the keyframe search of a keyframe-only eye
+(:mod:`..time.keyframe_only`), or the offset the user fixed (checked against the data); then the orientation conventions, which
 need an offset to be checked (AX = XB holds under one reading only)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from ..checks.verdict import WEAK_CORRELATION
 from ..config import CalibrationConfig
 from ..errors import TimeAlignmentError
 from ..time.align import TimeAlignment, align_time
-from ..time.keyframes import align_time_keyframes
+from ..time.keyframe_only import align_time_keyframes
 from ..trajectory import Trajectory
 from .findings import Findings
 from .prepare import Inputs

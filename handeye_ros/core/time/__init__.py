@@ -3,7 +3,7 @@
 :mod:`.align` is eq. 1: the angular-speed magnitudes of both streams on grids of their own,
 their masked normalised cross-correlation over every lag, and the quadratic fit around the peak;
 then the vector refinement with stage 2's rotation (``w_E(t) = R_EH w_H(t - dt)``).
-:mod:`.keyframes` aligns a keyframe-only eye from the rotation angles of its keyframe pairs
+:mod:`.keyframe_only` aligns a keyframe-only eye from the rotation angles of its keyframe pairs
 (the screw congruence of eq. 9), where no angular speed can be resampled. :mod:`.clock` is
 beyond the paper: the offset measured in windows along the recording, and a linear clock
 (drift) fitted to it.

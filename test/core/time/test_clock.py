@@ -1,4 +1,4 @@
-"""Clock drift (core/time/clock.py, core/stages/clock.py): the line fits, the pipeline with and
+"""Clock drift (core/time/clock.py, core/stages/drift.py): the line fits, the pipeline with and
 without clock_drift, bad input; and the drift and scale options end to end."""
 
 from __future__ import annotations

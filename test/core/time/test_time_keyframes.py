@@ -18,7 +18,7 @@ from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import TimeAlignmentError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error, keyframes_only, with_dropouts
-from handeye_ros.core.time.keyframes import align_time_keyframes
+from handeye_ros.core.time.keyframe_only import align_time_keyframes
 from handeye_ros.core.trajectory import is_keyframe_only
 
 

@@ -1,7 +1,7 @@
 """The clock along the recording, as the pipeline uses it: with ``clock_drift`` the drift from
 stage 1 in windows before stage 2, and the offset measured in windows with stage 2's rotation
 after it (the vector form of stage 1); without it, a drift the windows show is named in the
-verdict (:mod:`.clock` measures, :class:`~handeye_ros.core.eye_model.EyeModel` applies)."""
+verdict (:mod:`..time.clock` measures, :class:`~handeye_ros.core.eye_model.EyeModel` applies)."""
 
 from __future__ import annotations
 

@@ -7,9 +7,9 @@ that shuts down whatever happens), with four things they do not need:
 - ``--help`` and a stray argument are answered before anything starts;
 - the signals are ours, not rclpy's (``SignalHandlerOptions.NO``): a SIGINT or SIGTERM is only
   noted (:mod:`.lifecycle`), while importing, starting or spinning alike, and the spin loop
-  looks at it at least every ``STOP_POLL_S``. rclpy's own handler would shut the context down at once,
-  from its thread, and a ``~/calibrate`` caller waiting for a running calibration could then
-  never be answered;
+  looks at it at least every ``STOP_POLL_S``. rclpy's own handler would shut the context down
+  at once, from its thread, and a ``~/calibrate`` caller waiting for a running calibration
+  could then never be answered;
 - the stop therefore happens in order, on a context that still works: the worker is stopped
   (a running calibration is abandoned), the pending ``~/calibrate`` calls are answered
   "aborted: shutting down" and the executor spins until the answers are sent (at most

@@ -13,10 +13,11 @@ it snapshots the buffers, hands the snapshot to a worker *process* and awaits th
 the executor keeps taking messages meanwhile. A process rather than a thread: at 1 kHz the
 executor holds the GIL most of the time, and a calibration thread beside it ran ten times
 slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
-start-up. Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running
-calibration is abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a
-``~/calibrate`` caller still waiting is answered "aborted: shutting down"
-(:meth:`CalibratorNode.send_answers`).
+start-up. A job's answer comes back on the executor's thread
+(:meth:`CalibratorNode.on_executor`), which alone publishes and changes the node's state.
+Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running calibration is
+abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a ``~/calibrate``
+caller still waiting is answered "aborted: shutting down" (:meth:`CalibratorNode.send_answers`).
 Every calibration, successful or not, updates every output together. A success publishes on
 the latched topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
 ``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
@@ -37,7 +38,6 @@ import concurrent.futures as cf
 import shutil
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -89,14 +89,15 @@ ABORTED = 'aborted: shutting down'
 class CalibratorNode(Node):
     """See the module docstring."""
 
-    def __init__(self, pool: cf.ProcessPoolExecutor, **kwargs: Any):
+    def __init__(self, pool: worker.Pool, **kwargs: Any):
         """``pool``: the worker (:func:`.worker.new_pool`, started before rclpy.init); the
         node owns it from here and stops it in :meth:`close`."""
         super().__init__('calibrator', **kwargs)
         self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
         parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
-        self._busy = threading.Lock()
+        #: a calibration runs (set and cleared on the executor's thread)
+        self._busy = False
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
         self._last_result: Calibrated | None = None
@@ -165,6 +166,16 @@ class CalibratorNode(Node):
         """A job for the worker pool (RuntimeError once it is shut down)."""
         return self._pool.submit(fn, *args)
 
+    def on_executor(self, fn: Any, *args: Any) -> None:
+        """Run ``fn(*args)`` on the executor's thread, from any thread (a worker job's done
+        callback runs in the pool's): every output is published, and every state changed,
+        from the one thread that spins the node."""
+        executor = self.executor
+        if executor is None:  # not spun (a test's node): nothing else runs
+            fn(*args)
+        else:
+            executor.create_task(fn, *args)
+
     # ------------------------------------------------------------------ parameters
 
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
@@ -213,14 +224,15 @@ class CalibratorNode(Node):
         None when a calibration is already running. ``auto``: started by auto mode, whose
         result is published only when it improves (:meth:`ReadinessStatus.admit`).
         """
-        if not self._busy.acquire(blocking=False):
+        if self._busy:
             return None
+        self._busy = True
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
         if self._closing:  # a call taken while the stop answers the others: no worker left
             future.set_result((False, ABORTED))
-            self._busy.release()
+            self._busy = False
             return future
         self._busy_since = time.monotonic()
         why = self.poses.why_no_data()
@@ -245,16 +257,18 @@ class CalibratorNode(Node):
             self._failed(str(err))
             future.set_result((False, str(err)))
             self._drop_stage(stage)
-            self._busy.release()
+            self._busy = False
             return future
 
-        job.add_done_callback(lambda job: self._calibrated(job, future, stage, t0, auto))
+        job.add_done_callback(
+            lambda job: self.on_executor(self._calibrated, job, future, stage, t0, auto)
+        )
         return future
 
     def _calibrated(
         self, job: cf.Future, future: Future, stage: str | None, t0: float, auto: bool
     ) -> None:
-        """The worker's answer (in a pool thread): the outputs, the log, the service's answer;
+        """The worker's answer (on the executor): the outputs, the log, the service's answer;
         the report's staging folder is kept with a success. The node's stop (close) ends a
         running job here too: its caller is then answered ABORTED."""
         kept = False
@@ -291,7 +305,7 @@ class CalibratorNode(Node):
         finally:
             if not kept:  # a failed calibration leaves no report to keep
                 self._drop_stage(stage)
-            self._busy.release()
+            self._busy = False
 
     async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         future = self.calibrate()
@@ -337,7 +351,7 @@ class CalibratorNode(Node):
         response.success = True
         response.message = 'buffers cleared' + (
             ' (the running calibration works on its own copy and will still answer)'
-            if self._busy.locked()
+            if self._busy
             else ''
         )
         return response
@@ -399,8 +413,7 @@ class CalibratorNode(Node):
     # ------------------------------------------------------------------ outputs
 
     def _succeeded(self, session: Calibrated) -> None:
-        """A new result: every output at once, one stamp (in a pool thread; rclpy's publish
-        is thread-safe)."""
+        """A new result: every output at once, one stamp (on the executor)."""
         self._last_result, self._last_error = session, None
         self._last_when = time.strftime('%Y-%m-%d %H:%M:%S')
         stamp = self.get_clock().now().nanoseconds
@@ -453,7 +466,7 @@ class CalibratorNode(Node):
             if stream in self.poses.guessed:
                 msgtype += ' (likeliest; not yet seen on the graph)'
             arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype))
-        busy = time.monotonic() - self._busy_since if self._busy.locked() else None
+        busy = time.monotonic() - self._busy_since if self._busy else None
         arr.status.append(
             diagnostics.result_status(
                 name, self._last_result, self._last_when, self._last_error, busy

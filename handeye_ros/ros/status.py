@@ -132,10 +132,10 @@ class ReadinessStatus:
             self._pending = False
             return
         snapshot_cpu = time.thread_time() - t0
-        job.add_done_callback(lambda job: self._done(job, snapshot_cpu))
+        job.add_done_callback(lambda job: node.on_executor(self._done, job, snapshot_cpu))
 
     def _done(self, job: Any, snapshot_cpu: float) -> None:
-        """In a pool thread: keep and publish the answer; the next one waits for its cost."""
+        """On the executor: keep and publish the answer; the next one waits for its cost."""
         if self._node.closing:  # the node stopped the worker under this job: nothing to say
             self._pending = False
             return

@@ -13,6 +13,7 @@ import importlib
 import multiprocessing
 import os
 import signal
+from typing import Any
 
 #: What a calibration in the worker imports (the application, the evaluation, the snapshot's
 #: class and the core with scipy.optimize): imported when the worker starts, not on the first call.
@@ -33,7 +34,32 @@ WORKERS = 2
 BLAS_THREADS = {'OPENBLAS_NUM_THREADS': '1', 'OMP_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
 
 
-def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
+class Pool:
+    """The worker processes: a ProcessPoolExecutor, and the process ids its workers said as
+    they started (the executor keeps its processes to itself; stopping a running call needs
+    them)."""
+
+    def __init__(self, executor: cf.ProcessPoolExecutor, said: Any):
+        self._executor, self._said, self._pids = executor, said, []
+
+    def submit(self, fn: Any, *args: Any) -> cf.Future:
+        """A job (RuntimeError once the pool is stopped)."""
+        return self._executor.submit(fn, *args)
+
+    def stop(self) -> None:
+        """Stop the workers and wait for them; a running call is abandoned (SIGTERM: the
+        executor has no public way to stop one), and shutdown then joins them."""
+        while not self._said.empty():
+            self._pids.append(self._said.get())
+        for pid in self._pids:
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except ProcessLookupError:  # ended already
+                pass
+        self._executor.shutdown(wait=True, cancel_futures=True)
+
+
+def new_pool(ignore_sigint: bool = True) -> Pool:
     """A pool of WORKERS spawned workers (spawn, not fork: the node's DDS threads must not be
     forked), started now and with the core imported, so that a call pays no start-up: a
     calibration and the readiness status can run at once.
@@ -51,32 +77,32 @@ def new_pool(ignore_sigint: bool = True) -> cf.ProcessPoolExecutor:
         # these milliseconds stays pending and reaches the handler restored below
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    context = multiprocessing.get_context('spawn')
+    said = context.SimpleQueue()
     try:
-        pool = cf.ProcessPoolExecutor(
-            max_workers=WORKERS, initializer=start, mp_context=multiprocessing.get_context('spawn')
+        executor = cf.ProcessPoolExecutor(
+            max_workers=WORKERS, initializer=start, initargs=(said,), mp_context=context
         )
         # each call finds no idle worker (none has started yet) and spawns one, now
         for _ in range(WORKERS):
-            pool.submit(int)
+            executor.submit(int)
     finally:
         if ignore_sigint:
             signal.signal(signal.SIGINT, previous)
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-    return pool
+    return Pool(executor, said)
 
 
-def stop(pool: cf.ProcessPoolExecutor) -> None:
-    """Stop the worker and wait for it; a running call is abandoned."""
-    # the executor has no public way to stop a running call; its worker processes are ours to
-    # stop, and shutdown(wait=True) then joins them
-    for proc in list((getattr(pool, '_processes', None) or {}).values()):
-        proc.terminate()
-    pool.shutdown(wait=True, cancel_futures=True)
+def stop(pool: Pool) -> None:
+    """Stop the worker and wait for it; a running call is abandoned (:meth:`Pool.stop`)."""
+    pool.stop()
 
 
-def start() -> None:
-    """Process pool initializer: ignore SIGINT, import the core."""
+def start(said: Any) -> None:
+    """Process pool initializer: ignore SIGINT, say this worker's process id, import the
+    core."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    said.put(os.getpid())
     for module in MODULES:
         importlib.import_module(module)
 

@@ -759,8 +759,8 @@ def test_auto_types_lose_nothing(
     streams = yaml.safe_load(saved.read_text())['streams']
     received = {s: streams[s]['received'] for s in ('hand', 'eye')}
     assert ros.stop(node) == 0
+    log = ros.output(node)[1]
     if received != pub['sent']:  # the node's log whole: an assert's message is cut short
-        log = ros.output(node)[1]
         pytest.fail(f'received {received}, sent {pub["sent"]}; the node said:\n{log[-6000:]}')
     assert {s: streams[s]['type'] for s in received} == pub['types']
     if types == 'likeliest':

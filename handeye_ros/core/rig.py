@@ -118,13 +118,12 @@ class Member:
 
 @dataclass(frozen=True)
 class Joint:
-    """The T_HE the members share: q_HE (x y z w), p_HE [m], covariance 6x6 (translation,
-    rotation; :func:`fuse`) and the information it sums."""
+    """The T_HE the members share: q_HE (x y z w), p_HE [m] and covariance 6x6 (translation,
+    rotation; :func:`fuse`)."""
 
     q_HE: np.ndarray
     p_HE: np.ndarray
     covariance: np.ndarray
-    information: np.ndarray
 
     @property
     def std(self) -> np.ndarray:
@@ -154,7 +153,7 @@ def fuse(members: Sequence[Member]) -> Joint:
         if np.linalg.norm(step) < STEP_TOL:
             break
     cov = np.linalg.inv(total)
-    return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T), total)
+    return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T))
 
 
 def chi2_against(member: Member, others: Joint) -> tuple[float, np.ndarray]:
@@ -168,10 +167,13 @@ def chi2_against(member: Member, others: Joint) -> tuple[float, np.ndarray]:
 @dataclass(frozen=True)
 class Conditioned:
     """A member's own parameters with T_HE fixed at the joint one: values and 1-sigma by name
-    (time_offset [s], clock_drift [s/s], scale), as :attr:`Member.order` names them."""
+    (time_offset [s], clock_drift [s/s], scale), as :attr:`Member.order` names them; and its
+    whole covariance in that order once T_HE is the joint one (Cov(x) the joint's, Cov(y, x)
+    = K Cov(x), Cov(y) the conditioned one; K as in :func:`conditioned`)."""
 
     values: dict[str, float]
     std: dict[str, float]
+    covariance: np.ndarray
 
 
 def conditioned(member: Member, joint: Joint) -> Conditioned:
@@ -183,27 +185,18 @@ def conditioned(member: Member, joint: Joint) -> Conditioned:
     """
     C = member.covariance
     own = [k for k in range(C.shape[0]) if not EXTRINSIC.start <= k < EXTRINSIC.stop]
-    K = np.linalg.solve(member.extrinsic_covariance, C[own, EXTRINSIC].T).T
+    C_yx = C[own, EXTRINSIC]
+    K = np.linalg.solve(member.extrinsic_covariance, C_yx.T).T
     shift = K @ difference(joint.q_HE, joint.p_HE, member.q_HE, member.p_HE)
-    cov = joint_covariance(member, joint)
+    cov = np.zeros_like(C)
+    cov[np.ix_(own, own)] = C[np.ix_(own, own)] - K @ C_yx.T + K @ joint.covariance @ K.T
+    cov[own, EXTRINSIC] = K @ joint.covariance
+    cov[EXTRINSIC, own] = cov[own, EXTRINSIC].T
+    cov[EXTRINSIC, EXTRINSIC] = joint.covariance
+    cov = 0.5 * (cov + cov.T)
     names = [member.order[k] for k in own]
     return Conditioned(
         {n: member.values[n] + float(s) for n, s in zip(names, shift, strict=True)},
         {n: float(np.sqrt(max(cov[k, k], 0.0))) for n, k in zip(names, own, strict=True)},
+        cov,
     )
-
-
-def joint_covariance(member: Member, joint: Joint) -> np.ndarray:
-    """The member's covariance in its own order once T_HE is the joint one: Cov(x) the joint's,
-    Cov(y, x) = K Cov(x), Cov(y) that of :func:`conditioned` (K as there)."""
-    C = member.covariance
-    n = C.shape[0]
-    own = [k for k in range(n) if not EXTRINSIC.start <= k < EXTRINSIC.stop]
-    C_yx, C_xx = C[own, EXTRINSIC], member.extrinsic_covariance
-    K = np.linalg.solve(C_xx, C_yx.T).T
-    out = np.zeros_like(C)
-    out[np.ix_(own, own)] = C[np.ix_(own, own)] - K @ C_yx.T + K @ joint.covariance @ K.T
-    out[own, EXTRINSIC] = K @ joint.covariance
-    out[EXTRINSIC, own] = out[own, EXTRINSIC].T
-    out[EXTRINSIC, EXTRINSIC] = joint.covariance
-    return 0.5 * (out + out.T)

@@ -9,8 +9,9 @@ on it; :func:`.checks.verdict.assess_rig` gives the verdict.
 :func:`at_shared`: the recording keeps its poses, screening, eye model (drift, scale) and
 verdict; its T_HE becomes the rig's, its offset the one conditioned on it
 (:func:`.rig.conditioned`), and what follows from both is computed again: the world alignment
-T_WG (eye segments each their own), the metrics and the keyframe motions' agreement. The batch covariance becomes the joint problem's
-(:func:`.rig.joint_covariance`), so the result's sigmas are the rig's.
+T_WG (eye segments each their own), the metrics and the keyframe motions' agreement. The batch
+covariance becomes the joint problem's (:attr:`.rig.Conditioned.covariance`), so the result's
+sigmas are the rig's.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from .checks.consistency import Split, Test, split
 from .checks.verdict import Quality, assess_rig, motion_inconsistency
 from .pipeline import metrics_at
 from .result import CalibrationResult
-from .rig import Conditioned, Joint, Member, conditioned, fuse, joint_covariance
+from .rig import Conditioned, Joint, Member, conditioned, fuse
 from .world import align_worlds
 
 
@@ -69,7 +70,8 @@ class Rig:
         """Each group's own joint T_HE, largest group first."""
         if self.split is None:
             return []
-        return [fuse([self.members[k] for k in g]) for g in self.split.groups]
+        rest = [fuse([self.members[k] for k in g]) for g in self.split.groups[1:]]
+        return [self.joint, *rest]
 
 
 def solve_rig(
@@ -110,17 +112,16 @@ def at_shared(result: CalibrationResult, joint: Joint, member: Member | None) ->
     used = result.used
     if used is None:
         raise ValueError('this result does not hold the streams it was computed on')
-    delta = 0.0
-    if member is not None:
-        delta = conditioned(member, joint).values['time_offset'] - result.time_offset_s
+    given = None if member is None else conditioned(member, joint)
+    delta = 0.0 if given is None else given.values['time_offset'] - result.time_offset_s
     dt = used.time_offset_s + delta
     q, p = joint.q_HE, joint.p_HE
     pairs = associate(used.hand, used.eye, dt)
     world = align_worlds(pairs, q, p)
     metrics = metrics_at(used.hand, used.eye, pairs, world, (dt, q, p), result.config.eta)
     batch = result.batch
-    if member is not None and batch is not None:
-        cov = joint_covariance(member, joint)
+    if given is not None and batch is not None:
+        cov = given.covariance
         batch = replace(batch, covariance=cov, std=np.sqrt(np.diag(cov)))
     quality = result.quality
     unfit = motion_inconsistency(metrics, "the rig's T_HE")

@@ -51,22 +51,11 @@ class Summary:
 def own_calibration(run: Any) -> Own:
     """Round 1: ``run`` (a :class:`~handeye_ros.app.runs.RunSpec`) calibrated alone, no outputs.
     Never raises for bad input: the reason says why it gave nothing."""
-    from ..core.errors import ConfigError, HandeyeError
-    from .request import Request
+    from ..core.errors import HandeyeError
     from .request import run as run_request
 
-    request = Request(
-        hand=None if run.bag else run.hand or '',
-        eye=None if run.bag else run.eye or '',
-        bag=run.bag or None,
-        options=dict(run.options),
-        evaluation=False,
-        progress=False,
-    )
     try:
-        if not (run.bag or (run.hand and run.eye)):
-            raise ConfigError('a run needs hand and eye files, or a bag')
-        document, result = run_request(request)
+        document, result = run_request(run.request(evaluation=False, progress=False))
     except HandeyeError as err:
         return Own(run.name, None, None, f'it failed: {err}')
     except MemoryError:

@@ -102,6 +102,22 @@ class RunSpec:
         keep = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in self.name)
         return keep.strip('._') or 'run'
 
+    def request(self, **fields: Any) -> Any:
+        """The application's Request for this run's inputs and options, with ``fields`` (what
+        to write); ConfigError when it names neither two files nor a bag (missing or
+        unreadable files are named by the readers themselves)."""
+        from .request import Request
+
+        if not (self.bag or (self.hand and self.eye)):
+            raise ConfigError('a run needs hand and eye files, or a bag')
+        return Request(
+            hand=None if self.bag else self.hand,
+            eye=None if self.bag else self.eye,
+            bag=self.bag or None,
+            options=dict(self.options),
+            **fields,
+        )
+
 
 def read_manifest(path: str | Path) -> list[RunSpec]:
     """The runs of a manifest file or directory layout (module docstring).
@@ -228,7 +244,6 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     """
     from ..core.errors import HandeyeError
     from ..formats.result_file import write_result
-    from .request import Request
     from .request import run as run_request
 
     t0 = time.perf_counter()
@@ -239,19 +254,12 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
         'trial': run.trial,
     }
     folder = Path(output) / 'runs' / run.slug()
-    request = Request(
-        hand=None if run.bag else run.hand or '',
-        eye=None if run.bag else run.eye or '',
-        bag=run.bag or None,
-        options=dict(run.options),
-        export=str(folder / 'export'),
-        report=str(folder / 'report') if run.report else None,
-        progress=None,
-    )
     try:
-        # missing or unreadable files are named by the readers themselves
-        if not (run.bag or (run.hand and run.eye)):
-            raise ConfigError('a run needs hand and eye files, or a bag')
+        request = run.request(
+            export=str(folder / 'export'),
+            report=str(folder / 'report') if run.report else None,
+            progress=None,
+        )
         out, _ = run_request(request)
         write_result(folder / 'result.yaml', out)
         row.update(_row(out))

@@ -338,44 +338,17 @@ def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dic
     """``--shared-extrinsic``: the rig's two rounds (:mod:`handeye_ros.app.rig`) on Dask, or in
     this process with ``--sequential``; writes rig.yaml, the tables and the plots; the rows at
     the rig's T_HE. Nothing is cached: the rig changes with any of its recordings."""
-    from .rig import (
-        calibrate_rig,
-        finish,
-        own_calibration,
-        role,
-        shared_outputs,
-        solve,
-        summary_of,
-    )
+    from .rig import calibrate_rig
     from .rig_file import rig_summary
     from .runs import rig_row
 
     t0 = time.perf_counter()
     if args.sequential:
-        document, docs = calibrate_rig(runs, output, report=args.reports)
+        document, docs = calibrate_rig(runs, output)
     else:
         with _client(args) as client:
-            owns = [
-                client.submit(own_calibration, r, key=f'own-{k}-{r.slug()}', pure=False)
-                for k, r in enumerate(runs)
-            ]
-            rig = solve(client.gather([client.submit(summary_of, f) for f in owns]))
-            shared = [
-                client.submit(
-                    shared_outputs,
-                    own,
-                    rig.joint,
-                    *role(rig, r.name),
-                    str(output / 'runs' / r.slug()),
-                    r.report,
-                    key=f'shared-{k}-{r.slug()}',
-                    pure=False,
-                )
-                for k, (r, own) in enumerate(zip(runs, owns, strict=True))
-            ]
-            docs = client.gather(shared)
-            del owns  # the poses held on the workers go with the futures
-        document = finish(rig, [r.name for r in runs], docs, output)
+            submit = lambda fn, *a: client.submit(fn, *a, pure=False)
+            document, docs = calibrate_rig(runs, output, submit, client.gather)
     LOG.info('timing: rig %.2f s', time.perf_counter() - t0)
     try:
         from ..evaluation.rig_report import write_rig_report

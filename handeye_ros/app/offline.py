@@ -401,7 +401,8 @@ def _rig_main(args: argparse.Namespace) -> int:
                 f'{len(runs)}; calibrate one with --hand/--eye or --bag'
             )
         given = request_of(args).options
-        runs = [replace(r, options={**given, **r.options}) for r in runs]
+        # the rig page (--report) is the rig's; per-recording reports are evaluate's
+        runs = [replace(r, options={**given, **r.options}, report=False) for r in runs]
         output = check_directory(args.export, '--export') if args.export else None
         document, _ = calibrate_rig(runs, output)
         if args.output:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.checks.verdict import Code
-from .rig_file import RIG_FILE, read_members, rig_document, write_rig_file
+from .rig_file import RIG_FILE, part_of, read_members, rig_document, write_rig_file
 
 
 @dataclass(frozen=True)
@@ -142,15 +142,27 @@ def _own_values(d: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def calibrate_rig(runs: list, output: Path | None, report: bool = False) -> tuple[dict, list]:
-    """Both rounds in this process, one recording after the other; the rig document and each
-    recording's result dictionary (written under ``output``/runs/<name>/ when given)."""
-    owns = [own_calibration(r) for r in runs]
-    rig = solve([summary_of(o) for o in owns])
-    docs = [
-        shared_outputs(own, rig.joint, *role(rig, run.name), _folder(output, run), report)
-        for run, own in zip(runs, owns, strict=True)
-    ]
+def calibrate_rig(
+    runs: list, output: Path | None, submit: Any = None, gather: Any = list
+) -> tuple[dict, list]:
+    """Both rounds; the rig document and each recording's result dictionary (written under
+    ``output``/runs/<name>/ when given, with its report when the run asks for one).
+
+    ``submit(fn, *args)`` runs a task and ``gather`` collects what the tasks return: by default
+    here, one recording after the other; on Dask, a client's ``submit`` (pure=False) and
+    ``gather``, so that round 1's results, poses included, stay on the worker that made them
+    until round 2 runs there, and only each recording's summary comes back."""
+    submit = submit or (lambda fn, *args: fn(*args))
+    owns = [submit(own_calibration, r) for r in runs]
+    rig = solve(gather([submit(summary_of, own) for own in owns]))
+    docs = gather(
+        [
+            submit(
+                shared_outputs, own, rig.joint, *role(rig, r.name), _folder(output, r), r.report
+            )
+            for r, own in zip(runs, owns, strict=True)
+        ]
+    )
     return finish(rig, [r.name for r in runs], docs, output), docs
 
 
@@ -216,9 +228,7 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     document = finish(rig, names, docs, None)
     write_rig_file(file, document)
     r = document['rig']
-    part = (
-        'used' if session in r['used'] else 'follows' if session in r['followers'] else 'left out'
-    )
+    part = part_of(r, session)
     doc['summary'] = doc.get('summary') or result.summary()
     doc['summary'] += {
         'used': f'; T_HE of the rig of {len(r["used"])} recordings ({file.name})',
@@ -231,11 +241,7 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
         **doc.get('rig', {}),
         'file': str(file.absolute()),
         'session': session,
-        'part': 'used'
-        if session in r['used']
-        else 'follows'
-        if session in r['followers']
-        else 'left out',
+        'part': part,
         'recordings': len(r['used']),
         'verdict': r['quality']['verdict'],
         'reasons': [x['message'] for x in r['quality']['reasons']],

@@ -135,6 +135,14 @@ def rig_summary(doc: dict[str, Any]) -> str:
     return '\n'.join(lines)
 
 
+def part_of(rig: dict[str, Any], name: str) -> str:
+    """A recording's part in a rig (the ``rig`` section of :func:`rig_document`): 'used',
+    'follows' or 'left out'."""
+    if name in rig['used']:
+        return 'used'
+    return 'follows' if name in rig['followers'] else 'left out'
+
+
 def read_members(file: Path, said: str) -> list[Member]:
     """The recordings of a rig file that have an estimate of their own (none when the file
     does not exist); ConfigError naming ``said`` when it is no rig file."""

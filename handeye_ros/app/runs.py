@@ -292,12 +292,13 @@ def rig_row(run: RunSpec, doc: dict[str, Any], rig: dict[str, Any]) -> dict[str,
         row['status'], row['reason'] = 'ok', ''
     else:
         row['status'], row['reason'] = 'failed', left_out.get(run.name, '')
-    if run.name in rig['rig']['used']:
-        row['rig'] = 'used'
-    elif run.name in rig['rig']['followers']:
-        row['rig'] = "follows (takes the rig's T_HE)"
-    else:
-        row['rig'] = f'left out: {left_out.get(run.name, "")}'
+    from .rig_file import part_of
+
+    row['rig'] = {
+        'used': 'used',
+        'follows': "follows (takes the rig's T_HE)",
+        'left out': f'left out: {left_out.get(run.name, "")}',
+    }[part_of(rig['rig'], run.name)]
     return row
 
 

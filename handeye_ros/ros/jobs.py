@@ -1,5 +1,6 @@
 """The calibrator's worker jobs (run in :mod:`.worker`'s processes, so no rclpy here): a
-calibration of a snapshot of the buffers, with its outputs, and the readiness status of one.
+calibration of a snapshot of the buffers, with its outputs, and the readiness status's two
+jobs: one reads the whole buffers, the other only the poses that came since.
 
 Both call the application (:mod:`handeye_ros.app.request`) as the offline tool does; what comes
 back to the node is small: the result without its poses and the paths drawn in RViz.
@@ -89,17 +90,36 @@ def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
     }
 
 
-def readiness_of_buffers(snapshot: Any, options: dict[str, Any]) -> tuple[dict[str, Any], float]:
-    """The node's status job: what a snapshot of the buffers supports
-    (:func:`~handeye_ros.core.checks.readiness.readiness`), as the result's ``readiness``
-    section writes it, and the CPU time the job took in its process (all threads) [s]."""
+def readiness_start(snapshot: Any, options: dict[str, Any]) -> tuple[Any, float]:
+    """The node's status job on the whole buffers
+    (:func:`~handeye_ros.core.checks.progress.start`: stages 1 and 2, then every piece), and
+    the CPU time it took in its process (all threads) [s]."""
     import time
 
     t0 = time.process_time()
-    from ..core.checks.readiness import readiness
+    from ..core.checks.progress import start
+
+    return start(snapshot.hand, snapshot.eye, _calibration(options)), time.process_time() - t0
+
+
+def readiness_measure(
+    cursor: Any, tails: dict[str, Any], options: dict[str, Any]
+) -> tuple[Any, float]:
+    """The node's status job on the poses new since the cursor
+    (:func:`~handeye_ros.core.checks.progress.measure`), and its CPU time [s]."""
+    import time
+
+    t0 = time.process_time()
+    from ..core.checks.progress import measure
+
+    out = measure(cursor, tails['hand'], tails['eye'], _calibration(options))
+    return out, time.process_time() - t0
+
+
+def _calibration(options: dict[str, Any]) -> Any:
     from ..core.config import CalibrationConfig
     from ..core.options import split_options
     from ..stream.config import StreamConfig
 
     calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
-    return readiness(snapshot.hand, snapshot.eye, calib).to_dict(), time.process_time() - t0
+    return calib

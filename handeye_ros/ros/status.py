@@ -1,14 +1,19 @@
 """The calibrator's readiness status while recording, and its auto mode.
 
 Every ``status_period`` (less often when one computation costs more than MAX_DUTY of a core
-over the period) the node hands a snapshot of its buffers to its worker pool, which
-computes what they support (:mod:`handeye_ros.core.checks.readiness`: excitation about each
-axis of the device, the 1-sigmas a calibration now would have against the ``precision_*``
-targets, what is missing in the user's words). The answer is published on ``~/status``
+over the period) the node hands the poses that came since the last status to its worker pool,
+which adds what they say to what it has gathered (:mod:`handeye_ros.core.checks.progress`:
+excitation about each axis of the device, the information of the eye's consecutive pairs at
+one estimate); the node judges the sum (:mod:`handeye_ros.core.checks.readiness`: the 1-sigmas a
+calibration now would have against the ``precision_*`` targets, what is missing in the user's
+words). So a status costs the same at 10 s and at 30 min of buffers. The whole buffers are read
+again (a snapshot: stages 1 and 2, then every piece) first, while stages 1 and 2 give no
+estimate, when the estimate has moved beyond its 1-sigma, and as the buffers grow by half; the
+pieces of poses the buffers drop are dropped with them. The answer is published on ``~/status``
 (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
 changes (and every LOG_PERIOD_S): never redrawn in place, which glued log lines onto it in a
-terminal and its redraws into one line under ``ros2 launch``. The node's executor only takes the
-snapshot: ingest never waits for the computation.
+terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies
+the poses and adds up the pieces: ingest never waits for the computation.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
 time the buffered span has grown by GROWTH. A result is measured by its *precision ratio*, its
@@ -32,12 +37,14 @@ from typing import Any
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
+from ..core.checks.progress import Measured, Progress
+from ..core.checks.readiness import readiness_of
 from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .jobs import Calibrated, readiness_of_buffers
+from .jobs import Calibrated, readiness_measure, readiness_start
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
@@ -81,8 +88,15 @@ class ReadinessStatus:
         self.last: dict[str, Any] | None = None
         self.why_not = 'waiting for data'
         self.auto = 'waiting for READY' if auto else 'off'
-        self._pending = False
-        self._next = 0.0  # no status computed before (monotonic s)
+        #: what the status has gathered of the buffers, and the span it read whole (s)
+        self._progress: Progress | None = None
+        self._started_span = 0.0
+        self._moved = False  # the estimate moved beyond its 1-sigma since it was read whole
+        #: bumped when the buffers are read whole again or reset: older answers are dropped
+        self._generation = 0
+        #: a job of each kind under way; when the next may start (monotonic s)
+        self._pending = {'start': False, 'measure': False}
+        self._next = {'start': 0.0, 'measure': 0.0}
         self._span_calibrated = 0.0
         #: the published auto result's reported 1-sigmas (s, m, deg), and the status's
         #: predicted precision ratio when auto mode last calibrated
@@ -100,14 +114,16 @@ class ReadinessStatus:
             node.create_timer(period_s, self.tick)
 
     def tick(self) -> None:
-        """On the executor: maybe calibrate (auto mode), then ask the worker for a status."""
+        """On the executor: maybe calibrate (auto mode), then ask the workers for a status:
+        of the whole buffers when :meth:`_restart_due`, else of the poses new since the last
+        one."""
         node = self._node
         if self.last and self.last['ready']:
             if self.auto in ('waiting for READY', 'calibrating'):
                 self._auto_calibrate()
             elif self.auto.startswith(('converged', 'done')) and self._richer():
                 self._auto_calibrate(grown=True)
-        if self._pending or node.closing or time.monotonic() < self._next:
+        if node.closing:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
         if empty:
@@ -117,7 +133,27 @@ class ReadinessStatus:
             )
             self._publish()
             return
-        t0 = time.thread_time()
+        now = time.monotonic()
+        if self._restart_due() and not self._pending['start'] and now >= self._next['start']:
+            self._start()
+        if self._progress and not self._pending['measure'] and now >= self._next['measure']:
+            self._measure()
+
+    def _restart_due(self) -> bool:
+        """Whether the status reads the whole buffers again: first, while stages 1 and 2 gave
+        no estimate, when the estimate has moved beyond its 1-sigma
+        (:meth:`~handeye_ros.core.checks.progress.Progress.moved`: a clock that jumped or
+        drifts, or a stage 1 peak that more data overturn), and each time the buffered span has
+        grown by GROWTH (stage 1 looks again, at a cost that grows with the buffers as often as
+        they double and a half)."""
+        p = self._progress
+        if p is None or p.known is None or self._moved:
+            return True
+        span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
+        return span >= GROWTH * self._started_span
+
+    def _start(self) -> None:
+        node, t0 = self._node, time.thread_time()
         try:
             snapshot = node.recorder.snapshot()
         except HandeyeError as err:
@@ -125,28 +161,80 @@ class ReadinessStatus:
             self._publish()
             return
         self._clocks(snapshot.hand.t_ns, snapshot.eye.t_ns)
-        self._pending = True
-        try:
-            job = node.submit(readiness_of_buffers, snapshot, node.options())
-        except RuntimeError:  # the pool is shut down: the node stops
-            self._pending = False
-            return
-        snapshot_cpu = time.thread_time() - t0
-        job.add_done_callback(lambda job: node.on_executor(self._done, job, snapshot_cpu))
+        span = min(snapshot.hand.duration_s, snapshot.eye.duration_s)
+        self._ask(
+            'start',
+            readiness_start,
+            (snapshot, node.options()),
+            t0,
+            lambda p: self._started(p, span),
+        )
 
-    def _done(self, job: Any, snapshot_cpu: float) -> None:
-        """On the executor: keep and publish the answer; the next one waits for its cost."""
-        if self._node.closing:  # the node stopped the worker under this job: nothing to say
-            self._pending = False
+    def _measure(self) -> None:
+        node, t0, p = self._node, time.thread_time(), self._progress
+        buffers = node.recorder.buffers
+        newest = [buffers[s].newest_ns for s in STREAMS]
+        if None in newest:
             return
         try:
-            (self.last, job_cpu), self.why_not = job.result(), ''
-            self.last = carry_over_long_run(self.last, self._over_long_run)
-            self._next = time.monotonic() + (snapshot_cpu + job_cpu) / MAX_DUTY
+            tails = node.recorder.tails(dict(zip(STREAMS, p.wants(*newest), strict=True)))
+        except HandeyeError:  # emptied meanwhile: the next tick says so
+            return
+        self._clocks(tails['hand'].t_ns, tails['eye'].t_ns)
+        self._ask(
+            'measure', readiness_measure, (p.cursor(), tails, node.options()), t0, self._measured
+        )
+
+    def _ask(self, kind: str, fn: Any, args: tuple, t0: float, then: Any) -> None:
+        """Submit one of the status's jobs; its answer goes to ``then`` on the executor, unless
+        the buffers were reset or read whole again meanwhile."""
+        node, generation = self._node, self._generation
+        self._pending[kind] = True
+        try:
+            job = node.submit(fn, *args)
+        except RuntimeError:  # the pool is shut down: the node stops
+            self._pending[kind] = False
+            return
+        node_cpu = time.thread_time() - t0
+        job.add_done_callback(
+            lambda job: node.on_executor(self._done, kind, generation, job, node_cpu, then)
+        )
+
+    def _done(self, kind: str, generation: int, job: Any, node_cpu: float, then: Any) -> None:
+        """On the executor: a job's answer; the next job of its kind waits for its cost."""
+        self._pending[kind] = False
+        if self._node.closing:  # the node stopped the worker under this job: nothing to say
+            return
+        try:
+            value, job_cpu = job.result()
         except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
             self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
-        finally:
-            self._pending = False
+            self._publish()
+            return
+        self._next[kind] = time.monotonic() + (node_cpu + job_cpu) / MAX_DUTY
+        if generation == self._generation:
+            then(value)
+
+    def _started(self, progress: Progress, span: float) -> None:
+        self._generation += 1  # the measures under way are of the old pieces
+        self._progress, self._started_span = progress, span
+        self._report()
+
+    def _measured(self, measured: Measured) -> None:
+        self._progress.take(measured)
+        self._report()
+
+    def _report(self) -> None:
+        """Judge the pieces of the poses still buffered, and publish."""
+        p, buffers = self._progress, self._node.recorder.buffers
+        oldest = [buffers[s].oldest_ns for s in STREAMS]
+        if None in oldest:
+            return
+        p.drop_before(*oldest)
+        durations = tuple(buffers[s].span_s for s in STREAMS)
+        found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
+        self.last, self.why_not = carry_over_long_run(found, self._over_long_run), ''
+        self._moved = p.moved() is not None
         self._publish()
 
     def stopped(self) -> list[str]:
@@ -206,6 +294,9 @@ class ReadinessStatus:
         """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
         (a new recording: its first result is published whatever the last one reported)."""
         self._apart, self._jumped = None, []
+        self._progress, self._moved = None, False
+        self._generation += 1
+        self._next['start'] = 0.0
         if self.auto != 'off':
             self.auto, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
             self._predicted_then = math.inf

@@ -174,6 +174,31 @@ class PoseBuffer:
             t, pq = self._ordered()
         return Trajectory.from_arrays(t, pq[:, :3], pq[:, 3:], name=self.name)
 
+    def since(self, t_ns: int) -> Trajectory:
+        """:meth:`trajectory` of the poses from the newest one at or before ``t_ns`` on (from
+        the oldest when none is): the tail a status reads, without copying the whole ring."""
+        with self._lock:
+            n, head = self._count, self._head
+            first = min(n, self.capacity - head)  # the ring's two runs, oldest first
+            j = int(np.searchsorted(self._t[head : head + first], t_ns, side='right'))
+            if j == first:
+                j += int(np.searchsorted(self._t[: n - first], t_ns, side='right'))
+            idx = (head + np.arange(max(j - 1, 0), n)) % self.capacity
+            t, pq = self._t[idx], self._pq[idx]
+        return Trajectory.from_arrays(t, pq[:, :3], pq[:, 3:], name=self.name)
+
+    @property
+    def newest_ns(self) -> int | None:
+        """The newest buffered stamp, or None."""
+        with self._lock:
+            return self._last if self._count else None
+
+    @property
+    def oldest_ns(self) -> int | None:
+        """The oldest buffered stamp, or None."""
+        with self._lock:
+            return int(self._t[self._head]) if self._count else None
+
     def stats(self) -> BufferStats:
         """Current counters. The rate is the median over the newest RATE_WINDOW intervals:
         the rate now, at a bounded cost (the node asks every second; copying half an hour of

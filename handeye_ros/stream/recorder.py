@@ -252,6 +252,17 @@ class Recorder:
             tuple(self.stream_warnings()),
         )
 
+    def tails(self, since_ns: dict[str, int]) -> dict[str, Trajectory]:
+        """Each stream's poses from the newest one at or before its stamp in ``since_ns`` on
+        (:meth:`PoseBuffer.since`), as :meth:`snapshot` gives them: what the status reads of
+        the poses that came since it last read."""
+        out = {}
+        for name, t_ns in since_ns.items():
+            out[name] = self.buffers[name].since(t_ns)
+            if name in self._tf:
+                out[name] = self._tf[name].finish(out[name])
+        return out
+
     def stream_warnings(self) -> list[str]:
         """Dropped or rejected messages, said in the result."""
         out = []

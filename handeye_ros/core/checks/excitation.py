@@ -1,0 +1,96 @@
+"""How far a body has turned about each of its axes, how fast, how far it travelled, and how
+many of its recent poses are missing: the readiness's excitation and stream health, in pieces
+that add up as a recording grows.
+
+A rotation about an axis a says nothing of T_HE's rotation about a, nor of its translation
+along a (eq. 2); so the turn about each of the device's axes tells which one the user still
+has to turn it about.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import consecutive_rotvecs
+from ..trajectory import Trajectory
+
+#: The turn about each axis is summed over steps this long (s): summed over every pose's step,
+#: it summed each pose's noise too (a noisy planar recording 'turned' 859 deg about an axis
+#: it never turned about, and the advice then thought that axis done).
+TURN_STEP_S = 0.2
+#: The stream health looks at this much of the latest data (s).
+RECENT_S = 10.0
+
+
+@dataclass(frozen=True)
+class Turned:
+    """A body's motion over the steps between stamps t0_ns and t1_ns: ``deg`` (3,) the sum of
+    |rotation| about each of its axes [deg], ``rate_sq`` the sum over steps of the squared
+    angular speed [(rad/s)^2], ``steps`` how many, ``travel_m`` its path length [m]."""
+
+    t0_ns: int
+    t1_ns: int
+    deg: np.ndarray
+    rate_sq: float
+    steps: int
+    travel_m: float
+
+    def __add__(self, other: Turned) -> Turned:
+        return Turned(
+            min(self.t0_ns, other.t0_ns),
+            max(self.t1_ns, other.t1_ns),
+            self.deg + other.deg,
+            self.rate_sq + other.rate_sq,
+            self.steps + other.steps,
+            self.travel_m + other.travel_m,
+        )
+
+    @property
+    def rms_dps(self) -> float:
+        """RMS angular speed [deg/s] (0 without a step)."""
+        return float(np.degrees(np.sqrt(self.rate_sq / self.steps))) if self.steps else 0.0
+
+
+def turned(traj: Trajectory, from_ns: int | None = None) -> tuple[Turned | None, int | None]:
+    """The motion of ``traj`` from its pose at ``from_ns`` (its first when None; the end of the
+    last step taken before) over steps of about TURN_STEP_S that span no gap, and the stamp the
+    next steps start at (None: the same). None for no whole step yet."""
+    first = 0 if from_ns is None else int(np.searchsorted(traj.t_ns, from_ns))
+    if len(traj) - first < 2:
+        return None, from_ns
+    t = traj.t_ns[first:]
+    period = float(np.median(np.diff(t))) * 1e-9
+    idx = first + np.arange(0, t.size, max(1, round(TURN_STEP_S / max(period, 1e-9))))
+    if idx.size < 2:
+        return None, from_ns
+    gaps = np.concatenate(([0], np.cumsum(~traj.interval_ok())))
+    whole = gaps[idx[1:]] == gaps[idx[:-1]]  # no gap or break inside the step
+    turn = consecutive_rotvecs(traj.q_xyzw[idx])[whole]  # rad, body frame
+    seconds = np.diff(traj.t_ns[idx])[whole] * 1e-9
+    rate = turn / seconds[:, None]  # rad/s
+    travel = float(np.sum(np.linalg.norm(np.diff(traj.p_xyz[idx], axis=0), axis=1)))
+    piece = Turned(
+        int(traj.t_ns[idx[0]]),
+        int(traj.t_ns[idx[-1]]),
+        np.degrees(np.sum(np.abs(turn), axis=0)),
+        float(np.sum(rate**2)),
+        int(np.sum(whole)),
+        travel,
+    )
+    return piece, int(traj.t_ns[idx[-1]])
+
+
+def dropout(traj: Trajectory) -> float:
+    """The fraction of the stream's samples missing over its last RECENT_S (0 for a keyframe
+    stream, whose rate is its own)."""
+    if traj.keyframes or len(traj) < 3:
+        return 0.0
+    period = float(np.median(np.diff(traj.t_ns))) * 1e-9
+    t = traj.seconds(int(traj.t_ns[-1]))
+    span = min(RECENT_S, -float(t[0]))
+    if span <= 10 * period:
+        return 0.0
+    got = int(np.sum(t > -span))
+    return float(np.clip(1.0 - got * period / span, 0.0, 1.0))

@@ -222,7 +222,7 @@ class CalibratorNode(Node):
 
         Returns an rclpy Future that completes on the executor with (success, message), or
         None when a calibration is already running. ``auto``: started by auto mode, whose
-        result is published only when it improves (:meth:`ReadinessStatus.admit`).
+        result is published only when it improves (:meth:`~.auto_mode.AutoMode.admit`).
         """
         if self._busy:
             return None
@@ -289,7 +289,7 @@ class CalibratorNode(Node):
         else:
             took = f'{time.perf_counter() - t0:.2f} s'
             said = session.result.said() + _rig_said(session.document)
-            kept_back = self.status.admit(session, auto)
+            kept_back = self.status.auto.admit(session, auto)
             if kept_back:
                 said = f'calibrated in {took}, not published ({kept_back}): {said}'
                 self.get_logger().info(said)

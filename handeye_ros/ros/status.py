@@ -15,22 +15,11 @@ changes (and every LOG_PERIOD_S): never redrawn in place, which glued log lines 
 terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies
 the poses and adds up the pieces: ingest never waits for the computation.
 
-With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
-time the buffered span has grown by GROWTH. A result is measured by its *precision ratio*, its
-largest reported 1-sigma over that sigma's ``precision_*`` target (:func:`precision_ratio`: below
-1, the verdict is not ``imprecise``). A later result of auto mode's own is published when its
-ratio is no larger than the published one's; once one improves it by no more than IMPROVEMENT
-of itself (or of 1, the targets), or is not published, auto mode has converged (said in the
-status); so it has, said so, once the buffers are full (their span can no longer grow by
-GROWTH). Converged or done, it calibrates again when the status's predicted ratio falls below
-the one predicted at its last calibration by more than RECALIBRATE of it (or of 1): richer
-motion than the data it converged on.
-``~/calibrate`` works at any time, and its result is always published.
+With ``auto_calibrate``, :mod:`.auto_mode` calibrates by the status.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
@@ -39,33 +28,23 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from ..core.checks.progress import Measured, Progress
 from ..core.checks.readiness import readiness_of
-from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .jobs import Calibrated, readiness_measure, readiness_start
+from .auto_mode import AutoMode
+from .jobs import readiness_measure, readiness_start
 
-#: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
-GROWTH = 1.5
-#: With auto_calibrate: converged when the precision ratio shrinks by no more than this fraction
-#: of itself or of 1 (the targets), whichever is larger. Of itself: for sigmas that stop at a
-#: floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the
-#: targets: white noise shrinks them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and
-#: this ends it once they are about half the targets, where more recording no longer matters
-#: to the verdict.
-IMPROVEMENT = 0.1
-#: With auto_calibrate, converged or done: calibrate again when the predicted precision ratio
-#: has fallen by more than this fraction of itself or of 1 since the last calibration (twice
-#: IMPROVEMENT: a gain the last result could not have had, not the next 18 % of white noise).
-RECALIBRATE = 2 * IMPROVEMENT
-#: The status takes at most this share of one core on average: one that cost c seconds of CPU
-#: (the node's snapshot, in its thread, and the worker's job, in all its threads) is followed
-#: by none for c / MAX_DUTY. 3 % rather than the 5 % asked for: what is not counted (the
-#: snapshot's transfer to the worker and back, the publishing) cost the node up to 2 % of a
-#: core in bench/node_ingest.py at 4 %. Measured there, 1 kHz + 200 Hz: a status every 2 s
-#: with 20-s buffers; with the default ones, every 34 s once 500 000 + 120 000 poses are
-#: buffered (each status recomputes everything buffered).
+#: The status reads the whole buffers again each time their span has grown by this factor.
+READ_AGAIN = 1.5
+#: Each of the status's two jobs (reading the whole buffers, reading the new poses) takes at
+#: most this share of one core on average: one that cost c seconds of CPU (the node's copy of
+#: the poses, in its thread, and the worker's job, in all its threads) is followed by none of
+#: its kind for c / MAX_DUTY. What is not counted (the transfer to the worker and back, the
+#: sum of the pieces, the publishing) is the rest of the 5 % asked for. Measured
+#: (bench/node_ingest.py, 1 kHz + 200 Hz, default buffers, 10 min): a status every 1.0 s
+#: (status_period 1), 2.9 % of a core in all; each status read everything buffered before,
+#: and came every 34 s once 500 000 + 120 000 poses were.
 MAX_DUTY = 0.03
 #: A stream with no usable pose for this long (s) while the other one flows has stopped, or
 #: lost its poses (messages still coming).
@@ -87,7 +66,7 @@ class ReadinessStatus:
         #: the last readiness (the result's ``readiness`` section), or None with why_not
         self.last: dict[str, Any] | None = None
         self.why_not = 'waiting for data'
-        self.auto = 'waiting for READY' if auto else 'off'
+        self.auto = AutoMode(node, auto)
         #: what the status has gathered of the buffers, and the span it read whole (s)
         self._progress: Progress | None = None
         self._started_span = 0.0
@@ -97,14 +76,6 @@ class ReadinessStatus:
         #: a job of each kind under way; when the next may start (monotonic s)
         self._pending = {'start': False, 'measure': False}
         self._next = {'start': 0.0, 'measure': 0.0}
-        self._span_calibrated = 0.0
-        #: the published auto result's reported 1-sigmas (s, m, deg), and the status's
-        #: predicted precision ratio when auto mode last calibrated
-        self._sigmas: tuple[float, float, float] | None = None
-        self._predicted_then = math.inf
-        #: the published result's reported over long-run sigma per group (std.over_long_run):
-        #: the predictions are long-run ones, and carry it
-        self._over_long_run: dict[str, float] = {}
         self._logged = (0.0, '')
         self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
@@ -118,11 +89,7 @@ class ReadinessStatus:
         of the whole buffers when :meth:`_restart_due`, else of the poses new since the last
         one."""
         node = self._node
-        if self.last and self.last['ready']:
-            if self.auto in ('waiting for READY', 'calibrating'):
-                self._auto_calibrate()
-            elif self.auto.startswith(('converged', 'done')) and self._richer():
-                self._auto_calibrate(grown=True)
+        self.auto.step(self.last)
         if node.closing:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
@@ -144,13 +111,13 @@ class ReadinessStatus:
         no estimate, when the estimate has moved beyond its 1-sigma
         (:meth:`~handeye_ros.core.checks.progress.Progress.moved`: a clock that jumped or
         drifts, or a stage 1 peak that more data overturn), and each time the buffered span has
-        grown by GROWTH (stage 1 looks again, at a cost that grows with the buffers as often as
+        grown by READ_AGAIN (stage 1 looks again, at a cost that grows with the buffers as often as
         they double and a half)."""
         p = self._progress
         if p is None or p.known is None or self._moved:
             return True
         span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
-        return span >= GROWTH * self._started_span
+        return span >= READ_AGAIN * self._started_span
 
     def _start(self) -> None:
         node, t0 = self._node, time.thread_time()
@@ -233,7 +200,7 @@ class ReadinessStatus:
         p.drop_before(*oldest)
         durations = tuple(buffers[s].span_s for s in STREAMS)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
-        self.last, self.why_not = carry_over_long_run(found, self._over_long_run), ''
+        self.last, self.why_not = carry_over_long_run(found, self.auto.over_long_run), ''
         self._moved = p.moved() is not None
         self._publish()
 
@@ -297,9 +264,7 @@ class ReadinessStatus:
         self._progress, self._moved = None, False
         self._generation += 1
         self._next['start'] = 0.0
-        if self.auto != 'off':
-            self.auto, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
-            self._predicted_then = math.inf
+        self.auto.reset()
 
     def late(self) -> list[str]:
         """A stream the node takes more than LATE_S after DDS received it, said as advice (it
@@ -329,14 +294,14 @@ class ReadinessStatus:
         st = diagnostics.readiness_status(
             self._node.get_fully_qualified_name(), self.last, self.why_not
         )
-        if self.auto != 'off':
-            st.values.append(diagnostics.KeyValue(key='auto_calibrate', value=self.auto))
+        if self.auto.said != 'off':
+            st.values.append(diagnostics.KeyValue(key='auto_calibrate', value=self.auto.said))
         return st
 
     def _say(self, line: str) -> None:
         """One line, logged when it changes (and every LOG_PERIOD_S)."""
-        if self.auto.startswith(('converged', 'done')):
-            line += f' | {self.auto}'
+        if self.auto.ended:
+            line += f' | {self.auto.said}'
         now = time.monotonic()
         last_t, last_key = self._logged
         # said again when READY or the first thing to do changes, not for every new figure
@@ -345,88 +310,6 @@ class ReadinessStatus:
         if key != last_key or now - last_t >= LOG_PERIOD_S:
             self._logged = (now, key)
             self._node.get_logger().info(f'status: {line}')
-
-    # ------------------------------------------------------------------ auto mode
-
-    def _predicted(self) -> float:
-        """The status's predicted precision ratio (inf while a sigma is unknown)."""
-        sigma = self.last['sigma'] if self.last else {}
-        values = (
-            sigma.get('time_offset_ms'),
-            sigma.get('translation_mm'),
-            sigma.get('rotation_deg'),
-        )
-        if any(v is None for v in values):
-            return math.inf
-        seconds_metres_degrees = (values[0] * 1e-3, values[1] * 1e-3, values[2])
-        return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
-
-    def _richer(self) -> bool:
-        return richer(self._predicted_then, self._predicted())
-
-    def _auto_calibrate(self, grown: bool = False) -> None:
-        buffers = [self._node.recorder.buffers[s] for s in STREAMS]
-        span = min(b.span_s for b in buffers)
-        if not grown and self._span_calibrated and span < GROWTH * self._span_calibrated:
-            if any(b.dropped for b in buffers):  # a full buffer's span grows no more
-                self.auto = (
-                    f'done: the buffers are full ({span:.0f} s; buffer_duration, buffer_size), '
-                    'so later results would not see more data; ~/calibrate still works'
-                )
-            return
-        if self._node.calibrate(auto=True) is not None:
-            self._span_calibrated = span
-            self._predicted_then = self._predicted()
-            self.auto = 'calibrating'
-
-    def admit(self, session: Calibrated, auto: bool) -> str:
-        """A new result, before it is published: '' when it replaces the published one, else
-        why not (with the numbers).
-
-        A result of ``~/calibrate`` always does. One that auto mode started does when its
-        precision ratio is no larger than the published result's; auto mode has converged
-        (said in the status) once a result of its own is not admitted, or improves the ratio by
-        no more than IMPROVEMENT of itself or of 1 (:func:`judge`)."""
-        batch = session.document.get('std')
-        if self.auto == 'off' or not batch:
-            self._over_long_run = dict((batch or {}).get('over_long_run') or {})
-            return ''
-        sigmas = sigmas_of(np.r_[batch['time_offset'], batch['translation'], batch['rotation']])
-        targets = self._node.calib_cfg.precision
-        published = self._sigmas
-        admitted, converged = judge(sigmas, published, auto, targets)
-        if admitted:
-            self._sigmas = sigmas
-        if converged:
-            best = self._sigmas
-            self.auto = (
-                f'converged: more of the same motion no longer improves the result by '
-                f'{IMPROVEMENT:.0%} of the targets (1-sigma {_sigmas_text(best)}); it calibrates '
-                'again if the motion gets richer'
-            )
-        if admitted:
-            self._over_long_run = dict(batch.get('over_long_run') or {})
-            return ''
-        return (
-            f'auto_calibrate keeps the published result: its largest sigma against its target, '
-            f"{_largest(sigmas, targets)}, is above the published one's, "
-            f'{_largest(published, targets)}'
-        )
-
-
-#: The three reported 1-sigmas, named and in the units they are said in.
-_SAID = (('time offset', 1e3, 'ms'), ('translation', 1e3, 'mm'), ('rotation', 1.0, 'deg'))
-
-
-def _sigmas_text(sigmas: tuple[float, ...]) -> str:
-    return ', '.join(f'{v * k:.2g} {unit}' for v, (_, k, unit) in zip(sigmas, _SAID, strict=True))
-
-
-def _largest(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> str:
-    """The sigma that sets the precision ratio, e.g. 'translation 6.7 mm of 10 mm'."""
-    k = int(np.argmax(precision_ratios(sigmas, targets)))
-    name, scale, unit = _SAID[k]
-    return f'{name} {sigmas[k] * scale:.2g} {unit} of {targets[k] * scale:.2g} {unit}'
 
 
 #: The readiness's sigma keys (ms, mm, deg) by the result's groups.
@@ -462,13 +345,6 @@ def carry_over_long_run(last: dict[str, Any], over: dict[str, float]) -> dict[st
     return {**last, 'sigma': sigma, 'ready': bool(last['ready'] and meets), 'missing': missing}
 
 
-def richer(predicted_then: float, predicted_now: float) -> bool:
-    """Converged or done: whether the predicted precision ratio has fallen well below the one
-    predicted at auto mode's last calibration (:data:`RECALIBRATE`): richer motion."""
-    then, now = predicted_then, predicted_now
-    return bool(math.isfinite(then) and then - now > RECALIBRATE * max(then, 1.0))
-
-
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
     """How far (s) the device's clock is ahead of the MoCap's, as far as arrivals tell: each
     stream's newest accepted stamp (int64 ns) against when its last pose that moved its clock
@@ -479,20 +355,3 @@ def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]
     or loses its poses (a MoCap dropout): its stamp and its arrival stop together."""
     stamps = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
     return stamps - (seen['eye'] - seen['hand'])
-
-
-def judge(
-    sigmas: tuple[float, ...],
-    published: tuple[float, ...] | None,
-    auto: bool,
-    targets: tuple[float, ...],
-) -> tuple[bool, bool]:
-    """A new result's reported 1-sigmas against the published result's (None: none yet), in
-    the targets' units: whether it replaces it, and whether auto mode has converged with it
-    (both only for a result that auto mode started; see :meth:`ReadinessStatus.admit`)."""
-    if not auto or published is None:
-        return True, False
-    new, old = precision_ratio(sigmas, targets), precision_ratio(published, targets)
-    admitted = new <= old
-    converged = not admitted or old - new <= IMPROVEMENT * max(old, 1.0)
-    return admitted, converged

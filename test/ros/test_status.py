@@ -1,4 +1,4 @@
-"""auto_calibrate's rules (status.judge, status.richer): a later result published only when it
+"""auto_calibrate's rules (auto_mode.judge, auto_mode.richer): a later result published only when it
 improves the precision ratio, converged once it improves it too little, calibrated again when
 the predicted ratio falls well below; and how the status tells that a clock jumped."""
 
@@ -9,16 +9,15 @@ import pytest
 
 pytest.importorskip('diagnostic_msgs')
 
-from handeye_ros.ros.status import (
+from handeye_ros.core.checks.verdict import precision_ratio
+from handeye_ros.ros.auto_mode import (
     GROWTH,
     IMPROVEMENT,
     RECALIBRATE,
-    carry_over_long_run,
-    clocks_apart,
     judge,
-    precision_ratio,
     richer,
 )
+from handeye_ros.ros.status import carry_over_long_run, clocks_apart
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,179 @@
+"""The calibrator's auto mode (``auto_calibrate``): calibrations started by the readiness
+status (:mod:`.status`), and which of their results are published.
+
+With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
+time the buffered span has grown by GROWTH. A result is measured by its *precision ratio*, its
+largest reported 1-sigma over that sigma's ``precision_*`` target (:func:`precision_ratio`: below
+1, the verdict is not ``imprecise``). A later result of auto mode's own is published when its
+ratio is no larger than the published one's; once one improves it by no more than IMPROVEMENT
+of itself (or of 1, the targets), or is not published, auto mode has converged (said in the
+status); so it has, said so, once the buffers are full (their span can no longer grow by
+GROWTH). Converged or done, it calibrates again when the status's predicted ratio falls below
+the one predicted at its last calibration by more than RECALIBRATE of it (or of 1): richer
+motion than the data it converged on.
+``~/calibrate`` works at any time, and its result is always published.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
+from ..stream import STREAMS
+from .jobs import Calibrated
+
+#: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
+GROWTH = 1.5
+#: With auto_calibrate: converged when the precision ratio shrinks by no more than this fraction
+#: of itself or of 1 (the targets), whichever is larger. Of itself: for sigmas that stop at a
+#: floor, as errors that are not white (drift, a MoCap bias) should make them do. Of the
+#: targets: white noise shrinks them by 18 % at each GROWTH for ever (1 - 1/sqrt(1.5)), and
+#: this ends it once they are about half the targets, where more recording no longer matters
+#: to the verdict.
+IMPROVEMENT = 0.1
+#: With auto_calibrate, converged or done: calibrate again when the predicted precision ratio
+#: has fallen by more than this fraction of itself or of 1 since the last calibration (twice
+#: IMPROVEMENT: a gain the last result could not have had, not the next 18 % of white noise).
+RECALIBRATE = 2 * IMPROVEMENT
+
+
+class AutoMode:
+    """Auto mode of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`); ``said`` is
+    where it stands, as the status says it ('off' when not asked for)."""
+
+    def __init__(self, node: Any, on: bool) -> None:
+        self._node = node
+        self.said = 'waiting for READY' if on else 'off'
+        self._span_calibrated = 0.0
+        #: the published auto result's reported 1-sigmas (s, m, deg), and the status's
+        #: predicted precision ratio when auto mode last calibrated
+        self._sigmas: tuple[float, float, float] | None = None
+        self._predicted_then = math.inf
+        #: the published result's reported over long-run sigma per group (std.over_long_run):
+        #: the status's predictions are long-run ones, and carry it
+        self.over_long_run: dict[str, float] = {}
+
+    @property
+    def ended(self) -> bool:
+        """Converged or done: it calibrates again only for richer motion."""
+        return self.said.startswith(('converged', 'done'))
+
+    def step(self, last: dict[str, Any] | None) -> None:
+        """On each tick of the status, with its last readiness: calibrate once READY, again as
+        the buffers grow by GROWTH, and, converged or done, when the motion gets richer."""
+        if not (last and last['ready']):
+            return
+        if self.said in ('waiting for READY', 'calibrating'):
+            self._calibrate(last)
+        elif self.ended and richer(self._predicted_then, self._predicted(last)):
+            self._calibrate(last, grown=True)
+
+    def reset(self) -> None:
+        """A new recording: its first result is published whatever the last one reported."""
+        if self.said != 'off':
+            self.said, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
+            self._predicted_then = math.inf
+
+    def _predicted(self, last: dict[str, Any] | None) -> float:
+        """The status's predicted precision ratio (inf while a sigma is unknown)."""
+        sigma = last['sigma'] if last else {}
+        values = (
+            sigma.get('time_offset_ms'),
+            sigma.get('translation_mm'),
+            sigma.get('rotation_deg'),
+        )
+        if any(v is None for v in values):
+            return math.inf
+        seconds_metres_degrees = (values[0] * 1e-3, values[1] * 1e-3, values[2])
+        return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
+
+    def _calibrate(self, last: dict[str, Any], grown: bool = False) -> None:
+        buffers = [self._node.recorder.buffers[s] for s in STREAMS]
+        span = min(b.span_s for b in buffers)
+        if not grown and self._span_calibrated and span < GROWTH * self._span_calibrated:
+            if any(b.dropped for b in buffers):  # a full buffer's span grows no more
+                self.said = (
+                    f'done: the buffers are full ({span:.0f} s; buffer_duration, buffer_size), '
+                    'so later results would not see more data; ~/calibrate still works'
+                )
+            return
+        if self._node.calibrate(auto=True) is not None:
+            self._span_calibrated = span
+            self._predicted_then = self._predicted(last)
+            self.said = 'calibrating'
+
+    def admit(self, session: Calibrated, auto: bool) -> str:
+        """A new result, before it is published: '' when it replaces the published one, else
+        why not (with the numbers).
+
+        A result of ``~/calibrate`` always does. One that auto mode started does when its
+        precision ratio is no larger than the published result's; auto mode has converged
+        (said in the status) once a result of its own is not admitted, or improves the ratio by
+        no more than IMPROVEMENT of itself or of 1 (:func:`judge`)."""
+        batch = session.document.get('std')
+        if self.said == 'off' or not batch:
+            self.over_long_run = dict((batch or {}).get('over_long_run') or {})
+            return ''
+        sigmas = sigmas_of(np.r_[batch['time_offset'], batch['translation'], batch['rotation']])
+        targets = self._node.calib_cfg.precision
+        published = self._sigmas
+        admitted, converged = judge(sigmas, published, auto, targets)
+        if admitted:
+            self._sigmas = sigmas
+        if converged:
+            best = self._sigmas
+            self.said = (
+                f'converged: more of the same motion no longer improves the result by '
+                f'{IMPROVEMENT:.0%} of the targets (1-sigma {_sigmas_text(best)}); it calibrates '
+                'again if the motion gets richer'
+            )
+        if admitted:
+            self.over_long_run = dict(batch.get('over_long_run') or {})
+            return ''
+        return (
+            f'auto_calibrate keeps the published result: its largest sigma against its target, '
+            f"{_largest(sigmas, targets)}, is above the published one's, "
+            f'{_largest(published, targets)}'
+        )
+
+
+#: The three reported 1-sigmas, named and in the units they are said in.
+_SAID = (('time offset', 1e3, 'ms'), ('translation', 1e3, 'mm'), ('rotation', 1.0, 'deg'))
+
+
+def _sigmas_text(sigmas: tuple[float, ...]) -> str:
+    return ', '.join(f'{v * k:.2g} {unit}' for v, (_, k, unit) in zip(sigmas, _SAID, strict=True))
+
+
+def _largest(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> str:
+    """The sigma that sets the precision ratio, e.g. 'translation 6.7 mm of 10 mm'."""
+    k = int(np.argmax(precision_ratios(sigmas, targets)))
+    name, scale, unit = _SAID[k]
+    return f'{name} {sigmas[k] * scale:.2g} {unit} of {targets[k] * scale:.2g} {unit}'
+
+
+def richer(predicted_then: float, predicted_now: float) -> bool:
+    """Converged or done: whether the predicted precision ratio has fallen well below the one
+    predicted at auto mode's last calibration (:data:`RECALIBRATE`): richer motion."""
+    then, now = predicted_then, predicted_now
+    return bool(math.isfinite(then) and then - now > RECALIBRATE * max(then, 1.0))
+
+
+def judge(
+    sigmas: tuple[float, ...],
+    published: tuple[float, ...] | None,
+    auto: bool,
+    targets: tuple[float, ...],
+) -> tuple[bool, bool]:
+    """A new result's reported 1-sigmas against the published result's (None: none yet), in
+    the targets' units: whether it replaces it, and whether auto mode has converged with it
+    (both only for a result that auto mode started; see :meth:`AutoMode.admit`)."""
+    if not auto or published is None:
+        return True, False
+    new, old = precision_ratio(sigmas, targets), precision_ratio(published, targets)
+    admitted = new <= old
+    converged = not admitted or old - new <= IMPROVEMENT * max(old, 1.0)
+    return admitted, converged

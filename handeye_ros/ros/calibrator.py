@@ -36,6 +36,27 @@ ANSWER_S = 2.0
 LINGER_S = 0.5
 
 
+#: glibc's M_MMAP_THRESHOLD (mallopt's parameter -3) and the value it is fixed at: its default.
+M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES = -3, 128 * 1024
+
+
+def return_freed_memory() -> None:
+    """Fix glibc's mmap threshold at its default, so that an array of more than 128 kB is
+    mapped and given back to the system when freed. Left dynamic, glibc raises the threshold
+    to the size of each mapped block freed (up to 32 MB), and the next blocks of that size then
+    come from its heap, which it seldom gives back: each snapshot of the buffers (half a
+    million poses: 30 MB, and its copies) left the node some 60 MB larger after a few minutes of
+    1 kHz (bench/node_ingest.py). A no-op without glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library('c') or 'libc.so.6')
+        libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES)
+    except (OSError, AttributeError):  # not glibc: nothing to fix
+        pass
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the node; returns the exit code (0; 1 for refused options; 2 for a bad command
     line)."""
@@ -64,6 +85,7 @@ def main(args: list[str] | None = None) -> int:
 
     if stop_requested():  # a signal while the imports ran
         return 0
+    return_freed_memory()
     pool = worker.new_pool()  # before rclpy.init: see worker's docstring
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None

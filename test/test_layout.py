@@ -300,13 +300,26 @@ def test_the_launch_file_and_rviz_config_match_the_node() -> None:
 
 
 def test_only_the_verdict_makes_reasons() -> None:
-    """Every reason of a verdict is made by a rule of core/checks/verdict.py: the stages hand it
+    """Every reason of a verdict is made by a rule of core/checks/verdict/: the stages hand it
     their findings and append what it returns (one place for every verdict rule)."""
     made = []
     for path in sorted((ROOT / 'handeye_ros').rglob('*.py')):
-        if path.relative_to(ROOT).as_posix() == 'handeye_ros/core/checks/verdict.py':
+        if path.relative_to(ROOT).as_posix().startswith('handeye_ros/core/checks/verdict/'):
             continue
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.Call) and getattr(node.func, 'id', None) == 'Reason':
                 made.append(f'{path.relative_to(ROOT)}:{node.lineno}')
     assert not made, made
+
+
+def test_every_module_is_named_where_its_folder_is_described() -> None:
+    """Each package's docstring names each of its modules and subpackages (a newcomer reads the
+    folder there)."""
+    missing = []
+    for init in sorted((ROOT / 'handeye_ros').rglob('__init__.py')):
+        doc = ast.get_docstring(ast.parse(init.read_text())) or ''
+        folder = init.parent
+        names = [p.stem for p in folder.glob('*.py') if p.stem != '__init__']
+        names += [p.name for p in folder.iterdir() if (p / '__init__.py').is_file()]
+        missing += [f'{folder.relative_to(ROOT)}: {n}' for n in names if n not in doc]
+    assert not missing, missing

@@ -3,10 +3,13 @@ lack, said in the frame of the device the user holds (the eye E).
 
 The prediction is the batch stage's white covariance (eq. 15-16) without running the batch
 stage: the eye's relative poses between consecutive frames (the residuals of eq. 16) at stage 1's
-offset and stage 2's T_HE give the noise (robust sigmas of their residuals), and their Jacobians
-in (dt, T_HE) the information; its inverse is the covariance the batch stage would report if
-the residuals were white. The derivative in dt is a central difference over one knot spacing,
-as smooth as the batch stage's spline, so that the MoCap's own noise does not pass for motion.
+offset and stage 2's T_HE (refined on the same pairs, :mod:`.progress`) give the noise (robust
+sigmas of their residuals), and their Jacobians in (dt, T_HE) the information
+(:mod:`.pair_information`); its inverse is the covariance the batch stage would report if the
+residuals were white. The derivative in dt is a central difference over one knot spacing, as
+smooth as the batch stage's spline, so that the MoCap's own noise does not pass for motion.
+:func:`readiness` reads a whole recording; the node's status adds up what the poses new since
+its last status say (:mod:`.progress`) and judges the sum with :func:`readiness_of`.
 
 Which direction is missing follows from the motions' screw axes: a rotation about an axis a
 says nothing of T_HE's rotation about a, nor of its translation along a (eq. 2). So the

@@ -1,0 +1,197 @@
+"""The verdict: how far a calibration can be trusted, and why.
+
+Every calibration ends with ``quality.verdict``:
+
+- ``good``: every check passed; the numbers and their sigmas can be used as they are;
+- ``doubtful``: a number is given, but something the user must look at is wrong or unknown
+  (each ``reason`` says what); an evaluation built on it needs that looked at first;
+- ``failed``: the data contradict the result (the calibrated MoCap does not explain the VIO);
+  the numbers are given only to help find out why.
+
+The reasons (``code``: what, and when; :class:`Code` names them, :data:`SEVERITY` gives each
+its verdict, and the thresholds below are the rules' numbers):
+
+==========================  =========  =================================================
+code                        severity   when
+==========================  =========  =================================================
+convention_corrected        doubtful   a stamp unit, quaternion order or pose inversion was
+                                       assumed (the file still holds the mistake)
+outliers_removed            doubtful   screening removed more than OUTLIER_FRACTION_DOUBTFUL
+                                       of a stream
+ambiguous_offset            doubtful   two offsets explain the data almost equally (the
+                                       self-check's runner-up scores within
+                                       AMBIGUOUS_SCORE_RATIO of the winner), or the
+                                       correlation has a second peak above 0.9 that no
+                                       self-check ran on
+weak_correlation            doubtful   the angular velocities hardly agree (correlation
+                                       below 0.5)
+stages_disagree             doubtful   the batch stage moved the offset or the extrinsic
+                                       beyond its sigmas (BATCH_*) and the self-check sided
+                                       against it
+few_inliers                 doubtful   fewer than 20 % of the motions are RANSAC inliers
+weak_excitation             doubtful   the rotation axes spread less than 10 deg
+unobservable                doubtful   a component of T_HE, the clock drift or the scale
+                                       cannot be determined (named)
+seed_dependent              doubtful   the linear stage's answer moves with the RANSAC seed
+                                       (beyond SEED_*)
+no_uncertainty              doubtful   the batch stage could not run: no sigmas
+imprecise                   doubtful   a 1-sigma exceeds the required precision
+                                       (options precision_time_offset, _translation,
+                                       _rotation; default 1 ms, 1 cm, 0.5 deg)
+clock_drift                 doubtful   without clock_drift: the offset measured in windows
+                                       changes along the recording by more than
+                                       DRIFT_NOTICE_S and DRIFT_SIGMAS (the rate is named)
+scale                       doubtful   without estimate_scale: a scale explains the eye's
+                                       translations and is large, or moves T_HE by more
+                                       than precision_translation (named with its value)
+residuals_not_white         doubtful   the long-run covariance is more than
+                                       INFLATION_DOUBTFUL times the white one (an
+                                       unmodelled effect: clock drift, scale, ...)
+inconsistent                failed     AX = XB does not hold: over the keyframe motions
+                                       (eq. 6), the median rotation error exceeds
+                                       FAILED_MOTION_ROTATION_DEG, or the median translation
+                                       error exceeds FAILED_MOTION_TRANSLATION_M and
+                                       FAILED_MOTION_TRANSLATION_FRACTION of the median
+                                       motion (relative motions: the VIO's drift does not
+                                       enter, unlike APE)
+==========================  =========  =================================================
+
+The words (:class:`Verdict`, :class:`Code`, :data:`SEVERITY`, the thresholds, :class:`Reason`,
+:class:`Quality`) are in :mod:`.codes`. Most rules run at the end (:mod:`.final`: :func:`assess`,
+:func:`assess_model`); those met while a stage runs (scale, clock_drift, seed_dependent,
+stages_disagree, the self-check's tie) are in :mod:`.during`, which the stages call. ``unobservable`` and a failed
+rerun are said where the stage finds them: they have no threshold.
+
+A rig of many recordings (:mod:`..shared`) has its own verdict, from its own rules
+(:mod:`.rig`: :func:`assess_rig`; the groups are :mod:`..consistency`'s):
+
+==========================  =========  =================================================
+recording_left_out          doubtful   a recording gave no calibration, or its T_HE
+                                       disagrees with the others' (named with the
+                                       difference); the rig's T_HE is computed without it
+groups                      doubtful   the recordings form groups that agree within
+                                       themselves and not with each other (a moved
+                                       marker); the rig's T_HE is the largest group's,
+                                       each group is reported
+no_agreement                failed     fewer than two recordings agree, or the largest
+                                       groups are as large as each other (a rig of one
+                                       recording and nothing else is not said)
+==========================  =========  =================================================
+
+Notes that do not lower the verdict (resets split, an epoch difference, a self-check that
+settled clearly) are in ``notes``.
+"""
+
+from __future__ import annotations
+
+from .codes import (
+    AMBIGUOUS_PEAK_RATIO,
+    AMBIGUOUS_SCORE_RATIO,
+    BATCH_DT_MIN_S,
+    BATCH_ROTATION_MIN_DEG,
+    BATCH_SCORE_FACTOR,
+    BATCH_SIGMAS,
+    BATCH_TRANSLATION_MIN_M,
+    DRIFT_NOTICE_S,
+    DRIFT_SIGMAS,
+    FAILED_MOTION_ROTATION_DEG,
+    FAILED_MOTION_TRANSLATION_FRACTION,
+    FAILED_MOTION_TRANSLATION_M,
+    INFLATION_DOUBTFUL,
+    LOW_INLIER_FRACTION,
+    OUTLIER_FRACTION_DOUBTFUL,
+    SEED_ROTATION_DEG,
+    SEED_SIGMAS,
+    SEED_TRANSLATION_M,
+    SEVERITY,
+    WEAK_CORRELATION,
+    WEAK_EXCITATION_DEG,
+    Code,
+    Findings,
+    Quality,
+    Reason,
+    Verdict,
+)
+from .during import (
+    SCALE_NAMED,
+    SCALE_NAMED_SIGMAS,
+    batch_moved,
+    batch_supported,
+    convention_corrected,
+    drift_message,
+    drift_reason,
+    drift_significant,
+    drift_threshold_sigmas,
+    drift_unobservable,
+    judge_tie,
+    scale_message,
+    scale_reason,
+    scale_uncertainty_note,
+    seed_failed,
+    seed_reason,
+    stages_disagree,
+)
+from .final import (
+    assess,
+    assess_model,
+    motion_inconsistency,
+    precision_ratio,
+    precision_ratios,
+    sigmas_of,
+)
+from .rig import (
+    assess_rig,
+)
+
+__all__ = [
+    'AMBIGUOUS_PEAK_RATIO',
+    'AMBIGUOUS_SCORE_RATIO',
+    'BATCH_DT_MIN_S',
+    'BATCH_ROTATION_MIN_DEG',
+    'BATCH_SCORE_FACTOR',
+    'BATCH_SIGMAS',
+    'BATCH_TRANSLATION_MIN_M',
+    'DRIFT_NOTICE_S',
+    'DRIFT_SIGMAS',
+    'FAILED_MOTION_ROTATION_DEG',
+    'FAILED_MOTION_TRANSLATION_FRACTION',
+    'FAILED_MOTION_TRANSLATION_M',
+    'INFLATION_DOUBTFUL',
+    'LOW_INLIER_FRACTION',
+    'OUTLIER_FRACTION_DOUBTFUL',
+    'SCALE_NAMED',
+    'SCALE_NAMED_SIGMAS',
+    'SEED_ROTATION_DEG',
+    'SEED_SIGMAS',
+    'SEED_TRANSLATION_M',
+    'SEVERITY',
+    'WEAK_CORRELATION',
+    'WEAK_EXCITATION_DEG',
+    'Code',
+    'Findings',
+    'Quality',
+    'Reason',
+    'Verdict',
+    'assess',
+    'assess_model',
+    'assess_rig',
+    'batch_moved',
+    'batch_supported',
+    'convention_corrected',
+    'drift_message',
+    'drift_reason',
+    'drift_significant',
+    'drift_threshold_sigmas',
+    'drift_unobservable',
+    'judge_tie',
+    'motion_inconsistency',
+    'precision_ratio',
+    'precision_ratios',
+    'scale_message',
+    'scale_reason',
+    'scale_uncertainty_note',
+    'seed_failed',
+    'seed_reason',
+    'sigmas_of',
+    'stages_disagree',
+]

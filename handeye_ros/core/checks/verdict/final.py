@@ -1,0 +1,231 @@
+"""The rules judged once a run is finished (:func:`assess`, :func:`assess_model`), and the one
+"precise enough" rule (:func:`precision_ratio`) the verdict, the readiness and the node's auto
+mode share."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .codes import (
+    AMBIGUOUS_PEAK_RATIO,
+    FAILED_MOTION_ROTATION_DEG,
+    FAILED_MOTION_TRANSLATION_FRACTION,
+    FAILED_MOTION_TRANSLATION_M,
+    INFLATION_DOUBTFUL,
+    LOW_INLIER_FRACTION,
+    OUTLIER_FRACTION_DOUBTFUL,
+    WEAK_CORRELATION,
+    WEAK_EXCITATION_DEG,
+    Code,
+    Findings,
+    Reason,
+    say,
+)
+
+if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math
+    from ...batch.refine import BatchSolution
+    from ...config import CalibrationConfig
+    from ...eye_model import EyeModel
+    from ...linear.robust import LinearSolution
+    from ...time.align import TimeAlignment
+    from ...time.clock import DriftFit
+    from ...world import Metrics
+    from ..screening import Screening
+
+
+def assess(
+    ta: TimeAlignment,
+    tv: TimeAlignment | None,
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    screening: tuple[Screening, Screening],
+    metrics: Metrics,
+    cfg: CalibrationConfig,
+    run: Findings,
+) -> None:
+    """The reasons judged on the finished run: the screening's share, a peak no self-check
+    settled, weak correlation, few inliers, unobservable parts, weak excitation, no or too large
+    an uncertainty, residuals not white, AX = XB failing (the others are added where they arise,
+    their severities here: :data:`SEVERITY`)."""
+    for rep in screening:
+        if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
+            say(
+                run,
+                Code.OUTLIERS_REMOVED,
+                f'screening removed {rep.fraction:.1%} of the '
+                f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+            )
+        elif rep.n_removed:
+            run.notes.append(
+                f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses'
+            )
+    checked = any(c.chosen for c in run.candidates)
+    if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
+        say(
+            run,
+            Code.AMBIGUOUS_OFFSET,
+            f'the correlation has a second peak at '
+            f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
+            'other candidate offset could be checked',
+        )
+    peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
+    if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
+        say(
+            run,
+            Code.WEAK_CORRELATION,
+            f'the angular velocities of the two streams hardly agree '
+            f'(correlation {max(peaks):.2f}): check that both show the same motion',
+        )
+    _assess_linear(lin, run)
+    _assess_uncertainty(batch, cfg, run)
+    _assess_consistency(metrics, run)
+
+
+def _assess_linear(lin: LinearSolution, run: Findings) -> None:
+    """Stage 2's consensus and excitation."""
+    if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
+        say(
+            run,
+            Code.FEW_INLIERS,
+            f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers',
+        )
+    if lin.unobservable:
+        say(
+            run,
+            Code.UNOBSERVABLE,
+            'part of the extrinsic cannot be observed from this motion: '
+            + '; '.join(lin.unobservable),
+        )
+    elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
+        say(
+            run,
+            Code.WEAK_EXCITATION,
+            f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
+            'deg: the extrinsic is weakly constrained; rotate about more different axes',
+        )
+
+
+def sigmas_of(std: np.ndarray) -> tuple[float, float, float]:
+    """The three 1-sigmas the precision targets judge, from a batch std (dt [s], translation
+    [m] x3, rotation [rad] x3): dt [s], the translation's norm [m], the rotation's [deg]."""
+    return (
+        float(std[0]),
+        float(np.linalg.norm(std[1:4])),
+        float(np.degrees(np.linalg.norm(std[4:7]))),
+    )
+
+
+def precision_ratios(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> list[float]:
+    """Each 1-sigma (:func:`sigmas_of`) over its target (``CalibrationConfig.precision``):
+    above 1 it is ``imprecise``. An unknown sigma (NaN) is no ratio (NaN)."""
+    return [s / t for s, t in zip(sigmas, targets, strict=True)]
+
+
+def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> float:
+    """The largest of :func:`precision_ratios`, inf while a sigma is unknown: at most 1 is
+    precise enough, for the verdict, the readiness and the node's auto mode alike."""
+    ratios = precision_ratios(sigmas, targets)
+    return float('inf') if not all(np.isfinite(ratios)) else max(ratios)
+
+
+def _assess_uncertainty(
+    batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
+) -> None:
+    """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
+    if cfg.batch and batch is None and not any(r.code == Code.UNOBSERVABLE for r in run.reasons):
+        say(
+            run,
+            Code.NO_UNCERTAINTY,
+            'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+        )
+    if batch is not None:
+        sd, need = sigmas_of(batch.std), cfg.precision
+        over = [
+            f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
+            for name, v, n, k, unit, r in zip(
+                ('time offset', 'translation', 'rotation'),
+                sd,
+                need,
+                (1e3, 1e3, 1.0),
+                ('ms', 'mm', 'deg'),
+                precision_ratios(sd, need),
+                strict=True,
+            )
+            if r > 1.0
+        ]
+        if over:
+            say(
+                run,
+                Code.IMPRECISE,
+                'the 1-sigma uncertainty exceeds the required precision: '
+                + ', '.join(over)
+                + '. More varied rotation (faster, about all axes) or '
+                'a longer recording narrows it; the precision_* options set what is '
+                'required',
+            )
+    if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
+        say(
+            run,
+            Code.RESIDUALS_NOT_WHITE,
+            f'the residuals are strongly correlated in time (the '
+            f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
+            'something the model lacks (clock drift, a scale error) shapes them',
+        )
+
+
+def _assess_consistency(m: Metrics, run: Findings) -> None:
+    """AX = XB at the result, over the keyframe motions: failing it fails the result."""
+    reason = motion_inconsistency(m)
+    if reason is not None:
+        run.reasons.append(reason)
+
+
+def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None:
+    """The ``inconsistent`` reason when AX = XB fails over the keyframe motions at ``where``
+    (the thresholds FAILED_MOTION_*), else None."""
+    if m.n_motions and (
+        m.motion_rotation_deg > FAILED_MOTION_ROTATION_DEG
+        or (
+            m.motion_translation_m > FAILED_MOTION_TRANSLATION_M
+            and m.motion_translation_m > FAILED_MOTION_TRANSLATION_FRACTION * m.motion_length_m
+        )
+    ):
+        return Reason(
+            Code.INCONSISTENT,
+            f'AX = XB does not hold at {where}: over {m.n_motions} '
+            f'keyframe motions the median error is {m.motion_rotation_deg:.2f} deg and '
+            f'{m.motion_translation_m * 1e3:.0f} mm (the motions are '
+            f'{m.motion_length_m * 1e3:.0f} mm long)',
+        )
+    return None
+
+
+def assess_model(
+    model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig, run: Findings
+) -> None:
+    """Reasons about the clock drift and the scale, when they were estimated."""
+    if cfg.estimate_scale:
+        std = model.scale_std
+        if not model.scale_observable:
+            sd = f' +- {std:.2g}' if np.isfinite(std) else ''
+            say(
+                run,
+                Code.UNOBSERVABLE,
+                f"the eye's scale cannot be observed (s = "
+                f'{model.scale:.4g}{sd}): the hand translates too little for its '
+                'translations to be told from a lever arm, so the translation of T_HE '
+                'is as uncertain. Move the rig through space, not only about itself',
+            )
+    if cfg.clock_drift and model.drift_estimated and clock is not None:
+        half = 0.5 * clock.span_s * model.drift_std
+        if half > cfg.precision_time_offset:
+            say(
+                run,
+                Code.IMPRECISE,
+                f'the clock drift is {model.drift * 1e6:+.1f} +- '
+                f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
+                f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
+                f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+            )

@@ -11,6 +11,11 @@ The public API, for use from Python without ROS::
     print(result.summary())                  # dt, T_HE (both directions), the verdict
     result.time_offset_s, result.q_HE, result.p_HE, result.quality.verdict
 
+The packages: :mod:`.core` the algorithm, :mod:`.formats` files and bags, :mod:`.evaluation`
+what a calibration is used for, :mod:`.stream` buffered pose streams, :mod:`.app` the command
+line tools (``python -m handeye_ros.offline``, ``python -m handeye_ros.evaluate``), :mod:`.ros`
+the node.
+
 Conventions (docs/method.md): ``T_WE(t) = T_WG T_GH(t - dt) T_HE``; quaternions Hamilton,
 ``x y z w``; stamps int64 nanoseconds. The names below are loaded on first use, so that
 importing a submodule (the node's ``--help``, the params file) costs no numpy or scipy.

@@ -1,6 +1,7 @@
 """Stage 1, time alignment (paper Section III-A): the offset dt between the two clocks.
 
-:mod:`.align` is eq. 1: the angular-speed magnitudes of both streams on grids of their own,
+:mod:`.signals` makes the signals eq. 1 correlates (each stream's angular speed on its own
+uniform grid); :mod:`.align` is eq. 1: the angular-speed magnitudes of both streams on grids of their own,
 their masked normalised cross-correlation over every lag, and the quadratic fit around the peak;
 then the vector refinement with stage 2's rotation (``w_E(t) = R_EH w_H(t - dt)``).
 :mod:`.keyframe_only` aligns a keyframe-only eye from the rotation angles of its keyframe pairs

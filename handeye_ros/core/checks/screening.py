@@ -241,9 +241,27 @@ def hampel_thresholds(
     res: np.ndarray, scale_window: int, n_sigma: float, floor: float
 ) -> np.ndarray:
     """Per-pose threshold ``max(m + n_sigma * 1.4826 * s, floor)`` from the running median m
-    and median absolute deviation s of the residuals."""
-    # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
+    and median absolute deviation s of the residuals. A window of more than MEDIAN_SAMPLES
+    residuals (a stream faster than 200 Hz) takes them from every k-th residual, k =
+    window // MEDIAN_SAMPLES, and each residual the value at its nearest one."""
     size = min(scale_window, 2 * (res.size // 2) - 1)
+    k = max(1, size // MEDIAN_SAMPLES)
+    if k == 1:
+        return _hampel(res, size, n_sigma, floor)
+    sub = _hampel(res[::k], (size // k) | 1, n_sigma, floor)
+    return sub[np.minimum((np.arange(res.size) + k // 2) // k, sub.size - 1)]
+
+
+#: The running median and MAD of the screening take at most about this many residuals: the
+#: thresholds from 401 of 2001 (2 s of 1 kHz MoCap) are within 10 % of those from all (1st
+#: and 99th percentiles, Gaussian residuals), which moves a 6-sigma threshold by less than a
+#: sigma; at every residual, the rank filters over an hour of 1 kHz cost 2.1 s of its 25 s.
+MEDIAN_SAMPLES = 401
+
+
+def _hampel(res: np.ndarray, size: int, n_sigma: float, floor: float) -> np.ndarray:
+    # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
+    size = min(size, 2 * (res.size // 2) - 1)
     m = median_filter(res, size=size, mode='mirror')
     s = median_filter(np.abs(res - m), size=size, mode='mirror')
     return np.maximum(m + n_sigma * 1.4826 * s, floor)

@@ -35,8 +35,6 @@ from . import diagnostics
 from .auto_mode import AutoMode
 from .jobs import readiness_measure, readiness_start
 
-#: The status reads the whole buffers again each time their span has grown by this factor.
-READ_AGAIN = 1.5
 #: Each of the status's two jobs (reading the whole buffers, reading the new poses) takes at
 #: most this share of one core on average: one that cost c seconds of CPU (the node's copy of
 #: the poses, in its thread, and the worker's job, in all its threads) is followed by none of
@@ -67,10 +65,8 @@ class ReadinessStatus:
         self.last: dict[str, Any] | None = None
         self.why_not = 'waiting for data'
         self.auto = AutoMode(node, auto)
-        #: what the status has gathered of the buffers, and the span it read whole (s)
+        #: what the status has gathered of the buffers
         self._progress: Progress | None = None
-        self._started_span = 0.0
-        self._moved = False  # the estimate moved beyond its 1-sigma since it was read whole
         #: bumped when the buffers are read whole again or reset: older answers are dropped
         self._generation = 0
         #: a job of each kind under way; when the next may start (monotonic s)
@@ -107,17 +103,11 @@ class ReadinessStatus:
             self._measure()
 
     def _restart_due(self) -> bool:
-        """Whether the status reads the whole buffers again: first, while stages 1 and 2 gave
-        no estimate, when the estimate has moved beyond its 1-sigma
-        (:meth:`~handeye_ros.core.checks.progress.Progress.moved`: a clock that jumped or
-        drifts, or a stage 1 peak that more data overturn), and each time the buffered span has
-        grown by READ_AGAIN (stage 1 looks again, at a cost that grows with the buffers as often as
-        they double and a half)."""
+        """Whether the status reads the whole buffers again
+        (:meth:`~handeye_ros.core.checks.progress.Progress.due`)."""
         p = self._progress
-        if p is None or p.known is None or self._moved:
-            return True
         span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
-        return span >= READ_AGAIN * self._started_span
+        return p is None or p.due(span) is not None
 
     def _start(self) -> None:
         node, t0 = self._node, time.thread_time()
@@ -128,14 +118,7 @@ class ReadinessStatus:
             self._publish()
             return
         self._clocks(snapshot.hand.t_ns, snapshot.eye.t_ns)
-        span = min(snapshot.hand.duration_s, snapshot.eye.duration_s)
-        self._ask(
-            'start',
-            readiness_start,
-            (snapshot, node.options()),
-            t0,
-            lambda p: self._started(p, span),
-        )
+        self._ask('start', readiness_start, (snapshot, node.options()), t0, self._started)
 
     def _measure(self) -> None:
         node, t0, p = self._node, time.thread_time(), self._progress
@@ -179,12 +162,17 @@ class ReadinessStatus:
             self._publish()
             return
         self._next[kind] = time.monotonic() + (node_cpu + job_cpu) / MAX_DUTY
-        if generation == self._generation:
+        if generation != self._generation:
+            return
+        try:
             then(value)
+        except Exception as err:  # noqa: BLE001  (as above)
+            self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
+            self._publish()
 
-    def _started(self, progress: Progress, span: float) -> None:
+    def _started(self, progress: Progress) -> None:
         self._generation += 1  # the measures under way are of the old pieces
-        self._progress, self._started_span = progress, span
+        self._progress = progress
         self._report()
 
     def _measured(self, measured: Measured) -> None:
@@ -201,7 +189,6 @@ class ReadinessStatus:
         durations = tuple(buffers[s].span_s for s in STREAMS)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         self.last, self.why_not = carry_over_long_run(found, self.auto.over_long_run), ''
-        self._moved = p.moved() is not None
         self._publish()
 
     def stopped(self) -> list[str]:
@@ -261,7 +248,7 @@ class ReadinessStatus:
         """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
         (a new recording: its first result is published whatever the last one reported)."""
         self._apart, self._jumped = None, []
-        self._progress, self._moved = None, False
+        self._progress = None
         self._generation += 1
         self._next['start'] = 0.0
         self.auto.reset()

@@ -1,13 +1,13 @@
 """What the readiness has gathered of a recording, kept up to date as the recording grows.
 
-:func:`start` reads a whole recording: stages 1 and 2 (unless a calibration is given), stage 2's
-linear T_HE refined by Gauss-Newton on the consecutive eye pairs (eq. 16), and then the pairs'
-information (:mod:`.pair_information`) and the excitation (:mod:`.excitation`) in pieces of
+:func:`start` reads a whole recording: stages 1 and 2 (unless a calibration is given), and
+then, at their estimate, the consecutive eye pairs' information (eq. 16,
+:mod:`.pair_information`) and the excitation (:mod:`.excitation`) in pieces of
 about PIECE_S. :func:`measure` reads only the poses that came since, at the same estimate: the
 older pieces are frozen, so a status costs the same at 10 s and at 30 min of buffers. A
 :class:`Progress` adds the pieces up, drops those of poses a buffer has dropped, and says when
-its estimate has moved beyond its own 1-sigma (:meth:`Progress.moved`): then :func:`start`
-reads the recording again.
+the pairs' optimum has moved beyond its own 1-sigma since (:meth:`Progress.moved`), or the
+recording has grown by half (:meth:`Progress.due`): then :func:`start` reads it again.
 """
 
 from __future__ import annotations
@@ -39,10 +39,10 @@ MAX_PAIRS = 20_000
 #: New pieces are merged into the newest one until it spans this much (s): a buffer drops its
 #: oldest poses piece by piece, and half an hour is 180 pieces.
 PIECE_S = 10.0
-#: Gauss-Newton passes that refine stage 2's linear estimate, at most; they stop once the step
-#: is below REFINED of its 1-sigma.
-REFINE_PASSES = 3
-REFINED = 0.2
+#: The whole recording is read again (:meth:`Progress.due`) each time its span has grown by
+#: this factor: stage 1 looks again, at a cost that grows with the recording, as often as it
+#: grows by half.
+READ_AGAIN = 1.5
 
 
 @dataclass(frozen=True)
@@ -104,6 +104,11 @@ class Progress:
     refused: str | None
     h: float
     carry: Carry
+    #: the span :func:`start` read (s, the shorter stream's)
+    span_s: float = 0.0
+    #: the Gauss-Newton step the pairs called for when :func:`start` read them (7,): from
+    #: stage 2's linear estimate to where the batch stage would go; None without pairs
+    first_step: np.ndarray | None = None
     pairs: list[info.Chunk] = field(default_factory=list)
     eye_turn: list[Turned] = field(default_factory=list)
     hand_turn: list[Turned] = field(default_factory=list)
@@ -163,21 +168,43 @@ class Progress:
         total = self.total()
         return info.weights(total.hist) if total is not None else (np.inf, np.inf)
 
-    def step(self) -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
-        """The Gauss-Newton step the pairs gathered call for from the estimate, and the
-        estimate's 1-sigma, each as dt [s], translation [m] and rotation [deg]; None without
-        pairs."""
+    def due(self, span_s: float) -> str | None:
+        """Why the whole recording, now ``span_s`` long (the shorter stream's span, s), should
+        be read again (:func:`start`), or None: stages 1 and 2 gave no estimate yet, the
+        recording has grown by READ_AGAIN, or the pairs' optimum has moved beyond its 1-sigma
+        (:meth:`moved`: a clock that jumped or drifts, a stage 1 peak that more data
+        overturn)."""
+        if self.known is None:
+            return self.refused or 'no estimate yet'
+        if span_s >= READ_AGAIN * self.span_s:
+            return f'the recording has grown from {self.span_s:.0f} s to {span_s:.0f} s'
+        return self.moved()
+
+    def step_vector(self) -> np.ndarray | None:
+        """The Gauss-Newton step (7,) the pairs gathered call for from the estimate (the
+        parameters of :mod:`.pair_information`); None without pairs."""
         total = self.total()
         if total is None:
             return None
-        H, g = info.normal_equations(total)
-        return info.step_sizes(info.step(H, g)), info.sigmas(info.covariance(H))
+        return info.step(*info.normal_equations(total))
+
+    def step(self) -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
+        """How far the pairs' optimum has moved since :func:`start` read them (the step now
+        less the step then), and its 1-sigma now, each as dt [s], translation [m] and
+        rotation [deg]; None without pairs."""
+        total, now = self.total(), self.step_vector()
+        if total is None or now is None or self.first_step is None:
+            return None
+        H, _ = info.normal_equations(total)
+        return info.step_sizes(now - self.first_step), info.sigmas(info.covariance(H))
 
     def moved(self) -> str | None:
-        """Whether the pairs gathered since the estimate call for a step beyond its 1-sigma
-        (dt, the translation or the rotation), said with the numbers; None if not. Under white
-        noise that comes as the pairs about double (the step then has the size of the 1-sigma
-        of the first half); sooner, when a clock jumps or drifts."""
+        """Whether the pairs' optimum has moved beyond its 1-sigma since :func:`start` read the
+        recording (dt, the translation or the rotation), said with the numbers; None if not.
+        Under white noise that comes as the pairs about double (the move then has the size of
+        the 1-sigma of the first half); sooner, when a clock jumps or drifts. (The estimate
+        itself, stage 2's linear one, stays where the pieces were linearised: the noise of the
+        residuals at it is what the predictions were measured against, bench/readiness.py.)"""
         sizes = self.step()
         if sizes is None:
             return None
@@ -195,10 +222,9 @@ def start(
 ) -> Progress:
     """Everything of a whole recording (both streams on their own clocks). Without ``known``,
     stages 1 and 2 give the estimate (unless the device is held still or the recording is too
-    short), refined by Gauss-Newton on the pairs. Never raises for data that cannot calibrate:
-    ``refused`` says why."""
+    short). Never raises for data that cannot calibrate: ``refused`` says why."""
     h = cfg.knot_spacing / 2.0
-    progress = Progress(None, None, h, Carry())
+    progress = Progress(None, None, h, Carry(), min(hand.duration_s, eye.duration_s))
     progress.take(measure(progress.cursor(), hand, eye, cfg))
     eye_turn = progress.turned('eye')
     if eye_turn is None or eye_turn.rms_dps < STILL_DPS:
@@ -212,13 +238,14 @@ def start(
             )
             return progress
         try:
-            known = _refine(hand, eye, _calibrate(hand, eye, cfg), h, cfg)
+            known = _calibrate(hand, eye, cfg)
         except HandeyeError as err:
             progress.refused = str(err)
             return progress
     progress.known = known
     progress.pairs, pairs_ns = _all_pairs(hand, eye, known.estimate, h)
     progress.carry = replace(progress.carry, pairs_ns=pairs_ns)
+    progress.first_step = progress.step_vector()
     return progress
 
 
@@ -262,32 +289,6 @@ def _calibrate(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> Kno
         dt, peak, second = ta.time_offset_s, ta.peak_correlation, ta.second_peak_ratio
     lin, _ = solve_linear(hand, eye, dt, cfg)
     return Known(dt, matrix_from_quat(lin.q_HE), lin.p_HE, lin.n_motions, peak, second)
-
-
-def _refine(
-    hand: Trajectory, eye: Trajectory, known: Known, h: float, cfg: CalibrationConfig
-) -> Known:
-    """Stage 2's linear estimate (and stage 1's dt) moved by Gauss-Newton steps on the pairs
-    (eq. 16) until a step is within REFINED of its 1-sigma: the pieces are then linearised
-    where the batch stage would converge, and a later step beyond a 1-sigma is news of the
-    data, not of the linear stage's error. A dt the user gave stays put."""
-    for _ in range(REFINE_PASSES):
-        pieces, _ = _all_pairs(hand, eye, known.estimate, h)
-        if not pieces:
-            return known
-        total = sum(pieces[1:], pieces[0])
-        H, g = info.normal_equations(total)
-        d = np.zeros(7)
-        free = slice(1 if cfg.time_offset is not None else 0, 7)
-        d[free] = info.step(H[free, free], g[free])
-        if not np.all(np.isfinite(d)):
-            return known
-        est = known.estimate.moved(d)
-        known = replace(known, time_offset_s=est.time_offset_s, R_HE=est.R_HE, p_HE=est.p_HE)
-        sigma = info.sigmas(info.covariance(H))
-        if all(s <= REFINED * sg for s, sg in zip(info.step_sizes(d), sigma, strict=True)):
-            break
-    return known
 
 
 def _all_pairs(

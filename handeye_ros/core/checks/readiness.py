@@ -3,8 +3,7 @@ lack, said in the frame of the device the user holds (the eye E).
 
 The prediction is the batch stage's white covariance (eq. 15-16) without running the batch
 stage: the eye's relative poses between consecutive frames (the residuals of eq. 16) at stage 1's
-offset and stage 2's T_HE (refined on the same pairs, :mod:`.progress`) give the noise (robust
-sigmas of their residuals), and their Jacobians in (dt, T_HE) the information
+offset and stage 2's T_HE give the noise (robust sigmas of their residuals), and their Jacobians in (dt, T_HE) the information
 (:mod:`.pair_information`); its inverse is the covariance the batch stage would report if the
 residuals were white. The derivative in dt is a central difference over one knot spacing, as
 smooth as the batch stage's spline, so that the MoCap's own noise does not pass for motion.

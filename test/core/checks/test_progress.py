@@ -125,3 +125,17 @@ def test_buffer_since_reads_the_tail_across_the_ring() -> None:
     with pytest.raises(InputError, match='holds 1 pose'):  # the status waits for more
         buf.since(10**6)
     np.testing.assert_array_equal(buf.since(1950).p_xyz[:, 2], [19, 20, 21, 22, 23, 24, 25])
+
+
+def test_what_makes_the_status_read_everything_again() -> None:
+    """No estimate yet, a recording grown by half, or a clock that jumped: the whole buffers
+    are read again (Progress.due); otherwise the pieces go on."""
+    rec = recording(1, 5, duration_s=60.0, **RATES, **MOCAP)
+    short = start(
+        _until(rec.hand, rec.hand.t_ns[0] + int(5e9)), rec.eye.select(np.arange(150)), CFG
+    )
+    assert short.due(5.0).startswith('keep recording')
+    p = _grow(rec.hand, rec.eye, 40.0, 2.0)
+    assert p.span_s == pytest.approx(39.0, abs=1.0)
+    assert p.due(p.span_s * 1.4) is None
+    assert 'grown' in p.due(p.span_s * 1.5)

@@ -41,7 +41,7 @@ from .jobs import readiness_measure, readiness_start
 #: its kind for c / MAX_DUTY. What is not counted (the transfer to the worker and back, the
 #: sum of the pieces, the publishing) is the rest of the 5 % asked for. Measured
 #: (bench/node_ingest.py, 1 kHz + 200 Hz, default buffers, 10 min): a status every 1.0 s
-#: (status_period 1), 2.9 % of a core in all; each status read everything buffered before,
+#: (status_period 1), 2.5 % of a core in all; each status read everything buffered before,
 #: and came every 34 s once 500 000 + 120 000 poses were.
 MAX_DUTY = 0.03
 #: A stream with no usable pose for this long (s) while the other one flows has stopped, or

@@ -1,15 +1,15 @@
-"""The calibrator's readiness status while recording, and its auto mode.
+"""The calibrator's readiness status while recording (its auto mode is :mod:`.auto_mode`).
 
-Every ``status_period`` (less often when one computation costs more than MAX_DUTY of a core
-over the period) the node hands the poses that came since the last status to its worker pool,
-which adds what they say to what it has gathered (:mod:`handeye_ros.core.checks.progress`:
-excitation about each axis of the device, the information of the eye's consecutive pairs at
-one estimate); the node judges the sum (:mod:`handeye_ros.core.checks.readiness`: the 1-sigmas a
-calibration now would have against the ``precision_*`` targets, what is missing in the user's
-words). So a status costs the same at 10 s and at 30 min of buffers. The whole buffers are read
-again (a snapshot: stages 1 and 2, then every piece) first, while stages 1 and 2 give no
-estimate, when the estimate has moved beyond its 1-sigma, and as the buffers grow by half; the
-pieces of poses the buffers drop are dropped with them. The answer is published on ``~/status``
+Every ``status_period`` (less often when one computation costs more than MAX_DUTY of a core over
+the period) the node hands the poses that came since the last status to its worker pool, which
+adds what they say to what it has gathered (:mod:`handeye_ros.core.checks.progress`: excitation
+about each axis of the device, the information of the eye's consecutive pairs at one estimate);
+the node judges the sum (:mod:`handeye_ros.core.checks.readiness`: the 1-sigmas a calibration
+now would have against the ``precision_*`` targets, what is missing in the user's words). So a
+status costs the same at 10 s and at 30 min of buffers. The whole buffers are read again (a
+snapshot: stages 1 and 2, then every piece) first, while stages 1 and 2 give no estimate, when
+the pairs' optimum has moved beyond its 1-sigma, and as the buffers grow by half; the pieces of
+poses the buffers drop are dropped with them. The answer is published on ``~/status``
 (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
 changes (and every LOG_PERIOD_S): never redrawn in place, which glued log lines onto it in a
 terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies

@@ -40,14 +40,6 @@ class Estimate:
     R_HE: np.ndarray
     p_HE: np.ndarray
 
-    def moved(self, step: np.ndarray) -> Estimate:
-        """This estimate moved by a step in the chunks' parameters (see the module docstring)."""
-        return Estimate(
-            self.time_offset_s + float(step[0]),
-            self.R_HE @ exp_so3(step[None, 4:7])[0],
-            self.p_HE + step[1:4],
-        )
-
 
 @dataclass(frozen=True)
 class Chunk:

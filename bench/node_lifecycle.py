@@ -43,7 +43,9 @@ def session_processes(sid: int) -> list[str]:
     rows = subprocess.run(
         ['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True, text=True, check=True
     ).stdout.splitlines()
-    return [r.strip() for r in rows if r.split()[0] == str(sid)]
+    # a zombie has ended: the resource tracker ends after the node, and this machine's PID 1
+    # does not reap it (handeye_ros.ros.worker)
+    return [r.strip() for r in rows if r.split()[0] == str(sid) and r.split()[2][0] != 'Z']
 
 
 def cycle(probe: Probe, moment: str, how: str, rng: random.Random) -> dict:

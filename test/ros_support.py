@@ -183,6 +183,17 @@ class Processes:
         assert not left, f'processes left behind: {left}'
 
 
+def running(column: str, ident: int) -> list[str]:
+    """The processes still running (``ps`` rows) whose ``column`` ('sid' or 'pgid') is
+    ``ident``. A zombie has ended and is not counted: multiprocessing's resource tracker ends
+    once the node has exited, and reaping it is then init's job, which this machine's PID 1
+    does not do (:mod:`handeye_ros.ros.worker`)."""
+    rows = subprocess.run(
+        ['ps', '-eo', f'{column}=,pid=,stat=,args='], capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    return [r.strip() for r in rows if r.split()[0] == str(ident) and r.split()[2][0] != 'Z']
+
+
 def wait_for(predicate, timeout: float, step: float = 0.05) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:

@@ -113,8 +113,6 @@ def main(args: list[str] | None = None) -> int:
             node.destroy_node()
         if pool is not None:
             worker.stop(pool)
-            pool = None  # its semaphores must be gone before the resource tracker stops
-        worker.stop_tracker()
         rclpy.try_shutdown()
     return 0
 

@@ -405,8 +405,6 @@ class CalibratorNode(Node):
         self._closing = True
         if self._pool is not None:
             worker.stop(self._pool)
-            # dropped, so that its queues' semaphores are released before the resource
-            # tracker stops (worker.stop_tracker); else they are unlinked twice at exit
             self._pool = None
         self._drop_stage(_staged_dir(self._last_result))
 

@@ -4,6 +4,12 @@ A Ctrl-C reaches the whole process group, the worker included, and stopping the 
 node's job. So the worker ignores SIGINT, from its first instruction on: the node starts it
 with SIGINT ignored (the disposition survives the exec of a spawned process; the signal mask
 does not), before rclpy installs its own handlers, which ``signal.signal`` would replace.
+
+Spawning a worker also starts multiprocessing's resource tracker, a child of the node. It ends
+by itself once the node has exited (it reads its pipe until the last writer closes it), as in
+any Python program that spawns processes; Python has no public call that would end it sooner,
+and the node calls no private one. Reaping it is then the job of the system's init (a PID 1
+that does not reap, as in some sandboxes, leaves it a zombie: ended, not running).
 """
 
 from __future__ import annotations
@@ -105,13 +111,3 @@ def start(said: Any) -> None:
     said.put(os.getpid())
     for module in MODULES:
         importlib.import_module(module)
-
-
-def stop_tracker() -> None:
-    """Stop and reap multiprocessing's resource tracker, a child of the node once it has
-    had a worker: left to itself it ends only when the node has exited, unreaped."""
-    import gc
-    from multiprocessing import resource_tracker
-
-    gc.collect()  # the pool's semaphores unregister as they are collected; the tracker first
-    resource_tracker._resource_tracker._stop()  # no public call; the standard tests use it

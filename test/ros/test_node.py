@@ -19,6 +19,7 @@ from ros_support import (
     resolve_executable,
     ros_available,
     ros_env,
+    running,
     wait_for,
     with_interfaces,
 )
@@ -445,16 +446,9 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
         p.wait(timeout=30)
 
     def left(p: subprocess.Popen) -> list[str]:
-        """The node's processes still there (its session), once they have had 5 s to go."""
-
-        def rows() -> list[str]:
-            out = subprocess.run(
-                ['ps', '-eo', 'sid=,pid=,stat=,args='], capture_output=True, text=True, check=True
-            ).stdout.splitlines()
-            return [r for r in out if r.split()[0] == str(p.pid)]
-
-        wait_for(lambda: not rows(), 5.0, 0.1)
-        return rows()
+        """The node's processes still running (its session), once they have had 5 s to go."""
+        wait_for(lambda: not running('sid', p.pid), 5.0, 0.1)
+        return running('sid', p.pid)
 
     def says(p: subprocess.Popen, *words: str, timeout: float = 60.0) -> None:
         assert wait_for(lambda: all(w in ros.output(p)[1] for w in words), timeout, 0.05), (

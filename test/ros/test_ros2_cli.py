@@ -24,7 +24,14 @@ import numpy as np
 import pytest
 import yaml
 from conftest import ROOT
-from ros_support import INTERFACES, build_workspace, ros_available, wait_for, with_interfaces
+from ros_support import (
+    INTERFACES,
+    build_workspace,
+    ros_available,
+    running,
+    wait_for,
+    with_interfaces,
+)
 
 from handeye_ros.core.simulate import Truth, calibration_error
 
@@ -170,13 +177,8 @@ class Shell:
 
 
 def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    """Whether a process of the group still runs (a zombie has ended: see ``running``)."""
+    return bool(running('pgid', pgid))
 
 
 @pytest.fixture(scope='module')

@@ -1,7 +1,7 @@
 """What real recordings need around the paper's three stages, and the verdict.
 
-Not in the paper: :mod:`.screening` (damaged rows, placeholders, isolated outlier poses, VIO
-resets found against the hand), :mod:`.conventions` (stamp units, epochs, quaternion orders and
+Not in the paper: :mod:`.screening` (damaged rows, placeholders, isolated outlier poses),
+:mod:`.breaks` (VIO resets found against the hand), :mod:`.conventions` (stamp units, epochs, quaternion orders and
 inverted poses the data contradict), :mod:`.selfcheck` (stage 2 at each candidate offset, scored
 alike), :mod:`.coverage` (how much of the eye's time the MoCap covers), :mod:`.consistency`
 (which of a rig's recordings agree on T_HE), :mod:`.verdict` (good, doubtful or failed,

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..association import PosePairs
-from ..checks.screening import Screening, find_eye_breaks
+from ..checks.breaks import find_eye_breaks
+from ..checks.screening import Screening
 from ..checks.selfcheck import (
     Candidate,
     eye_keyframes,

@@ -13,7 +13,8 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.checks.screening import find_eye_breaks, resolution, screen
+from handeye_ros.core.checks.breaks import find_eye_breaks
+from handeye_ros.core.checks.screening import resolution, screen
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import InputError
 from handeye_ros.core.pipeline import calibrate

@@ -19,7 +19,7 @@ residuals with it by a Huber Levenberg-Marquardt with the analytic Jacobian
 (:meth:`.batch.residuals.BatchProblem.eye_chunk`), the eye pairs taken in chunks and their normal
 equations summed (an hour of 200 Hz VIO is 720 000 pairs), in two steps: (dt, rotation of T_HE)
 on the rotation residuals, then (dt, translation) on all of them
-(:func:`_solve_offset_extrinsic` says why). ``joint`` solves the whole problem, control poses
+(:func:`.batch.solves.solve_offset_extrinsic` says why). ``joint`` solves the whole problem, control poses
 included (in the same two steps unless ``decoupled`` is off), by Levenberg-Marquardt with an
 analytic sparse Jacobian and a sparse direct solve; it is slower and agrees with the default
 while the MoCap is much less noisy than the VIO.
@@ -30,7 +30,7 @@ The noise of each stream is estimated from its own residuals unless given.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,41 +38,15 @@ from ..errors import BatchError
 from ..geometry import quat_from_matrix
 from ..trajectory import Trajectory
 from .correlated import Uncertainty
-from .covariance import eye_covariance, joint_covariance, joint_long_run
-from .long_run import LongRunCovariance
-from .loss import huber_cost
-from .parameters import ParameterLayout, weighted_eye_chunks
+from .noise import Noise, sigmas
+from .parameters import ParameterLayout
 from .pieces import check_hand_rate, hand_pieces
-from .residuals import BatchProblem, Weights
-from .solver import (
-    LM_FTOL,
-    LM_FTOL_FIRST_PASS,
-    NormalSums,
-    SolverReport,
-    levenberg_marquardt_dense,
-    levenberg_marquardt_sparse,
-    normal_sums,
-)
+from .residuals import BatchProblem
+from .solver import SolverReport
+from .solves import Solve, solve_joint, solve_offset_extrinsic
 from .spline import PoseSpline
 
 __all__ = ['BatchError', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
-
-#: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
-MIN_SIGMA_ROT = 1e-6
-MIN_SIGMA_TRANS = 1e-6
-#: Chunks of eye pairs the first of the two noise passes uses on a long recording (spread
-#: over it); the second pass and the covariance use every pair.
-FIRST_PASS_CHUNKS = 4
-
-
-@dataclass(frozen=True)
-class Noise:
-    """Standard deviations per axis (rad, m) of one stream's residuals: of each pose for the
-    hand, of the relative pose between consecutive poses for the eye."""
-
-    rotation: float
-    translation: float
-    estimated: bool
 
 
 @dataclass(frozen=True)
@@ -129,30 +103,6 @@ class BatchSolution:
         lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run
         w = np.sqrt(np.clip(np.diag(self.covariance_white), 1e-300, None))
         return np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
-
-
-@dataclass(frozen=True)
-class _Solve:
-    """What one of the two solves hands back to :func:`refine`.
-
-    x: the solution, the joint solve's full vector (control poses then y) or y alone;
-    weights: the final 1/sigma of each stream; covariance: white, (n_y, n_y) in the order of
-    y (zero rows for entries held fixed); long_run: the reported covariance
-    (:mod:`.batch.long_run`); n_residuals, n_free: for the reduced chi^2; report: the last
-    solver run's.
-    """
-
-    x: np.ndarray
-    cost_before: float
-    cost_after: float
-    hand_noise: Noise
-    eye_noise: Noise
-    weights: Weights
-    covariance: np.ndarray
-    long_run: LongRunCovariance
-    n_residuals: int
-    n_free: int
-    report: SolverReport
 
 
 def refine(
@@ -224,7 +174,7 @@ def refine(
     layout = ParameterLayout.of(prob, fix_time_offset)
     hn = _hand_noise(prob, hand_noise, joint)
     if joint:
-        solved = _solve_joint(
+        solved = solve_joint(
             prob,
             layout,
             hn,
@@ -237,7 +187,7 @@ def refine(
         )
         y = prob.unpack(solved.x)[1]
     else:
-        solved = _solve_offset_extrinsic(
+        solved = solve_offset_extrinsic(
             prob, layout, hn, eye_noise, huber_delta, max_iterations, decoupled
         )
         y = solved.x
@@ -254,12 +204,12 @@ def _hand_noise(
     if given[0] is not None and given[1] is not None:  # no pass over the MoCap to measure it
         return Noise(given[0], given[1], False)
     raw = prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals()
-    return Noise(*_sigmas(raw, given, prob.M, prob.th.size))
+    return Noise(*sigmas(raw, given, prob.M, prob.th.size))
 
 
 def _solution(
     prob: BatchProblem,
-    solved: _Solve,
+    solved: Solve,
     y: np.ndarray,
     decoupled: bool,
     drift_stamp_ns: int | None,
@@ -307,187 +257,3 @@ def _solution(
         scale=None if prob.i_scale is None else prob.scale(y),
         spline=prob.spline0,
     )
-
-
-def _solve_offset_extrinsic(
-    prob: BatchProblem,
-    layout: ParameterLayout,
-    hand_noise: Noise,
-    eye_noise: tuple[float | None, float | None],
-    delta: float,
-    max_iterations: int,
-    decoupled: bool,
-) -> _Solve:
-    """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
-    hand, with the analytic Jacobian of :meth:`.batch.residuals.BatchProblem.eye_chunk`
-    (:func:`.batch.solver.levenberg_marquardt_dense`). Parameters y = (dt, dtheta_X, dp_X, ...)
-    from the start values.
-
-    ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
-    all residuals with the rotation fixed. Why: as in the linear stage's decoupled refit, a
-    VIO's relative translations carry errors that are not white (scale, drift), and in a
-    joint solve they pull the extrinsic's rotation; on the real flights of bench/real_cases.py
-    the joint solve left 0.25-0.80 deg of rotation error where this leaves 0.03-0.31 deg, and on
-    the paper protocol it is as good for dt and better for the rotation.
-
-    Two passes: the eye noise is estimated from the residuals at the linear result, then again
-    at the first solution (the linear result's residuals include its own error).
-    """
-    y = np.zeros(layout.size)
-    free_all = layout.all
-    r_start = prob.eye_raw(y)  # kept: the cost before, at the final weights
-    en = Noise(*_sigmas(r_start, eye_noise))
-    passes = 2 if en.estimated else 1
-    steps = [(layout.a, True), (layout.b, False)] if decoupled else [(free_all, False)]
-    for k in range(passes):
-        # the hand's weights are not used: the spline is held to the MoCap fit
-        weights = Weights(eye_rotation=1.0 / en.rotation, eye_translation=1.0 / en.translation)
-        # the first pass only has to get near enough to measure the noise again: from the
-        # linear result one Gauss-Newton step does (the second pass starts within a fraction
-        # of a sigma and converges in one or two)
-        # (and on a long recording from every few chunks of pairs only: FIRST_PASS_CHUNKS
-        # chunks spread over the recording hold some 130 000 pairs, enough for both)
-        last_pass = k + 1 == passes
-        iterations = max_iterations if last_pass else 1
-        every = 1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS)
-        for free, rotation_only in steps:
-            y, report, last = levenberg_marquardt_dense(
-                lambda yy, f=free, ro=rotation_only, e=every, w=weights: _eye_sums(
-                    prob, w, yy, f, ro, delta, e
-                ),
-                y,
-                free,
-                iterations,
-            )
-        if not last_pass:  # the last step's residuals (all rows) are those at y
-            en = Noise(*_sigmas(last.raw, eye_noise))
-    cost_before = huber_cost((r_start * weights.eye).ravel(), delta)
-    del r_start
-    cov, lr, cost_after, n_res = eye_covariance(prob, weights, y, layout, delta, decoupled)
-    return _Solve(
-        y, cost_before, cost_after, hand_noise, en, weights, cov, lr, n_res, free_all.size, report
-    )
-
-
-def _eye_sums(
-    prob: BatchProblem,
-    weights: Weights,
-    y: np.ndarray,
-    free: np.ndarray,
-    rotation_only: bool,
-    delta: float,
-    every: int,
-) -> NormalSums:
-    """The dense solver's normal sums over the eye pairs at y (every ``every``-th chunk),
-    keeping the unweighted residuals of all six rows for the next noise estimate."""
-    raw: list[np.ndarray] | None = None if rotation_only else []
-    sums = normal_sums(
-        weighted_eye_chunks(prob, weights, y, rotation_only, raw, every), free, delta
-    )
-    return sums if raw is None else replace(sums, raw=np.concatenate(raw))
-
-
-def _solve_joint(
-    prob: BatchProblem,
-    layout: ParameterLayout,
-    hn: Noise,
-    hand_noise: tuple[float | None, float | None],
-    eye_noise: tuple[float | None, float | None],
-    delta: float,
-    max_iterations: int,
-    fix_time_offset: bool,
-    decoupled: bool,
-) -> _Solve:
-    """Control poses, dt and T_HE together: the whole problem of eq. 15
-    (:func:`.batch.solver.levenberg_marquardt_sparse`).
-
-    ``decoupled`` as in :func:`_solve_offset_extrinsic`, with the control poses free in both
-    steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,
-    then (control poses, dt, translation) on all rows. Two passes when a noise is estimated.
-    """
-    ns, nh = prob.n_spline, 6 * prob.th.size
-    free = np.ones(prob.n, bool)
-    if fix_time_offset:
-        free[ns] = False
-    theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
-    theta[ns + 1 : ns + 4], trans[ns + 4 :] = True, True
-    m = nh + 6 * prob.ei.size
-    all_rows = np.ones(m, bool)
-    rot_rows = all_rows.copy()
-    rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
-    steps = (
-        [(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled else [(free, all_rows)]
-    )
-    x = np.zeros(prob.n)
-    en = Noise(*_sigmas(prob.eye_raw(np.zeros(prob.n_y)), eye_noise))
-    passes = 2 if (en.estimated or hn.estimated) else 1
-    for k in range(passes):
-        weights = Weights(
-            1.0 / hn.rotation, 1.0 / hn.translation, 1.0 / en.rotation, 1.0 / en.translation
-        )
-        # A first pass only has to get near enough to measure the noise again: plain least
-        # squares does that in 2-3 steps, where Huber's switching between its quadratic and
-        # linear parts over thousands of MoCap rows takes 20-40 steps (measured on 20 s);
-        # the Huber pass then starts where its active set has settled.
-        last = k + 1 == passes
-        for cols, rows in steps:
-            x, report = levenberg_marquardt_sparse(
-                lambda xx, w=weights: prob.residuals(xx, w),
-                lambda xx, w=weights: prob.jacobian(xx, w),
-                x,
-                cols,
-                rows,
-                delta if last else np.inf,
-                max_iterations,
-                LM_FTOL if last else LM_FTOL_FIRST_PASS,
-            )
-        if not last:
-            r_h, r_e = prob.raw(x)
-            hn, en = Noise(*_sigmas(r_h, hand_noise, prob.M)), Noise(*_sigmas(r_e, eye_noise))
-    f = prob.residuals(x, weights)
-    cov = joint_covariance(prob, weights, x, f, free, rot_rows, theta, trans, delta, decoupled)
-    lr = joint_long_run(prob, weights, x, cov, layout, delta, decoupled)
-    cost_before = huber_cost(prob.residuals(np.zeros(prob.n), weights), delta)
-    return _Solve(
-        x,
-        cost_before,
-        huber_cost(f, delta),
-        hn,
-        en,
-        weights,
-        cov,
-        lr,
-        f.size,
-        int(free.sum()),
-        report,
-    )
-
-
-def _robust_sigma(r: np.ndarray) -> float:
-    """Per-axis standard deviation from the median absolute deviation (robust to outliers)."""
-    return float(1.4826 * np.median(np.abs(r - np.median(r, axis=0))))
-
-
-def _sigmas(
-    r: np.ndarray, given: tuple[float | None, float | None], fitted: int = 0, n: int | None = None
-) -> tuple[float, float, bool]:
-    """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
-
-    ``fitted``: parameters per axis fitted to these same residuals (the spline's M control
-    poses for the hand), which shrink them by sqrt((N - fitted) / N): undone here, up to a
-    factor sqrt(2). A spline with about as many control poses as MoCap poses (a sparse MoCap)
-    nearly interpolates it and its residuals say little about the noise; blowing them up
-    then would only turn interpolation round-off into noise. ``n``: how many residuals the fit
-    had, when r is a sample of them.
-    """
-    n = r.shape[0] if n is None else n
-    inflate = float(np.sqrt(n / max(n - fitted, n / 2.0)))
-    rot = (
-        given[0] if given[0] is not None else max(inflate * _robust_sigma(r[:, :3]), MIN_SIGMA_ROT)
-    )
-    trans = (
-        given[1]
-        if given[1] is not None
-        else max(inflate * _robust_sigma(r[:, 3:]), MIN_SIGMA_TRANS)
-    )
-    return rot, trans, given[0] is None or given[1] is None

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..core.errors import ConfigError
 from ..core.geometry import matrix_from_quat
-from ..core.result import transform_dict
+from ..core.result_sections import transform_dict
 from ..core.rig import Member
 
 #: The rig's result file, beside the per-recording folders.

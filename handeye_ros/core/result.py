@@ -36,18 +36,29 @@ from typing import Any
 
 import numpy as np
 
-from .batch.correlated import BLOCKS
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
 from .checks.readiness import Readiness
 from .checks.screening import Screening
 from .checks.selfcheck import Candidate
-from .checks.verdict import Quality, Verdict, drift_significant
+from .checks.verdict import Quality, Verdict
 from .config import CalibrationConfig
 from .eye_model import EyeModel
-from .geometry import inverse, matrix_from_quat, positive_w, quat_from_matrix
+from .geometry import inverse, matrix_from_quat, positive_w
 from .linear.robust import LinearSolution
+from .result_sections import (
+    batch_section,
+    clock_section,
+    linear_section,
+    metrics_section,
+    num,
+    screening_section,
+    std_section,
+    time_alignment_section,
+    trajectory_section,
+    transform_dict,
+)
 from .time.align import TimeAlignment
 from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
@@ -184,105 +195,6 @@ class CalibrationResult:
         and logs a calibration."""
         return self.summary() + ''.join(f'. {r.code}: {r.message}' for r in self.quality.reasons)
 
-    def _batch_dict(self) -> dict[str, Any]:
-        b, c = self.batch, self.config
-        out: dict[str, Any] = {'enabled': c.batch, 'used': b is not None}
-        if b is None:
-            return out
-        out.update(
-            {
-                'knot_spacing': c.knot_spacing,
-                'spline_order': c.spline_order,
-                'joint': c.batch_joint,
-                'decoupled': c.batch_decoupled,
-                'control_points': b.n_control_points,
-                'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},
-                'noise': {'hand': _noise_dict(b.hand_noise), 'eye': _noise_dict(b.eye_noise)},
-                'iterations': b.iterations,
-                'evaluations': b.evaluations,
-                'cost_before': b.cost_before,
-                'cost_after': b.cost_after,
-                'reduced_chi2': b.reduced_chi2,
-                'termination': b.termination,
-                'converged': b.success,
-                'seconds': b.seconds,
-                'time_offset_change': float(
-                    self.time_offset_s - self.time_alignment.time_offset_s
-                ),
-            }
-        )
-        return out
-
-    def _clock_dict(self) -> dict[str, Any] | None:
-        """The offset measured in windows along the recording (eye clock) and the line through
-        them: the drift check of every run, the first estimate with clock_drift."""
-        c = self.clock
-        if c is None:
-            return None
-        return {
-            'windows': [
-                {
-                    'stamp_ns': int(t),
-                    'time_offset': _num(o),
-                    'correlation': _num(r),
-                    'used': bool(u),
-                }
-                for t, o, r, u in zip(
-                    c.centres_ns, c.offsets_s, c.correlation, c.inliers, strict=True
-                )
-            ],
-            'measured_drift': _num(c.drift),
-            'measured_drift_std': _num(c.drift_std),
-            'change_over_recording': _num(c.change_s) if c.estimated else None,
-            'drift_significant': drift_significant(c),
-            'not_estimated_because': c.why or None,
-            'units': {'time_offset': 's', 'measured_drift': 's/s', 'change_over_recording': 's'},
-        }
-
-    def _screening_dict(self) -> dict[str, Any] | None:
-        if self.screening is None:
-            return None
-        return {
-            s.stream: {
-                'poses_in': s.n_input,
-                'removed': s.counts,
-                'fraction': s.fraction,
-                'removed_stamps_ns': [int(t) for t in s.removed_ns],
-                'removed_kinds': list(s.removed_kind),
-                'breaks_ns': [int(t) for t in s.breaks_ns],
-                'thresholds': {
-                    'translation_m': _num(s.threshold_translation_m),
-                    'rotation_deg': _num(np.degrees(s.threshold_rotation_rad)),
-                },
-            }
-            for s in self.screening
-        }
-
-    def _std_dict(self) -> dict[str, Any] | None:
-        b = self.batch
-        if b is None:
-            return None
-        m = self.eye_model
-        return {
-            'time_offset': float(b.std[0]),
-            'translation': [float(v) for v in b.std[1:4]],
-            'rotation': [float(v) for v in b.std[4:7]],
-            'clock_drift': (_num(m.drift_std) if m is not None and m.drift_estimated else None),
-            'scale': _num(m.scale_std) if m is not None and m.scale_estimated else None,
-            'units': {
-                'time_offset': 's',
-                'translation': 'm',
-                'rotation': 'rad, tangent of T_HE on the right (eye frame)',
-                'clock_drift': 's/s',
-                'scale': '1',
-            },
-            'method': f'long-run (Newey-West, Bartlett kernel, bandwidth {b.bandwidth} eye '
-            'poses) over the eye residuals, with the errors correlated over the recording '
-            f'({BLOCKS} blocks refitted alone) and the eye scale as a nuisance',
-            'white_inflation': [float(v) for v in b.inflation],
-            **_uncertainty_dict(b.uncertainty),
-        }
-
     def to_dict(
         self,
         hand_frame: str = 'hand',
@@ -310,7 +222,7 @@ class CalibrationResult:
             ),
             'clock_drift': self.clock_drift,
             'scale': self.scale,
-            'clock': self._clock_dict(),
+            'clock': clock_section(self.clock),
             'extrinsic': transform_dict(R_HE, self.p_HE, hand_frame, eye_frame),
             'extrinsic_inverse': transform_dict(R_EH, p_EH, eye_frame, hand_frame),
             'world_alignment': {
@@ -318,8 +230,8 @@ class CalibrationResult:
                 'method': self.world.method,
                 'segments': self.world.segments,
             },
-            'time_alignment': self._time_alignment_dict(),
-            'screening': self._screening_dict(),
+            'time_alignment': time_alignment_section(self.time_alignment, self.vector_alignment),
+            'screening': screening_section(self.screening),
             'conventions': [
                 {
                     'stream': c.stream,
@@ -334,9 +246,9 @@ class CalibrationResult:
                 {
                     'time_offset': float(c.time_offset_s),
                     'source': c.source,
-                    'score': _num(c.score),
-                    'rotation_residual_deg': _num(c.rotation_residual_deg),
-                    'translation_residual_m': _num(c.translation_residual_m),
+                    'score': num(c.score),
+                    'rotation_residual_deg': num(c.rotation_residual_deg),
+                    'translation_residual_m': num(c.translation_residual_m),
                     'chosen': c.chosen,
                 }
                 for c in self.candidates
@@ -344,8 +256,8 @@ class CalibrationResult:
             'association': {'pairs': int(self.n_pairs)},
             'coverage': None if self.coverage is None else self.coverage.to_dict(),
             'readiness': None if self.readiness is None else self.readiness.to_dict(),
-            'linear': self._linear_dict(),
-            'std': self._std_dict(),
+            'linear': linear_section(self.linear, self.config, self.seed_check),
+            'std': std_section(self.batch, self.eye_model),
             'covariance': None
             if self.batch is None
             else {
@@ -354,144 +266,14 @@ class CalibrationResult:
                 + ['scale'] * (self.batch.scale is not None),
                 'matrix': [[float(v) for v in row] for row in self.batch.covariance],
             },
-            'batch': self._batch_dict(),
-            'metrics': self._metrics_dict(),
+            'batch': batch_section(
+                self.batch, self.config, self.time_offset_s - self.time_alignment.time_offset_s
+            ),
+            'metrics': metrics_section(self.metrics),
             'inputs': {
-                name: _trajectory_info(info)
+                name: trajectory_section(info)
                 for name, info in (('hand', self.hand), ('eye', self.eye))
             },
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
         }
-
-    def _linear_dict(self) -> dict[str, Any]:
-        """Stage 2: its motions, consensus, solutions and checks."""
-        lin = self.linear
-        return {
-            'relative_poses': self.config.relative_poses,
-            'motions': int(lin.n_motions),
-            'inliers': int(lin.n_inliers),
-            'inlier_thresholds': {
-                'rotation_deg': lin.inlier_rotation_deg,
-                'translation_m': lin.inlier_translation_m,
-            },
-            'extrinsic': {
-                'translation': [float(v) for v in lin.p_HE],
-                'rotation': [float(v) for v in positive_w(lin.q_HE)],
-            },
-            'decoupled_refit': self.config.decoupled_refit,
-            'dual_quaternion_solution': {
-                'translation': [float(v) for v in lin.p_HE_dq],
-                'rotation': [float(v) for v in positive_w(lin.q_HE_dq)],
-            },
-            'sigma_ratio': _num(lin.sigma_ratio),
-            'singular_values': [float(v) for v in lin.singular_values],
-            'axis_spread_deg': _num(lin.axis_spread_deg),
-            'rotation_residual_deg': _num(lin.rotation_residual_deg),
-            'translation_residual_m': _num(lin.translation_residual_m),
-            'unobservable': list(lin.unobservable),
-            'seed_check': None
-            if self.seed_check is None
-            else {
-                'seed': self.config.seed + 1,
-                'translation': [float(v) for v in self.seed_check.p_HE],
-                'rotation': [float(v) for v in positive_w(self.seed_check.q_HE)],
-            },
-        }
-
-    def _metrics_dict(self) -> dict[str, Any]:
-        """APE / ARE of the eye against the calibrated hand, and AX = XB over the keyframe motions."""
-        m = self.metrics
-        return {
-            'ape_rmse': m.ape_rmse_m,
-            'are_rmse': m.are_rmse_deg,
-            'ape_max': m.ape_max_m,
-            'are_max': m.are_max_deg,
-            'poses': m.n_poses,
-            'motion_rotation_median': _num(m.motion_rotation_deg),
-            'motion_translation_median': _num(m.motion_translation_m),
-            'motion_length_median': _num(m.motion_length_m),
-            'motions': m.n_motions,
-            'units': {
-                'ape': 'm',
-                'are': 'deg',
-                'motion_rotation': 'deg',
-                'motion_translation': 'm',
-                'motion_length': 'm',
-            },
-        }
-
-    def _time_alignment_dict(self) -> dict[str, Any]:
-        """Stage 1: its method, peak, window and candidates, and the vector refinement."""
-        ta, vec = self.time_alignment, self.vector_alignment
-        return {
-            'method': ta.method,
-            'peak_correlation': _num(ta.peak_correlation),
-            'second_peak_ratio': _num(ta.second_peak_ratio),
-            'step': _num(ta.step_s),
-            'window': [_num(ta.window_s[0]), _num(ta.window_s[1])],
-            'candidates': [
-                {'time_offset': float(c), 'correlation': float(r)} for c, r in ta.candidates
-            ],
-            'vector': None
-            if vec is None
-            else {
-                'time_offset': float(vec.time_offset_s),
-                'peak_correlation': _num(vec.peak_correlation),
-                'window': [_num(vec.window_s[0]), _num(vec.window_s[1])],
-            },
-        }
-
-
-def _noise_dict(n: Any) -> dict[str, Any]:
-    return {
-        'rotation_rad': float(n.rotation),
-        'translation_m': float(n.translation),
-        'estimated': bool(n.estimated),
-    }
-
-
-def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dict[str, Any]:
-    """``{parent, child, translation, rotation (x y z w), matrix}`` of T_parent_child."""
-    M = np.eye(4)
-    M[:3, :3], M[:3, 3] = R, p
-    return {
-        'parent': parent,
-        'child': child,
-        'translation': [float(v) for v in p],
-        'rotation': [float(v) for v in quat_from_matrix(R)],
-        'matrix': [[float(v) for v in row] for row in M],
-    }
-
-
-def _trajectory_info(info: TrajectoryInfo) -> dict[str, Any]:
-    return {
-        'source': info.source,
-        'poses': info.poses,
-        'rate_hz': info.rate_hz,
-        'duration_s': info.duration_s,
-        'first_stamp_ns': info.first_stamp_ns,
-        'last_stamp_ns': info.last_stamp_ns,
-    }
-
-
-def _num(x: float) -> float | None:
-    """JSON has no NaN: unknown values become null."""
-    return float(x) if np.isfinite(x) else None
-
-
-def _uncertainty_dict(u: Any) -> dict[str, Any]:
-    """The reported 1-sigma's terms (white, correlated, scale) per group (norms over the axes,
-    in the groups' units), the term that dominates each, and what could not be estimated."""
-    if u is None:
-        return {}
-    return {
-        'terms': {g: {k: float(v) for k, v in t.items()} for g, t in u.terms().items()},
-        'dominant': u.dominant(),
-        'over_long_run': {g: float(v) for g, v in u.over_long_run().items()},
-        'block_factors': None if u.factors is None else dict(u.factors),
-        'eye_scale': (
-            None if u.scale is None else {'scale': float(u.scale[0]), 'std': float(u.scale[1])}
-        ),
-        'not_estimated': list(u.not_estimated),
-    }

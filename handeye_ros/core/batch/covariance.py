@@ -13,6 +13,7 @@ import numpy as np
 from scipy.sparse import csc_matrix, diags
 from scipy.sparse.linalg import splu
 
+from .joint_jacobian import joint_jacobian
 from .long_run import (
     LongRunCovariance,
     influence,
@@ -245,7 +246,7 @@ def joint_covariance(
         np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)), 1.0 / np.sqrt(max(s2_e, 1e-12))
     )
     scale *= np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))
-    J = diags(scale) @ prob.jacobian(x, weights)
+    J = diags(scale) @ joint_jacobian(prob, x, weights)
     cov = np.zeros((7, 7))
     glob = np.flatnonzero(free[ns:])  # y's free entries
     if not decoupled:

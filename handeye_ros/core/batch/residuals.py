@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
 from scipy.spatial.transform import Rotation
 
 from ..errors import BatchError
@@ -52,29 +51,6 @@ HAND_NOISE_SAMPLES = 200_000
 EYE_CHUNK_PAIRS = 1 << 15
 #: Fewest eye residuals the stage accepts.
 MIN_EYE_RESIDUALS = 20
-
-
-class _Triplets:
-    """The (row, column, value) entries of a sparse Jacobian, gathered block by block."""
-
-    def __init__(self, Jc: np.ndarray) -> None:
-        #: (M, 3, 3) right Jacobians of the control rotations' parameters
-        self.Jc = Jc
-        self.rows: list[np.ndarray] = []
-        self.cols: list[np.ndarray] = []
-        self.values: list[np.ndarray] = []
-
-    def add(self, row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
-        """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2 (col_off 0:
-        a control rotation, whose parameter enters through its right Jacobian)."""
-        if col_off == 0:
-            block = np.matmul(block, self.Jc[cp])
-        rr = row0[:, None, None, None] + np.arange(3)[:, None]
-        cc = 6 * cp[:, :, None, None] + col_off + np.arange(3)
-        rr, cc = np.broadcast_arrays(rr, cc)
-        self.rows.append(rr.ravel())
-        self.cols.append(cc.ravel())
-        self.values.append(block.ravel())
 
 
 @dataclass
@@ -404,84 +380,6 @@ class BatchProblem:
         """Weighted hand then eye residuals, flat (joint solve)."""
         r_h, r_e = self.raw(x)
         return np.concatenate(((r_h * w.hand).ravel(), (r_e * w.eye).ravel()))
-
-    def jacobian(self, x: np.ndarray, weights: Weights) -> csr_matrix:
-        """Sparse Jacobian of :meth:`residuals`: analytic in the control poses (through
-        :meth:`PoseSpline.evaluate_with_jacobian`), central differences in the 7 (dt, T_HE)
-        columns, which only the eye rows depend on.
-
-        With ``r = Log(R_pred R_obs^T)`` and R_pred moved to ``R_pred Exp(v)``, r moves by
-        ``Jl^-1(r) R_pred v``. Hand row h: v is the spline's body perturbation. Eye pair (a, b)
-        with ``Q = R_a^T R_b`` (spline rotations at t_a - dt, t_b - dt), ``T_HE = (R_X, p_X)``:
-        the relative rotation ``R_X^T Q R_X`` has ``R_pred v = R_X^T (Q eps_b - eps_a)`` and the
-        relative translation ``R_X^T (Q p_X + R_a^T (p_b - p_a) - p_X)`` moves by
-        ``R_X^T ([u]x eps_a - Q [p_X]x eps_b + R_a^T (dp_b - dp_a))`` with
-        ``u = Q p_X + R_a^T (p_b - p_a)``.
-        """
-        spline, y = self.unpack(x)
-        # the parameters are R_m = R0_m Exp(c_m): a change dc is Exp(Jr(c_m) dc) on R_m
-        out = _Triplets(right_jacobian(x[: self.n_spline].reshape(self.M, 6)[:, :3]))
-        self._hand_blocks(spline, weights, out)
-        self._eye_blocks(spline, y, weights, out)
-        # (dt, dtheta_X, dp_X): central differences of the eye rows
-        w_eye = weights.eye
-
-        def eye_rows(yy: np.ndarray) -> np.ndarray:
-            return (self.eye_raw_at(spline, yy) * w_eye).ravel()
-
-        d = central_jacobian(eye_rows, y, np.arange(7))
-        out.rows.append(np.repeat(6 * self.th.size + np.arange(d.shape[0]), 7))
-        out.cols.append(np.tile(self.n_spline + np.arange(7), d.shape[0]))
-        out.values.append(d.ravel())
-        m = 6 * (self.th.size + self.ei.size)
-        return csr_matrix(
-            (np.concatenate(out.values), (np.concatenate(out.rows), np.concatenate(out.cols))),
-            shape=(m, self.n),
-        )
-
-    def _hand_blocks(self, spline: PoseSpline, weights: Weights, out: _Triplets) -> None:
-        """The hand rows: rotation by the control rotations, position by the control
-        positions."""
-        hb = self.hand_basis
-        R_s, _, JR, b = spline.evaluate_with_jacobian(hb)
-        r_rot = log_so3(np.matmul(R_s, np.swapaxes(self.hand_obs[0], -1, -2)))
-        cp = hb[0][:, None] + np.arange(spline.order)
-        row = 6 * np.arange(self.th.size)
-        lead = np.matmul(right_jacobian(-r_rot, inverse=True), R_s)  # Jl^-1(r) R_s
-        out.add(row, cp, 0, weights.hand_rotation * np.matmul(lead[:, None], JR))
-        out.add(row + 3, cp, 3, weights.hand_translation * b[..., None, None] * np.eye(3))
-
-    def _eye_blocks(
-        self, spline: PoseSpline, y: np.ndarray, weights: Weights, out: _Triplets
-    ) -> None:
-        """The eye rows' blocks in the control poses (see :meth:`jacobian`)."""
-        RX, pX = self.extrinsic(y)
-        w_rot, w_trans = weights.eye_rotation, weights.eye_translation
-        eb = self.spline0.basis(self.eye_times(y))
-        R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
-        ia, ib = self.ei, self.ej
-        Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
-        Q = np.matmul(np.swapaxes(Ra, -1, -2), Rb)
-        RXt = RX.T
-        rel_R = np.matmul(np.matmul(RXt, Q), RX)
-        r_eye = log_so3(np.matmul(rel_R, np.swapaxes(self.eye_obs[0], -1, -2)))
-        Jl_inv = right_jacobian(-r_eye, inverse=True)
-        u = np.einsum('nij,j->ni', Q, pX) + np.einsum('nji,nj->ni', Ra, pb - pa)
-        RXtRat = np.matmul(RXt, np.swapaxes(Ra, -1, -2))
-        row = 6 * (self.th.size + np.arange(ia.size))
-        for idx, sign_rot, d_trans in (
-            (ia, -1.0, np.matmul(RXt, skew(u))),
-            (ib, 1.0, -np.matmul(np.matmul(RXt, Q), skew(pX))),
-        ):
-            cp = eb[0][idx][:, None] + np.arange(spline.order)
-            JRi = JR_e[idx]
-            # d r_rot / d eps: Jl^-1 R_X^T (-I for a, Q for b)
-            d_rot = np.matmul(Jl_inv, RXt if sign_rot < 0 else np.matmul(RXt, Q)) * sign_rot
-            out.add(row, cp, 0, w_rot * np.matmul(d_rot[:, None], JRi))
-            out.add(row + 3, cp, 0, w_trans * np.matmul(d_trans[:, None], JRi))
-            out.add(
-                row + 3, cp, 3, w_trans * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None]
-            )
 
 
 def central_jacobian(

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .covariance import eye_covariance, joint_covariance, joint_long_run
+from .joint_jacobian import joint_jacobian
 from .long_run import LongRunCovariance
 from .loss import huber_cost
 from .noise import Noise, sigmas
@@ -181,7 +182,7 @@ def solve_joint(
         for cols, rows in steps:
             x, report = levenberg_marquardt_sparse(
                 lambda xx, w=weights: prob.residuals(xx, w),
-                lambda xx, w=weights: prob.jacobian(xx, w),
+                lambda xx, w=weights: joint_jacobian(prob, xx, w),
                 x,
                 cols,
                 rows,

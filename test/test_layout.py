@@ -283,7 +283,7 @@ def test_the_launch_file_and_rviz_config_match_the_node() -> None:
     """launch/calibrator.launch.py starts executables the package installs, and the RViz
     config shows the node's latched paths in the eye's default world frame. Where launch is
     importable (a ROS 2 install), the description is also built."""
-    from handeye_ros.ros.node import PATHS
+    from handeye_ros.ros.outputs import PATHS
     from handeye_ros.stream.config import FALLBACK_FRAMES
 
     launch = (ROOT / 'launch' / 'calibrator.launch.py').read_text()

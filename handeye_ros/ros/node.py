@@ -19,17 +19,15 @@ Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running 
 abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a ``~/calibrate``
 caller still waiting is answered "aborted: shutting down" (:meth:`CalibratorNode.send_answers`).
 Every calibration, successful or not, updates every output together. A success publishes on
-the latched topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
-``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), all stamped alike,
-and on /tf_static where tf2_msgs is importable. A failure cannot unpublish latched
-messages: /diagnostics then says ERROR with the reason, and names the latched outputs as stale
-(the result they come from and when). Status goes to /diagnostics.
+every latched output at once, stamped alike (:mod:`.outputs`). A failure cannot unpublish
+latched messages: /diagnostics then says ERROR with the reason, and names the latched outputs
+as stale (the result they come from and when). Status goes to /diagnostics.
 
 The subscriptions (types learnt from the graph, QoS, why a stream is empty) are in
 :mod:`.subscriptions`, the parameters (declared from the option specs, changed at run time,
 misspelt names said) in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`,
-the worker process in :mod:`.worker`, the output messages in
-:mod:`handeye_ros.formats.messages`, the start and stop in :mod:`.calibrator`.
+the worker process in :mod:`.worker`, the result's publishers in :mod:`.outputs` (its
+messages in :mod:`handeye_ros.formats.messages`), the start and stop in :mod:`.calibrator`.
 """
 
 from __future__ import annotations
@@ -48,37 +46,19 @@ from rcl_interfaces.msg import (
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-)
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from ..core.errors import ConfigError, HandeyeError, InputError
-from ..formats import messages
+from ..core.errors import HandeyeError, InputError
 from ..formats.result_file import write_result
 from ..stream import STREAMS, Recorder
-from ..stream.convert import TF_TYPE
 from . import diagnostics, parameters, worker
 from .jobs import Calibrated, calibrate_buffers
+from .outputs import Outputs
 from .status import ReadinessStatus
 from .subscriptions import Subscriptions
 from .types import RclpyTypes
 
-#: Latched result topics: late subscribers get the last result.
-LATCHED = QoSProfile(
-    depth=1,
-    history=HistoryPolicy.KEEP_LAST,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-#: The latched nav_msgs/Path topics of each result (relative to the node), by path: the eye's
-#: trajectory and the calibrated ground truth (the hand in the eye's world and clock), both in
-#: the eye's world frame, for RViz or Foxglove to overlay.
-PATHS = {'eye': 'eye_path', 'ground_truth': 'ground_truth_path'}
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
 
@@ -117,15 +97,7 @@ class CalibratorNode(Node):
         self.taken_late = dict.fromkeys(STREAMS, 0.0)
 
         self._types = RclpyTypes()
-        self._outputs = {
-            name: self.create_publisher(self._types[t], f'~/{name}', LATCHED)
-            for name, t in messages.OUTPUT_TYPES.items()
-        }
-        self._paths = {
-            name: self.create_publisher(self._types['nav_msgs/msg/Path'], f'~/{name}', LATCHED)
-            for name in PATHS.values()
-        }
-        self._static_tf = self._static_broadcaster()
+        self._outputs = Outputs(self, self._types)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # its own reentrant group: a callback group stays busy while a coroutine in it awaits,
         # and the default (mutually exclusive) group would then hold back every subscription
@@ -414,23 +386,7 @@ class CalibratorNode(Node):
         """A new result: every output at once, one stamp (on the executor)."""
         self._last_result, self._last_error = session, None
         self._last_when = time.strftime('%Y-%m-%d %H:%M:%S')
-        stamp = self.get_clock().now().nanoseconds
-        published = messages.Published.from_result(session.result, session.frames)
-        out = messages.outputs(self._types, published, stamp)
-        for name, pub in self._outputs.items():
-            if name in out:
-                pub.publish(out[name])
-        if messages.TIME_REFERENCE not in out:
-            self.get_logger().warning(
-                'the time offset is not published as a TimeReference: its instant on one of '
-                'the clocks is no ROS time (before 1970); ~/time_offset has it'
-            )
-        if self._static_tf is not None:
-            self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
-        world = session.frames['eye_world']
-        for key, name in PATHS.items():
-            if key in session.paths:
-                self._paths[name].publish(messages.path(self._types, world, *session.paths[key]))
+        self._outputs.publish(session, self.get_clock().now().nanoseconds)
         self._publish_diagnostics()
 
     def _failed(self, why: str) -> None:
@@ -438,21 +394,6 @@ class CalibratorNode(Node):
         cannot be withdrawn, are named stale there."""
         self._last_error = why
         self._publish_diagnostics()
-
-    def _static_broadcaster(self) -> Any:
-        """A latched /tf_static publisher, as tf2's static broadcaster keeps one, where
-        tf2_msgs is importable (a ROS 2 install; the PyPI wheels have neither tf2_msgs nor
-        tf2_ros); None otherwise, said once."""
-        try:
-            cls = self._types[TF_TYPE]
-        except ConfigError:
-            self.get_logger().info(
-                'tf2_msgs is not importable here: the extrinsic is published '
-                'on ~/extrinsic, not on /tf_static (publish_calibration FILE '
-                'writes it into a bag)'
-            )
-            return None
-        return self.create_publisher(cls, '/tf_static', LATCHED)
 
     def _publish_diagnostics(self) -> None:
         arr = DiagnosticArray()

@@ -96,7 +96,7 @@ def _publish(published: Any, namespace: str) -> int:
     from rclpy.node import Node
 
     from ..formats import messages
-    from .node import LATCHED
+    from .outputs import LATCHED
     from .types import RclpyTypes
 
     rclpy.init()

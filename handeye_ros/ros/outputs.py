@@ -1,0 +1,84 @@
+"""The calibrator's latched result outputs: a new result goes out on every one of them at
+once, with one stamp (on the executor's thread, as everything the node publishes).
+
+The result topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
+``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), /tf_static where
+tf2_msgs is importable, and two nav_msgs/Path (:data:`PATHS`). Latched: a subscriber that comes
+later gets the last result. A failure cannot withdraw them; /diagnostics names them stale
+(:mod:`.diagnostics`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from ..core.errors import ConfigError
+from ..formats import messages
+from ..stream.convert import TF_TYPE
+from .jobs import Calibrated
+from .types import RclpyTypes
+
+#: Latched result topics: late subscribers get the last result.
+LATCHED = QoSProfile(
+    depth=1,
+    history=HistoryPolicy.KEEP_LAST,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+#: The latched nav_msgs/Path topics of each result (relative to the node), by path: the eye's
+#: trajectory and the calibrated ground truth (the hand in the eye's world and clock), both in
+#: the eye's world frame, for RViz or Foxglove to overlay.
+PATHS = {'eye': 'eye_path', 'ground_truth': 'ground_truth_path'}
+
+
+class Outputs:
+    """The publishers of a result (made with the node)."""
+
+    def __init__(self, node: Node, types: RclpyTypes) -> None:
+        self._node, self._types = node, types
+        self._topics = {
+            name: node.create_publisher(types[t], f'~/{name}', LATCHED)
+            for name, t in messages.OUTPUT_TYPES.items()
+        }
+        self._paths = {
+            name: node.create_publisher(types['nav_msgs/msg/Path'], f'~/{name}', LATCHED)
+            for name in PATHS.values()
+        }
+        self._static_tf = self._static_broadcaster()
+
+    def publish(self, session: Calibrated, stamp: int) -> None:
+        """Every output of a new result, stamped ``stamp`` (int64 ns, the node's clock)."""
+        published = messages.Published.from_result(session.result, session.frames)
+        out = messages.outputs(self._types, published, stamp)
+        for name, pub in self._topics.items():
+            if name in out:
+                pub.publish(out[name])
+        if messages.TIME_REFERENCE not in out:
+            self._node.get_logger().warning(
+                'the time offset is not published as a TimeReference: its instant on one of '
+                'the clocks is no ROS time (before 1970); ~/time_offset has it'
+            )
+        if self._static_tf is not None:
+            self._static_tf.publish(self._types[TF_TYPE](transforms=[out[messages.EXTRINSIC]]))
+        world = session.frames['eye_world']
+        for key, name in PATHS.items():
+            if key in session.paths:
+                self._paths[name].publish(messages.path(self._types, world, *session.paths[key]))
+
+    def _static_broadcaster(self) -> Any:
+        """A latched /tf_static publisher, as tf2's static broadcaster keeps one, where
+        tf2_msgs is importable (a ROS 2 install; the PyPI wheels have neither tf2_msgs nor
+        tf2_ros); None otherwise, said once."""
+        try:
+            cls = self._types[TF_TYPE]
+        except ConfigError:
+            self._node.get_logger().info(
+                'tf2_msgs is not importable here: the extrinsic is published '
+                'on ~/extrinsic, not on /tf_static (publish_calibration FILE '
+                'writes it into a bag)'
+            )
+            return None
+        return self._node.create_publisher(cls, '/tf_static', LATCHED)

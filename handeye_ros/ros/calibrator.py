@@ -20,6 +20,8 @@ that shuts down whatever happens), with four things they do not need:
 from __future__ import annotations
 
 import sys
+import time
+from typing import Any
 
 from .lifecycle import ignore_signals, quiet_start, stop_requested
 
@@ -108,13 +110,35 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             node.close()  # the worker stopped: every pending calibration has its answer
             if executor is not None:
-                node.send_answers(executor, ANSWER_S, LINGER_S)
+                send_answers(node, executor, ANSWER_S, LINGER_S)
                 executor.shutdown()
             node.destroy_node()
         if pool is not None:
             worker.stop(pool)
         rclpy.try_shutdown()
     return 0
+
+
+def send_answers(node: Any, executor: Any, timeout_s: float, linger_s: float) -> None:
+    """At the stop, after the node's ``close``: spin until every ``~/calibrate`` call waiting
+    for a calibration has been answered (close gave them ABORTED), at most timeout_s,
+    then on for linger_s when any was: a reliable DDS writer repeats a response its reader
+    missed only while it exists, and the node is destroyed right after this."""
+    from .node import ABORTED  # imported by main already
+
+    waiting = node.open_calls
+    if not waiting:
+        return
+    deadline = time.monotonic() + timeout_s
+    while node.open_calls and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    node.get_logger().info(
+        f'stopping: {waiting - node.open_calls} ~/calibrate caller(s) answered '
+        f"'{ABORTED}'" + (f', {node.open_calls} not' if node.open_calls else '')
+    )
+    deadline = time.monotonic() + linger_s
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
 
 
 if __name__ == '__main__':

@@ -9,6 +9,7 @@ back to the node is small: the result without its poses and the paths drawn in R
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ..app.request import Request, run, write_outputs
@@ -37,6 +38,26 @@ class Calibrated:
     def report(self) -> str | None:
         """The report page drawn with the calibration, or None."""
         return self.document.get('files', {}).get('report')
+
+    @property
+    def staged_dir(self) -> str | None:
+        """The folder where the worker drew the report, if it did (``~/save`` copies it)."""
+        return str(Path(self.report).parent) if self.report else None
+
+    @property
+    def rig_said(self) -> str:
+        """What the result's rig (rig_file) rests on, for the ~/calibrate answer and the log."""
+        rig = self.document.get('rig') or {}
+        if 'file' not in rig:
+            return ''
+        if rig['part'] == 'left out':
+            return (
+                f'; this session is left out of the rig ({rig["file"]}): its own T_HE is published'
+            )
+        return (
+            f'; T_HE of the rig of {rig["recordings"]} recording(s) in {rig["file"]} '
+            f'({rig["part"]})'
+        )
 
 
 def calibrate_buffers(

@@ -17,7 +17,7 @@ start-up. A job's answer comes back on the executor's thread
 (:meth:`CalibratorNode.on_executor`), which alone publishes and changes the node's state.
 Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running calibration is
 abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a ``~/calibrate``
-caller still waiting is answered "aborted: shutting down" (:meth:`CalibratorNode.send_answers`).
+caller still waiting is answered "aborted: shutting down" (:mod:`.calibrator`).
 Every calibration, successful or not, updates every output together. A success publishes on
 every latched output at once, stamped alike (:mod:`.outputs`). A failure cannot unpublish
 latched messages: /diagnostics then says ERROR with the reason, and names the latched outputs
@@ -37,7 +37,6 @@ import shutil
 import sys
 import tempfile
 import time
-from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -50,11 +49,10 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from ..core.errors import HandeyeError, InputError
-from ..formats.result_file import write_result
 from ..stream import STREAMS, Recorder
 from . import diagnostics, parameters, worker
 from .jobs import Calibrated, calibrate_buffers
-from .outputs import Outputs
+from .outputs import Outputs, save
 from .status import ReadinessStatus
 from .subscriptions import Subscriptions
 from .types import RclpyTypes
@@ -124,6 +122,11 @@ class CalibratorNode(Node):
             f'buffering hand {self.poses.shown("hand")} and eye {self.poses.shown("eye")}; '
             f'call {self.get_fully_qualified_name()}/calibrate when the rig has moved'
         )
+
+    @property
+    def open_calls(self) -> int:
+        """``~/calibrate`` calls still waiting for their calibration's answer."""
+        return self._open_calls
 
     @property
     def closing(self) -> bool:
@@ -260,14 +263,14 @@ class CalibratorNode(Node):
             future.set_result((False, f'internal error: {err!r}'))
         else:
             took = f'{time.perf_counter() - t0:.2f} s'
-            said = session.result.said() + _rig_said(session.document)
+            said = session.result.said() + session.rig_said
             kept_back = self.status.auto.admit(session, auto)
             if kept_back:
                 said = f'calibrated in {took}, not published ({kept_back}): {said}'
                 self.get_logger().info(said)
                 future.set_result((True, said))
                 return
-            self._drop_stage(_staged_dir(self._last_result))
+            self._drop_stage(self._last_result and self._last_result.staged_dir)
             kept = True
             self._succeeded(session)
             self.get_logger().info(f'calibrated in {took}: {said}')
@@ -292,25 +295,6 @@ class CalibratorNode(Node):
             # the executor sends the response in the same step, right after this returns
             self._open_calls -= 1
         return response
-
-    def send_answers(self, executor: Any, timeout_s: float, linger_s: float) -> None:
-        """At the stop, after :meth:`close`: spin until every ``~/calibrate`` call waiting
-        for a calibration has been answered (close() gave them ABORTED), at most timeout_s,
-        then on for linger_s when any was: a reliable DDS writer repeats a response its reader
-        missed only while it exists, and the node is destroyed right after this."""
-        waiting = self._open_calls
-        if not waiting:
-            return
-        deadline = time.monotonic() + timeout_s
-        while self._open_calls and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        self.get_logger().info(
-            f'stopping: {waiting - self._open_calls} ~/calibrate caller(s) answered '
-            f"'{ABORTED}'" + (f', {self._open_calls} not' if self._open_calls else '')
-        )
-        deadline = time.monotonic() + linger_s
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
 
     def _periodic_calibrate(self) -> None:
         if self.poses.why_no_data() is None:
@@ -337,29 +321,10 @@ class CalibratorNode(Node):
                 else f'no result to save: the calibration failed ({self._last_error})'
             )
             return response
-        out, report = self.node_cfg.output_file, self.node_cfg.report_dir
-        wrote = [str(Path(out).absolute())]  # a relative path is the node's: say where
-        try:
-            Path(out).parent.mkdir(parents=True, exist_ok=True)  # a run-time path: make it
-            write_result(out, self._last_result.document)
-            staged = _staged_dir(self._last_result)
-            if report and staged:
-                shutil.copytree(staged, report, dirs_exist_ok=True)
-                wrote.append(str((Path(report) / 'report.html').absolute()))
-            elif report:
-                wrote.append(
-                    'no report (report_dir was set after this calibration: calibrate again)'
-                )
-        except HandeyeError as err:
-            response.success, response.message = False, str(err)
-            return response
-        except OSError as err:
-            response.success = False
-            where = err.filename or report
-            response.message = f'{where}: cannot write ({err.strerror or err})'
-            return response
-        response.success, response.message = True, 'wrote ' + ', '.join(wrote)
-        if self._last_error is not None:
+        response.success, response.message = save(
+            self._last_result, self.node_cfg.output_file, self.node_cfg.report_dir
+        )
+        if response.success and self._last_error is not None:
             response.message += (
                 f' (the latest calibration failed: this is the result of {self._last_when})'
             )
@@ -378,7 +343,7 @@ class CalibratorNode(Node):
         if self._pool is not None:
             worker.stop(self._pool)
             self._pool = None
-        self._drop_stage(_staged_dir(self._last_result))
+        self._drop_stage(self._last_result and self._last_result.staged_dir)
 
     # ------------------------------------------------------------------ outputs
 
@@ -415,18 +380,6 @@ class CalibratorNode(Node):
         self.pub_diag.publish(arr)
 
 
-def _rig_said(document: dict) -> str:
-    """What a result's rig (rig_file) rests on, for the ~/calibrate answer and the log."""
-    rig = document.get('rig') or {}
-    if 'file' not in rig:
-        return ''
-    if rig['part'] == 'left out':
-        return f'; this session is left out of the rig ({rig["file"]}): its own T_HE is published'
-    return (
-        f'; T_HE of the rig of {rig["recordings"]} recording(s) in {rig["file"]} ({rig["part"]})'
-    )
-
-
 def _session_name() -> str:
     """A session's name in a rig file: when its buffers started (local time, to the ms)."""
     now = time.time()
@@ -435,8 +388,3 @@ def _session_name() -> str:
         + time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(now))
         + (f'.{int(now * 1000) % 1000:03d}')
     )
-
-
-def _staged_dir(session: Calibrated | None) -> str | None:
-    """The folder where the worker drew a result's report, if it did."""
-    return str(Path(session.report).parent) if session is not None and session.report else None

@@ -1,5 +1,6 @@
-"""The calibrator's latched result outputs: a new result goes out on every one of them at
-once, with one stamp (on the executor's thread, as everything the node publishes).
+"""The calibrator's outputs: a new result goes out on every latched topic at once, with one
+stamp (on the executor's thread, as everything the node publishes); ``~/save`` writes the last
+one to files (:func:`save`).
 
 The result topics of :mod:`handeye_ros.formats.messages` (``~/extrinsic``,
 ``~/extrinsic_with_covariance``, ``~/time_offset``, ``~/time_reference``), /tf_static where
@@ -10,13 +11,16 @@ later gets the last result. A failure cannot withdraw them; /diagnostics names t
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
 from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..core.errors import ConfigError
+from ..core.errors import ConfigError, HandeyeError
 from ..formats import messages
+from ..formats.result_file import write_result
 from ..stream.convert import TF_TYPE
 from .jobs import Calibrated
 from .types import RclpyTypes
@@ -82,3 +86,22 @@ class Outputs:
             )
             return None
         return self._node.create_publisher(cls, '/tf_static', LATCHED)
+
+
+def save(session: Calibrated, output_file: str, report_dir: str) -> tuple[bool, str]:
+    """``~/save``: the result file, and with ``report_dir`` the report the worker drew for it
+    (copied from where it was staged). (success, what was written, or why not)."""
+    wrote = [str(Path(output_file).absolute())]  # a relative path is the node's: say where
+    try:
+        Path(output_file).parent.mkdir(parents=True, exist_ok=True)  # a run-time path
+        write_result(output_file, session.document)
+        if report_dir and session.staged_dir:
+            shutil.copytree(session.staged_dir, report_dir, dirs_exist_ok=True)
+            wrote.append(str((Path(report_dir) / 'report.html').absolute()))
+        elif report_dir:
+            wrote.append('no report (report_dir was set after this calibration: calibrate again)')
+    except HandeyeError as err:
+        return False, str(err)
+    except OSError as err:
+        return False, f'{err.filename or report_dir}: cannot write ({err.strerror or err})'
+    return True, 'wrote ' + ', '.join(wrote)

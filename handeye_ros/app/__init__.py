@@ -2,8 +2,8 @@
 
 - :mod:`.request`: a :class:`~.request.Request` (two files, a bag, or the node's buffers) and
   :func:`~.request.run`, the one function under every front end; the options file.
-- :mod:`.offline`: ``offline_calibrate`` (argparse -> Request); :mod:`.demo` its built-in
-  example.
+- :mod:`.offline`: ``offline_calibrate`` (argparse -> Request), its command line in
+  :mod:`.offline_options`; :mod:`.demo` its built-in example.
 - :mod:`.replay`: a bag replayed through the node's own conversion and buffers.
 - :mod:`.runs` and :mod:`.evaluate`: many recordings (a manifest, one run each, the table) on
   Dask.

@@ -13,8 +13,8 @@ is split at the decimal point rather than going through float64, which would rou
 when the format's unit cannot hold the values in int64 nanoseconds (Unix milliseconds in a TUM
 file, 1.4e12, would be year 45 000), the first of ms, us, ns that can is taken, and the
 trajectory's notes say so; the pipeline then checks the rates (see
-:mod:`handeye_ros.core.checks.conventions`). ``quaternion_order`` says in which order the file's four
-quaternion columns are (default: the format's).
+:mod:`handeye_ros.core.checks.conventions`). ``quaternion_order`` says in which order the
+file's four quaternion columns are (default: the format's).
 
 A stamp written twice keeps its *last* row (estimators that correct a pose, e.g. after a loop
 closure, write the corrected one after the first), counted in the notes. Up to 1 % of rows no

@@ -4,8 +4,8 @@ The rotation aligns the rotation vectors of the motions (``log R_A = R_X log R_B
 Martin 1994; :func:`refit_rotation`); the translation solves ``(R_A - I) t_X = R_X t_B - t_A``
 by least squares weighted for a drifting eye (:func:`refit_translation_gls`). With every motion
 about one axis, :func:`degenerate_refit` solves what the motion determines and names the rest.
-Stage 2 (:mod:`.linear.robust`) uses them after its RANSAC; :mod:`.checks.conventions` to test a candidate
-convention on the same motions.
+Stage 2 (:mod:`.linear.robust`) uses them after its RANSAC; :mod:`.checks.orientations` to test
+a candidate reading of the orientations on the same motions.
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..checks.conventions import check_stamp_units, epoch_note, reread
+from ..checks.conventions import check_stamp_units, epoch_note
+from ..checks.orientations import reread
 from ..checks.screening import Screening, damaged, describe_damage, screen
 from ..config import CalibrationConfig
 from ..errors import InputError

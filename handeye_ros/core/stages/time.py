@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..checks.conventions import check_orientations
+from ..checks.orientations import check_orientations
 from ..checks.verdict import WEAK_CORRELATION
 from ..config import CalibrationConfig
 from ..errors import TimeAlignmentError

@@ -13,13 +13,8 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.checks.conventions import (
-    PERMUTATIONS,
-    check_stamp_units,
-    epoch_note,
-    reading_fits,
-    reread,
-)
+from handeye_ros.core.checks.conventions import check_stamp_units, epoch_note
+from handeye_ros.core.checks.orientations import PERMUTATIONS, reading_fits, reread
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error

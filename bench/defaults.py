@@ -2,7 +2,7 @@
 
 The paper fixes eta, mu and the RANSAC thresholds; two values it does not fix are ours:
 
-- ``CONSENSUS_FRACTION`` (core/linear/robust.py, 0.5): a RANSAC refinement is eligible for Algorithm
+- ``CONSENSUS_FRACTION`` (core/linear/ransac.py, 0.5): a RANSAC refinement is eligible for Algorithm
   1's sigma7/sigma6 choice only when its consensus holds at least this fraction of the largest
   one (0 is the paper's choice: every refinement eligible). A module constant, not an option:
   this script sets it in-process.
@@ -37,7 +37,7 @@ from common import emit, table
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
-from handeye_ros.core.linear import robust as linear
+from handeye_ros.core.linear import ransac as linear
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
 

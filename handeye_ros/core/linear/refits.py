@@ -20,6 +20,12 @@ from .axxb import Motions
 #: With one rotation axis, the rotation about it is taken as determined when its standard
 #: deviation (from the translation equations) is below this, degrees.
 MAX_PHI_STD_DEG = 2.0
+#: Rotation axes of the inlier motions spread less than this (degrees): one rotation axis
+#: (a ground robot, a turntable). The translation of T_HE along that axis is unobservable and
+#: the rest is solved for apart (:func:`degenerate_refit`), the unobservable part named.
+MIN_AXIS_SPREAD_DEG = 1.0
+#: Below this spread the result is given, with a warning that it is weakly constrained.
+WARN_AXIS_SPREAD_DEG = 10.0
 
 
 def refit_rotation(m: Motions, mask: np.ndarray) -> np.ndarray:

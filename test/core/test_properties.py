@@ -34,7 +34,7 @@ from handeye_ros.core.linear.axxb import (
     solve_gram,
 )
 from handeye_ros.core.linear.keyframes import rotation_keyframes
-from handeye_ros.core.time.align import _parabola_vertex, masked_normalised_correlation
+from handeye_ros.core.time.correlation import masked_normalised_correlation, parabola_vertex
 
 SEEDS = st.integers(0, 2**32 - 1)
 FAST = settings(max_examples=60, deadline=None)
@@ -159,7 +159,7 @@ def test_parabola_vertex_is_exact_on_a_parabola(
     vertex: float, curvature: float, top: float
 ) -> None:
     c = [top - curvature * (x - vertex) ** 2 for x in (-1.0, 0.0, 1.0)]
-    assert abs(_parabola_vertex(*c) - vertex) < 1e-9
+    assert abs(parabola_vertex(*c) - vertex) < 1e-9
 
 
 @FAST

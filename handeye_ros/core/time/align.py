@@ -10,7 +10,8 @@ quadratic fit).
 
 Both speeds are made on grids of their own, robust and standardised (:mod:`.signals`: two
 clocks 1.4e9 s apart cost nothing more), and correlated with a masked normalised
-cross-correlation (FFT), which stays correct across gaps and partial overlap.
+cross-correlation (FFT, :mod:`.correlation`), which stays correct across gaps and partial
+overlap.
 
 Beyond the paper, three things make the offset hard to fool:
 
@@ -33,10 +34,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import fft
 
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory, gap_free_parts, lengths_text
+from .correlation import (
+    lobe,
+    masked_normalised_correlation,
+    parabola_vertex,
+    second_peak_ratio,
+)
 from .signals import (
     AngularSpeed,
     angular_speed,
@@ -99,56 +105,8 @@ class TimeAlignment:
     time_offset_ns: int = 0
 
 
-def masked_normalised_correlation(
-    y: np.ndarray, my: np.ndarray, x: np.ndarray, mx: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pearson correlation of ``y[k + lag]`` with ``x[k]`` over the samples valid in both.
-
-    For each lag the means and variances are those of the overlapping valid samples only
-    (Padfield's masked normalised cross-correlation), all sums computed by FFT. Multichannel
-    signals (shape (n, C)) are correlated as vectors: ``sum_c cov_c / sqrt(sum_c var_y,c *
-    sum_c var_x,c)`` over the shared mask.
-
-    Returns
-    -------
-    lags : ndarray of int, shape (len(y) + len(x) - 1,)
-    ncc : ndarray, same shape, NaN where the overlap has no variance
-    overlap : ndarray, same shape, number of samples valid in both
-    """
-    y2 = y.reshape(y.shape[0], -1) * my[:, None]
-    x2 = x.reshape(x.shape[0], -1) * mx[:, None]
-    fy, fx = my.astype(float), mx.astype(float)
-    ny, nx = y2.shape[0], x2.shape[0]
-    # One zero-padded FFT per signal, then every sum is a product of spectra. (scipy.fft
-    # rather than scipy.signal, whose import alone takes a second.)
-    nfft = fft.next_fast_len(ny + nx - 1, real=True)
-
-    def fwd(v: np.ndarray) -> np.ndarray:
-        return fft.rfft(v, nfft, axis=0)
-
-    def corr(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-        c = fft.irfft(A * B, nfft, axis=0)  # c[L] = sum_m a[m + L] b[m], negative L wrapped
-        return np.concatenate((c[nfft - (nx - 1) :], c[:ny]))
-
-    FY, FX = fwd(fy), np.conj(fwd(fx))
-    Y, X = fwd(y2), np.conj(fwd(x2))
-    YY = fwd(np.sum(y2 * y2, axis=1))
-    XX = np.conj(fwd(np.sum(x2 * x2, axis=1)))
-    n = np.rint(corr(FY, FX))
-    sy = corr(Y, FX[:, None])
-    sx = corr(FY[:, None], X)
-    syy, sxx = corr(YY, FX), corr(FY, XX)
-    sxy = corr(np.sum(Y * X, axis=1), np.ones(1))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        cov = sxy - np.sum(sy * sx, axis=1) / n
-        var = (syy - np.sum(sy * sy, axis=1) / n) * (sxx - np.sum(sx * sx, axis=1) / n)
-        ncc = np.where((n > 1) & (var > 0.0), cov / np.sqrt(np.abs(var)), np.nan)
-    lags = np.arange(-(nx - 1), ny)
-    return lags, ncc, n
-
-
 @dataclass(frozen=True)
-class _Curve:
+class Curve:
     """A correlation over lags: offsets dt (s, from the epoch difference D plus the lag),
     values, and which lags may be chosen."""
 
@@ -172,7 +130,7 @@ def _correlate(
     step: float,
     max_time_offset: float | None,
     time_offset_guess: float | None,
-) -> _Curve:
+) -> Curve:
     lags, ncc, overlap = masked_normalised_correlation(y, my, x, mx)
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
     need = max(MIN_OVERLAP_S / step, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()))
@@ -182,7 +140,7 @@ def _correlate(
         # offsets relative to the guess, computed without forming base + lag in float
         rel = (base_ns - round(guess * 1e9)) * 1e-9 + lags * step
         eligible &= np.abs(rel) <= max_time_offset + 0.5 * step
-    return _Curve(base_ns, step, lags, ncc, eligible)
+    return Curve(base_ns, step, lags, ncc, eligible)
 
 
 def _no_overlap(
@@ -219,7 +177,7 @@ def _parts(traj: Trajectory) -> str:
 
 
 def _peak(
-    curve: _Curve,
+    curve: Curve,
     peak_fit: str,
     hand: Trajectory,
     eye: Trajectory,
@@ -249,11 +207,11 @@ def _peak(
             )
         )
         raise TimeAlignmentError(msg)
-    frac = _parabola_vertex(*curve.ncc[k - 1 : k + 2]) if peak_fit == 'quadratic' else 0.0
+    frac = parabola_vertex(*curve.ncc[k - 1 : k + 2]) if peak_fit == 'quadratic' else 0.0
     return k, frac
 
 
-def _window(
+def offset_window(
     max_time_offset: float | None, time_offset_guess: float | None
 ) -> tuple[float, float] | None:
     if max_time_offset is None:
@@ -342,7 +300,7 @@ def _align(
     x = standardise(x, mx, hand.name)
     y = standardise(y, my, eye.name)
     curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
-    window = _window(max_time_offset, time_offset_guess)
+    window = offset_window(max_time_offset, time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
     k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
     sel = np.flatnonzero(curve.eligible)
@@ -353,18 +311,18 @@ def _align(
         time_offset_s=curve.offset_s(curve.lags[k] + frac),
         method=method,
         peak_correlation=float(curve.ncc[k]),
-        second_peak_ratio=_second_peak_ratio(scores[sel], k - sel.start),
+        second_peak_ratio=second_peak_ratio(scores[sel], k - sel.start),
         step_s=step,
         window_s=window
         or (curve.offset_s(curve.lags[sel.start]), curve.offset_s(curve.lags[sel.stop - 1])),
         lags_s=curve.base_ns * 1e-9 + curve.lags[sel] * step,
         correlation=curve.ncc[sel],
-        candidates=_candidates(curve, k),
+        candidates=candidates(curve, k),
         time_offset_ns=curve.base_ns + lag_ns,
     )
 
 
-def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
+def candidates(curve: Curve, k: int) -> tuple[tuple[float, float], ...]:
     """Other local maxima outside the peak's lobe reaching CANDIDATE_RATIO of it (with their
     sub-sample parabola): the MAX_CANDIDATES best, and the one nearest to a zero offset (on a
     repetitive motion many peaks tie, and clocks started together are the likelier case)."""
@@ -376,7 +334,7 @@ def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
     local = (
         np.flatnonzero((inner >= s[:-2]) & (inner > s[2:]) & (inner >= CANDIDATE_RATIO * peak)) + 1
     )
-    lo, hi = _lobe(s, k)
+    lo, hi = lobe(s, k)
     local = local[(local < lo) | (local > hi)]
     if not local.size:
         return ()
@@ -387,37 +345,9 @@ def _candidates(curve: _Curve, k: int) -> tuple[tuple[float, float], ...]:
     out = []
     for m in local:
         frac = (
-            _parabola_vertex(*curve.ncc[m - 1 : m + 2])
+            parabola_vertex(*curve.ncc[m - 1 : m + 2])
             if np.all(np.isfinite(curve.ncc[m - 1 : m + 2]))
             else 0.0
         )
         out.append((curve.offset_s(curve.lags[m] + frac), float(curve.ncc[m])))
     return tuple(out)
-
-
-def _parabola_vertex(c_minus: float, c0: float, c_plus: float) -> float:
-    """Sub-sample position, in (-0.5, 0.5), of the vertex of the parabola through 3 samples."""
-    den = c_minus - 2.0 * c0 + c_plus
-    if not den < 0.0:  # flat or not a maximum: keep the integer peak
-        return 0.0
-    return float(np.clip(0.5 * (c_minus - c_plus) / den, -0.5, 0.5))
-
-
-def _lobe(scores: np.ndarray, k: int) -> tuple[int, int]:
-    """First and last index of the peak's lobe (bounded by the nearest local minima)."""
-    d = np.diff(np.where(np.isfinite(scores), scores, -2.0))  # ineligible lags: below any NCC
-    left = np.flatnonzero(d[:k] < 0.0)  # a rise towards the left of the peak ends the lobe
-    right = np.flatnonzero(d[k:] > 0.0)
-    lo = left[-1] + 1 if left.size else 0
-    hi = k + right[0] if right.size else scores.size - 1
-    return int(lo), int(hi)
-
-
-def _second_peak_ratio(scores: np.ndarray, k: int) -> float:
-    """Best correlation outside the main lobe (bounded by the nearest local minima) over peak."""
-    lo, hi = _lobe(scores, k)
-    outside = np.concatenate((scores[:lo], scores[hi + 1 :]))
-    outside = outside[np.isfinite(outside)]
-    if not outside.size or scores[k] <= 0.0:
-        return 0.0
-    return float(max(outside.max(), 0.0) / scores[k])

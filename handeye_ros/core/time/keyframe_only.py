@@ -41,12 +41,12 @@ from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import (
     MIN_OVERLAP_FRACTION,
+    Curve,
     TimeAlignment,
-    _candidates,
-    _Curve,
-    _second_peak_ratio,
-    _window,
+    candidates,
+    offset_window,
 )
+from .correlation import second_peak_ratio
 from .signals import MAX_RESAMPLE_RATE_HZ, grid_step
 
 #: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
@@ -111,7 +111,7 @@ def align_time_keyframes(
     # at lag k (dt = base + k step) the eye stamp te falls on hand grid point te / step - k
     ga, gb = np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
     k_lo, k_hi = int(ga.min()) - (grid_q.shape[0] - 1), int(gb.max())
-    window = _window(max_time_offset, time_offset_guess)
+    window = offset_window(max_time_offset, time_offset_guess)
     if window is not None:
         k_lo = max(k_lo, int(np.ceil((window[0] - base_ns * 1e-9) / step)))
         k_hi = min(k_hi, int(np.floor((window[1] - base_ns * 1e-9) / step)))
@@ -142,7 +142,7 @@ def align_time_keyframes(
     lag_s, agree = _refine(orient, eye, a, b, angle_e, k * step, step)
     if not agree >= MIN_AGREEMENT:
         raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
-    curve = _Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
+    curve = Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
     scores = np.where(c_ok, c_score, -np.inf)
     sel = np.flatnonzero(c_ok)
     sel = slice(sel[0], sel[-1] + 1)
@@ -150,13 +150,13 @@ def align_time_keyframes(
         time_offset_s=base_ns * 1e-9 + lag_s,
         method='keyframes',
         peak_correlation=agree,
-        second_peak_ratio=_second_peak_ratio(scores[sel], kc - sel.start),
+        second_peak_ratio=second_peak_ratio(scores[sel], kc - sel.start),
         step_s=step,
         window_s=window or (base_ns * 1e-9 + k_lo * step, base_ns * 1e-9 + k_hi * step),
         lags_s=base_ns * 1e-9 + coarse[sel] * step,
         correlation=c_score[sel],
         candidates=tuple(
-            c for c in _candidates(curve, kc) if abs(c[0] - base_ns * 1e-9 - lag_s) > 2 * m * step
+            c for c in candidates(curve, kc) if abs(c[0] - base_ns * 1e-9 - lag_s) > 2 * m * step
         ),
         time_offset_ns=base_ns + round(lag_s * 1e9),
     )

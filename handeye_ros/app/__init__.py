@@ -5,8 +5,8 @@
 - :mod:`.offline`: ``offline_calibrate`` (argparse -> Request), its command line in
   :mod:`.offline_options`; :mod:`.demo` its built-in example.
 - :mod:`.replay`: a bag replayed through the node's own conversion and buffers.
-- :mod:`.runs` and :mod:`.evaluate`: many recordings (a manifest, one run each, the table) on
-  Dask.
+- :mod:`.runs` and :mod:`.evaluate`: many recordings (a manifest, one run each) on Dask, and
+  :mod:`.results_table` their table.
 - :mod:`.rig`: one rig over many recordings (``--rig``, ``--shared-extrinsic``, the node's
   ``rig_file``); :mod:`.rig_file` the rig's file.
 - :mod:`.params_file`: the node's own options and the params file, which the offline tool reads

@@ -207,7 +207,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
 
 def _tables(output: Path, rows: list[dict[str, Any]]) -> None:
     """results.csv, results.md and summary.png."""
-    from .runs import write_tables
+    from .results_table import write_tables
 
     t0 = time.perf_counter()
     write_tables(output, rows)

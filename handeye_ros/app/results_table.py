@@ -1,0 +1,132 @@
+"""The table of many runs (:mod:`.evaluate`): one row per run, written as results.csv (every
+column of :data:`COLUMNS`) and results.md (the columns a reader scans first).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import Any
+
+#: Columns of results.csv, in order.
+COLUMNS = (
+    'name',
+    'algorithm',
+    'sequence',
+    'trial',
+    'status',
+    'reason',
+    'verdict',
+    'verdict_reasons',
+    'time_offset_ms',
+    'time_offset_std_ms',
+    'clock_drift_ppm',
+    'scale',
+    'tx_m',
+    'ty_m',
+    'tz_m',
+    'qx',
+    'qy',
+    'qz',
+    'qw',
+    'translation_std_mm',
+    'rotation_std_deg',
+    'ape_mm',
+    'ape_deg',
+    'rpe_1s_mm',
+    'rpe_1s_deg',
+    'rpe_1m_mm',
+    'rpe_1m_deg',
+    'ape_uncalibrated_mm',
+    'ape_uncalibrated_deg',
+    'rpe_1s_uncalibrated_mm',
+    'pairs',
+    'seconds',
+    'cached',
+    'pid',
+    'rss_mb',
+    'rig',
+)
+
+
+def row_of(d: dict[str, Any]) -> dict[str, Any]:
+    """A run's row (the result columns of :data:`COLUMNS`) from its result document."""
+    s = d.get('std') or {}
+    ev = d.get('evaluation') or {}
+    cal, base = ev.get('calibrated') or {}, ev.get('uncalibrated') or {}
+
+    def stat(pe: dict, key: str, k: float) -> float | None:
+        v = (pe.get(key) or {}).get('rmse')
+        return None if v is None else v * k
+
+    norm = lambda v: None if not v else sum(x * x for x in v) ** 0.5
+    t, q = d['extrinsic']['translation'], d['extrinsic']['rotation']
+    return {
+        'verdict': d['quality']['verdict'],
+        'verdict_reasons': ' '.join(r['code'] for r in d['quality']['reasons']),
+        'time_offset_ms': d['time_offset'] * 1e3,
+        'time_offset_std_ms': None if s.get('time_offset') is None else s['time_offset'] * 1e3,
+        'clock_drift_ppm': None if d.get('clock_drift') is None else d['clock_drift'] * 1e6,
+        'scale': d.get('scale'),
+        'tx_m': t[0],
+        'ty_m': t[1],
+        'tz_m': t[2],
+        'qx': q[0],
+        'qy': q[1],
+        'qz': q[2],
+        'qw': q[3],
+        'translation_std_mm': None if not s else norm(s['translation']) * 1e3,
+        'rotation_std_deg': None if not s else norm(s['rotation']) * 57.29577951308232,
+        'ape_mm': stat(cal, 'ape_translation', 1e3),
+        'ape_deg': stat(cal, 'ape_rotation', 1.0),
+        'rpe_1s_mm': stat(cal, 'rpe_time_translation', 1e3),
+        'rpe_1s_deg': stat(cal, 'rpe_time_rotation', 1.0),
+        'rpe_1m_mm': stat(cal, 'rpe_distance_translation', 1e3),
+        'rpe_1m_deg': stat(cal, 'rpe_distance_rotation', 1.0),
+        'ape_uncalibrated_mm': stat(base, 'ape_translation', 1e3),
+        'ape_uncalibrated_deg': stat(base, 'ape_rotation', 1.0),
+        'rpe_1s_uncalibrated_mm': stat(base, 'rpe_time_translation', 1e3),
+        'pairs': d['association']['pairs'],
+    }
+
+
+def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
+    """results.csv (one row per run, :data:`COLUMNS`) and results.md; returns both paths."""
+    csv_path, md_path = output / 'results.csv', output / 'results.md'
+    with csv_path.open('w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction='ignore')
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _cell(r.get(k)) for k in COLUMNS})
+    shown = (
+        'name',
+        'status',
+        'verdict',
+        'time_offset_ms',
+        'tx_m',
+        'ty_m',
+        'tz_m',
+        'ape_mm',
+        'ape_deg',
+        'rpe_1s_mm',
+        'ape_uncalibrated_mm',
+        'reason',
+    ) + (('rig',) if any(r.get('rig') for r in rows) else ())
+    lines = ['| ' + ' | '.join(shown) + ' |', '|' + '---|' * len(shown)]
+    for r in rows:
+        cells = [_md(r.get(k)) for k in shown]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    md_path.write_text('\n'.join(lines) + '\n')
+    return csv_path, md_path
+
+
+def _cell(v: Any) -> Any:
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    return '' if v is None else v
+
+
+def _md(v: Any) -> str:
+    if isinstance(v, float):
+        return f'{v:.4g}'
+    return ('' if v is None else str(v)).replace('|', '\\|').replace('\n', ' ')[:200]

@@ -4,7 +4,7 @@ APE/RPE with and without the calibration, evo-ready exports, and the visual repo
 :mod:`.aligned` maps the hand onto the eye, with and without the calibration; :mod:`.metrics`
 is APE and RPE; :mod:`.outputs` what the front ends write after a calibration (the evaluation,
 the evo exports, the report); :mod:`.terminal` the terminal report, :mod:`.html` the HTML one,
-with :mod:`.plots`; :mod:`.rig_report` a rig's page.
+with :mod:`.plots` (on the canvas of :mod:`.figures`); :mod:`.rig_report` a rig's page.
 
 This layer sits above :mod:`handeye_ros.core` and :mod:`handeye_ros.formats` and never imports
 rclpy; matplotlib is imported only by the plots.

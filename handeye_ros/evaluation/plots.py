@@ -2,7 +2,7 @@
 pyplot state, no display, safe in worker processes).
 
 Every function takes what it draws and a path, writes one PNG and returns its caption. Long
-streams are thinned to at most :data:`MAX_POINTS` points per line: an hour at 1 kHz is 3.6 M
+streams are thinned to at most :data:`.figures.MAX_POINTS` points per line: an hour at 1 kHz is 3.6 M
 samples, far more than a plot shows.
 """
 
@@ -15,41 +15,19 @@ import numpy as np
 from ..core.result import CalibrationResult
 from ..core.time.signals import angular_speed
 from .aligned import AlignedTrajectories
+from .figures import DPI, canvas, save, say_empty, thinned
 
-#: Points per plotted line at most.
-MAX_POINTS = 20_000
 #: Lags of the residual autocorrelation plot.
 MAX_LAGS = 60
-DPI = 110
 HAND, EYE, REF = '#1f77b4', '#d62728', '#2ca02c'
-
-
-def _figure(rows: int, cols: int = 1, height: float = 3.0, width: float = 9.0):
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height * rows), dpi=DPI, layout='constrained')
-    return fig, fig.subplots(rows, cols, squeeze=False)
-
-
-def _save(fig, path: Path) -> None:
-    fig.savefig(path, format='png')
-
-
-def _empty(ax, message: str) -> None:
-    """Say in the plot why it has nothing to show."""
-    ax.text(0.5, 0.5, message, ha='center', va='center', transform=ax.transAxes)
-
-
-def _thin(n: int) -> slice:
-    return slice(None, None, max(1, -(-n // MAX_POINTS)))
 
 
 def time_alignment(result: CalibrationResult, path: Path) -> str:
     """Angular speed of both streams before and after the alignment, and the correlation."""
     used, ta = result.used, result.time_alignment
     w_h, w_e = angular_speed(used.hand), angular_speed(used.eye)
-    fig, ax = _figure(3)
-    sh, se = _thin(w_h.t_s.size), _thin(w_e.t_s.size)
+    fig, ax = canvas(3)
+    sh, se = thinned(w_h.t_s.size), thinned(w_e.t_s.size)
     ax[0, 0].plot(w_h.t_s[sh], np.degrees(w_h.speed[sh]), color=HAND, lw=0.7, label='hand')
     ax[0, 0].plot(w_e.t_s[se], np.degrees(w_e.speed[se]), color=EYE, lw=0.7, label='eye')
     ax[0, 0].set_title('before: each stream from its own first stamp')
@@ -72,7 +50,7 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
         a.legend(loc='upper right', fontsize='small')
     c = ax[2, 0]
     if ta.lags_s is not None and ta.correlation is not None and ta.correlation.size:
-        s = _thin(ta.lags_s.size)
+        s = thinned(ta.lags_s.size)
         c.plot(ta.lags_s[s], ta.correlation[s], color='k', lw=0.8)
         c.axvline(
             ta.time_offset_s,
@@ -87,10 +65,10 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
         c.legend(loc='upper right', fontsize='small')
         c.set_title(f'normalised cross-correlation of the angular speeds ({ta.method} peak)')
     else:
-        _empty(c, f'no correlation curve: the offset was {ta.method}')
+        say_empty(c, f'no correlation curve: the offset was {ta.method}')
     c.set_xlabel('time offset dt = eye clock - hand clock [s]')
     c.set_ylabel('correlation')
-    _save(fig, path)
+    save(fig, path)
     return (
         'Stage 1: the angular speed of both streams before and after the alignment, and '
         'the correlation over the searched offsets with the chosen and the runner-up peak.'
@@ -100,10 +78,10 @@ def time_alignment(result: CalibrationResult, path: Path) -> str:
 def clock(result: CalibrationResult, path: Path) -> str:
     """The offset measured in windows along the recording (the drift check)."""
     fit = result.clock
-    fig, ax = _figure(1, height=3.4)
+    fig, ax = canvas(1, height=3.4)
     a = ax[0, 0]
     if fit is None or fit.centres_ns.size == 0:
-        _empty(a, 'no windows: the recording is too short or the offset was fixed')
+        say_empty(a, 'no windows: the recording is too short or the offset was fixed')
     else:
         t0 = int(fit.centres_ns[0])
         t = (fit.centres_ns - t0) * 1e-9
@@ -139,7 +117,7 @@ def clock(result: CalibrationResult, path: Path) -> str:
     a.set_xlabel('eye time [s]')
     a.set_ylabel('time offset [ms]')
     a.set_title('time offset measured in windows along the recording')
-    _save(fig, path)
+    save(fig, path)
     return (
         'The offset measured in windows along the recording: a slope is a clock drift; '
         'the line the result uses is drawn through them.'
@@ -156,7 +134,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     a = fig.add_subplot(1, 2, 1)
     b = fig.add_subplot(1, 2, 2, projection='3d')
     if m is None or len(m) == 0:
-        _empty(a, 'no motions')
+        say_empty(a, 'no motions')
     else:
         from ..core.linear.axxb import motion_errors
 
@@ -199,7 +177,7 @@ def linear(result: CalibrationResult, path: Path) -> str:
     a.set_ylabel('translation error [mm]')
     a.set_title(f'linear stage: {lin.n_inliers}/{lin.n_motions} inlier motions')
     b.set_title(f'rotation axes of the motions (spread {lin.axis_spread_deg:.0f} deg)')
-    _save(fig, path)
+    save(fig, path)
     return (
         'Stage 2: the error of every keyframe motion at the linear solution (inliers '
         "blue, outliers red, dashed: the inlier thresholds), and the motions' rotation "
@@ -209,11 +187,11 @@ def linear(result: CalibrationResult, path: Path) -> str:
 
 def excitation(result: CalibrationResult, path: Path) -> str:
     """How far the device (the eye) has turned about each of its axes, over the recording."""
-    fig, ax = _figure(1, height=3.2)
+    fig, ax = canvas(1, height=3.2)
     a = ax[0, 0]
     used = result.used
     if used is None or len(used.eye) < 3:
-        _empty(a, 'no eye poses')
+        say_empty(a, 'no eye poses')
     else:
         from ..core.geometry import consecutive_rotvecs
 
@@ -221,7 +199,7 @@ def excitation(result: CalibrationResult, path: Path) -> str:
         ok = eye.interval_ok()
         turned = np.degrees(np.cumsum(np.abs(consecutive_rotvecs(eye.q_xyzw)) * ok[:, None], 0))
         t = eye.seconds(int(eye.t_ns[0]))[1:]
-        k = _thin(t.size)
+        k = thinned(t.size)
         for col, (axis, color) in enumerate(zip('xyz', ('tab:red', 'tab:green', 'tab:blue'))):
             a.plot(t[k], turned[k, col], color=color, label=f'about its {axis} axis')
         a.legend(fontsize='small')
@@ -232,7 +210,7 @@ def excitation(result: CalibrationResult, path: Path) -> str:
     a.set_title(title)
     a.set_xlabel('eye time [s]')
     a.set_ylabel('turned so far [deg]')
-    _save(fig, path)
+    save(fig, path)
     return (
         'How far the device has turned about each of its own axes since the start: the '
         'steep parts of a curve are the parts of the recording that carry T_HE about that '
@@ -269,8 +247,8 @@ def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, n
 def residuals(result: CalibrationResult, path: Path) -> str:
     """Residuals over time and their autocorrelation."""
     t, r, p = step_residuals(result)
-    fig, ax = _figure(3, height=2.6)
-    s = _thin(t.size)
+    fig, ax = canvas(3, height=2.6)
+    s = thinned(t.size)
     for k, name in enumerate('xyz'):
         ax[0, 0].plot(t[s], np.degrees(r[s, k]), lw=0.6, label=name)
         ax[1, 0].plot(t[s], p[s, k] * 1e3, lw=0.6, label=name)
@@ -290,7 +268,7 @@ def residuals(result: CalibrationResult, path: Path) -> str:
     c.set_xlabel('lag [eye poses]')
     c.set_ylabel('autocorrelation')
     c.legend(loc='upper right', fontsize='small', ncol=2)
-    _save(fig, path)
+    save(fig, path)
     bw = result.batch.bandwidth if result.batch is not None else None
     return (
         'Residuals of every consecutive eye motion against the calibrated hand motion '
@@ -327,7 +305,7 @@ def trajectories(
     xyz = [fig.add_subplot(grid[k, 1]) for k in range(3)]
     err = fig.add_subplot(grid[3, :])
     t = al.seconds()
-    s = _thin(t.size)
+    s = thinned(t.size)
     top.plot(al.p_ref[s, 0], al.p_ref[s, 1], color=REF, lw=0.8, label='ground truth (calibrated)')
     top.plot(al.p_est[s, 0], al.p_est[s, 1], color=EYE, lw=0.8, label='eye')
     top.set_aspect('equal', adjustable='datalim')
@@ -349,7 +327,7 @@ def trajectories(
     )
     if base is not None and base_ape_t is not None:
         tb = (base.t_ns - al.t_ns[0]) * 1e-9
-        sb = _thin(tb.size)
+        sb = thinned(tb.size)
         err.plot(
             tb[sb],
             base_ape_t[sb] * 1e3,
@@ -362,7 +340,7 @@ def trajectories(
     err.set_ylabel('APE [mm]')
     err.set_title('absolute position error over time')
     err.legend(fontsize='small')
-    _save(fig, path)
+    save(fig, path)
     return (
         "The eye and the MoCap ground truth mapped into the eye's world and clock "
         '(T_WG T_GH(t - dt) T_HE): top view, x/y/z over time, and the position error over '
@@ -378,7 +356,7 @@ def summary(rows: list[dict], path: Path) -> str:
         ('rpe_1s_mm', 'RPE per 1 s [mm]'),
         ('ape_uncalibrated_mm', 'APE [mm], dt = 0, no T_HE, SE(3) fit'),
     )
-    fig, ax = _figure(len(metrics), 2, height=2.8, width=11.0)
+    fig, ax = canvas(len(metrics), 2, height=2.8, width=11.0)
     for row, (key, label) in enumerate(metrics):
         for col, group in enumerate(('algorithm', 'sequence')):
             a = ax[row, col]
@@ -395,8 +373,8 @@ def summary(rows: list[dict], path: Path) -> str:
                 a.set_xticks(range(1, len(shown) + 1), [n for n, _ in shown])
                 a.tick_params(axis='x', labelrotation=30)
             else:
-                _empty(a, 'no successful runs')
+                say_empty(a, 'no successful runs')
             a.set_ylabel(label, fontsize='small')
             a.set_title(f'per {group} ({len(ok)} of {len(rows)} runs)', fontsize='small')
-    _save(fig, path)
+    save(fig, path)
     return 'APE and RPE of the successful runs per algorithm and per sequence.'

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from ..core.rig import EXTRINSIC, difference
+from .figures import canvas, save
 from .html import STYLE, VERDICT_COLOUR, _e
-from .plots import _figure, _save
 
 #: The 2-D ellipse drawn: chi-square with 2 dof at 95 %.
 ELLIPSE_CHI2 = 5.991
@@ -33,7 +33,7 @@ def _ellipse(cov2: np.ndarray) -> np.ndarray:
 def figure(doc: dict[str, Any], path: Path) -> str:
     """The recordings' own T_HE around the rig's (module docstring); returns the caption."""
     rig = doc['rig']
-    fig, axes = _figure(2, 3, height=3.2, width=11.0)
+    fig, axes = canvas(2, 3, height=3.2, width=11.0)
     e = rig['extrinsic']
     q0, p0 = np.asarray(e['rotation']), np.asarray(e['translation'])
     C0 = np.asarray(rig['covariance']['matrix'])
@@ -66,7 +66,7 @@ def figure(doc: dict[str, Any], path: Path) -> str:
             ax.set_xlabel(f'{what} {AXES[i]} [{unit}]')
             ax.set_ylabel(f'{what} {AXES[j]} [{unit}]')
             ax.set_aspect('equal', adjustable='datalim')
-    _save(fig, path)
+    save(fig, path)
     return (
         "each recording's own T_HE minus the rig's (black cross and ellipse), with the 95 % "
         'ellipses of their covariances; blue: used, red: left out'

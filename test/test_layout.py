@@ -323,3 +323,18 @@ def test_every_module_is_named_where_its_folder_is_described() -> None:
         names += [p.name for p in folder.iterdir() if (p / '__init__.py').is_file()]
         missing += [f'{folder.relative_to(ROOT)}: {n}' for n in names if n not in doc]
     assert not missing, missing
+
+
+#: Most lines a module of the package has: one job each, readable in one sitting.
+MAX_MODULE_LINES = 400
+
+
+def test_no_module_is_over_400_lines() -> None:
+    """Small modules with one job (issue 37's figure): a module past MAX_MODULE_LINES is split
+    by job, as verdict/, breaks.py, orientations.py or solves.py were."""
+    long = {
+        str(p.relative_to(ROOT)): n
+        for p in sorted((ROOT / 'handeye_ros').rglob('*.py'))
+        if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
+    }
+    assert not long, long

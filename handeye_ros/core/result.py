@@ -50,10 +50,12 @@ from .linear.robust import LinearSolution
 from .result_sections import (
     batch_section,
     clock_section,
+    conventions_entry,
+    covariance_section,
     linear_section,
     metrics_section,
-    num,
     screening_section,
+    self_check_entry,
     std_section,
     time_alignment_section,
     trajectory_section,
@@ -232,40 +234,14 @@ class CalibrationResult:
             },
             'time_alignment': time_alignment_section(self.time_alignment, self.vector_alignment),
             'screening': screening_section(self.screening),
-            'conventions': [
-                {
-                    'stream': c.stream,
-                    'what': c.what,
-                    'assumed': c.assumed,
-                    'option': c.option,
-                    'message': c.message,
-                }
-                for c in self.corrections
-            ],
-            'self_check': [
-                {
-                    'time_offset': float(c.time_offset_s),
-                    'source': c.source,
-                    'score': num(c.score),
-                    'rotation_residual_deg': num(c.rotation_residual_deg),
-                    'translation_residual_m': num(c.translation_residual_m),
-                    'chosen': c.chosen,
-                }
-                for c in self.candidates
-            ],
+            'conventions': [conventions_entry(c) for c in self.corrections],
+            'self_check': [self_check_entry(c) for c in self.candidates],
             'association': {'pairs': int(self.n_pairs)},
             'coverage': None if self.coverage is None else self.coverage.to_dict(),
             'readiness': None if self.readiness is None else self.readiness.to_dict(),
             'linear': linear_section(self.linear, self.config, self.seed_check),
             'std': std_section(self.batch, self.eye_model),
-            'covariance': None
-            if self.batch is None
-            else {
-                'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz']
-                + ['clock_drift'] * (self.batch.clock_drift is not None)
-                + ['scale'] * (self.batch.scale is not None),
-                'matrix': [[float(v) for v in row] for row in self.batch.covariance],
-            },
+            'covariance': covariance_section(self.batch),
             'batch': batch_section(
                 self.batch, self.config, self.time_offset_s - self.time_alignment.time_offset_s
             ),

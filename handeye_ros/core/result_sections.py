@@ -13,7 +13,9 @@ import numpy as np
 
 from .batch.correlated import BLOCKS
 from .batch.refine import BatchSolution
+from .checks.conventions import Correction
 from .checks.screening import Screening
+from .checks.selfcheck import Candidate
 from .checks.verdict import drift_significant
 from .config import CalibrationConfig
 from .eye_model import EyeModel
@@ -205,6 +207,41 @@ def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> dict
             'peak_correlation': num(vec.peak_correlation),
             'window': [num(vec.window_s[0]), num(vec.window_s[1])],
         },
+    }
+
+
+def conventions_entry(c: Correction) -> dict[str, Any]:
+    """A convention the data contradicted, and the reading applied."""
+    return {
+        'stream': c.stream,
+        'what': c.what,
+        'assumed': c.assumed,
+        'option': c.option,
+        'message': c.message,
+    }
+
+
+def self_check_entry(c: Candidate) -> dict[str, Any]:
+    """A candidate offset of the self-check, its score and whether it was chosen."""
+    return {
+        'time_offset': float(c.time_offset_s),
+        'source': c.source,
+        'score': num(c.score),
+        'rotation_residual_deg': num(c.rotation_residual_deg),
+        'translation_residual_m': num(c.translation_residual_m),
+        'chosen': c.chosen,
+    }
+
+
+def covariance_section(b: BatchSolution | None) -> dict[str, Any] | None:
+    """Stage 3's covariance with the order of its rows (SI units, rotation in rad)."""
+    if b is None:
+        return None
+    return {
+        'order': ['time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz']
+        + ['clock_drift'] * (b.clock_drift is not None)
+        + ['scale'] * (b.scale is not None),
+        'matrix': [[float(v) for v in row] for row in b.covariance],
     }
 
 

@@ -67,18 +67,7 @@ def read_trajectory(
         unsorted stamps, NaN, quaternions).
     """
     path = Path(path)
-    if fmt not in FORMATS:
-        msg = f'{path}: unknown format {fmt!r}; use one of {", ".join(FORMATS)}'
-        raise InputError(msg)
-    if stamp_unit != 'auto' and stamp_unit not in STAMP_UNITS:
-        msg = f'{path}: unknown stamp unit {stamp_unit!r}; use auto, {", ".join(STAMP_UNITS)}'
-        raise InputError(msg)
-    if quaternion_order not in QUATERNION_ORDERS:
-        msg = (
-            f'{path}: unknown quaternion order {quaternion_order!r}; use '
-            f'{", ".join(QUATERNION_ORDERS)}'
-        )
-        raise InputError(msg)
+    _check_choices(path, fmt, stamp_unit, quaternion_order)
     data = _read_bytes(path)
 
     def format_of(number: int, first_row: str) -> tuple[str, str | None]:
@@ -121,6 +110,22 @@ def read_trajectory(
     return Trajectory.from_arrays(
         t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path), notes=tuple(notes)
     )
+
+
+def _check_choices(path: Path, fmt: str, stamp_unit: str, quaternion_order: str) -> None:
+    """InputError naming the file for a format, stamp unit or quaternion order we do not know."""
+    if fmt not in FORMATS:
+        msg = f'{path}: unknown format {fmt!r}; use one of {", ".join(FORMATS)}'
+        raise InputError(msg)
+    if stamp_unit != 'auto' and stamp_unit not in STAMP_UNITS:
+        msg = f'{path}: unknown stamp unit {stamp_unit!r}; use auto, {", ".join(STAMP_UNITS)}'
+        raise InputError(msg)
+    if quaternion_order not in QUATERNION_ORDERS:
+        msg = (
+            f'{path}: unknown quaternion order {quaternion_order!r}; use '
+            f'{", ".join(QUATERNION_ORDERS)}'
+        )
+        raise InputError(msg)
 
 
 def _quaternion_order(

@@ -172,8 +172,22 @@ def calibrate_linear(
             q_HE, p_HE, inliers, sigma_best, ratio_best = wider
     spread = axis_spread_deg(m, inliers)
     refit = _refit(m, inliers, q_HE, p_HE, spread, decoupled_refit, estimate_scale)
+    return _solution(m, refit, inliers, spread, sigma_best, ratio_best, (thr_rot, thr_trans))
+
+
+def _solution(
+    m: Motions,
+    refit: tuple,
+    inliers: np.ndarray,
+    spread: float,
+    sigma_best: np.ndarray,
+    ratio_best: float,
+    thresholds: tuple[float, float],
+) -> LinearSolution:
+    """The stage's answer from the refit (:func:`_refit`'s tuple) on the consensus, with the
+    inlier criteria of eq. 13 at it (on the eye made metric when a scale was estimated)."""
     q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std = refit
-    if scale != 1.0:  # the inlier criteria of eq. 13 with the eye made metric
+    if scale != 1.0:
         m = scaled_motions(m, scale)
     e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
     return LinearSolution(
@@ -183,14 +197,14 @@ def calibrate_linear(
         p_HE_dq=p_dq,
         sigma_ratio=ratio_best,
         singular_values=sigma_best,
-        n_motions=n,
+        n_motions=len(m),
         n_inliers=int(inliers.sum()),
         inliers=inliers,
         axis_spread_deg=spread,
         rotation_residual_deg=float(np.degrees(np.sqrt(np.mean(e_rot[0, inliers] ** 2)))),
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
-        inlier_rotation_deg=float(np.degrees(thr_rot)),
-        inlier_translation_m=float(thr_trans),
+        inlier_rotation_deg=float(np.degrees(thresholds[0])),
+        inlier_translation_m=float(thresholds[1]),
         warnings=tuple(warnings),
         unobservable=unobservable,
         scale=scale,
@@ -229,18 +243,7 @@ def _refit(
     scale = scale_dq = 1.0
     scale_std = float('nan')
     if estimate_scale and spread >= MIN_AXIS_SPREAD_DEG:
-        # the paper's baseline with a scale: the rotation of the dual-quaternion solution,
-        # then its dual part and s from the lower rows of eq. 4
-        p_dq, scale_dq = dual_quaternion_scale(
-            m.qa[inliers],
-            m.qad[inliers],
-            m.qb[inliers],
-            m.qbd[inliers],
-            q_dq,
-            drift_weights(m, inliers),
-        )
-        if not (np.isfinite(scale_dq) and scale_dq > 0.0):
-            p_dq, scale_dq = p_HE, 1.0
+        p_dq, scale_dq = _dual_quaternion_scale(m, inliers, q_dq, p_HE)
         if not decoupled_refit:
             p_HE, scale = p_dq, scale_dq
     if spread < MIN_AXIS_SPREAD_DEG:
@@ -279,3 +282,22 @@ def _refit(
             'constrained; rotate about more different axes'
         )
     return q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std
+
+
+def _dual_quaternion_scale(
+    m: Motions, inliers: np.ndarray, q_dq: np.ndarray, p_HE: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """The paper's baseline with a scale: the rotation of the dual-quaternion solution, then its
+    dual part and s from the lower rows of eq. 4 (:func:`.scale.dual_quaternion_scale`); the
+    translation ``p_HE`` and s = 1 when that gives no positive finite s."""
+    p_dq, scale_dq = dual_quaternion_scale(
+        m.qa[inliers],
+        m.qad[inliers],
+        m.qb[inliers],
+        m.qbd[inliers],
+        q_dq,
+        drift_weights(m, inliers),
+    )
+    if not (np.isfinite(scale_dq) and scale_dq > 0.0):
+        return p_HE, 1.0
+    return p_dq, scale_dq

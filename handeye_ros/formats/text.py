@@ -87,21 +87,7 @@ def read_trajectory(
     order = _quaternion_order(path, fmt, stamp_unit, quaternion_order, split, notes)
     # the file's four quaternion columns, in file order, to x y z w
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
-    bad = _bad_rows(t_ns, values, q_xyzw, fits)
-    if bad.any():
-        if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:
-            if not fits.all():  # refused with the stamp's own message
-                too_large(path, numbers, np.where(fits, 0, np.abs(t_ns)), 'as read')
-        else:  # a few rows no pose stream holds: dropped, named (validation below refuses more)
-            lines = ', '.join(str(numbers[k]) for k in np.flatnonzero(bad)[:5])
-            notes.append(
-                f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
-                f'(a stamp out of range or order, a non-finite value or a non-unit '
-                f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})'
-            )
-            keep = ~bad
-            t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
-            numbers = np.asarray(numbers)[keep]
+    t_ns, values, q_xyzw = _drop_bad_rows(path, numbers, t_ns, values, q_xyzw, fits, notes)
     keep = _last_of_repeated(t_ns)
     if not keep.all():
         notes.append(
@@ -110,6 +96,35 @@ def read_trajectory(
     return Trajectory.from_arrays(
         t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path), notes=tuple(notes)
     )
+
+
+def _drop_bad_rows(
+    path: Path,
+    numbers,
+    t_ns: np.ndarray,
+    values: np.ndarray,
+    q_xyzw: np.ndarray,
+    fits: np.ndarray,
+    notes: list[str],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rows without those no pose stream holds (:func:`_bad_rows`), named in ``notes``, when
+    they are at most MAX_BAD_ROW_FRACTION; with more, all rows (the validation refuses them),
+    except that a stamp int64 ns cannot hold is refused here with its own message."""
+    bad = _bad_rows(t_ns, values, q_xyzw, fits)
+    if not bad.any():
+        return t_ns, values, q_xyzw
+    if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:
+        if not fits.all():
+            too_large(path, numbers, np.where(fits, 0, np.abs(t_ns)), 'as read')
+        return t_ns, values, q_xyzw
+    lines = ', '.join(str(numbers[k]) for k in np.flatnonzero(bad)[:5])
+    notes.append(
+        f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
+        f'(a stamp out of range or order, a non-finite value or a non-unit '
+        f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})'
+    )
+    keep = ~bad
+    return t_ns[keep], values[keep], q_xyzw[keep]
 
 
 def _check_choices(path: Path, fmt: str, stamp_unit: str, quaternion_order: str) -> None:

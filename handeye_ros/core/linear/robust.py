@@ -257,25 +257,7 @@ def _refit(
             'least two different axes to determine it'
         )
     elif decoupled_refit:
-        q_HE = refit_rotation(m, inliers)
-        q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
-        fit = (
-            translation_and_scale(
-                m.A[0][inliers],
-                m.A[1][inliers],
-                m.B[1][inliers],
-                matrix_from_quat(q_HE),
-                drift_weights(m, inliers),
-            )
-            if estimate_scale
-            else None
-        )
-        if fit is not None:
-            scale_std = fit.scale_std
-        if fit is not None and fit.observable:
-            p_HE, scale = fit.p_HE, fit.scale
-        else:  # no scale, or an unobservable one (the pipeline's verdict names it)
-            p_HE = refit_translation_gls(m, inliers, matrix_from_quat(q_HE))
+        q_HE, p_HE, scale, scale_std = _decoupled(m, inliers, q_dq, estimate_scale)
     if MIN_AXIS_SPREAD_DEG <= spread < WARN_AXIS_SPREAD_DEG:
         warnings.append(
             f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
@@ -301,3 +283,27 @@ def _dual_quaternion_scale(
     if not (np.isfinite(scale_dq) and scale_dq > 0.0):
         return p_HE, 1.0
     return p_dq, scale_dq
+
+
+def _decoupled(
+    m: Motions, inliers: np.ndarray, q_dq: np.ndarray, estimate_scale: bool
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The decoupled refit: the rotation from the motions' rotation vectors
+    (:func:`.refits.refit_rotation`, in q_dq's hemisphere), then the translation (and the
+    scale, when estimated and observable) by weighted least squares: (q_HE, p_HE, s, std of
+    s; 1 and NaN without a scale)."""
+    q_HE = refit_rotation(m, inliers)
+    q_HE *= 1.0 if float(np.dot(q_HE, q_dq)) >= 0.0 else -1.0  # same hemisphere as before
+    R_HE = matrix_from_quat(q_HE)
+    fit = (
+        translation_and_scale(
+            m.A[0][inliers], m.A[1][inliers], m.B[1][inliers], R_HE, drift_weights(m, inliers)
+        )
+        if estimate_scale
+        else None
+    )
+    scale_std = fit.scale_std if fit is not None else float('nan')
+    if fit is not None and fit.observable:
+        return q_HE, fit.p_HE, fit.scale, scale_std
+    # no scale, or an unobservable one (the pipeline's verdict names it)
+    return q_HE, refit_translation_gls(m, inliers, R_HE), 1.0, scale_std

@@ -63,9 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         format='%(name)s: %(message)s',
         stream=sys.stderr,
     )
-    from ..core.checks.verdict import Verdict
     from ..core.errors import HandeyeError
-    from ..evaluation.terminal import format_report
     from ..formats.result_file import write_result
 
     if args.rig:
@@ -102,6 +100,15 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 3
+    return _said(args, document, result)
+
+
+def _said(args: argparse.Namespace, document: dict, result: Any) -> int:
+    """The result on stdout (the report, or JSON), its warnings on stderr; the exit code: 2 for
+    a verdict other than good under --strict, else 0."""
+    from ..core.checks.verdict import Verdict
+    from ..evaluation.terminal import format_report
+
     for w in result.warnings:
         LOG.warning('%s', w)
     if args.json:

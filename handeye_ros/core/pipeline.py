@@ -112,6 +112,26 @@ def calibrate(
     return result
 
 
+def _at_solution(
+    hand: Trajectory,
+    eye: Trajectory,
+    solution: tuple[float, np.ndarray, np.ndarray],
+    cfg: CalibrationConfig,
+    run: Findings,
+) -> tuple[PosePairs, WorldAlignment, Metrics]:
+    """At the final (dt, q_HE, p_HE): the associated pairs, the world alignment T_WG and the
+    metrics (APE/ARE, AX = XB over the keyframe motions)."""
+    dt, q_HE, p_HE = solution
+    pairs = associate(hand, eye, dt)
+    world = align_worlds(pairs, q_HE, p_HE)
+    if world.method != 'positions':
+        run.warnings.append(
+            'the positions do not span a plane; the world alignment T_WG was '
+            'taken from the orientations'
+        )
+    return pairs, world, metrics_at(hand, eye, pairs, world, solution, cfg.eta)
+
+
 def _finish(
     inputs: Inputs,
     offset: Offset,
@@ -124,14 +144,7 @@ def _finish(
     remaining rules, the MoCap's coverage, and the result."""
     hand, eye, dt = offset.hand, refined.eye, refined.dt
     q_HE, p_HE, shift_ns = refined.q_HE, refined.p_HE, offset.shift_ns
-    pairs = associate(hand, eye, dt)
-    world = align_worlds(pairs, q_HE, p_HE)
-    if world.method != 'positions':
-        run.warnings.append(
-            'the positions do not span a plane; the world alignment T_WG was '
-            'taken from the orientations'
-        )
-    metrics = metrics_at(hand, eye, pairs, world, (dt, q_HE, p_HE), cfg.eta)
+    pairs, world, metrics = _at_solution(hand, eye, (dt, q_HE, p_HE), cfg, run)
     seed_lin = seed_check(hand, eye, dt, linear.solution, refined.batch, cfg, run, pairs)
     assess(
         offset.alignment,

@@ -234,29 +234,10 @@ def self_check(
                 f'{in_hand:.2g} deg at {(shift_ns * 1e-9 + dt):+.4f} s (eq. 9)'
             )
             continue
-        try:
-            lin_c, pairs_c = solve_linear(hand, eye, offset, cfg)
-            if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
-                offset, lin_c, pairs_c, _ = refine_vector(
-                    hand, eye, offset, lin_c, pairs_c, cfg, Findings()
-                )
-        except HandeyeError as err:
-            run.notes.append(
-                f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
-            )
-            # counted in the result with the others, unscored
-            run.candidates.append(
-                Candidate(
-                    offset,
-                    f'{source}: rejected, stage 2 fails there',
-                    float('nan'),
-                    float('nan'),
-                    float('nan'),
-                    lin.q_HE,
-                    lin.p_HE,
-                )
-            )
+        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, cfg, run)
+        if found is None:
             continue
+        offset, lin_c, pairs_c = found
         if not any(abs(offset - h[0]) < same for h in hyps):
             hyps.append((offset, source, lin_c, pairs_c))
     if len(hyps) == 1:
@@ -267,6 +248,45 @@ def self_check(
     best = judge_tie(scored, shift_ns, run)
     run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
     return hyps[best][0], hyps[best][2], hyps[best][3]
+
+
+def _stage2_at(
+    hand: Trajectory,
+    eye: Trajectory,
+    offset: float,
+    source: str,
+    shift_ns: int,
+    lin: LinearSolution,
+    cfg: CalibrationConfig,
+    run: Findings,
+) -> tuple[float, LinearSolution, PosePairs] | None:
+    """Stage 2 at a candidate offset (s, from ``shift_ns``), with its vector refinement:
+    (offset, solution, pairs), or None when stage 2 fails there (noted, and counted among the
+    candidates unscored)."""
+    try:
+        lin_c, pairs_c = solve_linear(hand, eye, offset, cfg)
+        if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
+            offset, lin_c, pairs_c, _ = refine_vector(
+                hand, eye, offset, lin_c, pairs_c, cfg, Findings()
+            )
+    except HandeyeError as err:
+        run.notes.append(
+            f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
+        )
+        nan = float('nan')
+        run.candidates.append(
+            Candidate(
+                offset,
+                f'{source}: rejected, stage 2 fails there',
+                nan,
+                nan,
+                nan,
+                lin.q_HE,
+                lin.p_HE,
+            )
+        )
+        return None
+    return offset, lin_c, pairs_c
 
 
 def seed_check(

@@ -8,28 +8,8 @@ from typing import Any
 
 def format_report(d: dict[str, Any]) -> str:
     """A terminal report of a result dictionary (see :mod:`handeye_ros.core.result`)."""
-    ta, lin, m, q = d['time_alignment'], d['linear'], d['metrics'], d['quality']
-    lines = [
-        'handeye_ros calibration',
-        f'  convention: {d["convention"]}',
-        '',
-        f'VERDICT: {q["verdict"].upper()}',
-    ]
-    lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
-    lines += [f'  note: {n}' for n in q['notes']]
-    for name in ('hand', 'eye'):
-        info = d['inputs'][name]
-        lines.append(
-            f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
-            f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)'
-        )
-    cov = d.get('coverage')
-    if cov:
-        lines.append(
-            f"  MoCap coverage: {cov['fraction']:.0%} of the eye's {cov['eye_span_s']:.1f} s, "
-            f'{cov["hand_gaps"]} gap(s) inside it ({cov["hand_gap_s"]:.1f} s, the longest '
-            f'{cov["longest_hand_gap_s"]:.2f} s)'
-        )
+    ta, lin, m = d['time_alignment'], d['linear'], d['metrics']
+    lines = _heading_lines(d)
     peak = ta['peak_correlation']
     lines += [
         '',
@@ -74,6 +54,33 @@ def format_report(d: dict[str, Any]) -> str:
     for w in d['warnings']:
         lines.append(f'WARNING: {w}')
     return '\n'.join(lines)
+
+
+def _heading_lines(d: dict[str, Any]) -> list[str]:
+    """The verdict with its reasons and notes, the inputs and the MoCap's coverage."""
+    q = d['quality']
+    lines = [
+        'handeye_ros calibration',
+        f'  convention: {d["convention"]}',
+        '',
+        f'VERDICT: {q["verdict"].upper()}',
+    ]
+    lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
+    lines += [f'  note: {n}' for n in q['notes']]
+    for name in ('hand', 'eye'):
+        info = d['inputs'][name]
+        lines.append(
+            f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
+            f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)'
+        )
+    cov = d.get('coverage')
+    if cov:
+        lines.append(
+            f"  MoCap coverage: {cov['fraction']:.0%} of the eye's {cov['eye_span_s']:.1f} s, "
+            f'{cov["hand_gaps"]} gap(s) inside it ({cov["hand_gap_s"]:.1f} s, the longest '
+            f'{cov["longest_hand_gap_s"]:.2f} s)'
+        )
+    return lines
 
 
 def _transform(title: str, t: dict[str, Any]) -> str:

@@ -83,8 +83,7 @@ def result_status(
         if calibrating_s is not None:
             st.message = f'calibrating ({calibrating_s:.1f} s)'
         return st
-    r = session.result
-    q = r.quality
+    q = session.result.quality
     st.level = {
         Verdict.GOOD: DiagnosticStatus.OK,
         Verdict.DOUBTFUL: DiagnosticStatus.WARN,
@@ -93,8 +92,15 @@ def result_status(
     st.message = session.summary[:500]
     if calibrating_s is not None:
         st.message = f'calibrating ({calibrating_s:.1f} s); the last result: ' + st.message[:400]
+    st.values = _result_values(session, when)
+    return st
+
+
+def _result_values(session: Calibrated, when: str) -> list[KeyValue]:
+    """The numbers of a result, as the latched topics hold them, and where they come from."""
+    r, q = session.result, session.result.quality
     pub = messages.Published.from_result(r, session.frames)
-    st.values = [
+    return [
         KeyValue(key=k, value=str(v))
         for k, v in (
             ('verdict', q.verdict),
@@ -110,7 +116,6 @@ def result_status(
             *_rig_values(session.document.get('rig')),
         )
     ]
-    return st
 
 
 def _rig_values(rig: dict | None) -> list[tuple[str, object]]:

@@ -50,6 +50,8 @@ UNIT_FACTORS = {
 EPOCH_ABSOLUTE_S = 1e8
 EPOCH_RELATIVE_S = 1e7
 INT64_MAX = np.iinfo(np.int64).max
+#: The two streams, in the order the checks take them.
+STREAMS = ('hand', 'eye')
 
 
 @dataclass(frozen=True)
@@ -145,34 +147,39 @@ def check_stamp_units(
             '--hand-stamp-unit / --eye-stamp-unit'
         )
         raise InputError(msg)
-    out, corrections = [hand, eye], []
-    for k, (stream, factor) in enumerate(zip(('hand', 'eye'), best, strict=True)):
-        if factor == 1.0:
-            continue
-        traj = out[k]
-        try:
-            out[k] = _scaled(traj, factor)
-        except OverflowError:
-            msg = (
-                f'{traj.name}: the stamps look like {UNIT_FACTORS[factor]} but cannot be '
-                f'converted; set --{stream}-stamp-unit'
-            )
-            raise InputError(msg) from None
-        unit = UNIT_FACTORS[factor]
-        corrections.append(
-            Correction(
-                stream,
-                'stamp_unit',
-                unit,
-                f'{stream}_stamp_unit',
-                f'{traj.name}: the stamps were taken as {unit}: as given they make a '
-                f'{traj.rate_hz:.4g} Hz stream over {traj.duration_s:.4g} s, as {unit} a '
-                f'{out[k].rate_hz:.4g} Hz stream over {out[k].duration_s:.4g} s like the other '
-                f'stream. If that is right, say so with --{stream}-stamp-unit (the file still '
-                'holds the mistake for other tools)',
-            )
+    out = [
+        _reread(traj, stream, f)
+        for traj, stream, f in zip((hand, eye), STREAMS, best, strict=True)
+    ]
+    corrections = [c for _, c in out if c is not None]
+    return out[0][0], out[1][0], corrections
+
+
+def _reread(traj: Trajectory, stream: str, factor: float) -> tuple[Trajectory, Correction | None]:
+    """The stream with its stamps times ``factor`` (:data:`UNIT_FACTORS`), and the correction
+    that says so (None for a factor of 1)."""
+    if factor == 1.0:
+        return traj, None
+    try:
+        scaled = _scaled(traj, factor)
+    except OverflowError:
+        msg = (
+            f'{traj.name}: the stamps look like {UNIT_FACTORS[factor]} but cannot be '
+            f'converted; set --{stream}-stamp-unit'
         )
-    return out[0], out[1], corrections
+        raise InputError(msg) from None
+    unit = UNIT_FACTORS[factor]
+    return scaled, Correction(
+        stream,
+        'stamp_unit',
+        unit,
+        f'{stream}_stamp_unit',
+        f'{traj.name}: the stamps were taken as {unit}: as given they make a '
+        f'{traj.rate_hz:.4g} Hz stream over {traj.duration_s:.4g} s, as {unit} a '
+        f'{scaled.rate_hz:.4g} Hz stream over {scaled.duration_s:.4g} s like the other '
+        f'stream. If that is right, say so with --{stream}-stamp-unit (the file still '
+        'holds the mistake for other tools)',
+    )
 
 
 def epoch_note(hand: Trajectory, eye: Trajectory) -> str | None:

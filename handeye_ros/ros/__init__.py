@@ -3,4 +3,5 @@ its pose topics (:mod:`.subscriptions`, :mod:`.types`), parameters (:mod:`.param
 latched result outputs (:mod:`.outputs`),
 diagnostics (:mod:`.diagnostics`), readiness status (:mod:`.status`) and auto mode
 (:mod:`.auto_mode`), its worker processes (:mod:`.worker`, :mod:`.jobs`), the start and stop
-they share (:mod:`.lifecycle`), sim_publisher and publish_calibration."""
+they share (:mod:`.lifecycle`), sim_publisher (its options in :mod:`.sim_options`) and
+publish_calibration."""

@@ -24,6 +24,7 @@ import sys
 import time
 
 from .lifecycle import ignore_signals, quiet_start, stop_requested
+from .sim_options import parse, parser
 from .types import RclpyTypes
 
 #: rclpy message classes, imported on first use.
@@ -49,159 +50,9 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     return messages.pose_message(TYPES, msgtype, t_ns, p, q, frame, child)
 
 
-def parser() -> argparse.ArgumentParser:
-    """The command line."""
-    from handeye_ros.core.simulate import MOTIONS
-
-    ap = argparse.ArgumentParser(
-        prog='sim_publisher',
-        description=__doc__.split('\n\n')[0],
-        epilog="Stamps are the recording's (they start at 1.7e9 s, in November 2023), not the "
-        "wall clock's. TFMessage hands the hand as /tf:world.marker (world -> rig on the hand "
-        'topic, rig -> marker on /tf_static) and the eye as /tf:odom.imu; RigidBodies sends '
-        "the bodies 'wand' and 'rig' (the hand: TOPIC:rig).",
-    )
-    ap.add_argument(
-        '--seed', type=int, default=3, help='random seed of the recording (default: 3)'
-    )
-    ap.add_argument(
-        '--level',
-        type=float,
-        default=3.0,
-        help="noise level 0-10 of the paper's protocol (default: 3)",
-    )
-    ap.add_argument('--duration', type=float, default=40.0, help='length [s] (default: 40)')
-    ap.add_argument(
-        '--motion',
-        choices=MOTIONS,
-        default='random',
-        help='how the rig moves (default: random, about every axis); planar and one_axis '
-        'never let the calibration see every direction, which the status names',
-    )
-    ap.add_argument(
-        '--hand-rate', type=float, default=100.0, help='MoCap pose rate [Hz] (default: 100)'
-    )
-    ap.add_argument(
-        '--mocap-noise',
-        type=float,
-        nargs=2,
-        default=(0.0, 0.0),
-        metavar=('MM', 'DEG'),
-        help='white noise of the MoCap poses, position [mm] and rotation [deg] (default: '
-        '0 0; a marker rig in a good MoCap room: about 0.1 0.006)',
-    )
-    ap.add_argument(
-        '--eye-rate', type=float, default=20.0, help='VIO pose rate [Hz] (default: 20)'
-    )
-    ap.add_argument('--hand-topic', default='/mocap/pose', help='default: /mocap/pose')
-    ap.add_argument('--eye-topic', default='/vio/odom', help='default: /vio/odom')
-    ap.add_argument(
-        '--hand-type',
-        default='PoseStamped',
-        help='PoseStamped (default), PoseWithCovarianceStamped, TransformStamped, '
-        'Odometry, TFMessage or RigidBodies (see below)',
-    )
-    ap.add_argument(
-        '--eye-type',
-        default='Odometry',
-        help='Odometry (default), one of the other one-pose types, or TFMessage',
-    )
-    ap.add_argument(
-        '--rate',
-        type=float,
-        default=1000.0,
-        help='messages per second, both topics together (default: 1000)',
-    )
-    ap.add_argument(
-        '--clock-jump',
-        type=float,
-        default=0.0,
-        metavar='SECONDS',
-        help="the device's stamps jump by SECONDS halfway through, while its messages keep "
-        'coming, as a clock that resynchronises (default: 0; on the wire only, not in --bag)',
-    )
-    ap.add_argument(
-        '--mocap-dropout',
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=('START', 'SECONDS'),
-        help='the MoCap loses the marker SECONDS long from START s into the recording: its '
-        'messages keep coming with a NaN position, as drivers that keep publishing do '
-        '(default: none; on the wire only, not in --bag)',
-    )
-    ap.add_argument(
-        '--nan-every',
-        type=int,
-        default=0,
-        help='every k-th eye message has a NaN position (default: 0, none)',
-    )
-    ap.add_argument(
-        '--zero-stamps',
-        choices=('hand', 'eye', 'both'),
-        default=None,
-        help='leave header.stamp at 0 on that stream, as some drivers do '
-        '(default: stamp every message)',
-    )
-    ap.add_argument(
-        '--reliable',
-        action='store_true',
-        help='reliable publishers (default: best-effort hand, reliable eye)',
-    )
-    ap.add_argument(
-        '--bag',
-        action='append',
-        default=[],
-        metavar='PATH[:STORAGE]',
-        help='also write the same messages to a bag (mcap, sqlite3 or ros1); repeatable',
-    )
-    ap.add_argument(
-        '--wait-subscribers',
-        type=float,
-        default=10.0,
-        metavar='SECONDS',
-        help='how long to wait for a subscriber on both topics (default: 10)',
-    )
-    return ap
-
-
-def parse(argv: list[str] | None = None) -> argparse.Namespace:
-    """The command line, its absurd values refused as argparse refuses a typo (exit 2)."""
-    ap = parser()
-    args = ap.parse_args(argv)
-    positive = {
-        '--duration': args.duration,
-        '--hand-rate': args.hand_rate,
-        '--eye-rate': args.eye_rate,
-        '--rate': args.rate,
-    }
-    for flag, v in positive.items():
-        if not (math.isfinite(v) and v > 0.0):
-            ap.error(
-                f'{flag} must be a positive number of {"seconds" if flag == "--duration" else "Hz"}, not {v}'
-            )
-    if args.mocap_dropout is not None and not all(
-        math.isfinite(v) and v >= 0.0 for v in args.mocap_dropout
-    ):
-        ap.error(f'--mocap-dropout takes two times >= 0 (s), not {args.mocap_dropout}')
-    if not math.isfinite(args.clock_jump):
-        ap.error(f'--clock-jump takes seconds, not {args.clock_jump}')
-    if not 0.0 <= args.level <= 10.0:
-        ap.error(f'--level is 0-10, not {args.level}')
-    if not all(math.isfinite(v) and v >= 0.0 for v in args.mocap_noise):
-        ap.error(f'--mocap-noise takes two amounts >= 0 (mm, deg), not {args.mocap_noise}')
-    if args.nan_every < 0 or not (
-        math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0.0
-    ):
-        ap.error('--nan-every and --wait-subscribers take amounts >= 0')
-    return args
-
-
-def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float] | None:
-    """Publish the recording's poses interleaved by stamp at ``args.rate`` per second, once a
-    subscriber is on both topics (or ``args.wait_subscribers`` has passed, said on stderr);
-    (sent per stream, seconds), or None when a signal stopped it."""
-    import numpy as np
+def _publishers(node, args: argparse.Namespace, rec) -> dict:
+    """The hand's and the eye's publishers ('hand', 'eye'); with a TFMessage hand, the rig's
+    marker also on /tf_static (latched), as a MoCap driver publishes it."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from handeye_ros.formats.bag import RIG_TO_MARKER
@@ -229,12 +80,18 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
         static.publish(
             message('TFMessage', int(rec.hand.t_ns[0]), *RIG_TO_MARKER, 'rig', 'marker')
         )
+    return pubs
+
+
+def _subscribed(pubs: dict, args: argparse.Namespace) -> bool:
+    """Wait for a subscriber on both topics, at most ``args.wait_subscribers`` (said on stderr
+    when it passes); False when a signal came meanwhile."""
     deadline = time.monotonic() + args.wait_subscribers
     while time.monotonic() < deadline and not all(
         p.get_subscription_count() for p in pubs.values()
     ):
         if stop_requested():
-            return None
+            return False
         time.sleep(0.05)
     alone = [p.topic_name for p in pubs.values() if not p.get_subscription_count()]
     if alone and args.wait_subscribers > 0:
@@ -245,6 +102,18 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
             file=sys.stderr,
             flush=True,
         )
+    return True
+
+
+def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float] | None:
+    """Publish the recording's poses interleaved by stamp at ``args.rate`` per second, once a
+    subscriber is on both topics (or ``args.wait_subscribers`` has passed, said on stderr);
+    (sent per stream, seconds), or None when a signal stopped it."""
+    import numpy as np
+
+    pubs = _publishers(node, args, rec)
+    if not _subscribed(pubs, args):
+        return None
     time.sleep(0.3)  # let discovery settle on both sides
     items = sorted(
         [(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
@@ -294,20 +163,12 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
     return sent, time.monotonic() - t0
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM, at any
-    moment (the signals are only noted, as the calibrator's: :mod:`.lifecycle`)."""
-    quiet_start()
-    argv = sys.argv if argv is None else ['sim_publisher', *argv]
-    # the ROS arguments (ros2 launch appends --ros-args to every node's command line) are rcl's
-    from rclpy.utilities import remove_ros_args
-
-    args = parse(remove_ros_args(argv)[1:])
+def _recording(args: argparse.Namespace):
+    """The simulated recording (:func:`handeye_ros.core.simulate.simulate`), written into the
+    ``--bag`` files asked for; a bad simulation option is a usage error."""
     from handeye_ros.core.errors import InputError
-    from handeye_ros.core.geometry import positive_w
     from handeye_ros.core.simulate import noise_level, simulate
-    from handeye_ros.formats.bag import tf_links, write_recording
-    from handeye_ros.stream import normalise_type
+    from handeye_ros.formats.bag import write_recording
 
     nm, nd = noise_level(args.level)
     try:
@@ -334,7 +195,14 @@ def main(argv: list[str] | None = None) -> int:
             ],
             storage or 'mcap',
         )
-    # what goes on the wire, and between which frames (see the module docstring)
+    return rec
+
+
+def _wire(args: argparse.Namespace, rec) -> dict:
+    """What goes on the wire, and between which frames (see the module docstring): per
+    stream (trajectory, frame, child frame)."""
+    from handeye_ros.formats.bag import tf_links
+
     wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
     rig, imu = tf_links(rec.hand, rec.eye)
     if args.hand_type == 'TFMessage':
@@ -343,22 +211,14 @@ def main(argv: list[str] | None = None) -> int:
         wire['hand'] = (rec.hand, 'mocap', 'rig')
     if args.eye_type == 'TFMessage':
         wire['eye'] = (imu, 'imu', 'odom')
-    if stop_requested():
-        return 0
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
+    return wire
 
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node('recording_publisher')
-    try:
-        done = _publish(node, args, rec, wire)
-    finally:
-        ignore_signals()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    if done is None:
-        return 0
-    sent, seconds = done
+
+def _say_truth(args: argparse.Namespace, rec, sent: dict, seconds: float) -> None:
+    """One JSON line on stdout: what was sent, the types, the truth and the seconds taken."""
+    from handeye_ros.core.geometry import positive_w
+    from handeye_ros.stream import normalise_type
+
     t = rec.truth
     print(
         json.dumps(
@@ -378,6 +238,35 @@ def main(argv: list[str] | None = None) -> int:
         ),
         flush=True,
     )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Simulate, publish, print the truth; 0 also when stopped by Ctrl-C or SIGTERM, at any
+    moment (the signals are only noted, as the calibrator's: :mod:`.lifecycle`)."""
+    quiet_start()
+    argv = sys.argv if argv is None else ['sim_publisher', *argv]
+    # the ROS arguments (ros2 launch appends --ros-args to every node's command line) are rcl's
+    from rclpy.utilities import remove_ros_args
+
+    args = parse(remove_ros_args(argv)[1:])
+    rec = _recording(args)
+    wire = _wire(args, rec)
+    if stop_requested():
+        return 0
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('recording_publisher')
+    try:
+        done = _publish(node, args, rec, wire)
+    finally:
+        ignore_signals()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    if done is None:
+        return 0
+    _say_truth(args, rec, *done)
     return 0
 
 

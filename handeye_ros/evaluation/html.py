@@ -46,6 +46,8 @@ def _transform(title: str, t: dict[str, Any]) -> str:
 
 
 def _numbers(d: dict[str, Any]) -> str:
+    """The numbers table of the report: the offset, drift, scale and T_HE with their 1-sigmas,
+    the coverage and the readiness."""
     s = d.get('std') or {}
     rows = [
         (
@@ -86,6 +88,19 @@ def _numbers(d: dict[str, Any]) -> str:
                 ' '.join(_f(v, '.3f', 57.29577951308232) for v in s['rotation']) + ' deg',
             )
         )
+    rows += _recording_rows(d)
+    body = ''.join(
+        f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows
+    )
+    return (
+        '<table><tr><th class="l">quantity</th><th>value</th><th>1-sigma</th></tr>'
+        f'{body}</table><p class="l">convention: <code>{_e(d["convention"])}</code></p>'
+    )
+
+
+def _recording_rows(d: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """The numbers table's rows on the recording: the MoCap's coverage and the readiness."""
+    rows = []
     cov = d.get('coverage')
     if cov:
         rows.append(
@@ -112,13 +127,7 @@ def _numbers(d: dict[str, Any]) -> str:
                 + ' ms / mm / deg predicted',
             )
         )
-    body = ''.join(
-        f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows
-    )
-    return (
-        '<table><tr><th class="l">quantity</th><th>value</th><th>1-sigma</th></tr>'
-        f'{body}</table><p class="l">convention: <code>{_e(d["convention"])}</code></p>'
-    )
+    return rows
 
 
 def _metrics(ev: dict[str, Any] | None) -> str:

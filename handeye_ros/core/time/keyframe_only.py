@@ -110,11 +110,8 @@ def align_time_keyframes(
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
     # at lag k (dt = base + k step) the eye stamp te falls on hand grid point te / step - k
     ga, gb = np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
-    k_lo, k_hi = int(ga.min()) - (grid_q.shape[0] - 1), int(gb.max())
     window = offset_window(max_time_offset, time_offset_guess)
-    if window is not None:
-        k_lo = max(k_lo, int(np.ceil((window[0] - base_ns * 1e-9) / step)))
-        k_hi = min(k_hi, int(np.floor((window[1] - base_ns * 1e-9) / step)))
+    k_lo, k_hi = _lag_range(ga, gb, grid_q.shape[0], base_ns, step, window)
     if k_hi - k_lo < 2:
         raise _too_few(hand, eye, window)
     m = max(1, round(COARSE_STEP_S / step))
@@ -142,7 +139,6 @@ def align_time_keyframes(
     lag_s, agree = _refine(orient, eye, a, b, angle_e, k * step, step)
     if not agree >= MIN_AGREEMENT:
         raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
-    curve = Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok)
     scores = np.where(c_ok, c_score, -np.inf)
     sel = np.flatnonzero(c_ok)
     sel = slice(sel[0], sel[-1] + 1)
@@ -155,10 +151,37 @@ def align_time_keyframes(
         window_s=window or (base_ns * 1e-9 + k_lo * step, base_ns * 1e-9 + k_hi * step),
         lags_s=base_ns * 1e-9 + coarse[sel] * step,
         correlation=c_score[sel],
-        candidates=tuple(
-            c for c in candidates(curve, kc) if abs(c[0] - base_ns * 1e-9 - lag_s) > 2 * m * step
+        candidates=_others(
+            Curve(base_ns, m * step, coarse / m, np.where(c_ok, c_score, np.nan), c_ok), kc, lag_s
         ),
         time_offset_ns=base_ns + round(lag_s * 1e9),
+    )
+
+
+def _lag_range(
+    ga: np.ndarray,
+    gb: np.ndarray,
+    n_grid: int,
+    base_ns: int,
+    step: float,
+    window: tuple[float, float] | None,
+) -> tuple[int, int]:
+    """The lags (grid steps) at which a keyframe pair can fall inside the hand's grid of
+    ``n_grid`` points, within the searched ``window`` of offsets (s) when there is one."""
+    k_lo, k_hi = int(ga.min()) - (n_grid - 1), int(gb.max())
+    if window is not None:
+        k_lo = max(k_lo, int(np.ceil((window[0] - base_ns * 1e-9) / step)))
+        k_hi = min(k_hi, int(np.floor((window[1] - base_ns * 1e-9) / step)))
+    return k_lo, k_hi
+
+
+def _others(curve: Curve, kc: int, lag_s: float) -> tuple[tuple[float, float], ...]:
+    """The coarse curve's candidates (:func:`.align.candidates`) away from the answer (more than
+    two coarse steps from ``lag_s``, s from the curve's base)."""
+    return tuple(
+        c
+        for c in candidates(curve, kc)
+        if abs(c[0] - curve.base_ns * 1e-9 - lag_s) > 2 * curve.step
     )
 
 

@@ -182,6 +182,21 @@ def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
     return R, p
 
 
+def _with_white_noise(
+    rng: np.random.Generator, poses: Pose, noise_m: float, noise_deg: float
+) -> Pose:
+    """The poses with white noise of these standard deviations per axis (a MoCap's), the
+    rotation's on the right (body frame); unchanged (and no draw) without noise."""
+    R, p = poses
+    if not (noise_m or noise_deg):
+        return R, p
+    n = len(p)
+    R = np.matmul(
+        R, Rotation.from_rotvec(rng.normal(0.0, np.deg2rad(noise_deg), (n, 3))).as_matrix()
+    )
+    return R, p + rng.normal(0.0, noise_m, (n, 3))
+
+
 def simulate(
     seed: int = 0,
     *,
@@ -221,15 +236,9 @@ def simulate(
 
     n_hand = int(duration_s * hand_rate_hz) + 1
     t_hand_ns = EPOCH_NS + np.rint(np.arange(n_hand) * 1e9 / hand_rate_hz).astype(np.int64)
-    R_GH, p_GH = hand_pose((t_hand_ns - EPOCH_NS) * 1e-9)
-    if hand_noise_m or hand_noise_deg:
-        R_GH = np.matmul(
-            R_GH,
-            Rotation.from_rotvec(
-                rng.normal(0.0, np.deg2rad(hand_noise_deg), (n_hand, 3))
-            ).as_matrix(),
-        )
-        p_GH = p_GH + rng.normal(0.0, hand_noise_m, (n_hand, 3))
+    R_GH, p_GH = _with_white_noise(
+        rng, hand_pose((t_hand_ns - EPOCH_NS) * 1e-9), hand_noise_m, hand_noise_deg
+    )
 
     dt_ns = round(truth.time_offset_s * 1e9)
     n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1

@@ -197,6 +197,21 @@ def _with_white_noise(
     return R, p + rng.normal(0.0, noise_m, (n, 3))
 
 
+def _eye_stamps(seed: int, duration_s: float, eye_rate_hz: float, dt_ns: int) -> np.ndarray:
+    """The eye's stamps (int64 ns, its clock): the hand's span less 1 s at each end, shifted by
+    dt, its first frame at an arbitrary phase of its period, as two free-running sensors are
+    (drawn apart, so that a seed's other draws do not change)."""
+    n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
+    phase_ns = int(np.random.default_rng([seed, 1]).integers(0, int(1e9 / eye_rate_hz)))
+    return (
+        EPOCH_NS
+        + 1_000_000_000
+        + dt_ns
+        + phase_ns
+        + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64)
+    )
+
+
 def simulate(
     seed: int = 0,
     *,
@@ -241,17 +256,8 @@ def simulate(
     )
 
     dt_ns = round(truth.time_offset_s * 1e9)
-    n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
-    # the eye's first frame at an arbitrary phase of its period, as two free-running sensors
-    # are (drawn apart, so that a seed's other draws do not change)
-    phase_ns = int(np.random.default_rng([seed, 1]).integers(0, int(1e9 / eye_rate_hz)))
-    t_eye_ns = (
-        EPOCH_NS
-        + 1_000_000_000
-        + dt_ns
-        + phase_ns
-        + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64)
-    )
+    t_eye_ns = _eye_stamps(seed, duration_s, eye_rate_hz, dt_ns)
+    n_eye = t_eye_ns.size
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
     mid_ns = int(t_eye_ns[n_eye // 2])

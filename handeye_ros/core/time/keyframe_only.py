@@ -106,47 +106,36 @@ def align_time_keyframes(
     step = grid_step(hand, eye, min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ))
     orient = _HandOrientation.of(hand)
     grid_q, grid_ok = _hand_grid(orient, step)
-    te = eye.seconds(int(eye.t_ns[0]))
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
-    # at lag k (dt = base + k step) the eye stamp te falls on hand grid point te / step - k
-    ga, gb = np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
+    ga, gb = _grid_points(eye, a, b, step)
     window = offset_window(max_time_offset, time_offset_guess)
     k_lo, k_hi = _lag_range(ga, gb, grid_q.shape[0], base_ns, step, window)
     if k_hi - k_lo < 2:
         raise _too_few(hand, eye, window)
     m = max(1, round(COARSE_STEP_S / step))
-    coarse = np.arange(k_lo, k_hi + 1, m)
-    # fewer pairs for very long searches, so that the coarse pass stays bounded
-    n_pick = min(a.size, COARSE_PAIRS, max(MIN_PAIRS * 10, COARSE_WORK // max(coarse.size, 1)))
-    pick = np.unique(np.linspace(0, a.size - 1, n_pick).astype(int))
-    c_score, c_count = _scores(grid_q, grid_ok, ga[pick], gb[pick], angle_e[pick], coarse)
-    need = max(MIN_PAIRS * pick.size / a.size, MIN_OVERLAP_FRACTION * c_count.max())
-    c_ok = c_count >= max(need, 1)
+    coarse, c_score, c_ok, counted = _coarse_pass(grid_q, grid_ok, ga, gb, angle_e, k_lo, k_hi, m)
     if not c_ok.any():
         raise _too_few(hand, eye, window)
     kc = int(np.argmax(np.where(c_ok, c_score, -np.inf)))
-    best = coarse[kc]
     # every grid lag around the coarse best, with all pairs
-    fine = np.arange(max(k_lo, best - 2 * m), min(k_hi, best + 2 * m) + 1)
-    f_score, f_count = _scores(grid_q, grid_ok, ga, gb, angle_e, fine)
-    f_ok = f_count >= max(MIN_PAIRS, MIN_OVERLAP_FRACTION * c_count.max() * a.size / pick.size)
-    if not f_ok.any():
+    fine = np.arange(max(k_lo, coarse[kc] - 2 * m), min(k_hi, coarse[kc] + 2 * m) + 1)
+    k = _best_lag(
+        grid_q, grid_ok, ga, gb, angle_e, fine, max(MIN_PAIRS, MIN_OVERLAP_FRACTION * counted)
+    )
+    if k is None:
         raise _too_few(hand, eye, window)
-    k = int(fine[int(np.argmax(np.where(f_ok, f_score, -np.inf)))])
-    eligible_lags = coarse[c_ok]
-    if k <= eligible_lags[0] or k >= eligible_lags[-1]:
+    if not coarse[c_ok][0] < k < coarse[c_ok][-1]:
         raise _at_the_edge(base_ns * 1e-9 + k * step, window)
     lag_s, agree = _refine(orient, eye, a, b, angle_e, k * step, step)
     if not agree >= MIN_AGREEMENT:
         raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
-    scores = np.where(c_ok, c_score, -np.inf)
-    sel = np.flatnonzero(c_ok)
-    sel = slice(sel[0], sel[-1] + 1)
+    first, last = np.flatnonzero(c_ok)[[0, -1]]
+    sel = slice(first, last + 1)
     return TimeAlignment(
         time_offset_s=base_ns * 1e-9 + lag_s,
         method='keyframes',
         peak_correlation=agree,
-        second_peak_ratio=second_peak_ratio(scores[sel], kc - sel.start),
+        second_peak_ratio=second_peak_ratio(np.where(c_ok, c_score, -np.inf)[sel], kc - first),
         step_s=step,
         window_s=window or (base_ns * 1e-9 + k_lo * step, base_ns * 1e-9 + k_hi * step),
         lags_s=base_ns * 1e-9 + coarse[sel] * step,
@@ -156,6 +145,52 @@ def align_time_keyframes(
         ),
         time_offset_ns=base_ns + round(lag_s * 1e9),
     )
+
+
+def _grid_points(
+    eye: Trajectory, a: np.ndarray, b: np.ndarray, step: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The keyframe pairs' stamps in grid steps from the eye's first: at lag k (dt = base + k
+    step) the eye stamp te falls on the hand's grid point te / step - k."""
+    te = eye.seconds(int(eye.t_ns[0]))
+    return np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
+
+
+def _best_lag(
+    grid_q: np.ndarray,
+    grid_ok: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    angle_e: np.ndarray,
+    lags: np.ndarray,
+    need: float,
+) -> int | None:
+    """The best-scoring of ``lags`` with all pairs among those with at least ``need`` pairs;
+    None when none has."""
+    score, count = _scores(grid_q, grid_ok, ga, gb, angle_e, lags)
+    ok = count >= need
+    return int(lags[int(np.argmax(np.where(ok, score, -np.inf)))]) if ok.any() else None
+
+
+def _coarse_pass(
+    grid_q: np.ndarray,
+    grid_ok: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    angle_e: np.ndarray,
+    k_lo: int,
+    k_hi: int,
+    m: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Every m-th lag of [k_lo, k_hi] scored on a subset of the keyframe pairs (fewer for very
+    long searches, so that the pass stays bounded): (lags, scores, which lags have enough
+    pairs, the most pairs any lag had, scaled to all pairs)."""
+    coarse = np.arange(k_lo, k_hi + 1, m)
+    n_pick = min(ga.size, COARSE_PAIRS, max(MIN_PAIRS * 10, COARSE_WORK // max(coarse.size, 1)))
+    pick = np.unique(np.linspace(0, ga.size - 1, n_pick).astype(int))
+    c_score, c_count = _scores(grid_q, grid_ok, ga[pick], gb[pick], angle_e[pick], coarse)
+    need = max(MIN_PAIRS * pick.size / ga.size, MIN_OVERLAP_FRACTION * c_count.max())
+    return coarse, c_score, c_count >= max(need, 1), c_count.max() * ga.size / pick.size
 
 
 def _lag_range(

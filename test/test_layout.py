@@ -371,3 +371,15 @@ def test_no_function_is_over_60_lines_but_the_named_ones() -> None:
                 long.add(f'{rel}:{node.name}')
     assert long - set(LONG_FUNCTIONS) == set(), sorted(long - set(LONG_FUNCTIONS))
     assert set(LONG_FUNCTIONS) - long == set(), sorted(set(LONG_FUNCTIONS) - long)
+
+
+def test_the_docs_are_wrapped_at_100_characters() -> None:
+    """README.md and docs/*.md read in a terminal: no line over 100 characters (a long command
+    is continued with a backslash, a table is a list)."""
+    long = [
+        f'{path.relative_to(ROOT)}:{k}'
+        for path in [ROOT / 'README.md', *sorted((ROOT / 'docs').glob('*.md'))]
+        for k, line in enumerate(path.read_text().splitlines(), 1)
+        if len(line) > 100
+    ]
+    assert not long, long

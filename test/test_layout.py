@@ -383,3 +383,33 @@ def test_the_docs_are_wrapped_at_100_characters() -> None:
         if len(line) > 100
     ]
     assert not long, long
+
+
+#: What the stages may take from the verdict: its facts, and the decisions a stage needs to go
+#: on (and a threshold a warning shares); never a rule that makes a reason.
+STAGE_DECISIONS = {
+    'batch_moved',
+    'batch_supported',
+    'judge_tie',
+    'scale_doubtful',
+    'scale_uncertainty_note',
+    'WEAK_CORRELATION',
+}
+
+
+def test_facts_in_verdict_out() -> None:
+    """The stages record facts (checks/verdict/facts.py) and never make or hold a reason: only
+    the verdict reads a fact into one (issue 37, item 2)."""
+    from handeye_ros.core.checks.verdict import facts
+
+    allowed = STAGE_DECISIONS | {cls.__name__ for cls in facts.FACTS}
+    taken, held = [], []
+    for path in sorted((ROOT / 'handeye_ros' / 'core' / 'stages').glob('*.py')):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or '').endswith('verdict'):
+                taken += [f'{path.name}: {a.name}' for a in node.names if a.name not in allowed]
+            if isinstance(node, ast.Attribute) and node.attr == 'reasons':
+                held.append(f'{path.name}:{node.lineno}')
+    assert not taken, taken
+    assert not held, held

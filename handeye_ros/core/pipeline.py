@@ -36,7 +36,7 @@ from .batch.pieces import check_joint_size
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
-from .checks.verdict import Quality, assess, assess_model
+from .checks.verdict import assess, assess_model, judged
 from .config import CalibrationConfig
 from .errors import ConfigError
 from .geometry import matrix_from_quat
@@ -159,7 +159,7 @@ def _finish(
     assess_model(refined.model, linear.clock, cfg, run)
     covered = mocap_coverage(hand, eye, dt)
     if covered.note():
-        run.notes.append(covered.note())
+        run.note(covered.note())
     time_offset_s = cfg.time_offset if offset.fixed else shift_ns * 1e-9 + dt
     return CalibrationResult(
         time_offset_s=time_offset_s,
@@ -182,7 +182,7 @@ def _finish(
         candidates=tuple(
             replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s) for c in run.candidates
         ),
-        quality=Quality.from_reasons(run.reasons, run.notes),
+        quality=judged(run),
         seed_check=seed_lin,
         eye_model=refined.model,
         clock=linear.clock,

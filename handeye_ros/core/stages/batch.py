@@ -22,7 +22,12 @@ from ..batch.correlated import (
 )
 from ..batch.refine import BatchSolution, refine
 from ..checks.selfcheck import score_candidates
-from ..checks.verdict import batch_moved, batch_supported, scale_uncertainty_note, stages_disagree
+from ..checks.verdict import (
+    StagesDisagree,
+    batch_moved,
+    batch_supported,
+    scale_uncertainty_note,
+)
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
 from ..eye_model import EyeModel
@@ -76,12 +81,13 @@ def batch_stage(
             eye, model = fold_batch(eye, model, batch)
             batch = with_correlated(hand, eye, batch, cfg)
             unc = batch.uncertainty
-            run.notes.extend(f'uncertainty: {w}' for w in unc.not_estimated)
+            for w in unc.not_estimated:
+                run.note(f'uncertainty: {w}')
             if unc.scale is not None and not run.scale_named:  # stage 2 did not name it
                 s, std, shift = unc.scale
                 note = scale_uncertainty_note(s, std, float(np.linalg.norm(shift[1:4])))
                 if note:
-                    run.notes.append(note)
+                    run.note(note)
         else:
             why = why or 'the self-check sided with the linear result'
             run.warnings.append(f'batch stage not used, the linear result is kept: {why}')
@@ -162,7 +168,7 @@ def check_batch(
         try:
             lin_b, _ = solve_linear(hand, eye, sol.time_offset_s, cfg)
         except HandeyeError as err:
-            run.reasons.append(stages_disagree(what, failed=str(err)))
+            run.record(StagesDisagree(what, failed=str(err)))
             return None
         hyps.append(
             (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
@@ -172,16 +178,16 @@ def check_batch(
     run.candidates.extend(scored)
     score = [c.score for c in scored]
     if not np.all(np.isfinite(score)):
-        run.reasons.append(stages_disagree(what))
+        run.record(StagesDisagree(what))
         return sol
     if batch_supported(score, far_dt):
-        run.notes.append(
+        run.note(
             f'{what}; the self-check supports it (scores '
             + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
             + ')'
         )
         return sol
-    run.reasons.append(stages_disagree(what, scored=scored))
+    run.record(StagesDisagree(what, scored=tuple(scored)))
     return None
 
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..checks.verdict import drift_reason, drift_unobservable
+from ..checks.verdict import DriftMeasured, DriftUnobservable
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
 from ..geometry import matrix_from_quat
@@ -46,21 +46,13 @@ def clock_along(
     reference stamp when the stamps moved, else None)."""
     if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
         if cfg.clock_drift:
-            run.reasons.append(drift_unobservable(None))
+            run.record(DriftUnobservable(None))
         return eye, model, None, None
     R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
     clock = _absolute_clock(fit, model)
     if not cfg.clock_drift:
-        doubt = drift_reason(fit)
-        if doubt is not None:
-            run.reasons.append(doubt)
-        elif fit.estimated:
-            run.notes.append(
-                f'the offset measured in {int(fit.inliers.sum())} windows along '
-                f'the recording is constant within its uncertainty (drift '
-                f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)'
-            )
+        run.record(DriftMeasured(fit))
         return eye, model, clock, None
     if not fit.estimated:
         if model.drift_estimated:
@@ -68,7 +60,7 @@ def clock_along(
                 'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
             )
         else:
-            run.reasons.append(drift_unobservable(fit.why))
+            run.record(DriftUnobservable(fit.why))
         return eye, model, clock, None
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
     return eye, model, clock, float(fit.offset_at(model.stamp_ns))

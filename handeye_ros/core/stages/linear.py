@@ -23,7 +23,13 @@ from ..checks.selfcheck import (
     screw_disagreement,
     screw_rejects,
 )
-from ..checks.verdict import judge_tie, scale_message, scale_reason, seed_failed, seed_reason
+from ..checks.verdict import (
+    ScaleMeasured,
+    SeedCompared,
+    SeedFailed,
+    judge_tie,
+    scale_doubtful,
+)
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
@@ -86,20 +92,15 @@ def linear_stage(
         eye, model = scale_from_rotations(hand, eye, model, cfg)
     lin, pairs = _first_solve(hand, eye, offset, cfg)
     scaled = None if cfg.estimate_scale else scale_check(pairs, lin, cfg)
-    scale_doubt = None if scaled is None else scale_reason(scaled, cfg.precision_translation)
-    if scale_doubt is not None:
-        # the eye's motion disagrees with the hand's everywhere by the same factor: splitting
-        # it at "breaks" would only hide that
-        run.reasons.append(scale_doubt)
-        run.scale_named = True
-    else:
-        if scaled is not None and scaled.clear:  # named, but it costs less than the precision
-            run.notes.append(scale_message(scaled))
-            run.scale_named = True
-        if cfg.screening:
-            eye, lin, pairs, screening = split_eye(
-                hand, eye, lin, pairs, cfg, screening, shift_ns, run
-            )
+    if scaled is not None:
+        run.record(ScaleMeasured(scaled, cfg.precision_translation))
+        run.scale_named = scaled.clear  # as a reason or a note
+    # a scale that is a reason leaves the eye whole (scale_doubtful says why)
+    whole = scaled is not None and scale_doubtful(scaled, cfg.precision_translation)
+    if cfg.screening and not whole:
+        eye, lin, pairs, screening = split_eye(
+            hand, eye, lin, pairs, cfg, screening, shift_ns, run
+        )
     tv = clock = None
     if not offset.fixed:
         dt, lin, pairs, tv = refine_vector(hand, eye, dt, lin, pairs, cfg, run)
@@ -163,7 +164,7 @@ def split_eye(
             'motion or residual spans one'
         )
         run.warnings.append(note)
-        run.notes.append(note)
+        run.note(note)
     lin, pairs = solve_linear(hand, found.eye, 0.0, cfg)
     return found.eye, lin, pairs, (sh, se)
 
@@ -228,7 +229,7 @@ def self_check(
             continue
         there = screw_disagreement(hand, eye, offset, i, j)
         if screw_rejects(there, in_hand):
-            run.notes.append(
+            run.note(
                 f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: '
                 f'the motions turn by angles {there:.2g} deg apart there in the median, '
                 f'{in_hand:.2g} deg at {(shift_ns * 1e-9 + dt):+.4f} s (eq. 9)'
@@ -270,7 +271,7 @@ def _stage2_at(
                 hand, eye, offset, lin_c, pairs_c, cfg, Findings()
             )
     except HandeyeError as err:
-        run.notes.append(
+        run.note(
             f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
         )
         nan = float('nan')
@@ -306,11 +307,9 @@ def seed_check(
     try:
         other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
-        run.reasons.append(seed_failed(cfg.seed + 1, str(err)))
+        run.record(SeedFailed(cfg.seed + 1, str(err)))
         return None
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
-    doubt = seed_reason(cfg.seed + 1, d_rot, d_t, None if batch is None else batch.std)
-    if doubt is not None:
-        run.reasons.append(doubt)
+    run.record(SeedCompared(cfg.seed + 1, d_rot, d_t, None if batch is None else batch.std))
     return other

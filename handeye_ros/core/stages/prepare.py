@@ -52,7 +52,7 @@ def prepare_streams(
     note = epoch_note(hand, eye)
     if note:
         run.warnings.append(note)
-        run.notes.append(note)
+        run.note(note)
     if is_keyframe_only(eye):
         eye = replace(eye, keyframes=True)
         step = np.diff(eye.t_ns) * 1e-9
@@ -63,7 +63,7 @@ def prepare_streams(
             'correlation; no vector refinement and no drift windows'
         )
         run.warnings.append(note)
-        run.notes.append(note)
+        run.note(note)
     return hand, eye
 
 

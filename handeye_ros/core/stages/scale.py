@@ -58,7 +58,7 @@ def fold_linear_scale(
         std = lin.scale_std * model.scale if np.isfinite(lin.scale_std) else np.inf
         return eye, replace(model, scale_std=max(std, model.scale_std))
     if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
-        run.notes.append(
+        run.note(
             f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
             f"the translation refit's {lin.scale:.4f} (relative to the first "
             'estimate)'

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.batch.joint_jacobian import joint_jacobian
 from handeye_ros.core.batch.refine import BatchError, refine
+from handeye_ros.core.checks.verdict import judged
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.pipeline import calibrate
@@ -143,14 +144,15 @@ def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
     assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m < 0.01
     run = Findings()
     assert check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
-    assert not run.reasons and any('supports it' in n for n in run.notes)
+    said = judged(run)
+    assert not said.reasons and any('supports it' in n for n in said.notes)
     # a batch solution far off a good linear result is refused
     bad_sol = replace(sol, q_HE=q_bad, p_HE=bad_lin.p_HE)
     run = Findings()
     assert (
         check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(), run) is None
     )
-    assert [r.code for r in run.reasons] == ['stages_disagree']
+    assert judged(run).codes == ('stages_disagree',)
 
 
 @pytest.mark.parametrize(

@@ -57,10 +57,13 @@ inconsistent                failed     AX = XB does not hold: over the keyframe 
 ==========================  =========  =================================================
 
 The words (:class:`Verdict`, :class:`Code`, :data:`SEVERITY`, the thresholds, :class:`Reason`,
-:class:`Quality`) are in :mod:`.codes`. Most rules run at the end (:mod:`.final`: :func:`assess`,
-:func:`assess_model`); those met while a stage runs (scale, clock_drift, seed_dependent,
-stages_disagree, the self-check's tie) are in :mod:`.during`, which the stages call. ``unobservable`` and a failed
-rerun are said where the stage finds them: they have no threshold.
+:class:`Quality`) are in :mod:`.codes`. Facts in, verdict out: a stage records what it measured
+or met as a fact (:mod:`.facts`: a scale or a drift measured, a rerun with the next seed, the
+batch stage's move the self-check did not support, a reading corrected, a drift it could not
+observe) and never makes a reason; :mod:`.during` says what each fact means (:func:`read`) and
+holds the decisions a stage needs to go on (the batch stage's move, the self-check's tie, a
+scale that keeps the eye whole); :mod:`.final` holds the rules judged on the finished run
+(:func:`assess`, :func:`assess_model`) and the verdict they end in (:func:`judged`).
 
 A rig of many recordings (:mod:`..shared`) has its own verdict, from its own rules
 (:mod:`.rig`: :func:`assess_rig`; the groups are :mod:`..consistency`'s):
@@ -118,12 +121,15 @@ from .during import (
     batch_moved,
     batch_supported,
     convention_corrected,
+    drift_constant_note,
     drift_message,
     drift_reason,
     drift_significant,
     drift_threshold_sigmas,
     drift_unobservable,
     judge_tie,
+    read,
+    scale_doubtful,
     scale_message,
     scale_reason,
     scale_uncertainty_note,
@@ -131,9 +137,19 @@ from .during import (
     seed_reason,
     stages_disagree,
 )
+from .facts import (
+    ConventionCorrected,
+    DriftMeasured,
+    DriftUnobservable,
+    ScaleMeasured,
+    SeedCompared,
+    SeedFailed,
+    StagesDisagree,
+)
 from .final import (
     assess,
     assess_model,
+    judged,
     motion_inconsistency,
     precision_ratio,
     precision_ratios,
@@ -168,9 +184,16 @@ __all__ = [
     'WEAK_CORRELATION',
     'WEAK_EXCITATION_DEG',
     'Code',
+    'ConventionCorrected',
+    'DriftMeasured',
+    'DriftUnobservable',
     'Findings',
     'Quality',
     'Reason',
+    'ScaleMeasured',
+    'SeedCompared',
+    'SeedFailed',
+    'StagesDisagree',
     'Verdict',
     'assess',
     'assess_model',
@@ -178,15 +201,19 @@ __all__ = [
     'batch_moved',
     'batch_supported',
     'convention_corrected',
+    'drift_constant_note',
     'drift_message',
     'drift_reason',
     'drift_significant',
     'drift_threshold_sigmas',
     'drift_unobservable',
     'judge_tie',
+    'judged',
     'motion_inconsistency',
     'precision_ratio',
     'precision_ratios',
+    'read',
+    'scale_doubtful',
     'scale_message',
     'scale_reason',
     'scale_uncertainty_note',

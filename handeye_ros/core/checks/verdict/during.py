@@ -1,6 +1,7 @@
-"""The rules the stages meet as they run (a fit, a rerun, a comparison): each returns the reason
-(or the decision) the stage adds to the run's findings; the rules of :mod:`.final` run once, at
-the end."""
+"""The rules of what the stages meet as they run (a fit, a rerun, a comparison): the decisions a
+stage needs to go on (:func:`batch_moved`, :func:`batch_supported`, :func:`judge_tie`,
+:func:`scale_doubtful`), and :func:`read`, which says what each fact a stage recorded
+(:mod:`.facts`) means for the verdict. The rules of :mod:`.final` run once, at the end."""
 
 from __future__ import annotations
 
@@ -24,6 +25,15 @@ from .codes import (
     Findings,
     Reason,
     say,
+)
+from .facts import (
+    ConventionCorrected,
+    DriftMeasured,
+    DriftUnobservable,
+    ScaleMeasured,
+    SeedCompared,
+    SeedFailed,
+    StagesDisagree,
 )
 
 if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math
@@ -136,7 +146,7 @@ def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
         for c in scored
     )
     if len(tied) == 1:
-        run.notes.append(
+        run.note(
             f'self-check over the candidate offsets {text}: '
             f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
         )
@@ -235,3 +245,51 @@ def stages_disagree(what: str, failed: str | None = None, scored: list | None = 
         + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
         + '), which is kept',
     )
+
+
+def scale_doubtful(fit: ScaleFit, precision_m: float) -> bool:
+    """Whether the scale measured without estimate_scale is a reason (:func:`scale_reason`):
+    stage 2 then leaves the eye whole (its motion disagrees with the hand's everywhere by one
+    factor, and splitting it at "breaks" would only hide that)."""
+    return scale_reason(fit, precision_m) is not None
+
+
+def drift_constant_note(fit: DriftFit) -> str | None:
+    """The note of a drift measured and not significant (None when it was not measured)."""
+    if not fit.estimated:
+        return None
+    return (
+        f'the offset measured in {int(fit.inliers.sum())} windows along '
+        f'the recording is constant within its uncertainty (drift '
+        f'{fit.drift * 1e6:+.1f} +- {fit.drift_std * 1e6:.1f} ppm)'
+    )
+
+
+def read(entry: object) -> tuple[Reason | None, str | None]:
+    """What a fact of the stages means for the verdict: (a reason or None, a note or None); a
+    reason made on the way reads as itself."""
+    if isinstance(entry, Reason):
+        return entry, None
+    if isinstance(entry, ConventionCorrected):
+        return convention_corrected(entry.message), None
+    if isinstance(entry, ScaleMeasured):
+        reason = scale_reason(entry.fit, entry.precision_m)
+        if reason is not None or not entry.fit.clear:
+            return reason, None
+        return None, scale_message(entry.fit)  # named, but it costs less than the precision
+    if isinstance(entry, DriftMeasured):
+        reason = drift_reason(entry.fit)
+        return (reason, None) if reason is not None else (None, drift_constant_note(entry.fit))
+    if isinstance(entry, DriftUnobservable):
+        return drift_unobservable(entry.why), None
+    if isinstance(entry, SeedFailed):
+        return seed_failed(entry.seed, entry.error), None
+    if isinstance(entry, SeedCompared):
+        return seed_reason(
+            entry.seed, entry.rotation_deg, entry.translation_m, entry.batch_std
+        ), None
+    if isinstance(entry, StagesDisagree):
+        scored = None if entry.scored is None else list(entry.scored)
+        return stages_disagree(entry.what, entry.failed, scored), None
+    msg = f'not a fact of the stages: {entry!r}'
+    raise TypeError(msg)

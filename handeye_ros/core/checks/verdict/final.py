@@ -1,6 +1,7 @@
-"""The rules judged once a run is finished (:func:`assess`, :func:`assess_model`), and the one
-"precise enough" rule (:func:`precision_ratio`) the verdict, the readiness and the node's auto
-mode share."""
+"""The rules judged once a run is finished (:func:`assess`, :func:`assess_model`), the verdict
+they end in (:func:`judged`: every fact the stages recorded read, with these rules' reasons),
+and the one "precise enough" rule (:func:`precision_ratio`) the verdict, the readiness and the
+node's auto mode share."""
 
 from __future__ import annotations
 
@@ -20,9 +21,11 @@ from .codes import (
     WEAK_EXCITATION_DEG,
     Code,
     Findings,
+    Quality,
     Reason,
     say,
 )
+from .during import read
 
 if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math
     from ...batch.refine import BatchSolution
@@ -58,9 +61,7 @@ def assess(
                 f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
             )
         elif rep.n_removed:
-            run.notes.append(
-                f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses'
-            )
+            run.note(f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses')
     checked = any(c.chosen for c in run.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
         say(
@@ -134,7 +135,7 @@ def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
 ) -> None:
     """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
-    if cfg.batch and batch is None and not any(r.code == Code.UNOBSERVABLE for r in run.reasons):
+    if cfg.batch and batch is None and Code.UNOBSERVABLE not in reasons_so_far(run):
         say(
             run,
             Code.NO_UNCERTAINTY,
@@ -179,7 +180,7 @@ def _assess_consistency(m: Metrics, run: Findings) -> None:
     """AX = XB at the result, over the keyframe motions: failing it fails the result."""
     reason = motion_inconsistency(m)
     if reason is not None:
-        run.reasons.append(reason)
+        run.record(reason)
 
 
 def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None:
@@ -229,3 +230,21 @@ def assess_model(
                 f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
                 f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
             )
+
+
+def reasons_so_far(run: Findings) -> set[Code]:
+    """The codes of the reasons the run's facts make so far."""
+    return {r.code for r in (read(e)[0] for e in run.log if not isinstance(e, str)) if r}
+
+
+def judged(run: Findings) -> Quality:
+    """The verdict of a finished run: every fact read into its reason or note, in the order
+    found, beside the notes the stages wrote."""
+    reasons, notes = [], []
+    for entry in run.log:
+        reason, note = (None, entry) if isinstance(entry, str) else read(entry)
+        if reason is not None:
+            reasons.append(reason)
+        if note is not None:
+            notes.append(note)
+    return Quality.from_reasons(reasons, notes)

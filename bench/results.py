@@ -1,8 +1,9 @@
-"""Regenerate the figures of bench/RESULTS.md from the benchmarks' outputs (one command).
+"""Regenerate the figures of bench/RESULTS.md and bench/results/*.md from the benchmarks' outputs
+(one command).
 
-RESULTS.md is prose around tables. Every table a benchmark prints is kept in bench/out/NAME.txt
-with its provenance line (commit, versions, seeds; common.emit), and RESULTS.md holds a copy of
-it between two markers::
+RESULTS.md says where each figure stands; bench/results/TOPIC.md holds the tables behind it.
+Every table a benchmark prints is kept in bench/out/NAME.txt with its provenance line (commit,
+versions, seeds; common.emit), and the topic files hold a copy of it between two markers::
 
     <!-- bench: NAME -->
     ```text
@@ -35,6 +36,8 @@ from pathlib import Path
 BENCH = Path(__file__).resolve().parent
 OUT = BENCH / 'out'
 RESULTS = BENCH / 'RESULTS.md'
+#: The files whose generated blocks are refilled: the summary and the topics.
+DOCUMENTS = [RESULTS, *sorted((BENCH / 'results').glob('*.md'))]
 
 #: Name -> (benchmark script, its arguments for the figures in RESULTS.md, the outputs it
 #: writes, roughly how long it runs on the 2-core reference machine).
@@ -172,17 +175,22 @@ def main(argv: list[str] | None = None) -> int:
         for name in a.only or list(BENCHMARKS):
             print(f'== {name}', flush=True)
             print(f'== {name}: {run(name):.0f} s', flush=True)
-    text = RESULTS.read_text()
-    names = blocks(text)
-    new, changed, missing = refill(text, read_outputs(names))
+    names, changed, missing = [], [], []
+    for doc in DOCUMENTS:
+        text = doc.read_text()
+        found = blocks(text)
+        new, changed_here, missing_here = refill(text, read_outputs(found))
+        names += found
+        changed += changed_here
+        missing += missing_here
+        if changed_here and not a.check:
+            doc.write_text(new)
     for name in missing:
         print(f'no bench/out/{name}.txt: block left as it was', file=sys.stderr)
     if a.check:
         for name in changed:
-            print(f'RESULTS.md block {name} differs from bench/out/{name}.txt', file=sys.stderr)
+            print(f'the block {name} differs from bench/out/{name}.txt', file=sys.stderr)
         return 1 if changed else 0
-    if changed:
-        RESULTS.write_text(new)
     print(
         f'{len(names)} generated blocks; {len(changed)} refilled'
         + (': ' + ', '.join(changed) + ' (re-read the prose around them)' if changed else '')

@@ -247,14 +247,14 @@ def _bench_results():
 
 
 def test_results_md_figures_come_from_registered_benchmarks() -> None:
-    """Every generated block of bench/RESULTS.md names an output that a benchmark of
-    bench/results.py writes, and a refill replaces a block's body and nothing else."""
+    """Every generated block of bench/RESULTS.md and bench/results/*.md names an output that a
+    benchmark of bench/results.py writes, and a refill replaces a block's body and nothing
+    else."""
     import fnmatch
 
     res = _bench_results()
-    text = (ROOT / 'bench' / 'RESULTS.md').read_text()
-    names = res.blocks(text)
-    assert names, 'RESULTS.md has no generated block'
+    names = [n for doc in res.DOCUMENTS for n in res.blocks(doc.read_text())]
+    assert names, 'bench/results/ has no generated block'
     patterns = [o for _, _, outs, _ in res.BENCHMARKS.values() for o in outs]
     for name in names:
         assert any(fnmatch.fnmatch(name, p) for p in patterns), name
@@ -413,3 +413,12 @@ def test_facts_in_verdict_out() -> None:
                 held.append(f'{path.name}:{node.lineno}')
     assert not taken, taken
     assert not held, held
+
+
+def test_results_md_is_the_summary() -> None:
+    """bench/RESULTS.md says where each figure stands in under 600 lines, and links every
+    topic file of bench/results/ (the tables behind it)."""
+    text = (ROOT / 'bench' / 'RESULTS.md').read_text()
+    assert len(text.splitlines()) < 600
+    for topic in sorted((ROOT / 'bench' / 'results').glob('*.md')):
+        assert f'(results/{topic.name})' in text, topic.name

@@ -158,32 +158,15 @@ def refine(
         )
     hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, knot_spacing, order)
     check_hand_rate(hand, knot_spacing, joint)
-    prob = BatchProblem(
-        hand,
-        eye,
-        time_offset_s,
-        q_HE,
-        p_HE,
-        knot_spacing,
-        order,
-        drift_stamp_ns,
-        scale,
-        pieces,
-        spline,
-    )
+    start = (time_offset_s, q_HE, p_HE)
+    model = (knot_spacing, order, drift_stamp_ns, scale)
+    prob = BatchProblem(hand, eye, *start, *model, pieces, spline)
     layout = ParameterLayout.of(prob, fix_time_offset)
     hn = _hand_noise(prob, hand_noise, joint)
     if joint:
+        noise = (hn, hand_noise, eye_noise)
         solved = solve_joint(
-            prob,
-            layout,
-            hn,
-            hand_noise,
-            eye_noise,
-            huber_delta,
-            max_iterations,
-            fix_time_offset,
-            decoupled,
+            prob, layout, *noise, huber_delta, max_iterations, fix_time_offset, decoupled
         )
         y = prob.unpack(solved.x)[1]
     else:

@@ -154,16 +154,8 @@ def solve_joint(
     steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,
     then (control poses, dt, translation) on all rows. Two passes when a noise is estimated.
     """
-    ns, nh = prob.n_spline, 6 * prob.th.size
-    free = np.ones(prob.n, bool)
-    if fix_time_offset:
-        free[ns] = False
-    theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
-    theta[ns + 1 : ns + 4], trans[ns + 4 :] = True, True
-    m = nh + 6 * prob.ei.size
-    all_rows = np.ones(m, bool)
-    rot_rows = all_rows.copy()
-    rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
+    free, rot_rows, theta, trans = _joint_masks(prob, fix_time_offset)
+    all_rows = np.ones(rot_rows.size, bool)
     steps = (
         [(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled else [(free, all_rows)]
     )
@@ -197,16 +189,22 @@ def solve_joint(
     cov = joint_covariance(prob, weights, x, f, free, rot_rows, theta, trans, delta, decoupled)
     lr = joint_long_run(prob, weights, x, cov, layout, delta, decoupled)
     cost_before = huber_cost(prob.residuals(np.zeros(prob.n), weights), delta)
-    return Solve(
-        x,
-        cost_before,
-        huber_cost(f, delta),
-        hn,
-        en,
-        weights,
-        cov,
-        lr,
-        f.size,
-        int(free.sum()),
-        report,
-    )
+    cost_after, n_free = huber_cost(f, delta), int(free.sum())
+    return Solve(x, cost_before, cost_after, hn, en, weights, cov, lr, f.size, n_free, report)
+
+
+def _joint_masks(
+    prob: BatchProblem, fix_time_offset: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The joint solve's masks: the free parameters (control poses, dt unless fixed, T_HE), the
+    rows of its rotation step (the MoCap's and the eye's rotation rows), and which parameters
+    are the rotation and the translation of T_HE."""
+    ns, nh = prob.n_spline, 6 * prob.th.size
+    free = np.ones(prob.n, bool)
+    if fix_time_offset:
+        free[ns] = False
+    theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
+    theta[ns + 1 : ns + 4], trans[ns + 4 :] = True, True
+    rot_rows = np.ones(nh + 6 * prob.ei.size, bool)
+    rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
+    return free, rot_rows, theta, trans

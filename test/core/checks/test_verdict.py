@@ -163,3 +163,27 @@ def test_result_dict_carries_the_verdict_and_the_checks() -> None:
     assert d['std']['method'].startswith('long-run') and len(d['std']['white_inflation']) == 7
     assert isinstance(d['time_offset_ns'], int)
     assert d['metrics']['motion_rotation_median'] < 0.5
+
+
+def test_the_verdict_reads_the_stages_facts_in_the_order_found() -> None:
+    """Facts in, verdict out: each fact a stage records reads into its reason (or nothing), the
+    notes keep their places among them, and a fact the verdict does not know is an error, not
+    a silent pass."""
+    from handeye_ros.core.checks import verdict
+    from handeye_ros.core.stages.findings import Findings
+
+    run = Findings()
+    run.note('first note')
+    run.record(verdict.SeedCompared(1, 0.01, 0.001, None))  # within the limits: nothing
+    run.record(verdict.StagesDisagree('the batch stage moved dt by 5 ms', failed='no motions'))
+    run.note('second note')
+    run.record(verdict.DriftUnobservable(None))
+    run.record(verdict.SeedFailed(1, 'no consensus'))
+    run.corrected([])  # nothing corrected: nothing recorded
+    said = verdict.judged(run)
+    assert said.codes == ('stages_disagree', 'unobservable', 'seed_dependent')
+    assert said.notes == ('first note', 'second note')
+    assert said.verdict == Verdict.DOUBTFUL
+    assert 'stage 2 fails at its offset (no motions)' in said.reasons[0].message
+    with pytest.raises(TypeError, match='not a fact'):
+        verdict.read(object())

@@ -10,7 +10,8 @@ recordings need around it (:mod:`..checks`), in :func:`..pipeline.calibrate`'s o
 - :mod:`.linear`: stage 2 with the eye's breaks, the vector refinement of the offset, the
   self-check over the candidate offsets and the seed check;
 - :mod:`.batch`: stage 3 from stage 2's answer, checked against it, with its uncertainty;
-- :mod:`.findings`: what they learn on the way, for the result and the verdict.
+- :mod:`.findings`: what they learn on the way, for the result and the verdict: notes, and
+  facts (:mod:`..checks.verdict.facts`) that only the verdict reads into reasons.
 
 The math below never imports these, nor the checks; only these call the checks.
 """

@@ -5,6 +5,7 @@ reasons, the content-hash cache, and a worker killed mid-run on a real LocalClus
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 import subprocess
@@ -200,7 +201,6 @@ def _dask_cluster(tmp: Path, preload: Path | None = None):
     """A scheduler and a one-process worker started as a user would, from this venv's ``dask``
     command on loopback (with ``preload`` in both when given); yields the address."""
     import contextlib
-    import json
 
     dask = Path(sys.executable).with_name('dask')
     if not dask.is_file():
@@ -232,10 +232,13 @@ def _dask_cluster(tmp: Path, preload: Path | None = None):
             )
         ]
         try:
+            # the scheduler creates its file, then writes it: wait for what it says, not for
+            # the file to exist (an empty file was read once in a loaded CI run)
             deadline = time.monotonic() + 60
-            while not info.is_file() and time.monotonic() < deadline:
+            while _said_address(info) is None and time.monotonic() < deadline:
                 time.sleep(0.1)
-            address = json.loads(info.read_text())['address']
+            address = _said_address(info)
+            assert address is not None, f'the scheduler wrote no address in {info} within 60 s'
             procs.append(
                 subprocess.Popen(
                     [
@@ -323,3 +326,12 @@ def test_cluster_that_cannot_import_the_package_is_named(tmp_path: Path) -> None
         and 'cannot run handeye_ros' in line
     )
     assert 'its scheduler' in line and '1 of its 1 workers' in line and 'pip install -e' in line
+
+
+def _said_address(info: Path) -> str | None:
+    """The scheduler's address from its file, or None while the file is absent or not yet
+    whole."""
+    try:
+        return json.loads(info.read_text())['address']
+    except (OSError, ValueError, KeyError):
+        return None

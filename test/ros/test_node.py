@@ -750,12 +750,18 @@ def test_auto_types_lose_nothing(
     )
     answer = _call(ros, '/calibrator/calibrate', '/calibrator/save', name='auto_call')
     assert answer[0]['success'] and answer[1]['success'], answer
-    streams = yaml.safe_load(saved.read_text())['streams']
+    doc = yaml.safe_load(saved.read_text())
+    streams = doc['streams']
     received = {s: streams[s]['received'] for s in ('hand', 'eye')}
     assert ros.stop(node) == 0
     log = ros.output(node)[1]
     if received != pub['sent']:  # the node's log whole: an assert's message is cut short
-        pytest.fail(f'received {received}, sent {pub["sent"]}; the node said:\n{log[-6000:]}')
+        # where the poses went missing: a later first stamp or an earlier last one (the span,
+        # against the 10 s sent) says the start or the end, a full span the middle
+        pytest.fail(
+            f'received {received}, sent {pub["sent"]}; buffered {doc["inputs"]}, '
+            f'{streams}; the node said:\n{log[-6000:]}'
+        )
     assert {s: streams[s]['type'] for s in received} == pub['types']
     if types == 'likeliest':
         assert log.count('as subscribed from the start') == 2, log

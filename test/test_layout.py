@@ -347,12 +347,9 @@ LONG_FUNCTIONS = {
     'app/offline_options.py:build_parser': 'argparse builder',
     'app/evaluate.py:build_parser': 'argparse builder',
     'ros/sim_options.py:parser': 'argparse builder',
-    # numerical kernels, whose steps share too many arrays to part
+    # dense Jacobian algebra, whose steps share too many arrays to part
     'core/linear/refits.py:degenerate_refit': 'one-axis algebra (the null space, what it fixes)',
     'core/batch/covariance.py:eye_covariance': 'Jacobian sums and their long-run terms',
-    'core/batch/solver.py:levenberg_marquardt_sparse': 'the sparse solver loop',
-    # 13 keyword options, each documented; the body is 30 lines
-    'core/batch/refine.py:refine': "stage 3's entry point",
 }
 
 

@@ -46,7 +46,7 @@ from .solver import SolverReport
 from .solves import Solve, solve_joint, solve_offset_extrinsic
 from .spline import PoseSpline
 
-__all__ = ['BatchError', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
+__all__ = ['BatchError', 'BatchOptions', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
 
 
 @dataclass(frozen=True)
@@ -105,44 +105,50 @@ class BatchSolution:
         return np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
 
 
+@dataclass(frozen=True)
+class BatchOptions:
+    """How stage 3 solves (the defaults are :class:`~handeye_ros.core.config.CalibrationConfig`'s).
+
+    knot_spacing (s) and order: the hand's spline. hand_noise / eye_noise: (rotation rad,
+    translation m) per axis of each MoCap pose / of the eye's relative poses between
+    consecutive frames; None estimates it from the data's own residuals. huber_delta, in
+    sigmas; max_iterations of the solver. ``joint`` also frees the spline's control poses (the
+    full problem of eq. 15, analytic sparse Jacobian and sparse direct solve; slower, and the
+    same answer while the MoCap is much less noisy than the VIO). fix_time_offset: dt held at
+    its start. decoupled: rotation then translation (:func:`.solves.solve_offset_extrinsic`).
+    drift_stamp_ns: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns) with t
+    the eye's stamps (:mod:`.time.clock`); scale: also a factor on the eye's translations. Both
+    are corrections to what the eye already has (0 and 1 to start), and only the default (not
+    the joint) solve estimates them.
+    """
+
+    knot_spacing: float = 0.05
+    order: int = 4
+    hand_noise: tuple[float | None, float | None] = (None, None)
+    eye_noise: tuple[float | None, float | None] = (None, None)
+    huber_delta: float = 1.345
+    max_iterations: int = 50
+    joint: bool = False
+    fix_time_offset: bool = False
+    decoupled: bool = True
+    drift_stamp_ns: int | None = None
+    scale: bool = False
+
+
 def refine(
     hand: Trajectory,
     eye: Trajectory,
     time_offset_s: float,
     q_HE: np.ndarray,
     p_HE: np.ndarray,
-    *,
-    knot_spacing: float = 0.05,
-    order: int = 4,
-    hand_noise: tuple[float | None, float | None] = (None, None),
-    eye_noise: tuple[float | None, float | None] = (None, None),
-    huber_delta: float = 1.345,
-    max_iterations: int = 50,
-    joint: bool = False,
-    fix_time_offset: bool = False,
-    decoupled: bool = True,
-    drift_stamp_ns: int | None = None,
-    scale: bool = False,
+    options: BatchOptions | None = None,
     spline: PoseSpline | None = None,
 ) -> BatchSolution:
-    """Refine dt and T_HE from the linear result (see the module docstring).
-
-    By default the spline is fitted to the hand and (dt, T_HE) are then solved on the eye
-    residuals; ``joint`` also frees the spline's control poses (the full problem of eq. 15,
-    analytic sparse Jacobian and sparse direct solve; slower, and the same answer while the
-    MoCap is much less noisy than the VIO).
-
-    ``hand_noise`` / ``eye_noise``: (rotation rad, translation m) per axis of each MoCap pose /
-    of the eye's relative poses between consecutive frames; None estimates it from the data's
-    own residuals.
-
-    ``drift_stamp_ns``: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns)
-    with t the eye's stamps (:mod:`.time.clock`); ``scale``: also a factor on the eye's
-    translations. Both are corrections to what the eye already has (0 and 1 to start), and
-    only the default (not the joint) solve estimates them.
+    """Refine dt and T_HE from the linear result (see the module docstring), as ``options``
+    say (default: :class:`BatchOptions`'s).
 
     ``spline``: the hand's spline from an earlier solve on the same hand with the same
-    ``knot_spacing`` and ``order`` (:attr:`BatchSolution.spline`): the fit is not repeated.
+    knot spacing and order (:attr:`BatchSolution.spline`): the fit is not repeated.
 
     Raises
     ------
@@ -150,32 +156,33 @@ def refine(
         When the input cannot support the stage (overlap too short, no gap-free part of the
         hand long enough for a spline).
     """
+    o = options or BatchOptions()
     t_start = time.perf_counter()
-    if joint and (drift_stamp_ns is not None or scale):
+    if o.joint and (o.drift_stamp_ns is not None or o.scale):
         raise BatchError(
             'the joint solve (batch_joint) does not estimate a clock drift or a '
             'scale; leave batch_joint off to estimate them'
         )
-    hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, knot_spacing, order)
-    check_hand_rate(hand, knot_spacing, joint)
+    hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, o.knot_spacing, o.order)
+    check_hand_rate(hand, o.knot_spacing, o.joint)
     start = (time_offset_s, q_HE, p_HE)
-    model = (knot_spacing, order, drift_stamp_ns, scale)
+    model = (o.knot_spacing, o.order, o.drift_stamp_ns, o.scale)
     prob = BatchProblem(hand, eye, *start, *model, pieces, spline)
-    layout = ParameterLayout.of(prob, fix_time_offset)
-    hn = _hand_noise(prob, hand_noise, joint)
-    if joint:
-        noise = (hn, hand_noise, eye_noise)
+    layout = ParameterLayout.of(prob, o.fix_time_offset)
+    hn = _hand_noise(prob, o.hand_noise, o.joint)
+    if o.joint:
+        noise = (hn, o.hand_noise, o.eye_noise)
         solved = solve_joint(
-            prob, layout, *noise, huber_delta, max_iterations, fix_time_offset, decoupled
+            prob, layout, *noise, o.huber_delta, o.max_iterations, o.fix_time_offset, o.decoupled
         )
         y = prob.unpack(solved.x)[1]
     else:
         solved = solve_offset_extrinsic(
-            prob, layout, hn, eye_noise, huber_delta, max_iterations, decoupled
+            prob, layout, hn, o.eye_noise, o.huber_delta, o.max_iterations, o.decoupled
         )
         y = solved.x
     return _solution(
-        prob, solved, y, decoupled, drift_stamp_ns, piece_note, time.perf_counter() - t_start
+        prob, solved, y, o.decoupled, o.drift_stamp_ns, piece_note, time.perf_counter() - t_start
     )
 
 

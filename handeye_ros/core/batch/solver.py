@@ -142,21 +142,16 @@ def levenberg_marquardt_sparse(
     no curvature; the damping follows the gain ratio (Nielsen), so a step the model mispredicts
     is retried shorter.
     ``residuals(x)``, ``jacobian(x)``: the weighted residuals and their sparse Jacobian;
-    ``free``: the parameters it moves; ``rows``: the residual rows it minimises.
-    Returns (x, report).
+    ``free``: the parameters it moves; ``rows``: the residual rows it minimises. Returns (x,
+    report).
     """
     f = residuals(x)[rows]
     cost = huber_cost(f, delta)
     lam, nu, nfev, njev = LM_LAMBDA0, 2.0, 1, 0
     message, success = 'maximum number of iterations reached', False
     for _ in range(max_iterations):
-        J = jacobian(x)[rows][:, free]
+        A, g, D = _huber_normal(jacobian(x)[rows][:, free], f, delta)
         njev += 1
-        # Newton on the Huber cost: rows beyond delta add no curvature, only a clipped gradient
-        inner = (np.abs(f) <= delta).astype(float)
-        A = (J.T @ diags(inner) @ J).tocsc()
-        g = J.T @ np.clip(f, -delta, delta)
-        D = diags(np.maximum(np.asarray(J.multiply(J).sum(axis=0)).ravel(), 1e-12))
         while True:
             # the parameters are in time order with (dt, T_HE) last: the normal matrix is
             # banded with a 7-wide border, which factors without fill outside them as it is
@@ -176,8 +171,7 @@ def levenberg_marquardt_sparse(
         if cost_new > cost:  # no step lowers the cost: at the optimum to the Jacobian's accuracy
             message, success = 'no step lowers the cost any further', True
             break
-        # Nielsen's damping update from the gain ratio (actual over predicted decrease)
-        decrease = cost - cost_new
+        decrease = cost - cost_new  # Nielsen's damping from the gain ratio
         rho = decrease / predicted if predicted > 0 else 0.0
         lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN)
         nu = 2.0
@@ -186,6 +180,17 @@ def levenberg_marquardt_sparse(
             message, success = 'relative cost change below tolerance', True
             break
     return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
+
+
+def _huber_normal(J: csr_matrix, f: np.ndarray, delta: float) -> tuple:
+    """The Newton model of the Huber cost at residuals f with Jacobian J: (A, g, D), the normal
+    matrix (rows beyond delta add no curvature), the gradient (their residuals clipped to
+    +-delta) and Marquardt's diagonal scaling."""
+    inner = (np.abs(f) <= delta).astype(float)
+    A = (J.T @ diags(inner) @ J).tocsc()
+    g = J.T @ np.clip(f, -delta, delta)
+    D = diags(np.maximum(np.asarray(J.multiply(J).sum(axis=0)).ravel(), 1e-12))
+    return A, g, D
 
 
 def normal_sums(

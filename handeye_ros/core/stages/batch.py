@@ -20,7 +20,7 @@ from ..batch.correlated import (
     inflated,
     scale_term,
 )
-from ..batch.refine import BatchSolution, refine
+from ..batch.refine import BatchOptions, BatchSolution, refine
 from ..checks.selfcheck import score_candidates
 from ..checks.verdict import (
     StagesDisagree,
@@ -106,26 +106,12 @@ def run_batch(
     """The batch refinement, or None and why it was not used (never raises). It estimates a
     clock drift when one was estimated before it, and a scale when asked."""
     try:
-        sol = refine(
-            hand,
-            eye,
-            dt,
-            q_HE,
-            p_HE,
-            knot_spacing=cfg.knot_spacing,
-            order=cfg.spline_order,
-            hand_noise=(cfg.hand_noise_rotation, cfg.hand_noise_translation),
-            eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
-            huber_delta=cfg.huber_delta,
-            max_iterations=cfg.batch_max_iterations,
-            joint=cfg.batch_joint,
-            fix_time_offset=cfg.time_offset is not None,
-            decoupled=cfg.batch_decoupled,
-            drift_stamp_ns=(
-                model.stamp_ns if model is not None and model.drift_estimated else None
-            ),
+        options = replace(
+            batch_options(cfg),
+            drift_stamp_ns=model.stamp_ns if model is not None and model.drift_estimated else None,
             scale=cfg.estimate_scale and model is not None and model.scale_observable,
         )
+        sol = refine(hand, eye, dt, q_HE, p_HE, options)
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:
@@ -282,23 +268,14 @@ def _aux(
     with its noise (the default solve, as the estimate's; the noise is not measured again: the
     long-run covariance does not depend on the weights' scale), or None."""
     try:
-        sol = refine(
-            hand,
-            _decimated(eye),
-            of.time_offset_s,
-            of.q_HE,
-            of.p_HE,
-            knot_spacing=cfg.knot_spacing,
-            order=cfg.spline_order,
+        options = replace(
+            batch_options(cfg),
             hand_noise=(of.hand_noise.rotation, of.hand_noise.translation),
             eye_noise=(of.eye_noise.rotation, of.eye_noise.translation),
-            huber_delta=cfg.huber_delta,
-            max_iterations=cfg.batch_max_iterations,
-            fix_time_offset=cfg.time_offset is not None,
-            decoupled=cfg.batch_decoupled,
+            joint=False,
             scale=scale,
-            spline=of.spline,
         )
+        sol = refine(hand, _decimated(eye), *_start(of), options, spline=of.spline)
     except (HandeyeError, ValueError, np.linalg.LinAlgError, RuntimeError):
         return None
     return sol if np.all(np.isfinite(sol.covariance)) else None
@@ -328,3 +305,24 @@ def _scale(
     shift = _deviation(free, fixed)
     term = scale_term(fixed.covariance[:7, :7], free.covariance[:7, :7], shift)
     return (float(free.scale), float(free.std[-1]), shift), term
+
+
+def batch_options(cfg: CalibrationConfig) -> BatchOptions:
+    """Stage 3's options from the run's configuration (no drift, no scale: the callers add
+    what the run estimates)."""
+    return BatchOptions(
+        knot_spacing=cfg.knot_spacing,
+        order=cfg.spline_order,
+        hand_noise=(cfg.hand_noise_rotation, cfg.hand_noise_translation),
+        eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
+        huber_delta=cfg.huber_delta,
+        max_iterations=cfg.batch_max_iterations,
+        joint=cfg.batch_joint,
+        fix_time_offset=cfg.time_offset is not None,
+        decoupled=cfg.batch_decoupled,
+    )
+
+
+def _start(of: BatchSolution) -> tuple[float, np.ndarray, np.ndarray]:
+    """(dt, q_HE, p_HE) of a solution, to start a refit from."""
+    return of.time_offset_s, of.q_HE, of.p_HE

@@ -11,7 +11,7 @@ import pytest
 from conftest import REAL_DATA, ROOT, recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch.refine import refine
+from handeye_ros.core.batch.refine import BatchOptions, refine
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
 from handeye_ros.core.linear.scale import dual_quaternion_scale, translation_and_scale
@@ -130,7 +130,14 @@ def test_joint_solve_does_not_pretend_to_estimate_a_scale() -> None:
     assert res.batch is None
     assert any('does not estimate a clock drift or a scale' in w for w in res.warnings)
     with pytest.raises(Exception, match='joint solve'):
-        refine(rec.hand, rec.eye, 0.0, rec.truth.q_HE, rec.truth.p_HE, joint=True, scale=True)
+        refine(
+            rec.hand,
+            rec.eye,
+            0.0,
+            rec.truth.q_HE,
+            rec.truth.p_HE,
+            BatchOptions(joint=True, scale=True),
+        )
 
 
 @pytest.mark.slow

@@ -165,25 +165,48 @@ def refine(
         )
     hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, o.knot_spacing, o.order)
     check_hand_rate(hand, o.knot_spacing, o.joint)
-    start = (time_offset_s, q_HE, p_HE)
-    model = (o.knot_spacing, o.order, o.drift_stamp_ns, o.scale)
-    prob = BatchProblem(hand, eye, *start, *model, pieces, spline)
-    layout = ParameterLayout.of(prob, o.fix_time_offset)
+    prob = BatchProblem(
+        hand,
+        eye,
+        time_offset_s,
+        q_HE,
+        p_HE,
+        o.knot_spacing,
+        o.order,
+        o.drift_stamp_ns,
+        o.scale,
+        pieces,
+        spline,
+    )
     hn = _hand_noise(prob, o.hand_noise, o.joint)
-    if o.joint:
-        noise = (hn, o.hand_noise, o.eye_noise)
-        solved = solve_joint(
-            prob, layout, *noise, o.huber_delta, o.max_iterations, o.fix_time_offset, o.decoupled
-        )
-        y = prob.unpack(solved.x)[1]
-    else:
-        solved = solve_offset_extrinsic(
-            prob, layout, hn, o.eye_noise, o.huber_delta, o.max_iterations, o.decoupled
-        )
-        y = solved.x
+    solved, y = _solve(prob, ParameterLayout.of(prob, o.fix_time_offset), hn, o)
     return _solution(
         prob, solved, y, o.decoupled, o.drift_stamp_ns, piece_note, time.perf_counter() - t_start
     )
+
+
+def _solve(
+    prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: BatchOptions
+) -> tuple[Solve, np.ndarray]:
+    """The joint solve or the default one, as ``o`` says: (the solve, y = (dt, dtheta_X, dp_X,
+    ...) at its solution)."""
+    if o.joint:
+        solved = solve_joint(
+            prob,
+            layout,
+            hn,
+            o.hand_noise,
+            o.eye_noise,
+            o.huber_delta,
+            o.max_iterations,
+            o.fix_time_offset,
+            o.decoupled,
+        )
+        return solved, prob.unpack(solved.x)[1]
+    solved = solve_offset_extrinsic(
+        prob, layout, hn, o.eye_noise, o.huber_delta, o.max_iterations, o.decoupled
+    )
+    return solved, solved.x
 
 
 def _hand_noise(

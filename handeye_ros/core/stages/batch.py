@@ -275,7 +275,9 @@ def _aux(
             joint=False,
             scale=scale,
         )
-        sol = refine(hand, _decimated(eye), *_start(of), options, spline=of.spline)
+        sol = refine(
+            hand, _decimated(eye), of.time_offset_s, of.q_HE, of.p_HE, options, spline=of.spline
+        )
     except (HandeyeError, ValueError, np.linalg.LinAlgError, RuntimeError):
         return None
     return sol if np.all(np.isfinite(sol.covariance)) else None
@@ -321,8 +323,3 @@ def batch_options(cfg: CalibrationConfig) -> BatchOptions:
         fix_time_offset=cfg.time_offset is not None,
         decoupled=cfg.batch_decoupled,
     )
-
-
-def _start(of: BatchSolution) -> tuple[float, np.ndarray, np.ndarray]:
-    """(dt, q_HE, p_HE) of a solution, to start a refit from."""
-    return of.time_offset_s, of.q_HE, of.p_HE

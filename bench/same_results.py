@@ -4,7 +4,9 @@ returns on a fixed set of cases, then compare another commit's numbers with them
 Cases: the built-in example (handeye_ros.app.demo's recording), the simulator at noise levels 0, 5
 and 10 with the default configuration and with each stage switch that takes another code path
 (linear only, the joint batch solve, clock drift, scale, the paper's dual-quaternion solution,
-no RANSAC), and the semi-synthetic real pairs of bench/realdata.py (skipped without the data).
+no RANSAC), 10 minutes of 1 kHz MoCap and 200 Hz VIO (the paths only long recordings take: eye
+pairs in several chunks, the caps on what the checks read), with and without a clock drift, and
+the semi-synthetic real pairs of bench/realdata.py (skipped without the data).
 
 Usage:
     python bench/same_results.py record FILE     # numbers of this tree, as JSON
@@ -48,6 +50,7 @@ VARIANTS = {
     'no_ransac': {'ransac_iterations': 0, 'batch': False},
 }
 DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/app/demo.py's defaults
+LONG_SEED, LONG_DURATION = 300, 600.0
 
 
 def cases():
@@ -61,6 +64,18 @@ def cases():
         rec = simulate(100 + level, duration_s=40.0, noise_m=nm, noise_deg=nd)
         for name, change in VARIANTS.items():
             yield f'sim L{level} {name}', rec.hand, rec.eye, replace(base, **change)
+    nm, nd = noise_level(5)
+    for name, drift in (('default', 0.0), ('drift', 5e-5)):
+        rec = simulate(
+            LONG_SEED,
+            duration_s=LONG_DURATION,
+            hand_rate_hz=1000.0,
+            eye_rate_hz=200.0,
+            noise_m=nm,
+            noise_deg=nd,
+            clock_drift=drift,
+        )
+        yield f'sim 1 kHz 10 min {name}', rec.hand, rec.eye, replace(base, **VARIANTS[name])
     if realdata.available():
         for pair in realdata.PAIRS:
             gt, est = realdata.load(pair)

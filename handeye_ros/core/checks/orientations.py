@@ -132,7 +132,11 @@ def reading_fits(
     if i.size < MIN_MOTIONS:
         return []
     fits = []
-    poses = {'hand': (base.R_GH, base.p_GH), 'eye': (base.R_WE, base.p_WE)}
+    # only the poses the motions start or end at are read (an hour of 200 Hz has 720 000
+    # associated poses, its keyframe motions some 40 000 ends)
+    ends = np.unique(np.concatenate((i, j)))
+    i, j = np.searchsorted(ends, i), np.searchsorted(ends, j)
+    poses = {'hand': (base.R_GH[ends], base.p_GH[ends]), 'eye': (base.R_WE[ends], base.p_WE[ends])}
     given = {name: relative(pose, i, j) for name, pose in poses.items()}
     for stream in ('hand', 'eye'):
         q = quat_from_matrix(poses[stream][0])

@@ -349,7 +349,6 @@ LONG_FUNCTIONS = {
     'ros/sim_options.py:parser': 'argparse builder',
     # dense Jacobian algebra, whose steps share too many arrays to part
     'core/linear/refits.py:degenerate_refit': 'one-axis algebra (the null space, what it fixes)',
-    'core/batch/covariance.py:eye_covariance': 'Jacobian sums and their long-run terms',
 }
 
 

@@ -38,63 +38,85 @@ def eye_covariance(
 ) -> tuple[np.ndarray, LongRunCovariance, float, int]:
     """(white covariance, long-run covariance (:mod:`.batch.long_run`), Huber cost, number of
     residuals) of the default solve at y, in the order of y (zero rows for a fixed dt), from
-    one pass over the eye pairs with their analytic Jacobian.
+    one pass over the eye pairs with their analytic Jacobian (:class:`CovarianceSums`)."""
+    sums = CovarianceSums(layout, delta, decoupled)
+    for r, J in weighted_eye_chunks(prob, weights, y):
+        sums.add(r, J)
+    return sums.result()
+
+
+class CovarianceSums:
+    """What :func:`eye_covariance` needs of the eye pairs at one y, summed a chunk at a time,
+    so that a solver's pass at the solution can gather it on the way (no pass of its own).
 
     The white covariance is ``s^2 (J^T J)^-1`` (for the two-step solve that of the two-step
     estimate, :func:`two_step_from_normals`); the long-run one comes from the per-pair
-    influences, whose sums are gathered a chunk at a time."""
-    free_all = layout.all
-    k = len(layout.time)
-    cost, n_res = 0.0, 0
-    g_parts: dict[str, list[np.ndarray]] = {'a': [], 'b': [], 'all': []}
-    sums: dict[str, np.ndarray] = {}
+    influences (:func:`.long_run.influence_sums`)."""
 
-    def add(name: str, value: np.ndarray) -> None:
-        sums[name] = sums[name] + value if name in sums else value
+    def __init__(self, layout: ParameterLayout, delta: float, decoupled: bool) -> None:
+        self.layout, self.delta, self.decoupled = layout, delta, decoupled
+        self.cost, self.n_res = 0.0, 0
+        self.g_parts: dict[str, list[np.ndarray]] = {'a': [], 'b': [], 'all': []}
+        self.sums: dict[str, np.ndarray] = {}
 
-    for r, J in weighted_eye_chunks(prob, weights, y):
-        cost += huber_cost(r, delta)
-        n_res += r.size
-        if decoupled:
+    def _add_sum(self, name: str, value: np.ndarray) -> None:
+        self.sums[name] = self.sums[name] + value if name in self.sums else value
+
+    def add(self, r: np.ndarray, J: np.ndarray) -> None:
+        """One chunk: weighted residuals r (n, 6) and their Jacobian J (n, 6, n_y)."""
+        layout, delta = self.layout, self.delta
+        self.cost += huber_cost(r, delta)
+        self.n_res += r.size
+        if self.decoupled:
             J_a, J_b, J_t = J[:, :3][:, :, layout.a], J[:, :, layout.b], J[:, :, 1:4]
             g_a, H_a = influence_sums(r[:, :3], J_a, delta)
             g_b, H_b, C = influence_sums(r, J_b, delta, J_t)
-            g_parts['a'].append(g_a)
-            g_parts['b'].append(g_b)
-            for name, value in (('H_a', H_a), ('H_b', H_b), ('C', C)):
-                add(name, value)
+            self.g_parts['a'].append(g_a)
+            self.g_parts['b'].append(g_b)
             fa, fb, ft = (x.reshape(-1, x.shape[-1]) for x in (J_a, J_b, J_t))
-            add('N_a', fa.T @ fa)
-            add('N_b', fb.T @ fb)
-            add('N_bt', fb.T @ ft)
+            for name, value in (
+                ('H_a', H_a),
+                ('H_b', H_b),
+                ('C', C),
+                ('N_a', fa.T @ fa),
+                ('N_b', fb.T @ fb),
+                ('N_bt', fb.T @ ft),
+            ):
+                self._add_sum(name, value)
         else:
-            J_f = J[:, :, free_all]
+            J_f = J[:, :, layout.all]
             g, H = influence_sums(r, J_f, delta)
-            g_parts['all'].append(g)
-            add('H', H)
+            self.g_parts['all'].append(g)
             f = J_f.reshape(-1, J_f.shape[-1])
-            add('N', f.T @ f)
-    s2 = max(2.0 * cost / max(n_res - free_all.size, 1), 1e-12)
-    cov = np.zeros((layout.size, layout.size))
-    if decoupled:
-        cov[np.ix_(free_all, free_all)] = two_step_from_normals(
-            sums['N_a'], sums['N_b'], sums['N_bt'], s2, k
-        )
-        psi = _two_step_influences(
-            *two_step_from_sums(
-                np.concatenate(g_parts['a']),
-                sums['H_a'],
-                np.concatenate(g_parts['b']),
-                sums['H_b'],
-                sums['C'],
-                np.arange(k, k + 3),
-            ),
-            k,
-        )
-    else:
-        cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
-        psi, _ = influence_from_sums(np.concatenate(g_parts['all']), sums['H'])
-    return cov, _long_run_in_y(psi, layout), cost, n_res
+            self._add_sum('H', H)
+            self._add_sum('N', f.T @ f)
+
+    def result(self) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+        """(white covariance, long-run covariance, Huber cost, number of residuals), as
+        :func:`eye_covariance` returns them."""
+        layout, sums, k = self.layout, self.sums, len(self.layout.time)
+        free_all = layout.all
+        s2 = max(2.0 * self.cost / max(self.n_res - free_all.size, 1), 1e-12)
+        cov = np.zeros((layout.size, layout.size))
+        if self.decoupled:
+            cov[np.ix_(free_all, free_all)] = two_step_from_normals(
+                sums['N_a'], sums['N_b'], sums['N_bt'], s2, k
+            )
+            psi = _two_step_influences(
+                *two_step_from_sums(
+                    np.concatenate(self.g_parts['a']),
+                    sums['H_a'],
+                    np.concatenate(self.g_parts['b']),
+                    sums['H_b'],
+                    sums['C'],
+                    np.arange(k, k + 3),
+                ),
+                k,
+            )
+        else:
+            cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
+            psi, _ = influence_from_sums(np.concatenate(self.g_parts['all']), sums['H'])
+        return cov, _long_run_in_y(psi, layout), self.cost, self.n_res
 
 
 def _two_step_influences(psi_theta: np.ndarray, psi_b: np.ndarray, k: int) -> np.ndarray:

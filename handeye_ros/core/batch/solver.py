@@ -10,7 +10,7 @@ Jacobian (the joint solve's control poses). Neither is scipy's ``least_squares``
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,13 +45,15 @@ class SolverReport:
 class NormalSums:
     """One evaluation of weighted residuals over the free parameters, summed over the rows:
     the Huber cost, ``A = J^T psi' J``, ``g = J^T psi`` and the column sums of J^2 (the
-    damping's scale); ``raw``: the unweighted residuals when the caller keeps them."""
+    damping's scale); ``raw``: the unweighted residuals when the caller keeps them; ``extra``:
+    whatever else the caller gathered on the same pass (the solver hands it back untouched)."""
 
     cost: float
     A: np.ndarray
     g: np.ndarray
     D: np.ndarray
     raw: np.ndarray | None = None
+    extra: object = None
 
 
 #: The dense solve ends when a step moves no parameter by more than this fraction of its
@@ -66,10 +68,12 @@ def levenberg_marquardt_dense(
     y: np.ndarray,
     free: np.ndarray,
     max_iterations: int,
+    start: NormalSums | None = None,
 ) -> tuple[np.ndarray, SolverReport, NormalSums]:
     """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with an
     analytic Jacobian: the Newton model of the module docstring solved densely.
-    ``sums_at(y)``: the normal sums at y (:func:`normal_sums`).
+    ``sums_at(y)``: the normal sums at y (:class:`SumsOfChunks`); ``start``: those at the
+    starting y when the caller already has them (one pass fewer).
 
     Why not scipy's least_squares: with a finite-difference Jacobian each of its iterations
     re-evaluated the spline at every eye pose once per parameter (on an hour of 200 Hz VIO,
@@ -78,8 +82,8 @@ def levenberg_marquardt_dense(
     linear result converges in 2-4 of them. Returns (y, report, the sums at y).
     """
     y = y.copy()
-    cur = sums_at(y)
-    lam, nu, nfev = LM_LAMBDA0, 2.0, 1
+    cur = sums_at(y) if start is None else start
+    lam, nu, nfev = LM_LAMBDA0, 2.0, 1  # the start counts, wherever it was summed
     message, success = 'maximum number of iterations reached', False
     iterations = 0
     for _ in range(max_iterations):
@@ -193,19 +197,23 @@ def _huber_normal(J: csr_matrix, f: np.ndarray, delta: float) -> tuple:
     return A, g, D
 
 
-def normal_sums(
-    chunks: Iterable[tuple[np.ndarray, np.ndarray]], free: np.ndarray, delta: float
-) -> NormalSums:
+class SumsOfChunks:
     """:class:`NormalSums` over the free columns of chunks of weighted residuals r (n, rows)
     with their Jacobians J (n, rows, n_y), summed as they come (no chunk is kept)."""
-    p = free.size
-    cost, A, g, D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
-    for r, J in chunks:
+
+    def __init__(self, free: np.ndarray, delta: float) -> None:
+        p = free.size
+        self.free, self.delta = free, delta
+        self.cost, self.A, self.g, self.D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
+
+    def add(self, r: np.ndarray, J: np.ndarray) -> None:
         r = r.ravel()
-        Jf = J[:, :, free].reshape(r.size, p)
-        psi, dpsi = huber_psi(r, delta)
-        cost += huber_cost(r, delta)
-        A += Jf.T @ (Jf * dpsi[:, None])
-        g += Jf.T @ psi
-        D += np.einsum('ij,ij->j', Jf, Jf)
-    return NormalSums(cost, A, g, D)
+        Jf = J[:, :, self.free].reshape(r.size, self.free.size)
+        psi, dpsi = huber_psi(r, self.delta)
+        self.cost += huber_cost(r, self.delta)
+        self.A += Jf.T @ (Jf * dpsi[:, None])
+        self.g += Jf.T @ psi
+        self.D += np.einsum('ij,ij->j', Jf, Jf)
+
+    def sums(self, raw: np.ndarray | None = None, extra: object = None) -> NormalSums:
+        return NormalSums(self.cost, self.A, self.g, self.D, raw, extra)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .covariance import eye_covariance, joint_covariance, joint_long_run
+from .covariance import CovarianceSums, eye_covariance, joint_covariance, joint_long_run
 from .joint_jacobian import joint_jacobian
 from .long_run import LongRunCovariance
 from .loss import huber_cost
@@ -24,9 +24,9 @@ from .solver import (
     LM_FTOL_FIRST_PASS,
     NormalSums,
     SolverReport,
+    SumsOfChunks,
     levenberg_marquardt_dense,
     levenberg_marquardt_sparse,
-    normal_sums,
 )
 
 #: Chunks of eye pairs the first of the two noise passes uses on a long recording (spread
@@ -79,61 +79,140 @@ def solve_offset_extrinsic(
     the joint solve left 0.25-0.80 deg of rotation error where this leaves 0.03-0.31 deg, and on
     the paper protocol it is as good for dt and better for the rotation.
 
-    Two passes: the eye noise is estimated from the residuals at the linear result, then again
-    at the first solution (the linear result's residuals include its own error).
+    Two passes: the eye noise is measured at the linear result, then again at the first
+    solution (the linear result's residuals include its own error).
     """
     y = np.zeros(layout.size)
-    free_all = layout.all
     r_start = prob.eye_raw(y)  # kept: the cost before, at the final weights
     en = Noise(*sigmas(r_start, eye_noise))
     passes = 2 if en.estimated else 1
-    steps = [(layout.a, True), (layout.b, False)] if decoupled else [(free_all, False)]
+    steps = [(layout.a, True), (layout.b, False)] if decoupled else [(layout.all, False)]
     for k in range(passes):
         # the hand's weights are not used: the spline is held to the MoCap fit
         weights = Weights(eye_rotation=1.0 / en.rotation, eye_translation=1.0 / en.translation)
-        # the first pass only has to get near enough to measure the noise again: from the
-        # linear result one Gauss-Newton step does (the second pass starts within a fraction
-        # of a sigma and converges in one or two)
-        # (and on a long recording from every few chunks of pairs only: FIRST_PASS_CHUNKS
-        # chunks spread over the recording hold some 130 000 pairs, enough for both)
+        # the first pass only has to get near enough to measure the noise again: one
+        # Gauss-Newton step from the linear result does, on a long recording from
+        # FIRST_PASS_CHUNKS chunks spread over it (some 130 000 pairs)
         last_pass = k + 1 == passes
-        iterations = max_iterations if last_pass else 1
-        every = 1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS)
-        for free, rotation_only in steps:
-            y, report, last = levenberg_marquardt_dense(
-                lambda yy, f=free, ro=rotation_only, e=every, w=weights: _eye_sums(
-                    prob, w, yy, f, ro, delta, e
-                ),
-                y,
-                free,
-                iterations,
-            )
+        y, report, last = _one_pass(
+            prob,
+            y,
+            steps,
+            _PassPlan(
+                weights,
+                delta=delta,
+                every=1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS),
+                covariance=(layout, decoupled) if last_pass else None,
+                keep_raw=not last_pass,
+            ),
+            max_iterations if last_pass else 1,
+        )
         if not last_pass:  # the last step's residuals (all rows) are those at y
             en = Noise(*sigmas(last.raw, eye_noise))
     cost_before = huber_cost((r_start * weights.eye).ravel(), delta)
     del r_start
-    cov, lr, cost_after, n_res = eye_covariance(prob, weights, y, layout, delta, decoupled)
-    return Solve(
-        y, cost_before, cost_after, hand_noise, en, weights, cov, lr, n_res, free_all.size, report
-    )
+    cov, lr, cost_after, n_res = _covariance(prob, weights, y, layout, delta, decoupled, last)
+    n = layout.all.size
+    return Solve(y, cost_before, cost_after, hand_noise, en, weights, cov, lr, n_res, n, report)
 
 
-def _eye_sums(
+def _covariance(
     prob: BatchProblem,
     weights: Weights,
     y: np.ndarray,
-    free: np.ndarray,
-    rotation_only: bool,
+    layout: ParameterLayout,
     delta: float,
-    every: int,
-) -> NormalSums:
-    """The dense solver's normal sums over the eye pairs at y (every ``every``-th chunk),
-    keeping the unweighted residuals of all six rows for the next noise estimate."""
-    raw: list[np.ndarray] | None = None if rotation_only else []
-    sums = normal_sums(
-        weighted_eye_chunks(prob, weights, y, rotation_only, raw, every), free, delta
+    decoupled: bool,
+    last: NormalSums,
+) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+    """:func:`.covariance.eye_covariance` at the solution y: as the last pass gathered it, or
+    (when the last step took no step from the sums it was handed) from a pass of its own."""
+    if last.extra is not None and last.extra.covariance is not None:
+        return last.extra.covariance.result()
+    return eye_covariance(prob, weights, y, layout, delta, decoupled)
+
+
+def _one_pass(
+    prob: BatchProblem,
+    y: np.ndarray,
+    steps: list[tuple[np.ndarray, bool]],
+    plan: _PassPlan,
+    iterations: int,
+) -> tuple[np.ndarray, SolverReport, NormalSums]:
+    """One of :func:`solve_offset_extrinsic`'s passes: its steps (free parameters, rotation
+    rows only) solved in turn from y. ``plan``: the pass's weights, chunks and what its last
+    step gathers (the covariance, or the residuals for the next noise estimate). Returns the
+    last step's (y, report, sums at y)."""
+    start = None
+    for s, (free, rotation_only) in enumerate(steps):
+        final = s + 1 == len(steps)
+        # the rotation step's passes sum the translation step's start on the same residuals;
+        # the last step's gather what the plan asks (at the solution: the last of them)
+        step_plan = replace(
+            plan,
+            free=free,
+            rotation_only=rotation_only,
+            then=None if final else steps[s + 1][0],
+            covariance=plan.covariance if final else None,
+            keep_raw=plan.keep_raw and final,
+        )
+        y, report, last = levenberg_marquardt_dense(
+            lambda yy, p=step_plan: _eye_pass(prob, yy, p), y, free, iterations, start
+        )
+        start = None if last.extra is None else last.extra.then
+    return y, report, last
+
+
+@dataclass(frozen=True)
+class _PassPlan:
+    """What one pass of the default solve over the eye pairs sums (:func:`_eye_pass`): the
+    step's normal sums (its free parameters; the rotation rows alone when ``rotation_only``)
+    and, on the same residuals, the next step's (``then``: its free parameters, all rows),
+    the covariance's (``covariance``: its layout and whether decoupled) and the unweighted
+    residuals (``keep_raw``)."""
+
+    weights: Weights
+    delta: float
+    every: int = 1
+    free: np.ndarray | None = None
+    rotation_only: bool = False
+    then: np.ndarray | None = None
+    covariance: tuple[ParameterLayout, bool] | None = None
+    keep_raw: bool = False
+
+
+@dataclass(frozen=True)
+class _SamePass:
+    """What a pass gathered beside its step's sums: the next step's sums and the covariance's,
+    at the same y."""
+
+    then: NormalSums | None
+    covariance: CovarianceSums | None
+
+
+def _eye_pass(prob: BatchProblem, y: np.ndarray, plan: _PassPlan) -> NormalSums:
+    """One pass over the eye pairs at y (every ``plan.every``-th chunk), summed as
+    :class:`_PassPlan` says."""
+    full_rows = not plan.rotation_only or plan.then is not None
+    step = SumsOfChunks(plan.free, plan.delta)
+    then = None if plan.then is None else SumsOfChunks(plan.then, plan.delta)
+    cov = None
+    if plan.covariance is not None:
+        layout, decoupled = plan.covariance
+        cov = CovarianceSums(layout, plan.delta, decoupled)
+    raw: list[np.ndarray] | None = [] if plan.keep_raw else None
+    rows = 3 if plan.rotation_only else 6
+    for r, J in weighted_eye_chunks(prob, plan.weights, y, not full_rows, raw, plan.every):
+        step.add(r[:, :rows], J[:, :rows])
+        for more in (then, cov):
+            if more is not None:
+                more.add(r, J)
+    extra = (
+        None
+        if then is None and cov is None
+        else _SamePass(None if then is None else then.sums(), cov)
     )
-    return sums if raw is None else replace(sums, raw=np.concatenate(raw))
+    return step.sums(None if raw is None else np.concatenate(raw), extra)
 
 
 def solve_joint(

@@ -14,7 +14,15 @@ import numpy as np
 
 from .chunked import chunked
 from .errors import TimeAlignmentError
-from .geometry import compose, inverse, matrix_from_quat, quat_slerp, relative, rotation_angle
+from .geometry import (
+    compose,
+    inverse,
+    matrix_from_quat,
+    quat_slerp,
+    relative,
+    rotation_angle,
+    row_norms,
+)
 from .trajectory import Trajectory
 
 #: Fewer matched pairs than this cannot support keyframes, RANSAC and a world alignment.
@@ -176,4 +184,4 @@ def eye_motion_errors(
     """How far each eye motion is from the hand's (:func:`eye_motion_residuals`): the rotation
     angle (rad) and the translation norm (m) of the residual motion, and ``covered``."""
     err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, R_HE, p_HE)
-    return rotation_angle(err_R), np.linalg.norm(err_p, axis=1), covered
+    return rotation_angle(err_R), row_norms(err_p), covered

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import InputError
+from .geometry import row_norms
 
 #: An interval longer than this many median sample periods is a gap: nothing is interpolated or
 #: differenced across it. 3.5 tolerates two consecutive dropped samples, which still give a fair
@@ -131,7 +132,7 @@ class Trajectory:
                 f'{t_ns[k]} ns then {t_ns[k + 1]} ns. Stamps must strictly increase'
             )
             raise InputError(msg)
-        norms = np.linalg.norm(q_xyzw, axis=1)
+        norms = row_norms(q_xyzw)
         bad = np.flatnonzero(np.abs(norms - 1.0) > QUATERNION_NORM_TOLERANCE)
         if bad.size:
             k = int(bad[0])

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .association import PosePairs
-from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle
+from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle, row_norms
 
 #: Positions whose second principal spread is below this (metres RMS) do not fix a rotation.
 MIN_PLANAR_SPREAD_M = 0.05
@@ -119,7 +119,7 @@ def evaluate(
     pred = compose(worlds_per_pair(pairs, q_HE, p_HE, world), predicted_eye(pairs, X))
     R_err, p_err = compose(inverse(pred), (pairs.R_WE, pairs.p_WE))
     # Translation error measured in W (not in the predicted body frame): the usual APE.
-    e_t = np.linalg.norm(apply(pred[0], p_err), axis=-1)
+    e_t = row_norms(apply(pred[0], p_err))
     e_r = np.degrees(rotation_angle(R_err))
     return Metrics(
         float(np.sqrt(np.mean(e_t**2))),

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..core.geometry import rotation_angle
+from ..core.geometry import rotation_angle, row_norms
 from .aligned import AlignedTrajectories
 
 #: An RPE pair may miss the time or distance step by this fraction of it (evo's default).
@@ -58,7 +58,7 @@ class ErrorStats:
 def ape(al: AlignedTrajectories) -> tuple[np.ndarray, np.ndarray]:
     """Per-pose translation (m) and rotation (deg) errors (module docstring)."""
     R_err = np.matmul(np.swapaxes(al.R_ref, -1, -2), al.R_est)  # R(Q^-1 P)
-    return np.linalg.norm(al.p_est - al.p_ref, axis=1), np.degrees(rotation_angle(R_err))
+    return row_norms(al.p_est - al.p_ref), np.degrees(rotation_angle(R_err))
 
 
 def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +72,7 @@ def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndar
     if unit == 's':
         axis = al.seconds()
     elif unit == 'm':
-        step = np.linalg.norm(np.diff(al.p_ref, axis=0), axis=1)
+        step = row_norms(np.diff(al.p_ref, axis=0))
         step[np.diff(al.segment) != 0] = 0.0
         axis = np.concatenate([[0.0], np.cumsum(step)])
     else:
@@ -100,7 +100,7 @@ def rpe(
     R_dQ, t_dQ = _relative(al.R_ref, al.p_ref, i, j)
     R_dP, t_dP = _relative(al.R_est, al.p_est, i, j)
     R_err = np.matmul(np.swapaxes(R_dQ, -1, -2), R_dP)
-    return (np.linalg.norm(t_dP - t_dQ, axis=1), np.degrees(rotation_angle(R_err)), i)
+    return (row_norms(t_dP - t_dQ), np.degrees(rotation_angle(R_err)), i)
 
 
 def _relative(

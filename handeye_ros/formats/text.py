@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.geometry import row_norms
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 from .bulk import SplitStamps, read_bulk
 from .stamps import STAMP_UNITS, parse_stamps, split_decimal, too_large
@@ -171,7 +172,7 @@ def _bad_rows(
     file)."""
     finite = np.isfinite(values).all(axis=1)
     with np.errstate(invalid='ignore', over='ignore'):
-        norm = np.linalg.norm(np.where(finite[:, None], q_xyzw, 0.0), axis=1)
+        norm = row_norms(np.where(finite[:, None], q_xyzw, 0.0))
     bad = ~fits | ~finite | (np.abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE)
     good = np.flatnonzero(~bad)
     if good.size >= 3:

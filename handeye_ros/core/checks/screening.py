@@ -48,7 +48,7 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 from ..chunked import chunked
-from ..geometry import quat_angle, quat_slerp
+from ..geometry import quat_angle, quat_slerp, row_norms
 from ..trajectory import Trajectory
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
@@ -178,7 +178,7 @@ def _predict_poses(
     """:func:`_predict` on the poses themselves (stamps s, positions m, x y z w quaternions)."""
     f = (tk - ta) / np.where(tb != ta, tb - ta, 1.0)
     p_pred = pa + f[:, None] * (pb - pa)
-    return np.linalg.norm(pk - p_pred, axis=1), quat_angle(quat_slerp(qa, qb, f), qk)
+    return row_norms(pk - p_pred), quat_angle(quat_slerp(qa, qb, f), qk)
 
 
 def interpolation_residuals(
@@ -248,7 +248,9 @@ def hampel_thresholds(
     if k == 1:
         return _hampel(res, size, n_sigma, floor)
     sub = _hampel(res[::k], (size // k) | 1, n_sigma, floor)
-    return sub[np.minimum((np.arange(res.size) + k // 2) // k, sub.size - 1)]
+    # residual i takes sub[(i + k // 2) // k], the last one past the end
+    near = np.repeat(sub, k)[k // 2 : k // 2 + res.size]
+    return np.concatenate((near, np.full(res.size - near.size, sub[-1])))
 
 
 #: The running median and MAD of the screening take at most about this many residuals: the
@@ -345,7 +347,7 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     Returns the screened trajectory (breaks and notes kept) and what was removed.
     """
     n_input = len(traj)
-    kinds = np.full(n_input, '', dtype=object)
+    kinds = np.zeros(n_input, dtype=np.int8)  # 1 + the index in KINDS of a removed pose
     idx = np.arange(n_input)
     # a residual the file's rounding can make is no outlier: positions rounded to r move it
     # by up to sqrt(3) r; quaternion components rounded to r turn a pose by up to ~2 r
@@ -356,9 +358,9 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     thr_p = thr_r = float('nan')
     t = traj.seconds(int(traj.t_ns[0]))
     wrecked = damaged(traj)
-    kinds[wrecked] = 'damaged'
+    kinds[wrecked] = 1 + KINDS.index('damaged')
     held = placeholders(traj, floors) & ~wrecked
-    kinds[held] = 'placeholder'
+    kinds[held] = 1 + KINDS.index('placeholder')
     idx = idx[~(held | wrecked)]
     # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so
     # that isolated wild poses no longer spoil the wider extrapolations of good ones; keyframes
@@ -367,15 +369,21 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
         for _ in range(HAMPEL_ROUNDS):
             if idx.size < 4 * d + 4:
                 break
-            bad, tp, tr = _outliers(t[idx], traj.p_xyz[idx], traj.q_xyzw[idx], n_sigma, floors, d)
+            sel = slice(None) if idx.size == n_input else idx  # a clean stream is not copied
+            bad, tp, tr = _outliers(t[sel], traj.p_xyz[sel], traj.q_xyzw[sel], n_sigma, floors, d)
             if d == 1 and np.isnan(thr_p):
                 thr_p, thr_r = tp, tr
             if not bad.any():
                 break
-            kinds[idx[bad]] = 'outlier'
+            kinds[idx[bad]] = 1 + KINDS.index('outlier')
             idx = idx[~bad]
-    removed = kinds != ''
+    removed = kinds != 0
     report = Screening(
-        stream, n_input, traj.t_ns[removed].copy(), tuple(kinds[removed]), thr_p, thr_r
+        stream,
+        n_input,
+        traj.t_ns[removed].copy(),
+        tuple(KINDS[k - 1] for k in kinds[removed]),
+        thr_p,
+        thr_r,
     )
     return (traj.select(~removed) if removed.any() else traj), report

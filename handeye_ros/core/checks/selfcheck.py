@@ -27,7 +27,7 @@ import numpy as np
 
 from ..association import eye_motion_errors, interpolate
 from ..batch.loss import huber_rho
-from ..geometry import matrix_from_quat, rotation_angle
+from ..geometry import matrix_from_quat, rotation_angle, row_norms
 from ..linear.keyframes import segment_motion_indices
 from ..trajectory import Trajectory
 
@@ -117,7 +117,7 @@ def motion_consistency(
     )
     if not covered.any():
         return float('nan'), float('nan'), float('nan'), 0
-    length = np.linalg.norm(eye.p_xyz[j] - eye.p_xyz[i], axis=1)
+    length = row_norms(eye.p_xyz[j] - eye.p_xyz[i])
     return (
         float(np.degrees(np.median(e_r[covered]))),
         float(np.median(e_t[covered])),

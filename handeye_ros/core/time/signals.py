@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import TimeAlignmentError
-from ..geometry import consecutive_rotvecs
+from ..geometry import consecutive_rotvecs, row_norms
 from ..trajectory import Trajectory
 
 #: The resampling rate is the faster stream's rate, capped here: 200 Hz resolves the shape of
@@ -96,7 +96,7 @@ def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
         object.__setattr__(traj, '_angular_velocity', cached)  # frozen: a cache, not state
     if vector:
         return cached
-    return AngularSpeed(cached.t_s, np.linalg.norm(cached.speed, axis=1), cached.valid)
+    return AngularSpeed(cached.t_s, row_norms(cached.speed), cached.valid)
 
 
 def resample(
@@ -149,7 +149,7 @@ def clip_signal(v: np.ndarray, mask: np.ndarray, step: float) -> tuple[np.ndarra
     (:data:`LEVEL_BLOCK_S`). Returns (values, mask)."""
     if mask.sum() < 3:  # standardise refuses it with its own message
         return v, mask
-    mag = np.abs(v) if v.ndim == 1 else np.linalg.norm(v, axis=1)
+    mag = np.abs(v) if v.ndim == 1 else row_norms(v)
     med, dev = _median_mad(mag[mask])
     if not dev > 0.0:
         return v, mask

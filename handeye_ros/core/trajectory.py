@@ -281,6 +281,8 @@ def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:
 
 
 def _check_finite(name: str, values: np.ndarray, what: str) -> None:
+    if np.isfinite(values).all():  # the usual case, at a tenth of the time of the row test
+        return
     bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
     if bad.size:
         k = int(bad[0])

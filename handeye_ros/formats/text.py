@@ -170,7 +170,8 @@ def _bad_rows(
     non-finite value, a quaternion whose norm is off by more than the tolerance, or a stamp
     out of order with both neighbours while they are in order (one wild stamp, not an unsorted
     file)."""
-    finite = np.isfinite(values).all(axis=1)
+    finite = np.isfinite(values)
+    finite = np.ones(len(values), bool) if finite.all() else finite.all(axis=1)
     with np.errstate(invalid='ignore', over='ignore'):
         norm = row_norms(np.where(finite[:, None], q_xyzw, 0.0))
     bad = ~fits | ~finite | (np.abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE)

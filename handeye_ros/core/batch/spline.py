@@ -86,8 +86,12 @@ def cumulative_basis_derivative(s: np.ndarray, order: int) -> np.ndarray:
 
 
 def plain_basis(Bc: np.ndarray) -> np.ndarray:
-    """The B-spline basis (N, k) of control points i..i+k-1 from the cumulative one."""
-    return Bc - np.concatenate((Bc[:, 1:], np.zeros((Bc.shape[0], 1))), axis=1)
+    """The B-spline basis (N, k) of control points i..i+k-1 from the cumulative one:
+    ``b_j = Bc_j - Bc_j+1``, the last one as it is."""
+    b = np.empty(Bc.shape)
+    np.subtract(Bc[:, :-1], Bc[:, 1:], out=b[:, :-1])
+    b[:, -1] = Bc[:, -1]
+    return b
 
 
 def exp_quat(v: np.ndarray) -> np.ndarray:

@@ -23,12 +23,7 @@ import sys
 import time
 from typing import Any
 
-from .lifecycle import ignore_signals, quiet_start, stop_requested
-
-#: How often the spin loop looks for a noted signal (s): rclpy's wait does not return for a
-#: Python signal handler, so a timer this often ends it. (A timeout on spin_once would do it
-#: too, but rclpy makes a new timer for every wait then, hundreds a second at 1 kHz.)
-STOP_POLL_S = 0.1
+from .lifecycle import STOP_POLL_S, ignore_signals, quiet_start, stop_requested
 
 #: How long the stop spins to send the answers to pending ``~/calibrate`` calls (s).
 ANSWER_S = 2.0

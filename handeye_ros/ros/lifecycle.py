@@ -8,8 +8,8 @@ that only notes the signal; the start checks :func:`stop_requested` at the point
 stopping is safe and then returns 0. The calibrator keeps this handler for its whole life
 (``rclpy.init`` without rclpy's handlers) and its spin loop looks at :func:`stop_requested`
 too, so that it can answer its callers before the context goes (:mod:`.calibrator`);
-publish_calibration lets rclpy's handlers take over once rclpy is initialised (they shut the
-context down, spin returns, and they call ours, which notes again, harmlessly).
+publish_calibration does the same (with a plain spin loop). The spin loops wake every
+:data:`STOP_POLL_S` to look.
 :func:`ignore_signals` keeps a second Ctrl-C out of the clean-up.
 
 A signal in the interpreter's first ~0.1 s, before it runs any of this package's code (while it
@@ -21,6 +21,11 @@ from __future__ import annotations
 import signal
 
 _state = {'stop': False}
+
+#: How often a spin loop looks for a noted signal (s): rclpy's wait does not return for a
+#: Python signal handler, so a timer this often ends it. (A timeout on spin_once would do it
+#: too, but rclpy makes a new timer for every wait then, hundreds a second at 1 kHz.)
+STOP_POLL_S = 0.1
 
 
 def _on_signal(signum: int, frame: object) -> None:

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .lifecycle import ignore_signals, quiet_start, stop_requested
+from .lifecycle import STOP_POLL_S, ignore_signals, quiet_start, stop_requested
 
 
 def parser() -> argparse.ArgumentParser:
@@ -90,19 +90,24 @@ def main(args: list[str] | None = None) -> int:
 
 
 def _publish(published: Any, namespace: str) -> int:
-    """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal."""
+    """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal.
+
+    The signals stay ours (:mod:`.lifecycle`), as in the calibrator: a noted signal ends the
+    loop within STOP_POLL_S. (With rclpy's handler, which shuts the context down from its own
+    thread, this once in some 20 CI runs had not exited 10 s after Ctrl-C; why, we did not
+    find.)"""
     import rclpy
-    from rclpy.executors import ExternalShutdownException
-    from rclpy.node import Node
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
 
     from ..formats import messages
     from .outputs import LATCHED
     from .types import RclpyTypes
 
-    rclpy.init()
-    node = None
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = executor = None
     try:
-        node = Node('calibration_publisher')
+        node = rclpy.create_node('calibration_publisher')
         types = RclpyTypes()
         out = messages.outputs(types, published, node.get_clock().now().nanoseconds)
         tf = types['tf2_msgs/msg/TFMessage']
@@ -116,16 +121,17 @@ def _publish(published: Any, namespace: str) -> int:
             f'publishing {published.parent} -> {published.child} on /tf_static and the '
             f'calibration on {namespace}/*, latched; Ctrl-C to stop'
         )
-        if not stop_requested():
-            rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        node.create_timer(STOP_POLL_S, lambda: None)  # ends a wait: see STOP_POLL_S
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not stop_requested():
+            executor.spin_once()
+    except ExternalShutdownException:  # a context shut down from elsewhere
         pass
-    except RuntimeError:
-        # a signal shut the context down under what was being made on it (see calibrator.main)
-        if rclpy.ok() and not stop_requested():
-            raise
     finally:
-        ignore_signals()
+        ignore_signals()  # a second Ctrl-C must not break the clean-up
+        if executor is not None:
+            executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -276,6 +276,8 @@ def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:
         Same rotations; the sign of row k is the product of the flips up to k (vectorised).
     """
     dots = np.einsum('ij,ij->i', q_xyzw[1:], q_xyzw[:-1])
+    if not (dots < 0.0).any():  # continuous already (no copy of millions of rows)
+        return q_xyzw
     flips = np.concatenate(([1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))))
     return q_xyzw * flips[:, None]
 

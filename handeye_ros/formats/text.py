@@ -86,16 +86,18 @@ def read_trajectory(
     del data
     t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
     order = _quaternion_order(path, fmt, stamp_unit, quaternion_order, split, notes)
-    # the file's four quaternion columns, in file order, to x y z w
-    q_xyzw = values[:, 3:7][:, [1, 2, 3, 0] if order == 'wxyz' else [0, 1, 2, 3]]
+    # the file's four quaternion columns, in file order, to x y z w (a view when they are;
+    # from_arrays makes the normalised copy)
+    q_xyzw = values[:, 3:7][:, [1, 2, 3, 0]] if order == 'wxyz' else values[:, 3:7]
     t_ns, values, q_xyzw = _drop_bad_rows(path, numbers, t_ns, values, q_xyzw, fits, notes)
     keep = _last_of_repeated(t_ns)
-    if not keep.all():
+    if not keep.all():  # (no copies of millions of rows when every stamp is once)
         notes.append(
             f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of each was kept'
         )
+        t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
     return Trajectory.from_arrays(
-        t_ns[keep], values[keep, :3], q_xyzw[keep], name=str(path), notes=tuple(notes)
+        t_ns, np.ascontiguousarray(values[:, :3]), q_xyzw, name=str(path), notes=tuple(notes)
     )
 
 

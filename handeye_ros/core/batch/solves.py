@@ -94,11 +94,11 @@ def solve_offset_extrinsic(
         # Gauss-Newton step from the linear result does, on a long recording from
         # FIRST_PASS_CHUNKS chunks spread over it (some 130 000 pairs)
         last_pass = k + 1 == passes
-        y, report, last = _one_pass(
+        y, report, last = _noise_pass(
             prob,
             y,
             steps,
-            _PassPlan(
+            _SweepPlan(
                 weights,
                 delta=delta,
                 every=1 if last_pass else max(1, len(prob.chunks()) // FIRST_PASS_CHUNKS),
@@ -125,28 +125,29 @@ def _covariance(
     decoupled: bool,
     last: NormalSums,
 ) -> tuple[np.ndarray, LongRunCovariance, float, int]:
-    """:func:`.covariance.eye_covariance` at the solution y: as the last pass gathered it, or
-    (when the last step took no step from the sums it was handed) from a pass of its own."""
+    """:func:`.covariance.eye_covariance` at the solution y: as the last sweep gathered it, or
+    (when the last step took no step from the sums it was handed) from a sweep of its own."""
     if last.extra is not None and last.extra.covariance is not None:
         return last.extra.covariance.result()
     return eye_covariance(prob, weights, y, layout, delta, decoupled)
 
 
-def _one_pass(
+def _noise_pass(
     prob: BatchProblem,
     y: np.ndarray,
     steps: list[tuple[np.ndarray, bool]],
-    plan: _PassPlan,
+    plan: _SweepPlan,
     iterations: int,
 ) -> tuple[np.ndarray, SolverReport, NormalSums]:
-    """One of :func:`solve_offset_extrinsic`'s passes: its steps (free parameters, rotation
-    rows only) solved in turn from y. ``plan``: the pass's weights, chunks and what its last
-    step gathers (the covariance, or the residuals for the next noise estimate). Returns the
-    last step's (y, report, sums at y)."""
+    """One of :func:`solve_offset_extrinsic`'s two passes (one per noise estimate): its steps
+    (free parameters, rotation rows only) solved in turn from y, each evaluation a sweep over
+    the eye pairs (:func:`_sweep`). ``plan``: the pass's weights, chunks and what its last
+    step's sweeps gather (the covariance, or the residuals for the next noise estimate).
+    Returns the last step's (y, report, sums at y)."""
     start = None
     for s, (free, rotation_only) in enumerate(steps):
         final = s + 1 == len(steps)
-        # the rotation step's passes sum the translation step's start on the same residuals;
+        # the rotation step's sweeps sum the translation step's start on the same residuals;
         # the last step's gather what the plan asks (at the solution: the last of them)
         step_plan = replace(
             plan,
@@ -157,15 +158,15 @@ def _one_pass(
             keep_raw=plan.keep_raw and final,
         )
         y, report, last = levenberg_marquardt_dense(
-            lambda yy, p=step_plan: _eye_pass(prob, yy, p), y, free, iterations, start
+            lambda yy, p=step_plan: _sweep(prob, yy, p), y, free, iterations, start
         )
         start = None if last.extra is None else last.extra.then
     return y, report, last
 
 
 @dataclass(frozen=True)
-class _PassPlan:
-    """What one pass of the default solve over the eye pairs sums (:func:`_eye_pass`): the
+class _SweepPlan:
+    """What one sweep of the default solve over the eye pairs sums (:func:`_sweep`): the
     step's normal sums (its free parameters; the rotation rows alone when ``rotation_only``)
     and, on the same residuals, the next step's (``then``: its free parameters, all rows),
     the covariance's (``covariance``: its layout and whether decoupled) and the unweighted
@@ -182,17 +183,17 @@ class _PassPlan:
 
 
 @dataclass(frozen=True)
-class _SamePass:
-    """What a pass gathered beside its step's sums: the next step's sums and the covariance's,
-    at the same y."""
+class _SameSweep:
+    """What a sweep gathered beside its step's sums: the next step's sums and the
+    covariance's, at the same y."""
 
     then: NormalSums | None
     covariance: CovarianceSums | None
 
 
-def _eye_pass(prob: BatchProblem, y: np.ndarray, plan: _PassPlan) -> NormalSums:
-    """One pass over the eye pairs at y (every ``plan.every``-th chunk), summed as
-    :class:`_PassPlan` says."""
+def _sweep(prob: BatchProblem, y: np.ndarray, plan: _SweepPlan) -> NormalSums:
+    """One sweep over the eye pairs at y (every ``plan.every``-th chunk), summed as
+    :class:`_SweepPlan` says."""
     full_rows = not plan.rotation_only or plan.then is not None
     step = SumsOfChunks(plan.free, plan.delta)
     then = None if plan.then is None else SumsOfChunks(plan.then, plan.delta)
@@ -210,7 +211,7 @@ def _eye_pass(prob: BatchProblem, y: np.ndarray, plan: _PassPlan) -> NormalSums:
     extra = (
         None
         if then is None and cov is None
-        else _SamePass(None if then is None else then.sums(), cov)
+        else _SameSweep(None if then is None else then.sums(), cov)
     )
     return step.sums(None if raw is None else np.concatenate(raw), extra)
 

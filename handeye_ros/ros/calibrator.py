@@ -7,7 +7,7 @@ that shuts down whatever happens), with four things they do not need:
 - ``--help`` and a stray argument are answered before anything starts;
 - the signals are ours, not rclpy's (``SignalHandlerOptions.NO``): a SIGINT or SIGTERM is only
   noted (:mod:`.lifecycle`), while importing, starting or spinning alike, and the spin loop
-  looks at it at least every ``STOP_POLL_S``. rclpy's own handler would shut the context down
+  looks at it at least every ``lifecycle.STOP_POLL_S``. rclpy's own handler would shut the context down
   at once, from its thread, and a ``~/calibrate`` caller waiting for a running calibration
   could then never be answered;
 - the stop therefore happens in order, on a context that still works: the worker is stopped
@@ -23,7 +23,13 @@ import sys
 import time
 from typing import Any
 
-from .lifecycle import STOP_POLL_S, ignore_signals, quiet_start, stop_requested
+from .lifecycle import (
+    ignore_signals,
+    quiet_start,
+    spin_until_stopped,
+    stop_requested,
+    stoppable_executor,
+)
 
 #: How long the stop spins to send the answers to pending ``~/calibrate`` calls (s).
 ANSWER_S = 2.0
@@ -73,7 +79,7 @@ def main(args: list[str] | None = None) -> int:
         return 2
     quiet_start()
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
     from ..core.errors import ConfigError
@@ -90,11 +96,8 @@ def main(args: list[str] | None = None) -> int:
         if not stop_requested():
             node = CalibratorNode(pool)
             pool = None  # the node owns it, and stops it in close()
-            node.create_timer(STOP_POLL_S, lambda: None)  # ends a wait: see STOP_POLL_S
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-        while executor is not None and rclpy.ok() and not stop_requested():
-            executor.spin_once()
+            executor = stoppable_executor(node)
+            spin_until_stopped(executor)
     except ExternalShutdownException:  # a context shut down from elsewhere
         pass
     except ConfigError as err:

@@ -8,8 +8,8 @@ that only notes the signal; the start checks :func:`stop_requested` at the point
 stopping is safe and then returns 0. The calibrator keeps this handler for its whole life
 (``rclpy.init`` without rclpy's handlers) and its spin loop looks at :func:`stop_requested`
 too, so that it can answer its callers before the context goes (:mod:`.calibrator`);
-publish_calibration does the same (with a plain spin loop). The spin loops wake every
-:data:`STOP_POLL_S` to look.
+publish_calibration does the same. Both spin with :func:`stoppable_executor` and
+:func:`spin_until_stopped`, which look every :data:`STOP_POLL_S`.
 :func:`ignore_signals` keeps a second Ctrl-C out of the clean-up.
 
 A signal in the interpreter's first ~0.1 s, before it runs any of this package's code (while it
@@ -19,6 +19,7 @@ imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not
 from __future__ import annotations
 
 import signal
+from typing import Any
 
 _state = {'stop': False}
 
@@ -43,6 +44,25 @@ def quiet_start() -> None:
 def stop_requested() -> bool:
     """Whether a SIGINT or SIGTERM came since :func:`quiet_start`."""
     return _state['stop']
+
+
+def stoppable_executor(node: Any) -> Any:
+    """A single-threaded executor spinning ``node``, with a timer that wakes it every
+    :data:`STOP_POLL_S`, so that :func:`spin_until_stopped` sees a noted signal."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    node.create_timer(STOP_POLL_S, lambda: None)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    return executor
+
+
+def spin_until_stopped(executor: Any) -> None:
+    """Spin until a SIGINT or SIGTERM is noted (or the context is shut down)."""
+    import rclpy
+
+    while rclpy.ok() and not stop_requested():
+        executor.spin_once()
 
 
 def ignore_signals() -> None:

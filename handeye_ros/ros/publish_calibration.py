@@ -17,7 +17,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .lifecycle import STOP_POLL_S, ignore_signals, quiet_start, stop_requested
+from .lifecycle import (
+    ignore_signals,
+    quiet_start,
+    spin_until_stopped,
+    stop_requested,
+    stoppable_executor,
+)
 
 
 def parser() -> argparse.ArgumentParser:
@@ -93,11 +99,11 @@ def _publish(published: Any, namespace: str) -> int:
     """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal.
 
     The signals stay ours (:mod:`.lifecycle`), as in the calibrator: a noted signal ends the
-    loop within STOP_POLL_S. (With rclpy's handler, which shuts the context down from its own
+    loop within ``lifecycle.STOP_POLL_S``. (With rclpy's handler, which shuts the context down from its own
     thread, this once in some 20 CI runs had not exited 10 s after Ctrl-C; why, we did not
     find.)"""
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
 
     from ..formats import messages
@@ -121,11 +127,8 @@ def _publish(published: Any, namespace: str) -> int:
             f'publishing {published.parent} -> {published.child} on /tf_static and the '
             f'calibration on {namespace}/*, latched; Ctrl-C to stop'
         )
-        node.create_timer(STOP_POLL_S, lambda: None)  # ends a wait: see STOP_POLL_S
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        while rclpy.ok() and not stop_requested():
-            executor.spin_once()
+        executor = stoppable_executor(node)
+        spin_until_stopped(executor)
     except ExternalShutdownException:  # a context shut down from elsewhere
         pass
     finally:

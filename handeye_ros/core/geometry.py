@@ -36,16 +36,22 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     return positive_w(q)
 
 
+def row_sums(a: np.ndarray) -> np.ndarray:
+    """``a.sum(axis=-1)`` for a few columns (k < 8), added column by column: the same numbers
+    (numpy's reduction adds so few in order) at a tenth of its time on millions of short
+    rows, where that reduction pays per row."""
+    s = a[..., 0]
+    for k in range(1, a.shape[-1]):
+        s = s + a[..., k]
+    return s
+
+
 def row_norms(v: np.ndarray) -> np.ndarray:
     """Euclidean norms over the last axis of vectors (..., k): the same numbers as
-    ``np.linalg.norm(v, axis=-1)`` (the squares summed in the order its reduction sums them,
-    for k < 8), at a tenth of its time on millions of short rows, where that reduction pays
-    per row (3.6 million quaternions: 0.35 s against 0.013 s)."""
+    ``np.linalg.norm(v, axis=-1)`` (:func:`row_sums`; 3.6 million quaternions: 0.35 s against
+    0.02 s)."""
     v = np.asarray(v, dtype=float)
-    s = v[..., 0] * v[..., 0]
-    for k in range(1, v.shape[-1]):
-        s = s + v[..., k] * v[..., k]
-    return np.sqrt(s)
+    return np.sqrt(row_sums(v * v))
 
 
 def positive_w(q: np.ndarray) -> np.ndarray:

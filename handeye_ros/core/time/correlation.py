@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
+from ..geometry import row_sums
+
 
 def masked_normalised_correlation(
     y: np.ndarray, my: np.ndarray, x: np.ndarray, mx: np.ndarray
@@ -42,28 +44,19 @@ def masked_normalised_correlation(
 
     FY, FX = fwd(fy), np.conj(fwd(fx))
     Y, X = fwd(y2), np.conj(fwd(x2))
-    YY = fwd(_channel_sum(y2 * y2))
-    XX = np.conj(fwd(_channel_sum(x2 * x2)))
+    YY = fwd(row_sums(y2 * y2))
+    XX = np.conj(fwd(row_sums(x2 * x2)))
     n = np.rint(corr(FY, FX))
     sy = corr(Y, FX[:, None])
     sx = corr(FY[:, None], X)
     syy, sxx = corr(YY, FX), corr(FY, XX)
-    sxy = corr(_channel_sum(Y * X), np.ones(1))
+    sxy = corr(row_sums(Y * X), np.ones(1))
     with np.errstate(divide='ignore', invalid='ignore'):
-        cov = sxy - _channel_sum(sy * sx) / n
-        var = (syy - _channel_sum(sy * sy) / n) * (sxx - _channel_sum(sx * sx) / n)
+        cov = sxy - row_sums(sy * sx) / n
+        var = (syy - row_sums(sy * sy) / n) * (sxx - row_sums(sx * sx) / n)
         ncc = np.where((n > 1) & (var > 0.0), cov / np.sqrt(np.abs(var)), np.nan)
     lags = np.arange(-(nx - 1), ny)
     return lags, ncc, n
-
-
-def _channel_sum(a: np.ndarray) -> np.ndarray:
-    """``a.sum(axis=1)`` of (n, C) for a few channels, column by column: the same numbers (the
-    same order of additions) without numpy's per-row reduction cost on long signals."""
-    s = a[:, 0]
-    for c in range(1, a.shape[1]):
-        s = s + a[:, c]
-    return s
 
 
 def parabola_vertex(c_minus: float, c0: float, c_plus: float) -> float:

@@ -135,11 +135,14 @@ def _rotvecs_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     d = quat_multiply(quat_conjugate(a), b)
     d *= np.where(d[:, 3:] < 0.0, -1.0, 1.0)
     s = row_norms(d[:, :3])
-    angle = 2.0 * np.arctan2(s, d[:, 3])
+    # w contiguous: numpy 1.26 takes the SIMD arctan2 or libm's by where its output happens to
+    # be allocated when an input is a strided view (docs/benchmarks.md, "the same result")
+    w = np.ascontiguousarray(d[:, 3])
+    angle = 2.0 * np.arctan2(s, w)
     small = s < 1e-12
     # near zero angle / s -> 2 / w, w ~ 1 for unit quaternions; the floor only keeps a
     # degenerate (near-zero) input from overflowing in the branch np.where discards
-    scale = np.where(small, 2.0 / np.maximum(d[:, 3], 1e-12), angle / np.where(small, 1.0, s))
+    scale = np.where(small, 2.0 / np.maximum(w, 1e-12), angle / np.where(small, 1.0, s))
     return d[:, :3] * scale[:, None]
 
 

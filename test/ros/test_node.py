@@ -25,6 +25,7 @@ from ros_support import (
 )
 
 from handeye_ros.core.simulate import Truth, calibration_error
+from handeye_ros.ros.worker import BLAS_THREADS
 
 pytestmark = [
     pytest.mark.ros,
@@ -157,13 +158,14 @@ def test_live_calibration_matches_truth_and_bag_replay(
     cov6 = np.asarray(latched['covariance']).reshape(6, 6)
     np.testing.assert_allclose(np.sqrt(np.diag(cov6)[:3]), saved['std']['translation'], rtol=1e-9)
     np.testing.assert_allclose(cov6, cov6.T, atol=1e-15)
-    # the bags replayed offline give the same answer as the node did live
+    # the bags replayed offline give the same answer as the node did live, to the bit: the same
+    # stamps, order and options, and the worker's BLAS threads (docs/benchmarks.md)
     offline = resolve_executable(ros.env, 'handeye_ros', 'offline_calibrate')
     for spec in bags:
         path = spec.rsplit(':', 1)[0]
         proc = subprocess.run(
             [str(offline), '--bag', path, '--json', '--config', str(_params(install))],
-            env=ros.env,
+            env={**ros.env, **BLAS_THREADS},
             capture_output=True,
             text=True,
             timeout=120,

@@ -13,14 +13,24 @@ from ..formats import messages
 from ..stream.buffer import BufferStats
 from .jobs import Calibrated
 
+#: A stream with no message for this long (s) has stopped (wall time: it holds under simulated
+#: time too).
+STOPPED_S = 2.0
+
 
 def stream_status(
-    name: str, stream: str, s: BufferStats, topic: str, msgtype: str
+    name: str, stream: str, s: BufferStats, topic: str, msgtype: str, quiet_s: float = 0.0
 ) -> DiagnosticStatus:
-    """One stream's status: WARN without data or with rejected messages, OK with its rate."""
+    """One stream's status: WARN without data, with rejected messages or stopped (no message
+    for ``quiet_s`` > STOPPED_S of wall time: its rate now is 0), OK with its rate."""
     st = DiagnosticStatus(name=f'{name}: {stream} stream', hardware_id=name)
     rejected = sum(s.rejected.values())
-    if s.stored < 2 and rejected:
+    stopped = s.stored >= 2 and quiet_s > STOPPED_S
+    rate_now = 0.0 if stopped else s.rate_hz
+    if stopped:
+        st.level = DiagnosticStatus.WARN
+        st.message = f'stopped: no message for {quiet_s:.0f} s ({s.rate_hz:.1f} Hz before)'
+    elif s.stored < 2 and rejected:
         kinds = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in s.rejected.items() if v)
         st.level = DiagnosticStatus.WARN
         st.message = f'no usable data: every message was rejected ({kinds})'
@@ -35,7 +45,8 @@ def stream_status(
         for k, v in (
             ('topic', topic),
             ('type', msgtype),
-            ('rate_hz', f'{s.rate_hz:.2f}'),
+            ('rate_hz', f'{rate_now:.2f}'),
+            ('seconds_since_last_message', f'{quiet_s:.1f}'),
             ('buffered_span_s', f'{s.span_s:.2f}'),
             ('received', s.received),
             ('buffered', s.stored),

@@ -46,12 +46,21 @@ def stop_requested() -> bool:
     return _state['stop']
 
 
+def steady_timer(node: Any, period_s: float, callback: Any) -> Any:
+    """A timer of ``node`` on the steady clock: it fires every ``period_s`` of real time
+    whatever the node's clock does. A node with ``use_sim_time`` runs its own timers on /clock,
+    which stands still before ``ros2 bag play --clock`` starts, on pause and after the end."""
+    from rclpy.clock import Clock, ClockType
+
+    return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
 def stoppable_executor(node: Any) -> Any:
-    """A single-threaded executor spinning ``node``, with a timer that wakes it every
+    """A single-threaded executor spinning ``node``, with a steady timer that wakes it every
     :data:`STOP_POLL_S`, so that :func:`spin_until_stopped` sees a noted signal."""
     from rclpy.executors import SingleThreadedExecutor
 
-    node.create_timer(STOP_POLL_S, lambda: None)
+    steady_timer(node, STOP_POLL_S, lambda: None)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     return executor

@@ -52,6 +52,7 @@ from ..core.errors import HandeyeError, InputError
 from ..stream import STREAMS, Recorder
 from . import diagnostics, parameters, worker
 from .jobs import Calibrated, calibrate_buffers
+from .lifecycle import steady_timer
 from .outputs import Outputs, save
 from .status import ReadinessStatus
 from .subscriptions import Subscriptions
@@ -114,9 +115,9 @@ class CalibratorNode(Node):
         self.status = ReadinessStatus(
             self, self.node_cfg.status_period, self.node_cfg.auto_calibrate
         )
-        self.create_timer(self.node_cfg.diagnostics_period, self._publish_diagnostics)
+        steady_timer(self, self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
-            self.create_timer(self.node_cfg.calibrate_period, self._periodic_calibrate)
+            steady_timer(self, self.node_cfg.calibrate_period, self._periodic_calibrate)
         parameters.warn_unused_params_files(self, sys.argv)
         self.get_logger().info(
             f'buffering hand {self.poses.shown("hand")} and eye {self.poses.shown("eye")}; '
@@ -364,12 +365,15 @@ class CalibratorNode(Node):
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         name = self.get_fully_qualified_name()
+        now = time.monotonic()
         for stream, s in self.recorder.stats().items():
             topic = getattr(self.stream_cfg, f'{stream}_topic')
             msgtype = self.recorder.types[stream]
             if stream in self.poses.guessed:
                 msgtype += ' (likeliest; not yet seen on the graph)'
-            arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype))
+            seen = self.last_seen[stream]
+            quiet = now - seen if seen else 0.0
+            arr.status.append(diagnostics.stream_status(name, stream, s, topic, msgtype, quiet))
         busy = time.monotonic() - self._busy_since if self._busy else None
         arr.status.append(
             diagnostics.result_status(

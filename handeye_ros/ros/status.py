@@ -34,6 +34,7 @@ from ..stream import STREAMS
 from . import diagnostics
 from .auto_mode import AutoMode
 from .jobs import readiness_measure, readiness_start
+from .lifecycle import steady_timer
 
 #: Each of the status's two jobs (reading the whole buffers, reading the new poses) takes at
 #: most this share of one core on average: one that cost c seconds of CPU (the node's copy of
@@ -44,9 +45,9 @@ from .jobs import readiness_measure, readiness_start
 #: (status_period 1), 2.5 % of a core in all; each status read everything buffered before,
 #: and came every 34 s once 500 000 + 120 000 poses were.
 MAX_DUTY = 0.03
-#: A stream with no usable pose for this long (s) while the other one flows has stopped, or
-#: lost its poses (messages still coming).
-STOPPED_S = 2.0
+#: A stream with no usable pose for this long (s) has stopped, or lost its poses (messages
+#: still coming).
+STOPPED_S = diagnostics.STOPPED_S
 #: The two streams' stamps may move against their arrivals by this much (s, at least) before
 #: the status says a clock jumped: their periods and the executor's lag jitter them.
 JUMP_S = 1.0
@@ -76,9 +77,11 @@ class ReadinessStatus:
         self._apart: float | None = None  # clocks_apart at the first snapshot
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
+        #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
+        self._sim_clock = (0, time.monotonic())
         self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
         if period_s > 0.0:
-            node.create_timer(period_s, self.tick)
+            steady_timer(node, period_s, self.tick)
 
     def tick(self) -> None:
         """On the executor: maybe calibrate (auto mode), then ask the workers for a status:
@@ -94,6 +97,9 @@ class ReadinessStatus:
             self.why_not = node.poses.why_no_data() or (
                 f'waiting for data on the {" and ".join(empty)} stream'
             )
+            standing = self.clock_standing()
+            if standing:
+                self.why_not += f'; {standing[0]}'
             self._publish()
             return
         now = time.monotonic()
@@ -200,7 +206,7 @@ class ReadinessStatus:
         if not all(ticked.values()):
             return []
         quiet = {s: now - t for s, t in ticked.items() if now - t > STOPPED_S}
-        if len(quiet) != 1:  # both quiet: the recording has ended, or not begun
+        if len(quiet) != 1:  # both quiet: the recording has ended or paused (ended says so)
             return []
         ((s, ago),) = quiet.items()
         if now - seen[s] > STOPPED_S:
@@ -219,6 +225,43 @@ class ReadinessStatus:
                 '(see the log): has its tracking failed?',
             }[s]
         ]
+
+    def ended(self) -> list[str]:
+        """Both streams stopped, said as advice (what the buffers hold is still sound: a
+        recording that ended can be calibrated)."""
+        ticked = self._node.last_ticked
+        now = time.monotonic()
+        if not all(ticked.values()) or any(now - t <= STOPPED_S for t in ticked.values()):
+            return []
+        ago = now - max(ticked.values())
+        said = (
+            f'neither stream has sent a pose for {ago:.0f} s: the recording has ended or '
+            'paused (the buffers are kept; call ~/reset to start a new one)'
+        )
+        return [said]
+
+    def clock_standing(self) -> list[str]:
+        """With ``use_sim_time``: /clock standing still (not started, paused or ended), said
+        as advice. The node's timers run on the steady clock, so the status goes on."""
+        clock = self._node.get_clock()
+        if not getattr(clock, 'ros_time_is_active', False):
+            return []
+        now_ns, now = clock.now().nanoseconds, time.monotonic()
+        if now_ns != self._sim_clock[0]:
+            self._sim_clock = (now_ns, now)
+            if now_ns:
+                return []
+        still = now - self._sim_clock[1]
+        if now_ns and still <= STOPPED_S:
+            return []
+        said = (
+            'waiting for /clock: use_sim_time is true and no /clock message has come yet '
+            '(start ros2 bag play --clock)'
+            if not now_ns
+            else f'waiting for /clock: use_sim_time is true and /clock has stood still for '
+            f'{still:.0f} s (the bag paused or ended?)'
+        )
+        return [said]
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
         """Whether the streams' clocks moved against each other since the first snapshot
@@ -269,7 +312,7 @@ class ReadinessStatus:
         stopped = self.stopped() + self._jumped
         if stopped and self.last is not None:
             self.last = {**self.last, 'ready': False, 'missing': [*stopped, *self.last['missing']]}
-        late = self.late()  # advice only: what the buffers hold is sound
+        late = self.late() + self.ended() + self.clock_standing()  # advice only
         if late and self.last is not None:
             self.last = {**self.last, 'missing': [*self.last['missing'], *late]}
         st = self.status()

@@ -29,6 +29,7 @@ from rclpy.qos import (
 from ..core.errors import ConfigError
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
+from .lifecycle import steady_timer
 from .types import message_class
 
 #: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
@@ -65,7 +66,7 @@ class Subscriptions:
                 self.subscribe(stream, LIKELY_TYPES[stream], guess=True)
         self._graph_timer = None
         if len(self.subs) < len(STREAMS) or self.guessed:
-            self._graph_timer = node.create_timer(GRAPH_POLL_S, self.discover_types)
+            self._graph_timer = steady_timer(node, GRAPH_POLL_S, self.discover_types)
 
     def topic(self, stream: str) -> str:
         """A stream's topic as the graph knows it: expanded and remapped (``--ros-args -r``)."""

@@ -124,3 +124,23 @@ def test_the_predictions_carry_what_the_last_calibration_added_to_its_sigmas() -
     assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
     assert not wider['ready'] and wider['missing'][0].startswith('keep recording')
     assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place
+
+
+def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from handeye_ros.ros.diagnostics import STOPPED_S, stream_status
+    from handeye_ros.stream.buffer import BufferStats
+
+    stats = BufferStats(6000, 6000, 0, {}, 60.0, 100.0, 1)
+
+    def said(quiet_s: float) -> tuple[int, str, str]:
+        st = stream_status('/calibrator', 'hand', stats, '/mocap/pose', 'PoseStamped', quiet_s)
+        return st.level, st.message, {v.key: v.value for v in st.values}['rate_hz']
+
+    assert said(0.01) == (DiagnosticStatus.OK, '100.0 Hz', '100.00')
+    assert said(STOPPED_S + 10.0) == (
+        DiagnosticStatus.WARN,
+        'stopped: no message for 12 s (100.0 Hz before)',
+        '0.00',
+    )

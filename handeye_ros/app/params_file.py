@@ -20,26 +20,33 @@ from ..stream.config import StreamConfig
 class NodeConfig(Options):
     """Node-only behaviour."""
 
+    output_dir: str = option(
+        '',
+        'str',
+        'the folder the node writes in, and only there: output_file, report_dir and rig_file '
+        'are paths inside it (empty: $ROS_HOME/handeye_ros, ~/.ros/handeye_ros without '
+        'ROS_HOME); read only once the node runs',
+    )
     output_file: str = option(
         'handeye_result.yaml',
         'str',
-        'where ~/save writes the last result (YAML, or JSON for '
-        '.json); relative to the working directory; may be set while the node runs',
+        'where ~/save writes the last result (YAML, or JSON for .json), inside output_dir; '
+        'an existing file is replaced only when it is a result; may be set while the node runs',
     )
     report_dir: str = option(
         '',
         'str',
-        'where ~/save also writes report.html and its plots (empty: no report); '
-        'each calibration then draws its report in the worker, ready for ~/save; may be set '
-        'while the node runs (the next calibration draws the report)',
+        'where ~/save also writes report.html and its plots, inside output_dir (empty: no '
+        'report); each calibration then draws its report in the worker, ready for ~/save; may '
+        'be set while the node runs (the next calibration draws the report)',
     )
     rig_file: str = option(
         '',
         'str',
-        'a rig file (offline_calibrate --rig -o, or one this node wrote; made when missing): '
-        'each ~/calibrate adds this session (the buffers since the start or ~/reset) to its '
-        "recordings, and the latched extrinsic becomes the rig's T_HE when the session agrees "
-        'with the rig (empty: off); may be set while the node runs',
+        'a rig file inside output_dir (offline_calibrate --rig -o, or one this node wrote; made '
+        'when missing): each ~/calibrate adds this session (the buffers since the start or '
+        "~/reset) to its recordings, and the latched extrinsic becomes the rig's T_HE when the "
+        'session agrees with the rig (empty: off); may be set while the node runs',
     )
     calibrate_period: float = option(
         0.0,

@@ -153,11 +153,14 @@ def read_members(file: Path, said: str) -> list[Member]:
     try:
         recs = yaml.safe_load(file.read_text())['recordings']
         return [Member.from_dict(r['name'], r['own']) for r in recs if r.get('own')]
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as err:
-        raise ConfigError(
-            f'rig_file {said}: not a rig file ({type(err).__name__}: {err}); give a file '
-            'that offline_calibrate --rig -o or this node wrote, or a new path'
-        ) from None
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        why = 'not readable as YAML'
+    except (KeyError, TypeError, ValueError, AttributeError):
+        why = "no rig's recordings in it"
+    raise ConfigError(
+        f'rig_file {said}: not a rig file ({why}); give a file that offline_calibrate --rig -o '
+        'or this node wrote, or a new path'
+    )
 
 
 def write_rig_file(file: Path, document: dict[str, Any]) -> None:

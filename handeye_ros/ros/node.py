@@ -51,6 +51,7 @@ from std_srvs.srv import Trigger
 from ..core.errors import HandeyeError, InputError
 from ..stream import STREAMS, Recorder
 from . import diagnostics, parameters, worker
+from .files import inside
 from .jobs import Calibrated, calibrate_buffers
 from .lifecycle import steady_timer
 from .outputs import Outputs, save
@@ -221,7 +222,12 @@ class CalibratorNode(Node):
             stage = (
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
             )
-            rig = (self.node_cfg.rig_file, self._session) if self.node_cfg.rig_file else None
+            rig_file = self.node_cfg.rig_file
+            rig = (
+                (str(inside(self.node_cfg.output_dir, rig_file, 'rig_file')), self._session)
+                if rig_file
+                else None
+            )
             job = self._pool.submit(
                 calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig
             )
@@ -322,9 +328,7 @@ class CalibratorNode(Node):
                 else f'no result to save: the calibration failed ({self._last_error})'
             )
             return response
-        response.success, response.message = save(
-            self._last_result, self.node_cfg.output_file, self.node_cfg.report_dir
-        )
+        response.success, response.message = save(self._last_result, self.node_cfg)
         if response.success and self._last_error is not None:
             response.message += (
                 f' (the latest calibration failed: this is the result of {self._last_when})'

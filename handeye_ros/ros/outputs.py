@@ -11,17 +11,18 @@ later gets the last result. A failure cannot withdraw them; /diagnostics names t
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..app.params_file import NodeConfig
 from ..core.errors import ConfigError, HandeyeError
 from ..formats import messages
-from ..formats.result_file import write_result
+from ..formats.result_file import read_result, write_result
 from ..stream.convert import TF_TYPE
+from . import files
 from .jobs import Calibrated
 from .types import RclpyTypes
 
@@ -88,20 +89,35 @@ class Outputs:
         return self._node.create_publisher(cls, '/tf_static', LATCHED)
 
 
-def save(session: Calibrated, output_file: str, report_dir: str) -> tuple[bool, str]:
+def save(session: Calibrated, cfg: NodeConfig) -> tuple[bool, str]:
     """``~/save``: the result file, and with ``report_dir`` the report the worker drew for it
-    (copied from where it was staged). (success, what was written, or why not)."""
-    wrote = [str(Path(output_file).absolute())]  # a relative path is the node's: say where
+    (copied from where it was staged), each inside ``output_dir`` (:mod:`.files`). (success,
+    what was written, or why not, in one line)."""
     try:
-        Path(output_file).parent.mkdir(parents=True, exist_ok=True)  # a run-time path
-        write_result(output_file, session.document)
-        if report_dir and session.staged_dir:
-            shutil.copytree(session.staged_dir, report_dir, dirs_exist_ok=True)
-            wrote.append(str((Path(report_dir) / 'report.html').absolute()))
-        elif report_dir:
+        # every path checked before anything is written: a refusal changes nothing
+        path = files.inside(cfg.output_dir, cfg.output_file, 'output_file')
+        folder = None
+        if cfg.report_dir and session.staged_dir:
+            folder = files.inside(cfg.output_dir, cfg.report_dir, 'report_dir')
+            files.check_report_folder(folder)
+        files.replace_file(path, lambda tmp: write_result(tmp, session.document), _is_result)
+        wrote = [str(path)]
+        if folder is not None:
+            files.copy_report(session.staged_dir, folder)
+            wrote.append(str(folder / 'report.html'))
+        elif cfg.report_dir:
             wrote.append('no report (report_dir was set after this calibration: calibrate again)')
     except HandeyeError as err:
         return False, str(err)
     except OSError as err:
-        return False, f'{err.filename or report_dir}: cannot write ({err.strerror or err})'
+        return False, f'{err.filename or cfg.output_dir}: cannot write ({err.strerror or err})'
     return True, 'wrote ' + ', '.join(wrote)
+
+
+def _is_result(path: Path) -> bool:
+    """Whether ``path`` holds a result of this package (``~/save``'s, offline_calibrate's)."""
+    try:
+        read_result(path)
+    except HandeyeError:
+        return False
+    return True

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import difflib
 import itertools
+import os
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -25,9 +27,10 @@ from rclpy.node import Node
 
 from ..app.params_file import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..core.config import CalibrationConfig
-from ..core.errors import ConfigError
+from ..core.errors import ConfigError, InputError
 from ..core.options import Spec, split_options
 from ..stream import StreamConfig
+from . import files
 
 #: Parameters rclpy declares on every node.
 ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service', 'qos_overrides.')
@@ -77,11 +80,31 @@ def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeC
             InvalidParameterTypeException,
             ParameterException,
         ) as err:
-            raise ConfigError(f'parameter {name}: {err}') from None
+            hint = ' (write a float with its point: 5.0, not 5)' if spec.kind == 'float' else ''
+            raise ConfigError(f'parameter {name}: {err}{hint}') from None
         values[name] = p.value
-    return split_options(
+    calib, streams, node_cfg = split_options(
         values, (CalibrationConfig, StreamConfig, NodeConfig), source='parameters'
     )
+    return calib, streams, _confined(node_cfg, PATH_KEYS)
+
+
+#: The node's parameters that name a path to write, each inside ``output_dir`` (:mod:`.files`).
+PATH_KEYS = ('output_file', 'report_dir', 'rig_file')
+
+
+def _confined(cfg: NodeConfig, keys: Any) -> NodeConfig:
+    """``cfg`` with ``output_dir`` made absolute (its default filled in); ConfigError when one
+    of ``keys`` leads out of it (``report_dir`` and ``rig_file`` may be empty: off)."""
+    root = os.path.abspath(os.path.expanduser(cfg.output_dir or files.default_output_dir()))
+    for key in keys:
+        value = getattr(cfg, key)
+        if value or key == 'output_file':
+            try:
+                files.inside(root, value, key)
+            except InputError as err:
+                raise ConfigError(str(err)) from None
+    return replace(cfg, output_dir=root)
 
 
 def apply_changes(
@@ -99,6 +122,7 @@ def apply_changes(
             source='parameters',
         )
         new_node = NodeConfig.from_mapping({**node_cfg.to_dict(), **ours}, source='parameters')
+        new_node = _confined(new_node, ours)
     except ConfigError as err:
         return SetParametersResult(successful=False, reason=str(err)), calib, node_cfg
     return SetParametersResult(successful=True), new_calib, new_node

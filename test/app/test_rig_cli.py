@@ -181,5 +181,5 @@ def test_the_nodes_rig_file_grows_by_session_and_names_a_moved_marker(tmp_path: 
 
     bad = tmp_path / 'not_a_rig.yaml'
     bad.write_text('time_offset: 0.1\n')
-    with pytest.raises(ConfigError, match='not a rig file'):
+    with pytest.raises(ConfigError, match=r"not a rig file \(no rig's recordings in it\)"):
         join_rig(str(bad), 'session 1', first)

@@ -52,6 +52,7 @@ def _params(install: Path) -> Path:
 def _start_node(ros: Processes, install: Path, *params: str, name: str = 'node'):
     exe = resolve_executable(ros.env, 'handeye_ros', 'calibrator')
     args = [str(exe), '--ros-args', '--params-file', str(_params(install))]
+    args += ['-p', f'output_dir:={ros.logs}']  # the test's folder: every file it names is in it
     for p in params:
         args += ['-p', p]
     return ros.start(args, name)

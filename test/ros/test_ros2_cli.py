@@ -126,7 +126,8 @@ class Shell:
     Ctrl-C goes to the whole group)."""
 
     def __init__(self, ws: Path, logs: Path) -> None:
-        self.ws, self.logs, self.env = ws, logs, _underlay()
+        # ROS_HOME of its own: the node's output_dir ($ROS_HOME/handeye_ros) under the test's
+        self.ws, self.logs, self.env = ws, logs, {**_underlay(), 'ROS_HOME': str(logs / 'ros')}
         self.procs: list[tuple[subprocess.Popen, Path]] = []
 
     def start(self, command: str, name: str) -> subprocess.Popen:
@@ -257,7 +258,7 @@ def test_ros2_run_status_calibrate_param_set_and_save_as_typed(shell: Shell, ws:
     assert code == 0 and 'Set parameter successful' in out, out
     code, out = shell.run(SAVE, 'save')
     ok, message = _answer(out)
-    saved = ws / 'calibration.yaml'
+    saved = Path(shell.env['ROS_HOME']) / 'handeye_ros' / 'calibration.yaml'
     assert code == 0 and ok and message == f'wrote {saved}', out
     _near_truth(truth, yaml.safe_load(saved.read_text()))
 

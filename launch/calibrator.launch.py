@@ -4,17 +4,23 @@
     ros2 launch handeye_ros calibrator.launch.py sim:=true auto_calibrate:=true
     ros2 launch handeye_ros calibrator.launch.py params_file:=my_calibrator.yaml rviz:=true
 
-The topics, frames and auto_calibrate given here override the params file's; left empty, the
-params file's hold (the shipped one: every parameter at its default). `ros2 launch
-handeye_ros calibrator.launch.py --show-args` lists the arguments.
+The topics, frames, auto_calibrate and use_sim_time given here override the params file's; left
+empty, the params file's hold (the shipped one: every parameter at its default). Every argument
+is checked before any process starts: a refused one starts none. `ros2 launch handeye_ros
+calibrator.launch.py --show-args` lists the arguments.
 """
 
 from pathlib import Path
 
-from ament_index_python.packages import get_package_share_directory
+from ament_index_python.packages import (
+    PackageNotFoundError,
+    get_package_prefix,
+    get_package_share_directory,
+)
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
-from launch.conditions import IfCondition
+from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -27,12 +33,26 @@ OVERRIDES = {
     'hand_world_frame_id': 'the MoCap world frame G',
     'eye_world_frame_id': "the VIO world frame W (also RViz's fixed frame)",
     'auto_calibrate': 'true: calibrate as soon as the status says READY, and as data grow',
+    'use_sim_time': 'true: stamp the outputs on /clock (ros2 bag play --clock)',
 }
+#: The overrides that are booleans.
+FLAGS = ('auto_calibrate', 'use_sim_time')
+#: What a boolean argument may say (as launch's own conditions read them), and its meaning.
+BOOLEANS = {'true': True, '1': True, 'false': False, '0': False}
 
 
-def _calibrator(context, share: Path) -> list:
-    """The calibrator with the params file (refused in one line if it is not a file) and
-    the overrides given."""
+def _flag(name: str, value: str) -> bool:
+    """A boolean argument; RuntimeError (before any process starts) for another word."""
+    try:
+        return BOOLEANS[value.strip().lower()]
+    except KeyError:
+        raise RuntimeError(f'{name} is true or false, not {value!r}') from None
+
+
+def _actions(context, share: Path) -> list:
+    """Every process of the launch, once every argument has been checked: a refused one (in
+    one line) starts none. The calibrator's end ends the launch, so that nothing it started
+    is left running."""
     params_file = Path(LaunchConfiguration('params_file').perform(context)).expanduser()
     if not params_file.is_file():
         # launch_ros would only warn and start the node with every default
@@ -41,29 +61,56 @@ def _calibrator(context, share: Path) -> list:
             f'{share / "config" / "calibrator.yaml"}'
         )
     given = {k: LaunchConfiguration(k).perform(context) for k in OVERRIDES}
-    overrides = {k: v for k, v in given.items() if v}
-    if 'auto_calibrate' in overrides:
-        flag = overrides['auto_calibrate'].lower()
-        if flag not in ('true', 'false'):
+    overrides: dict = {k: v for k, v in given.items() if v}
+    for name in FLAGS:
+        if name in overrides:
+            overrides[name] = _flag(name, overrides[name])
+    sim = _flag('sim', LaunchConfiguration('sim').perform(context))
+    rviz = _flag('rviz', LaunchConfiguration('rviz').perform(context))
+    if rviz:
+        try:
+            get_package_prefix('rviz2')
+        except PackageNotFoundError:
             raise RuntimeError(
-                f'auto_calibrate is true or false, not {overrides["auto_calibrate"]!r}'
+                'rviz:=true needs rviz2, which is not installed (sudo apt install '
+                'ros-jazzy-rviz2), or leave rviz out'
+            ) from None
+    namespace = LaunchConfiguration('namespace').perform(context)
+    calibrator = Node(
+        package='handeye_ros',
+        executable='calibrator',
+        name='calibrator',
+        namespace=namespace,
+        parameters=[str(params_file), overrides],
+        output='screen',
+        emulate_tty=True,  # the log's colours
+    )
+    actions = [
+        calibrator,
+        RegisterEventHandler(
+            OnProcessExit(
+                target_action=calibrator,
+                on_exit=[EmitEvent(event=Shutdown(reason='the calibrator exited'))],
             )
-        overrides['auto_calibrate'] = flag == 'true'
-    nodes = [
-        Node(
-            package='handeye_ros',
-            executable='calibrator',
-            name='calibrator',
-            parameters=[str(params_file), overrides],
-            output='screen',
-            emulate_tty=True,  # the log's colours
-        )
+        ),
     ]
-    if LaunchConfiguration('rviz').perform(context).lower() == 'true':
-        nodes.append(
+    if sim:
+        # the simulated rig at about real time: 100 Hz MoCap + 20 Hz device for 60 s
+        actions.append(
+            Node(
+                package='handeye_ros',
+                executable='sim_publisher',
+                namespace=namespace,
+                arguments=['--rate', '120', '--duration', '60'],
+                output='screen',
+            )
+        )
+    if rviz:
+        actions.append(
             Node(
                 package='rviz2',
                 executable='rviz2',
+                namespace=namespace,
                 arguments=[
                     '-d',
                     str(share / 'config' / 'calibrator.rviz'),
@@ -72,7 +119,7 @@ def _calibrator(context, share: Path) -> list:
                 ],
             )
         )
-    return nodes
+    return actions
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -91,6 +138,9 @@ def generate_launch_description() -> LaunchDescription:
                 for name, text in OVERRIDES.items()
             ),
             DeclareLaunchArgument(
+                'namespace', default_value='', description='the namespace of every node'
+            ),
+            DeclareLaunchArgument(
                 'sim', default_value='false', description='also start sim_publisher (a test rig)'
             ),
             DeclareLaunchArgument(
@@ -98,14 +148,6 @@ def generate_launch_description() -> LaunchDescription:
                 default_value='false',
                 description="also start RViz on the result's paths (in eye_world_frame_id)",
             ),
-            OpaqueFunction(function=_calibrator, args=[share]),
-            # the simulated rig at about real time: 100 Hz MoCap + 20 Hz device for 60 s
-            Node(
-                package='handeye_ros',
-                executable='sim_publisher',
-                arguments=['--rate', '120', '--duration', '60'],
-                output='screen',
-                condition=IfCondition(LaunchConfiguration('sim')),
-            ),
+            OpaqueFunction(function=_actions, args=[share]),
         ]
     )

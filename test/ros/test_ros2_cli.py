@@ -318,14 +318,30 @@ def test_ros2_launch_on_a_rig_with_its_topics_then_the_service_call(shell: Shell
 
 @pytest.mark.ros
 @LAUNCH
-def test_ros2_launch_refuses_a_params_file_that_is_not_there(shell: Shell, ws: Path) -> None:
-    """One line naming the file and the fix, exit code 1, nothing started."""
-    code, out = shell.run(
-        'ros2 launch handeye_ros calibrator.launch.py params_file:=mine.yaml', 'launch'
-    )
-    assert code == 1, out
-    assert 'params_file mine.yaml is not a file: give the path of your copy of ' in out, out
+@pytest.mark.parametrize(
+    ('args', 'said'),
+    [
+        ('params_file:=mine.yaml', 'params_file mine.yaml is not a file: give the path of your '),
+        ('sim:=yes', "sim is true or false, not 'yes'"),
+        ('rviz:=on', "rviz is true or false, not 'on'"),
+        ('sim:=true use_sim_time:=maybe', "use_sim_time is true or false, not 'maybe'"),
+        ('rviz:=true', 'rviz:=true needs rviz2, which is not installed'),
+    ],
+)
+def test_a_refused_launch_argument_starts_nothing(shell: Shell, args: str, said: str) -> None:
+    """One line naming the argument and the fix, exit code 1, no process started (none left:
+    the launch's process group is empty once it has exited)."""
+    prefixes = shell.env.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
+    index = 'share/ament_index/resource_index/packages/rviz2'
+    if 'rviz2' in said and any((Path(p) / index).exists() for p in prefixes if p):
+        pytest.skip('rviz2 is installed here: rviz:=true is no mistake')
+    launch = shell.start(f'ros2 launch handeye_ros calibrator.launch.py {args}', 'launch')
+    launch.wait(timeout=60)
+    out = shell.log(launch)
+    assert launch.returncode == 1, out
+    assert said in out, out
     assert 'process started' not in out and 'Traceback' not in out, out
+    assert not _group_alive(launch.pid), running('pgid', launch.pid)
 
 
 @pytest.mark.slow

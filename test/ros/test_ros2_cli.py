@@ -378,8 +378,11 @@ def test_rosdep_resolves_every_key_of_package_xml_for_jazzy_on_noble(
     )
     (tmp_path / 'ws' / 'src').mkdir(parents=True)
     (tmp_path / 'ws' / 'src' / 'handeye_ros').symlink_to(ROOT)
+    # a machine before `rosdep install`: no underlay (colcon test on a Jazzy install runs with
+    # /opt/ros/jazzy on AMENT_PREFIX_PATH, and --ignore-src leaves out every package it holds)
+    underlay = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'ROS_PACKAGE_PATH')
     env = dict(
-        os.environ,
+        {k: v for k, v in os.environ.items() if k not in underlay},
         PATH=f'{BIN}{os.pathsep}{os.environ["PATH"]}',
         ROS_DISTRO='jazzy',
         ROS_HOME=str(tmp_path / 'ros_home'),

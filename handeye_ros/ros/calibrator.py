@@ -78,6 +78,10 @@ def main(args: list[str] | None = None) -> int:
         )
         return 2
     quiet_start()
+    missing = _rclpy_missing()
+    if missing:
+        print(f'calibrator: error: {missing}', file=sys.stderr)
+        return 1
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.signals import SignalHandlerOptions
@@ -115,6 +119,18 @@ def main(args: list[str] | None = None) -> int:
             worker.stop(pool)
         rclpy.try_shutdown()
     return 0
+
+
+def _rclpy_missing() -> str | None:
+    """Why rclpy cannot be imported (a pip install without ROS), in one line, or None."""
+    try:
+        import rclpy  # noqa: F401
+    except ImportError as err:
+        return (
+            f'rclpy cannot be imported in this Python ({sys.executable}: {err}); source '
+            '/opt/ros/jazzy/setup.bash first (offline_calibrate needs no ROS)'
+        )
+    return None
 
 
 def send_answers(node: Any, executor: Any, timeout_s: float, linger_s: float) -> None:

@@ -86,6 +86,11 @@ def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeC
     calib, streams, node_cfg = split_options(
         values, (CalibrationConfig, StreamConfig, NodeConfig), source='parameters'
     )
+    if node_cfg.auto_calibrate and node_cfg.status_period == 0.0:
+        raise ConfigError(
+            'auto_calibrate calibrates by the status, which status_period 0 turns off: give '
+            'status_period > 0 (1.0 by default), or leave auto_calibrate false'
+        )
     return calib, streams, _confined(node_cfg, PATH_KEYS)
 
 

@@ -239,7 +239,10 @@ class Subscriptions:
                         f'{", ".join(SUPPORTED_TYPES)})'
                     )
                 elif usable:
-                    why = f'has several pose types ({", ".join(usable)}): set {stream}_type'
+                    why = (
+                        f'has several pose types ({", ".join(usable)}): restart the node with '
+                        f'-p {stream}_type:=ONE_OF_THEM'
+                    )
                     if guess in usable:
                         why += f'; meanwhile the {guess} one is received'
                 else:
@@ -275,7 +278,7 @@ class Subscriptions:
                 if len(usable) > 1:
                     return (
                         f'{stream} topic {topic} has several pose types ({", ".join(usable)}): '
-                        f'set {stream}_type'
+                        f'restart the node with -p {stream}_type:=ONE_OF_THEM'
                     )
                 if types and not usable:
                     return (
@@ -286,7 +289,7 @@ class Subscriptions:
                     source = {'hand': 'the MoCap driver', 'eye': 'the VO/VIO'}[stream]
                     return (
                         f'{stream} topic {topic} has no publisher yet{self.near(topic)}: start '
-                        f'{source}, or set {stream}_topic'
+                        f'{source}, or restart the node with -p {stream}_topic:=YOUR_TOPIC'
                     )
         return None
 

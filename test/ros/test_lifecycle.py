@@ -130,3 +130,17 @@ def test_publish_calibration_stopped_at_any_moment_exits_quietly(
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ['0'], proc.stdout + proc.stderr
     assert 'Traceback' not in proc.stderr, proc.stderr
+
+
+def test_the_calibrator_without_rclpy_says_so_in_one_line() -> None:
+    """A pip install without ROS: one line naming the fix, exit code 1, no traceback."""
+    code = (
+        "import sys; sys.modules['rclpy'] = None\n"  # import rclpy: ImportError
+        'from handeye_ros.ros.calibrator import main; sys.exit(main([]))'
+    )
+    proc = subprocess.run(
+        [sys.executable, '-c', code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith('calibrator: error: rclpy cannot be imported'), proc.stderr
+    assert 'Traceback' not in proc.stderr and len(proc.stderr.splitlines()) == 1, proc.stderr

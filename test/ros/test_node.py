@@ -310,6 +310,9 @@ def test_nan_on_the_wire_busy_refusal_and_reset(
             "hand_topic /mocap pose: '/mocap pose' is no valid topic name",
         ),
         ('eye_topic:=/vio/1odom', 'must not start with a number'),
+        ('eta:=5', 'write a float with its point: 5.0, not 5'),
+        ('output_file:=../evil.yaml', 'output_file ../evil.yaml: ".." is not allowed'),
+        ('auto_calibrate:=true|status_period:=0.0', 'which status_period 0 turns off'),
         pytest.param(
             'hand_topic:=/tf:world.marker',
             'tf2_msgs/msg/TFMessage cannot be imported',
@@ -327,7 +330,7 @@ def test_invalid_parameters_are_refused_at_start(
     typed = (
         ('hand_type:=PoseStamped', 'eye_type:=Odometry') if ' ' in param or '1' in param else ()
     )
-    node = _start_node(ros, install, *typed, param)
+    node = _start_node(ros, install, *typed, *param.split('|'))
     node.wait(timeout=30)
     out, err = ros.output(node)
     assert node.returncode == 1, (out, err)

@@ -28,6 +28,7 @@ from .lifecycle import (
     quiet_start,
     spin_until_stopped,
     stop_requested,
+    stop_with_parent,
     stoppable_executor,
 )
 
@@ -78,6 +79,7 @@ def main(args: list[str] | None = None) -> int:
         )
         return 2
     quiet_start()
+    stop_with_parent()
     missing = _rclpy_missing()
     if missing:
         print(f'calibrator: error: {missing}', file=sys.stderr)

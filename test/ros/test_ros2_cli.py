@@ -318,6 +318,24 @@ def test_ros2_launch_on_a_rig_with_its_topics_then_the_service_call(shell: Shell
 
 @pytest.mark.ros
 @LAUNCH
+@pytest.mark.parametrize('how', ['ctrl-c', 'sigterm'])
+def test_a_launch_on_simulated_time_without_clock_stops(shell: Shell, how: str) -> None:
+    """use_sim_time:=true and no /clock: the status says so, and Ctrl-C (exit code 0) or a
+    SIGTERM to `ros2 launch` (which ends at once and leaves its processes to themselves: the
+    calibrator stops with its parent) leave no process running."""
+    launch = shell.start('ros2 launch handeye_ros calibrator.launch.py use_sim_time:=true', 'l')
+    assert wait_for(lambda: 'waiting for /clock' in shell.log(launch), 60, 0.1), shell.log(launch)
+    if how == 'ctrl-c':
+        assert shell.ctrl_c(launch) == 0, shell.log(launch)
+    else:
+        launch.send_signal(signal.SIGTERM)
+        launch.wait(timeout=10)
+        assert wait_for(lambda: not _group_alive(launch.pid), 10), running('pgid', launch.pid)
+    assert 'Traceback' not in shell.log(launch), shell.log(launch)
+
+
+@pytest.mark.ros
+@LAUNCH
 @pytest.mark.parametrize(
     ('args', 'said'),
     [

@@ -417,3 +417,54 @@ def test_results_md_is_the_summary() -> None:
     assert len(text.splitlines()) < 600
     for topic in sorted((ROOT / 'bench' / 'results').glob('*.md')):
         assert f'(results/{topic.name})' in text, topic.name
+
+
+#: A path of the repository in a comment or docstring: under one of its folders, with a name.
+_REPO_PATH = re.compile(
+    r'(?<![\w./-])((?:handeye_ros|bench|test|docs|scripts|config|launch|resource)/[\w./-]*\w)'
+)
+
+
+def _comments_and_strings(path: Path) -> list[tuple[int, str]]:
+    """(line, text) of every comment and string of a Python file, of every comment of a shell
+    script."""
+    import io
+    import tokenize
+
+    text = path.read_text()
+    if path.suffix != '.py':
+        return [
+            (n, line) for n, line in enumerate(text.splitlines(), 1) if line.lstrip()[:1] == '#'
+        ]
+    kinds = (tokenize.COMMENT, tokenize.STRING)
+    return [
+        (tok.start[0], tok.string)
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline)
+        if tok.type in kinds
+    ]
+
+
+def test_comments_name_only_files_that_exist() -> None:
+    """A comment or docstring that names a file of the repository names one that exists (a
+    renamed or removed benchmark left its citations behind). bench/out holds what benchmarks
+    write (not in git); NAME, TOPIC and x stand for any name."""
+    files = [
+        *ROOT.glob('handeye_ros/**/*.py'),
+        *ROOT.glob('test/**/*.py'),
+        *ROOT.glob('bench/*.py'),
+        *ROOT.glob('launch/*.py'),
+        *(p for p in (ROOT / 'scripts').iterdir() if p.is_file()),
+        ROOT / '.ci' / 'run',
+        ROOT / 'setup.py',
+    ]
+    placeholder = re.compile(r'(^|/)([A-Z]+|x)(\.\w+)?$')
+    stale = [
+        f'{path.relative_to(ROOT)}:{n}: {ref}'
+        for path in files
+        for n, text in _comments_and_strings(path)
+        for ref in (m.group(1).rstrip('.') for m in _REPO_PATH.finditer(text))
+        if not (ROOT / ref).exists()
+        and not ref.startswith('bench/out')
+        and not placeholder.search(ref)
+    ]
+    assert not stale, stale

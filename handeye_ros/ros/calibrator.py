@@ -35,8 +35,7 @@ from .lifecycle import (
 #: How long the stop spins to send the answers to pending ``~/calibrate`` calls (s).
 ANSWER_S = 2.0
 #: How long it spins on once it has sent any (s): under load a response can miss its reader
-#: at the first attempt, and only a writer that still exists repeats it (1 stop in about 20
-#: of the loaded CI's left a caller unanswered without it).
+#: at the first attempt, and only a writer that still exists repeats it.
 LINGER_S = 0.5
 
 

@@ -11,8 +11,8 @@ snapshot: stages 1 and 2, then every piece) first, while stages 1 and 2 give no 
 the pairs' optimum has moved beyond its 1-sigma, and as the buffers grow by half; the pieces of
 poses the buffers drop are dropped with them. The answer is published on ``~/status``
 (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
-changes (and every LOG_PERIOD_S): never redrawn in place, which glued log lines onto it in a
-terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies
+changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log lines onto it in
+a terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies
 the poses and adds up the pieces: ingest never waits for the computation.
 
 With ``auto_calibrate``, :mod:`.auto_mode` calibrates by the status.

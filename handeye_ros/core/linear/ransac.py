@@ -73,8 +73,8 @@ def well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:
 
     Why: a consensus of motions about nearly one axis (a recording that was planar for a while)
     is degenerate in the translation along that axis, and its sigma7/sigma6 is then no measure
-    of quality; it came out smallest and won over the consensus of the whole recording (the
-    live poor-then-rich runs of bench/readiness_live.py: 36 mm off, reported unobservable)."""
+    of quality: it can come out smallest and win over the consensus of the whole recording
+    (bench/readiness_live.py's poor-then-rich recordings)."""
     for floor in (WARN_AXIS_SPREAD_DEG, MIN_AXIS_SPREAD_DEG):
         tier = eligible & (spread >= floor)
         if tier.any():

@@ -77,6 +77,14 @@ class CalibrationConfig(Options):
         'time_offset_stamp), instead of one constant offset (without it the offset is still '
         'measured along the recording and a drift is named)',
     )
+    auto_drift: bool = option(
+        True,
+        'bool',
+        'fit the clock drift in the same run when the offset measured along the recording '
+        'drifts beyond its uncertainty (said in a note); off: one constant offset unless '
+        'clock_drift',
+        alias='clock-drift',
+    )
     estimate_scale: bool = option(
         False,
         'bool',

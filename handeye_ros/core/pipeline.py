@@ -36,9 +36,9 @@ from .batch.pieces import check_joint_size
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
-from .checks.verdict import assess, assess_model, judged
+from .checks.verdict import Code, assess, assess_model, drift_fitted_note, judged
 from .config import CalibrationConfig
-from .errors import ConfigError
+from .errors import ConfigError, HandeyeError
 from .geometry import matrix_from_quat
 from .result import CalibrationResult, UsedStreams
 from .stages.batch import Refined, batch_stage
@@ -84,6 +84,36 @@ def calibrate(
         )
     if cfg.batch and cfg.batch_joint:
         check_joint_size(hand)
+    result = _calibrate(hand, eye, cfg, progress)
+    if cfg.auto_drift and not cfg.clock_drift and Code.CLOCK_DRIFT in result.quality.codes:
+        return _with_drift(hand, eye, cfg, result)
+    return result
+
+
+def _with_drift(
+    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, measured: CalibrationResult
+) -> CalibrationResult:
+    """The calibration again with the clock drift the first one measured along the recording
+    (``measured``: its CLOCK_DRIFT reason), said in a note; ``measured`` itself when the drift
+    cannot be fitted."""
+    try:
+        result = _calibrate(hand, eye, replace(cfg, clock_drift=True), None)
+    except HandeyeError:
+        return measured
+    if result.clock_drift is None or measured.clock is None:
+        return measured
+    note = drift_fitted_note(measured.clock, result.clock_drift)
+    quality = replace(result.quality, notes=(note, *result.quality.notes))
+    return replace(result, quality=quality)
+
+
+def _calibrate(
+    hand: Trajectory,
+    eye: Trajectory,
+    cfg: CalibrationConfig,
+    progress: Callable[[str], None] | None,
+) -> CalibrationResult:
+    """The stages once, with the options as given (:func:`calibrate`)."""
     run = Findings()
     step = progress or (lambda name: None)
     clock = [time.perf_counter()]

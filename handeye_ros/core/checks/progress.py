@@ -17,13 +17,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..config import CalibrationConfig
-from ..errors import HandeyeError
+from ..errors import HandeyeError, InputError
 from ..geometry import matrix_from_quat
 from ..linear.solve import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
 from ..trajectory import Trajectory
 from . import pair_information as info
 from .excitation import RECENT_S, Turned, dropout, turned
+from .orientations import READINGS, check_orientations
 
 #: Slower than this RMS angular speed (deg/s), the device is held still (and stages 1 and 2
 #: are not tried).
@@ -287,8 +288,24 @@ def _calibrate(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> Kno
             resample_rate_hz=cfg.resample_rate_hz,
         )
         dt, peak, second = ta.time_offset_s, ta.peak_correlation, ta.second_peak_ratio
+    _misread(hand, eye, dt, cfg)
     lin, _ = solve_linear(hand, eye, dt, cfg)
     return Known(dt, matrix_from_quat(lin.q_HE), lin.p_HE, lin.n_motions, peak, second)
+
+
+def _misread(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig) -> None:
+    """InputError, with the fix, when AX = XB fits the orientations of a stream read another
+    way only (inverted poses, another quaternion order: :mod:`.orientations`): a status would
+    otherwise predict the sigmas of a wrong model and ask for more motion."""
+    found = check_orientations(hand, eye, dt, np.deg2rad(cfg.eta))[2]
+    if found:
+        c = found[0]
+        source = {'hand': 'the MoCap', 'eye': 'the device'}[c.stream]
+        words = READINGS[c.assumed][1]
+        raise InputError(
+            f'{source}: {words}, as AX = XB shows; the calibration corrects it and says so, '
+            f'but tell the node: restart it with {c.option} set (calibrator --help)'
+        )
 
 
 def _all_pairs(

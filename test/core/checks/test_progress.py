@@ -139,3 +139,17 @@ def test_what_makes_the_status_read_everything_again() -> None:
     assert p.span_s == pytest.approx(39.0, abs=1.0)
     assert p.due(p.span_s * 1.4) is None
     assert 'grown' in p.due(p.span_s * 1.5)
+
+
+def test_inverted_mocap_poses_are_said_with_the_fix_not_more_motion() -> None:
+    """MoCap poses published inverted (T_HG for T_GH): the status names the mistake and the
+    option, and is not ready, instead of asking for motion it already has."""
+    from handeye_ros.core.checks.orientations import reread
+
+    rec = recording(seed=2, level=2.0, duration_s=60.0, **RATES)
+    p = start(reread(rec.hand, 'inverse'), rec.eye, CFG)
+    ready = readiness_of(p, CFG, (60.0, 60.0))
+    assert not ready.ready
+    assert ready.missing[0].startswith('the MoCap: its poses were the inverse'), ready.missing
+    assert 'invert_hand' in ready.missing[0]
+    assert start(rec.hand, rec.eye, CFG).refused is None

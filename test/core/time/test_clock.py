@@ -129,9 +129,26 @@ def test_clock_drift_is_estimated_in_all_stages() -> None:
 
 
 @pytest.mark.slow
-def test_default_run_names_a_drift_with_its_rate() -> None:
+def test_default_run_fits_a_drift_it_measures_and_says_so() -> None:
     rec = recording(seed=3, level=3.0, duration_s=180.0, clock_drift=300e-6)
     res = calibrate(rec.hand, rec.eye)
+    assert res.clock_drift == pytest.approx(300e-6, abs=5e-6)
+    assert 'clock_drift' not in res.quality.codes
+    note = res.quality.notes[0]
+    assert note.startswith(f'clock drift {res.clock_drift * 1e6:+.1f} ppm measured (')
+    assert note.endswith(
+        'and fitted; --no-clock-drift (auto_drift false) keeps one constant offset'
+    )
+    d = res.to_dict()
+    assert (
+        abs(res.time_offset_s - float(rec.truth.time_offset_at(d['time_offset_stamp_ns']))) < 1e-3
+    )
+
+
+@pytest.mark.slow
+def test_without_auto_drift_a_drift_is_named_with_its_rate() -> None:
+    rec = recording(seed=3, level=3.0, duration_s=180.0, clock_drift=300e-6)
+    res = calibrate(rec.hand, rec.eye, CalibrationConfig(auto_drift=False))
     assert res.clock_drift is None
     assert 'clock_drift' in res.quality.codes
     text = next(r.message for r in res.quality.reasons if r.code == 'clock_drift')

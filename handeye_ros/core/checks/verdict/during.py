@@ -265,6 +265,17 @@ def drift_constant_note(fit: DriftFit) -> str | None:
     )
 
 
+def drift_fitted_note(measured: DriftFit, fitted: float) -> str:
+    """The note of a drift that a default run measured along the recording (``measured``,
+    significant: :func:`drift_significant`) and then fitted (``fitted``, s/s)."""
+    return (
+        f'clock drift {fitted * 1e6:+.1f} ppm measured ({measured.drift * 1e6:+.1f} +- '
+        f'{measured.drift_std * 1e6:.1f} ppm over {int(measured.inliers.sum())} windows along '
+        'the recording) and fitted; --no-clock-drift (auto_drift false) keeps one constant '
+        'offset'
+    )
+
+
 def read(entry: object) -> tuple[Reason | None, str | None]:
     """What a fact of the stages means for the verdict: (a reason or None, a note or None); a
     reason made on the way reads as itself."""

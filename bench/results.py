@@ -82,6 +82,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['drift_sim', 'scale_sim', 'drift_real', 'scale_real'],
         '20 min',
     ),
+    'auto_drift': ('auto_drift', [], ['auto_drift'], '15 min'),
     'runtime': ('runtime', [], ['runtime'], '30 min'),
     'evaluate': (
         'evaluate',

@@ -75,7 +75,8 @@ class CalibrationConfig(Options):
         'bool',
         'estimate a linear clock, dt(t) = time_offset + clock_drift * (t - '
         'time_offset_stamp), instead of one constant offset (without it the offset is still '
-        'measured along the recording and a drift is named)',
+        'measured along the recording, and a drift beyond its uncertainty is fitted: '
+        'auto_drift)',
     )
     auto_drift: bool = option(
         True,

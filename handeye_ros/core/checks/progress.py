@@ -21,7 +21,7 @@ from ..errors import HandeyeError, InputError
 from ..geometry import matrix_from_quat
 from ..linear.solve import solve_linear
 from ..time.align import MIN_OVERLAP_S, align_time
-from ..trajectory import Trajectory
+from ..trajectory import Trajectory, is_keyframe_only
 from . import pair_information as info
 from .excitation import RECENT_S, Turned, dropout, turned
 from .orientations import READINGS, check_orientations
@@ -232,6 +232,9 @@ def start(
         return progress
     if known is None:
         short = min(hand.duration_s, eye.duration_s)
+        if is_keyframe_only(eye):
+            progress.refused = _too_sparse(eye)
+            return progress
         if short < MIN_RECORDING_S:
             progress.refused = (
                 f'keep recording: {short:.0f} s of both streams so far, '
@@ -291,6 +294,17 @@ def _calibrate(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> Kno
     _misread(hand, eye, dt, cfg)
     lin, _ = solve_linear(hand, eye, dt, cfg)
     return Known(dt, matrix_from_quat(lin.q_HE), lin.p_HE, lin.n_motions, peak, second)
+
+
+def _too_sparse(eye: Trajectory) -> str:
+    """What the status says of a device stream too sparse for it (keyframes, or a VIO
+    published at a rate of a few Hz)."""
+    step = float(np.median(np.diff(eye.t_ns))) * 1e-9
+    return (
+        f"the device's poses come {step:.2f} s apart ({1.0 / step:.1f} Hz): too few for the "
+        'status, which reads angular speeds; publish its odometry at its full rate (10 Hz or '
+        'more). ~/calibrate still works: it calibrates sparse poses by their rotation angles'
+    )
 
 
 def _misread(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig) -> None:

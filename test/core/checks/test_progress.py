@@ -153,3 +153,12 @@ def test_inverted_mocap_poses_are_said_with_the_fix_not_more_motion() -> None:
     assert ready.missing[0].startswith('the MoCap: its poses were the inverse'), ready.missing
     assert 'invert_hand' in ready.missing[0]
     assert start(rec.hand, rec.eye, CFG).refused is None
+
+
+def test_a_device_stream_too_sparse_for_the_status_is_said_with_its_rate() -> None:
+    """A VIO at 1 Hz: the status names the rate and the fix, not the clocks or the motion."""
+    rec = recording(seed=2, level=2.0, duration_s=60.0, **RATES)
+    sparse = rec.eye.select(np.arange(0, len(rec.eye), 30))  # 30 Hz -> 1 Hz
+    ready = readiness_of(start(rec.hand, sparse, CFG), CFG, (60.0, 60.0))
+    assert not ready.ready
+    assert ready.missing[0].startswith("the device's poses come 1.00 s apart (1.0 Hz)")

@@ -113,6 +113,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
     'qos_stall': ('qos_stall', [], ['qos_stall'], '1 min'),
+    'sim_time_stop': ('sim_time_stop', [], ['sim_time_stop'], '2 min'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),
     'rig_scale': ('rig_scale', [], ['rig_scale'], '2 min'),

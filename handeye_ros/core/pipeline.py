@@ -20,6 +20,10 @@ reads, and every finding (a warning, a reason of the verdict, a note) goes into 
    the answer beyond its own sigmas.
 5. **The result** (:func:`_finish`): the world alignment and metrics at the final (dt, T_HE),
    the seed check, the verdict's remaining rules (:mod:`.checks.verdict`), the MoCap's coverage.
+
+When the offset measured along the recording drifts beyond its uncertainty (the verdict's
+``clock_drift``) and ``auto_drift`` is on, the stages run once more with ``clock_drift``
+(:func:`_with_drift`), and a note says so.
 """
 
 from __future__ import annotations

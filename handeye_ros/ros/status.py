@@ -51,6 +51,10 @@ STOPPED_S = diagnostics.STOPPED_S
 #: The two streams' stamps may move against their arrivals by this much (s, at least) before
 #: the status says a clock jumped: their periods and the executor's lag jitter them.
 JUMP_S = 1.0
+#: The clocks are compared by the median of this many snapshots, first ones against last ones:
+#: a delivery held up by a busy machine moves one snapshot's arrivals, a jump moves every one
+#: after it.
+JUMP_SNAPSHOTS = 3
 #: The node taking a stream's poses this much after DDS received them (s) is said.
 LATE_S = 1.0
 #: The status line is logged when it changes, and at least this often (s).
@@ -74,7 +78,8 @@ class ReadinessStatus:
         self._pending = {'start': False, 'measure': False}
         self._next = {'start': 0.0, 'measure': 0.0}
         self._logged = (0.0, '')
-        self._apart: float | None = None  # clocks_apart at the first snapshot
+        #: clocks_apart at the first JUMP_SNAPSHOTS snapshots, and at the last ones
+        self._apart: tuple[list[float], list[float]] = ([], [])
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
         #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
@@ -264,9 +269,9 @@ class ReadinessStatus:
         return [said]
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
-        """Whether the streams' clocks moved against each other since the first snapshot
-        (:func:`clocks_apart`). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both
-        clocks' times."""
+        """Whether the streams' clocks moved against each other since the first snapshots
+        (:func:`clocks_apart`, the median of JUMP_SNAPSHOTS first against the last ones). Kept
+        in ``_jumped`` until :meth:`reset`: the buffers hold both clocks' times."""
         node = self._node
         # DDS's reception times where it gives them: the node's own times move with any
         # backlog of its executor (a loaded machine: a 3-s backlog of the device stream read
@@ -275,10 +280,14 @@ class ReadinessStatus:
         apart = clocks_apart(
             hand_ns, eye_ns, received if all(received.values()) else node.last_ticked
         )
-        if self._apart is None:
-            self._apart = apart
+        first, last = self._apart
+        if len(first) < JUMP_SNAPSHOTS:
+            first.append(apart)
             return
-        moved = apart - self._apart
+        last[:] = [*last[1 - JUMP_SNAPSHOTS :], apart]
+        if len(last) < JUMP_SNAPSHOTS:
+            return
+        moved = float(np.median(last) - np.median(first))
         # arrivals jitter by the streams' periods and the executor's lag
         period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
         said = (
@@ -290,7 +299,7 @@ class ReadinessStatus:
     def reset(self) -> None:
         """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
         (a new recording: its first result is published whatever the last one reported)."""
-        self._apart, self._jumped = None, []
+        self._apart, self._jumped = ([], []), []
         self._progress = None
         self._generation += 1
         self._next['start'] = 0.0

@@ -388,6 +388,7 @@ STAGE_DECISIONS = {
     'judge_tie',
     'scale_doubtful',
     'scale_uncertainty_note',
+    'varies_note',
     'WEAK_CORRELATION',
 }
 

@@ -226,6 +226,7 @@ def simulate(
     motion: str = 'random',
     clock_drift: float = 0.0,
     scale: float = 1.0,
+    wander_s: float = 0.0,
 ) -> Recording:
     """Simulate one recording.
 
@@ -234,8 +235,8 @@ def simulate(
     adds white MoCap noise (the paper's protocol has none). ``motion``: one of :data:`MOTIONS`.
     ``clock_drift`` [s/s]: the eye's clock runs at (1 + clock_drift) times the hand's, with
     ``time_offset`` the offset at the eye's middle stamp (``truth.time_offset_stamp_ns``).
-    ``scale``: the eye's positions are metric times 1 / scale (a monocular VO), so that
-    ``scale`` is what a calibration should find.
+    ``scale``: the eye's positions are metric / scale (a monocular VO; what a calibration should
+    find). ``wander_s`` [s]: the offset wanders about ``time_offset`` by this rms (:func:`_wander`).
     """
     if not (np.isfinite(duration_s) and (duration_s - 2.0) * eye_rate_hz >= 2.0):
         raise InputError(
@@ -257,21 +258,35 @@ def simulate(
 
     dt_ns = round(truth.time_offset_s * 1e9)
     t_eye_ns = _eye_stamps(seed, duration_s, eye_rate_hz, dt_ns)
-    n_eye = t_eye_ns.size
     X = (Rotation.from_quat(truth.q_HE).as_matrix(), truth.p_HE)
     T_WG = (Rotation.from_quat(truth.q_WG).as_matrix(), truth.p_WG)
-    mid_ns = int(t_eye_ns[n_eye // 2])
-    # hand time of each eye stamp: t - dt(t), dt(t) = dt + drift (t - mid)
+    mid_ns = int(t_eye_ns[t_eye_ns.size // 2])
+    # hand time of each eye stamp: t - dt(t), dt(t) = dt + drift (t - mid) + wander(t)
     t_at_hand = (t_eye_ns - dt_ns - EPOCH_NS) * 1e-9 - clock_drift * (t_eye_ns - mid_ns) * 1e-9
+    t_at_hand -= _wander(rng, (t_eye_ns - t_eye_ns[0]) * 1e-9, wander_s)
     R_WE, p_WE = compose(compose(T_WG, hand_pose(t_at_hand)), X)
     if noise_m or noise_deg:
         R_WE, p_WE = _add_cumulative_error(rng, R_WE, p_WE, noise_m, noise_deg)
     p_WE = p_WE / scale
     truth = replace(truth, clock_drift=clock_drift, time_offset_stamp_ns=mid_ns, scale=scale)
-
     hand = Trajectory.from_arrays(t_hand_ns, p_GH, quat_from_matrix(R_GH), 'simulated hand')
     eye = Trajectory.from_arrays(t_eye_ns, p_WE, quat_from_matrix(R_WE), 'simulated eye')
     return Recording(hand, eye, truth)
+
+
+def _wander(rng: np.random.Generator, t_s: np.ndarray, rms_s: float) -> np.ndarray:
+    """(N,) [s] a smooth wander at the eye's times ``t_s`` [s] (a VIO's latency that changes
+    with its load): three sinusoids of random phases and of periods between a quarter of the
+    span and all of it, of zero mean over ``t_s`` (so that the time offset is its mean) and
+    root-mean-square ``rms_s``; zeros (no draw from ``rng``) when that is 0."""
+    if not rms_s:
+        return np.zeros(t_s.size)
+    span = float(t_s[-1] - t_s[0]) or 1.0
+    periods = rng.uniform(0.25, 1.0, 3) * span
+    phases = rng.uniform(0.0, 2.0 * np.pi, 3)
+    w = np.sin(2.0 * np.pi * t_s[:, None] / periods + phases).sum(axis=1)
+    w -= w.mean()
+    return rms_s * w / np.sqrt(np.mean(w**2))
 
 
 def _add_cumulative_error(

@@ -6,12 +6,30 @@ attitude that change as it moves, and a scale of its translations that is not 1 
 outdoors4: Basalt VIO and ORB-SLAM3 VIO on the same MoCap put T_HE 11 mm apart in y where each
 reported 0.4-1.2 mm). Two terms, added to the long-run covariance ``C``:
 
-1. **Correlated (blocks).** The covered eye poses are cut into ``B`` contiguous blocks, each
-   refitted alone from the solution; the blocks' deviations ``d_b`` from the solution,
-   measured against their own covariances ``C_b``, give per group g (time offset, translation,
-   rotation; p_g parameters) the dispersion ratio ``k_g^2 = sum_b d_b^T C_b^-1 d_b / (p_g
-   (B - 1))`` (Birge's ratio: 1 when the blocks agree as their sigmas say). The group's rows
-   and columns of ``C`` are multiplied by ``max(1, k_g)``.
+1. **Correlated (blocks).** The covered eye poses are cut into ``B`` contiguous blocks of as
+   many poses, each refitted alone from the solution, with deviations ``d_b`` from it and
+   covariances ``C_b``. What the blocks' disagreement means differs by group:
+
+   - Translation and rotation: a VIO's errors over minutes (biases, a slow drift of its
+     attitude) move each block's fit, and the recording's value is uncertain by the error of the
+     blocks' mean, ``v_g = t^2 sum_b |d_b,g - mean_b d_b,g|^2 / (B (B - 1))``.
+   - Time offset: a block's offset is the eye's latency over that block, and a latency that
+     wanders (with a VIO's load, from one segment of a broken stream to the next) is a variation
+     of the quantity, not an error of it: the result is the recording's mean offset, known to
+     the long-run covariance plus how far the solution's weighting of the blocks (by their
+     information) takes it from their plain mean, ``v = tr C_g + t^2 (sum_b (w_b - 1 / B)
+     d_b,g)^2`` with ``w_b`` proportional to ``1 / C_b,g``. (On simulations whose offset wanders
+     by 3 ms the error of the blocks' mean would be 4 times the errors; bench/wander.py.)
+
+   ``t`` is the Student-t 1-sigma factor of B - 1 degrees of freedom (1.20 for four blocks: a
+   spread measured on four values is itself uncertain). Where ``v_g`` exceeds the long-run
+   variance of the group, its rows and columns of ``C`` are multiplied by
+   ``k_g = sqrt(v_g / tr C_g)``. Birge's ratio ``sum_b d_b^T C_b^-1 d_b / (p_g (B - 1))`` far
+   above 1 (:func:`varies`) means that the group's value moves along the recording by more than
+   the blocks' own noise: the result says so, with the blocks' spread. (Multiplying ``C`` by
+   that ratio counts the long-run correlation twice where a block's covariance is not B times
+   the whole one's: TUM-VI outdoors4's offset, its MoCap at the two ends only, had a 1-sigma of
+   35 ms that way, 3.6 ms this one.)
 2. **Scale.** The solution refitted with a factor on the eye's translations as a nuisance
    parameter. T_HE stays the one at s = 1, as the user's metric eye asks; its covariance gains
    what not knowing s adds (the marginal minus the conditional covariance) and the shift that
@@ -26,13 +44,19 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.special import chdtri, stdtrit
 
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
-#: the recording each: on the white simulations their dispersion ratio is 1.0 in the median,
-#: 1.2-1.45 at the 90th percentile, with 4 blocks of 15 or 30 s); with fewer than
-#: MIN_BLOCK_POSES eye poses in a block the term is not estimated.
+#: the recording each); with fewer than MIN_BLOCK_POSES eye poses in a block the term is not
+#: estimated.
 BLOCKS = 4
 MIN_BLOCK_POSES = 100
+#: Birge's ratio of the blocks above its upper quantile of this probability under their own
+#: covariances (chi^2 with p_g (B - 1) degrees of freedom over them) says that a group's value
+#: varies along the recording.
+VARIES_QUANTILE = 0.999
+#: The probability within one standard deviation of a normal distribution's mean.
+ONE_SIGMA = 0.6826894921370859
 #: The reported covariance's groups: (dt), translation (3), rotation (3), in its order.
 GROUPS = {'time_offset': (0,), 'translation': (1, 2, 3), 'rotation': (4, 5, 6)}
 #: The terms of the uncertainty, as the result names them.
@@ -46,7 +70,8 @@ class Uncertainty:
     white: ``s^2 (J^T J)^-1``; long_run: :mod:`.long_run`'s; covariance: the reported one (all
     three in the reported order: dt, translation, rotation, then a drift and a scale when
     estimated); factors: the blocks' k_g per group (1: not inflated), None when the blocks could
-    not be fitted; scale: the nuisance fit's (s, its 1-sigma, the shift of (dt, translation,
+    not be fitted; varies: the groups whose value moves along the recording (:func:`varies`);
+    scale: the nuisance fit's (s, its 1-sigma, the shift of (dt, translation,
     rotation) from s = 1 to s), None when it was not fitted; not_estimated: why a term is
     missing.
     """
@@ -57,6 +82,7 @@ class Uncertainty:
     scale: tuple[float, float, np.ndarray] | None
     covariance: np.ndarray
     not_estimated: tuple[str, ...] = field(default=())
+    varies: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def terms(self) -> dict[str, dict[str, float]]:
         """Per group, the 1-sigma (norm over its axes) of each term: white, correlated (what
@@ -75,6 +101,11 @@ class Uncertainty:
                 'scale': float(np.sqrt(max(scaled, 0.0))),
             }
         return out
+
+    def std(self, group: str) -> np.ndarray:
+        """The reported 1-sigma of each of the group's axes."""
+        i = list(GROUPS[group])
+        return np.sqrt(np.clip(np.diag(self.covariance)[i], 0.0, None))
 
     def over_long_run(self) -> dict[str, float]:
         """Per group, the reported 1-sigma (norm over its axes) over the long-run one: what
@@ -96,10 +127,36 @@ class Uncertainty:
         return self.covariance - inflated(self.long_run, self.factors or {})
 
 
-def dispersion(deviations: np.ndarray, covariances: np.ndarray) -> dict[str, float]:
-    """k_g (>= 1) per group from the blocks' deviations (B, 7) and their covariances
-    (B, 7, 7), in the reported order (see the module docstring); a group held fixed has
-    none."""
+def error_of_mean(
+    deviations: np.ndarray, covariances: np.ndarray, long_run: np.ndarray
+) -> dict[str, float]:
+    """k_g (>= 1) per group: the error of the recording's value over the long-run 1-sigma
+    (module docstring), from the blocks' deviations (B, 7), their covariances (B, 7, 7) and the
+    long-run covariance (reported order); a group held fixed (zero variance) has none."""
+    B = deviations.shape[0]
+    t_1sigma = float(stdtrit(B - 1, 0.5 + 0.5 * ONE_SIGMA))
+    out = {}
+    for group, idx in GROUPS.items():
+        i = list(idx)
+        own = float(np.trace(long_run[np.ix_(i, i)]))
+        if not own > 0.0 or not np.all(covariances[:, i, i] > 0.0):  # held fixed
+            continue
+        if group == 'time_offset':
+            w = 1.0 / covariances[:, i[0], i[0]]
+            mismatch = float(np.sum((w / w.sum() - 1.0 / B) * deviations[:, i[0]]))
+            v = own + t_1sigma**2 * mismatch**2
+        else:
+            d = deviations[:, i] - deviations[:, i].mean(axis=0)
+            v = t_1sigma**2 * float(np.sum(d**2)) / (B * (B - 1))
+        out[group] = float(np.sqrt(max(1.0, v / own)))
+    return out
+
+
+def varies(deviations: np.ndarray, covariances: np.ndarray) -> dict[str, tuple[float, float]]:
+    """The groups whose blocks disagree beyond their own covariances (B, 7, 7) (Birge's ratio
+    above its VARIES_QUANTILE), each with (the blocks' spread: the norm over the group's axes
+    of the deviations' (B, 7) sample standard deviation; the square root of Birge's ratio: how
+    many times what the blocks' own noise explains)."""
     B = deviations.shape[0]
     out = {}
     for group, idx in GROUPS.items():
@@ -110,7 +167,10 @@ def dispersion(deviations: np.ndarray, covariances: np.ndarray) -> dict[str, flo
             float(d[i] @ np.linalg.solve(C[np.ix_(i, i)], d[i]))
             for d, C in zip(deviations, covariances, strict=True)
         )
-        out[group] = float(np.sqrt(max(1.0, chi2 / (len(i) * (B - 1)))))
+        dof = len(i) * (B - 1)
+        if chi2 > chdtri(dof, 1.0 - VARIES_QUANTILE):
+            spread = float(np.linalg.norm(np.std(deviations[:, i], axis=0, ddof=1)))
+            out[group] = (spread, float(np.sqrt(chi2 / dof)))
     return out
 
 

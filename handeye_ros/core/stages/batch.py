@@ -16,9 +16,10 @@ from ..batch.correlated import (
     BLOCKS,
     MIN_BLOCK_POSES,
     Uncertainty,
-    dispersion,
+    error_of_mean,
     inflated,
     scale_term,
+    varies,
 )
 from ..batch.refine import BatchOptions, BatchSolution, refine
 from ..checks.selfcheck import score_candidates
@@ -27,6 +28,7 @@ from ..checks.verdict import (
     batch_moved,
     batch_supported,
     scale_uncertainty_note,
+    varies_note,
 )
 from ..config import CalibrationConfig
 from ..errors import HandeyeError
@@ -83,6 +85,9 @@ def batch_stage(
             unc = batch.uncertainty
             for w in unc.not_estimated:
                 run.note(f'uncertainty: {w}')
+            for group, (spread, ratio) in unc.varies.items():
+                sigma = float(np.linalg.norm(unc.std(group)))
+                run.note(varies_note(group, spread, ratio, sigma))
             if unc.scale is not None and not run.scale_named:  # stage 2 did not name it
                 s, std, shift = unc.scale
                 note = scale_uncertainty_note(s, std, float(np.linalg.norm(shift[1:4])))
@@ -201,7 +206,7 @@ def with_correlated(
     ``eye`` (its drift and scale folded in). A term that cannot be estimated is left out and
     said in :attr:`Uncertainty.not_estimated`."""
     lr = batch.covariance
-    missing, factors, scaled = [], None, None
+    missing, factors, scaled, moving = [], None, None, {}
     covered = np.flatnonzero(_covered(hand, eye, batch.time_offset_s))
     edges = np.linspace(0, covered.size, BLOCKS + 1).astype(int)
     if np.min(np.diff(edges)) < MIN_BLOCK_POSES:
@@ -220,7 +225,9 @@ def with_correlated(
             )
         else:
             deviations = np.array([_deviation(f, batch) for f in fits])
-            factors = dispersion(deviations, np.array([f.covariance[:7, :7] for f in fits]))
+            own = np.array([f.covariance[:7, :7] for f in fits])
+            factors = error_of_mean(deviations, own, lr)
+            moving = varies(deviations, own)
     cov = inflated(lr, factors or {})
     if not cfg.estimate_scale:
         scaled, cov7_term = _scale(hand, eye, batch, cfg)
@@ -235,6 +242,7 @@ def with_correlated(
         scale=scaled,
         covariance=cov,
         not_estimated=tuple(missing),
+        varies=moving,
     )
     return replace(
         batch,

@@ -137,6 +137,7 @@ from .during import (
     seed_failed,
     seed_reason,
     stages_disagree,
+    varies_note,
 )
 from .facts import (
     ConventionCorrected,
@@ -223,4 +224,5 @@ __all__ = [
     'seed_reason',
     'sigmas_of',
     'stages_disagree',
+    'varies_note',
 ]

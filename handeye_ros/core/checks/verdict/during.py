@@ -194,6 +194,37 @@ def scale_uncertainty_note(scale: float, std: float, shift_m: float) -> str | No
     )
 
 
+def varies_note(group: str, spread: float, ratio: float, sigma: float) -> str:
+    """The note that a group's value moves along the recording: its blocks' ``spread`` (the norm
+    over its axes, SI units), ``ratio`` times what their own noise explains; the result holds its
+    mean over the recording, uncertain by ``sigma``."""
+    what, unit, k, why = {
+        'time_offset': (
+            'the time offset',
+            'ms',
+            1e3,
+            "the eye's latency wanders or its clock jumped",
+        ),
+        'translation': (
+            'the translation of T_HE',
+            'mm',
+            1e3,
+            'the eye errs alike over minutes or the markers slipped',
+        ),
+        'rotation': (
+            'the rotation of T_HE',
+            'deg',
+            float(np.degrees(1.0)),
+            'the eye errs alike over minutes or the markers slipped',
+        ),
+    }[group]
+    return (
+        f'{what} varies along the recording ({why}): its four quarters, fitted alone, spread '
+        f'by {spread * k:.2g} {unit}, {ratio:.2g} times what their own noise explains; the '
+        f'result is its mean over the recording, uncertain by {sigma * k:.2g} {unit}'
+    )
+
+
 def drift_message(fit: DriftFit) -> str:
     n = int(fit.inliers.sum())
     return (

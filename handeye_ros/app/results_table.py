@@ -37,6 +37,12 @@ COLUMNS = (
     'rpe_1s_deg',
     'rpe_1m_mm',
     'rpe_1m_deg',
+    'ape_mm_cal_sigma',
+    'ape_deg_cal_sigma',
+    'rpe_1s_mm_cal_sigma',
+    'rpe_1s_deg_cal_sigma',
+    'rpe_1m_mm_cal_sigma',
+    'rpe_1m_deg_cal_sigma',
     'ape_uncalibrated_mm',
     'ape_uncalibrated_deg',
     'rpe_1s_uncalibrated_mm',
@@ -57,6 +63,10 @@ def row_of(d: dict[str, Any]) -> dict[str, Any]:
 
     def stat(pe: dict, key: str, k: float) -> float | None:
         v = (pe.get(key) or {}).get('rmse')
+        return None if v is None else v * k
+
+    def bar(key: str, k: float) -> float | None:
+        v = ((cal.get(key) or {}).get('calibration_sigma') or {}).get('rmse')
         return None if v is None else v * k
 
     norm = lambda v: None if not v else sum(x * x for x in v) ** 0.5
@@ -83,6 +93,12 @@ def row_of(d: dict[str, Any]) -> dict[str, Any]:
         'rpe_1s_deg': stat(cal, 'rpe_time_rotation', 1.0),
         'rpe_1m_mm': stat(cal, 'rpe_distance_translation', 1e3),
         'rpe_1m_deg': stat(cal, 'rpe_distance_rotation', 1.0),
+        'ape_mm_cal_sigma': bar('ape_translation', 1e3),
+        'ape_deg_cal_sigma': bar('ape_rotation', 1.0),
+        'rpe_1s_mm_cal_sigma': bar('rpe_time_translation', 1e3),
+        'rpe_1s_deg_cal_sigma': bar('rpe_time_rotation', 1.0),
+        'rpe_1m_mm_cal_sigma': bar('rpe_distance_translation', 1e3),
+        'rpe_1m_deg_cal_sigma': bar('rpe_distance_rotation', 1.0),
         'ape_uncalibrated_mm': stat(base, 'ape_translation', 1e3),
         'ape_uncalibrated_deg': stat(base, 'ape_rotation', 1.0),
         'rpe_1s_uncalibrated_mm': stat(base, 'rpe_time_translation', 1e3),
@@ -107,6 +123,7 @@ def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
         'ty_m',
         'tz_m',
         'ape_mm',
+        'ape_mm_cal_sigma',
         'ape_deg',
         'rpe_1s_mm',
         'ape_uncalibrated_mm',

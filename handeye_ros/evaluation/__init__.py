@@ -2,7 +2,8 @@
 APE/RPE with and without the calibration, evo-ready exports, and the visual report.
 
 :mod:`.aligned` maps the hand onto the eye, with and without the calibration; :mod:`.metrics`
-is APE and RPE; :mod:`.outputs` what the front ends write after a calibration (the evaluation,
+is APE and RPE, :mod:`.error_bars` the part of their uncertainty that comes from the
+calibration; :mod:`.outputs` what the front ends write after a calibration (the evaluation,
 the evo exports, the report); :mod:`.terminal` the terminal report, :mod:`.html` the HTML one,
 with :mod:`.plots` (on the canvas of :mod:`.figures`); :mod:`.rig_report` a rig's page.
 

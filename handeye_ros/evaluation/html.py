@@ -142,8 +142,9 @@ def _metrics(ev: dict[str, Any] | None) -> str:
         ('rpe_distance_rotation', f'RPE per {ev["rpe_delta_m"]:g} m rotation', 1.0, 'deg'),
     ]
     head = (
-        '<tr><th class="l">metric</th><th class="l">alignment</th><th>RMSE</th><th>mean'
-        '</th><th>median</th><th>max</th><th>n</th></tr>'
+        '<tr><th class="l">metric</th><th class="l">alignment</th><th>RMSE</th>'
+        '<th>its 1-sigma from the calibration</th><th>mean</th><th>median</th><th>max</th>'
+        '<th>n</th></tr>'
     )
     rows = []
     for key, name, k, unit in cols:
@@ -154,14 +155,28 @@ def _metrics(ev: dict[str, Any] | None) -> str:
             st = pe[key]
             rows.append(
                 f'<tr><td class="l">{_e(name)} [{unit}]</td><td class="l">'
-                f'{_e(pe["what"])}</td>'
-                + ''.join(
-                    f'<td>{_f(st[f], ".3f", k)}</td>' for f in ('rmse', 'mean', 'median', 'max')
+                f'{_e(pe["what"])}</td><td>{_f(st["rmse"], ".3f", k)}</td>'
+                + (
+                    f'<td>{_f(st["calibration_sigma"]["rmse"], ".3f", k)}</td>'
+                    if 'calibration_sigma' in st
+                    else '<td>-</td>'
                 )
+                + ''.join(f'<td>{_f(st[f], ".3f", k)}</td>' for f in ('mean', 'median', 'max'))
                 + f'<td>{st["n"]}</td></tr>'
             )
     why = ev.get('uncalibrated_why')
     note = f'<p>Without the calibration: {_e(why)}</p>' if why else ''
+    bars = ev.get('calibration_sigmas') or {}
+    if 'draws' in bars:
+        note += (
+            '<p>The 1-sigma from the calibration: how much each figure moves when dt and T_HE '
+            f'({_e(", ".join(bars["parameters"]))}) move within their reported uncertainty '
+            f'({bars["draws"]} draws over {bars["poses"]} eye poses; docs/evaluation.md). Two '
+            'estimates whose figures differ by less than a few of these cannot be told apart '
+            'by this alignment.</p>'
+        )
+    elif bars.get('why_not'):
+        note += f'<p>No error bars from the calibration: {_e(bars["why_not"])}</p>'
     return f'<table>{head}{"".join(rows)}</table>{note}'
 
 

@@ -14,12 +14,26 @@
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..core.geometry import rotation_angle, row_norms
 from .aligned import AlignedTrajectories
 
+if TYPE_CHECKING:
+    from .error_bars import CalibrationSigmas
+
+#: The figures of :class:`PoseErrors`, and the statistics of each that carry error bars.
+POSE_ERRORS = (
+    'ape_translation',
+    'ape_rotation',
+    'rpe_time_translation',
+    'rpe_time_rotation',
+    'rpe_distance_translation',
+    'rpe_distance_rotation',
+)
+STATS = ('rmse', 'mean', 'median')
 #: An RPE pair may miss the time or distance step by this fraction of it (evo's default).
 RPE_TOLERANCE = 0.1
 
@@ -142,7 +156,9 @@ class Evaluation:
     """APE/RPE with our calibration and, where the clocks allow, without it.
 
     delta_s / delta_m: the RPE's time and distance steps. uncalibrated is None when the
-    baseline cannot be computed, and ``uncalibrated_why`` says why.
+    baseline cannot be computed, and ``uncalibrated_why`` says why. sigmas: the calibrated
+    figures' 1-sigmas from the calibration's own uncertainty (:mod:`.error_bars`), None with
+    ``sigmas_why`` when it has none.
     """
 
     delta_s: float
@@ -150,15 +166,26 @@ class Evaluation:
     calibrated: PoseErrors
     uncalibrated: PoseErrors | None
     uncalibrated_why: str = ''
+    sigmas: CalibrationSigmas | None = None
+    sigmas_why: str = ''
 
     def to_dict(self) -> dict:
+        calibrated = self.calibrated.to_dict()
+        if self.sigmas is not None:
+            for name, sigma in self.sigmas.sigmas.items():
+                calibrated[name]['calibration_sigma'] = sigma
         return {
             'rpe_delta_s': self.delta_s,
             'rpe_delta_m': self.delta_m,
             'units': {'translation': 'm', 'rotation': 'deg'},
-            'calibrated': self.calibrated.to_dict(),
+            'calibrated': calibrated,
             'uncalibrated': None if self.uncalibrated is None else self.uncalibrated.to_dict(),
             'uncalibrated_why': self.uncalibrated_why or None,
+            'calibration_sigmas': (
+                {'why_not': self.sigmas_why}
+                if self.sigmas is None
+                else self.sigmas.to_dict(exclude_sigmas=True)
+            ),
         }
 
 
@@ -169,12 +196,15 @@ def evaluate(
     delta_s: float = 1.0,
     delta_m: float = 1.0,
     why: str = '',
+    sigmas: tuple[CalibrationSigmas | None, str] = (None, 'not computed'),
 ) -> Evaluation:
-    """APE/RPE of the eye with the calibration (``cal``) and without it (``base``)."""
+    """APE/RPE of the eye with the calibration (``cal``) and without it (``base``), with the
+    calibrated figures' error bars where given."""
     return Evaluation(
         delta_s,
         delta_m,
         PoseErrors.of(cal, delta_s, delta_m),
         None if base is None else PoseErrors.of(base, delta_s, delta_m),
         why,
+        *sigmas,
     )

@@ -12,6 +12,7 @@ from typing import Any
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
 from .aligned import calibrated, uncalibrated
+from .error_bars import calibration_sigmas
 from .metrics import ape, evaluate
 
 LOG = logging.getLogger(__name__)
@@ -63,14 +64,16 @@ def evaluate_and_write(
 
 
 def evaluation_of(result: CalibrationResult, delta_s: float = 1.0, delta_m: float = 1.0):
-    """(APE/RPE evaluation with and without the calibration, the calibrated and the
-    uncalibrated aligned trajectories) of a result, or None when it has no poses
+    """(APE/RPE evaluation with and without the calibration, the calibrated figures with their
+    error bars from the calibration, the calibrated and the uncalibrated aligned trajectories)
+    of a result, or None when it has no poses
     (:meth:`CalibrationResult.detached`)."""
     if result.used is None:
         return None
     cal = calibrated(result)
     base, why = uncalibrated(result)
-    return evaluate(cal, base, delta_s=delta_s, delta_m=delta_m, why=why), cal, base
+    sigmas = calibration_sigmas(result, delta_s, delta_m)
+    return evaluate(cal, base, delta_s=delta_s, delta_m=delta_m, why=why, sigmas=sigmas), cal, base
 
 
 def write_report(

@@ -145,15 +145,29 @@ def _evaluation_lines(d: dict[str, Any]) -> list[str]:
         )
     if ev.get('uncalibrated_why'):
         out.append(f'  without the calibration: {ev["uncalibrated_why"]}')
+    bars = ev.get('calibration_sigmas') or {}
+    if 'draws' in bars:
+        out.append(
+            "  (+- x: the 1-sigma of that figure from the calibration's own uncertainty, "
+            f'{bars["draws"]} draws of {", ".join(bars["parameters"])})'
+        )
+    elif bars.get('why_not'):
+        out.append(f'  no error bars from the calibration: {bars["why_not"]}')
     return ['evaluation of the eye against the MoCap:', *out] if out else []
 
 
 def _mm(st: dict[str, Any]) -> str:
-    return 'n/a' if st['rmse'] is None else f'{st["rmse"] * 1e3:.1f}'
+    if st['rmse'] is None:
+        return 'n/a'
+    bar = st.get('calibration_sigma')
+    return f'{st["rmse"] * 1e3:.1f}' + ('' if bar is None else f' (+-{bar["rmse"] * 1e3:.2g})')
 
 
 def _deg(st: dict[str, Any]) -> str:
-    return 'n/a' if st['rmse'] is None else f'{st["rmse"]:.2f}'
+    if st['rmse'] is None:
+        return 'n/a'
+    bar = st.get('calibration_sigma')
+    return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar["rmse"]:.2g})')
 
 
 def readiness_lines(r: dict[str, Any] | None) -> list[str]:

@@ -1,0 +1,175 @@
+"""The part of each APE/RPE figure's uncertainty that comes from the calibration.
+
+The calibrated ground truth ``T_WG T_GH(t - dt) T_HE`` (:mod:`.aligned`) depends on dt and T_HE,
+and on the drift and the eye's scale when they were estimated: the batch stage reports their
+covariance (eq. 14-16 at the solution, with the terms of :mod:`..core.batch.correlated`). Each
+figure is computed again at DRAWS draws of those parameters from a normal distribution about
+the estimate with that covariance, each eye segment's world T_WG fitted again at every draw as
+the calibration fits it; the figure's calibration 1-sigma is the root-mean-square of the draws'
+differences from it. (Not their standard deviation: near the estimate the figures are near a
+minimum in the parameters, so they move one way.) The draws run on the eye poses thinned to
+THINNED_PER_STEP a RPE time step apart at most (so that every RPE pair still finds its pose
+within RPE_TOLERANCE of its step), and on a long recording on WINDOWS runs of consecutive
+poses spread over it, MAX_POSES in all: the sigma of a root-mean-square over an hour at 200 Hz
+needs no 720 000 poses. The figure's own value is taken on the same poses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..core.association import MIN_PAIRS, pairs_at_eye
+from ..core.geometry import compose, matrix_from_quat
+from ..core.result import CalibrationResult
+from ..core.time.clock import retime
+from ..core.trajectory import Trajectory
+from ..core.world import align_worlds, worlds_per_pair
+from .aligned import AlignedTrajectories
+from .metrics import POSE_ERRORS, STATS, PoseErrors
+
+#: Draws of the calibration's parameters: the sigma of a sigma from n draws is about
+#: 1 / sqrt(2 n) of it, 12.5 % here.
+DRAWS = 32
+#: The draws' eye poses: at least this many per RPE time step (RPE_TOLERANCE is 0.1 of it), and
+#: at most MAX_POSES in WINDOWS runs of consecutive poses.
+THINNED_PER_STEP = 20
+MAX_POSES = 5_000
+WINDOWS = 10
+#: The draws' generator's seed: the same result gives the same error bars.
+SEED = 0
+
+
+@dataclass(frozen=True)
+class CalibrationSigmas:
+    """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
+    its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
+    figure), from ``draws`` draws over ``poses`` eye poses; ``parameters`` names what was drawn.
+    """
+
+    sigmas: dict[str, dict[str, float]]
+    draws: int
+    poses: int
+    parameters: tuple[str, ...]
+
+    def to_dict(self, exclude_sigmas: bool = False) -> dict:
+        out = {
+            'draws': self.draws,
+            'poses': self.poses,
+            'parameters': list(self.parameters),
+            'method': (
+                'each figure again at draws of the parameters from their reported covariance, '
+                'T_WG refitted; its 1-sigma the root-mean-square of the changes'
+            ),
+        }
+        return out if exclude_sigmas else {**out, 'sigmas': self.sigmas}
+
+
+def calibration_sigmas(
+    result: CalibrationResult, delta_s: float, delta_m: float, draws: int = DRAWS
+) -> tuple[CalibrationSigmas | None, str]:
+    """The APE/RPE figures' calibration 1-sigmas (module docstring), or None and why not (no
+    batch covariance: the linear result was kept, or it is not finite)."""
+    batch, used = result.batch, result.used
+    if used is None:
+        return None, 'the result holds no poses'
+    if batch is None or not np.all(np.isfinite(batch.covariance)):
+        return None, 'the calibration has no covariance (its batch stage was not used)'
+    cov = batch.covariance
+    names = ['dt', 'T_HE']
+    drift_at = scale_at = None
+    k = 7
+    if batch.clock_drift is not None:
+        drift_at, k = k, k + 1
+        names.append('clock drift')
+    if batch.scale is not None:
+        scale_at = k
+        names.append('eye scale')
+    keep, window = _windows(used.eye_stamps_ns, delta_s)
+    eye = used.eye.select(keep)
+    stamps = used.eye_stamps_ns[keep]
+    stamp_ns = result.eye_model.stamp_ns if result.eye_model is not None else 0
+
+    def figures(d: np.ndarray) -> dict[str, dict[str, float]] | None:
+        return _figures(
+            result, eye, stamps, window, d, (drift_at, scale_at, stamp_ns), (delta_s, delta_m)
+        )
+
+    at = figures(np.zeros(cov.shape[0]))
+    if at is None:
+        return None, 'too few eye poses fall inside the hand recording'
+    L = _factor(cov)
+    rng = np.random.default_rng(SEED)
+    moved = [figures(L @ rng.standard_normal(cov.shape[0])) for _ in range(draws)]
+    moved = [m for m in moved if m is not None]
+    if len(moved) < draws // 2:
+        return None, 'most draws of the calibration leave the hand recording'
+    sigmas = {
+        name: {
+            stat: float(
+                np.sqrt(np.nanmean([(m[name][stat] - at[name][stat]) ** 2 for m in moved]))
+            )
+            for stat in STATS
+        }
+        for name in POSE_ERRORS
+    }
+    return CalibrationSigmas(sigmas, len(moved), int(keep.size), tuple(names)), ''
+
+
+def _windows(t_ns: np.ndarray, delta_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The eye poses (stamps ``t_ns``) the draws run on, as indices, and the run of consecutive
+    poses each is in: every one of them, thinned to THINNED_PER_STEP per ``delta_s``, and when
+    more than MAX_POSES are left, WINDOWS runs of them spread evenly."""
+    n = t_ns.size
+    period = float(t_ns[-1] - t_ns[0]) * 1e-9 / max(n - 1, 1)
+    every = max(1, int(delta_s / THINNED_PER_STEP / period)) if period > 0.0 else 1
+    thinned = np.arange(0, n, every)
+    if thinned.size <= MAX_POSES:
+        return thinned, np.zeros(thinned.size, dtype=int)
+    length = MAX_POSES // WINDOWS
+    starts = np.linspace(0, thinned.size - length, WINDOWS).astype(int)
+    keep = thinned[(starts[:, None] + np.arange(length)).ravel()]
+    return keep, np.repeat(np.arange(WINDOWS), length)
+
+
+def _factor(cov: np.ndarray) -> np.ndarray:
+    """L with L L^T = cov, for a covariance that may be only semi-definite."""
+    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def _figures(
+    result: CalibrationResult,
+    eye: Trajectory,
+    stamps: np.ndarray,
+    window: np.ndarray,
+    d: np.ndarray,
+    model: tuple[int | None, int | None, int],
+    deltas: tuple[float, float],
+) -> dict[str, dict[str, float]] | None:
+    """The figures with the calibration moved by ``d`` (reported order: dt, translation,
+    rotation in the tangent on the right, [drift], [scale]; ``model``: the drift's and the
+    scale's places in it, None when not estimated, and the drift's reference stamp), or None
+    when too few eye poses fall inside the hand recording. No RPE pair joins two runs of
+    ``window``."""
+    used, (drift_at, scale_at, stamp_ns) = result.used, model
+    if drift_at is not None and d[drift_at]:
+        eye = retime(eye, float(d[drift_at]), stamp_ns)
+    if scale_at is not None and d[scale_at]:
+        eye = replace(eye, p_xyz=eye.p_xyz * (1.0 + d[scale_at] / result.batch.scale))
+    q = (Rotation.from_quat(result.q_HE) * Rotation.from_rotvec(d[4:7])).as_quat()
+    p = np.asarray(result.p_HE, dtype=float) + d[1:4]
+    pairs, ok = pairs_at_eye(used.hand, eye, used.time_offset_s + float(d[0]))
+    if pairs.segment.size < MIN_PAIRS:
+        return None
+    world = align_worlds(pairs, q, p)
+    X = (matrix_from_quat(q), p)
+    R_ref, p_ref = compose(
+        worlds_per_pair(pairs, q, p, world), compose((pairs.R_GH, pairs.p_GH), X)
+    )
+    runs = pairs.segment * (int(window.max()) + 1) + window[ok]
+    al = AlignedTrajectories(stamps[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE, runs, '')
+    errors = PoseErrors.of(al, *deltas)
+    return {name: vars(getattr(errors, name)) for name in POSE_ERRORS}

@@ -1,0 +1,101 @@
+"""The APE/RPE's error bars from the calibration (evaluation/error_bars.py): the true
+calibration's figures lie within them, they are where a user reads them, and a result without a
+covariance says why it has none.
+
+Tolerance: with right sigmas a figure of the true calibration lies within 3 of them of the
+reported one in about 99 % of cases (the difference is one-sided, so its rms over its sigma is
+near 1); 24 figures (6 seeds, APE and RPE of translation and rotation) all within 4 sigmas fail
+by chance well under 1 % of the time, and the bench (bench/error_bars.py) counts the 3-sigma
+share over 60 seeds."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import recording
+from scipy.spatial.transform import Rotation
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.evaluation import error_bars
+from handeye_ros.evaluation.metrics import POSE_ERRORS, STATS
+from handeye_ros.evaluation.outputs import evaluation_of
+from handeye_ros.evaluation.terminal import _evaluation_lines
+
+
+def _truth_move(res, truth) -> np.ndarray:
+    d = np.zeros(res.batch.covariance.shape[0])
+    d[0] = truth.time_offset_s - res.time_offset_s
+    d[1:4] = truth.p_HE - res.p_HE
+    d[4:7] = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
+    return d
+
+
+@pytest.mark.slow
+def test_the_true_calibrations_figures_lie_within_the_error_bars() -> None:
+    z = []
+    for seed in range(6):
+        rec = recording(200 + seed, 5.0)
+        res = calibrate(rec.hand, rec.eye)
+        bars, why = error_bars.calibration_sigmas(res, 1.0, 1.0)
+        assert bars is not None, why
+        keep, window = error_bars._windows(res.used.eye_stamps_ns, 1.0)
+        eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
+        figures = [
+            error_bars._figures(res, eye, stamps, window, d, (None, None, 0), (1.0, 1.0))
+            for d in (np.zeros(7), _truth_move(res, rec.truth))
+        ]
+        z += [
+            (figures[1][n]['rmse'] - figures[0][n]['rmse']) / bars.sigmas[n]['rmse']
+            for n in POSE_ERRORS
+            if n != 'rpe_time_rotation'  # the RPE of rotation per 1 s: ~0 sigma, ~0 change
+        ]
+    assert np.all(np.abs(z) <= 4.0), np.round(z, 2)
+    assert 0.2 < np.sqrt(np.mean(np.square(z))) < 2.0, np.round(z, 2)
+
+
+def test_the_error_bars_are_in_the_result_and_the_terminal_and_repeat() -> None:
+    rec = recording(3, 5.0)
+    res = calibrate(rec.hand, rec.eye)
+    ev = evaluation_of(res)[0].to_dict()
+    cal = ev['calibrated']
+    for name in POSE_ERRORS:
+        bar = cal[name]['calibration_sigma']
+        assert set(bar) == set(STATS)
+        assert all(np.isfinite(v) and v >= 0.0 for v in bar.values())
+    # a few tenths of a mm on tens of mm: the calibration is a small part of this eye's APE
+    assert (
+        0.0
+        < cal['ape_translation']['calibration_sigma']['rmse']
+        < 0.05 * cal['ape_translation']['rmse']
+    )
+    assert ev['calibration_sigmas']['draws'] == error_bars.DRAWS
+    assert ev['calibration_sigmas']['parameters'] == ['dt', 'T_HE']
+    line = _evaluation_lines({'evaluation': ev})[1]
+    assert line.startswith('  calibrated: APE ') and '(+-' in line, line
+    assert evaluation_of(res)[0].to_dict() == ev  # seeded: the same result, the same bars
+
+
+def test_a_result_without_a_covariance_says_why_it_has_no_error_bars() -> None:
+    rec = recording(3, 5.0)
+    res = calibrate(rec.hand, rec.eye, CalibrationConfig(batch=False))
+    ev = evaluation_of(res)[0].to_dict()
+    assert 'calibration_sigma' not in ev['calibrated']['ape_translation']
+    assert 'batch stage was not used' in ev['calibration_sigmas']['why_not']
+    assert any(
+        'no error bars from the calibration' in s for s in _evaluation_lines({'evaluation': ev})
+    )
+
+
+def test_a_long_recording_draws_on_runs_of_consecutive_poses() -> None:
+    """An hour at 200 Hz: thinned to 20 poses a second (an RPE per 1 s finds its pose within
+    0.05 s), then runs of them; ten seconds at 20 Hz: every pose."""
+    hour = np.arange(720_000, dtype=np.int64) * 5_000_000
+    keep, window = error_bars._windows(hour, 1.0)
+    assert keep.size == error_bars.MAX_POSES and np.unique(window).size == error_bars.WINDOWS
+    within = np.diff(window) == 0
+    assert np.all(np.diff(hour[keep])[within] == 50_000_000)  # 20 Hz within a run
+    assert keep[0] == 0 and keep[-1] >= 720_000 - 10
+    short = np.arange(200, dtype=np.int64) * 50_000_000
+    keep, window = error_bars._windows(short, 1.0)
+    assert np.array_equal(keep, np.arange(200)) and not window.any()

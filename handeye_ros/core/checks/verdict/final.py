@@ -131,6 +131,34 @@ def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> fl
     return float('inf') if not all(np.isfinite(ratios)) else max(ratios)
 
 
+#: What narrows a group's 1-sigma, by the term that dominates it (``Uncertainty.dominant``): the
+#: words of ``imprecise``.
+_MOTION = 'more varied rotation (faster, about all axes) or a longer recording narrows it'
+_EYE_OVER_MINUTES = (
+    "most of it is the eye's own error, alike over seconds to minutes: a longer recording "
+    'narrows it at most as the square root of its length, and faster motion hardly at all'
+)
+_SCALE = (
+    "most of it is the eye's scale, which s = 1 leaves out: estimate it with --scale (node "
+    'parameter estimate_scale) if the eye is not metric; more motion does not narrow it'
+)
+NARROWS = {
+    ('time_offset', 'white'): _MOTION,
+    ('time_offset', 'correlated'): (
+        'most of it is the offset wandering along the recording (a latency that changes) over '
+        'parts that weigh unequally: motion as rich over the whole recording narrows it, a '
+        'longer recording alone may not'
+    ),
+    ('time_offset', 'scale'): _SCALE,
+    ('translation', 'white'): _MOTION,
+    ('translation', 'correlated'): _EYE_OVER_MINUTES,
+    ('translation', 'scale'): _SCALE,
+    ('rotation', 'white'): _MOTION,
+    ('rotation', 'correlated'): _EYE_OVER_MINUTES,
+    ('rotation', 'scale'): _SCALE,
+}
+
+
 def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
 ) -> None:
@@ -143,9 +171,13 @@ def _assess_uncertainty(
         )
     if batch is not None:
         sd, need = sigmas_of(batch.std), cfg.precision
+        unc = batch.uncertainty
+        dominant = unc.dominant() if unc is not None else {}
         over = [
-            f'{name} {v * k:.3g} {unit} (required {n * k:.3g})'
-            for name, v, n, k, unit, r in zip(
+            f'{label} {v * k:.3g} {unit} (required {n * k:.3g}): '
+            + NARROWS[group, dominant.get(group, 'white')]
+            for group, label, v, n, k, unit, r in zip(
+                ('time_offset', 'translation', 'rotation'),
                 ('time offset', 'translation', 'rotation'),
                 sd,
                 need,
@@ -161,10 +193,8 @@ def _assess_uncertainty(
                 run,
                 Code.IMPRECISE,
                 'the 1-sigma uncertainty exceeds the required precision: '
-                + ', '.join(over)
-                + '. More varied rotation (faster, about all axes) or '
-                'a longer recording narrows it; the precision_* options set what is '
-                'required',
+                + '; '.join(over)
+                + '. The precision_* options set what is required',
             )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         say(

@@ -2,7 +2,8 @@
 status (:mod:`.status`), and which of their results are published.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
-time the buffered span has grown by GROWTH. A result is measured by its *precision ratio*, its
+time the buffered span has grown by GROWTH, READY or not (the status carries the last result's
+factors and reasons: only a new result settles them). A result is measured by its *precision ratio*, its
 largest reported 1-sigma over that sigma's ``precision_*`` target (:func:`precision_ratio`: below
 1, the verdict is not ``imprecise``). A later result of auto mode's own is published when its
 ratio is no larger than the published one's; once one improves it by no more than IMPROVEMENT
@@ -20,8 +21,9 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
+from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
 from ..stream import STREAMS
 from .jobs import Calibrated
 
@@ -52,9 +54,13 @@ class AutoMode:
         #: predicted precision ratio when auto mode last calibrated
         self._sigmas: tuple[float, float, float] | None = None
         self._predicted_then = math.inf
-        #: the published result's reported over long-run sigma per group (std.over_long_run):
-        #: the status's predictions are long-run ones, and carry it
-        self.over_long_run: dict[str, float] = {}
+        #: the published result's reported over predicted 1-sigmas (status.predictor_factors),
+        #: which the status's predictions carry, and the reasons other than its precision that
+        #: make it doubtful (they hold READY back)
+        self.factors: dict[str, float] = {}
+        self.held: list[str] = []
+        #: the published auto result's estimate: dt [s], translation [m], rotation (x y z w)
+        self._estimate: tuple[float, np.ndarray, np.ndarray] | None = None
 
     @property
     def ended(self) -> bool:
@@ -64,7 +70,9 @@ class AutoMode:
     def step(self, last: dict[str, Any] | None) -> None:
         """On each tick of the status, with its last readiness: calibrate once READY, again as
         the buffers grow by GROWTH, and, converged or done, when the motion gets richer."""
-        if not (last and last['ready']):
+        # READY starts it; once it has calibrated, the buffers growing do (READY then carries
+        # the last result's factors and reasons, which only a new result can settle)
+        if not (last and (last['ready'] or self._span_calibrated)):
             return
         if self.said in ('waiting for READY', 'calibrating'):
             self._calibrate(last)
@@ -75,7 +83,8 @@ class AutoMode:
         """A new recording: its first result is published whatever the last one reported."""
         if self.said != 'off':
             self.said, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
-            self._predicted_then = math.inf
+            self._predicted_then, self._estimate = math.inf, None
+        self.factors, self.held = {}, []
 
     def _predicted(self, last: dict[str, Any] | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
@@ -113,14 +122,18 @@ class AutoMode:
         precision ratio is no larger than the published result's; auto mode has converged
         (said in the status) once a result of its own is not admitted, or improves the ratio by
         no more than IMPROVEMENT of itself or of 1 (:func:`judge`)."""
-        batch = session.document.get('std')
+        doc = session.document
+        batch = doc.get('std')
         if self.said == 'off' or not batch:
-            self.over_long_run = dict((batch or {}).get('over_long_run') or {})
+            self._published(doc)
             return ''
         sigmas = sigmas_of(np.r_[batch['time_offset'], batch['translation'], batch['rotation']])
         targets = self._node.calib_cfg.precision
         published = self._sigmas
         admitted, converged = judge(sigmas, published, auto, targets)
+        moved = moved_beyond(_estimate_of(doc), self._estimate, published) if auto else None
+        if moved:  # the data since the published result move it beyond its own sigma
+            admitted, converged = True, False
         if admitted:
             self._sigmas = sigmas
         if converged:
@@ -131,13 +144,68 @@ class AutoMode:
                 'again if the motion gets richer'
             )
         if admitted:
-            self.over_long_run = dict(batch.get('over_long_run') or {})
+            self._published(doc)
             return ''
         return (
             f'auto_calibrate keeps the published result: its largest sigma against its target, '
             f"{_largest(sigmas, targets)}, is above the published one's, "
             f'{_largest(published, targets)}'
         )
+
+    def _published(self, doc: dict[str, Any]) -> None:
+        """What the status carries of the result being published."""
+        self.factors = predictor_factors(doc)
+        self.held = [
+            r['message'] for r in doc['quality']['reasons'] if r['code'] != Code.IMPRECISE.value
+        ]
+        self._estimate = _estimate_of(doc)
+
+
+def _estimate_of(doc: dict[str, Any]) -> tuple[float, np.ndarray, np.ndarray]:
+    ext = doc['extrinsic']
+    return doc['time_offset'], np.asarray(ext['translation']), np.asarray(ext['rotation'])
+
+
+def moved_beyond(
+    new: tuple[float, np.ndarray, np.ndarray],
+    old: tuple[float, np.ndarray, np.ndarray] | None,
+    old_sigmas: tuple[float, float, float] | None,
+) -> str | None:
+    """Whether a new estimate (dt [s], translation [m], rotation x y z w) lies beyond the
+    published one's 1-sigmas (:func:`sigmas_of`: s, m, deg) from it, said with the group that
+    did; None if not (or nothing published)."""
+    if old is None or old_sigmas is None:
+        return None
+    q_new, q_old = Rotation.from_quat(new[2]), Rotation.from_quat(old[2])
+    moves = (
+        abs(new[0] - old[0]),
+        float(np.linalg.norm(new[1] - old[1])),
+        float(np.degrees((q_old.inv() * q_new).magnitude())),
+    )
+    names = ('time offset', 'translation', 'rotation')
+    over = [n for n, m, s in zip(names, moves, old_sigmas, strict=True) if m > s]
+    return ', '.join(over) or None
+
+
+#: The readiness's sigma keys (ms, mm, deg), in the order of :func:`sigmas_of`.
+SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
+
+
+def predictor_factors(document: dict[str, Any]) -> dict[str, float]:
+    """A published result's reported 1-sigmas over the ones its own ``readiness`` predicted on
+    the same data, per sigma key: how far the status's predictions (from consecutive pairs:
+    they see neither the errors correlated over minutes nor the scale) fall short of the result's
+    covariance on this recording, or exceed it. Empty without both."""
+    std, predicted = document.get('std'), (document.get('readiness') or {}).get('sigma') or {}
+    if not std or not predicted:
+        return {}
+    reported = sigmas_of(np.r_[std['time_offset'], std['translation'], std['rotation']])
+    out = {}
+    for key, value, k in zip(SIGMA_KEYS, reported, (1e3, 1e3, 1.0), strict=True):
+        p = predicted.get(key)
+        if p and np.isfinite(value) and value > 0.0:
+            out[key] = value * k / p
+    return out
 
 
 #: The three reported 1-sigmas, named and in the units they are said in.

@@ -199,7 +199,7 @@ class ReadinessStatus:
         p.drop_before(*oldest)
         durations = tuple(buffers[s].span_s for s in STREAMS)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
-        self.last, self.why_not = carry_over_long_run(found, self.auto.over_long_run), ''
+        self.last, self.why_not = carry_over(found, self.auto.factors, self.auto.held), ''
         self._publish()
 
     def stopped(self) -> list[str]:
@@ -351,37 +351,32 @@ class ReadinessStatus:
             self._node.get_logger().info(f'status: {line}')
 
 
-#: The readiness's sigma keys (ms, mm, deg) by the result's groups.
-_SIGMA_KEYS = {
-    'time_offset': 'time_offset_ms',
-    'translation': 'translation_mm',
-    'rotation': 'rotation_deg',
-}
-
-
-def carry_over_long_run(last: dict[str, Any], over: dict[str, float]) -> dict[str, Any]:
-    """The readiness with its predicted sigmas times the published result's reported over
-    long-run sigma (the errors correlated over the recording, the scale: what a prediction
-    from consecutive pairs cannot see), READY only if they still meet the targets."""
-    factors = {g: f for g, f in over.items() if f > 1.0 and g in _SIGMA_KEYS}
-    if not factors:
+def carry_over(last: dict[str, Any], factors: dict[str, float], held: list[str]) -> dict[str, Any]:
+    """The readiness with its predicted sigmas times the published result's
+    :func:`predictor_factors` (the same covariance model as the result's), READY only if they
+    still meet the targets and the published result is doubtful for no other reason than its
+    precision (``held``: those reasons' messages)."""
+    if not factors and not held:
         return last
-    sigma = dict(last['sigma'])
-    for group, f in factors.items():
-        key = _SIGMA_KEYS[group]
-        if sigma.get(key) is not None:
-            sigma[key] = sigma[key] * f
+    sigma = {
+        k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['sigma'].items()
+    }
     target = last['target']
     meets = all(v is not None and v <= target[k] for k, v in sigma.items())
-    said = ', '.join(f'{g.replace("_", " ")} x{f:.2g}' for g, f in factors.items())
     missing = list(last['missing'])
     if last['ready'] and not meets:
+        said = ', '.join(
+            f'{k.rsplit("_", 1)[0].replace("_", " ")} x{f:.2g}' for k, f in factors.items()
+        )
         missing.insert(
             0,
-            f'keep recording: the last calibration found errors the white noise does not '
-            f'explain (its sigmas: {said}), and so the predictions are wider',
+            "keep recording: the last calibration's sigmas were its predictions times "
+            f'{said} (errors of the eye that consecutive poses do not show), and so are these',
         )
-    return {**last, 'sigma': sigma, 'ready': bool(last['ready'] and meets), 'missing': missing}
+    if held:
+        missing.insert(0, f'the last calibration is doubtful: {held[0]}')
+    ready = bool(last['ready'] and meets and not held)
+    return {**last, 'sigma': sigma, 'ready': ready, 'missing': missing}
 
 
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:

@@ -15,9 +15,11 @@ from handeye_ros.ros.auto_mode import (
     IMPROVEMENT,
     RECALIBRATE,
     judge,
+    moved_beyond,
+    predictor_factors,
     richer,
 )
-from handeye_ros.ros.status import carry_over_long_run, clocks_apart
+from handeye_ros.ros.status import carry_over, clocks_apart
 
 
 @pytest.mark.parametrize(
@@ -107,23 +109,59 @@ def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
     assert apart(19.0, 19.0, 19.005, jump_s=5.0) - first == pytest.approx(5.0, abs=1e-9)
 
 
-def test_the_predictions_carry_what_the_last_calibration_added_to_its_sigmas() -> None:
-    """The readiness predicts long-run sigmas from consecutive pairs; a calibration that found
-    errors correlated over the recording (or a scale) reported them 2x wider in translation:
-    the predictions are, and READY waits for them."""
+def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
+    """The readiness predicts sigmas from consecutive pairs; the last calibration's reported
+    sigmas were 1.2 and 2 times what its own readiness predicted on the same data: the
+    predictions are too, and READY waits for them."""
     last = {
         'ready': True,
         'sigma': {'time_offset_ms': 0.4, 'translation_mm': 6.0, 'rotation_deg': 0.2},
         'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
         'missing': [],
     }
-    same = carry_over_long_run(last, {'time_offset': 1.0, 'translation': 1.0, 'rotation': 1.0})
-    assert same == last
-    wider = carry_over_long_run(last, {'time_offset': 1.2, 'translation': 2.0, 'rotation': 1.0})
+    assert carry_over(last, {}, []) == last
+    document = {
+        'std': {
+            'time_offset': 0.48e-3,
+            'translation': [12e-3 / np.sqrt(3)] * 3,
+            'rotation': [np.radians(0.2) / np.sqrt(3)] * 3,
+        },
+        'readiness': {'sigma': last['sigma']},
+    }
+    factors = predictor_factors(document)
+    assert factors == pytest.approx(
+        {'time_offset_ms': 1.2, 'translation_mm': 2.0, 'rotation_deg': 1.0}
+    )
+    wider = carry_over(last, factors, [])
     assert wider['sigma']['translation_mm'] == pytest.approx(12.0)
     assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
     assert not wider['ready'] and wider['missing'][0].startswith('keep recording')
     assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place
+    narrower = carry_over(last, {'translation_mm': 0.5}, [])
+    assert narrower['ready'] and narrower['sigma']['translation_mm'] == pytest.approx(3.0)
+
+
+def test_a_last_calibration_doubtful_for_another_reason_holds_ready_back() -> None:
+    last = {
+        'ready': True,
+        'sigma': {'time_offset_ms': 0.4, 'translation_mm': 6.0, 'rotation_deg': 0.2},
+        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
+        'missing': [],
+    }
+    held = carry_over(last, {}, ['the residuals are strongly correlated in time'])
+    assert not held['ready']
+    assert held['missing'][0] == (
+        'the last calibration is doubtful: the residuals are strongly correlated in time'
+    )
+
+
+def test_a_result_moved_beyond_the_published_sigma_is_said() -> None:
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    old = (0.010, np.array([0.1, 0.0, 0.0]), q)
+    sigmas = (0.5e-3, 5e-3, 0.2)
+    assert moved_beyond((0.0103, np.array([0.103, 0.0, 0.0]), q), old, sigmas) is None
+    assert moved_beyond((0.010, np.array([0.1, 0.0, -0.006]), q), old, sigmas) == 'translation'
+    assert moved_beyond(old, None, None) is None
 
 
 def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:

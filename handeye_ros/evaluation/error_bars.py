@@ -46,10 +46,10 @@ SEED = 0
 class CalibrationSigmas:
     """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
     its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
-    figure), from ``draws`` draws over ``poses`` eye poses; ``parameters`` names what was drawn.
+    figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses; ``parameters`` names what was drawn.
     """
 
-    sigmas: dict[str, dict[str, float]]
+    sigmas: dict[str, dict[str, float | None]]
     draws: int
     poses: int
     parameters: tuple[str, ...]
@@ -107,15 +107,18 @@ def calibration_sigmas(
     if len(moved) < draws // 2:
         return None, 'most draws of the calibration leave the hand recording'
     sigmas = {
-        name: {
-            stat: float(
-                np.sqrt(np.nanmean([(m[name][stat] - at[name][stat]) ** 2 for m in moved]))
-            )
-            for stat in STATS
-        }
+        name: {stat: _rms_change(at[name][stat], [m[name][stat] for m in moved]) for stat in STATS}
         for name in POSE_ERRORS
     }
     return CalibrationSigmas(sigmas, len(moved), int(keep.size), tuple(names)), ''
+
+
+def _rms_change(at: float, moved: list[float]) -> float | None:
+    """The root-mean-square of the draws' changes from ``at``; None for a figure that has no
+    value (an RPE step longer than the recording)."""
+    changes = np.array(moved) - at
+    changes = changes[np.isfinite(changes)]
+    return float(np.sqrt(np.mean(changes**2))) if np.isfinite(at) and changes.size else None
 
 
 def _windows(t_ns: np.ndarray, delta_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -124,7 +127,9 @@ def _windows(t_ns: np.ndarray, delta_s: float) -> tuple[np.ndarray, np.ndarray]:
     more than MAX_POSES are left, WINDOWS runs of them spread evenly."""
     n = t_ns.size
     period = float(t_ns[-1] - t_ns[0]) * 1e-9 / max(n - 1, 1)
-    every = max(1, int(delta_s / THINNED_PER_STEP / period)) if period > 0.0 else 1
+    # thinned no further than the cost asks: an RPE step of minutes needs no fewer poses
+    most = max(1, n // MAX_POSES)
+    every = max(1, min(int(delta_s / THINNED_PER_STEP / period), most)) if period > 0.0 else 1
     thinned = np.arange(0, n, every)
     if thinned.size <= MAX_POSES:
         return thinned, np.zeros(thinned.size, dtype=int)

@@ -159,15 +159,15 @@ def _evaluation_lines(d: dict[str, Any]) -> list[str]:
 def _mm(st: dict[str, Any]) -> str:
     if st['rmse'] is None:
         return 'n/a'
-    bar = st.get('calibration_sigma')
-    return f'{st["rmse"] * 1e3:.1f}' + ('' if bar is None else f' (+-{bar["rmse"] * 1e3:.2g})')
+    bar = (st.get('calibration_sigma') or {}).get('rmse')
+    return f'{st["rmse"] * 1e3:.1f}' + ('' if bar is None else f' (+-{bar * 1e3:.2g})')
 
 
 def _deg(st: dict[str, Any]) -> str:
     if st['rmse'] is None:
         return 'n/a'
-    bar = st.get('calibration_sigma')
-    return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar["rmse"]:.2g})')
+    bar = (st.get('calibration_sigma') or {}).get('rmse')
+    return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar:.2g})')
 
 
 def readiness_lines(r: dict[str, Any] | None) -> list[str]:

@@ -99,3 +99,14 @@ def test_a_long_recording_draws_on_runs_of_consecutive_poses() -> None:
     short = np.arange(200, dtype=np.int64) * 50_000_000
     keep, window = error_bars._windows(short, 1.0)
     assert np.array_equal(keep, np.arange(200)) and not window.any()
+
+
+def test_a_figure_without_a_value_has_no_error_bar_and_the_others_keep_theirs() -> None:
+    """An RPE step longer than the recording: that RPE has no value, so no error bar (never a
+    made-up one); the APE keeps its own."""
+    rec = recording(3, 5.0)
+    res = calibrate(rec.hand, rec.eye)
+    cal = evaluation_of(res, 1000.0, 1000.0)[0].to_dict()['calibrated']
+    assert cal['rpe_time_translation']['rmse'] is None
+    assert set(cal['rpe_time_translation']['calibration_sigma'].values()) == {None}
+    assert cal['ape_translation']['calibration_sigma']['rmse'] > 0.0

@@ -119,12 +119,8 @@ def main() -> None:
                 sum(r[1] and r[2] != 'good' for r in rows),
                 sum(r[1] for r in rows),
                 sum(r[2] == 'good' for r in rows),
-                ' '.join(
-                    f'{lo:.2f}-{hi:.2f}' for lo, hi in zip(raw.min(0), raw.max(0), strict=True)
-                ),
-                ' '.join(
-                    f'{lo:.2f}-{hi:.2f}' for lo, hi in zip(now.min(0), now.max(0), strict=True)
-                ),
+                _spread(raw),
+                _spread(now),
             ]
         )
         print(out[-1], flush=True)

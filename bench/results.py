@@ -67,9 +67,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'uncertainty_real': (
         'uncertainty_real',
         [],
-        ['uncertainty_pairs', 'uncertainty_terms', 'uncertainty_sim'],
+        ['uncertainty_pairs', 'uncertainty_terms', 'uncertainty_errors', 'uncertainty_sim'],
         '1 min',
     ),
+    'wander': ('wander', [], ['wander'], '12 min'),
+    'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
+    'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),
     'defects': (
         'defects',
         [],

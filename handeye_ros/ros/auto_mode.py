@@ -59,6 +59,8 @@ class AutoMode:
         #: make it doubtful (they hold READY back)
         self.factors: dict[str, float] = {}
         self.held: list[str] = []
+        #: whether a result of these buffers (published, or a check of READY) set them
+        self.confirmed = False
         #: the published auto result's estimate: dt [s], translation [m], rotation (x y z w)
         self._estimate: tuple[float, np.ndarray, np.ndarray] | None = None
 
@@ -68,11 +70,12 @@ class AutoMode:
         return self.said.startswith(('converged', 'done'))
 
     def step(self, last: dict[str, Any] | None) -> None:
-        """On each tick of the status, with its last readiness: calibrate once READY, again as
-        the buffers grow by GROWTH, and, converged or done, when the motion gets richer."""
+        """On each tick of the status, with its last readiness: calibrate once READY is
+        predicted (its first result is the one that confirms it), again as the buffers grow by
+        GROWTH, and, converged or done, when the motion gets richer."""
         # READY starts it; once it has calibrated, the buffers growing do (READY then carries
         # the last result's factors and reasons, which only a new result can settle)
-        if not (last and (last['ready'] or self._span_calibrated)):
+        if not (last and (last['ready'] or last.get('checking') or self._span_calibrated)):
             return
         if self.said in ('waiting for READY', 'calibrating'):
             self._calibrate(last)
@@ -84,7 +87,7 @@ class AutoMode:
         if self.said != 'off':
             self.said, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
             self._predicted_then, self._estimate = math.inf, None
-        self.factors, self.held = {}, []
+        self.factors, self.held, self.confirmed = {}, [], False
 
     def _predicted(self, last: dict[str, Any] | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
@@ -152,8 +155,15 @@ class AutoMode:
             f'{_largest(published, targets)}'
         )
 
+    def confirm(self, session: Calibrated) -> str:
+        """A calibration that checked a predicted READY: the status carries its factors and
+        reasons as a published one's; returns why it is not published."""
+        self._published(session.document)
+        return 'it checked READY'
+
     def _published(self, doc: dict[str, Any]) -> None:
-        """What the status carries of the result being published."""
+        """What the status carries of the result being published (or checking READY)."""
+        self.confirmed = True
         self.factors = predictor_factors(doc)
         self.held = [
             r['message'] for r in doc['quality']['reasons'] if r['code'] != Code.IMPRECISE.value
@@ -245,3 +255,31 @@ def judge(
     admitted = new <= old
     converged = not admitted or old - new <= IMPROVEMENT * max(old, 1.0)
     return admitted, converged
+
+
+def carry_over(last: dict[str, Any], factors: dict[str, float], held: list[str]) -> dict[str, Any]:
+    """The readiness with its predicted sigmas times the published result's
+    :func:`predictor_factors` (the same covariance model as the result's), READY only if they
+    still meet the targets and the published result is doubtful for no other reason than its
+    precision (``held``: those reasons' messages)."""
+    if not factors and not held:
+        return last
+    sigma = {
+        k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['sigma'].items()
+    }
+    target = last['target']
+    meets = all(v is not None and v <= target[k] for k, v in sigma.items())
+    missing = list(last['missing'])
+    if last['ready'] and not meets:
+        said = ', '.join(
+            f'{k.rsplit("_", 1)[0].replace("_", " ")} x{f:.2g}' for k, f in factors.items()
+        )
+        missing.insert(
+            0,
+            "keep recording: the last calibration's sigmas were its predictions times "
+            f'{said} (errors of the eye that consecutive poses do not show), and so are these',
+        )
+    if held:
+        missing.insert(0, f'the last calibration is doubtful: {held[0]}')
+    ready = bool(last['ready'] and meets and not held)
+    return {**last, 'sigma': sigma, 'ready': ready, 'missing': missing}

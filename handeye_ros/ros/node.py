@@ -76,8 +76,7 @@ class CalibratorNode(Node):
         self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
         parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
-        #: a calibration runs (set and cleared on the executor's thread)
-        self._busy = False
+        self._busy = False  # a calibration runs (set and cleared on the executor's thread)
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
         self._last_result: Calibrated | None = None
@@ -90,12 +89,10 @@ class CalibratorNode(Node):
         #: that moved its clock (PoseBuffer.ticked): messages without a usable pose leave it
         self.last_seen = dict.fromkeys(STREAMS, 0.0)
         self.last_ticked = dict.fromkeys(STREAMS, 0.0)
-        #: that last pose's reception by DDS (system clock, s; 0: not said by the middleware)
-        #: and how late the node took it (s): a node too busy for the rates takes them late,
-        #: and its own arrival times would move with that backlog
+        #: that last pose's reception by DDS (system clock, s; 0: not said by the middleware) and
+        #: how late the node took it (s): a busy node's own arrival times move with its backlog
         self.last_received = dict.fromkeys(STREAMS, 0.0)
         self.taken_late = dict.fromkeys(STREAMS, 0.0)
-
         self._types = RclpyTypes()
         self._outputs = Outputs(self, self._types)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -109,7 +106,6 @@ class CalibratorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._closing = False
         self._open_calls = 0  # ~/calibrate calls awaiting their calibration (executor thread)
-
         self._busy_since = 0.0
         self._pool = pool
         self.poses = Subscriptions(self, self.recorder, self._on_pose)
@@ -194,16 +190,17 @@ class CalibratorNode(Node):
 
     # ------------------------------------------------------------------ services
 
-    def calibrate(self, auto: bool = False) -> Future | None:
+    def calibrate(self, auto: bool = False, check: bool = False) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
         Returns an rclpy Future that completes on the executor with (success, message), or
         None when a calibration is already running. ``auto``: started by auto mode, whose
         result is published only when it improves (:meth:`~.auto_mode.AutoMode.admit`).
+        ``check``: started by the status to confirm a predicted READY; never published.
         """
         if self._busy:
             return None
-        self._busy = True
+        self._busy, kind = True, 'auto' if auto else 'check' if check else ''
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
@@ -233,7 +230,7 @@ class CalibratorNode(Node):
             )
             self.get_logger().info(
                 f'calibrating {len(snapshot.hand)} MoCap and {len(snapshot.eye)} device poses'
-                + (' (auto_calibrate)' if auto else '')
+                + {'auto': ' (auto_calibrate)', 'check': ' (checking READY)', '': ''}[kind]
             )
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             self._failed(str(err))
@@ -243,21 +240,26 @@ class CalibratorNode(Node):
             return future
 
         job.add_done_callback(
-            lambda job: self.on_executor(self._calibrated, job, future, stage, t0, auto)
+            lambda job: self.on_executor(self._calibrated, job, future, stage, t0, kind)
         )
         return future
 
     def _calibrated(
-        self, job: cf.Future, future: Future, stage: str | None, t0: float, auto: bool
+        self, job: cf.Future, future: Future, stage: str | None, t0: float, kind: str
     ) -> None:
-        """The worker's answer (on the executor): the outputs, the log, the service's answer;
-        the report's staging folder is kept with a success. The node's stop (close) ends a
-        running job here too: its caller is then answered ABORTED."""
+        """The worker's answer (on the executor) to a calibration of ``kind`` ('', 'auto' or
+        'check'): the outputs, the log, the service's answer; the report's staging folder is
+        kept with a success. The node's stop (close) ends a running job here too: its caller
+        is then answered ABORTED."""
+        check = kind == 'check'
         kept = False
         try:
             session: Calibrated = job.result()
         except HandeyeError as err:
-            self._failed(str(err))
+            if check:  # no result was asked for: the status keeps saying it checks
+                self.get_logger().info(f'checking READY: the calibration failed ({err})')
+            else:
+                self._failed(str(err))
             future.set_result((False, str(err)))
         except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
             if self._closing:  # the node stopped it
@@ -271,7 +273,10 @@ class CalibratorNode(Node):
         else:
             took = f'{time.perf_counter() - t0:.2f} s'
             said = session.result.said() + session.rig_said
-            kept_back = self.status.auto.admit(session, auto)
+            if check:
+                kept_back = self.status.auto.confirm(session)
+            else:
+                kept_back = self.status.auto.admit(session, kind == 'auto')
             if kept_back:
                 said = f'calibrated in {took}, not published ({kept_back}): {said}'
                 self.get_logger().info(said)
@@ -350,8 +355,6 @@ class CalibratorNode(Node):
             self._pool = None
         self._drop_stage(self._last_result and self._last_result.staged_dir)
 
-    # ------------------------------------------------------------------ outputs
-
     def _succeeded(self, session: Calibrated) -> None:
         """A new result: every output at once, one stamp (on the executor)."""
         self._last_result, self._last_error = session, None
@@ -391,8 +394,5 @@ class CalibratorNode(Node):
 def _session_name() -> str:
     """A session's name in a rig file: when its buffers started (local time, to the ms)."""
     now = time.time()
-    return (
-        'session '
-        + time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(now))
-        + (f'.{int(now * 1000) % 1000:03d}')
-    )
+    stamp = time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(now))
+    return f'session {stamp}.{int(now * 1000) % 1000:03d}'

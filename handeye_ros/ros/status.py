@@ -32,7 +32,7 @@ from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .auto_mode import AutoMode
+from .auto_mode import GROWTH, AutoMode, carry_over
 from .jobs import readiness_measure, readiness_start
 from .lifecycle import steady_timer
 
@@ -57,6 +57,11 @@ JUMP_S = 1.0
 JUMP_SNAPSHOTS = 3
 #: The node taking a stream's poses this much after DDS received them (s) is said.
 LATE_S = 1.0
+#: What the status says while a calibration checks a predicted READY.
+CHECKING = (
+    'checking READY: the data so far are predicted to meet the targets, and a calibration of '
+    'them is confirming it'
+)
 #: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
@@ -82,6 +87,8 @@ class ReadinessStatus:
         self._apart: tuple[list[float], list[float]] = ([], [])
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
+        #: the buffered span (s) when a check of READY was last started
+        self._checked_span = 0.0
         #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
         self._sim_clock = (0, time.monotonic())
         self.pub = node.create_publisher(DiagnosticStatus, '~/status', 10)
@@ -199,8 +206,26 @@ class ReadinessStatus:
         p.drop_before(*oldest)
         durations = tuple(buffers[s].span_s for s in STREAMS)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
-        self.last, self.why_not = carry_over(found, self.auto.factors, self.auto.held), ''
+        last = carry_over(found, self.auto.factors, self.auto.held)
+        if last['ready'] and not self.auto.confirmed:
+            # READY is said once a calibration of these buffers agrees: auto mode's first one,
+            # or a check of its own
+            last = {
+                **last,
+                'ready': False,
+                'checking': True,
+                'missing': [CHECKING, *last['missing']],
+            }
+            if self.auto.said == 'off':
+                self._check(min(durations))
+        self.last, self.why_not = last, ''
         self._publish()
+
+    def _check(self, span_s: float) -> None:
+        """Calibrate the buffers to confirm a predicted READY (not published), once, and again
+        only when that failed and the buffers have grown by GROWTH since."""
+        if span_s >= GROWTH * self._checked_span and self._node.calibrate(check=True) is not None:
+            self._checked_span = span_s
 
     def stopped(self) -> list[str]:
         """A stream that stopped while the other one still flows, said as advice: its
@@ -300,6 +325,7 @@ class ReadinessStatus:
         """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
         (a new recording: its first result is published whatever the last one reported)."""
         self._apart, self._jumped = ([], []), []
+        self._checked_span = 0.0
         self._progress = None
         self._generation += 1
         self._next['start'] = 0.0
@@ -349,34 +375,6 @@ class ReadinessStatus:
         if key != last_key or now - last_t >= LOG_PERIOD_S:
             self._logged = (now, key)
             self._node.get_logger().info(f'status: {line}')
-
-
-def carry_over(last: dict[str, Any], factors: dict[str, float], held: list[str]) -> dict[str, Any]:
-    """The readiness with its predicted sigmas times the published result's
-    :func:`predictor_factors` (the same covariance model as the result's), READY only if they
-    still meet the targets and the published result is doubtful for no other reason than its
-    precision (``held``: those reasons' messages)."""
-    if not factors and not held:
-        return last
-    sigma = {
-        k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['sigma'].items()
-    }
-    target = last['target']
-    meets = all(v is not None and v <= target[k] for k, v in sigma.items())
-    missing = list(last['missing'])
-    if last['ready'] and not meets:
-        said = ', '.join(
-            f'{k.rsplit("_", 1)[0].replace("_", " ")} x{f:.2g}' for k, f in factors.items()
-        )
-        missing.insert(
-            0,
-            "keep recording: the last calibration's sigmas were its predictions times "
-            f'{said} (errors of the eye that consecutive poses do not show), and so are these',
-        )
-    if held:
-        missing.insert(0, f'the last calibration is doubtful: {held[0]}')
-    ready = bool(last['ready'] and meets and not held)
-    return {**last, 'sigma': sigma, 'ready': ready, 'missing': missing}
 
 
 def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:

@@ -14,12 +14,13 @@ from handeye_ros.ros.auto_mode import (
     GROWTH,
     IMPROVEMENT,
     RECALIBRATE,
+    carry_over,
     judge,
     moved_beyond,
     predictor_factors,
     richer,
 )
-from handeye_ros.ros.status import carry_over, clocks_apart
+from handeye_ros.ros.status import clocks_apart
 
 
 @pytest.mark.parametrize(

@@ -1,9 +1,10 @@
 """The node's status against its own calibrations on real recordings (issue 45, item 4), without
 DDS: each recording is read as the node's buffers would hold it after 20, 30, ... s, and at each
 prefix the status's readiness (the result's own ``readiness`` section: the figures the status
-shows for those buffers) is carried over as the node carries it (``status.carry_over`` with the
-factors and held reasons of the result published at the previous prefix,
-``auto_mode.predictor_factors``), then compared with a calibration of that prefix.
+shows for those buffers) is carried over as the node carries it (``auto_mode.carry_over`` with
+the factors and held reasons of the last result, ``predictor_factors``: at the first prefix
+predicted READY that prefix's own calibration, as the node checks it, then auto mode's, each
+time the span has grown by GROWTH), then compared with a calibration of that prefix.
 
 Counted per recording: the prefixes whose carried status is READY while the calibration of the
 same prefix is not ``good`` (target: 0), and the predicted over reported 1-sigma (dt,
@@ -28,8 +29,7 @@ from handeye_ros.core.checks.verdict import sigmas_of
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.formats import read_trajectory
-from handeye_ros.ros.auto_mode import predictor_factors
-from handeye_ros.ros.status import carry_over
+from handeye_ros.ros.auto_mode import GROWTH, carry_over, predictor_factors
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 FIRST_S = 20.0
@@ -56,11 +56,19 @@ def _reported(res) -> np.ndarray:
     return np.array([s[0] * 1e3, s[1] * 1e3, s[2]])
 
 
+def _carried(status: dict, published: dict | None) -> dict:
+    """The status as the node carries it over from the result ``published``."""
+    if published is None:
+        return carry_over(status, {}, [])
+    held = [r['message'] for r in published['quality']['reasons'] if r['code'] != 'imprecise']
+    return carry_over(status, predictor_factors(published), held)
+
+
 def prefixes(hand, eye, step: float) -> list[list]:
     """Per prefix: [seconds, READY carried, verdict, predicted / reported raw, carried]."""
     t0 = max(hand.t_ns[0], eye.t_ns[0])
     end = min(hand.t_ns[-1], eye.t_ns[-1])
-    published, rows = None, []
+    published, span, rows = None, 0.0, []
     for s in np.arange(FIRST_S, (end - t0) * 1e-9 + step, step):
         cut = t0 + int(s * 1e9)
         try:
@@ -71,13 +79,9 @@ def prefixes(hand, eye, step: float) -> list[list]:
         status = doc.get('readiness')
         if status is None or res.batch is None:
             continue
-        factors = predictor_factors(published) if published else {}
-        held = (
-            [r['message'] for r in published['quality']['reasons'] if r['code'] != 'imprecise']
-            if published
-            else []
-        )
-        carried = carry_over(status, factors, held)
+        carried = _carried(status, published)
+        if carried['ready'] and published is None:  # the node checks it with this calibration
+            carried, published, span = _carried(status, doc), doc, s
         raw = np.array([status['sigma'][k] or np.nan for k in KEYS])
         now = np.array([carried['sigma'][k] or np.nan for k in KEYS])
         rows.append(
@@ -87,10 +91,11 @@ def prefixes(hand, eye, step: float) -> list[list]:
                 res.quality.verdict.value,
                 raw / _reported(res),
                 now / _reported(res),
-                bool(published),
+                published is not None,
             ]
         )
-        published = doc
+        if published is not None and s >= GROWTH * span:  # auto mode's next result
+            published, span = doc, s
     return rows
 
 

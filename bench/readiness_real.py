@@ -79,7 +79,7 @@ def prefixes(hand, eye, step: float) -> list[list]:
         status = doc.get('readiness')
         if status is None or res.batch is None:
             continue
-        carried = _carried(status, published)
+        carried, had = _carried(status, published), published is not None
         if carried['ready'] and published is None:  # the node checks it with this calibration
             carried, published, span = _carried(status, doc), doc, s
         raw = np.array([status['sigma'][k] or np.nan for k in KEYS])
@@ -91,7 +91,7 @@ def prefixes(hand, eye, step: float) -> list[list]:
                 res.quality.verdict.value,
                 raw / _reported(res),
                 now / _reported(res),
-                published is not None,
+                had,  # its ratio is a prediction's (the check's own is 1 by construction)
             ]
         )
         if published is not None and s >= GROWTH * span:  # auto mode's next result

@@ -106,7 +106,8 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument(
         '--reliable',
         action='store_true',
-        help='reliable publishers (default: best-effort hand, reliable eye)',
+        help='reliable publishers, which lose nothing: they keep the whole recording and wait '
+        'until every message is acknowledged (default: best-effort hand, reliable eye)',
     )
     ap.add_argument(
         '--bag',

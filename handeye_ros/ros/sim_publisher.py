@@ -57,14 +57,17 @@ def _publishers(node, args: argparse.Namespace, rec) -> dict:
 
     from handeye_ros.formats.bag import RIG_TO_MARKER
 
+    # reliable: a history as long as the recording, so that a subscriber that falls behind
+    # (a loaded machine) is waited for rather than overwritten
+    depth = max(1000, len(rec.hand)) if args.reliable else 1000
     hand_qos = QoSProfile(
-        depth=1000,
+        depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if args.reliable else ReliabilityPolicy.BEST_EFFORT,
     )
     pubs = {
         'hand': node.create_publisher(message_class(args.hand_type), args.hand_topic, hand_qos),
         'eye': node.create_publisher(
-            message_class(args.eye_type), args.eye_topic, QoSProfile(depth=1000)
+            message_class(args.eye_type), args.eye_topic, QoSProfile(depth=max(1000, len(rec.eye)))
         ),
     }
     if args.hand_type == 'TFMessage':
@@ -159,7 +162,13 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
         ahead = (j + 1) / args.rate - (time.monotonic() - t0)
         if ahead > 0:
             time.sleep(ahead)
-    time.sleep(0.5)  # let the last messages leave
+    if args.reliable:  # every message acknowledged before the publisher leaves (or 10 s)
+        from rclpy.duration import Duration
+
+        for pub in pubs.values():
+            pub.wait_for_all_acked(Duration(seconds=10.0))
+    else:
+        time.sleep(0.5)  # let the last messages leave
     return sent, time.monotonic() - t0
 
 

@@ -162,14 +162,20 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
         ahead = (j + 1) / args.rate - (time.monotonic() - t0)
         if ahead > 0:
             time.sleep(ahead)
-    if args.reliable:  # every message acknowledged before the publisher leaves (or 10 s)
-        from rclpy.duration import Duration
-
-        for pub in pubs.values():
-            pub.wait_for_all_acked(Duration(seconds=10.0))
-    else:
-        time.sleep(0.5)  # let the last messages leave
+    _let_leave(pubs, args.reliable)
     return sent, time.monotonic() - t0
+
+
+def _let_leave(pubs: dict, reliable: bool) -> None:
+    """Let the last messages leave: reliable, until every subscriber acknowledged each (at most
+    10 s); else for 0.5 s."""
+    if not reliable:
+        time.sleep(0.5)
+        return
+    from rclpy.duration import Duration
+
+    for pub in pubs.values():
+        pub.wait_for_all_acked(Duration(seconds=10.0))
 
 
 def _recording(args: argparse.Namespace):

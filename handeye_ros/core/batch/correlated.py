@@ -27,9 +27,9 @@ reported 0.4-1.2 mm). Two terms, added to the long-run covariance ``C``:
    ``k_g = sqrt(v_g / tr C_g)``. Birge's ratio ``sum_b d_b^T C_b^-1 d_b / (p_g (B - 1))`` far
    above 1 (:func:`varies`) means that the group's value moves along the recording by more than
    the blocks' own noise: the result says so, with the blocks' spread. (Multiplying ``C`` by
-   that ratio counts the long-run correlation twice where a block's covariance is not B times
-   the whole one's: TUM-VI outdoors4's offset, its MoCap at the two ends only, had a 1-sigma of
-   35 ms that way, 3.6 ms this one.)
+   that ratio would count the long-run correlation twice where a block's covariance is not B
+   times the whole one's: on TUM-VI outdoors4, its MoCap at the two ends only, the offset's
+   1-sigma would be 35 ms, where the blocks' mean is uncertain by 3.7 ms.)
 2. **Scale.** The solution refitted with a factor on the eye's translations as a nuisance
    parameter. T_HE stays the one at s = 1, as the user's metric eye asks; its covariance gains
    what not knowing s adds (the marginal minus the conditional covariance) and the shift that

@@ -7,8 +7,8 @@ figure is computed again at DRAWS draws of those parameters from a normal distri
 the estimate with that covariance, each eye segment's world T_WG fitted again at every draw as
 the calibration fits it; the figure's calibration 1-sigma is the root-mean-square of the draws'
 differences from it. (Not their standard deviation: near the estimate the figures are near a
-minimum in the parameters, so they move one way.) The draws run on the eye poses thinned to
-THINNED_PER_STEP a RPE time step apart at most (so that every RPE pair still finds its pose
+minimum in the parameters, so they move one way.) The draws run on the eye poses thinned to no
+fewer than THINNED_PER_STEP per RPE time step (so that every RPE pair still finds its pose
 within RPE_TOLERANCE of its step), and on a long recording on WINDOWS runs of consecutive
 poses spread over it, MAX_POSES in all: the sigma of a root-mean-square over an hour at 200 Hz
 needs no 720 000 poses. The figure's own value is taken on the same poses.
@@ -46,7 +46,8 @@ SEED = 0
 class CalibrationSigmas:
     """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
     its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
-    figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses; ``parameters`` names what was drawn.
+    figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses;
+    ``parameters`` names what was drawn.
     """
 
     sigmas: dict[str, dict[str, float | None]]

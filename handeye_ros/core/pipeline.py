@@ -23,7 +23,9 @@ reads, and every finding (a warning, a reason of the verdict, a note) goes into 
 
 When the offset measured along the recording drifts beyond its uncertainty (the verdict's
 ``clock_drift``) and ``auto_drift`` is on, the stages run once more with ``clock_drift``
-(:func:`_with_drift`), and a note says so.
+(:func:`_with_drift`), and a note says so. So they do when the windows' drift is not
+significant but the batch stage's quarters disagree on the offset; that drift is kept when it
+explains them (:func:`_with_drift_if_it_explains`).
 """
 
 from __future__ import annotations
@@ -40,7 +42,15 @@ from .batch.pieces import check_joint_size
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
-from .checks.verdict import Code, assess, assess_model, drift_fitted_note, judged
+from .checks.verdict import (
+    Code,
+    assess,
+    assess_model,
+    drift_explains,
+    drift_explains_note,
+    drift_fitted_note,
+    judged,
+)
 from .config import CalibrationConfig
 from .errors import ConfigError, HandeyeError
 from .geometry import matrix_from_quat
@@ -89,8 +99,12 @@ def calibrate(
     if cfg.batch and cfg.batch_joint:
         check_joint_size(hand)
     result = _calibrate(hand, eye, cfg, progress)
-    if cfg.auto_drift and not cfg.clock_drift and Code.CLOCK_DRIFT in result.quality.codes:
-        return _with_drift(hand, eye, cfg, result)
+    if cfg.auto_drift and not cfg.clock_drift:
+        if Code.CLOCK_DRIFT in result.quality.codes:
+            return _with_drift(hand, eye, cfg, result)
+        varied = result.batch.uncertainty.varies if result.batch is not None else {}
+        if 'time_offset' in varied:
+            return _with_drift_if_it_explains(hand, eye, cfg, result, varied['time_offset'][0])
     return result
 
 
@@ -109,6 +123,31 @@ def _with_drift(
     note = drift_fitted_note(measured.clock, result.clock_drift)
     quality = replace(result.quality, notes=(note, *result.quality.notes))
     return replace(result, quality=quality)
+
+
+def _with_drift_if_it_explains(
+    hand: Trajectory,
+    eye: Trajectory,
+    cfg: CalibrationConfig,
+    varied: CalibrationResult,
+    spread_s: float,
+) -> CalibrationResult:
+    """The calibration again with a clock drift, when the first one's time offset varied along
+    the recording (``varied``, its quarters ``spread_s`` apart) though its windows' drift was
+    not significant (two windows of MoCap, far apart); kept when the drift explains the
+    variation (:func:`drift_explains`), said in a note; ``varied`` itself otherwise."""
+    try:
+        result = _calibrate(hand, eye, replace(cfg, clock_drift=True), None)
+    except HandeyeError:
+        return varied
+    model, batch = result.eye_model, result.batch
+    if result.clock_drift is None or model is None or batch is None:
+        return varied
+    still = 'time_offset' in batch.uncertainty.varies
+    if not drift_explains(model.drift, model.drift_std, still):
+        return varied
+    note = drift_explains_note(spread_s, model.drift)
+    return replace(result, quality=replace(result.quality, notes=(note, *result.quality.notes)))
 
 
 def _calibrate(

@@ -166,3 +166,11 @@ def test_a_recording_too_short_for_blocks_says_so() -> None:
     said = res.to_dict()['std']['not_estimated']
     assert said and 'too few for 4 blocks' in said[0], said
     assert any(n.startswith('uncertainty: the errors correlated over') for n in res.quality.notes)
+
+
+def test_a_drift_explains_a_varying_offset_only_when_it_is_clear_and_settles_it() -> None:
+    from handeye_ros.core.checks.verdict import drift_explains
+
+    assert drift_explains(-23e-6, 2e-6, still_varies=False)
+    assert not drift_explains(-23e-6, 2e-6, still_varies=True)  # the quarters still disagree
+    assert not drift_explains(-5e-6, 2e-6, still_varies=False)  # within 3 of its sigmas

@@ -307,6 +307,23 @@ def drift_fitted_note(measured: DriftFit, fitted: float) -> str:
     )
 
 
+def drift_explains(drift: float, drift_std: float, still_varies: bool) -> bool:
+    """Whether a drift fitted because the time offset varied along the recording (its quarters
+    disagreeing, while the windows' drift was not significant) explains that: the drift is
+    beyond DRIFT_SIGMAS of its own sigma, and with it the quarters agree."""
+    return abs(drift) > DRIFT_SIGMAS * drift_std and not still_varies
+
+
+def drift_explains_note(spread_s: float, fitted: float) -> str:
+    """The note of a drift fitted because it explains how the offset varied (``spread_s``, the
+    quarters' spread [s]; ``fitted`` [s/s])."""
+    return (
+        f'clock drift {fitted * 1e6:+.1f} ppm fitted: the time offset varied along the '
+        f'recording (its quarters spread by {spread_s * 1e3:.2g} ms) and the drift explains it; '
+        '--no-clock-drift (auto_drift false) keeps one constant offset'
+    )
+
+
 def read(entry: object) -> tuple[Reason | None, str | None]:
     """What a fact of the stages means for the verdict: (a reason or None, a note or None); a
     reason made on the way reads as itself."""

@@ -1,5 +1,6 @@
 """The ROS 2 front end (rclpy): the calibrator node (:mod:`.node`, started by :mod:`.calibrator`),
-its pose topics (:mod:`.subscriptions`, :mod:`.types`), parameters (:mod:`.parameters`),
+the answers of its calls that wait or are refused (:mod:`.calls`), its pose topics
+(:mod:`.subscriptions`, :mod:`.types`), parameters (:mod:`.parameters`),
 latched result outputs (:mod:`.outputs`), the files it writes, only inside ``output_dir``
 (:mod:`.files`), diagnostics (:mod:`.diagnostics`), readiness status (:mod:`.status`) and auto mode
 (:mod:`.auto_mode`), its worker processes (:mod:`.worker`, :mod:`.jobs`), the start and stop

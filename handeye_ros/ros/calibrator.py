@@ -139,7 +139,7 @@ def send_answers(node: Any, executor: Any, timeout_s: float, linger_s: float) ->
     for a calibration has been answered (close gave them ABORTED), at most timeout_s,
     then on for linger_s when any was: a reliable DDS writer repeats a response its reader
     missed only while it exists, and the node is destroyed right after this."""
-    from .node import ABORTED  # imported by main already
+    from .calls import ABORTED  # imported by main already
 
     waiting = node.open_calls
     if not waiting:

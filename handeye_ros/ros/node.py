@@ -51,6 +51,7 @@ from std_srvs.srv import Trigger
 from ..core.errors import HandeyeError, InputError
 from ..stream import STREAMS, Recorder
 from . import diagnostics, parameters, worker
+from .calls import ABORTED, BUSY, answer_with, waiting
 from .files import inside
 from .jobs import Calibrated, calibrate_buffers
 from .lifecycle import steady_timer
@@ -61,9 +62,6 @@ from .types import RclpyTypes
 
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
-
-#: The answer to a ``~/calibrate`` call whose calibration the node's stop abandoned.
-ABORTED = 'aborted: shutting down'
 
 
 class CalibratorNode(Node):
@@ -77,6 +75,8 @@ class CalibratorNode(Node):
         parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
         self._busy = False  # a calibration runs (set and cleared on the executor's thread)
+        #: its kind ('', 'auto', 'check': :meth:`calibrate`), and a call waiting for it to end
+        self._running: tuple[str, Future | None] = ('', None)
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
         self._last_result: Calibrated | None = None
@@ -104,8 +104,7 @@ class CalibratorNode(Node):
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(Trigger, '~/save', self._on_save)
         self.add_on_set_parameters_callback(self._on_set_parameters)
-        self._closing = False
-        self._open_calls = 0  # ~/calibrate calls awaiting their calibration (executor thread)
+        self._closing, self._open_calls = False, 0  # ~/calibrate calls awaiting their answer
         self._busy_since = 0.0
         self._pool = pool
         self.poses = Subscriptions(self, self.recorder, self._on_pose)
@@ -149,15 +148,11 @@ class CalibratorNode(Node):
         else:
             executor.create_task(fn, *args)
 
-    # ------------------------------------------------------------------ parameters
-
     def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
         answer, self.calib_cfg, self.node_cfg = parameters.apply_changes(
             params, self.calib_cfg, self.node_cfg
         )
         return answer
-
-    # ------------------------------------------------------------------ messages
 
     def _on_pose(self, stream: str, msg: Any, static: bool, info: Any = None) -> None:
         self.last_seen[stream] = now = time.monotonic()
@@ -188,18 +183,19 @@ class CalibratorNode(Node):
                     f'so far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}'
                 )
 
-    # ------------------------------------------------------------------ services
-
     def calibrate(self, auto: bool = False, check: bool = False) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
         Returns an rclpy Future that completes on the executor with (success, message), or
-        None when a calibration is already running. ``auto``: started by auto mode, whose
-        result is published only when it improves (:meth:`~.auto_mode.AutoMode.admit`).
-        ``check``: started by the status to confirm a predicted READY; never published.
+        None when a calibration is already running (a call during a check waits for it to end).
+        ``auto``: auto mode's, published when it improves (:meth:`.AutoMode.admit`).
+        ``check``: the status's, confirming a predicted READY; never published.
         """
-        if self._busy:
-            return None
+        if self._busy:  # a call during a check calibrates the buffers once that ends
+            queued = None if auto or check else waiting(self._running, self.executor)
+            if queued is not None:
+                self._running = (self._running[0], queued)
+            return queued
         self._busy, kind = True, 'auto' if auto else 'check' if check else ''
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
@@ -239,18 +235,18 @@ class CalibratorNode(Node):
             self._busy = False
             return future
 
+        self._running = (kind, None)
         job.add_done_callback(
-            lambda job: self.on_executor(self._calibrated, job, future, stage, t0, kind)
+            lambda job: self.on_executor(self._calibrated, job, future, stage, t0)
         )
         return future
 
-    def _calibrated(
-        self, job: cf.Future, future: Future, stage: str | None, t0: float, kind: str
-    ) -> None:
-        """The worker's answer (on the executor) to a calibration of ``kind`` ('', 'auto' or
-        'check'): the outputs, the log, the service's answer; the report's staging folder is
-        kept with a success. The node's stop (close) ends a running job here too: its caller
-        is then answered ABORTED."""
+    def _calibrated(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
+        """The worker's answer (on the executor) to the calibration running (``_running``): the
+        outputs, the log, the answer; the report's staging folder is kept with a success. The
+        node's stop ends a running job here too: its caller is then answered ABORTED. A call
+        that waited for a check is then calibrated."""
+        kind, queued = self._running
         check = kind == 'check'
         kept = False
         try:
@@ -293,12 +289,14 @@ class CalibratorNode(Node):
             if not kept:  # a failed calibration leaves no report to keep
                 self._drop_stage(stage)
             self._busy = False
+            if queued is not None:
+                answer_with(queued, self.calibrate())
 
     async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
         future = self.calibrate()
         if future is None:
             response.success = False
-            response.message = 'a calibration is already running; call again when it has finished'
+            response.message = BUSY
             return response
         self._open_calls += 1
         try:

@@ -168,14 +168,14 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
 
 def _let_leave(pubs: dict, reliable: bool) -> None:
     """Let the last messages leave: reliable, until every subscriber acknowledged each (at most
-    10 s); else for 0.5 s."""
-    if not reliable:
-        time.sleep(0.5)
-        return
-    from rclpy.duration import Duration
+    10 s); then 0.5 s, for a subscriber to take them from its queue before this leaves (a call
+    right after it must see them)."""
+    if reliable:
+        from rclpy.duration import Duration
 
-    for pub in pubs.values():
-        pub.wait_for_all_acked(Duration(seconds=10.0))
+        for pub in pubs.values():
+            pub.wait_for_all_acked(Duration(seconds=10.0))
+    time.sleep(0.5)
 
 
 def _recording(args: argparse.Namespace):

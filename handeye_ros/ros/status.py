@@ -206,8 +206,9 @@ class ReadinessStatus:
         p.drop_before(*oldest)
         durations = tuple(buffers[s].span_s for s in STREAMS)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
-        last = carry_over(found, self.auto.factors, self.auto.held)
-        if last['ready'] and not self.auto.confirmed:
+        auto = self.auto
+        last = carry_over(found, auto.factors, auto.held)
+        if last['ready'] and not auto.confirmed:
             # READY is said once a calibration of these buffers agrees: auto mode's first one,
             # or a check of its own
             last = {
@@ -216,14 +217,17 @@ class ReadinessStatus:
                 'checking': True,
                 'missing': [CHECKING, *last['missing']],
             }
-            if self.auto.said == 'off':
+            if auto.said == 'off':
                 self._check(min(durations))
+        elif auto.held and auto.said == 'off' and carry_over(found, auto.factors, [])['ready']:
+            self._check(min(durations))  # READY but for the last result's reasons: check again
         self.last, self.why_not = last, ''
         self._publish()
 
     def _check(self, span_s: float) -> None:
-        """Calibrate the buffers to confirm a predicted READY (not published), once, and again
-        only when that failed and the buffers have grown by GROWTH since."""
+        """Calibrate the buffers to confirm a predicted READY (not published), and again only
+        once the buffers have grown by GROWTH since (the check failed, or its result was doubtful
+        for another reason than its precision)."""
         if span_s >= GROWTH * self._checked_span and self._node.calibrate(check=True) is not None:
             self._checked_span = span_s
 

@@ -26,14 +26,17 @@ pytestmark = [
     pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed'),
 ]
 
-#: A /clock publisher at 100 Hz of simulated time for ``seconds`` of wall time, then silent
-#: (a bag paused or ended) until it is stopped.
+#: A /clock publisher at 100 Hz of simulated time for ``seconds`` of wall time once the node
+#: subscribes, then silent (a bag paused or ended) until it is stopped.
 CLOCK = """
 import sys, time, rclpy
 from rosgraph_msgs.msg import Clock
 rclpy.init()
 node = rclpy.create_node('clock_player')
 pub = node.create_publisher(Clock, '/clock', 10)
+deadline = time.monotonic() + 30.0  # the node's subscription first: on a loaded machine
+while pub.get_subscription_count() == 0 and time.monotonic() < deadline:  # discovery takes s
+    time.sleep(0.05)
 end, t = time.monotonic() + float(sys.argv[1]), 1_700_000_000_000_000_000
 while time.monotonic() < end:
     t += 10_000_000

@@ -20,23 +20,13 @@ import time
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
 from common import emit, protocol_seed, table
-from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
+from handeye_ros.core.simulate import move_to_truth, noise_level, simulate
 from handeye_ros.evaluation import error_bars
 from handeye_ros.evaluation.metrics import POSE_ERRORS
 
 LEVELS = (2, 5, 8)
-
-
-def _moved_to_truth(res, truth) -> np.ndarray:
-    """The move from the estimate to the truth in the covariance's order (dt, t, r)."""
-    d = np.zeros(res.batch.covariance.shape[0])
-    d[0] = truth.time_offset_s - res.time_offset_s
-    d[1:4] = truth.p_HE - res.p_HE
-    d[4:7] = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    return d
 
 
 def case(rec) -> tuple[np.ndarray, float, float]:
@@ -52,7 +42,15 @@ def case(rec) -> tuple[np.ndarray, float, float]:
     model = (None, None, 0)
     at = error_bars._figures(res, eye, stamps, window, np.zeros(7), model, (1.0, 1.0))
     true = error_bars._figures(
-        res, eye, stamps, window, _moved_to_truth(res, rec.truth), model, (1.0, 1.0)
+        res,
+        eye,
+        stamps,
+        window,
+        move_to_truth(
+            rec.truth, res.time_offset_s, res.q_HE, res.p_HE, res.batch.covariance.shape[0]
+        ),
+        model,
+        (1.0, 1.0),
     )
     z = np.array([(true[n]['rmse'] - at[n]['rmse']) / bars.sigmas[n]['rmse'] for n in POSE_ERRORS])
     return z, t1 - t0, t2 - t1

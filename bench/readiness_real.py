@@ -29,7 +29,7 @@ from handeye_ros.core.checks.verdict import sigmas_of
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.formats import read_trajectory
-from handeye_ros.ros.auto_mode import GROWTH, carry_over, predictor_factors
+from handeye_ros.ros.auto_mode import GROWTH, carry_over, held_reasons, predictor_factors
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 FIRST_S = 20.0
@@ -60,8 +60,7 @@ def _carried(status: dict, published: dict | None) -> dict:
     """The status as the node carries it over from the result ``published``."""
     if published is None:
         return carry_over(status, {}, [])
-    held = [r['message'] for r in published['quality']['reasons'] if r['code'] != 'imprecise']
-    return carry_over(status, predictor_factors(published), held)
+    return carry_over(status, predictor_factors(published), held_reasons(published))
 
 
 def prefixes(hand, eye, step: float) -> list[list]:

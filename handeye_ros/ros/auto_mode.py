@@ -165,10 +165,13 @@ class AutoMode:
         """What the status carries of the result being published (or checking READY)."""
         self.confirmed = True
         self.factors = predictor_factors(doc)
-        self.held = [
-            r['message'] for r in doc['quality']['reasons'] if r['code'] != Code.IMPRECISE.value
-        ]
+        self.held = held_reasons(doc)
         self._estimate = _estimate_of(doc)
+
+
+def held_reasons(doc: dict[str, Any]) -> list[str]:
+    """The messages of a result's reasons other than its precision: they hold READY back."""
+    return [r['message'] for r in doc['quality']['reasons'] if r['code'] != Code.IMPRECISE.value]
 
 
 def _estimate_of(doc: dict[str, Any]) -> tuple[float, np.ndarray, np.ndarray]:

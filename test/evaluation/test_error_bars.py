@@ -13,22 +13,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import recording
-from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import move_to_truth
 from handeye_ros.evaluation import error_bars
 from handeye_ros.evaluation.metrics import POSE_ERRORS, STATS
 from handeye_ros.evaluation.outputs import evaluation_of
 from handeye_ros.evaluation.terminal import _evaluation_lines
-
-
-def _truth_move(res, truth) -> np.ndarray:
-    d = np.zeros(res.batch.covariance.shape[0])
-    d[0] = truth.time_offset_s - res.time_offset_s
-    d[1:4] = truth.p_HE - res.p_HE
-    d[4:7] = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    return d
 
 
 @pytest.mark.slow
@@ -43,7 +35,12 @@ def test_the_true_calibrations_figures_lie_within_the_error_bars() -> None:
         eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
         figures = [
             error_bars._figures(res, eye, stamps, window, d, (None, None, 0), (1.0, 1.0))
-            for d in (np.zeros(7), _truth_move(res, rec.truth))
+            for d in (
+                np.zeros(7),
+                move_to_truth(
+                    rec.truth, res.time_offset_s, res.q_HE, res.p_HE, res.batch.covariance.shape[0]
+                ),
+            )
         ]
         z += [
             (figures[1][n]['rmse'] - figures[0][n]['rmse']) / bars.sigmas[n]['rmse']

@@ -87,6 +87,13 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'auto_drift': ('auto_drift', [], ['auto_drift'], '15 min'),
     'runtime': ('runtime', [], ['runtime'], '30 min'),
+    'runtime_motions': (
+        'runtime',
+        ['--minutes', '10', '60', '--repeat', '3', '--motion', 'random', 'loops'],
+        ['runtime_motions'],
+        '15 min',
+    ),
+    'candidates': ('candidates', ['--seeds', '20'], ['candidates'], '6 min'),
     'evaluate': (
         'evaluate',
         [],

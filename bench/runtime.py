@@ -9,8 +9,11 @@ Each length runs --repeat times (the table shows the median run and the range). 
 and a log-log plot of time and memory against the length (bench/out/runtime.png)
 show how both grow.
 
+``--motion random loops`` runs each length on both motions and gives each one's time against
+the first's, measured in the same run (issue 47's figure: <= 1.3).
+
 Usage: python bench/runtime.py [--minutes 1 5 10 30 60] [--hand-rate 1000] [--eye-rate 200]
-       [--repeat 3] [--options --clock-drift ...]
+       [--repeat 3] [--motion random loops] [--options --clock-drift ...]
 """
 
 from __future__ import annotations
@@ -18,7 +21,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import resource
 import subprocess
 import sys
 import tempfile
@@ -37,7 +39,7 @@ STAGES = re.compile(
 
 
 def write_recording(
-    folder: Path, minutes: float, hand_hz: float, eye_hz: float
+    folder: Path, minutes: float, hand_hz: float, eye_hz: float, motion: str = 'random'
 ) -> tuple[int, int]:
     """Simulate and write h.txt / e.txt (TUM); returns the pose counts."""
     from handeye_ros.core.simulate import noise_level, simulate
@@ -51,6 +53,7 @@ def write_recording(
         eye_rate_hz=eye_hz,
         noise_m=noise_m,
         noise_deg=noise_deg,
+        motion=motion,
     )
     write_tum(folder / 'h.txt', rec.hand)
     write_tum(folder / 'e.txt', rec.eye)
@@ -82,26 +85,48 @@ def run_offline(folder: Path, options: list[str]) -> dict[str, float]:
         '--no-progress',
         *options,
     ]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    t0 = time.perf_counter()
-    proc = subprocess.run(
-        cmd, env=env, capture_output=True, text=True, check=False, preexec_fn=pin_one_core
-    )
-    wall = time.perf_counter() - t0
-    rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    with tempfile.TemporaryFile('w+') as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(
+            cmd,
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            preexec_fn=pin_one_core,  # noqa: PLW1509 (the bench starts no threads)
+        )
+        # wait4: this child's own peak RSS (RUSAGE_CHILDREN would hold the largest of all)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        stderr = err.read()
     if proc.returncode not in (0, 2):
-        raise RuntimeError(proc.stderr[-2000:])
-    m = STAGES.search(proc.stderr)
+        raise RuntimeError(stderr[-2000:])
+    m = STAGES.search(stderr)
     stage = [float(v) for v in m.groups()] if m else [float('nan')] * 3
-    # ru_maxrss of children is the largest any child reached: valid because each run is
-    # larger than the one before
     return {
         'wall_s': wall,
-        'rss_mb': max(rss, before) / 1024,
+        'rss_mb': usage.ru_maxrss / 1024,
         'stage1_s': stage[0],
         'stage2_s': stage[1],
         'batch_s': stage[2],
     }
+
+
+def _measure(
+    minutes: float, motion: str, args: argparse.Namespace
+) -> tuple[dict[str, float], list[dict[str, float]], int, int, float]:
+    """One recording written and run --repeat times: the median run, all runs by wall time,
+    the pose counts and the files' size (MB)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate, motion)
+        size = sum(f.stat().st_size for f in folder.iterdir()) / 2**20
+        runs = sorted(
+            (run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
+            key=lambda run: run['wall_s'],
+        )
+    return runs[len(runs) // 2], runs, n_h, n_e, size
 
 
 def main() -> None:
@@ -118,51 +143,58 @@ def main() -> None:
         'some 10 %% off)',
     )
     p.add_argument(
+        '--motion',
+        nargs='+',
+        default=['random'],
+        help="the simulation's motions (handeye_ros.core.simulate.MOTIONS), each at each "
+        "length: 'loops' repeats a 3-minute lap, so that the correlation has runner-ups a lap "
+        'away (issue 47: each costs stage 2 on a bounded excerpt)',
+    )
+    p.add_argument(
         '--options',
         nargs=argparse.REMAINDER,
         default=[],
         help='further offline_calibrate options (e.g. --clock-drift)',
     )
     args = p.parse_args()
-    rows, points = [], []
+    rows, points, first = [], [], {}
     for minutes in sorted(args.minutes):
-        with tempfile.TemporaryDirectory() as tmp:
-            folder = Path(tmp)
-            n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate)
-            size = sum(f.stat().st_size for f in folder.iterdir()) / 2**20
-            runs = sorted(
-                (run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
-                key=lambda run: run['wall_s'],
+        for motion in args.motion:
+            r, runs, n_h, n_e, size = _measure(minutes, motion, args)
+            first.setdefault(minutes, r['wall_s'])
+            if motion == args.motion[0]:
+                points.append((minutes, r['wall_s'], r['rss_mb']))
+            rows.append(
+                [
+                    f'{minutes:g}',
+                    motion,
+                    f'{n_h} + {n_e}',
+                    size,
+                    r['wall_s'],
+                    f'{runs[0]["wall_s"]:.1f}-{runs[-1]["wall_s"]:.1f}',
+                    r['wall_s'] / first[minutes],
+                    r['stage1_s'],
+                    r['stage2_s'],
+                    r['batch_s'],
+                    r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'],
+                    r['rss_mb'],
+                ]
             )
-        r = runs[len(runs) // 2]
-        points.append((minutes, r['wall_s'], r['rss_mb']))
-        rows.append(
-            [
-                f'{minutes:g}',
-                f'{n_h} + {n_e}',
-                size,
-                r['wall_s'],
-                f'{runs[0]["wall_s"]:.1f}-{runs[-1]["wall_s"]:.1f}',
-                r['stage1_s'],
-                r['stage2_s'],
-                r['batch_s'],
-                r['wall_s'] - r['stage1_s'] - r['stage2_s'] - r['batch_s'],
-                r['rss_mb'],
-            ]
-        )
-        print(rows[-1], flush=True)
+            print(rows[-1], flush=True)
     opts = ' '.join(args.options) or 'defaults'
     emit(
-        'runtime',
+        'runtime' if args.motion == ['random'] else 'runtime_motions',
         table(
             f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
             f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
             [
                 'minutes',
+                'motion',
                 'poses',
                 'files MB',
                 'offline run s (median)',
                 f'range of {args.repeat}',
+                f'vs {args.motion[0]}',
                 'stage 1 + conventions s',
                 'stage 2 + checks s',
                 'batch s',
@@ -174,7 +206,7 @@ def main() -> None:
         SEED,
     )
     plt = common.pyplot()
-    if plt is not None and len(points) > 1:
+    if plt is not None and len(points) > 1 and args.motion == ['random']:
         fig, ax = plt.subplots(figsize=(6, 4))
         m = [q[0] for q in points]
         ax.loglog(m, [q[1] for q in points], 'o-', label='time (s)')

@@ -13,7 +13,8 @@ standard deviations ``noise_deg`` and ``noise_m``, and the poses are the running
 :data:`MOTIONS`): a ground robot (``planar``: rotation about the world z axis only, translation
 in the x-y plane), a turntable or pan unit (``one_axis``: rotation about one fixed axis, no
 translation), a periodic back-and-forth (``repetitive``: the same 2 s pattern over and over,
-whose angular speed repeats exactly), a slow hand (``slow``: ~3 deg/s, a tenth of the
+whose angular speed repeats exactly), a programmed loop (``loops``: a 3-minute lap flown
+again and again, each lap a little off the first), a slow hand (``slow``: ~3 deg/s, a tenth of the
 default, turning through large angles nonetheless), and a rig turned about all axes without
 moving through space (``in_place``: the marker stays put; a monocular scale is unobservable),
 and a recording that starts poor and becomes rich (``planar_start``: planar for its first
@@ -122,9 +123,22 @@ def random_truth(rng: np.random.Generator, max_time_offset_s: float = 0.1) -> Tr
 
 
 #: Hand motion shapes of :func:`simulate` (see the module docstring).
-MOTIONS = ('random', 'planar', 'one_axis', 'repetitive', 'slow', 'in_place', 'planar_start')
+MOTIONS = (
+    'random',
+    'planar',
+    'one_axis',
+    'repetitive',
+    'loops',
+    'slow',
+    'in_place',
+    'planar_start',
+)
 #: Period of the ``repetitive`` motion, seconds.
 REPETITIVE_PERIOD_S = 2.0
+#: Period of the ``loops`` motion (s), and how much each lap departs from the first (a
+#: fraction of the motion's own spread).
+LOOP_PERIOD_S = 180.0
+LOOP_VARIATION = 0.1
 
 
 def smooth_motion(
@@ -171,9 +185,14 @@ def smooth_motion(
     elif motion == 'repetitive':
         # one period of random control points, tiled: the spline repeats exactly
         per = round(REPETITIVE_PERIOD_S / knot_spacing_s)
-        reps = int(np.ceil(n_ctrl / per))
-        pos_ctrl = np.tile(pos_ctrl[:per], (reps, 1))[:n_ctrl]
-        rot_ctrl = np.tile(rot_ctrl[:per], (reps, 1))[:n_ctrl]
+        pos_ctrl, rot_ctrl = _laps(pos_ctrl, per), _laps(rot_ctrl, per)
+    elif motion == 'loops':
+        # one lap of random control points flown again and again, each lap a little off the
+        # first (a drone's or a robot arm's programmed loop)
+        per = round(LOOP_PERIOD_S / knot_spacing_s)
+        off = LOOP_VARIATION * rng.normal(0.0, 1.0, (2, n_ctrl, 3))
+        pos_ctrl = _laps(pos_ctrl, per) + position_std_m * off[0]
+        rot_ctrl = _laps(rot_ctrl, per) + rotation_std_rad * off[1]
     elif motion == 'in_place':
         pos_ctrl = np.zeros((n_ctrl, 3))
     elif motion == 'slow':
@@ -182,6 +201,11 @@ def smooth_motion(
         rot_ctrl = np.cumsum(rng.normal(0.0, 0.1 * rotation_std_rad, (n_ctrl, 3)), axis=0)
         pos_ctrl *= 0.3
     return BSpline(knots, pos_ctrl, k), BSpline(knots, rot_ctrl, k)
+
+
+def _laps(ctrl: np.ndarray, per: int) -> np.ndarray:
+    """The first ``per`` control points (rows) repeated to the length of ``ctrl``."""
+    return np.tile(ctrl[:per], (int(np.ceil(len(ctrl) / per)), 1))[: len(ctrl)]
 
 
 def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:

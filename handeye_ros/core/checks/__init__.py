@@ -3,10 +3,11 @@
 Not in the paper: :mod:`.screening` (damaged rows, placeholders, isolated outlier poses),
 :mod:`.breaks` (VIO resets found against the hand), :mod:`.conventions` (stamp units and epochs
 the data contradict), :mod:`.orientations` (quaternion orders and inverted poses likewise),
-:mod:`.selfcheck` (stage 2 at each candidate offset, scored alike), :mod:`.coverage` (how much
-of the eye's time the MoCap covers), :mod:`.consistency` (which of a rig's recordings agree on
-T_HE), :mod:`.verdict` (good, doubtful or failed, with its reasons), and :mod:`.readiness` (what the data so far support, and what they lack: the
-node's status), from :mod:`.progress` (what is gathered as a recording grows),
+:mod:`.selfcheck` (stage 2 at each candidate offset, scored alike) on :mod:`.excerpt` (a
+bounded part of the recording), :mod:`.coverage` (how much of the eye's time the MoCap covers),
+:mod:`.consistency` (which of a rig's recordings agree on T_HE), :mod:`.verdict` (good,
+doubtful or failed, with its reasons), and :mod:`.readiness` (what the data so far support,
+and what they lack: the node's status), from :mod:`.progress` (what is gathered as a recording grows),
 :mod:`.pair_information` (the consecutive eye pairs' information about dt and T_HE) and
 :mod:`.excitation` (the turns about each axis, the stream health).
 """

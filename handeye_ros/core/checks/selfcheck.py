@@ -8,7 +8,8 @@ again at that offset, and its extrinsic and the offset are scored on *one* set o
 *one* noise model, so that the scores compare:
 
 - the motions are keyframe motions chosen on the eye's own rotations (eq. 6 with eta), which
-  do not depend on the offset, restricted to those the hand covers at every candidate offset;
+  do not depend on the offset, at most a bounded sample of them spread over the recording
+  (:mod:`.excerpt`), restricted to those the hand covers at every candidate offset;
 - each motion's error is that of AX = XB, the rotation angle and the translation of
   ``(T_HE^-1 A T_HE)^-1 B`` (:func:`~handeye_ros.core.association.eye_motion_errors`);
 - each error is divided by the smallest median of that error over the candidates, and the
@@ -30,6 +31,7 @@ from ..batch.loss import huber_rho
 from ..geometry import matrix_from_quat, rotation_angle, row_norms
 from ..linear.keyframes import segment_motion_indices
 from ..trajectory import Trajectory
+from .excerpt import spread_sample
 
 #: Huber threshold of the score, in units of the best median error.
 SCORE_HUBER = 3.0
@@ -70,6 +72,12 @@ def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarr
     return segment_motion_indices(
         matrix_from_quat(eye.q_xyzw), eye.segment_ids(), 'rotation', eta_rad
     )
+
+
+def scored_motions(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """The keyframe motions (i -> j) candidates are judged on: the eye's
+    (:func:`eye_keyframes`), at most :data:`~.excerpt.SAMPLE_MOTIONS` of them evenly spread."""
+    return spread_sample(*eye_keyframes(eye, eta_rad))
 
 
 def screw_disagreement(
@@ -130,15 +138,16 @@ def score_candidates(
     hand: Trajectory,
     eye: Trajectory,
     hypotheses: list[tuple[float, str, np.ndarray, np.ndarray]],
-    eta_rad: float,
+    motions: tuple[np.ndarray, np.ndarray],
 ) -> list[Candidate]:
-    """Score (dt, source, q_HE, p_HE) hypotheses on one motion set (see module docstring).
+    """Score (dt, source, q_HE, p_HE) hypotheses on one set of the eye's motions (i -> j,
+    :func:`scored_motions`; see the module docstring).
 
     Returns the candidates in the given order, the best one marked ``chosen``; when fewer than
     MIN_COMMON_MOTIONS motions are covered at every offset, every score is NaN and the first
     hypothesis is marked chosen.
     """
-    i, j = eye_keyframes(eye, eta_rad)
+    i, j = motions
     errors = []
     common = np.ones(i.size, dtype=bool)
     for dt, _, q, p in hypotheses:

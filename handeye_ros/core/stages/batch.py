@@ -22,7 +22,7 @@ from ..batch.correlated import (
     varies,
 )
 from ..batch.refine import BatchOptions, BatchSolution, refine
-from ..checks.selfcheck import score_candidates
+from ..checks.selfcheck import score_candidates, scored_motions
 from ..checks.verdict import (
     StagesDisagree,
     batch_moved,
@@ -165,7 +165,7 @@ def check_batch(
             (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
         )
     hyps.append((sol.time_offset_s, 'batch stage', sol.q_HE, sol.p_HE))
-    scored = score_candidates(hand, eye, hyps, np.deg2rad(cfg.eta))
+    scored = score_candidates(hand, eye, hyps, scored_motions(eye, np.deg2rad(cfg.eta)))
     run.candidates.extend(scored)
     score = [c.score for c in scored]
     if not np.all(np.isfinite(score)):

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..association import PosePairs
 from ..checks.breaks import find_eye_breaks
+from ..checks.excerpt import excerpt, excerpt_share, spread_sample
 from ..checks.screening import Screening
 from ..checks.selfcheck import (
     Candidate,
@@ -214,41 +215,51 @@ def self_check(
     cfg: CalibrationConfig,
     run: Findings,
 ):
-    """Stage 2 at every distinct candidate offset, scored alike; the best one wins."""
+    """Stage 2 at every distinct candidate offset, on a bounded excerpt of the recording
+    (:mod:`~handeye_ros.core.checks.excerpt`), scored alike; the best one wins, and stage 2
+    runs on the whole recording at it."""
     same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
-    hyps = [(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin, pairs)]
+    hyps = [(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin)]
     proposals = [(0.0, 'correlation peak')] + [
         (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
     ]
     # eq. 9 first: an offset whose motions turn by other angles than the eye's is wrong
     # whatever T_HE is, and costs no RANSAC to rule out
     i, j = eye_keyframes(eye, np.deg2rad(cfg.eta))
-    in_hand = screw_disagreement(hand, eye, dt, i, j)
+    share, motions = excerpt_share(eye, i.size), spread_sample(i, j)
+    examined = len(run.candidates)
+    in_hand = screw_disagreement(hand, eye, dt, *motions)
     for offset, source in proposals:
         if any(abs(offset - h[0]) < same for h in hyps):
             continue
-        there = screw_disagreement(hand, eye, offset, i, j)
+        there = screw_disagreement(hand, eye, offset, *motions)
         if screw_rejects(there, in_hand):
             run.note(
                 f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: '
                 f'the motions turn by angles {there:.2g} deg apart there in the median, '
                 f'{in_hand:.2g} deg at {(shift_ns * 1e-9 + dt):+.4f} s (eq. 9)'
             )
+            run.candidates.append(_unscored(offset, f'{source}: rejected by eq. 9', lin))
             continue
-        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, cfg, run)
-        if found is None:
-            continue
-        offset, lin_c, pairs_c = found
-        if not any(abs(offset - h[0]) < same for h in hyps):
-            hyps.append((offset, source, lin_c, pairs_c))
+        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, share, cfg, run)
+        if found is not None and not any(abs(found[0] - h[0]) < same for h in hyps):
+            hyps.append((found[0], source, found[1]))
     if len(hyps) == 1:
+        if len(run.candidates) > examined:  # every other candidate was ruled out
+            run.candidates.append(replace(_unscored(dt, hyps[0][1], lin), chosen=True))
         return dt, lin, pairs
     scored = score_candidates(
-        hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], np.deg2rad(cfg.eta)
+        hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], motions
     )
     best = judge_tie(scored, shift_ns, run)
     run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
-    return hyps[best][0], hyps[best][2], hyps[best][3]
+    if best == 0:
+        return dt, lin, pairs
+    # the winner was judged on the excerpt: stage 2 and its refinement on the whole recording
+    won, won_lin, won_pairs, _ = refine_vector(
+        hand, eye, hyps[best][0], *solve_linear(hand, eye, hyps[best][0], cfg), cfg, Findings()
+    )
+    return won, won_lin, won_pairs
 
 
 def _stage2_at(
@@ -258,36 +269,34 @@ def _stage2_at(
     source: str,
     shift_ns: int,
     lin: LinearSolution,
+    share: float,
     cfg: CalibrationConfig,
     run: Findings,
-) -> tuple[float, LinearSolution, PosePairs] | None:
-    """Stage 2 at a candidate offset (s, from ``shift_ns``), with its vector refinement:
-    (offset, solution, pairs), or None when stage 2 fails there (noted, and counted among the
-    candidates unscored)."""
+) -> tuple[float, LinearSolution] | None:
+    """Stage 2 at a candidate offset (s, from ``shift_ns``) with its vector refinement, on the
+    recording's excerpt (``share`` of it) at that offset: (offset, solution), or None when
+    stage 2 fails there (noted, and counted among the candidates unscored)."""
+    part_hand, part_eye = excerpt(hand, eye, offset, share)
     try:
-        lin_c, pairs_c = solve_linear(hand, eye, offset, cfg)
+        lin_c, pairs_c = solve_linear(part_hand, part_eye, offset, cfg)
         if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
             offset, lin_c, pairs_c, _ = refine_vector(
-                hand, eye, offset, lin_c, pairs_c, cfg, Findings()
+                part_hand, part_eye, offset, lin_c, pairs_c, cfg, Findings()
             )
     except HandeyeError as err:
         run.note(
             f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
         )
-        nan = float('nan')
-        run.candidates.append(
-            Candidate(
-                offset,
-                f'{source}: rejected, stage 2 fails there',
-                nan,
-                nan,
-                nan,
-                lin.q_HE,
-                lin.p_HE,
-            )
-        )
+        run.candidates.append(_unscored(offset, f'{source}: rejected, stage 2 fails there', lin))
         return None
-    return offset, lin_c, pairs_c
+    return offset, lin_c
+
+
+def _unscored(offset: float, source: str, lin: LinearSolution) -> Candidate:
+    """A candidate offset the self-check did not score (ruled out before, or the only one
+    left), with the extrinsic in hand."""
+    nan = float('nan')
+    return Candidate(offset, source, nan, nan, nan, lin.q_HE, lin.p_HE)
 
 
 def seed_check(

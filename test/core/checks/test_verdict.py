@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.checks.selfcheck import (
     eye_keyframes,
     score_candidates,
+    scored_motions,
     screw_disagreement,
     screw_rejects,
 )
@@ -68,7 +69,7 @@ def test_self_check_prefers_the_true_offset() -> None:
     rec = recording(seed=3, level=2.0)
     dt = rec.truth.time_offset_s
     hyps = [(dt + d, f'{d}', rec.truth.q_HE, rec.truth.p_HE) for d in (0.06, 0.0, 0.02, 2.0)]
-    scored = score_candidates(rec.hand, rec.eye, hyps, np.deg2rad(5.0))
+    scored = score_candidates(rec.hand, rec.eye, hyps, scored_motions(rec.eye, np.deg2rad(5.0)))
     assert [c.chosen for c in scored] == [False, True, False, False]
     assert scored[1].score < scored[2].score < scored[0].score
 

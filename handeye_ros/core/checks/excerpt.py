@@ -1,0 +1,95 @@
+"""A bounded excerpt of a recording on which the self-check judges a candidate offset, so that
+examining a candidate costs the same on a minute and on an hour.
+
+A wrong offset minutes away is ruled out by a few hundred motions as surely as by all of them.
+At a candidate offset, stage 2 and its vector refinement therefore run on :data:`WINDOWS`
+windows of the eye, spread evenly over it and together long enough for some
+:data:`EXCERPT_MOTIONS` of its keyframe motions (:func:`excerpt_share`; a slow motion needs
+longer windows than a fast one), with the hand around each window at that offset. The windows are laid end to end, each moved by a shift of its own (the
+same for the hand and the eye: the offset between them is kept), with :data:`GAP_S` of no poses
+between them (the hand's interpolation and the angular speeds stop there) and a break of the
+eye at each join (no motion spans one). The candidates' motions for eq. 9's test and the score
+are a sample of at most :data:`SAMPLE_MOTIONS` of the eye's keyframe motions, evenly spread
+(:func:`spread_sample`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..trajectory import Trajectory
+
+#: Windows of the eye in an excerpt, and the eye's keyframe motions (eq. 6) they hold in all:
+#: at 30 deg/s some 160 s of a recording (bench/candidates.py: the truth kept and a lap away
+#: rejected there on every motion and noise level of the simulations).
+WINDOWS = 8
+EXCERPT_MOTIONS = 800
+#: An excerpt of more than this share of a recording is the whole recording.
+WHOLE_SHARE = 2 / 3
+#: The hand reaches this far (s) beyond each eye window: the vector refinement's search
+#: (0.15 s each way) and the interpolation's neighbours fit within it.
+MARGIN_S = 1.0
+#: Time between two windows of an excerpt (s), and at least this many times either stream's
+#: gap limit: the interpolation and the angular speeds do not reach across it.
+GAP_S = 5.0
+GAP_LIMITS = 2.0
+#: Most keyframe motions the self-check scores each candidate on.
+SAMPLE_MOTIONS = 2000
+
+
+def excerpt_share(eye: Trajectory, n_motions: int) -> float:
+    """The share of the recording an excerpt keeps, for an eye of ``n_motions`` keyframe
+    motions: enough for EXCERPT_MOTIONS of them; 1 (the whole) beyond WHOLE_SHARE, and for a
+    keyframe-only eye (sparse already)."""
+    share = EXCERPT_MOTIONS / max(n_motions, 1)
+    return 1.0 if eye.keyframes or share > WHOLE_SHARE else share
+
+
+def excerpt(
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, share: float
+) -> tuple[Trajectory, Trajectory]:
+    """(hand, eye) cut to an excerpt of ``share`` of the eye's span (see the module docstring)
+    at offset ``time_offset_s`` (s, eye clock minus hand clock); both unchanged at share 1."""
+    if share >= 1.0:
+        return hand, eye
+    window_ns = round(eye.duration_s * share / WINDOWS * 1e9)
+    margin_ns = round(MARGIN_S * 1e9)
+    gap_s = max(GAP_S, GAP_LIMITS * hand.gap_limit_s(), GAP_LIMITS * eye.gap_limit_s())
+    pitch_ns = window_ns + 2 * margin_ns + round(gap_s * 1e9)
+    offset_ns = round(time_offset_s * 1e9)
+    first = int(eye.t_ns[0])
+    starts = np.linspace(first, int(eye.t_ns[-1]) - window_ns, WINDOWS).astype(np.int64)
+    h_rows, e_rows, h_stamps, e_stamps, joins = [], [], [], [], []
+    for k, start in enumerate(starts):
+        shift = first + k * pitch_ns - start  # this window's move, hand and eye alike
+        e = np.flatnonzero((eye.t_ns >= start) & (eye.t_ns <= start + window_ns))
+        h = np.flatnonzero(
+            (hand.t_ns >= start - offset_ns - margin_ns)
+            & (hand.t_ns <= start + window_ns - offset_ns + margin_ns)
+        )
+        e_rows.append(e)
+        h_rows.append(h)
+        e_stamps.append(eye.t_ns[e] + shift)
+        h_stamps.append(hand.t_ns[h] + shift)
+        joins.append(sum(r.size for r in e_rows) - 1)
+    return (
+        _rows(hand, np.concatenate(h_rows), np.concatenate(h_stamps)),
+        _rows(eye, np.concatenate(e_rows), np.concatenate(e_stamps)).with_breaks(
+            np.array(joins[:-1], dtype=int)
+        ),
+    )
+
+
+def _rows(traj: Trajectory, rows: np.ndarray, t_ns: np.ndarray) -> Trajectory:
+    """The poses ``rows`` of a stream (its breaks among them kept) at new stamps."""
+    part = traj.select(rows)
+    return Trajectory(
+        t_ns, part.p_xyz, part.q_xyzw, part.name, part.breaks, part.notes, part.keyframes
+    )
+
+
+def spread_sample(i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At most SAMPLE_MOTIONS of the motions (i -> j), evenly spread over them."""
+    if i.size <= SAMPLE_MOTIONS:
+        return i, j
+    k = np.linspace(0, i.size - 1, SAMPLE_MOTIONS).round().astype(int)
+    return i[k], j[k]

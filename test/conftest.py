@@ -38,15 +38,6 @@ if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0' and 'ROS_DOMAIN_ID' in 
 REAL_DATA = ROOT.parent / 'shared' / 'data' / 'real'
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Under pytest-xdist with ``--dist loadgroup`` (.ci/run), the tests that start nodes run
-    one at a time on one worker, the others beside them: two live nodes of one suite at once
-    starved each other on two cores (a node 0.5 s behind loses 1 kHz poses beyond its queue)."""
-    for item in items:
-        if item.get_closest_marker('ros') is not None:
-            item.add_marker(pytest.mark.xdist_group('ros'))
-
-
 def recording(seed: int = 0, level: float = 0.0, **kwargs) -> Recording:
     """A simulated recording of the paper's protocol at noise ``level`` (0..10)."""
     noise_m, noise_deg = noise_level(level)

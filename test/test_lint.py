@@ -1,7 +1,9 @@
-"""Lint and format: ruff over the package, the tests and the benchmarks (ruff.toml)."""
+"""Lint, format and types: ruff over the package, the tests and the benchmarks (ruff.toml); mypy
+over the core (setup.cfg's [mypy])."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -43,3 +45,17 @@ def test_ruff_format_is_clean() -> None:
         check=False,
     )
     assert proc.returncode == 0, 'run `ruff format handeye_ros test bench`:\n' + proc.stdout
+
+
+def test_mypy_finds_no_error_in_the_core() -> None:
+    pytest.importorskip('mypy', reason='mypy not installed (requirements.txt pins it)')
+    # no cache: the two suites of .ci/run check the same checkout at once
+    proc = subprocess.run(
+        [sys.executable, '-m', 'mypy', '--cache-dir', os.devnull],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -89,7 +89,7 @@ class Options:
         _refuse_unknown(values, list(specs), source)
         clean = {k: _coerce(k, v, specs[k], source) for k, v in values.items()}
         try:
-            return replace(cls(), **clean)  # type: ignore[call-arg]
+            return replace(cls(), **clean)  # type: ignore[type-var]
         except ConfigError as err:
             raise ConfigError(f'{source}: {err}') from None
 

@@ -39,6 +39,7 @@ import numpy as np
 
 from .association import PosePairs, associate
 from .batch.pieces import check_joint_size
+from .batch.refine import BatchSolution
 from .checks.coverage import mocap_coverage
 from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
@@ -102,7 +103,7 @@ def calibrate(
     if cfg.auto_drift and not cfg.clock_drift:
         if Code.CLOCK_DRIFT in result.quality.codes:
             return _with_drift(hand, eye, cfg, result)
-        varied = result.batch.uncertainty.varies if result.batch is not None else {}
+        varied = _varies(result.batch)
         if 'time_offset' in varied:
             return _with_drift_if_it_explains(hand, eye, cfg, result, varied['time_offset'][0])
     return result
@@ -143,11 +144,16 @@ def _with_drift_if_it_explains(
     model, batch = result.eye_model, result.batch
     if result.clock_drift is None or model is None or batch is None:
         return varied
-    still = 'time_offset' in batch.uncertainty.varies
+    still = 'time_offset' in _varies(batch)
     if not drift_explains(model.drift, model.drift_std, still):
         return varied
     note = drift_explains_note(spread_s, model.drift)
     return replace(result, quality=replace(result.quality, notes=(note, *result.quality.notes)))
+
+
+def _varies(batch: BatchSolution | None) -> dict[str, tuple[float, float]]:
+    """The groups whose quarters disagree beyond their noise (``Uncertainty.varies``)."""
+    return {} if batch is None or batch.uncertainty is None else batch.uncertainty.varies
 
 
 def _calibrate(
@@ -233,7 +239,7 @@ def _finish(
     covered = mocap_coverage(hand, eye, dt)
     if covered.note():
         run.note(covered.note())
-    time_offset_s = cfg.time_offset if offset.fixed else shift_ns * 1e-9 + dt
+    time_offset_s = shift_ns * 1e-9 + dt if cfg.time_offset is None else cfg.time_offset
     return CalibrationResult(
         time_offset_s=time_offset_s,
         q_HE=q_HE,

@@ -210,18 +210,16 @@ class CalibrationResult:
         """
         R_HE = matrix_from_quat(self.q_HE)
         R_EH, p_EH = inverse((R_HE, self.p_HE))
+        model = None if self.clock_drift is None else self.eye_model
+        stamp_ns = None if model is None else model.time_offset_stamp_ns
         return {
             'schema_version': SCHEMA_VERSION,
             'convention': CONVENTION,
             'quality': self.quality.to_dict(),
             'time_offset': float(self.time_offset_s),
             'time_offset_ns': int(self.time_offset_ns),
-            'time_offset_stamp': (
-                None if self.clock_drift is None else self.eye_model.time_offset_stamp_ns * 1e-9
-            ),
-            'time_offset_stamp_ns': (
-                None if self.clock_drift is None else self.eye_model.time_offset_stamp_ns
-            ),
+            'time_offset_stamp': None if stamp_ns is None else stamp_ns * 1e-9,
+            'time_offset_stamp_ns': stamp_ns,
             'clock_drift': self.clock_drift,
             'scale': self.scale,
             'clock': clock_section(self.clock),

@@ -68,7 +68,7 @@ class Rig:
 
     def group_joints(self) -> list[Joint]:
         """Each group's own joint T_HE, largest group first."""
-        if self.split is None:
+        if self.split is None or self.joint is None:
             return []
         rest = [fuse([self.members[k] for k in g]) for g in self.split.groups[1:]]
         return [self.joint, *rest]

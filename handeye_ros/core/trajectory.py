@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import InputError
 from .geometry import row_norms
@@ -174,7 +175,7 @@ class Trajectory:
             int(self.t_ns[-1]),
         )
 
-    def select(self, mask_or_index: np.ndarray) -> Trajectory:
+    def select(self, mask_or_index: np.ndarray | slice) -> Trajectory:
         """A sub-trajectory (rows kept in order; no re-validation needed).
 
         A break survives when both of its poses are kept; when poses around a break are
@@ -247,7 +248,7 @@ def gap_free_parts(traj: Trajectory) -> list[tuple[int, int]]:
     return segment_spans(np.concatenate(([0], np.cumsum(~traj.interval_ok()))))
 
 
-def lengths_text(seconds: np.ndarray) -> str:
+def lengths_text(seconds: npt.ArrayLike) -> str:
     """Part lengths for a message: each of a few, else their range and total."""
     seconds = np.asarray(seconds, float)
     if seconds.size <= 4:

@@ -135,7 +135,7 @@ def split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamp
     n = np.char.str_len(digits)
     # beyond int64: more than 19 digits, or 19 that compare above 2^63 - 1 (same length:
     # lexicographic order is numeric order)
-    long = (n > 19) | ((n == 19) & (digits > str(INT64_MAX)))
+    long = (n > 19) | ((n == 19) & np.char.greater(digits, str(INT64_MAX)))
     if long.any():
         k = int(np.flatnonzero(long)[0])
         msg = (

@@ -82,7 +82,8 @@ def read_trajectory(
         fmt, table = bulk
         numbers, values, split = table.numbers, table.values, table.stamps
     else:
-        numbers, values, split, fmt = _read_lines(path, data, fmt)
+        lines, values, split, fmt = _read_lines(path, data, fmt)
+        numbers = np.asarray(lines)
     del data
     t_ns, notes, fits = parse_stamps(path, numbers, split, fmt, stamp_unit)
     order = _quaternion_order(path, fmt, stamp_unit, quaternion_order, split, notes)

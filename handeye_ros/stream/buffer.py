@@ -100,7 +100,9 @@ class PoseBuffer:
     def _span_s(self) -> float:
         """:attr:`span_s`, under the lock. ``_last`` is the newest stored stamp (a rejected
         message does not change it)."""
-        return (self._last - int(self._t[self._head])) * 1e-9 if self._count >= 2 else 0.0
+        if self._count < 2 or self._last is None:
+            return 0.0
+        return (self._last - int(self._t[self._head])) * 1e-9
 
     def add(
         self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float

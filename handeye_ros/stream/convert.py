@@ -27,7 +27,16 @@ def _stamp(msg: Any) -> int:
 
 def stamped_pose(t_ns: int, p: Any, q: Any) -> StampedPose:
     """``(t_ns, x, y, z, qx, qy, qz, qw)`` of a position (Point or Vector3) and a Quaternion."""
-    return (t_ns, *(float(v) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w)))
+    return (
+        t_ns,
+        float(p.x),
+        float(p.y),
+        float(p.z),
+        float(q.x),
+        float(q.y),
+        float(q.z),
+        float(q.w),
+    )
 
 
 def _from_pose(t_ns: int, pose: Any) -> StampedPose:

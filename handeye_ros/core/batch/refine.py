@@ -84,9 +84,9 @@ class BatchSolution:
     n_control_points: int
     seconds: float
     reduced_chi2: float
+    covariance_white: np.ndarray
     decoupled: bool = False
     warnings: tuple[str, ...] = field(default=())
-    covariance_white: np.ndarray | None = None
     bandwidth: int = 0
     clock_drift: float | None = None
     time_offset_stamp_ns: int | None = None

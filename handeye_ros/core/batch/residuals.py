@@ -350,6 +350,7 @@ class BatchProblem:
             J[:, :3, col] = np.einsum('nij,nj->ni', Jl_inv, (QWb * fb - Wa * fa) @ RX)
         if rows == 3:
             return J
+        assert p.p_rel is not None and p.u is not None, 'translations were predicted'
         J[:, 3:, 1:4] = _times(skew(p.p_rel), Jr_theta / s)
         J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
         if self.i_scale is not None:

@@ -9,6 +9,7 @@ solution) and, ``decoupled``, in two steps: the rotation first, then the transla
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -108,6 +109,7 @@ def solve_offset_extrinsic(
             max_iterations if last_pass else 1,
         )
         if not last_pass:  # the last step's residuals (all rows) are those at y
+            assert last.raw is not None, 'a first pass keeps its residuals'
             en = Noise(*sigmas(last.raw, eye_noise))
     cost_before = huber_cost((r_start * weights.eye).ravel(), delta)
     del r_start
@@ -127,8 +129,9 @@ def _covariance(
 ) -> tuple[np.ndarray, LongRunCovariance, float, int]:
     """:func:`.covariance.eye_covariance` at the solution y: as the last sweep gathered it, or
     (when the last step took no step from the sums it was handed) from a sweep of its own."""
-    if last.extra is not None and last.extra.covariance is not None:
-        return last.extra.covariance.result()
+    same = _same_sweep(last)
+    if same is not None and same.covariance is not None:
+        return same.covariance.result()
     return eye_covariance(prob, weights, y, layout, delta, decoupled)
 
 
@@ -158,9 +161,9 @@ def _noise_pass(
             keep_raw=plan.keep_raw and final,
         )
         y, report, last = levenberg_marquardt_dense(
-            lambda yy, p=step_plan: _sweep(prob, yy, p), y, free, iterations, start
+            partial(_sweep, prob, plan=step_plan), y, free, iterations, start
         )
-        start = None if last.extra is None else last.extra.then
+        start = None if (same := _same_sweep(last)) is None else same.then
     return y, report, last
 
 
@@ -191,10 +194,16 @@ class _SameSweep:
     covariance: CovarianceSums | None
 
 
+def _same_sweep(sums: NormalSums) -> _SameSweep | None:
+    """What the sweep of :func:`_sweep` gathered beside ``sums`` (None: nothing)."""
+    return sums.extra if isinstance(sums.extra, _SameSweep) else None
+
+
 def _sweep(prob: BatchProblem, y: np.ndarray, plan: _SweepPlan) -> NormalSums:
     """One sweep over the eye pairs at y (every ``plan.every``-th chunk), summed as
     :class:`_SweepPlan` says."""
     full_rows = not plan.rotation_only or plan.then is not None
+    assert plan.free is not None, 'a sweep sums over free parameters'
     step = SumsOfChunks(plan.free, plan.delta)
     then = None if plan.then is None else SumsOfChunks(plan.then, plan.delta)
     cov = None
@@ -253,8 +262,8 @@ def solve_joint(
         last = k + 1 == passes
         for cols, rows in steps:
             x, report = levenberg_marquardt_sparse(
-                lambda xx, w=weights: prob.residuals(xx, w),
-                lambda xx, w=weights: joint_jacobian(prob, xx, w),
+                partial(prob.residuals, w=weights),
+                partial(joint_jacobian, prob, weights=weights),
                 x,
                 cols,
                 rows,

@@ -159,6 +159,9 @@ class PoseSpline:
         """(segment index i, fraction s) of times t; times outside are clamped to the ends (of
         the piece that starts last before them)."""
         t = np.asarray(t, dtype=float)
+        t0: float | np.ndarray
+        first: int | np.ndarray
+        n_seg: int | np.ndarray
         if self.pieces is None:
             t0, first, n_seg = self.t0, 0, self.R.shape[0] - self.order + 1
         else:
@@ -207,11 +210,13 @@ class PoseSpline:
 
     def evaluate_with_velocity(
         self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray
-    ) -> tuple[np.ndarray, ...]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Poses at the times of ``basis`` and their rates: R (N, 3, 3), p (N, 3), the body
         angular velocity w (N, 3) with ``dR/dt = R [w]x`` [rad/s], and dp/dt (N, 3) [m/s].
         ``dbasis``: :meth:`basis_derivative` at the same times."""
-        return self._product(basis, dbasis)
+        R, p, w, v = self._product(basis, dbasis)
+        assert w is not None and v is not None, 'rates come with dbasis'
+        return R, p, w, v
 
     def _product(
         self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray | None = None
@@ -227,14 +232,15 @@ class PoseSpline:
         omega, dp = self._increments()
         q = self._control_quats()[i]
         p = self.p[i].copy()
-        w = v = None
+        w: np.ndarray | None = None
+        v: np.ndarray | None = None
         if dbasis is not None:
             w, v = np.zeros((i.size, 3)), np.zeros((i.size, 3))
         for j in range(1, self.order):
             a = exp_quat(Bc[:, j, None] * omega[i + j - 1])
             q = quat_multiply(q, a)
             p += Bc[:, j, None] * dp[i + j - 1]
-            if dbasis is not None:
+            if dbasis is not None and w is not None and v is not None:
                 w = _rotate_back(a, w) + dbasis[:, j, None] * omega[i + j - 1]
                 v += dbasis[:, j, None] * dp[i + j - 1]
         return Rotation.from_quat(q).as_matrix(), p, w, v
@@ -255,9 +261,8 @@ class PoseSpline:
         k = self.order
         omega, _ = self._increments()
         N = i.size
-        A = [None] + [exp_so3(Bc[:, j, None] * omega[i + j - 1]) for j in range(1, k)]
-        P = [None] * k  # P_j = A_{j+1} ... A_{k-1}
-        P[k - 1] = np.broadcast_to(np.eye(3), (N, 3, 3))
+        A = {j: exp_so3(Bc[:, j, None] * omega[i + j - 1]) for j in range(1, k)}
+        P = {k - 1: np.broadcast_to(np.eye(3), (N, 3, 3))}  # P_j = A_{j+1} ... A_{k-1}
         for j in range(k - 1, 0, -1):
             P[j - 1] = np.matmul(A[j], P[j])
         R = np.matmul(self.R[i], P[0])

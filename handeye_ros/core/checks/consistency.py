@@ -58,8 +58,16 @@ class Split:
 
 
 def _test(members: Sequence[Member], i: int, group: Sequence[int]) -> Test | None:
+    """Member i against the others of ``group`` fused (None: no others)."""
     others = [members[k] for k in group if k != i]
     return Test.of(members[i], fuse(others)) if others else None
+
+
+def _chi2(members: Sequence[Member], i: int, group: Sequence[int]) -> float:
+    """:func:`_test`'s chi2, for a group with others than i."""
+    test = _test(members, i, group)
+    assert test is not None, 'the group has others'
+    return test.chi2
 
 
 def _agreeing(members: Sequence[Member], candidates: list[int], limit: float) -> list[int]:
@@ -68,7 +76,7 @@ def _agreeing(members: Sequence[Member], candidates: list[int], limit: float) ->
     kept = list(candidates)
     out: list[int] = []
     while len(kept) > 1:
-        scores = [_test(members, i, kept).chi2 for i in kept]
+        scores = [_chi2(members, i, kept) for i in kept]
         worst = int(np.argmax(scores))
         if scores[worst] <= limit:
             break

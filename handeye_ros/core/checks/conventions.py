@@ -41,7 +41,7 @@ UNIT_FACTORS = {
     1e-9: 'nanoseconds (where seconds were expected)',
     1e-6: 'microseconds (where seconds were expected)',
     1e-3: 'milliseconds (where seconds were expected)',
-    1.0: None,
+    1.0: 'the unit expected',
     1e3: 'microseconds (where nanoseconds were expected)',
     1e6: 'milliseconds (where nanoseconds were expected)',
     1e9: 'seconds (where nanoseconds were expected)',

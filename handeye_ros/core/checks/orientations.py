@@ -50,7 +50,7 @@ LEVER_ARM_RATIO = 3.0
 
 #: Readings of one stream's orientations: name -> (what, how the user would say it).
 READINGS = {
-    'as given': None,
+    'as given': ('as given', 'its orientations were read as given'),
     'wxyz': ('quaternion_order', 'its quaternion numbers were w x y z where x y z w was read'),
     'xyzw': ('quaternion_order', 'its quaternion numbers were x y z w where w x y z was read'),
     'inverse': ('inverse', 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'),

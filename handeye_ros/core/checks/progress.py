@@ -13,6 +13,7 @@ recording has grown by half (:meth:`Progress.due`): then :func:`start` reads it 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Protocol, Self, TypeVar
 
 import numpy as np
 
@@ -44,6 +45,31 @@ PIECE_S = 10.0
 #: this factor: stage 1 looks again, at a cost that grows with the recording, as often as it
 #: grows by half.
 READ_AGAIN = 1.5
+
+
+class _Piece(Protocol):
+    """What :class:`Progress` gathers: sums over a span of stamps that add up."""
+
+    @property
+    def t0_ns(self) -> int: ...
+
+    @property
+    def t1_ns(self) -> int: ...
+
+    def __add__(self, other: Self, /) -> Self: ...
+
+
+Piece = TypeVar('Piece', bound=_Piece)
+
+
+def _grow(pieces: list[Piece], new: Piece | None) -> None:
+    """``new`` added to the last piece while that spans less than PIECE_S, else appended."""
+    if new is None:
+        return
+    if pieces and (pieces[-1].t1_ns - pieces[-1].t0_ns) * 1e-9 < PIECE_S:
+        pieces[-1] = pieces[-1] + new
+    else:
+        pieces.append(new)
 
 
 @dataclass(frozen=True)
@@ -134,17 +160,9 @@ class Progress:
 
     def take(self, m: Measured) -> None:
         """Add the pieces :func:`measure` found."""
-        for pieces, new in (
-            (self.pairs, m.pairs),
-            (self.eye_turn, m.eye_turn),
-            (self.hand_turn, m.hand_turn),
-        ):
-            if new is None:
-                continue
-            if pieces and (pieces[-1].t1_ns - pieces[-1].t0_ns) * 1e-9 < PIECE_S:
-                pieces[-1] = pieces[-1] + new
-            else:
-                pieces.append(new)
+        _grow(self.pairs, m.pairs)
+        _grow(self.eye_turn, m.eye_turn)
+        _grow(self.hand_turn, m.hand_turn)
         self.carry, self.dropout = m.carry, m.dropout
 
     def drop_before(self, hand_oldest_ns: int, eye_oldest_ns: int) -> None:

@@ -22,7 +22,7 @@ The targets are the verdict's own (``precision_time_offset``, ``precision_transl
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -122,6 +122,16 @@ def readiness(
     return readiness_of(start(hand, eye, cfg, known), cfg, durations)
 
 
+class _Moved(TypedDict):
+    """What a :class:`Readiness` says of the motion so far (its fields of the same names)."""
+
+    rotation_deg: np.ndarray
+    hand_rotation_deg: np.ndarray
+    angular_speed_dps: float
+    travel_m: float
+    dropout: dict[str, float]
+
+
 def readiness_of(
     progress: Progress, cfg: CalibrationConfig, durations: tuple[float, float]
 ) -> Readiness:
@@ -133,13 +143,13 @@ def readiness_of(
     if eye_turn is None or hand_turn is None:
         return _empty(target, 'no data yet: both streams need poses')
     speed = eye_turn.rms_dps
-    base = {
-        'rotation_deg': eye_turn.deg,
-        'hand_rotation_deg': hand_turn.deg,
-        'angular_speed_dps': speed,
-        'travel_m': hand_turn.travel_m,
-        'dropout': dict(progress.dropout),
-    }
+    base = _Moved(
+        rotation_deg=eye_turn.deg,
+        hand_rotation_deg=hand_turn.deg,
+        angular_speed_dps=speed,
+        travel_m=hand_turn.travel_m,
+        dropout=dict(progress.dropout),
+    )
     health = _health(base['dropout'])
     if speed < STILL_DPS:
         return Readiness(
@@ -214,7 +224,9 @@ def _predict(
         return (float('nan'),) * 3, 0.0, ['the streams overlap too little at the time offset']
     H, _ = info.normal_equations(total)
     cov = info.covariance(H)
-    sigma = tuple(v if np.isfinite(v) else float('inf') for v in info.sigmas(cov))
+    dt, t, r = (v if np.isfinite(v) else float('inf') for v in info.sigmas(cov))
+    sigma = (dt, t, r)
+    assert progress.known is not None, 'pairs are gathered once stages 1 and 2 are known'
     R_HE = np.asarray(progress.known.R_HE, float)
     with np.errstate(all='ignore'):  # a direction no motion observes: infinite sigmas
         cov_p_eye = R_HE.T @ cov[1:4, 1:4] @ R_HE  # the lever arm's covariance in E

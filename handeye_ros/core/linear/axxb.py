@@ -151,22 +151,18 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         np.where(np.abs(e[..., 0]) < np.abs(e[..., 1]), 1.0, 0.0),
     )
     m2 = np.where(mixed, np.sqrt(np.abs(e[..., 0])), 1.0 - m1)
-    best_q = best_qd = None
-    best_norm = None
+    roots = []
     for sign in (1.0, -1.0):
         mu_vec = np.stack((m1, sign * m2), -1)
         lam_vec = np.matmul(P, mu_vec[..., None])[..., 0]
         q = lam_vec[..., :1] * u1 + lam_vec[..., 1:] * u2
         qd = lam_vec[..., :1] * u1d + lam_vec[..., 1:] * u2d
-        # Of the two roots, the one with the larger real part is X; the other tends to (0, q).
-        norm = np.linalg.norm(q, axis=-1)
-        if best_norm is None:
-            best_q, best_qd, best_norm = q, qd, norm
-        else:
-            take = (norm > best_norm)[..., None]
-            best_q = np.where(take, q, best_q)
-            best_qd = np.where(take, qd, best_qd)
-            best_norm = np.maximum(norm, best_norm)
+        roots.append((q, qd, np.linalg.norm(q, axis=-1)))
+    # Of the two roots, the one with the larger real part is X; the other tends to (0, q).
+    (q_a, qd_a, norm_a), (q_b, qd_b, norm_b) = roots
+    take = (norm_b > norm_a)[..., None]
+    best_q, best_qd = np.where(take, q_b, q_a), np.where(take, qd_b, qd_a)
+    best_norm = np.maximum(norm_b, norm_a)
     scale = 1.0 / np.maximum(best_norm, 1e-300)[..., None]
     return best_q * scale, best_qd * scale, sigma
 

@@ -26,7 +26,7 @@ def motion_indices(
         raise ValueError(msg)
     if strategy == 'rotation':
         return rotation_keyframes(R, eta_rad)
-    return STRATEGIES[strategy](R)
+    return WITHOUT_ETA[strategy](R)
 
 
 def global_pairs(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,8 +104,5 @@ def segment_motion_indices(
 
 #: The relative-pose strategies by name (the option ``relative_poses``; its choices in
 #: :mod:`.config` are these names, which test_config checks).
-STRATEGIES = {
-    'rotation': rotation_keyframes,
-    'global': global_pairs,
-    'interframe': interframe_pairs,
-}
+WITHOUT_ETA = {'global': global_pairs, 'interframe': interframe_pairs}
+STRATEGIES = ('rotation', *WITHOUT_ETA)

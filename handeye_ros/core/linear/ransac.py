@@ -34,7 +34,9 @@ def _ransac(
     inlier_rotation_rad: float,
     inlier_translation_m: float,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, ...]:
+) -> tuple[
+    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]
+]:
     """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
     that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
     with the number of hypotheses. Returns (counts, q1, qd1, ratio, the consensus' rotation

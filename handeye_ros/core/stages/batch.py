@@ -83,6 +83,7 @@ def batch_stage(
             eye, model = fold_batch(eye, model, batch)
             batch = with_correlated(hand, eye, batch, cfg)
             unc = batch.uncertainty
+            assert unc is not None, 'with_correlated measured it'
             for w in unc.not_estimated:
                 run.note(f'uncertainty: {w}')
             for group, (spread, ratio) in unc.varies.items():
@@ -215,10 +216,11 @@ def with_correlated(
             f'eye poses are too few for {BLOCKS} blocks of {MIN_BLOCK_POSES}'
         )
     else:
-        fits = [
+        tried = [
             _aux(hand, eye.select(covered[a:b]), batch, cfg) for a, b in itertools.pairwise(edges)
         ]
-        if any(f is None for f in fits):
+        fits = [f for f in tried if f is not None]
+        if len(fits) < len(tried):
             missing.append(
                 'the errors correlated over the recording are not in it: a quarter of the '
                 'recording alone could not be refitted (too little motion in it)'
@@ -231,7 +233,7 @@ def with_correlated(
     cov = inflated(lr, factors or {})
     if not cfg.estimate_scale:
         scaled, cov7_term = _scale(hand, eye, batch, cfg)
-        if scaled is None:
+        if isinstance(cov7_term, str):
             missing.append(cov7_term)
         else:
             cov[:7, :7] += cov7_term
@@ -307,7 +309,12 @@ def _scale(
     same = _decimated(eye) is eye
     fixed = batch if same else _aux(hand, eye, batch, cfg)
     free = _aux(hand, eye, batch, cfg, scale=True)
-    if fixed is None or free is None or not free.std[-1] < SCALE_UNOBSERVABLE:
+    if (
+        fixed is None
+        or free is None
+        or free.scale is None
+        or not free.std[-1] < SCALE_UNOBSERVABLE
+    ):
         return None, (
             "the eye's scale could not be told from the lever arm (too little translation): "
             'the uncertainty holds for a metric eye only'

@@ -47,13 +47,13 @@ def align_stage(inputs: Inputs, cfg: CalibrationConfig, run: Findings) -> Offset
     hand, eye = inputs.hand, inputs.eye
     fixed = cfg.time_offset is not None
     guess, half = search_window(cfg)
-    if fixed:
+    if cfg.time_offset is not None:
         ta = TimeAlignment(
             time_offset_s=cfg.time_offset,
             method='fixed',
             time_offset_ns=round(cfg.time_offset * 1e9),
         )
-        run.warnings += check_fixed_offset(hand, eye, cfg)
+        run.warnings += check_fixed_offset(hand, eye, cfg.time_offset, cfg)
     elif eye.keyframes:
         ta = align_time_keyframes(hand, eye, max_time_offset=half, time_offset_guess=guess)
     else:
@@ -81,8 +81,11 @@ def search_window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
     )
 
 
-def check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> list[str]:
-    """Warn when a user-fixed offset disagrees with the angular-speed correlation.
+def check_fixed_offset(
+    hand: Trajectory, eye: Trajectory, fixed_s: float, cfg: CalibrationConfig
+) -> list[str]:
+    """Warn when a user-fixed offset ``fixed_s`` (s) disagrees with the angular-speed
+    correlation.
 
     Why: the linear stage cannot tell a wrong offset from a noisy eye (a 50 ms error still gives
     most motions as inliers at moderate speed), so a wrong fixed value would pass silently.
@@ -93,18 +96,18 @@ def check_fixed_offset(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig
             hand,
             eye,
             max_time_offset=half,
-            time_offset_guess=cfg.time_offset,
+            time_offset_guess=fixed_s,
             resample_rate_hz=cfg.resample_rate_hz,
         )
     except TimeAlignmentError as err:
         return [f'could not check the fixed time offset against the data: {err}']
     if (
         est.peak_correlation >= WEAK_CORRELATION
-        and abs(est.time_offset_s - cfg.time_offset) > FIXED_OFFSET_DISAGREEMENT_S
+        and abs(est.time_offset_s - fixed_s) > FIXED_OFFSET_DISAGREEMENT_S
     ):
         return [
             (
-                f'the fixed time offset {cfg.time_offset * 1e3:+.1f} ms disagrees with the '
+                f'the fixed time offset {fixed_s * 1e3:+.1f} ms disagrees with the '
                 f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
                 f'(correlation {est.peak_correlation:.2f}); check the fixed value'
             )

@@ -303,8 +303,8 @@ def _align(
     window = offset_window(max_time_offset, time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
     k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
-    sel = np.flatnonzero(curve.eligible)
-    sel = slice(sel[0], sel[-1] + 1)
+    eligible = np.flatnonzero(curve.eligible)
+    sel = slice(int(eligible[0]), int(eligible[-1]) + 1)
     scores = np.where(curve.eligible, curve.ncc, -np.inf)
     lag_ns = round((curve.lags[k] + frac) * step * 1e9)
     return TimeAlignment(

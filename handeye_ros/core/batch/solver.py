@@ -110,8 +110,8 @@ def levenberg_marquardt_dense(
             message, success = 'no step lowers the cost any further', True
             break
         decrease = cur.cost - new.cost
-        rho = float(decrease / predicted) if predicted > 0 else 0.0
-        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN)
+        rho = decrease / predicted if predicted > 0 else 0.0
+        lam = float(max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN))
         nu = 2.0
         y, cur = y_new, new
         if np.all(np.abs(step) <= STEP_TOL_SIGMA * sigma):

@@ -89,9 +89,16 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'runtime': ('runtime', [], ['runtime'], '30 min'),
     'runtime_motions': (
         'runtime',
-        ['--minutes', '10', '60', '--repeat', '3', '--motion', 'random', 'loops'],
+        ['--minutes', '60', '--repeat', '3', '--motion', 'random', 'loops'],
         ['runtime_motions'],
-        '15 min',
+        '10 min',
+    ),
+    'runtime_motions_10': (
+        'runtime',
+        ['--minutes', '10', '--hand-rate', '200', '--eye-rate', '30', '--repeat', '5']
+        + ['--motion', 'random', 'loops'],
+        ['runtime_motions_200_30'],
+        '2 min',
     ),
     'candidates': ('candidates', ['--seeds', '20'], ['candidates'], '6 min'),
     'evaluate': (

@@ -129,6 +129,15 @@ def _measure(
     return runs[len(runs) // 2], runs, n_h, n_e, size
 
 
+def _output_name(args: argparse.Namespace) -> str:
+    """bench/out's name of the table: runtime, or runtime_motions (with the rates where they
+    are not the default 1 kHz + 200 Hz) when more motions than the default run."""
+    if args.motion == ['random']:
+        return 'runtime'
+    rates = (args.hand_rate, args.eye_rate)
+    return 'runtime_motions' + ('' if rates == (1000.0, 200.0) else f'_{rates[0]:g}_{rates[1]:g}')
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--minutes', type=float, nargs='+', default=[1, 5, 10, 30, 60])
@@ -183,7 +192,7 @@ def main() -> None:
             print(rows[-1], flush=True)
     opts = ' '.join(args.options) or 'defaults'
     emit(
-        'runtime' if args.motion == ['random'] else 'runtime_motions',
+        _output_name(args),
         table(
             f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
             f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',

@@ -21,6 +21,8 @@ from handeye_ros.core.simulate import Recording, noise_level, simulate
 from handeye_ros.formats import write_tum
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The live node's fixtures (``install``, ``ros``) and helpers, for the tests under test/ros.
+pytest_plugins = ['ros_support']
 
 # The property tests draw the same examples on every run (a suite that passes passes again);
 # HYPOTHESIS_PROFILE=explore draws new ones, as hypothesis does by default.

@@ -16,9 +16,14 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+import pytest
 from conftest import ROOT
+
+from handeye_ros.core.simulate import Truth, calibration_error
 
 SCRIPTS = Path(__file__).resolve().parent / 'ros_scripts'
 
@@ -201,3 +206,68 @@ def wait_for(predicate, timeout: float, step: float = 0.05) -> bool:
             return True
         time.sleep(step)
     return predicate()
+
+
+# The calibrator node as the tests under test/ros run it (a plugin of test/conftest.py: its
+# fixtures are every test's).
+
+
+@pytest.fixture(scope='session')
+def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The package built with colcon once per test process (``--symlink-install``)."""
+    return build_workspace(tmp_path_factory.mktemp('ws'))
+
+
+@pytest.fixture
+def ros(install: Path, tmp_path: Path) -> Iterator[Processes]:
+    """The processes a test starts, stopped when it ends."""
+    procs = Processes(ros_env(install), tmp_path)
+    yield procs
+    procs.stop_all()
+
+
+def params_file(install: Path) -> Path:
+    """The params file the package installs (config/calibrator.yaml)."""
+    return install / 'handeye_ros' / 'share' / 'handeye_ros' / 'config' / 'calibrator.yaml'
+
+
+def start_node(ros: Processes, install: Path, *params: str, name: str = 'node'):
+    """The calibrator as `ros2 run` starts it, with the installed params file, its files in the
+    test's folder and ``params`` (``name:=value``) on top."""
+    exe = resolve_executable(ros.env, 'handeye_ros', 'calibrator')
+    args = [str(exe), '--ros-args', '--params-file', str(params_file(install))]
+    args += ['-p', f'output_dir:={ros.logs}']  # the test's folder: every file it names is in it
+    for p in params:
+        args += ['-p', p]
+    return ros.start(args, name)
+
+
+def wait_started(ros: Processes, node) -> None:
+    """Until the node says it buffers (its subscriptions made), with a deadline."""
+    assert wait_for(
+        lambda: 'buffering hand' in ros.output(node)[1] or node.poll() is not None, 60, 0.1
+    ), ros.output(node)
+    assert node.poll() is None, ros.output(node)
+
+
+def publisher(ros: Processes, *args: str) -> list[str]:
+    """The command line of the package's simulated publisher with ``args``."""
+    return [str(resolve_executable(ros.env, 'handeye_ros', 'sim_publisher')), *args]
+
+
+def assert_near_truth(t: dict, result: dict) -> None:
+    """A result (saved file or latched topics) within the noise of sim_publisher's truth: its
+    level 3 gives errors well inside 3 ms / 2 cm / 0.5 deg (see test_pipeline)."""
+    truth = Truth(t['time_offset'], np.array(t['q_HE']), np.array(t['p_HE']), None, None)
+    err = calibration_error(
+        truth,
+        result['time_offset'],
+        result['extrinsic']['rotation'],
+        result['extrinsic']['translation'],
+    )
+    assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
+
+
+def call(ros: Processes, *services: str, mode: str = 'call', name: str = 'client'):
+    """ros_scripts/ros_client.py calling (or reading) ``services`` in its own process: its JSON."""
+    return ros.run_json(ros.script('ros_client.py', mode, *services), name)

@@ -1,5 +1,5 @@
 """offline_calibrate --bag: ROS 2 (mcap, sqlite3) and ROS 1 bags written with rosbags, replayed
-through the node's Recorder. No ROS processes needed here (see test_node.py for those)."""
+through the node's Recorder. No ROS processes needed here (see test/ros/test_node_results.py for those)."""
 
 from __future__ import annotations
 

@@ -20,20 +20,18 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 from conftest import ROOT
 from ros_support import (
     INTERFACES,
+    assert_near_truth,
     build_workspace,
     ros_available,
     running,
     wait_for,
     with_interfaces,
 )
-
-from handeye_ros.core.simulate import Truth, calibration_error
 
 #: The commands, exactly as the README's ROS 2 section writes them.
 ROSDEP = 'rosdep install --from-paths src -y --ignore-src'
@@ -209,19 +207,6 @@ def _answer(out: str) -> tuple[bool, str]:
     return m.group(1) == 'True', ast.literal_eval(m.group(2))
 
 
-def _near_truth(truth: dict, result: dict) -> None:
-    """sim_publisher's default recording (noise level 3, 40 s): well inside 3 ms, 2 cm, 0.5 deg
-    (the bounds of test_node.py)."""
-    t = Truth(truth['time_offset'], np.array(truth['q_HE']), np.array(truth['p_HE']), None, None)
-    err = calibration_error(
-        t,
-        result['time_offset'],
-        result['extrinsic']['rotation'],
-        result['extrinsic']['translation'],
-    )
-    assert err.time_offset_s < 3e-3 and err.translation_m < 0.02 and err.rotation_deg < 0.5
-
-
 @pytest.mark.ros
 def test_ros2_run_status_calibrate_param_set_and_save_as_typed(shell: Shell, ws: Path) -> None:
     """`ros2 run` the node and the simulated rig, then the status, the calibration, a parameter
@@ -260,7 +245,7 @@ def test_ros2_run_status_calibrate_param_set_and_save_as_typed(shell: Shell, ws:
     ok, message = _answer(out)
     saved = Path(shell.env['ROS_HOME']) / 'handeye_ros' / 'calibration.yaml'
     assert code == 0 and ok and message == f'wrote {saved}', out
-    _near_truth(truth, yaml.safe_load(saved.read_text()))
+    assert_near_truth(truth, yaml.safe_load(saved.read_text()))
 
     assert shell.ctrl_c(node) == 0, shell.log(node)
     assert 'Traceback' not in shell.log(node), shell.log(node)

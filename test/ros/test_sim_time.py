@@ -13,10 +13,8 @@ from pathlib import Path
 import pytest
 from ros_support import (
     Processes,
-    build_workspace,
     resolve_executable,
     ros_available,
-    ros_env,
     running,
     wait_for,
 )
@@ -49,18 +47,6 @@ try:
 except KeyboardInterrupt:
     pass
 """
-
-
-@pytest.fixture(scope='module')
-def install(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return build_workspace(tmp_path_factory.mktemp('ws'))
-
-
-@pytest.fixture
-def ros(install: Path, tmp_path: Path):
-    procs = Processes(ros_env(install), tmp_path)
-    yield procs
-    procs.stop_all()
 
 
 def _start(ros: Processes, install: Path) -> subprocess.Popen:

@@ -1,5 +1,5 @@
 """Lint, format and types: ruff over the package, the tests and the benchmarks (ruff.toml); mypy
-over the core (setup.cfg's [mypy])."""
+over the package (setup.cfg's [mypy])."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def test_ruff_format_is_clean() -> None:
     assert proc.returncode == 0, 'run `ruff format handeye_ros test bench`:\n' + proc.stdout
 
 
-def test_mypy_finds_no_error_in_the_core() -> None:
+def test_mypy_finds_no_error_in_the_package() -> None:
     pytest.importorskip('mypy', reason='mypy not installed (requirements.txt pins it)')
     # no cache: the two suites of .ci/run check the same checkout at once
     proc = subprocess.run(

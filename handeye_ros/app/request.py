@@ -88,6 +88,7 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
         if snap is None:
             from .replay import replay
 
+            assert req.bag is not None, 'one source: the bag'
             given = {s: f'{s}_topic' in req.options for s in ('hand', 'eye')}
             snap = replay(req.bag, streams, given=given, progress=req.progress).snapshot()
         with _progress_bar(req.progress, len(STEPS)) as step:
@@ -107,6 +108,7 @@ def _calibrate_files(req: Request, calib: Any) -> Any:
     from ..core.pipeline import STEPS, calibrate
     from ..formats import read_trajectory
 
+    assert req.hand is not None and req.eye is not None, 'run() checked both are given'
     with _progress_bar(req.progress, len(STEPS) + 2) as step:
         step(f'reading {Path(req.hand).name}')
         hand = read_trajectory(

@@ -55,6 +55,11 @@ COLUMNS = (
 )
 
 
+def _norm(v: list[float]) -> float:
+    """Euclidean norm of a list of numbers."""
+    return float(sum(x * x for x in v) ** 0.5)
+
+
 def row_of(d: dict[str, Any]) -> dict[str, Any]:
     """A run's row (the result columns of :data:`COLUMNS`) from its result document."""
     s = d.get('std') or {}
@@ -69,7 +74,6 @@ def row_of(d: dict[str, Any]) -> dict[str, Any]:
         v = ((cal.get(key) or {}).get('calibration_sigma') or {}).get('rmse')
         return None if v is None else v * k
 
-    norm = lambda v: None if not v else sum(x * x for x in v) ** 0.5
     t, q = d['extrinsic']['translation'], d['extrinsic']['rotation']
     return {
         'verdict': d['quality']['verdict'],
@@ -85,8 +89,8 @@ def row_of(d: dict[str, Any]) -> dict[str, Any]:
         'qy': q[1],
         'qz': q[2],
         'qw': q[3],
-        'translation_std_mm': None if not s else norm(s['translation']) * 1e3,
-        'rotation_std_deg': None if not s else norm(s['rotation']) * 57.29577951308232,
+        'translation_std_mm': None if not s else _norm(s['translation']) * 1e3,
+        'rotation_std_deg': None if not s else _norm(s['rotation']) * 57.29577951308232,
         'ape_mm': stat(cal, 'ape_translation', 1e3),
         'ape_deg': stat(cal, 'ape_rotation', 1.0),
         'rpe_1s_mm': stat(cal, 'rpe_time_translation', 1e3),

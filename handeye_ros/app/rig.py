@@ -89,10 +89,11 @@ def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any
     otherwise), else its own; without the evaluation."""
     from ..core.shared import at_shared
 
-    doc, result = dict(own.document), own.result
+    d = own.document
+    assert d is not None, 'a recording calibrated alone has its document'
+    doc, result = dict(d), own.result
     if take_rig:
         result = at_shared(result, joint, member)
-        d = own.document
         doc.update(
             result.to_dict(
                 hand_frame=d['extrinsic']['parent'],
@@ -102,7 +103,7 @@ def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any
             )
         )
         doc['summary'] = result.summary()
-        doc['rig'] = {'own': _own_values(own.document), 'follower': member is None}
+        doc['rig'] = {'own': _own_values(d), 'follower': member is None}
     return doc, result
 
 

@@ -125,7 +125,9 @@ def _from_yaml(path: Path) -> list[RunSpec]:
             raise ConfigError(f'{path}: run {k + 1} is not a mapping')
         extra = {key: v for key, v in item.items() if key not in RUN_KEYS}
         options = {**defaults, **(item.get('options') or {}), **extra}
-        labels = {key: str(item.get(key, '')) for key in ('algorithm', 'sequence', 'trial')}
+        labels: dict[str, str] = {
+            key: str(item.get(key, '')) for key in ('algorithm', 'sequence', 'trial')
+        }
         name = str(item.get('name') or '/'.join(v for v in labels.values() if v) or f'run{k + 1}')
         files = {
             key: str((base / str(item[key])).resolve()) if item.get(key) else None
@@ -136,8 +138,12 @@ def _from_yaml(path: Path) -> list[RunSpec]:
                 name=name,
                 options=options,
                 report=bool(item.get('report', False)),
-                **labels,
-                **files,
+                algorithm=labels['algorithm'],
+                sequence=labels['sequence'],
+                trial=labels['trial'],
+                hand=files['hand'],
+                eye=files['eye'],
+                bag=files['bag'],
             )
         )
     return out

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar, overload
 
 from .errors import ConfigError
 
@@ -148,6 +148,19 @@ def _check(name: str, value: Any, spec: Spec) -> None:
         raise ConfigError(msg)
 
 
+_A = TypeVar('_A', bound='Options')
+_B = TypeVar('_B', bound='Options')
+_C = TypeVar('_C', bound='Options')
+
+
+@overload
+def split_options(
+    values: dict[str, Any], classes: tuple[type[_A], type[_B]], source: str = ...
+) -> tuple[_A, _B]: ...
+@overload
+def split_options(
+    values: dict[str, Any], classes: tuple[type[_A], type[_B], type[_C]], source: str = ...
+) -> tuple[_A, _B, _C]: ...
 def split_options(
     values: dict[str, Any], classes: tuple[type[Options], ...], source: str = 'config'
 ) -> tuple[Options, ...]:

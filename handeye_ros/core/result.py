@@ -148,6 +148,14 @@ class CalibrationResult:
             self.time_offset_s, self.clock_drift, self.eye_model.time_offset_stamp_ns, t_eye_ns
         )
 
+    def streams(self) -> UsedStreams:
+        """:attr:`used`, the poses the evaluation and the plots read; ValueError for a result
+        without them (:meth:`detached`, or read from a file)."""
+        if self.used is None:
+            msg = 'this result does not hold the streams it was computed on'
+            raise ValueError(msg)
+        return self.used
+
     def detached(self) -> CalibrationResult:
         """The result without its pose arrays (:attr:`used`, the linear stage's motions), to
         send to another process: an hour of 1 kHz MoCap is 230 MB of poses, the rest a few

@@ -54,7 +54,7 @@ def calibrated(result: CalibrationResult) -> AlignedTrajectories:
 
     Raises ValueError for a result without the streams it was computed on (``result.used``).
     """
-    used = _used(result)
+    used = result.streams()
     pairs, ok = pairs_at_eye(used.hand, used.eye, used.time_offset_s)
     X = (matrix_from_quat(result.q_HE), np.asarray(result.p_HE, dtype=float))
     world = worlds_per_pair(pairs, result.q_HE, result.p_HE, result.world)
@@ -66,7 +66,7 @@ def calibrated(result: CalibrationResult) -> AlignedTrajectories:
 
 def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None, str]:
     """The baseline without our calibration (module docstring), or None and why not."""
-    used = _used(result)
+    used = result.streams()
     hand, eye = used.hand, used.eye
     R_GH, p_GH, ok = interpolate(hand, used.eye_stamps_ns)
     if ok.sum() < MIN_PAIRS:
@@ -90,10 +90,3 @@ def uncalibrated(result: CalibrationResult) -> tuple[AlignedTrajectories | None,
         np.zeros(int(ok.sum()), dtype=int),
         'uncalibrated (dt = 0, no T_HE, SE(3) Umeyama)',
     ), ''
-
-
-def _used(result: CalibrationResult):
-    if result.used is None:
-        msg = 'this result does not hold the streams it was computed on'
-        raise ValueError(msg)
-    return result.used

@@ -98,17 +98,19 @@ def calibration_sigmas(
             result, eye, stamps, window, d, (drift_at, scale_at, stamp_ns), (delta_s, delta_m)
         )
 
-    at = figures(np.zeros(cov.shape[0]))
-    if at is None:
+    zero = figures(np.zeros(cov.shape[0]))
+    if zero is None:
         return None, 'too few eye poses fall inside the hand recording'
     L = _factor(cov)
     rng = np.random.default_rng(SEED)
-    moved = [figures(L @ rng.standard_normal(cov.shape[0])) for _ in range(draws)]
-    moved = [m for m in moved if m is not None]
+    tried = [figures(L @ rng.standard_normal(cov.shape[0])) for _ in range(draws)]
+    moved = [m for m in tried if m is not None]
     if len(moved) < draws // 2:
         return None, 'most draws of the calibration leave the hand recording'
     sigmas = {
-        name: {stat: _rms_change(at[name][stat], [m[name][stat] for m in moved]) for stat in STATS}
+        name: {
+            stat: _rms_change(zero[name][stat], [m[name][stat] for m in moved]) for stat in STATS
+        }
         for name in POSE_ERRORS
     }
     return CalibrationSigmas(sigmas, len(moved), int(keep.size), tuple(names)), ''
@@ -160,11 +162,12 @@ def _figures(
     scale's places in it, None when not estimated, and the drift's reference stamp), or None
     when too few eye poses fall inside the hand recording. No RPE pair joins two runs of
     ``window``."""
-    used, (drift_at, scale_at, stamp_ns) = result.used, model
+    used, (drift_at, scale_at, stamp_ns) = result.streams(), model
     if drift_at is not None and d[drift_at]:
         eye = retime(eye, float(d[drift_at]), stamp_ns)
-    if scale_at is not None and d[scale_at]:
-        eye = replace(eye, p_xyz=eye.p_xyz * (1.0 + d[scale_at] / result.batch.scale))
+    scale = None if result.batch is None else result.batch.scale
+    if scale_at is not None and scale is not None and d[scale_at]:
+        eye = replace(eye, p_xyz=eye.p_xyz * (1.0 + d[scale_at] / scale))
     q = (Rotation.from_quat(result.q_HE) * Rotation.from_rotvec(d[4:7])).as_quat()
     p = np.asarray(result.p_HE, dtype=float) + d[1:4]
     pairs, ok = pairs_at_eye(used.hand, eye, used.time_offset_s + float(d[0]))

@@ -24,7 +24,7 @@ HAND, EYE, REF = '#1f77b4', '#d62728', '#2ca02c'
 
 def time_alignment(result: CalibrationResult, path: Path) -> str:
     """Angular speed of both streams before and after the alignment, and the correlation."""
-    used, ta = result.used, result.time_alignment
+    used, ta = result.streams(), result.time_alignment
     w_h, w_e = angular_speed(used.hand), angular_speed(used.eye)
     fig, ax = canvas(3)
     sh, se = thinned(w_h.t_s.size), thinned(w_e.t_s.size)
@@ -234,7 +234,7 @@ def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, n
     from ..core.association import eye_motion_residuals
     from ..core.geometry import matrix_from_quat
 
-    used = result.used
+    used = result.streams()
     eye = used.eye
     k = np.flatnonzero(eye.interval_ok())
     R_err, p_err, covered = eye_motion_residuals(

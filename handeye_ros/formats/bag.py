@@ -182,6 +182,9 @@ class BagWriter:
             self.writer = Writer(self.path, version=9, storage_plugin=plugin)
         self._conns: dict[str, Any] = {}
 
+    # the two rosbags writers share the calls made here
+    writer: Any
+
     def __enter__(self) -> Self:
         self.writer.open()
         return self
@@ -196,11 +199,9 @@ class BagWriter:
         /tf_static by name)."""
         if topic not in self._conns:
             qos = (LATCHED_QOS,) if latched and self.storage != 'ros1' else ()
+            extra: dict[str, Any] = {'offered_qos_profiles': qos} if qos else {}
             self._conns[topic] = self.writer.add_connection(
-                topic,
-                msgtype,
-                typestore=self.store,
-                **({'offered_qos_profiles': qos} if qos else {}),
+                topic, msgtype, typestore=self.store, **extra
             )
         if self.storage == 'ros1':
             data = self.store.serialize_ros1(msg, msgtype)

@@ -92,14 +92,14 @@ class AutoMode:
     def _predicted(self, last: dict[str, Any] | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
         sigma = last['sigma'] if last else {}
-        values = (
+        ms, mm, deg = (
             sigma.get('time_offset_ms'),
             sigma.get('translation_mm'),
             sigma.get('rotation_deg'),
         )
-        if any(v is None for v in values):
+        if ms is None or mm is None or deg is None:
             return math.inf
-        seconds_metres_degrees = (values[0] * 1e-3, values[1] * 1e-3, values[2])
+        seconds_metres_degrees = (ms * 1e-3, mm * 1e-3, deg)
         return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
 
     def _calibrate(self, last: dict[str, Any], grown: bool = False) -> None:
@@ -140,13 +140,13 @@ class AutoMode:
         if admitted:
             self._sigmas = sigmas
         if converged:
-            best = self._sigmas
+            best = self._sigmas or sigmas
             self.said = (
                 f'converged: more of the same motion no longer improves the result by '
                 f'{IMPROVEMENT:.0%} of the targets (1-sigma {_sigmas_text(best)}); it calibrates '
                 'again if the motion gets richer'
             )
-        if admitted:
+        if admitted or published is None:
             self._published(doc)
             return ''
         return (

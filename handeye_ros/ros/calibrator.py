@@ -79,8 +79,7 @@ def main(args: list[str] | None = None) -> int:
         return 2
     quiet_start()
     stop_with_parent()
-    missing = _rclpy_missing()
-    if missing:
+    if missing := _rclpy_missing():
         print(f'calibrator: error: {missing}', file=sys.stderr)
         return 1
     import rclpy
@@ -94,12 +93,13 @@ def main(args: list[str] | None = None) -> int:
     if stop_requested():  # a signal while the imports ran
         return 0
     return_freed_memory()
-    pool = worker.new_pool()  # before rclpy.init: see worker's docstring
+    made = worker.new_pool()  # before rclpy.init: see worker's docstring
+    pool: worker.Pool | None = made  # to stop here, until the node owns it
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = executor = None
     try:
         if not stop_requested():
-            node = CalibratorNode(pool)
+            node = CalibratorNode(made)
             pool = None  # the node owns it, and stops it in close()
             executor = stoppable_executor(node)
             spin_until_stopped(executor)

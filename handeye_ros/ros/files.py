@@ -16,6 +16,7 @@ import shutil
 import stat
 import tempfile
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 from ..core.errors import InputError
@@ -110,4 +111,9 @@ def copy_report(staged: str, dest: Path) -> None:
             target.mkdir(exist_ok=True)
         else:
             # beside a report of ours, its plots are ours too
-            replace_file(target, lambda tmp, src=src: shutil.copyfile(src, tmp), lambda p: ours)
+            replace_file(target, partial(_copy, src), lambda p: ours)
+
+
+def _copy(src: Path, tmp: Path) -> None:
+    """``src``'s bytes into ``tmp`` (a writer of :func:`replace_file`)."""
+    shutil.copyfile(src, tmp)

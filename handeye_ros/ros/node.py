@@ -106,7 +106,7 @@ class CalibratorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._closing, self._open_calls = False, 0  # ~/calibrate calls awaiting their answer
         self._busy_since = 0.0
-        self._pool = pool
+        self._pool: worker.Pool | None = pool
         self.poses = Subscriptions(self, self.recorder, self._on_pose)
         self.status = ReadinessStatus(
             self, self.node_cfg.status_period, self.node_cfg.auto_calibrate
@@ -136,6 +136,8 @@ class CalibratorNode(Node):
 
     def submit(self, fn: Any, *args: Any) -> cf.Future:
         """A job for the worker pool (RuntimeError once it is shut down)."""
+        if self._pool is None:
+            raise RuntimeError('the node is closing: its worker pool is stopped')
         return self._pool.submit(fn, *args)
 
     def on_executor(self, fn: Any, *args: Any) -> None:
@@ -221,9 +223,7 @@ class CalibratorNode(Node):
                 if rig_file
                 else None
             )
-            job = self._pool.submit(
-                calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig
-            )
+            job = self.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig)
             self.get_logger().info(
                 f'calibrating {len(snapshot.hand)} MoCap and {len(snapshot.eye)} device poses'
                 + {'auto': ' (auto_calibrate)', 'check': ' (checking READY)', '': ''}[kind]
@@ -278,7 +278,7 @@ class CalibratorNode(Node):
                 self.get_logger().info(said)
                 future.set_result((True, said))
                 return
-            self._drop_stage(self._last_result and self._last_result.staged_dir)
+            self._drop_stage(self._last_result)
             kept = True
             self._succeeded(session)
             self.get_logger().info(f'calibrated in {took}: {said}')
@@ -339,10 +339,12 @@ class CalibratorNode(Node):
         return response
 
     @staticmethod
-    def _drop_stage(stage: str | None) -> None:
-        """Remove a staging folder of the worker's report (replaced, or never used)."""
-        if stage:
-            shutil.rmtree(stage, ignore_errors=True)
+    def _drop_stage(stage: str | Calibrated | None) -> None:
+        """Remove a staging folder of the worker's report (replaced, or never used): this
+        one, or a result's."""
+        folder = stage.staged_dir if isinstance(stage, Calibrated) else stage
+        if folder:
+            shutil.rmtree(folder, ignore_errors=True)
 
     def close(self) -> None:
         """Stop the worker process and wait for it (a running calibration is abandoned), so
@@ -351,7 +353,7 @@ class CalibratorNode(Node):
         if self._pool is not None:
             worker.stop(self._pool)
             self._pool = None
-        self._drop_stage(self._last_result and self._last_result.staged_dir)
+        self._drop_stage(self._last_result)
 
     def _succeeded(self, session: Calibrated) -> None:
         """A new result: every output at once, one stamp (on the executor)."""
@@ -373,7 +375,7 @@ class CalibratorNode(Node):
         now = time.monotonic()
         for stream, s in self.recorder.stats().items():
             topic = getattr(self.stream_cfg, f'{stream}_topic')
-            msgtype = self.recorder.types[stream]
+            msgtype = self.recorder.types[stream] or 'not known yet'
             if stream in self.poses.guessed:
                 msgtype += ' (likeliest; not yet seen on the graph)'
             seen = self.last_seen[stream]

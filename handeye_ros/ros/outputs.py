@@ -96,14 +96,14 @@ def save(session: Calibrated, cfg: NodeConfig) -> tuple[bool, str]:
     try:
         # every path checked before anything is written: a refusal changes nothing
         path = files.inside(cfg.output_dir, cfg.output_file, 'output_file')
-        folder = None
-        if cfg.report_dir and session.staged_dir:
+        folder, staged = None, session.staged_dir
+        if cfg.report_dir and staged:
             folder = files.inside(cfg.output_dir, cfg.report_dir, 'report_dir')
             files.check_report_folder(folder)
         files.replace_file(path, lambda tmp: write_result(tmp, session.document), _is_result)
         wrote = [str(path)]
-        if folder is not None:
-            files.copy_report(session.staged_dir, folder)
+        if folder is not None and staged:
+            files.copy_report(staged, folder)
             wrote.append(str(folder / 'report.html'))
         elif cfg.report_dir:
             wrote.append('no report (report_dir was set after this calibration: calibrate again)')

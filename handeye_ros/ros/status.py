@@ -142,7 +142,7 @@ class ReadinessStatus:
         node, t0, p = self._node, time.thread_time(), self._progress
         buffers = node.recorder.buffers
         newest = [buffers[s].newest_ns for s in STREAMS]
-        if None in newest:
+        if p is None or None in newest:
             return
         try:
             tails = node.recorder.tails(dict(zip(STREAMS, p.wants(*newest), strict=True)))
@@ -194,14 +194,15 @@ class ReadinessStatus:
         self._report()
 
     def _measured(self, measured: Measured) -> None:
-        self._progress.take(measured)
-        self._report()
+        if self._progress is not None:  # a measure is asked of started pieces only
+            self._progress.take(measured)
+            self._report()
 
     def _report(self) -> None:
         """Judge the pieces of the poses still buffered, and publish."""
         p, buffers = self._progress, self._node.recorder.buffers
         oldest = [buffers[s].oldest_ns for s in STREAMS]
-        if None in oldest:
+        if p is None or None in oldest:
             return
         p.drop_before(*oldest)
         durations = tuple(buffers[s].span_s for s in STREAMS)

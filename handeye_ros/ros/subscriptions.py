@@ -14,10 +14,10 @@ from __future__ import annotations
 import difflib
 import time
 from collections.abc import Callable
-from typing import Any
+from functools import partial
+from typing import TYPE_CHECKING, Any
 
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -32,6 +32,9 @@ from ..stream.convert import TF_TYPE, UnsupportedTypeError
 from .lifecycle import steady_timer
 from .types import message_class
 
+if TYPE_CHECKING:  # the node owns its subscriptions
+    from .node import CalibratorNode
+
 #: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
 #: learnt there is subscribed at the next look (one look costs ~0.02 ms).
 GRAPH_POLL_S = 0.05
@@ -41,10 +44,14 @@ LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Od
 
 
 class Subscriptions:
-    """The pose subscriptions of ``node``, feeding ``on_pose(stream, msg, static)``."""
+    """The pose subscriptions of ``node``, feeding ``on_pose(stream, msg, static, info)``
+    (``info``: the message's rclpy MessageInfo)."""
 
     def __init__(
-        self, node: Node, recorder: Recorder, on_pose: Callable[[str, Any, bool], None]
+        self,
+        node: CalibratorNode,
+        recorder: Recorder,
+        on_pose: Callable[[str, Any, bool, Any], None],
     ) -> None:
         self._node, self._recorder, self._on_pose = node, recorder, on_pose
         self._log = node.get_logger()
@@ -131,6 +138,14 @@ class Subscriptions:
         """The auto-typed streams whose type the graph has not named yet."""
         return [s for s in STREAMS if s not in self.subs or s in self.guessed]
 
+    def _callback(self, stream: str, static: bool) -> Callable[[Any, Any], None]:
+        """The subscription's callback: rclpy hands it the message and its MessageInfo."""
+
+        def on_message(msg: Any, info: Any) -> None:
+            self._on_pose(stream, msg, static, info)
+
+        return on_message
+
     def subscribe(self, stream: str, msgtype: str, guess: bool = False) -> None:
         """Subscribe a stream's topic (and a tf selector's static topic, transient local, as
         tf2's static broadcasters latch) once its type is known, or with its likeliest type
@@ -139,13 +154,15 @@ class Subscriptions:
         self._recorder.set_type(stream, msgtype)
         cls = message_class(msgtype)
         sel = self._recorder.selectors[stream]
+        # rclpy calls a callback of two parameters with the message and its MessageInfo; its
+        # annotation names the one-parameter form only
         self.subs[stream] = self._node.create_subscription(
             cls,
             sel.topic,
-            lambda msg, info, s=stream: self._on_pose(s, msg, False, info),
+            self._callback(stream, static=False),  # type: ignore[arg-type]
             self._pose_qos(),
             event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=lambda event, s=stream: self._on_incompatible_qos(s, event)
+                incompatible_qos=partial(self._on_incompatible_qos, stream)
             ),
         )
         if sel.static_topic:
@@ -158,7 +175,7 @@ class Subscriptions:
             self._static_subs[stream] = self._node.create_subscription(
                 cls,
                 sel.static_topic,
-                lambda msg, info, s=stream: self._on_pose(s, msg, True, info),
+                self._callback(stream, static=True),  # type: ignore[arg-type]
                 static_qos,
             )
         if guess:

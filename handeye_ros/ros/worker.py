@@ -46,7 +46,8 @@ class Pool:
     them)."""
 
     def __init__(self, executor: cf.ProcessPoolExecutor, said: Any):
-        self._executor, self._said, self._pids = executor, said, []
+        self._executor, self._said = executor, said
+        self._pids: list[int] = []
 
     def submit(self, fn: Any, *args: Any) -> cf.Future:
         """A job (RuntimeError once the pool is stopped)."""

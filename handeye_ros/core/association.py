@@ -15,6 +15,7 @@ import numpy as np
 from .chunked import chunked
 from .errors import TimeAlignmentError
 from .geometry import (
+    Pose,
     compose,
     inverse,
     matrix_from_quat,
@@ -165,7 +166,7 @@ def eye_motion_residuals(
     return err_R, err_p, ok[i] & ok[j]
 
 
-def residual_motions(A: tuple, B: tuple, X: tuple) -> tuple[np.ndarray, np.ndarray]:
+def residual_motions(A: Pose, B: Pose, X: Pose) -> tuple[np.ndarray, np.ndarray]:
     """``(X^-1 A X)^-1 B`` for hand motions A, eye motions B (rotations (M, 3, 3), translations
     (M, 3)) and the extrinsic X = T_HE: the motion by which AX = XB (eq. 2) fails, in the eye
     frame."""

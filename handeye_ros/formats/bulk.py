@@ -18,6 +18,7 @@ and :mod:`.text` reads the file line by line instead, which also names the line 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -199,7 +200,9 @@ def _layout_block(
     return ok, whole, frac9, fractional, neg, frac18
 
 
-def read_bulk(path: Path, data: bytes, fmt_of_first_row) -> tuple[str, BulkTable] | None:
+def read_bulk(
+    path: Path, data: bytes, fmt_of_first_row: Callable[[int, str], tuple[str, str | None]]
+) -> tuple[str, BulkTable] | None:
     """(format, table) of a file's bytes, or None for the line-by-line reader.
 
     ``fmt_of_first_row(line number, first_row) -> (format, delimiter)`` decides the format (and

@@ -29,7 +29,7 @@ INT64_MAX = np.iinfo(np.int64).max
 
 
 def parse_stamps(
-    path: Path, numbers, split: SplitStamps, fmt: str, unit: str
+    path: Path, numbers: np.ndarray, split: SplitStamps, fmt: str, unit: str
 ) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Exact int64 nanoseconds of a stamp column, notes on the unit assumed, and which rows'
     stamps fit int64 ns in that unit (the others are 0 here; the caller drops or refuses them).
@@ -97,7 +97,7 @@ def _in_gigaseconds(split: SplitStamps) -> bool:
     return 0.0 <= step_s < DENSEST_PERIOD_S and UNIX_YEARS_S[0] <= typical_s <= UNIX_YEARS_S[1]
 
 
-def too_large(path: Path, numbers: list[int], whole: np.ndarray, unit: str = 'ns') -> None:
+def too_large(path: Path, numbers: np.ndarray, whole: np.ndarray, unit: str = 'ns') -> None:
     k = int(np.argmax(whole))
     msg = (
         f'{path}, line {numbers[k]}: a stamp ({unit}) is beyond what int64 nanoseconds can '

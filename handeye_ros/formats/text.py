@@ -104,7 +104,7 @@ def read_trajectory(
 
 def _drop_bad_rows(
     path: Path,
-    numbers,
+    numbers: np.ndarray,
     t_ns: np.ndarray,
     values: np.ndarray,
     q_xyzw: np.ndarray,

@@ -9,11 +9,13 @@ which holds for residuals correlated in time (a VIO's drift).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from scipy.sparse import csc_matrix, diags
 from scipy.sparse.linalg import splu
 
-from .joint_jacobian import joint_jacobian
+from .joint_jacobian import central_jacobian, joint_jacobian
 from .long_run import (
     LongRunCovariance,
     influence,
@@ -25,7 +27,7 @@ from .long_run import (
 )
 from .loss import huber_cost
 from .parameters import ParameterLayout, weighted_eye_chunks
-from .residuals import BatchProblem, Weights, central_jacobian
+from .residuals import BatchProblem, Weights
 
 
 def eye_covariance(
@@ -140,7 +142,7 @@ def _long_run_in_y(psi: np.ndarray, layout: ParameterLayout) -> LongRunCovarianc
 
 
 def eye_jacobians(
-    residuals, y: np.ndarray, layout: ParameterLayout, decoupled: bool
+    residuals: Callable[..., np.ndarray], y: np.ndarray, layout: ParameterLayout, decoupled: bool
 ) -> dict[str, np.ndarray]:
     """Central-difference Jacobians of the eye residuals at y (the joint solve's, where the
     spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
@@ -228,7 +230,7 @@ def assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray, k: i
     return out
 
 
-def marginal_covariance(J, n_nuisance: int) -> np.ndarray:
+def marginal_covariance(J: csc_matrix | np.ndarray, n_nuisance: int) -> np.ndarray:
     """(J^T J)^-1 block of the parameters after the first ``n_nuisance`` (the control poses,
     and dt where it is marginalised too), by the Schur complement over those."""
     J = csc_matrix(J)

@@ -3,15 +3,19 @@ spline's control poses, central differences in (dt, T_HE).
 
 Only the joint solve (``batch_joint``) needs it; the default solve holds the spline to the MoCap
 and differentiates the eye residuals alone (:meth:`.batch.residuals.BatchProblem.eye_chunk`).
+:func:`central_jacobian` takes the central differences, here and for the covariance's
+Jacobians (:mod:`.covariance`).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from scipy.sparse import csr_matrix
 
 from ..geometry import log_so3, right_jacobian, skew
-from .residuals import BatchProblem, Weights, central_jacobian
+from .residuals import FD_STEP, FD_STEP_S, BatchProblem, Weights
 from .spline import PoseSpline
 
 
@@ -115,3 +119,21 @@ def _eye_blocks(
         out.add(row, cp, 0, w_rot * np.matmul(d_rot[:, None], JRi))
         out.add(row + 3, cp, 0, w_trans * np.matmul(d_trans[:, None], JRi))
         out.add(row + 3, cp, 3, w_trans * sign_rot * b_e[idx][..., None, None] * RXtRat[:, None])
+
+
+def central_jacobian(
+    fun: Callable[[np.ndarray], np.ndarray],
+    y: np.ndarray,
+    cols: np.ndarray,
+    steps: np.ndarray | None = None,
+) -> np.ndarray:
+    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
+    dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
+    out = []
+    for idx in cols:
+        h = steps[idx] if steps is not None else (FD_STEP_S if idx == 0 else FD_STEP)
+        yp, ym = y.copy(), y.copy()
+        yp[idx] += h
+        ym[idx] -= h
+        out.append((fun(yp) - fun(ym)) / (2 * h))
+    return np.stack(out, axis=1)

@@ -5,6 +5,7 @@ dp_X (3), [drift], [scale]) and which entries each step of the decoupled solve f
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -64,7 +65,7 @@ def weighted_eye_chunks(
     rotation_only: bool = False,
     raw: list[np.ndarray] | None = None,
     every: int = 1,
-):
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
     chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
     ``raw`` when given."""

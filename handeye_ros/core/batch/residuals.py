@@ -381,18 +381,3 @@ class BatchProblem:
         """Weighted hand then eye residuals, flat (joint solve)."""
         r_h, r_e = self.raw(x)
         return np.concatenate(((r_h * w.hand).ravel(), (r_e * w.eye).ravel()))
-
-
-def central_jacobian(
-    fun, y: np.ndarray, cols: np.ndarray, steps: np.ndarray | None = None
-) -> np.ndarray:
-    """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
-    dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
-    out = []
-    for idx in cols:
-        h = steps[idx] if steps is not None else (FD_STEP_S if idx == 0 else FD_STEP)
-        yp, ym = y.copy(), y.copy()
-        yp[idx] += h
-        ym[idx] -= h
-        out.append((fun(yp) - fun(ym)) / (2 * h))
-    return np.stack(out, axis=1)

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix, diags
+from scipy.sparse import csc_matrix, csr_matrix, dia_matrix, diags
 from scipy.sparse.linalg import splu
 
 from .loss import huber_cost, huber_psi
@@ -186,7 +186,9 @@ def levenberg_marquardt_sparse(
     return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
 
 
-def _huber_normal(J: csr_matrix, f: np.ndarray, delta: float) -> tuple:
+def _huber_normal(
+    J: csr_matrix, f: np.ndarray, delta: float
+) -> tuple[csc_matrix, np.ndarray, dia_matrix]:
     """The Newton model of the Huber cost at residuals f with Jacobian J: (A, g, D), the normal
     matrix (rows beyond delta add no curvature), the gradient (their residuals clipped to
     +-delta) and Marquardt's diagonal scaling."""

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from scipy.linalg import LinAlgError, solveh_banded
@@ -36,7 +37,7 @@ ROTATION_FIT_TOL = 1e-5
 
 
 @lru_cache(maxsize=8)
-def _cardinal(order: int):
+def _cardinal(order: int) -> Any:
     """The cardinal B-spline of an order (scipy's BSpline): the cubic has a closed form
     below, and scipy.interpolate's import (0.6 s, with scipy.optimize) is left to other
     orders."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..association import interpolate, residual_motions
 from ..chunked import CHUNK_ROWS
-from ..geometry import exp_so3, log_so3, matrix_from_quat, relative
+from ..geometry import Pose, exp_so3, log_so3, matrix_from_quat, relative
 from ..trajectory import Trajectory
 
 #: The histogram of residual magnitudes: log10 edges from LOG_LO to LOG_HI in LOG_STEP. A
@@ -220,7 +220,9 @@ def step_sizes(d: np.ndarray) -> tuple[float, float, float]:
     )
 
 
-def _hand_motions(hand: Trajectory, eye: Trajectory, i: np.ndarray, dt: float):
+def _hand_motions(
+    hand: Trajectory, eye: Trajectory, i: np.ndarray, dt: float
+) -> tuple[Pose, np.ndarray]:
     """The hand's motions between the stamps of eye poses i and i + 1 less dt, and where the
     hand covers both ends."""
     shift = np.int64(round(dt * 1e9))
@@ -244,7 +246,7 @@ def _rows(m: tuple[np.ndarray, np.ndarray], rows: slice) -> tuple[np.ndarray, np
     return m[0][rows], m[1][rows]
 
 
-def _jacobian(A: list[tuple], B: tuple, X: tuple, h: float) -> np.ndarray:
+def _jacobian(A: list[Pose], B: Pose, X: Pose, h: float) -> np.ndarray:
     """(n, 6, 7) central differences of the residuals in (dt, p_HE in H, the rotation
     R_HE Exp(d) with d in E): dt over +-h (A: the hand's motions at dt, dt - h, dt + h), the
     extrinsic over +-1e-6."""
@@ -261,7 +263,7 @@ def _jacobian(A: list[tuple], B: tuple, X: tuple, h: float) -> np.ndarray:
     return J
 
 
-def _residuals(A: tuple, B: tuple, X: tuple) -> np.ndarray:
+def _residuals(A: Pose, B: Pose, X: Pose) -> np.ndarray:
     """(n, 6) residual motions as (Log of the rotation, translation): the relative-pose
     residuals of eq. 16 in the eye frame."""
     err_R, err_p = residual_motions(A, B, X)

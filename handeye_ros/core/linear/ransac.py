@@ -132,7 +132,10 @@ def widened_consensus(
     inliers: np.ndarray,
     thr_rot: float,
     thr_trans: float,
-) -> tuple[tuple[float, float], tuple | None]:
+) -> tuple[
+    tuple[float, float],
+    tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float] | None,
+]:
     """The winner's consensus taken once more with thresholds no tighter than the configured
     ones but wide enough for the noise measured from the winner's own residuals
     (``CHI3_Q99_OVER_MEDIAN`` times their median), and the system re-solved on it: ((rotation,

@@ -175,26 +175,42 @@ def calibrate_linear(
     return _solution(m, refit, inliers, spread, sigma_best, ratio_best, (thr_rot, thr_trans))
 
 
+@dataclass(frozen=True)
+class _Refit:
+    """What :func:`_refit` found on the consensus: the extrinsic (q_HE, p_HE) and the
+    dual-quaternion solution's (q_dq, p_dq), what is unobservable, the warnings, and the eye's
+    scale with its dual-quaternion value and standard deviation (1, 1 and NaN without one)."""
+
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    q_dq: np.ndarray
+    p_dq: np.ndarray
+    unobservable: tuple[str, ...]
+    warnings: tuple[str, ...]
+    scale: float
+    scale_dq: float
+    scale_std: float
+
+
 def _solution(
     m: Motions,
-    refit: tuple,
+    refit: _Refit,
     inliers: np.ndarray,
     spread: float,
     sigma_best: np.ndarray,
     ratio_best: float,
     thresholds: tuple[float, float],
 ) -> LinearSolution:
-    """The stage's answer from the refit (:func:`_refit`'s tuple) on the consensus, with the
-    inlier criteria of eq. 13 at it (on the eye made metric when a scale was estimated)."""
-    q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std = refit
-    if scale != 1.0:
-        m = scaled_motions(m, scale)
-    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
+    """The stage's answer from the refit on the consensus, with the inlier criteria of eq. 13
+    at it (on the eye made metric when a scale was estimated)."""
+    if refit.scale != 1.0:
+        m = scaled_motions(m, refit.scale)
+    e_rot, e_trans = motion_errors(m, refit.q_HE[None], refit.p_HE[None])
     return LinearSolution(
-        q_HE=q_HE,
-        p_HE=p_HE,
-        q_HE_dq=q_dq,
-        p_HE_dq=p_dq,
+        q_HE=refit.q_HE,
+        p_HE=refit.p_HE,
+        q_HE_dq=refit.q_dq,
+        p_HE_dq=refit.p_dq,
         sigma_ratio=ratio_best,
         singular_values=sigma_best,
         n_motions=len(m),
@@ -205,11 +221,11 @@ def _solution(
         translation_residual_m=float(np.sqrt(np.mean(e_trans[0, inliers] ** 2))),
         inlier_rotation_deg=float(np.degrees(thresholds[0])),
         inlier_translation_m=float(thresholds[1]),
-        warnings=tuple(warnings),
-        unobservable=unobservable,
-        scale=scale,
-        scale_std=scale_std,
-        scale_dq=scale_dq,
+        warnings=refit.warnings,
+        unobservable=refit.unobservable,
+        scale=refit.scale,
+        scale_std=refit.scale_std,
+        scale_dq=refit.scale_dq,
         motions=m,
     )
 
@@ -222,9 +238,8 @@ def _refit(
     spread: float,
     decoupled_refit: bool,
     estimate_scale: bool,
-) -> tuple:
-    """The final extrinsic on the consensus; returns (q_HE, p_HE, q_dq, p_dq, unobservable,
-    warnings, scale, scale_dq, scale_std).
+) -> _Refit:
+    """The final extrinsic on the consensus (:class:`_Refit`).
 
     With ``decoupled_refit`` it is re-estimated with rotation (:func:`refit_rotation`) and
     translation (:func:`refit_translation_gls`) apart; otherwise the dual-quaternion solution
@@ -239,7 +254,7 @@ def _refit(
     """
     q_dq, p_dq = q_HE, p_HE
     unobservable: tuple[str, ...] = ()
-    warnings = []
+    warnings: list[str] = []
     scale = scale_dq = 1.0
     scale_std = float('nan')
     if estimate_scale and spread >= MIN_AXIS_SPREAD_DEG:
@@ -263,7 +278,9 @@ def _refit(
             f'rotation axes spread only {spread:.1f} deg: the extrinsic is weakly '
             'constrained; rotate about more different axes'
         )
-    return q_HE, p_HE, q_dq, p_dq, unobservable, warnings, scale, scale_dq, scale_std
+    return _Refit(
+        q_HE, p_HE, q_dq, p_dq, unobservable, tuple(warnings), scale, scale_dq, scale_std
+    )
 
 
 def _dual_quaternion_scale(

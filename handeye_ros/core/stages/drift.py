@@ -39,7 +39,7 @@ def clock_along(
     lin: LinearSolution,
     cfg: CalibrationConfig,
     run: Findings,
-):
+) -> tuple[Trajectory, EyeModel, DriftFit | None, float | None]:
     """The offset measured in windows along the recording with stage 2's rotation (the vector
     form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
     clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the

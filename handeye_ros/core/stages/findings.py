@@ -21,7 +21,7 @@ class Findings:
     test_layout checks that no stage makes a reason)."""
 
     warnings: list[str] = field(default_factory=list)
-    log: list = field(default_factory=list)
+    log: list[object] = field(default_factory=list)
     corrections: list[Correction] = field(default_factory=list)
     candidates: list[Candidate] = field(default_factory=list)
     #: stage 2 named the eye's scale (a reason or a note): the batch stage does not again

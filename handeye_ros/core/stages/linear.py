@@ -146,7 +146,7 @@ def split_eye(
     screening: tuple[Screening, Screening],
     shift_ns: int,
     run: Findings,
-):
+) -> tuple[Trajectory, LinearSolution, PosePairs, tuple[Screening, Screening]]:
     """Breaks (VIO resets) and leftover wild poses of the eye, against the hand; stage 2 again
     when any were found."""
     found = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
@@ -178,7 +178,7 @@ def refine_vector(
     pairs: PosePairs,
     cfg: CalibrationConfig,
     run: Findings,
-):
+) -> tuple[float, LinearSolution, PosePairs, TimeAlignment | None]:
     """dt from the body angular velocities with stage 2's rotation, iterated with stage 2."""
     if not cfg.vector_refinement or lin.unobservable or eye.keyframes:
         return dt, lin, pairs, None
@@ -214,7 +214,7 @@ def self_check(
     pairs: PosePairs,
     cfg: CalibrationConfig,
     run: Findings,
-):
+) -> tuple[float, LinearSolution, PosePairs]:
     """Stage 2 at every distinct candidate offset, on a bounded excerpt of the recording
     (:mod:`~handeye_ros.core.checks.excerpt`), scored alike; the best one wins, and stage 2
     runs on the whole recording at it."""

@@ -107,7 +107,7 @@ class Findings(Protocol):
     (:class:`~handeye_ros.core.stages.findings.Findings`, which sits above the checks): their
     notes and facts in the order found (``log``), and the candidate offsets scored."""
 
-    log: list
+    log: list[object]
     candidates: list[Candidate]
 
     def record(self, fact: Any) -> None: ...
@@ -143,7 +143,7 @@ class Quality:
         """The verdict and its reason codes, e.g. ``doubtful (ambiguous_offset)``."""
         return self.verdict + (f' ({sep.join(self.codes)})' if self.reasons else '')
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {
             'verdict': str(self.verdict),
             'reasons': [

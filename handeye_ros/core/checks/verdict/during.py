@@ -262,7 +262,9 @@ def drift_unobservable(why: str | None) -> Reason:
     )
 
 
-def stages_disagree(what: str, failed: str | None = None, scored: list | None = None) -> Reason:
+def stages_disagree(
+    what: str, failed: str | None = None, scored: list[Candidate] | None = None
+) -> Reason:
     """STAGES_DISAGREE: the batch stage moved the answer (``what``) and the self-check does
     not support it: stage 2 ``failed`` at the batch's offset, the scores could not be compared
     (``scored`` None), or they side with the linear result (``scored``: the candidates)."""

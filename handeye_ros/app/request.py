@@ -17,7 +17,12 @@ import sys
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # imported where used: the offline tool starts without numpy's import
+    from ..core.config import CalibrationConfig
+    from ..core.result import CalibrationResult
+    from ..stream.recorder import Snapshot
 
 #: A run shorter than this (s) shows no progress bar.
 PROGRESS_DELAY_S = 2.0
@@ -54,11 +59,11 @@ class Request:
     output_bag_storage: str = 'mcap'
     progress: bool | None = None
     source: str = 'options'
-    snapshot: Any = None
+    snapshot: Snapshot | None = None
     outputs_required: bool = True
 
 
-def run(req: Request) -> tuple[dict[str, Any], Any]:
+def run(req: Request) -> tuple[dict[str, Any], CalibrationResult]:
     """Read, calibrate, evaluate, export and report; the result dictionary (with its
     ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
     from ..core.config import CalibrationConfig
@@ -101,7 +106,7 @@ def run(req: Request) -> tuple[dict[str, Any], Any]:
     return out, result
 
 
-def _calibrate_files(req: Request, calib: Any) -> Any:
+def _calibrate_files(req: Request, calib: CalibrationConfig) -> CalibrationResult:
     """Read the two trajectory files and calibrate them."""
     import logging
 
@@ -130,7 +135,9 @@ def _calibrate_files(req: Request, calib: Any) -> Any:
         return calibrate(hand, eye, calib, progress=step)
 
 
-def write_outputs(req: Request, result: Any, out: dict[str, Any], frames: dict) -> Any:
+def write_outputs(
+    req: Request, result: CalibrationResult, out: dict[str, Any], frames: dict[str, str]
+) -> CalibrationResult:
     """The evaluation (into ``out``), the exports, the report and the output bag; returns the
     result, with a warning when a failed evaluation or report is not to stop the run."""
     from dataclasses import replace

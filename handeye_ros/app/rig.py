@@ -20,10 +20,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core.checks.verdict import Code
 from .rig_file import RIG_FILE, part_of, read_members, rig_document, write_rig_file
+
+if TYPE_CHECKING:  # imported where used (the rig's math only when a rig is solved)
+    from ..core.result import CalibrationResult
+    from ..core.rig import Joint, Member
+    from ..core.shared import Rig
+    from .runs import RunSpec
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,7 @@ class Own:
 
     name: str
     document: dict[str, Any] | None
-    result: Any
+    result: CalibrationResult | None
     reason: str = ''
 
 
@@ -42,13 +48,13 @@ class Summary:
     and whether it can follow the rig (an offset without a T_HE covariance)."""
 
     name: str
-    member: Any
+    member: Member | None
     reason: str
     verdict: str
     follower: bool = False
 
 
-def own_calibration(run: Any) -> Own:
+def own_calibration(run: RunSpec) -> Own:
     """Round 1: ``run`` (a :class:`~handeye_ros.app.runs.RunSpec`) calibrated alone, no outputs.
     Never raises for bad input: the reason says why it gave nothing."""
     from ..core.errors import HandeyeError
@@ -83,16 +89,18 @@ def summary_of(own: Own) -> Summary:
         return Summary(own.name, None, str(err), verdict)
 
 
-def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any]:
+def at_rig(
+    own: Own, joint: Joint | None, member: Member | None, take_rig: bool
+) -> tuple[dict[str, Any], CalibrationResult]:
     """The recording's result dictionary and result at the rig's T_HE ``joint`` when
     ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
     otherwise), else its own; without the evaluation."""
     from ..core.shared import at_shared
 
-    d = own.document
-    assert d is not None, 'a recording calibrated alone has its document'
-    doc, result = dict(d), own.result
-    if take_rig:
+    d, result = own.document, own.result
+    assert d is not None and result is not None, 'a recording calibrated alone has both'
+    doc = dict(d)
+    if take_rig and joint is not None:
         result = at_shared(result, joint, member)
         doc.update(
             result.to_dict(
@@ -108,7 +116,12 @@ def at_rig(own: Own, joint: Any, member: Any, take_rig: bool) -> tuple[dict, Any
 
 
 def shared_outputs(
-    own: Own, joint: Any, member: Any, take_rig: bool, folder: str | None, report: bool
+    own: Own,
+    joint: Joint | None,
+    member: Member | None,
+    take_rig: bool,
+    folder: str | None,
+    report: bool,
 ) -> dict:
     """Round 2: :func:`at_rig` with the evaluation; writes ``folder``/result.yaml and
     ``folder``/export (and ``folder``/report with ``report``) when ``folder`` is given."""
@@ -167,7 +180,7 @@ def calibrate_rig(
     return finish(rig, [r.name for r in runs], docs, output), docs
 
 
-def solve(summaries: list[Summary]) -> Any:
+def solve(summaries: list[Summary]) -> Rig:
     """:func:`~handeye_ros.core.shared.solve_rig` on the recordings' summaries."""
     from ..core.shared import solve_rig
 
@@ -177,7 +190,7 @@ def solve(summaries: list[Summary]) -> Any:
     return solve_rig(members, failed, followers)
 
 
-def role(rig: Any, name: str) -> tuple[Any, bool]:
+def role(rig: Rig, name: str) -> tuple[Member | None, bool]:
     """(its member when it is one the rig's T_HE rests on, whether it takes the rig's T_HE)."""
     k = next((k for k, m in enumerate(rig.members) if m.name == name), None)
     if k is not None and rig.shared[k] is not None:
@@ -185,7 +198,9 @@ def role(rig: Any, name: str) -> tuple[Any, bool]:
     return None, rig.joint is not None and name in rig.followers
 
 
-def finish(rig: Any, names: list[str], docs: list[dict], output: Path | None) -> dict:
+def finish(
+    rig: Rig, names: list[str], docs: list[dict[str, Any]], output: Path | None
+) -> dict[str, Any]:
     """The rig document, once every recording's result at the rig's T_HE is known (``docs``,
     by ``names``): a follower whose motions the rig's T_HE does not explain is left out;
     written under ``output``."""
@@ -211,7 +226,7 @@ def finish(rig: Any, names: list[str], docs: list[dict], output: Path | None) ->
     return document
 
 
-def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
+def join_rig(path: str, session: str, own: Own) -> tuple[dict[str, Any], CalibrationResult]:
     """The node's rig (its ``rig_file`` parameter): this session's own calibration ``own``
     joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
     the file is made when missing) and the rig is solved again. Returns the session's result
@@ -225,7 +240,7 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict, Any]:
     member, take = role(rig, session)
     doc, result = at_rig(own, rig.joint, member, take)
     names = [s.name for s in earlier] + [session]
-    docs = [{}] * len(earlier) + [doc]
+    docs: list[dict[str, Any]] = [{}] * len(earlier) + [doc]
     document = finish(rig, names, docs, None)
     write_rig_file(file, document)
     r = document['rig']

@@ -26,6 +26,7 @@ class NodeConfig(Options):
         'the folder the node writes in, and only there: output_file, report_dir and rig_file '
         'are paths inside it (empty: $ROS_HOME/handeye_ros, ~/.ros/handeye_ros without '
         'ROS_HOME); read only once the node runs',
+        expert=True,
     )
     output_file: str = option(
         'handeye_result.yaml',
@@ -47,6 +48,7 @@ class NodeConfig(Options):
         'when missing): each ~/calibrate adds this session (the buffers since the start or '
         "~/reset) to its recordings, and the latched extrinsic becomes the rig's T_HE when the "
         'session agrees with the rig (empty: off); may be set while the node runs',
+        expert=True,
     )
     calibrate_period: float = option(
         0.0,
@@ -54,6 +56,7 @@ class NodeConfig(Options):
         'run the calibration every this many seconds while data flow (online use); 0 disables',
         low=0.0,
         high=86_400.0,
+        expert=True,
     )
     status_period: float = option(
         1.0,
@@ -63,6 +66,7 @@ class NodeConfig(Options):
         '/diagnostics and one log line; 0 disables',
         low=0.0,
         high=3600.0,
+        expert=True,
     )
     auto_calibrate: bool = option(
         False,
@@ -72,7 +76,12 @@ class NodeConfig(Options):
         '~/calibrate works at any time',
     )
     diagnostics_period: float = option(
-        1.0, 'float', 'period of the /diagnostics status [s]', low=0.05, high=3600.0
+        1.0,
+        'float',
+        'period of the /diagnostics status [s]',
+        low=0.05,
+        high=3600.0,
+        expert=True,
     )
     qos_reliability: str = option(
         'best_effort',
@@ -80,6 +89,7 @@ class NodeConfig(Options):
         'subscription reliability: best_effort also receives from reliable '
         'publishers and matches sensor-data MoCap drivers; reliable matches reliable ones only',
         choices=('best_effort', 'reliable'),
+        expert=True,
     )
     # 5 s of a 1 kHz stream: a node that stalls for a second or two under load (a 1.1-s stall
     # lost 320 of 6000 poses at 1.2 kHz with 1000, none with 5000; an idle queue costs nothing)
@@ -89,6 +99,7 @@ class NodeConfig(Options):
         'subscription queue depth: deep enough that bursts and stalls lose nothing',
         low=1,
         high=1_000_000,
+        expert=True,
     )
     topic_wait: float = option(
         30.0,
@@ -97,6 +108,7 @@ class NodeConfig(Options):
         'the type before warning again [s]',
         low=0.1,
         high=86_400.0,
+        expert=True,
     )
 
 
@@ -121,11 +133,12 @@ def all_specs() -> dict:
 
 PARAMS_HEADER = """\
 # Parameters of the calibrator node, every one at its default. Copy this file, change what your
-# rig needs (the topics, the frames, auto_calibrate) and pass your copy:
+# rig needs (the first section: the topics, the frames, auto_calibrate, ...) and pass your copy:
 #   ros2 run handeye_ros calibrator --ros-args --params-file my_calibrator.yaml
 #   ros2 launch handeye_ros calibrator.launch.py params_file:=my_calibrator.yaml
 # The section /**/calibrator applies to the node in any namespace. offline_calibrate --config
-# reads the same file and ignores the node-only block. Units: s, m, deg, Hz, rad. (The shipped
+# reads the same file and ignores the node's own parameters. The expert sections hold what few
+# rigs need to change. Units: s, m, deg, Hz, rad. (The shipped
 # file is made from the option specs by handeye_ros.app.params_file.params_yaml().)
 """
 #: The params file's section: the calibrator in any namespace. (Not /**: a -p value of another
@@ -151,16 +164,23 @@ def params_yaml() -> str:
         ("algorithm (same names as offline_calibrate's options)", CalibrationConfig),
         ('node only', NodeConfig),
     )
+    sections = [('what a rig needs', [(c, False) for _, c in blocks])]
+    sections += [(f'expert: {title}', [(c, True)]) for title, c in blocks]
     lines = [PARAMS_HEADER.rstrip('\n'), f'{PARAMS_SECTION}:', '  ros__parameters:']
-    for title, cls in blocks:
+    for title, parts in sections:
         lines.append(f'    # --- {title} '.ljust(99, '-'))
-        defaults = cls().to_dict()
-        for name, spec in cls.specs().items():
-            text = _described(spec)
-            lines += textwrap.wrap(text, 99, initial_indent='    # ', subsequent_indent='    # ')
-            value = defaults[name]
-            value = float('nan') if value is None else value
-            lines.append(f'    {yaml.safe_dump({name: value}, default_flow_style=True)[1:-2]}')
+        for cls, expert in parts:
+            defaults = cls().to_dict()
+            for name, spec in cls.specs().items():
+                if spec.expert != expert:
+                    continue
+                text = _described(spec)
+                lines += textwrap.wrap(
+                    text, 99, initial_indent='    # ', subsequent_indent='    # '
+                )
+                value = defaults[name]
+                value = float('nan') if value is None else value
+                lines.append(f'    {yaml.safe_dump({name: value}, default_flow_style=True)[1:-2]}')
     return '\n'.join(lines) + '\n'
 
 
@@ -183,7 +203,8 @@ latched topics: ~/extrinsic (geometry_msgs/TransformStamped, H -> E), and on /tf
   stamp on the eye clock, time_ref the same instant on the hand clock). Status: /diagnostics.
 Ctrl-C, SIGINT or SIGTERM stop the node (exit code 0).
 
-parameters (every one with its default in config/calibrator.yaml; * may change at run time):
+parameters a rig sets (* may change at run time; every one, the expert ones too, with its
+default and description in config/calibrator.yaml):
 """
 
 
@@ -197,7 +218,10 @@ def usage() -> str:
         **NodeConfig().to_dict(),
     }
     lines = [USAGE.rstrip('\n')]
-    for name, spec in all_specs().items():
+    specs = all_specs()
+    for name, spec in specs.items():
+        if spec.expert:
+            continue
         value = defaults[name]
         shown = 'automatic' if value is None else repr(value)
         lines.append(f'  {name}{" *" if name in RUNTIME_KEYS else ""} (default {shown})')
@@ -205,4 +229,10 @@ def usage() -> str:
         if spec.choices:
             text += ' (one of: ' + ', '.join(spec.choices) + ')'
         lines += textwrap.wrap(text, 95, initial_indent='      ', subsequent_indent='      ')
+    expert = ', '.join(
+        f'{n}{" *" if n in RUNTIME_KEYS else ""}' for n, s in specs.items() if s.expert
+    )
+    lines += textwrap.wrap(
+        f'expert parameters (settable the same way): {expert}', 95, subsequent_indent='  '
+    )
     return '\n'.join(lines)

@@ -85,6 +85,7 @@ class CalibrationConfig(Options):
         'drifts beyond its uncertainty (said in a note); off: one constant offset unless '
         'clock_drift',
         alias='clock-drift',
+        expert=True,
     )
     estimate_scale: bool = option(
         False,

@@ -45,10 +45,16 @@ class StreamConfig(Options):
         ' (a selector, as hand_topic)',
     )
     hand_type: str = option(
-        'auto', 'str', f'message type of hand_topic: auto (from the graph or the bag) or {_TYPES}'
+        'auto',
+        'str',
+        f'message type of hand_topic: auto (from the graph or the bag) or {_TYPES}',
+        expert=True,
     )
     eye_type: str = option(
-        'auto', 'str', f'message type of eye_topic: auto (from the graph or the bag) or {_TYPES}'
+        'auto',
+        'str',
+        f'message type of eye_topic: auto (from the graph or the bag) or {_TYPES}',
+        expert=True,
     )
     hand_frame_id: str = option(
         '',
@@ -68,12 +74,14 @@ class StreamConfig(Options):
         'str',
         "frame id of the MoCap world G; empty: the hand messages' header frame_id, "
         f'or {FALLBACK_FRAMES["hand_world"]!r}',
+        expert=True,
     )
     eye_world_frame_id: str = option(
         '',
         'str',
         "frame id of the VIO world W; empty: the eye messages' header frame_id, or "
         f'{FALLBACK_FRAMES["eye_world"]!r}',
+        expert=True,
     )
     use_arrival_time: str = option(
         'none',
@@ -83,6 +91,7 @@ class StreamConfig(Options):
         'unset (zero) or frozen; less accurate: the transport delay becomes part of the time '
         'offset and its jitter noise, and the result says so',
         choices=('none', 'hand', 'eye', 'both'),
+        expert=True,
     )
     buffer_size: int = option(
         500_000,
@@ -91,6 +100,7 @@ class StreamConfig(Options):
         'oldest are dropped first',
         low=100,
         high=50_000_000,
+        expert=True,
     )
     buffer_duration: float = option(
         1800.0,
@@ -98,6 +108,7 @@ class StreamConfig(Options):
         'longest time span buffered per stream [s]; older poses are dropped',
         low=1.0,
         high=86_400.0,
+        expert=True,
     )
 
     def frames(self, seen: dict[str, str] | None = None) -> dict[str, str]:

@@ -40,6 +40,27 @@ def test_shipped_params_file_matches_the_defaults() -> None:
         assert cls.from_mapping({k: values[k] for k in cls.specs()}) == cls()
 
 
+def test_a_user_reads_at_most_fifteen_options() -> None:
+    """The params file's first section and the node's --help show the options a rig sets (the
+    topics, frames, offset search, drift, scale, precision targets, where ~/save writes, auto
+    mode); every other is expert: below, in the file's expert sections, and named in --help."""
+    import re
+
+    from handeye_ros.app.params_file import usage
+
+    first = params_yaml().split('# --- expert')[0]
+    users = re.findall(r'^    (\w+):', first, flags=re.MULTILINE)
+    shown = re.findall(r'^  (\w+)(?: \*)? \(default', usage(), flags=re.MULTILINE)
+    every = {
+        k: s
+        for cls in (StreamConfig, CalibrationConfig, NodeConfig)
+        for k, s in cls.specs().items()
+    }
+    assert sorted(users) == sorted(shown) and len(users) <= 15
+    assert set(users) == {k for k, s in every.items() if not s.expert}
+    assert all(k in usage() for k, s in every.items() if s.expert)
+
+
 def test_stream_and_node_options() -> None:
     with pytest.raises(ConfigError, match='hand_type.*Imu'):
         StreamConfig(hand_type='Imu')

@@ -24,7 +24,12 @@ import numpy as np
 from common import emit, protocol_seed, table
 
 from handeye_ros.core.checks.excerpt import excerpt, excerpt_share
-from handeye_ros.core.checks.selfcheck import eye_keyframes, score_candidates, scored_motions
+from handeye_ros.core.checks.selfcheck import (
+    Hypothesis,
+    eye_keyframes,
+    score_candidates,
+    scored_motions,
+)
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.geometry import quat_angle
@@ -64,11 +69,11 @@ def one(motion: str, level: float, seed: int) -> dict[str, float]:
         return out
     out['mm'] = 1e3 * float(np.linalg.norm(true_lin.p_HE - whole.p_HE))
     out['deg'] = float(np.degrees(quat_angle(true_lin.q_HE, whole.q_HE)))
-    hyps = [(dt, 'truth', true_lin.q_HE, true_lin.p_HE)]
+    hyps = [Hypothesis(dt, 'truth', true_lin.q_HE, true_lin.p_HE)]
     wrong = dt + LOOP_PERIOD_S
     try:
         lin, _ = solve_linear(*excerpt(rec.hand, rec.eye, wrong, share), wrong, cfg)
-        hyps.append((wrong, 'a lap away', lin.q_HE, lin.p_HE))
+        hyps.append(Hypothesis(wrong, 'a lap away', lin.q_HE, lin.p_HE))
     except HandeyeError:
         out['rejected'] = 1.0  # stage 2 fails a lap away: the truth stands
         return out

@@ -66,6 +66,17 @@ class Candidate:
     chosen: bool = False
 
 
+@dataclass(frozen=True)
+class Hypothesis:
+    """A (dt, T_HE) to score: time_offset_s (s, on the clocks as the pipeline sees them),
+    source (where it came from), q_HE and p_HE."""
+
+    time_offset_s: float
+    source: str
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+
+
 def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Keyframe motions (eq. 6) chosen on the eye's own rotations, within its segments: they
     do not depend on the offset, so every candidate is scored on the same ones."""
@@ -137,10 +148,10 @@ def motion_consistency(
 def score_candidates(
     hand: Trajectory,
     eye: Trajectory,
-    hypotheses: list[tuple[float, str, np.ndarray, np.ndarray]],
+    hypotheses: list[Hypothesis],
     motions: tuple[np.ndarray, np.ndarray],
 ) -> list[Candidate]:
-    """Score (dt, source, q_HE, p_HE) hypotheses on one set of the eye's motions (i -> j,
+    """Score hypotheses on one set of the eye's motions (i -> j,
     :func:`scored_motions`; see the module docstring).
 
     Returns the candidates in the given order, the best one marked ``chosen``; when fewer than
@@ -150,19 +161,22 @@ def score_candidates(
     i, j = motions
     errors = []
     common = np.ones(i.size, dtype=bool)
-    for dt, _, q, p in hypotheses:
-        e_r, e_t, covered = eye_motion_errors(hand, eye, i, j, dt, matrix_from_quat(q), p)
+    for h in hypotheses:
+        e_r, e_t, covered = eye_motion_errors(
+            hand, eye, i, j, h.time_offset_s, matrix_from_quat(h.q_HE), h.p_HE
+        )
         errors.append((e_r, e_t))
         common &= covered
     if common.sum() < MIN_COMMON_MOTIONS:
+        nan = float('nan')
         return [
-            Candidate(dt, src, float('nan'), float('nan'), float('nan'), q, p, k == 0)
-            for k, (dt, src, q, p) in enumerate(hypotheses)
+            Candidate(h.time_offset_s, h.source, nan, nan, nan, h.q_HE, h.p_HE, k == 0)
+            for k, h in enumerate(hypotheses)
         ]
     s_r = max(min(float(np.median(e_r[common])) for e_r, _ in errors), 1e-9)
     s_t = max(min(float(np.median(e_t[common])) for _, e_t in errors), 1e-9)
     out = []
-    for (dt, src, q, p), (e_r, e_t) in zip(hypotheses, errors, strict=True):
+    for h, (e_r, e_t) in zip(hypotheses, errors, strict=True):
         score = float(
             np.mean(
                 huber_rho(e_r[common] / s_r, SCORE_HUBER)
@@ -171,13 +185,13 @@ def score_candidates(
         )
         out.append(
             Candidate(
-                dt,
-                src,
+                h.time_offset_s,
+                h.source,
                 score,
                 float(np.degrees(np.median(e_r[common]))),
                 float(np.median(e_t[common])),
-                q,
-                p,
+                h.q_HE,
+                h.p_HE,
             )
         )
     best = int(np.argmin([c.score for c in out]))

@@ -22,7 +22,7 @@ from ..batch.correlated import (
     varies,
 )
 from ..batch.refine import BatchOptions, BatchSolution, refine
-from ..checks.selfcheck import score_candidates, scored_motions
+from ..checks.selfcheck import Hypothesis, score_candidates, scored_motions
 from ..checks.verdict import (
     StagesDisagree,
     batch_moved,
@@ -154,7 +154,7 @@ def check_batch(
     )
     # the offset: stage 2 at each offset, scored alike; the extrinsic: the batch's against
     # stage 2's at the batch's offset
-    hyps = [(dt, 'linear stage', lin.q_HE, lin.p_HE)]
+    hyps = [Hypothesis(dt, 'linear stage', lin.q_HE, lin.p_HE)]
     lin_b = lin
     if far_dt:
         try:
@@ -163,9 +163,11 @@ def check_batch(
             run.record(StagesDisagree(what, failed=str(err)))
             return None
         hyps.append(
-            (sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE)
+            Hypothesis(
+                sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE
+            )
         )
-    hyps.append((sol.time_offset_s, 'batch stage', sol.q_HE, sol.p_HE))
+    hyps.append(Hypothesis(sol.time_offset_s, 'batch stage', sol.q_HE, sol.p_HE))
     scored = score_candidates(hand, eye, hyps, scored_motions(eye, np.deg2rad(cfg.eta)))
     run.candidates.extend(scored)
     score = [c.score for c in scored]

@@ -19,6 +19,7 @@ from ..checks.excerpt import excerpt, excerpt_share, spread_sample
 from ..checks.screening import Screening
 from ..checks.selfcheck import (
     Candidate,
+    Hypothesis,
     eye_keyframes,
     score_candidates,
     screw_disagreement,
@@ -219,7 +220,7 @@ def self_check(
     (:mod:`~handeye_ros.core.checks.excerpt`), scored alike; the best one wins, and stage 2
     runs on the whole recording at it."""
     same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
-    hyps = [(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin)]
+    tried = [_Tried(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin)]
     proposals = [(0.0, 'correlation peak')] + [
         (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
     ]
@@ -230,7 +231,7 @@ def self_check(
     examined = len(run.candidates)
     in_hand = screw_disagreement(hand, eye, dt, *motions)
     for offset, source in proposals:
-        if any(abs(offset - h[0]) < same for h in hyps):
+        if any(abs(offset - t.offset_s) < same for t in tried):
             continue
         there = screw_disagreement(hand, eye, offset, *motions)
         if screw_rejects(there, in_hand):
@@ -242,24 +243,36 @@ def self_check(
             run.candidates.append(_unscored(offset, f'{source}: rejected by eq. 9', lin))
             continue
         found = _stage2_at(hand, eye, offset, source, shift_ns, lin, share, cfg, run)
-        if found is not None and not any(abs(found[0] - h[0]) < same for h in hyps):
-            hyps.append((found[0], source, found[1]))
-    if len(hyps) == 1:
+        if found is not None and not any(abs(found.offset_s - t.offset_s) < same for t in tried):
+            tried.append(found)
+    if len(tried) == 1:
         if len(run.candidates) > examined:  # every other candidate was ruled out
-            run.candidates.append(replace(_unscored(dt, hyps[0][1], lin), chosen=True))
+            run.candidates.append(replace(_unscored(dt, tried[0].source, lin), chosen=True))
         return dt, lin, pairs
-    scored = score_candidates(
-        hand, eye, [(h[0], h[1], h[2].q_HE, h[2].p_HE) for h in hyps], motions
-    )
+    scored = score_candidates(hand, eye, [t.hypothesis() for t in tried], motions)
     best = judge_tie(scored, shift_ns, run)
     run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
     if best == 0:
         return dt, lin, pairs
     # the winner was judged on the excerpt: stage 2 and its refinement on the whole recording
+    won = tried[best].offset_s
     won, won_lin, won_pairs, _ = refine_vector(
-        hand, eye, hyps[best][0], *solve_linear(hand, eye, hyps[best][0], cfg), cfg, Findings()
+        hand, eye, won, *solve_linear(hand, eye, won, cfg), cfg, Findings()
     )
     return won, won_lin, won_pairs
+
+
+@dataclass(frozen=True)
+class _Tried:
+    """A candidate offset stage 2 solved: offset_s (s, from stage 1's), where it came from,
+    and stage 2's solution there."""
+
+    offset_s: float
+    source: str
+    solution: LinearSolution
+
+    def hypothesis(self) -> Hypothesis:
+        return Hypothesis(self.offset_s, self.source, self.solution.q_HE, self.solution.p_HE)
 
 
 def _stage2_at(
@@ -272,10 +285,10 @@ def _stage2_at(
     share: float,
     cfg: CalibrationConfig,
     run: Findings,
-) -> tuple[float, LinearSolution] | None:
+) -> _Tried | None:
     """Stage 2 at a candidate offset (s, from ``shift_ns``) with its vector refinement, on the
-    recording's excerpt (``share`` of it) at that offset: (offset, solution), or None when
-    stage 2 fails there (noted, and counted among the candidates unscored)."""
+    recording's excerpt (``share`` of it) at that offset, or None when stage 2 fails there
+    (noted, and counted among the candidates unscored)."""
     part_hand, part_eye = excerpt(hand, eye, offset, share)
     try:
         lin_c, pairs_c = solve_linear(part_hand, part_eye, offset, cfg)
@@ -289,7 +302,7 @@ def _stage2_at(
         )
         run.candidates.append(_unscored(offset, f'{source}: rejected, stage 2 fails there', lin))
         return None
-    return offset, lin_c
+    return _Tried(offset, source, lin_c)
 
 
 def _unscored(offset: float, source: str, lin: LinearSolution) -> Candidate:

@@ -13,6 +13,7 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.checks.selfcheck import (
+    Hypothesis,
     eye_keyframes,
     score_candidates,
     scored_motions,
@@ -68,7 +69,9 @@ def test_self_check_prefers_the_true_offset() -> None:
     """Scored on one motion set, the truth beats offsets 20 ms, 60 ms and 2 s away."""
     rec = recording(seed=3, level=2.0)
     dt = rec.truth.time_offset_s
-    hyps = [(dt + d, f'{d}', rec.truth.q_HE, rec.truth.p_HE) for d in (0.06, 0.0, 0.02, 2.0)]
+    hyps = [
+        Hypothesis(dt + d, f'{d}', rec.truth.q_HE, rec.truth.p_HE) for d in (0.06, 0.0, 0.02, 2.0)
+    ]
     scored = score_candidates(rec.hand, rec.eye, hyps, scored_motions(rec.eye, np.deg2rad(5.0)))
     assert [c.chosen for c in scored] == [False, True, False, False]
     assert scored[1].score < scored[2].score < scored[0].score

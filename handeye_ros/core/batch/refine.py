@@ -98,6 +98,17 @@ class BatchSolution:
     spline: PoseSpline | None = field(default=None, repr=False, compare=False)
 
     @property
+    def drift_std(self) -> float | None:
+        """The clock drift's 1-sigma [s/s] (None when not estimated): the entry after the 7 of
+        (dt, T_HE) in ``std``."""
+        return None if self.clock_drift is None else float(self.std[7])
+
+    @property
+    def scale_std(self) -> float | None:
+        """The eye scale's 1-sigma (None when not estimated): the entry after the drift's."""
+        return None if self.scale is None else float(self.std[7 + (self.clock_drift is not None)])
+
+    @property
     def inflation(self) -> np.ndarray:
         """(7,) long-run over white standard deviation (1: the residuals look white)."""
         lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run

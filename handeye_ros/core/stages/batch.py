@@ -189,16 +189,10 @@ def fold_batch(
     eye: Trajectory, model: EyeModel, batch: BatchSolution
 ) -> tuple[Trajectory, EyeModel]:
     """The batch stage's drift and scale corrections into the eye and the model."""
-    k = 7
-    if batch.clock_drift is not None:
-        eye, model = model.add_drift(
-            eye, batch.clock_drift, float(batch.std[k]) * (1.0 - model.drift)
-        )
-        k += 1
-    if batch.scale is not None:
-        eye, model = model.add_scale(
-            eye, batch.scale, float(batch.std[k]) * model.scale * batch.scale
-        )
+    if batch.clock_drift is not None and batch.drift_std is not None:
+        eye, model = model.add_drift(eye, batch.clock_drift, batch.drift_std * (1.0 - model.drift))
+    if batch.scale is not None and batch.scale_std is not None:
+        eye, model = model.add_scale(eye, batch.scale, batch.scale_std * model.scale * batch.scale)
     return eye, model
 
 

@@ -2,7 +2,7 @@
 
 Per seed, a rig of 10 recordings of 60 s (paper protocol, noise level 5), one T_HE, each
 recording its own time offset and world (``random_truth``), calibrated alone and then as a rig
-(:func:`handeye_ros.core.shared.solve_rig`). Cases, each from the same ten clean recordings with
+(:func:`handeye_ros.core.rig_pipeline.solve_rig`). Cases, each from the same ten clean recordings with
 some replaced:
 
 - clean: the ten as they are;
@@ -35,7 +35,7 @@ from scipy.stats import ncx2
 from handeye_ros.core.checks.consistency import threshold
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.rig import Member, fuse
-from handeye_ros.core.shared import solve_rig
+from handeye_ros.core.rig_pipeline import solve_rig
 from handeye_ros.core.simulate import noise_level, random_truth, simulate
 
 N = 10

@@ -25,7 +25,7 @@ from common import emit, table
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.rig import Member, difference
-from handeye_ros.core.shared import solve_rig
+from handeye_ros.core.rig_pipeline import solve_rig
 from handeye_ros.formats import read_trajectory
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'

@@ -54,7 +54,7 @@ CORE_FLOORS = (
     ('math', {'time', 'linear', 'batch', 'eye_model', 'rig', 'simulate'}),
     ('checks', {'checks'}),
     ('stages', {'stages'}),
-    ('recipe', {'pipeline', 'result', 'result_sections', 'shared'}),
+    ('recipe', {'pipeline', 'result', 'result_sections', 'rig_pipeline'}),
 )
 
 

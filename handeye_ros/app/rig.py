@@ -2,13 +2,13 @@
 --shared-extrinsic``.
 
 The recordings of a manifest (:mod:`.runs`) share one T_HE; each keeps its own clock (dt, drift)
-and worlds. Two rounds, each one task per recording (:mod:`handeye_ros.core.shared` has the
+and worlds. Two rounds, each one task per recording (:mod:`handeye_ros.core.rig_pipeline` has the
 math):
 
 1. :func:`own_calibration`: the recording calibrated alone, as ``offline_calibrate`` does; only
    its :class:`~handeye_ros.core.rig.Member` (estimate and covariance, a few hundred bytes)
    leaves the process that holds its poses.
-2. :func:`handeye_ros.core.shared.solve_rig` in the calling process: the groups, the joint
+2. :func:`handeye_ros.core.rig_pipeline.solve_rig` in the calling process: the groups, the joint
    T_HE, the verdict; then :func:`shared_outputs` per recording: its result at the rig's T_HE,
    with the evaluation and the exports computed from it.
 
@@ -28,7 +28,7 @@ from .rig_file import RIG_FILE, part_of, read_members, rig_document, write_rig_f
 if TYPE_CHECKING:  # imported where used (the rig's math only when a rig is solved)
     from ..core.result import CalibrationResult
     from ..core.rig import Joint, Member
-    from ..core.shared import Rig
+    from ..core.rig_pipeline import Rig
     from .runs import RunSpec
 
 
@@ -95,7 +95,7 @@ def at_rig(
     """The recording's result dictionary and result at the rig's T_HE ``joint`` when
     ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
     otherwise), else its own; without the evaluation."""
-    from ..core.shared import at_shared
+    from ..core.rig_pipeline import at_shared
 
     d, result = own.document, own.result
     assert d is not None and result is not None, 'a recording calibrated alone has both'
@@ -181,8 +181,8 @@ def calibrate_rig(
 
 
 def solve(summaries: list[Summary]) -> Rig:
-    """:func:`~handeye_ros.core.shared.solve_rig` on the recordings' summaries."""
-    from ..core.shared import solve_rig
+    """:func:`~handeye_ros.core.rig_pipeline.solve_rig` on the recordings' summaries."""
+    from ..core.rig_pipeline import solve_rig
 
     members = [s.member for s in summaries if s.member is not None]
     followers = tuple(s.name for s in summaries if s.follower)

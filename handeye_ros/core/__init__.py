@@ -23,8 +23,8 @@ order). Beside them the foundations: poses and streams
 (:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options (:mod:`.options`,
 :mod:`.config`), the result (:mod:`.result`, its plain-data sections :mod:`.result_sections`,
 :mod:`.world`, :mod:`.eye_model`) and the errors.
-Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and :mod:`.shared`
-(the rig's recipe, and a recording's result at the rig's T_HE). Tools: :mod:`.chunked`
+Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and
+:mod:`.rig_pipeline` (the rig's recipe, and a recording's result at the rig's T_HE). Tools: :mod:`.chunked`
 (element-wise work on long streams, a chunk of rows at a time) and :mod:`.simulate` (recordings
 with a known truth, the paper's protocol).
 docs/method.md maps every equation to its function and lists the departures from the paper.

@@ -62,7 +62,7 @@ from .stages.linear import LinearStage, linear_stage, seed_check
 from .stages.prepare import Inputs, prepare
 from .stages.time import Offset, absolute, align_stage
 from .trajectory import Trajectory
-from .world import Metrics, WorldAlignment, align_worlds, evaluate
+from .world import Metrics, WorldAlignment, align_worlds, metrics_of
 
 LOG = logging.getLogger(__name__)
 
@@ -286,7 +286,7 @@ def metrics_at(
         hand, eye, dt, q_HE, p_HE, np.deg2rad(eta_deg)
     )
     return replace(
-        evaluate(pairs, q_HE, p_HE, world),
+        metrics_of(pairs, q_HE, p_HE, world),
         motion_rotation_deg=m_rot,
         motion_translation_m=m_trans,
         motion_length_m=m_len,

@@ -110,7 +110,7 @@ def rigid_fit(points_a: np.ndarray, points_b: np.ndarray) -> Pose:
     return R, mean_b - R @ mean_a
 
 
-def evaluate(
+def metrics_of(
     pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray, world: WorldAlignment
 ) -> Metrics:
     """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring), each eye

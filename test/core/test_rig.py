@@ -1,4 +1,4 @@
-"""One rig, many recordings (core/rig.py, checks/consistency.py, core/shared.py): the fusion of
+"""One rig, many recordings (core/rig.py, checks/consistency.py, core/rig_pipeline.py): the fusion of
 the recordings' T_HE, the conditioning of their offsets, the groups and the rig's verdict; and
 end to end on simulated recordings calibrated alone."""
 
@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.checks.consistency import split, threshold
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.rig import Member, conditioned, difference, fuse
-from handeye_ros.core.shared import at_shared, solve_rig
+from handeye_ros.core.rig_pipeline import at_shared, solve_rig
 from handeye_ros.core.simulate import random_truth
 
 ORDER = ('time_offset', 'tx', 'ty', 'tz', 'rx', 'ry', 'rz')

@@ -44,7 +44,7 @@ class _Triplets:
 
 def joint_jacobian(prob: BatchProblem, x: np.ndarray, weights: Weights) -> csr_matrix:
     """Sparse Jacobian of :meth:`BatchProblem.residuals`: analytic in the control poses (through
-    :meth:`PoseSpline.evaluate_with_jacobian`), central differences in the 7 (dt, T_HE)
+    :meth:`PoseSpline.poses_and_jacobian_at`), central differences in the 7 (dt, T_HE)
     columns, which only the eye rows depend on.
 
     With ``r = Log(R_pred R_obs^T)`` and R_pred moved to ``R_pred Exp(v)``, r moves by
@@ -81,7 +81,7 @@ def _hand_blocks(prob: BatchProblem, spline: PoseSpline, weights: Weights, out: 
     """The hand rows: rotation by the control rotations, position by the control
     positions."""
     hb = prob.hand_basis
-    R_s, _, JR, b = spline.evaluate_with_jacobian(hb)
+    R_s, _, JR, b = spline.poses_and_jacobian_at(hb)
     r_rot = log_so3(np.matmul(R_s, np.swapaxes(prob.hand_obs[0], -1, -2)))
     cp = hb[0][:, None] + np.arange(spline.order)
     row = 6 * np.arange(prob.th.size)
@@ -97,7 +97,7 @@ def _eye_blocks(
     RX, pX = prob.extrinsic(y)
     w_rot, w_trans = weights.eye_rotation, weights.eye_translation
     eb = prob.spline0.basis(prob.eye_times(y))
-    R_e, p_e, JR_e, b_e = spline.evaluate_with_jacobian(eb)
+    R_e, p_e, JR_e, b_e = spline.poses_and_jacobian_at(eb)
     ia, ib = prob.ei, prob.ej
     Ra, Rb, pa, pb = R_e[ia], R_e[ib], p_e[ia], p_e[ib]
     Q = np.matmul(np.swapaxes(Ra, -1, -2), Rb)

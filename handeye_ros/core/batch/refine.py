@@ -5,7 +5,7 @@ predicted as ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` (the model of Section III-C, s
 eq. 15) and compared with the eye's relative
 poses between consecutive observations (eq. 16, so T_WG drops out); the hand with each MoCap
 pose. The residual blocks and their Jacobians are in :mod:`.batch.residuals`, the Huber loss and the
-Levenberg-Marquardt solvers in :mod:`.batch.solver`, the covariance in :mod:`.batch.covariance`;
+Levenberg-Marquardt solvers in :mod:`.batch.levenberg_marquardt`, the covariance in :mod:`.batch.covariance`;
 this module chooses what is solved, in which steps, with which noise, and says what it did.
 
 Why the hand residuals differ from eq. 15's relative form: the MoCap measures T_GH in G
@@ -38,11 +38,11 @@ from ..errors import BatchError
 from ..geometry import quat_from_matrix
 from ..trajectory import Trajectory
 from .correlated import Uncertainty
+from .levenberg_marquardt import SolverReport
 from .noise import Noise, sigmas
 from .parameters import ParameterLayout
 from .pieces import check_hand_rate, hand_pieces
 from .residuals import BatchProblem
-from .solver import SolverReport
 from .solves import Solve, solve_joint, solve_offset_extrinsic
 from .spline import PoseSpline
 

@@ -7,7 +7,7 @@ eq. 15)::
     eye:   d(T_HE^-1 T_GH(t_e - dt)^-1 T_GH(t_e+1 - dt) T_HE,  Y_e^-1 Y_e+1)
 
 with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)``, each part divided by its stream's noise
-(:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.batch.solver`, the
+(:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.batch.levenberg_marquardt`, the
 covariance at the solution in :mod:`.batch.covariance`, the orchestration in :mod:`.batch.refine`.
 
 Parameters: the joint solve's x is (per control pose (dphi, dp); then y), and y = (dt,
@@ -218,7 +218,7 @@ class BatchProblem:
             np.linspace(0, self.th.size - 1, min(self.th.size, HAND_NOISE_SAMPLES)).astype(int)
         )
         obs = (matrix_from_quat(self.hand_q[pick]), self.hand_p[pick])
-        return residual_parts(self.spline0.evaluate(self.th[pick]), obs)
+        return residual_parts(self.spline0.poses_at(self.th[pick]), obs)
 
     def extrinsic(self, y: np.ndarray) -> Pose:
         """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
@@ -250,7 +250,7 @@ class BatchProblem:
 
     def hand_raw(self, spline: PoseSpline) -> np.ndarray:
         """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
-        return residual_parts(spline.evaluate(self.th, self.hand_basis), self.hand_obs)
+        return residual_parts(spline.poses_at(self.th, self.hand_basis), self.hand_obs)
 
     def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
@@ -292,9 +292,9 @@ class BatchProblem:
         sp = self.spline0 if spline is None else spline
         basis = sp.basis(times)
         if jacobian:
-            R, P, W, V = sp.evaluate_with_velocity(basis, sp.basis_derivative(times))
+            R, P, W, V = sp.poses_and_rates_at(basis, sp.basis_derivative(times))
         else:
-            R, P = sp.evaluate(times, basis)
+            R, P = sp.poses_at(times, basis)
         RX, pX = self.extrinsic(y)
         Ra_t = np.swapaxes(R[a], -1, -2)
         Q = np.matmul(Ra_t, R[b])

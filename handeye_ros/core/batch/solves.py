@@ -15,12 +15,7 @@ import numpy as np
 
 from .covariance import CovarianceSums, eye_covariance, joint_covariance, joint_long_run
 from .joint_jacobian import joint_jacobian
-from .long_run import LongRunCovariance
-from .loss import huber_cost
-from .noise import Noise, sigmas
-from .parameters import ParameterLayout, weighted_eye_chunks
-from .residuals import BatchProblem, Weights
-from .solver import (
+from .levenberg_marquardt import (
     LM_FTOL,
     LM_FTOL_FIRST_PASS,
     NormalSums,
@@ -29,6 +24,11 @@ from .solver import (
     levenberg_marquardt_dense,
     levenberg_marquardt_sparse,
 )
+from .long_run import LongRunCovariance
+from .loss import huber_cost
+from .noise import Noise, sigmas
+from .parameters import ParameterLayout, weighted_eye_chunks
+from .residuals import BatchProblem, Weights
 
 #: Chunks of eye pairs the first of the two noise passes uses on a long recording (spread
 #: over it); the second pass and the covariance use every pair.
@@ -70,7 +70,7 @@ def solve_offset_extrinsic(
 ) -> Solve:
     """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
     hand, with the analytic Jacobian of :meth:`.batch.residuals.BatchProblem.eye_chunk`
-    (:func:`.batch.solver.levenberg_marquardt_dense`). Parameters y = (dt, dtheta_X, dp_X, ...)
+    (:func:`.batch.levenberg_marquardt.levenberg_marquardt_dense`). Parameters y = (dt, dtheta_X, dp_X, ...)
     from the start values.
 
     ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
@@ -237,7 +237,7 @@ def solve_joint(
     decoupled: bool,
 ) -> Solve:
     """Control poses, dt and T_HE together: the whole problem of eq. 15
-    (:func:`.batch.solver.levenberg_marquardt_sparse`).
+    (:func:`.batch.levenberg_marquardt.levenberg_marquardt_sparse`).
 
     ``decoupled`` as in :func:`solve_offset_extrinsic`, with the control poses free in both
     steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,

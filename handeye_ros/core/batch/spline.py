@@ -193,23 +193,23 @@ class PoseSpline:
         return cached
 
     def basis(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(segment index, cumulative basis (N, k)) of times t: all that :meth:`evaluate` needs
+        """(segment index, cumulative basis (N, k)) of times t: all that :meth:`poses_at` needs
         of the times, to reuse across splines with the same knots."""
         i, s = self.segments(t)
         return i, cumulative_basis(s, self.order)
 
     def basis_derivative(self, t: np.ndarray) -> np.ndarray:
-        """``dBc_j / dt`` (N, k) at times t (1/s), for :meth:`evaluate_with_velocity`."""
+        """``dBc_j / dt`` (N, k) at times t (1/s), for :meth:`poses_and_rates_at`."""
         _, s = self.segments(t)
         return cumulative_basis_derivative(s, self.order) / self.dt
 
-    def evaluate(self, t: np.ndarray, basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
+    def poses_at(self, t: np.ndarray, basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
         """Poses at times t (s): rotations (N, 3, 3), positions (N, 3); ``basis``: the
         :meth:`basis` of t, if already at hand."""
         R, p, _, _ = self._product(self.basis(t) if basis is None else basis)
         return R, p
 
-    def evaluate_with_velocity(
+    def poses_and_rates_at(
         self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Poses at the times of ``basis`` and their rates: R (N, 3, 3), p (N, 3), the body
@@ -246,7 +246,7 @@ class PoseSpline:
                 v += dbasis[:, j, None] * dp[i + j - 1]
         return Rotation.from_quat(q).as_matrix(), p, w, v
 
-    def evaluate_with_jacobian(
+    def poses_and_jacobian_at(
         self, basis: tuple[np.ndarray, np.ndarray]
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Poses at the times of ``basis`` (:meth:`basis`) and their derivatives with respect to
@@ -313,7 +313,7 @@ def fit_spline(
     # iterative correction (control += data - spline there); the basis at the centres is
     # diagonally dominant (1/6, 2/3, 1/6 for cubic), so it converges geometrically.
     for _ in range(ROTATION_FIT_ITERATIONS):
-        R_s, _ = spline.evaluate(tc)
+        R_s, _ = spline.poses_at(tc)
         err = log_so3(np.matmul(np.swapaxes(R_s, -1, -2), R_at_c))
         Rc = np.matmul(Rc, exp_so3(err))
         spline = PoseSpline(t0, knot_spacing, order, Rc, pc)

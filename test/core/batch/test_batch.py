@@ -305,7 +305,7 @@ def test_analytic_eye_jacobian_matches_central_differences() -> None:
     from handeye_ros.core.geometry import compose, log_so3, relative
 
     pred = relative(
-        compose(prob.spline0.evaluate(prob.eye_times(y)), prob.extrinsic(y)), prob.ei, prob.ej
+        compose(prob.spline0.poses_at(prob.eye_times(y)), prob.extrinsic(y)), prob.ei, prob.ej
     )
     dR = np.matmul(pred[0], np.swapaxes(prob.eye_obs[0], -1, -2))
     direct = np.concatenate((log_so3(dR), pred[1] / prob.scale(y) - prob.eye_obs[1]), axis=1)

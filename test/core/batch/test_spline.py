@@ -42,17 +42,17 @@ def _random_spline(order: int = 4, M: int = 12) -> PoseSpline:
 def test_velocity_is_the_derivative_of_the_pose() -> None:
     spline = _random_spline()
     t = np.linspace(0.01, spline.t_end - 0.01, 50)
-    R, p, w, v = spline.evaluate_with_velocity(spline.basis(t), spline.basis_derivative(t))
-    np.testing.assert_allclose(p, spline.evaluate(t)[1], atol=1e-14)
+    R, p, w, v = spline.poses_and_rates_at(spline.basis(t), spline.basis_derivative(t))
+    np.testing.assert_allclose(p, spline.poses_at(t)[1], atol=1e-14)
     h = 1e-6
-    Rp, pp = spline.evaluate(t + h)
-    Rm, pm = spline.evaluate(t - h)
+    Rp, pp = spline.poses_at(t + h)
+    Rm, pm = spline.poses_at(t - h)
     np.testing.assert_allclose(v, (pp - pm) / (2 * h), atol=1e-7)
     # body rate: R^T dR/dt = [w]x
     dR = np.matmul(np.swapaxes(R, -1, -2), (Rp - Rm) / (2 * h))
     w_fd = np.stack((dR[:, 2, 1], dR[:, 0, 2], dR[:, 1, 0]), axis=1)
     np.testing.assert_allclose(w, w_fd, atol=1e-6)
-    np.testing.assert_allclose(R, spline.evaluate(t)[0], atol=1e-14)
+    np.testing.assert_allclose(R, spline.poses_at(t)[0], atol=1e-14)
 
 
 def test_fit_passes_through_a_spline_it_can_represent() -> None:
@@ -60,6 +60,6 @@ def test_fit_passes_through_a_spline_it_can_represent() -> None:
     noise; the rotations are fitted by interpolation at the control centres, not here)."""
     spline = _random_spline()
     t = np.linspace(0.0, spline.t_end - 1e-9, 900)
-    R, p = spline.evaluate(t)
+    R, p = spline.poses_at(t)
     fitted = fit_spline(t, R, p, spline.dt, spline.order)
-    np.testing.assert_allclose(fitted.evaluate(t)[1], p, atol=1e-9)
+    np.testing.assert_allclose(fitted.poses_at(t)[1], p, atol=1e-9)

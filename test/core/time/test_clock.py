@@ -219,13 +219,13 @@ def test_world_metrics_survive_a_one_pose_segment() -> None:
     """A drifting eye split at a break one pose before its end (seen on a real pair with 1000
     ppm put in): the metrics of that one-pair segment are computed, not a LinAlgError."""
     from handeye_ros.core.association import associate
-    from handeye_ros.core.world import align_worlds, evaluate
+    from handeye_ros.core.world import align_worlds, metrics_of
 
     rec = recording(seed=1, level=1.0, duration_s=20.0)
     eye = rec.eye.with_breaks(np.array([len(rec.eye) - 2]))
     pairs = associate(rec.hand, eye, rec.truth.time_offset_s)
     assert np.sum(pairs.segment == pairs.segment.max()) == 1
-    m = evaluate(
+    m = metrics_of(
         pairs, rec.truth.q_HE, rec.truth.p_HE, align_worlds(pairs, rec.truth.q_HE, rec.truth.p_HE)
     )
     assert np.isfinite(m.ape_rmse_m)

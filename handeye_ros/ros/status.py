@@ -55,6 +55,9 @@ JUMP_S = 1.0
 #: a delivery held up by a busy machine moves one snapshot's arrivals, a jump moves every one
 #: after it.
 JUMP_SNAPSHOTS = 3
+#: Snapshots count while both streams flow (a pose within this many periods, STOPPED_S at
+#: least): after one ends, the other's stamps run at the pace of a replay, which is no clock's.
+FLOWING_PERIODS = 10
 #: The node taking a stream's poses this much after DDS received them (s) is said.
 LATE_S = 1.0
 #: What the status says while a calibration checks a predicted READY.
@@ -299,10 +302,14 @@ class ReadinessStatus:
         return [said]
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
-        """Whether the streams' clocks moved against each other since the first snapshots
-        (:func:`clocks_apart`, the median of JUMP_SNAPSHOTS first against the last ones). Kept
-        in ``_jumped`` until :meth:`reset`: the buffers hold both clocks' times."""
+        """Whether the streams' clocks moved against each other (:func:`clocks_apart`, the
+        median of the JUMP_SNAPSHOTS first snapshots taken while both flow against the last
+        ones). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both clocks' times."""
         node = self._node
+        now, ticked = time.monotonic(), node.last_ticked
+        period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
+        if any(now - ticked[s] > max(STOPPED_S, FLOWING_PERIODS * period) for s in STREAMS):
+            return
         # DDS's reception times where it gives them: the node's own times move with any
         # backlog of its executor (a loaded machine: a 3-s backlog of the device stream read
         # as a clock that jumped 3 s)
@@ -318,12 +325,11 @@ class ReadinessStatus:
         if len(last) < JUMP_SNAPSHOTS:
             return
         moved = float(np.median(last) - np.median(first))
-        # arrivals jitter by the streams' periods and the executor's lag
-        period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
         said = (
             f"the device's stamps moved {moved:+.1f} s against the MoCap's: a clock jumped, "
             "or one stream's messages are refused (see the log); call ~/reset to start over"
         )
+        # arrivals jitter by the streams' periods and the executor's lag
         self._jumped = [said] if abs(moved) > max(JUMP_S, 6.0 * period) else []
 
     def reset(self) -> None:

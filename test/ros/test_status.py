@@ -108,6 +108,14 @@ def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
     assert apart(19.0, 16.0, 19.005) - first == pytest.approx(-3.0, abs=1e-9)
     # its clock jumped 5 s forward
     assert apart(19.0, 19.0, 19.005, jump_s=5.0) - first == pytest.approx(5.0, abs=1e-9)
+    # replayed 8 times faster than real time, the MoCap's last second after the device's end
+    # arrives in 1/8 s: the two move apart by 7/8 s, no clock's doing, which is why the status
+    # compares the snapshots taken while both streams flow only (status.FLOWING_PERIODS)
+    h, e = hand[hand <= 19e9], eye[eye <= 18e9]
+    ended = clocks_apart(h, e, {'hand': h[-1] * 1e-9 / 8, 'eye': e[-1] * 1e-9 / 8})
+    assert ended - clocks_apart(h[:1001], e[:201], {'hand': 1.25, 'eye': 1.25}) == pytest.approx(
+        -0.875, abs=1e-9
+    )
 
 
 def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:

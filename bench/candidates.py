@@ -54,7 +54,8 @@ def one(motion: str, level: float, seed: int) -> dict[str, float]:
     )
     cfg = CalibrationConfig()
     dt = rec.truth.time_offset_s
-    share = excerpt_share(rec.eye, eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size)
+    n = eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size
+    share = excerpt_share(rec.eye, n)
     out = dict.fromkeys(('lost', 'rejected'), 0.0) | {'share': share}
     out |= dict.fromkeys(('ratio', 'mm', 'deg'), float('nan'))
     try:
@@ -63,7 +64,7 @@ def one(motion: str, level: float, seed: int) -> dict[str, float]:
         out['share'] = float('nan')  # not calibratable at the truth: no candidate to lose
         return out
     try:
-        true_lin, _ = solve_linear(*excerpt(rec.hand, rec.eye, dt, share), dt, cfg)
+        true_lin, _ = solve_linear(*excerpt(rec.hand, rec.eye, dt, n), dt, cfg)
     except HandeyeError:
         out['lost'] = 1.0
         return out
@@ -72,7 +73,7 @@ def one(motion: str, level: float, seed: int) -> dict[str, float]:
     hyps = [Hypothesis(dt, 'truth', true_lin.q_HE, true_lin.p_HE)]
     wrong = dt + LOOP_PERIOD_S
     try:
-        lin, _ = solve_linear(*excerpt(rec.hand, rec.eye, wrong, share), wrong, cfg)
+        lin, _ = solve_linear(*excerpt(rec.hand, rec.eye, wrong, n), wrong, cfg)
         hyps.append(Hypothesis(wrong, 'a lap away', lin.q_HE, lin.p_HE))
     except HandeyeError:
         out['rejected'] = 1.0  # stage 2 fails a lap away: the truth stands

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..association import PosePairs
 from ..checks.breaks import find_eye_breaks
-from ..checks.excerpt import excerpt, excerpt_share, spread_sample
+from ..checks.excerpt import excerpt, spread_sample
 from ..checks.screening import Screening
 from ..checks.selfcheck import (
     Candidate,
@@ -227,7 +227,7 @@ def self_check(
     # eq. 9 first: an offset whose motions turn by other angles than the eye's is wrong
     # whatever T_HE is, and costs no RANSAC to rule out
     i, j = eye_keyframes(eye, np.deg2rad(cfg.eta))
-    share, motions = excerpt_share(eye, i.size), spread_sample(i, j)
+    motions = spread_sample(i, j)
     examined = len(run.candidates)
     in_hand = screw_disagreement(hand, eye, dt, *motions)
     for offset, source in proposals:
@@ -242,7 +242,7 @@ def self_check(
             )
             run.candidates.append(_unscored(offset, f'{source}: rejected by eq. 9', lin))
             continue
-        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, share, cfg, run)
+        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, i.size, cfg, run)
         if found is not None and not any(abs(found.offset_s - t.offset_s) < same for t in tried):
             tried.append(found)
     if len(tried) == 1:
@@ -282,14 +282,14 @@ def _stage2_at(
     source: str,
     shift_ns: int,
     lin: LinearSolution,
-    share: float,
+    n_motions: int,
     cfg: CalibrationConfig,
     run: Findings,
 ) -> _Tried | None:
     """Stage 2 at a candidate offset (s, from ``shift_ns``) with its vector refinement, on the
-    recording's excerpt (``share`` of it) at that offset, or None when stage 2 fails there
-    (noted, and counted among the candidates unscored)."""
-    part_hand, part_eye = excerpt(hand, eye, offset, share)
+    recording's excerpt at that offset (the eye has ``n_motions`` keyframe motions), or None
+    when stage 2 fails there (noted, and counted among the candidates unscored)."""
+    part_hand, part_eye = excerpt(hand, eye, offset, n_motions)
     try:
         lin_c, pairs_c = solve_linear(part_hand, part_eye, offset, cfg)
         if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from conftest import recording
 
+from handeye_ros.core.association import interpolate
 from handeye_ros.core.checks.excerpt import (
     EXCERPT_MOTIONS,
     SAMPLE_MOTIONS,
@@ -24,12 +25,14 @@ from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import quat_angle
 from handeye_ros.core.linear.solve import solve_linear
 from handeye_ros.core.pipeline import calibrate
+from handeye_ros.core.simulate import two_windows
 
 
 def test_a_short_recording_is_its_own_excerpt() -> None:
     rec = recording(seed=0, level=2.0)
-    assert excerpt_share(rec.eye, eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size) == 1.0
-    hand, eye = excerpt(rec.hand, rec.eye, 0.3, 1.0)
+    n = eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size
+    assert excerpt_share(rec.eye, n) == 1.0
+    hand, eye = excerpt(rec.hand, rec.eye, 0.3, n)
     assert hand is rec.hand and eye is rec.eye
     i = np.arange(SAMPLE_MOTIONS - 1)
     assert spread_sample(i, i + 1)[0] is i
@@ -40,9 +43,8 @@ def test_the_excerpt_keeps_the_offset_and_breaks_at_each_join() -> None:
     rec = recording(seed=3, level=2.0, duration_s=600.0)
     dt = rec.truth.time_offset_s
     n = eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size
-    share = excerpt_share(rec.eye, n)
-    assert share < 0.5
-    hand, eye = excerpt(rec.hand, rec.eye, dt, share)
+    assert excerpt_share(rec.eye, n) < 0.5
+    hand, eye = excerpt(rec.hand, rec.eye, dt, n)
     assert eye.duration_s < 0.5 * rec.eye.duration_s
     # the windows hold the motions they were sized for
     assert 0.8 * EXCERPT_MOTIONS < eye_keyframes(eye, np.deg2rad(5.0))[0].size
@@ -54,6 +56,23 @@ def test_the_excerpt_keeps_the_offset_and_breaks_at_each_join() -> None:
     assert np.linalg.norm(lin.p_HE - rec.truth.p_HE) < 0.01
     # no motion spans a join: every pair's segment is one window's
     assert np.unique(pairs.segment).size == WINDOWS
+
+
+@pytest.mark.slow
+def test_the_windows_lie_where_the_hand_covers_the_eye() -> None:
+    """A MoCap of the first and the last 150 s of 10 minutes only (a room left and re-entered):
+    the excerpt's windows lie there, and stage 2 on it finds the recording's T_HE."""
+    rec = recording(seed=4, level=2.0, duration_s=600.0)
+    hand = two_windows(rec.hand, 150.0)
+    dt = rec.truth.time_offset_s
+    n = eye_keyframes(rec.eye, np.deg2rad(5.0))[0].size
+    part_hand, part_eye = excerpt(hand, rec.eye, dt, n)
+    assert len(part_eye) < len(rec.eye) and part_eye.breaks.size == WINDOWS - 1
+    # every window where the MoCap saw the rig (spread over the whole span, 5 of 8 would not be)
+    assert interpolate(part_hand, part_eye.t_ns - round(dt * 1e9))[2].mean() > 0.95
+    lin, _ = solve_linear(part_hand, part_eye, dt, CalibrationConfig())
+    assert np.degrees(quat_angle(lin.q_HE, rec.truth.q_HE)) < 0.5
+    assert np.linalg.norm(lin.p_HE - rec.truth.p_HE) < 0.01
 
 
 @pytest.mark.slow

@@ -11,51 +11,32 @@ import pytest
 from conftest import ROOT
 
 
-def test_ruff_is_clean() -> None:
-    pytest.importorskip('ruff', reason='ruff not installed (requirements.txt pins it)')
-    proc = subprocess.run(
-        [sys.executable, '-m', 'ruff', 'check', '--no-cache', 'handeye_ros', 'test', 'bench'],
+def _tool(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """``python -m TOOL ARGS`` at the repository root, its output captured."""
+    return subprocess.run(
+        [sys.executable, '-m', *args],
         cwd=ROOT,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=timeout,
         check=False,
     )
+
+
+def test_ruff_is_clean() -> None:
+    pytest.importorskip('ruff', reason='ruff not installed (requirements.txt pins it)')
+    proc = _tool('ruff', 'check', '--no-cache', 'handeye_ros', 'test', 'bench')
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
 def test_ruff_format_is_clean() -> None:
     pytest.importorskip('ruff', reason='ruff not installed (requirements.txt pins it)')
-    proc = subprocess.run(
-        [
-            sys.executable,
-            '-m',
-            'ruff',
-            'format',
-            '--check',
-            '--no-cache',
-            'handeye_ros',
-            'test',
-            'bench',
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    proc = _tool('ruff', 'format', '--check', '--no-cache', 'handeye_ros', 'test', 'bench')
     assert proc.returncode == 0, 'run `ruff format handeye_ros test bench`:\n' + proc.stdout
 
 
 def test_mypy_finds_no_error_in_the_package() -> None:
     pytest.importorskip('mypy', reason='mypy not installed (requirements.txt pins it)')
     # no cache: the two suites of .ci/run check the same checkout at once
-    proc = subprocess.run(
-        [sys.executable, '-m', 'mypy', '--cache-dir', os.devnull],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
+    proc = _tool('mypy', '--cache-dir', os.devnull, timeout=300.0)
     assert proc.returncode == 0, proc.stdout + proc.stderr

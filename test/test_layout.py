@@ -368,6 +368,82 @@ def test_no_function_is_over_60_lines_but_the_named_ones() -> None:
     assert set(LONG_FUNCTIONS) - long == set(), sorted(set(LONG_FUNCTIONS) - long)
 
 
+#: Most required parameters (no default; self and cls not counted) a function takes.
+MAX_REQUIRED_PARAMETERS = 6
+#: The functions that take more, each with why its parameters do not form a record: the batch
+#: stage's numerical kernels, whose arguments are the independent arrays of one computation.
+MANY_PARAMETERS = {
+    'core/batch/covariance.py:joint_covariance': (
+        "the joint solve's Schur covariance: the problem and its weights, the solution and its "
+        'residuals, the four masks over it, the loss, the steps'
+    ),
+    'core/batch/covariance.py:joint_long_run': (
+        'the long-run term of that covariance: the same problem at the same solution'
+    ),
+    'core/batch/long_run.py:influence_two_step': (
+        "each step's residuals and Jacobians and how the steps share their rows and parameters"
+    ),
+    'core/batch/levenberg_marquardt.py:levenberg_marquardt_sparse': (
+        "the solver's arguments as scipy's least_squares takes them"
+    ),
+    'core/batch/residuals.py:__init__': (
+        'BatchProblem: the whole problem of eq. 15 (streams, start, spline, drift and scale)'
+    ),
+}
+
+
+def _required_parameters(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    a = node.args
+    positional = a.posonlyargs + a.args
+    n = len(positional) - len(a.defaults) + sum(d is None for d in a.kw_defaults)
+    return n - (bool(positional) and positional[0].arg in ('self', 'cls'))
+
+
+def test_few_functions_take_more_than_six_required_parameters() -> None:
+    """State travels in named records, not in long argument lists (issue 48's figure): at most
+    MAX_REQUIRED_PARAMETERS required parameters, but MANY_PARAMETERS; and each of those still
+    takes more."""
+    many = set()
+    for path in sorted((ROOT / 'handeye_ros').rglob('*.py')):
+        rel = path.relative_to(ROOT / 'handeye_ros').as_posix()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (
+                isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+                and _required_parameters(node) > MAX_REQUIRED_PARAMETERS
+            ):
+                many.add(f'{rel}:{node.name}')
+    assert many - set(MANY_PARAMETERS) == set(), sorted(many - set(MANY_PARAMETERS))
+    assert set(MANY_PARAMETERS) - many == set(), sorted(set(MANY_PARAMETERS) - many)
+
+
+def test_the_stages_return_records_and_pass_nothing_mutable() -> None:
+    """Each step returns a record of what it computed and found (issue 48, item 1): no function
+    in core/stages returns a tuple of more than 3 items, none takes a list, dict or set, and what
+    the steps found is a frozen record the pipeline adds up."""
+    from handeye_ros.core.checks.verdict import Findings
+
+    wide, mutable = [], []
+    for path in sorted((ROOT / 'handeye_ros' / 'core' / 'stages').glob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.FunctionDef):
+                continue
+            ret = node.returns
+            if (
+                isinstance(ret, ast.Subscript)
+                and getattr(ret.value, 'id', None) == 'tuple'
+                and isinstance(ret.slice, ast.Tuple)
+                and len(ret.slice.elts) > 3
+            ):
+                wide.append(f'{path.name}:{node.name}')
+            for arg in node.args.args + node.args.kwonlyargs:
+                hint = ast.unparse(arg.annotation) if arg.annotation is not None else ''
+                if re.match(r'(list|dict|set)\b', hint):
+                    mutable.append(f'{path.name}:{node.name}({arg.arg}: {hint})')
+    assert not wide, wide
+    assert not mutable, mutable
+    assert Findings.__dataclass_params__.frozen  # type: ignore[attr-defined]
+
+
 def test_the_docs_are_wrapped_at_100_characters() -> None:
     """README.md and docs/*.md read in a terminal: no line over 100 characters (a long command
     is continued with a backslash, a table is a list)."""
@@ -383,6 +459,7 @@ def test_the_docs_are_wrapped_at_100_characters() -> None:
 #: What the stages may take from the verdict: its facts, and the decisions a stage needs to go
 #: on (and a threshold a warning shares); never a rule that makes a reason.
 STAGE_DECISIONS = {
+    'Findings',
     'batch_moved',
     'batch_supported',
     'judge_tie',

@@ -138,8 +138,7 @@ def eye_motion_residuals(
     i: np.ndarray,
     j: np.ndarray,
     time_offset_s: float,
-    R_HE: np.ndarray,
-    p_HE: np.ndarray,
+    T_HE: Pose,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(T_HE^-1 A T_HE)^-1 B`` for each eye motion ``B = T_WE_i^-1 T_WE_j``, with
     ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)`` the hand's motion over the same instants
@@ -149,6 +148,10 @@ def eye_motion_residuals(
     ----------
     i, j : ndarray of int, shape (M,)
         Eye pose indices of the motions.
+    time_offset_s : float
+        dt (s): the eye's instant t is the hand's t - dt.
+    T_HE : (R_HE (3, 3), p_HE (3,) m)
+        The extrinsic X.
 
     Returns
     -------
@@ -159,7 +162,7 @@ def eye_motion_residuals(
     """
     dt_ns = np.int64(round(time_offset_s * 1e9))
     R_h, p_h, ok = interpolate(hand, eye.t_ns - dt_ns)
-    X = (np.asarray(R_HE, dtype=float), np.asarray(p_HE, dtype=float))
+    X = (np.asarray(T_HE[0], dtype=float), np.asarray(T_HE[1], dtype=float))
     A = relative((R_h, p_h), i, j)
     B = relative((matrix_from_quat(eye.q_xyzw), eye.p_xyz), i, j)
     err_R, err_p = residual_motions(A, B, X)
@@ -179,10 +182,9 @@ def eye_motion_errors(
     i: np.ndarray,
     j: np.ndarray,
     time_offset_s: float,
-    R_HE: np.ndarray,
-    p_HE: np.ndarray,
+    T_HE: Pose,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How far each eye motion is from the hand's (:func:`eye_motion_residuals`): the rotation
     angle (rad) and the translation norm (m) of the residual motion, and ``covered``."""
-    err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, R_HE, p_HE)
+    err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, T_HE)
     return rotation_angle(err_R), row_norms(err_p), covered

@@ -1,8 +1,8 @@
 """The whole calibration: the one function every front end (offline tool, node) calls.
 
-:func:`calibrate` reads as the method. Each step (:mod:`.stages`) returns a record the next one
-reads, and every finding (a warning, a reason of the verdict, a note) goes into one
-:class:`.stages.findings.Findings`:
+:func:`calibrate` reads as the method. Each step (:mod:`.stages`) returns a frozen record the
+next one reads, with what it found (its warnings, notes and facts: a
+:class:`.checks.verdict.Findings`); the verdict reads their sum once, at the end:
 
 1. **Inputs** (:func:`.stages.prepare.prepare`): explicit inversions, stamp units read against the
    streams' rates, clock epochs named, a keyframe-only eye recognised, each stream screened
@@ -45,8 +45,10 @@ from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
 from .checks.verdict import (
     Code,
-    assess,
+    Findings,
+    assess_answer,
     assess_model,
+    assess_streams,
     drift_explains,
     drift_explains_note,
     drift_fitted_note,
@@ -57,7 +59,6 @@ from .errors import ConfigError, HandeyeError
 from .geometry import matrix_from_quat
 from .result import CalibrationResult, UsedStreams
 from .stages.batch import Refined, batch_stage
-from .stages.findings import Findings
 from .stages.linear import LinearStage, linear_stage, seed_check
 from .stages.prepare import Inputs, prepare
 from .stages.time import Offset, absolute, align_stage
@@ -163,23 +164,22 @@ def _calibrate(
     progress: Callable[[str], None] | None,
 ) -> CalibrationResult:
     """The stages once, with the options as given (:func:`calibrate`)."""
-    run = Findings()
     step = progress or (lambda name: None)
     clock = [time.perf_counter()]
 
     step(STEPS[0])
-    inputs = prepare(hand, eye, cfg, run)
+    inputs = prepare(hand, eye, cfg)
     step(STEPS[1])
-    offset = align_stage(inputs, cfg, run)
+    offset = align_stage(inputs, cfg)
     clock.append(time.perf_counter())
     step(STEPS[2])
-    linear = linear_stage(inputs, offset, cfg, run)
+    linear = linear_stage(inputs, offset, cfg)
     clock.append(time.perf_counter())
     step(STEPS[3])
-    refined = batch_stage(offset.hand, linear, cfg, run)
+    refined = batch_stage(offset.hand, linear, cfg)
     clock.append(time.perf_counter())
     step(STEPS[4])
-    result = _finish(inputs, offset, linear, refined, cfg, run)
+    result = _finish(inputs, offset, linear, refined, cfg)
 
     LOG.info(
         'stage 1 + conventions %.3f s, stage 2 + checks %.3f s, batch %.3f s, %d pairs, '
@@ -191,24 +191,14 @@ def _calibrate(
     return result
 
 
-def _at_solution(
-    hand: Trajectory,
-    eye: Trajectory,
-    solution: tuple[float, np.ndarray, np.ndarray],
-    cfg: CalibrationConfig,
-    run: Findings,
-) -> tuple[PosePairs, WorldAlignment, Metrics]:
-    """At the final (dt, q_HE, p_HE): the associated pairs, the world alignment T_WG and the
-    metrics (APE/ARE, AX = XB over the keyframe motions)."""
-    dt, q_HE, p_HE = solution
-    pairs = associate(hand, eye, dt)
-    world = align_worlds(pairs, q_HE, p_HE)
-    if world.method != 'positions':
-        run.warnings.append(
-            'the positions do not span a plane; the world alignment T_WG was '
-            'taken from the orientations'
-        )
-    return pairs, world, metrics_at(hand, eye, pairs, world, solution, cfg.eta)
+def _world_warning(world: WorldAlignment) -> Findings:
+    """A warning when the world alignment could not come from the positions."""
+    if world.method == 'positions':
+        return Findings()
+    return Findings.warned(
+        'the positions do not span a plane; the world alignment T_WG was taken from the '
+        'orientations'
+    )
 
 
 def _finish(
@@ -217,28 +207,23 @@ def _finish(
     linear: LinearStage,
     refined: Refined,
     cfg: CalibrationConfig,
-    run: Findings,
 ) -> CalibrationResult:
     """World alignment and metrics at the final (dt, T_HE), the seed check, the verdict's
     remaining rules, the MoCap's coverage, and the result."""
     hand, eye, dt = offset.hand, refined.eye, refined.dt
     q_HE, p_HE, shift_ns = refined.q_HE, refined.p_HE, offset.shift_ns
-    pairs, world, metrics = _at_solution(hand, eye, (dt, q_HE, p_HE), cfg, run)
-    seed_lin = seed_check(hand, eye, dt, linear.solution, refined.batch, cfg, run, pairs)
-    assess(
-        offset.alignment,
-        linear.vector,
-        linear.solution,
-        refined.batch,
-        linear.screening,
-        metrics,
-        cfg,
-        run,
-    )
-    assess_model(refined.model, linear.clock, cfg, run)
+    pairs = associate(hand, eye, dt)
+    world = align_worlds(pairs, q_HE, p_HE)
+    metrics = metrics_at(hand, eye, pairs, world, (dt, q_HE, p_HE), cfg.eta)
+    seed_lin, seeded = seed_check(hand, eye, dt, linear.solution, refined.batch, cfg, pairs)
+    found = inputs.found + offset.found + linear.found + refined.found
+    found = found + _world_warning(world) + seeded
+    ta, tv = offset.alignment, linear.vector
+    found = found + assess_streams(ta, tv, linear.screening, found)
+    found = found + assess_answer(linear.solution, refined.batch, metrics, cfg, found)
     covered = mocap_coverage(hand, eye, dt)
-    if covered.note():
-        run.note(covered.note())
+    found = found + assess_model(refined.model, linear.clock, cfg)
+    found = found + Findings.of(*([covered.note()] if covered.note() else []))
     time_offset_s = shift_ns * 1e-9 + dt if cfg.time_offset is None else cfg.time_offset
     return CalibrationResult(
         time_offset_s=time_offset_s,
@@ -252,16 +237,16 @@ def _finish(
         hand=inputs.given[0],
         eye=inputs.given[1],
         config=cfg,
-        warnings=tuple(run.warnings),
+        warnings=found.warnings,
         batch=refined.batch,
         time_offset_ns=shift_ns + round(dt * 1e9),
         vector_alignment=absolute(linear.vector, shift_ns),
         screening=linear.screening,
-        corrections=tuple(run.corrections),
+        corrections=found.corrections,
         candidates=tuple(
-            replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s) for c in run.candidates
+            replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s) for c in found.candidates
         ),
-        quality=judged(run),
+        quality=judged(found),
         seed_check=seed_lin,
         eye_model=refined.model,
         clock=linear.clock,

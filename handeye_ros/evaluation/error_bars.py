@@ -93,10 +93,10 @@ def calibration_sigmas(
     stamps = used.eye_stamps_ns[keep]
     stamp_ns = result.eye_model.stamp_ns if result.eye_model is not None else 0
 
+    sample = _Sample(eye, stamps, window, (drift_at, scale_at, stamp_ns), (delta_s, delta_m))
+
     def figures(d: np.ndarray) -> dict[str, dict[str, float]] | None:
-        return _figures(
-            result, eye, stamps, window, d, (drift_at, scale_at, stamp_ns), (delta_s, delta_m)
-        )
+        return _figures(result, sample, d)
 
     zero = figures(np.zeros(cov.shape[0]))
     if zero is None:
@@ -148,21 +148,28 @@ def _factor(cov: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.clip(w, 0.0, None))
 
 
+@dataclass(frozen=True)
+class _Sample:
+    """What each draw evaluates: the eye poses (on the hand's clock) and their own stamps
+    [ns], the run each is in (``window``: no RPE pair joins two); ``model``: the drift's and the
+    scale's places in the reported order (None when not estimated) and the drift's reference
+    stamp [ns]; ``deltas``: the RPE steps (s, m)."""
+
+    eye: Trajectory
+    stamps: np.ndarray
+    window: np.ndarray
+    model: tuple[int | None, int | None, int]
+    deltas: tuple[float, float]
+
+
 def _figures(
-    result: CalibrationResult,
-    eye: Trajectory,
-    stamps: np.ndarray,
-    window: np.ndarray,
-    d: np.ndarray,
-    model: tuple[int | None, int | None, int],
-    deltas: tuple[float, float],
+    result: CalibrationResult, sample: _Sample, d: np.ndarray
 ) -> dict[str, dict[str, float]] | None:
     """The figures with the calibration moved by ``d`` (reported order: dt, translation,
-    rotation in the tangent on the right, [drift], [scale]; ``model``: the drift's and the
-    scale's places in it, None when not estimated, and the drift's reference stamp), or None
-    when too few eye poses fall inside the hand recording. No RPE pair joins two runs of
-    ``window``."""
-    used, (drift_at, scale_at, stamp_ns) = result.streams(), model
+    rotation in the tangent on the right, [drift], [scale]), or None when too few eye poses
+    of ``sample`` fall inside the hand recording."""
+    eye, stamps, window = sample.eye, sample.stamps, sample.window
+    used, (drift_at, scale_at, stamp_ns) = result.streams(), sample.model
     if drift_at is not None and d[drift_at]:
         eye = retime(eye, float(d[drift_at]), stamp_ns)
     scale = None if result.batch is None else result.batch.scale
@@ -180,5 +187,5 @@ def _figures(
     )
     runs = pairs.segment * (int(window.max()) + 1) + window[ok]
     al = AlignedTrajectories(stamps[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE, runs, '')
-    errors = PoseErrors.of(al, *deltas)
+    errors = PoseErrors.of(al, *sample.deltas)
     return {name: vars(getattr(errors, name)) for name in POSE_ERRORS}

@@ -131,7 +131,7 @@ def pose_messages(
     :func:`handeye_ros.formats.messages.pose_message` builds each)."""
     msgtype = normalise_type(msgtype)
     for t, p, q in zip(traj.t_ns.tolist(), traj.p_xyz.tolist(), traj.q_xyzw.tolist(), strict=True):
-        yield t, messages.pose_message(store.types, msgtype, t, p, q, frame_id, child_frame_id)
+        yield t, messages.pose_message(store.types, msgtype, t, p, q, (frame_id, child_frame_id))
 
 
 def _latched_qos() -> Any:

@@ -102,7 +102,7 @@ def split_stamps(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> Split
         layout = _layout(buf, int(starts[todo[0]]), int(ends[todo[0]]))
         if layout is None:
             return None
-        fits = _read_layout(buf, starts[todo], ends[todo], *layout, out, todo)
+        fits = _read_layout(buf, (starts[todo], ends[todo]), layout, out, todo)
         todo = todo[~fits]
     return None if todo.size else out
 
@@ -136,16 +136,15 @@ def _layout(buf: np.ndarray, start: int, end: int) -> tuple[int, int, int] | Non
 
 def _read_layout(
     buf: np.ndarray,
-    starts: np.ndarray,
-    ends: np.ndarray,
-    sign: int,
-    dot: int,
-    length: int,
+    lines: tuple[np.ndarray, np.ndarray],
+    layout: tuple[int, int, int],
     out: SplitStamps,
     rows: np.ndarray,
 ) -> np.ndarray:
-    """Read the stamps of the lines that have this layout into ``out`` (at ``rows``); returns
-    which lines had it."""
+    """Read the stamps of the lines (their (starts, ends) in ``buf``) that have this layout
+    (sign, point, length: :func:`_layout`) into ``out`` (at ``rows``); returns which lines had
+    it."""
+    (starts, ends), (sign, dot, length) = lines, layout
     fits = ends - starts > length  # a stamp is followed by the other columns
     at = starts[fits]
     parts = [

@@ -123,11 +123,13 @@ def rigid_bodies(
 
 
 def pose_message(
-    types: Types, msgtype: str, t_ns: int, p: Any, q: Any, frame_id: str, child_frame_id: str
+    types: Types, msgtype: str, t_ns: int, p: Any, q: Any, frames: tuple[str, str]
 ) -> Any:
-    """One pose (child in frame_id) as a message of any supported type ('pkg/msg/Name'): a
-    TFMessage holds one transform, a RigidBodies message one body named child_frame_id, an
-    Odometry a zero twist; covariances are zero (unknown to a simulator or a file)."""
+    """One pose (p [m], q x y z w) of the frame child_frame_id in frame_id (``frames``) as a
+    message of any supported type ('pkg/msg/Name'): a TFMessage holds one transform, a
+    RigidBodies message one body named child_frame_id, an Odometry a zero twist; covariances
+    are zero (unknown to a simulator or a file)."""
+    frame_id, child_frame_id = frames
     if msgtype == 'tf2_msgs/msg/TFMessage':
         return types[msgtype](
             transforms=[transform_stamped(types, t_ns, frame_id, child_frame_id, p, q)]

@@ -90,7 +90,8 @@ def read_trajectory(
     # the file's four quaternion columns, in file order, to x y z w (a view when they are;
     # from_arrays makes the normalised copy)
     q_xyzw = values[:, 3:7][:, [1, 2, 3, 0]] if order == 'wxyz' else values[:, 3:7]
-    t_ns, values, q_xyzw = _drop_bad_rows(path, numbers, t_ns, values, q_xyzw, fits, notes)
+    (t_ns, values, q_xyzw), dropped = _drop_bad_rows(path, numbers, (t_ns, values, q_xyzw), fits)
+    notes += [dropped] if dropped else []
     keep = _last_of_repeated(t_ns)
     if not keep.all():  # (no copies of millions of rows when every stamp is once)
         notes.append(
@@ -105,30 +106,29 @@ def read_trajectory(
 def _drop_bad_rows(
     path: Path,
     numbers: np.ndarray,
-    t_ns: np.ndarray,
-    values: np.ndarray,
-    q_xyzw: np.ndarray,
+    rows: tuple[np.ndarray, np.ndarray, np.ndarray],
     fits: np.ndarray,
-    notes: list[str],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The rows without those no pose stream holds (:func:`_bad_rows`), named in ``notes``, when
-    they are at most MAX_BAD_ROW_FRACTION; with more, all rows (the validation refuses them),
-    except that a stamp int64 ns cannot hold is refused here with its own message."""
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], str]:
+    """The rows (stamps ns, values, x y z w quaternions) without those no pose stream holds
+    (:func:`_bad_rows`), and a note naming them (line ``numbers``), when they are at most
+    MAX_BAD_ROW_FRACTION; with more, all rows (the validation refuses them), except that a
+    stamp int64 ns cannot hold is refused here with its own message."""
+    t_ns, values, q_xyzw = rows
     bad = _bad_rows(t_ns, values, q_xyzw, fits)
     if not bad.any():
-        return t_ns, values, q_xyzw
+        return rows, ''
     if bad.sum() > MAX_BAD_ROW_FRACTION * bad.size:
         if not fits.all():
             too_large(path, numbers, np.where(fits, 0, np.abs(t_ns)), 'as read')
-        return t_ns, values, q_xyzw
+        return rows, ''
     lines = ', '.join(str(numbers[k]) for k in np.flatnonzero(bad)[:5])
-    notes.append(
+    note = (
         f'{path}: dropped {int(bad.sum())} row(s) no pose stream can hold '
         f'(a stamp out of range or order, a non-finite value or a non-unit '
         f'quaternion; line(s) {lines}{", ..." if bad.sum() > 5 else ""})'
     )
     keep = ~bad
-    return t_ns[keep], values[keep], q_xyzw[keep]
+    return (t_ns[keep], values[keep], q_xyzw[keep]), note
 
 
 def _check_choices(path: Path, fmt: str, stamp_unit: str, quaternion_order: str) -> None:

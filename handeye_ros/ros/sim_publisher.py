@@ -47,7 +47,7 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     msgtype = normalise_type(cls_name)
     if cls_name == 'RigidBodies':
         return messages.rigid_bodies(TYPES, t_ns, frame, [WAND, (child, p, q)])
-    return messages.pose_message(TYPES, msgtype, t_ns, p, q, frame, child)
+    return messages.pose_message(TYPES, msgtype, t_ns, p, q, (frame, child))
 
 
 def _publishers(node, args: argparse.Namespace, rec) -> dict:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
+from .convert import StampedPose
 
 #: Reasons a message is rejected (keys of BufferStats.rejected): zero_stamp, header.stamp
 #: left unset; stamp_repeated, the previous pose's stamp again; stamp_not_increasing, a stamp
@@ -104,13 +105,13 @@ class PoseBuffer:
             return 0.0
         return (self._last - int(self._t[self._head])) * 1e-9
 
-    def add(
-        self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float
-    ) -> str | None:
-        """Store one pose; returns None, or the reason it was rejected."""
+    def add(self, pose: StampedPose) -> str | None:
+        """Store one pose (t_ns, x, y, z, qx, qy, qz, qw); returns None, or the reason it was
+        rejected."""
+        t_ns = pose[0]
         with self._lock:
             self.received += 1
-            reason = self._check(t_ns, x, y, z, qx, qy, qz, qw)
+            reason = self._check(pose)
             if reason is not None:
                 self.rejected[reason] += 1
                 self.ticked += reason == 'stamp_not_increasing'
@@ -120,7 +121,7 @@ class PoseBuffer:
                 self._drop(1)
             tail = (self._head + self._count) % self.capacity
             self._t[tail] = t_ns
-            self._pq[tail] = (x, y, z, qx, qy, qz, qw)
+            self._pq[tail] = pose[1:]
             self._count += 1
             self._last = t_ns
             # keep the span within max_duration: drop from the oldest end
@@ -143,9 +144,8 @@ class PoseBuffer:
             self.rejected[reason] += 1
         return reason
 
-    def _check(
-        self, t_ns: int, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float
-    ) -> str | None:
+    def _check(self, pose: StampedPose) -> str | None:
+        t_ns, x, y, z, qx, qy, qz, qw = pose
         # one sum is finite iff every term is (NaN and inf propagate): this runs per message
         if not math.isfinite(x + y + z + qx + qy + qz + qw):
             return 'non_finite'

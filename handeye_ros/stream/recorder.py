@@ -151,7 +151,7 @@ class Recorder:
             pose = convert(msg)
             if restamp is not None:
                 pose = (restamp, *pose[1:])
-            return self.buffers[stream].add(*pose)
+            return self.buffers[stream].add(pose)
         picker = self._bodies.get(stream)
         if picker is not None:
             if stream not in self.seen_frames:
@@ -161,12 +161,12 @@ class Recorder:
                 return self.buffers[stream].reject('not_in_message')
             if restamp is not None:
                 body = (restamp, *body[1:])
-            return self.buffers[stream].add(*body)
+            return self.buffers[stream].add(body)
         reason = None
         for pose in self._tf[stream].poses(msg, static):
             if restamp is not None:
                 pose = (restamp, *pose[1:])
-            reason = self.buffers[stream].add(*pose) or reason
+            reason = self.buffers[stream].add(pose) or reason
         return reason
 
     def stamp_trouble(self, stream: str) -> str | None:

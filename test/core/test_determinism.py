@@ -20,7 +20,7 @@ from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import keyframes_only, noise_level, simulate, with_dropouts
 from handeye_ros.evaluation.aligned import calibrated, uncalibrated
-from handeye_ros.evaluation.metrics import evaluate
+from handeye_ros.evaluation.metrics import Evaluation
 
 #: numpy's float64 ufuncs with a SIMD kernel whose last bits may differ from libm's.
 SIMD_UFUNCS = (
@@ -86,4 +86,4 @@ def test_the_core_and_the_metrics_give_simd_ufuncs_contiguous_inputs(case) -> No
     _, hand, eye, cfg = case
     result = calibrate(hand, eye, cfg)
     base, why = uncalibrated(result)
-    evaluate(calibrated(result), base, why=why)
+    Evaluation.of(calibrated(result), base, why=why)

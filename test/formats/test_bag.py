@@ -253,19 +253,19 @@ def test_frames_come_from_the_messages(tmp_path: Path, rec) -> None:
 def test_buffer_bounds_drop_oldest_and_count() -> None:
     b = PoseBuffer('b', capacity=100, max_duration_s=2.0)
     for k in range(1, 1001):
-        assert b.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) is None
+        assert b.add((k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)) is None
     s = b.stats()
     assert s.stored == 100 and s.dropped == 900 and s.received == 1000
     assert b.trajectory().t_ns[0] == 901 * 10_000_000
     b2 = PoseBuffer('b2', capacity=10_000, max_duration_s=2.0)
     for k in range(1, 1001):
-        b2.add(k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+        b2.add((k * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0))
     assert b2.stats().span_s <= 2.0 and b2.stats().dropped == 1000 - 201
-    assert b2.add(5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_not_increasing'
-    assert b2.add(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'zero_stamp'
-    assert b2.add(1000 * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0) == 'stamp_repeated'
-    assert b2.add(10**12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) == 'zero_quaternion'
-    assert b2.add(10**12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5) == 'non_unit_quaternion'
+    assert b2.add((5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)) == 'stamp_not_increasing'
+    assert b2.add((0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)) == 'zero_stamp'
+    assert b2.add((1000 * 10_000_000, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)) == 'stamp_repeated'
+    assert b2.add((10**12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)) == 'zero_quaternion'
+    assert b2.add((10**12, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5)) == 'non_unit_quaternion'
     assert b2.stats().rejected == {
         'non_finite': 0,
         'zero_quaternion': 1,
@@ -277,7 +277,7 @@ def test_buffer_bounds_drop_oldest_and_count() -> None:
     }
     # the stream's clock ticked for the 1000 stored poses and the one that went back in time
     assert b2.ticked == 1001
-    b2.add(2 * 10**12, float('nan'), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)  # a lost marker's
+    b2.add((2 * 10**12, float('nan'), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0))  # a lost marker's
     b2.reject('not_in_message')
     assert b2.ticked == 1001
 

@@ -8,7 +8,8 @@ and their Jacobians (:mod:`.joint_jacobian` the joint solve's sparse one) (with 
 :mod:`.covariance` and :mod:`.long_run` the uncertainty of (dt, T_HE), the latter for residuals
 correlated in time, and :mod:`.correlated` what a real VIO adds to it (errors correlated over
 minutes, its scale); :mod:`.refine` the problem: what is solved and the answer it gives;
-:mod:`.solves` the two solves (the default, and ``joint``) in their steps and passes;
+:mod:`.solves` the two solves (the default, and ``joint``) in their steps and passes, as
+:mod:`.options` says;
 :mod:`.noise` each stream's noise from its residuals; :mod:`.parameters` its parameters and how the solvers walk the residuals; :mod:`.pieces`
 the hand's gap-free parts, one spline each. The stage as the pipeline runs it is
 :mod:`handeye_ros.core.stages.batch`.

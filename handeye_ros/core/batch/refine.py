@@ -40,6 +40,7 @@ from ..trajectory import Trajectory
 from .correlated import Uncertainty
 from .levenberg_marquardt import SolverReport
 from .noise import Noise, sigmas
+from .options import BatchOptions
 from .parameters import ParameterLayout
 from .pieces import check_hand_rate, hand_pieces
 from .residuals import BatchProblem
@@ -116,36 +117,6 @@ class BatchSolution:
         return np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
 
 
-@dataclass(frozen=True)
-class BatchOptions:
-    """How stage 3 solves (the defaults are :class:`~handeye_ros.core.config.CalibrationConfig`'s).
-
-    knot_spacing (s) and order: the hand's spline. hand_noise / eye_noise: (rotation rad,
-    translation m) per axis of each MoCap pose / of the eye's relative poses between
-    consecutive frames; None estimates it from the data's own residuals. huber_delta, in
-    sigmas; max_iterations of the solver. ``joint`` also frees the spline's control poses (the
-    full problem of eq. 15, analytic sparse Jacobian and sparse direct solve; slower, and the
-    same answer while the MoCap is much less noisy than the VIO). fix_time_offset: dt held at
-    its start. decoupled: rotation then translation (:func:`.solves.solve_offset_extrinsic`).
-    drift_stamp_ns: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns) with t
-    the eye's stamps (:mod:`.time.clock`); scale: also a factor on the eye's translations. Both
-    are corrections to what the eye already has (0 and 1 to start), and only the default (not
-    the joint) solve estimates them.
-    """
-
-    knot_spacing: float = 0.05
-    order: int = 4
-    hand_noise: tuple[float | None, float | None] = (None, None)
-    eye_noise: tuple[float | None, float | None] = (None, None)
-    huber_delta: float = 1.345
-    max_iterations: int = 50
-    joint: bool = False
-    fix_time_offset: bool = False
-    decoupled: bool = True
-    drift_stamp_ns: int | None = None
-    scale: bool = False
-
-
 def refine(
     hand: Trajectory,
     eye: Trajectory,
@@ -191,9 +162,7 @@ def refine(
     )
     hn = _hand_noise(prob, o.hand_noise, o.joint)
     solved, y = _solve(prob, ParameterLayout.of(prob, o.fix_time_offset), hn, o)
-    return _solution(
-        prob, solved, y, o.decoupled, o.drift_stamp_ns, piece_note, time.perf_counter() - t_start
-    )
+    return _solution(prob, solved, y, o, piece_note, time.perf_counter() - t_start)
 
 
 def _solve(
@@ -202,21 +171,9 @@ def _solve(
     """The joint solve or the default one, as ``o`` says: (the solve, y = (dt, dtheta_X, dp_X,
     ...) at its solution)."""
     if o.joint:
-        solved = solve_joint(
-            prob,
-            layout,
-            hn,
-            o.hand_noise,
-            o.eye_noise,
-            o.huber_delta,
-            o.max_iterations,
-            o.fix_time_offset,
-            o.decoupled,
-        )
+        solved = solve_joint(prob, layout, hn, o)
         return solved, prob.unpack(solved.x)[1]
-    solved = solve_offset_extrinsic(
-        prob, layout, hn, o.eye_noise, o.huber_delta, o.max_iterations, o.decoupled
-    )
+    solved = solve_offset_extrinsic(prob, layout, hn, o)
     return solved, solved.x
 
 
@@ -235,13 +192,13 @@ def _solution(
     prob: BatchProblem,
     solved: Solve,
     y: np.ndarray,
-    decoupled: bool,
-    drift_stamp_ns: int | None,
+    o: BatchOptions,
     piece_note: str,
     seconds: float,
 ) -> BatchSolution:
-    """The stage's answer from a solve: dt, T_HE, their covariance in the reported order
-    (dt, translation, rotation, [drift], [scale]), the noise, the solver's report."""
+    """The stage's answer from a solve (as ``o`` asked; y at its solution): dt, T_HE, their
+    covariance in the reported order (dt, translation, rotation, [drift], [scale]), the
+    noise, the solver's report, the note of the hand's pieces and the time it took [s]."""
     sol = solved.report
     dof = max(solved.n_residuals - solved.n_free, 1)
     chi2 = 2.0 * solved.cost_after / dof
@@ -272,12 +229,12 @@ def _solution(
         n_control_points=prob.M,
         seconds=seconds,
         reduced_chi2=chi2,
-        decoupled=decoupled,
+        decoupled=o.decoupled,
         warnings=tuple(warnings),
         covariance_white=cov_white,
         bandwidth=solved.long_run.bandwidth,
         clock_drift=None if prob.i_drift is None else drift,
-        time_offset_stamp_ns=drift_stamp_ns,
+        time_offset_stamp_ns=o.drift_stamp_ns,
         scale=None if prob.i_scale is None else prob.scale(y),
         spline=prob.spline0,
     )

@@ -27,6 +27,7 @@ from .levenberg_marquardt import (
 from .long_run import LongRunCovariance
 from .loss import huber_cost
 from .noise import Noise, sigmas
+from .options import BatchOptions
 from .parameters import ParameterLayout, weighted_eye_chunks
 from .residuals import BatchProblem, Weights
 
@@ -60,13 +61,7 @@ class Solve:
 
 
 def solve_offset_extrinsic(
-    prob: BatchProblem,
-    layout: ParameterLayout,
-    hand_noise: Noise,
-    eye_noise: tuple[float | None, float | None],
-    delta: float,
-    max_iterations: int,
-    decoupled: bool,
+    prob: BatchProblem, layout: ParameterLayout, hand_noise: Noise, o: BatchOptions
 ) -> Solve:
     """(dt, T_HE) by Huber Levenberg-Marquardt on the eye residuals, the spline fixed to the
     hand, with the analytic Jacobian of :meth:`.batch.residuals.BatchProblem.eye_chunk`
@@ -81,8 +76,10 @@ def solve_offset_extrinsic(
     the paper protocol it is as good for dt and better for the rotation.
 
     Two passes: the eye noise is measured at the linear result, then again at the first
-    solution (the linear result's residuals include its own error).
+    solution (the linear result's residuals include its own error). ``o``: the eye's noise
+    (None: measured), the Huber delta, the iterations, ``decoupled``.
     """
+    eye_noise, delta, decoupled = o.eye_noise, o.huber_delta, o.decoupled
     y = np.zeros(layout.size)
     r_start = prob.eye_raw(y)  # kept: the cost before, at the final weights
     en = Noise(*sigmas(r_start, eye_noise))
@@ -106,33 +103,22 @@ def solve_offset_extrinsic(
                 covariance=(layout, decoupled) if last_pass else None,
                 keep_raw=not last_pass,
             ),
-            max_iterations if last_pass else 1,
+            o.max_iterations if last_pass else 1,
         )
         if not last_pass:  # the last step's residuals (all rows) are those at y
             assert last.raw is not None, 'a first pass keeps its residuals'
             en = Noise(*sigmas(last.raw, eye_noise))
     cost_before = huber_cost((r_start * weights.eye).ravel(), delta)
     del r_start
-    cov, lr, cost_after, n_res = _covariance(prob, weights, y, layout, delta, decoupled, last)
-    n = layout.all.size
-    return Solve(y, cost_before, cost_after, hand_noise, en, weights, cov, lr, n_res, n, report)
-
-
-def _covariance(
-    prob: BatchProblem,
-    weights: Weights,
-    y: np.ndarray,
-    layout: ParameterLayout,
-    delta: float,
-    decoupled: bool,
-    last: NormalSums,
-) -> tuple[np.ndarray, LongRunCovariance, float, int]:
-    """:func:`.covariance.eye_covariance` at the solution y: as the last sweep gathered it, or
-    (when the last step took no step from the sums it was handed) from a sweep of its own."""
+    # the covariance as the last sweep gathered it at y, or (when the last step took no step
+    # from the sums it was handed) from a sweep of its own
     same = _same_sweep(last)
     if same is not None and same.covariance is not None:
-        return same.covariance.result()
-    return eye_covariance(prob, weights, y, layout, delta, decoupled)
+        cov, lr, cost_after, n_res = same.covariance.result()
+    else:
+        cov, lr, cost_after, n_res = eye_covariance(prob, weights, y, layout, delta, decoupled)
+    n = layout.all.size
+    return Solve(y, cost_before, cost_after, hand_noise, en, weights, cov, lr, n_res, n, report)
 
 
 def _noise_pass(
@@ -225,25 +211,18 @@ def _sweep(prob: BatchProblem, y: np.ndarray, plan: _SweepPlan) -> NormalSums:
     return step.sums(None if raw is None else np.concatenate(raw), extra)
 
 
-def solve_joint(
-    prob: BatchProblem,
-    layout: ParameterLayout,
-    hn: Noise,
-    hand_noise: tuple[float | None, float | None],
-    eye_noise: tuple[float | None, float | None],
-    delta: float,
-    max_iterations: int,
-    fix_time_offset: bool,
-    decoupled: bool,
-) -> Solve:
+def solve_joint(prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: BatchOptions) -> Solve:
     """Control poses, dt and T_HE together: the whole problem of eq. 15
     (:func:`.batch.levenberg_marquardt.levenberg_marquardt_sparse`).
 
     ``decoupled`` as in :func:`solve_offset_extrinsic`, with the control poses free in both
     steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,
     then (control poses, dt, translation) on all rows. Two passes when a noise is estimated.
+    ``hn``: the hand's noise to start with; ``o``: the noises given (None: measured), the Huber
+    delta, the iterations, ``fix_time_offset``, ``decoupled``.
     """
-    free, rot_rows, theta, trans = _joint_masks(prob, fix_time_offset)
+    hand_noise, eye_noise, delta, decoupled = o.hand_noise, o.eye_noise, o.huber_delta, o.decoupled
+    free, rot_rows, theta, trans = _joint_masks(prob, o.fix_time_offset)
     all_rows = np.ones(rot_rows.size, bool)
     steps = (
         [(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled else [(free, all_rows)]
@@ -268,7 +247,7 @@ def solve_joint(
                 cols,
                 rows,
                 delta if last else np.inf,
-                max_iterations,
+                o.max_iterations,
                 LM_FTOL if last else LM_FTOL_FIRST_PASS,
             )
         if not last:

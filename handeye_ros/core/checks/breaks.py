@@ -56,7 +56,7 @@ def find_eye_breaks(
     shorter than MIN_SEGMENT_S or MIN_SEGMENT_POSES are dropped.
     """
     k = np.arange(len(eye) - 1)
-    e_r, e_t, covered = eye_motion_errors(hand, eye, k, k + 1, time_offset_s, R_HE, p_HE)
+    e_r, e_t, covered = eye_motion_errors(hand, eye, k, k + 1, time_offset_s, (R_HE, p_HE))
     step = np.diff(eye.t_ns).astype(float)
     usual = eye.interval_ok() & covered
     if usual.sum() < 20:

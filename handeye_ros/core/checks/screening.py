@@ -159,26 +159,19 @@ def _predict(
 
 
 def _predict_rows(
-    t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray
+    t: np.ndarray,
+    p: np.ndarray,
+    q: np.ndarray,
+    a: np.ndarray | slice,
+    b: np.ndarray | slice,
+    k: np.ndarray | slice,
 ) -> tuple[np.ndarray, np.ndarray]:
-    return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
-
-
-def _predict_poses(
-    ta: np.ndarray,
-    tb: np.ndarray,
-    tk: np.ndarray,
-    pa: np.ndarray,
-    pb: np.ndarray,
-    pk: np.ndarray,
-    qa: np.ndarray,
-    qb: np.ndarray,
-    qk: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_predict` on the poses themselves (stamps s, positions m, x y z w quaternions)."""
+    """:func:`_predict` on the rows a, b, k (index arrays, or slices: views of a long stream)
+    of the stamps (s), positions (m) and x y z w quaternions."""
+    ta, tb, tk = t[a], t[b], t[k]
     f = (tk - ta) / np.where(tb != ta, tb - ta, 1.0)
-    p_pred = pa + f[:, None] * (pb - pa)
-    return row_norms(pk - p_pred), quat_angle(quat_slerp(qa, qb, f), qk)
+    p_pred = p[a] + f[:, None] * (p[b] - p[a])
+    return row_norms(p[k] - p_pred), quat_angle(quat_slerp(q[a], q[b], f), q[k])
 
 
 def interpolation_residuals(
@@ -200,7 +193,7 @@ def interpolation_residuals(
             slice(s.start + d, s.stop + d),
             slice(s.start + 2 * d, s.stop + 2 * d),
         )
-        return _predict_poses(t[a], t[b], t[k], p[a], p[b], p[k], q[a], q[b], q[k])
+        return _predict_rows(t, p, q, a, b, k)
 
     e_p[d : n - d], e_r[d : n - d] = chunked(inner, n - 2 * d)
     ends = np.concatenate((np.arange(d), np.arange(n - d, n)))

@@ -132,7 +132,7 @@ def motion_consistency(
     motions at (dt, T_HE), the motions' median translation (m), and how many there are."""
     i, j = eye_keyframes(eye, eta_rad)
     e_r, e_t, covered = eye_motion_errors(
-        hand, eye, i, j, time_offset_s, matrix_from_quat(q_HE), p_HE
+        hand, eye, i, j, time_offset_s, (matrix_from_quat(q_HE), p_HE)
     )
     if not covered.any():
         return float('nan'), float('nan'), float('nan'), 0
@@ -163,7 +163,7 @@ def score_candidates(
     common = np.ones(i.size, dtype=bool)
     for h in hypotheses:
         e_r, e_t, covered = eye_motion_errors(
-            hand, eye, i, j, h.time_offset_s, matrix_from_quat(h.q_HE), h.p_HE
+            hand, eye, i, j, h.time_offset_s, (matrix_from_quat(h.q_HE), h.p_HE)
         )
         errors.append((e_r, e_t))
         common &= covered

@@ -7,6 +7,8 @@ best one chosen; then its consensus widened to the noise measured from it.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import DegenerateMotionError
@@ -26,21 +28,46 @@ RANSAC_CHUNK_ELEMENTS = 4_000_000
 CHI3_Q99_OVER_MEDIAN = 2.19
 
 
+@dataclass(frozen=True)
+class System:
+    """The motions of eq. 2 as Algorithm 1 solves them: m, each motion's Gram matrix of its 6x8
+    block of eq. 4 flattened (``gram``, (M, 64)), and the robust kernel's weights squared (``w2``,
+    (M,), eq. 12)."""
+
+    m: Motions
+    gram: np.ndarray
+    w2: np.ndarray
+
+    def solve(self, inliers: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q', singular values) of the weighted system on the motions ``inliers`` (bool,
+        (M,))."""
+        return solve_gram(((inliers * self.w2) @ self.gram).reshape(8, 8))
+
+
+@dataclass(frozen=True)
+class Consensus:
+    """A solution of Algorithm 1: T_HE (q_HE x y z w, p_HE [m]), the motions it holds
+    (``inliers``, bool (M,)), the singular values of its system and their sigma7/sigma6."""
+
+    q_HE: np.ndarray
+    p_HE: np.ndarray
+    inliers: np.ndarray
+    singular_values: np.ndarray
+    sigma_ratio: float
+
+
 def _ransac(
-    m: Motions,
-    gram: np.ndarray,
-    w2: np.ndarray,
-    iterations: int,
-    inlier_rotation_rad: float,
-    inlier_translation_m: float,
-    rng: np.random.Generator,
+    system: System, iterations: int, thresholds: tuple[float, float], rng: np.random.Generator
 ) -> tuple[
     np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]
 ]:
     """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
     that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
-    with the number of hypotheses. Returns (counts, q1, qd1, ratio, the consensus' rotation
-    axis spread [deg], hypotheses' (q0, p0))."""
+    with the number of hypotheses; ``thresholds``: eq. 13's (rotation [rad], translation [m]).
+    Returns (counts, q1, qd1, ratio, the consensus' rotation axis spread [deg], hypotheses'
+    (q0, p0))."""
+    m, gram, w2 = system.m, system.gram, system.w2
+    inlier_rotation_rad, inlier_translation_m = thresholds
     n = len(m)
     first = rng.integers(0, n, iterations)
     second = (first + rng.integers(1, n, iterations)) % n
@@ -85,24 +112,24 @@ def well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:
 
 
 def consensus(
-    m: Motions,
-    gram: np.ndarray,
-    w2: np.ndarray,
+    system: System,
     ransac_iterations: int,
-    inlier_rotation_rad: float,
-    inlier_translation_m: float,
+    thresholds: tuple[float, float],
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+) -> Consensus:
     """Algorithm 1 proper: the best-scoring robust refinement among the RANSAC hypotheses
-    (or one robust solve on all motions): (q_HE, p_HE, inliers, singular values, sigma7/6)."""
+    (or one robust solve on all motions); ``thresholds``: eq. 13's (rotation [rad],
+    translation [m])."""
+    m = system.m
+    inlier_rotation_rad, inlier_translation_m = thresholds
     n = len(m)
     if ransac_iterations > 0:
         counts, q1, qd1, ratio, spread, (q0, p0) = _ransac(
-            m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
+            system, ransac_iterations, thresholds, rng
         )
     else:
         counts, spread = np.array([n]), np.zeros(1)
-        q1, qd1, sigma = solve_gram((w2 @ gram).reshape(1, 8, 8))
+        q1, qd1, sigma = solve_gram((system.w2 @ system.gram).reshape(1, 8, 8))
         ratio = sigma_ratio(sigma)
     eligible = (counts >= 2) & (counts >= CONSENSUS_FRACTION * counts.max()) & np.isfinite(ratio)
     if not eligible.any():
@@ -119,39 +146,29 @@ def consensus(
         inliers = (e_rot[0] < inlier_rotation_rad) & (e_trans[0] < inlier_translation_m)
     else:
         inliers = np.ones(n, dtype=bool)
-    sigma_best = solve_gram(((inliers * w2) @ gram).reshape(8, 8))[2]
-    return q_HE, p_HE, inliers, sigma_best, float(ratio[best])
+    sigma_best = system.solve(inliers)[2]
+    return Consensus(q_HE, p_HE, inliers, sigma_best, float(ratio[best]))
 
 
 def widened_consensus(
-    m: Motions,
-    gram: np.ndarray,
-    w2: np.ndarray,
-    q_HE: np.ndarray,
-    p_HE: np.ndarray,
-    inliers: np.ndarray,
-    thr_rot: float,
-    thr_trans: float,
-) -> tuple[
-    tuple[float, float],
-    tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float] | None,
-]:
-    """The winner's consensus taken once more with thresholds no tighter than the configured
-    ones but wide enough for the noise measured from the winner's own residuals
-    (``CHI3_Q99_OVER_MEDIAN`` times their median), and the system re-solved on it: ((rotation,
-    translation thresholds), (q_HE, p_HE, inliers, singular values, sigma7/6) or None when it
-    gathers no more motions).
+    system: System, won: Consensus, thresholds: tuple[float, float]
+) -> tuple[tuple[float, float], Consensus | None]:
+    """The winner's consensus (``won``) taken once more with thresholds no tighter than the
+    configured ones (``thresholds``: rotation [rad], translation [m]) but wide enough for the
+    noise measured from the winner's own residuals (``CHI3_Q99_OVER_MEDIAN`` times their
+    median), and the system re-solved on it: ((rotation, translation thresholds), the wider
+    consensus or None when it gathers no more motions).
 
     Why: the paper's 0.5 deg / 2 cm suit a good VIO over a 5 deg keyframe motion; a noisier eye
     pushes most clean motions over them, and a solution from the few left is far noisier than
     one from all clean motions. The median keeps true outliers (a minority) out.
     """
-    e_rot, e_trans = motion_errors(m, q_HE[None], p_HE[None])
-    thr_rot = max(thr_rot, CHI3_Q99_OVER_MEDIAN * float(np.median(e_rot[0])))
-    thr_trans = max(thr_trans, CHI3_Q99_OVER_MEDIAN * float(np.median(e_trans[0])))
+    e_rot, e_trans = motion_errors(system.m, won.q_HE[None], won.p_HE[None])
+    thr_rot = max(thresholds[0], CHI3_Q99_OVER_MEDIAN * float(np.median(e_rot[0])))
+    thr_trans = max(thresholds[1], CHI3_Q99_OVER_MEDIAN * float(np.median(e_trans[0])))
     wider = (e_rot[0] < thr_rot) & (e_trans[0] < thr_trans)
-    if wider.sum() <= inliers.sum():
+    if wider.sum() <= won.inliers.sum():
         return (thr_rot, thr_trans), None
-    q2, qd2, s2 = solve_gram(((wider * w2) @ gram).reshape(8, 8))
+    q2, qd2, s2 = system.solve(wider)
     q_HE, p_HE = pose_from_dual_quat(q2, qd2)
-    return (thr_rot, thr_trans), (q_HE, p_HE, wider, s2, float(s2[6] / s2[5]))
+    return (thr_rot, thr_trans), Consensus(q_HE, p_HE, wider, s2, float(s2[6] / s2[5]))

@@ -37,7 +37,7 @@ from .axxb import (
     scaled_motions,
     screw_log_weights,
 )
-from .ransac import consensus, widened_consensus
+from .ransac import Consensus, System, consensus, widened_consensus
 from .refits import (
     MIN_AXIS_SPREAD_DEG,
     WARN_AXIS_SPREAD_DEG,
@@ -159,20 +159,16 @@ def calibrate_linear(
     n = len(m)
     _check_enough(n, min_motions)
     rng = rng if rng is not None else np.random.default_rng(0)
-    gram = constraint_gram(m).reshape(n, 64)
     w2 = _squared_weights(m, mu) if robust_kernel else np.ones(n)
-    q_HE, p_HE, inliers, sigma_best, ratio_best = consensus(
-        m, gram, w2, ransac_iterations, inlier_rotation_rad, inlier_translation_m, rng
-    )
-    thr_rot, thr_trans = inlier_rotation_rad, inlier_translation_m
+    system = System(m, constraint_gram(m).reshape(n, 64), w2)
+    thresholds = (inlier_rotation_rad, inlier_translation_m)
+    won = consensus(system, ransac_iterations, thresholds, rng)
     if adaptive_inliers:
-        widened = widened_consensus(m, gram, w2, q_HE, p_HE, inliers, thr_rot, thr_trans)
-        (thr_rot, thr_trans), wider = widened
-        if wider is not None:
-            q_HE, p_HE, inliers, sigma_best, ratio_best = wider
-    spread = axis_spread_deg(m, inliers)
-    refit = _refit(m, inliers, q_HE, p_HE, spread, decoupled_refit, estimate_scale)
-    return _solution(m, refit, inliers, spread, sigma_best, ratio_best, (thr_rot, thr_trans))
+        thresholds, wider = widened_consensus(system, won, thresholds)
+        won = won if wider is None else wider
+    spread = axis_spread_deg(m, won.inliers)
+    refit = _refit(m, won, spread, decoupled_refit, estimate_scale)
+    return _solution(m, refit, won, spread, thresholds)
 
 
 @dataclass(frozen=True)
@@ -193,16 +189,12 @@ class _Refit:
 
 
 def _solution(
-    m: Motions,
-    refit: _Refit,
-    inliers: np.ndarray,
-    spread: float,
-    sigma_best: np.ndarray,
-    ratio_best: float,
-    thresholds: tuple[float, float],
+    m: Motions, refit: _Refit, won: Consensus, spread: float, thresholds: tuple[float, float]
 ) -> LinearSolution:
-    """The stage's answer from the refit on the consensus, with the inlier criteria of eq. 13
-    at it (on the eye made metric when a scale was estimated)."""
+    """The stage's answer from the refit on the consensus ``won`` (its rotation axes spread
+    ``spread`` deg), with the inlier criteria of eq. 13 (``thresholds``: rotation [rad],
+    translation [m]) at it (on the eye made metric when a scale was estimated)."""
+    inliers = won.inliers
     if refit.scale != 1.0:
         m = scaled_motions(m, refit.scale)
     e_rot, e_trans = motion_errors(m, refit.q_HE[None], refit.p_HE[None])
@@ -211,8 +203,8 @@ def _solution(
         p_HE=refit.p_HE,
         q_HE_dq=refit.q_dq,
         p_HE_dq=refit.p_dq,
-        sigma_ratio=ratio_best,
-        singular_values=sigma_best,
+        sigma_ratio=won.sigma_ratio,
+        singular_values=won.singular_values,
         n_motions=len(m),
         n_inliers=int(inliers.sum()),
         inliers=inliers,
@@ -231,15 +223,10 @@ def _solution(
 
 
 def _refit(
-    m: Motions,
-    inliers: np.ndarray,
-    q_HE: np.ndarray,
-    p_HE: np.ndarray,
-    spread: float,
-    decoupled_refit: bool,
-    estimate_scale: bool,
+    m: Motions, won: Consensus, spread: float, decoupled_refit: bool, estimate_scale: bool
 ) -> _Refit:
-    """The final extrinsic on the consensus (:class:`_Refit`).
+    """The final extrinsic on the consensus ``won``, whose rotation axes spread ``spread`` deg
+    (:class:`_Refit`).
 
     With ``decoupled_refit`` it is re-estimated with rotation (:func:`refit_rotation`) and
     translation (:func:`refit_translation_gls`) apart; otherwise the dual-quaternion solution
@@ -252,6 +239,7 @@ def _refit(
     dual-quaternion one in (q', s) with its rotation fixed. RANSAC's thresholds in metres need
     the eye near metric already (the pipeline scales it by :func:`.scale.scale_prior` first).
     """
+    inliers, q_HE, p_HE = won.inliers, won.q_HE, won.p_HE
     q_dq, p_dq = q_HE, p_HE
     unobservable: tuple[str, ...] = ()
     warnings: list[str] = []

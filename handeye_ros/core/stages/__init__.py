@@ -9,9 +9,9 @@ recordings need around it (:mod:`..checks`), in :func:`..pipeline.calibrate`'s o
 - :mod:`.scale`: the eye's scale around stage 2;
 - :mod:`.linear`: stage 2 with the eye's breaks, the vector refinement of the offset, the
   self-check over the candidate offsets and the seed check;
-- :mod:`.batch`: stage 3 from stage 2's answer, checked against it, with its uncertainty;
-- :mod:`.findings`: what they learn on the way, for the result and the verdict: notes, and
-  facts (:mod:`..checks.verdict.facts`) that only the verdict reads into reasons.
+- :mod:`.batch`: stage 3 from stage 2's answer, checked against it, with its uncertainty.
 
+Each returns a frozen record of what it computed, with what it found on the way (its warnings,
+notes and facts: :class:`..checks.verdict.Findings`), which only the verdict reads into reasons.
 The math below never imports these, nor the checks; only these call the checks.
 """

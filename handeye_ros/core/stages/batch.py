@@ -21,9 +21,11 @@ from ..batch.correlated import (
     scale_term,
     varies,
 )
-from ..batch.refine import BatchOptions, BatchSolution, refine
+from ..batch.options import BatchOptions
+from ..batch.refine import BatchSolution, refine
 from ..checks.selfcheck import Hypothesis, score_candidates, scored_motions
 from ..checks.verdict import (
+    Findings,
     StagesDisagree,
     batch_moved,
     batch_supported,
@@ -37,13 +39,12 @@ from ..geometry import quat_angle
 from ..linear.robust import LinearSolution
 from ..linear.solve import solve_linear
 from ..trajectory import Trajectory
-from .findings import Findings
 from .linear import LinearStage
 
 #: Each refit of the uncertainty's terms uses at most this many eye poses, evenly decimated: they
 #: measure a ratio and a shift, not the estimate (an hour at 200 Hz has 720 000). All of them
 #: reuse the estimate's spline of the MoCap, which depends on the MoCap alone: fitting it again
-#: for each was half their cost.
+#: for each would double their cost.
 MAX_AUX_POSES = 20_000
 #: A scale refit whose s is uncertain by more than this leaves the scale term out (the eye's
 #: translations are too short to tell a scale from the lever arm; the result says so).
@@ -53,8 +54,9 @@ SCALE_UNOBSERVABLE = 0.1
 @dataclass(frozen=True)
 class Refined:
     """The answer after stage 3: dt [s] (the offset left on ``eye``), T_HE as (q_HE, p_HE),
-    the batch solution (None: stage 2's answer was kept), and the eye and its model with the
-    batch stage's drift and scale folded in."""
+    the batch solution (None: stage 2's answer was kept), the eye and its model with the
+    batch stage's drift and scale folded in, and what the stage found (why it was not used,
+    the self-check's word on it, the uncertainty's notes)."""
 
     dt: float
     q_HE: np.ndarray
@@ -62,42 +64,48 @@ class Refined:
     batch: BatchSolution | None
     eye: Trajectory
     model: EyeModel
+    found: Findings
 
 
-def batch_stage(
-    hand: Trajectory, linear: LinearStage, cfg: CalibrationConfig, run: Findings
-) -> Refined:
+def batch_stage(hand: Trajectory, linear: LinearStage, cfg: CalibrationConfig) -> Refined:
     """Stage 3 (see the module docstring)."""
     lin, dt, eye, model = linear.solution, linear.dt, linear.eye, linear.model
     q_HE, p_HE = lin.q_HE, lin.p_HE
-    batch = None
-    if cfg.batch and lin.unobservable:
-        run.warnings.append('batch stage not used: part of the extrinsic is unobservable')
-    elif cfg.batch:
-        batch, why = run_batch(hand, eye, dt, q_HE, p_HE, cfg, model)
-        if batch is not None:
-            batch = check_batch(hand, eye, dt, lin, batch, cfg, run)
-        if batch is not None:
-            dt, q_HE, p_HE = batch.time_offset_s, batch.q_HE, batch.p_HE
-            run.warnings.extend(batch.warnings)
-            eye, model = fold_batch(eye, model, batch)
-            batch = with_correlated(hand, eye, batch, cfg)
-            unc = batch.uncertainty
-            assert unc is not None, 'with_correlated measured it'
-            for w in unc.not_estimated:
-                run.note(f'uncertainty: {w}')
-            for group, (spread, ratio) in unc.varies.items():
-                sigma = float(np.linalg.norm(unc.std(group)))
-                run.note(varies_note(group, spread, ratio, sigma))
-            if unc.scale is not None and not run.scale_named:  # stage 2 did not name it
-                s, std, shift = unc.scale
-                note = scale_uncertainty_note(s, std, float(np.linalg.norm(shift[1:4])))
-                if note:
-                    run.note(note)
-        else:
-            why = why or 'the self-check sided with the linear result'
-            run.warnings.append(f'batch stage not used, the linear result is kept: {why}')
-    return Refined(dt, q_HE, p_HE, batch, eye, model)
+    if not cfg.batch:
+        return Refined(dt, q_HE, p_HE, None, eye, model, Findings())
+    if lin.unobservable:
+        why = 'batch stage not used: part of the extrinsic is unobservable'
+        return Refined(dt, q_HE, p_HE, None, eye, model, Findings.warned(why))
+    batch, why = run_batch(hand, eye, dt, q_HE, p_HE, cfg, model)
+    found = Findings()
+    if batch is not None:
+        batch, found = check_batch(hand, eye, dt, lin, batch, cfg)
+    if batch is None:
+        why = why or 'the self-check sided with the linear result'
+        kept = Findings.warned(f'batch stage not used, the linear result is kept: {why}')
+        return Refined(dt, q_HE, p_HE, None, eye, model, found + kept)
+    eye, model = fold_batch(eye, model, batch)
+    batch = with_correlated(hand, eye, batch, cfg)
+    notes = uncertainty_notes(batch, linear.scale_named)
+    found = found + Findings.warned(*batch.warnings) + notes
+    return Refined(batch.time_offset_s, batch.q_HE, batch.p_HE, batch, eye, model, found)
+
+
+def uncertainty_notes(batch: BatchSolution, scale_named: bool) -> Findings:
+    """The notes of the batch solution's uncertainty: the terms it could not estimate, the
+    parameters that vary along the recording, and the eye's scale (unless stage 2 named it,
+    ``scale_named``)."""
+    unc = batch.uncertainty
+    assert unc is not None, 'with_correlated measured it'
+    notes = [f'uncertainty: {w}' for w in unc.not_estimated]
+    for group, (spread, ratio) in unc.varies.items():
+        sigma = float(np.linalg.norm(unc.std(group)))
+        notes.append(varies_note(group, spread, ratio, sigma))
+    if unc.scale is not None and not scale_named:
+        s, std, shift = unc.scale
+        note = scale_uncertainty_note(s, std, float(np.linalg.norm(shift[1:4])))
+        notes += [note] if note else []
+    return Findings.of(*notes)
 
 
 def run_batch(
@@ -138,16 +146,16 @@ def check_batch(
     lin: LinearSolution,
     sol: BatchSolution,
     cfg: CalibrationConfig,
-    run: Findings,
-) -> BatchSolution | None:
+) -> tuple[BatchSolution | None, Findings]:
     """When the batch stage moves dt or T_HE beyond its own sigmas, let the self-check decide
-    between it and the linear result. Returns the batch solution, or None when rejected."""
+    between it and the linear result. Returns the batch solution, or None when rejected, and
+    what the self-check found."""
     moved_dt = abs(sol.time_offset_s - dt)
     moved_t = float(np.linalg.norm(sol.p_HE - lin.p_HE))
     moved_r = float(np.degrees(quat_angle(sol.q_HE, lin.q_HE)))
     far_dt, far_x = batch_moved(moved_dt, moved_t, moved_r, sol.std)
     if not (far_dt or far_x):
-        return sol
+        return sol, Findings()
     what = (
         f'the batch stage moved dt by {moved_dt * 1e3:.1f} ms and T_HE by '
         f'{moved_t * 1e3:.0f} mm / {moved_r:.2f} deg from the linear result'
@@ -160,8 +168,7 @@ def check_batch(
         try:
             lin_b, _ = solve_linear(hand, eye, sol.time_offset_s, cfg)
         except HandeyeError as err:
-            run.record(StagesDisagree(what, failed=str(err)))
-            return None
+            return None, Findings.of(StagesDisagree(what, failed=str(err)))
         hyps.append(
             Hypothesis(
                 sol.time_offset_s, 'linear stage at the batch offset', lin_b.q_HE, lin_b.p_HE
@@ -169,20 +176,16 @@ def check_batch(
         )
     hyps.append(Hypothesis(sol.time_offset_s, 'batch stage', sol.q_HE, sol.p_HE))
     scored = score_candidates(hand, eye, hyps, scored_motions(eye, np.deg2rad(cfg.eta)))
-    run.candidates.extend(scored)
     score = [c.score for c in scored]
     if not np.all(np.isfinite(score)):
-        run.record(StagesDisagree(what))
-        return sol
+        return sol, Findings(log=(StagesDisagree(what),), candidates=tuple(scored))
     if batch_supported(score, far_dt):
-        run.note(
-            f'{what}; the self-check supports it (scores '
-            + ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
-            + ')'
-        )
-        return sol
-    run.record(StagesDisagree(what, scored=tuple(scored)))
-    return None
+        scores = ', '.join(f'{c.source} {c.score:.3g}' for c in scored)
+        said = f'{what}; the self-check supports it (scores {scores})'
+        return sol, Findings(log=(said,), candidates=tuple(scored))
+    return None, Findings(
+        log=(StagesDisagree(what, scored=tuple(scored)),), candidates=tuple(scored)
+    )
 
 
 def fold_batch(

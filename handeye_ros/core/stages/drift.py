@@ -5,18 +5,17 @@ verdict (:mod:`..time.clock` measures, :class:`~handeye_ros.core.eye_model.EyeMo
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..checks.verdict import DriftMeasured, DriftUnobservable
+from ..checks.verdict import DriftMeasured, DriftUnobservable, Findings
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
 from ..geometry import matrix_from_quat
 from ..linear.robust import LinearSolution
 from ..time.clock import DriftFit, measure_drift
 from ..trajectory import Trajectory
-from .findings import Findings
 
 
 def drift_from_windows(
@@ -31,6 +30,20 @@ def drift_from_windows(
     return model.add_drift(eye, fit.drift, fit.drift_std)
 
 
+@dataclass(frozen=True)
+class Along:
+    """The clock along the recording: eye and model (with clock_drift, the drift taken out of
+    the eye's stamps); clock: the windows' fit on the eye's own clock (None: not measured);
+    moved: the offset at the reference stamp [s] when the stamps moved, else None; found: the
+    drift measured (a fact), or why it could not be."""
+
+    eye: Trajectory
+    model: EyeModel
+    clock: DriftFit | None
+    moved: float | None
+    found: Findings
+
+
 def clock_along(
     hand: Trajectory,
     eye: Trajectory,
@@ -38,32 +51,29 @@ def clock_along(
     dt: float,
     lin: LinearSolution,
     cfg: CalibrationConfig,
-    run: Findings,
-) -> tuple[Trajectory, EyeModel, DriftFit | None, float | None]:
+) -> Along:
     """The offset measured in windows along the recording with stage 2's rotation (the vector
     form of stage 1): named when it drifts (default run), taken out of the eye's stamps with
-    clock_drift. Returns (eye, model, the fit on the eye's own clock, the offset at the
-    reference stamp when the stamps moved, else None)."""
+    clock_drift."""
     if eye.keyframes:  # the windows correlate angular velocities, which keyframes do not give
-        if cfg.clock_drift:
-            run.record(DriftUnobservable(None))
-        return eye, model, None, None
+        found = Findings.of(DriftUnobservable(None)) if cfg.clock_drift else Findings()
+        return Along(eye, model, None, None, found)
     R_HE = None if lin.unobservable else matrix_from_quat(lin.q_HE)
     fit = measure_drift(hand, eye, R_HE, cfg.resample_rate_hz, around_s=dt)
     clock = _absolute_clock(fit, model)
     if not cfg.clock_drift:
-        run.record(DriftMeasured(fit))
-        return eye, model, clock, None
+        return Along(eye, model, clock, None, Findings.of(DriftMeasured(fit)))
     if not fit.estimated:
-        if model.drift_estimated:
-            run.warnings.append(
+        found = (
+            Findings.warned(
                 'the clock drift comes from the angular-speed magnitudes only: ' + fit.why
             )
-        else:
-            run.record(DriftUnobservable(fit.why))
-        return eye, model, clock, None
+            if model.drift_estimated
+            else Findings.of(DriftUnobservable(fit.why))
+        )
+        return Along(eye, model, clock, None, found)
     eye, model = model.add_drift(eye, fit.drift, fit.drift_std * (1.0 - model.drift))
-    return eye, model, clock, float(fit.offset_at(model.stamp_ns))
+    return Along(eye, model, clock, float(fit.offset_at(model.stamp_ns)), Findings())
 
 
 def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:

@@ -26,6 +26,7 @@ from ..checks.selfcheck import (
     screw_rejects,
 )
 from ..checks.verdict import (
+    Findings,
     ScaleMeasured,
     SeedCompared,
     SeedFailed,
@@ -42,7 +43,6 @@ from ..time.align import TimeAlignment, align_time_vector
 from ..time.clock import DriftFit, covered_span
 from ..trajectory import Trajectory
 from .drift import clock_along, drift_from_windows
-from .findings import Findings
 from .prepare import Inputs, check_fraction
 from .scale import fold_linear_scale, scale_check, scale_from_rotations
 from .time import Offset
@@ -63,12 +63,29 @@ MAX_VECTOR_ITERATIONS = 3
 
 
 @dataclass(frozen=True)
+class Solved:
+    """Stage 2 at the offset dt [s] (from stage 1's): its solution and the pose pairs it
+    associated there."""
+
+    dt: float
+    solution: LinearSolution
+    pairs: PosePairs
+
+
+def solve_at(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfig) -> Solved:
+    """Stage 2 at the offset dt [s] (:func:`~handeye_ros.core.linear.solve.solve_linear`)."""
+    return Solved(dt, *solve_linear(hand, eye, dt, cfg))
+
+
+@dataclass(frozen=True)
 class LinearStage:
     """eye: T_WE on the hand's clock up to ``dt`` (stage 1's offset, any drift and scale taken
     out), split at its breaks; model: what was applied to it; dt: the offset left [s];
     solution: stage 2's answer; vector: the vector refinement's alignment (None when it did not
     run); clock: the offset measured along the recording (None when not measured);
-    screening: what was removed from each stream, the eye's breaks and outliers included."""
+    screening: what was removed from each stream, the eye's breaks and outliers included;
+    found: what stage 2 and its checks found; scale_named: the scale check named the eye's
+    scale (a reason or a note), so that the batch stage does not again."""
 
     eye: Trajectory
     model: EyeModel
@@ -77,55 +94,54 @@ class LinearStage:
     vector: TimeAlignment | None
     clock: DriftFit | None
     screening: tuple[Screening, Screening]
+    found: Findings
+    scale_named: bool
 
 
-def linear_stage(
-    inputs: Inputs, offset: Offset, cfg: CalibrationConfig, run: Findings
-) -> LinearStage:
+def linear_stage(inputs: Inputs, offset: Offset, cfg: CalibrationConfig) -> LinearStage:
     """Stage 2 and what attaches to it (see the module docstring)."""
     hand, shift_ns, screening = offset.hand, offset.shift_ns, inputs.screening
     # from here on the eye is on the hand's clock (up to stage 1's error): offsets are small
     eye = offset.eye.shifted(-shift_ns)
     model = EyeModel(shift_ns, stamp_ns=covered_span(hand, eye)[2])
-    dt = 0.0
     if cfg.clock_drift and not eye.keyframes:
         eye, model = drift_from_windows(hand, eye, model, cfg)
     if cfg.estimate_scale:
         eye, model = scale_from_rotations(hand, eye, model, cfg)
-    lin, pairs = _first_solve(hand, eye, offset, cfg)
-    scaled = None if cfg.estimate_scale else scale_check(pairs, lin, cfg)
-    if scaled is not None:
-        run.record(ScaleMeasured(scaled, cfg.precision_translation))
-        run.scale_named = scaled.clear  # as a reason or a note
+    solved = _first_solve(hand, eye, offset, cfg)
+    scaled = None if cfg.estimate_scale else scale_check(solved.pairs, solved.solution, cfg)
+    measured = () if scaled is None else (ScaleMeasured(scaled, cfg.precision_translation),)
+    found = Findings.of(*measured)
     # a scale that is a reason leaves the eye whole (scale_doubtful says why)
     whole = scaled is not None and scale_doubtful(scaled, cfg.precision_translation)
     if cfg.screening and not whole:
-        eye, lin, pairs, screening = split_eye(
-            hand, eye, lin, pairs, cfg, screening, shift_ns, run
-        )
+        split = split_eye(hand, eye, solved, cfg, screening, shift_ns)
+        eye, solved, screening = split.eye, split.solved, split.screening
+        found = found + split.found
     tv = clock = None
     if not offset.fixed:
-        dt, lin, pairs, tv = refine_vector(hand, eye, dt, lin, pairs, cfg, run)
-        dt, lin, pairs = self_check(
-            hand, eye, offset.alignment, shift_ns, dt, lin, pairs, cfg, run
-        )
+        solved, tv, refined = refine_vector(hand, eye, solved, cfg)
+        solved, checked = self_check(hand, eye, offset.alignment, shift_ns, solved, cfg)
         # the offset along the recording, with stage 2's rotation
-        eye, model, clock, moved = clock_along(hand, eye, model, dt, lin, cfg, run)
-        if moved is not None:
-            dt = moved
-            lin, pairs = solve_linear(hand, eye, dt, cfg)
+        along = clock_along(hand, eye, model, solved.dt, solved.solution, cfg)
+        eye, model, clock = along.eye, along.model, along.clock
+        found = found + refined + checked + along.found
+        if along.moved is not None:
+            solved = solve_at(hand, eye, along.moved, cfg)
     if cfg.estimate_scale:
-        eye, model = fold_linear_scale(eye, model, lin, run)
-    return LinearStage(eye, model, dt, lin, tv, clock, screening)
+        eye, model, folded = fold_linear_scale(eye, model, solved.solution)
+        found = found + folded
+    named = scaled is not None and scaled.clear
+    return LinearStage(eye, model, solved.dt, solved.solution, tv, clock, screening, found, named)
 
 
 def _first_solve(
     hand: Trajectory, eye: Trajectory, offset: Offset, cfg: CalibrationConfig
-) -> tuple[LinearSolution, PosePairs]:
+) -> Solved:
     """Stage 2 at stage 1's offset; a degenerate answer inside a narrowed search window says
     that the offset may lie outside it."""
     try:
-        return solve_linear(hand, eye, 0.0, cfg)
+        return solve_at(hand, eye, 0.0, cfg)
     except DegenerateMotionError as err:
         if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
@@ -138,71 +154,81 @@ def _first_solve(
         raise DegenerateMotionError(msg) from None
 
 
+@dataclass(frozen=True)
+class Split:
+    """The eye split at its breaks (VIO resets) with its wild poses left out, stage 2 on it,
+    what screening removed (the breaks and outliers added to the eye's report) and the note of
+    the breaks."""
+
+    eye: Trajectory
+    solved: Solved
+    screening: tuple[Screening, Screening]
+    found: Findings
+
+
 def split_eye(
     hand: Trajectory,
     eye: Trajectory,
-    lin: LinearSolution,
-    pairs: PosePairs,
+    solved: Solved,
     cfg: CalibrationConfig,
     screening: tuple[Screening, Screening],
     shift_ns: int,
-    run: Findings,
-) -> tuple[Trajectory, LinearSolution, PosePairs, tuple[Screening, Screening]]:
-    """Breaks (VIO resets) and leftover wild poses of the eye, against the hand; stage 2 again
-    when any were found."""
+) -> Split:
+    """Breaks (VIO resets) and leftover wild poses of the eye, against the hand, at stage 2's
+    answer ``solved`` (at offset 0); stage 2 again when any were found."""
+    lin = solved.solution
     found = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
     if not (found.breaks_ns.size or found.outliers_ns.size or found.short_ns.size):
-        return eye, lin, pairs, screening
+        return Split(eye, solved, screening, Findings())
     sh, se = screening
     # the report keeps the eye's own stamps; this eye was moved by shift_ns
     se = se.merged(found.outliers_ns + shift_ns, 'outlier').merged(
         found.short_ns + shift_ns, 'short_segment', found.breaks_ns + shift_ns
     )
     check_fraction(se, eye, cfg)
+    said = Findings()
     if found.breaks_ns.size:
-        note = (
+        said = Findings.warned(
             f'the eye stream was split at {found.breaks_ns.size} break(s) (a VIO reset or '
             "jump of its world frame: its motion there disagrees with the hand's); no "
-            'motion or residual spans one'
+            'motion or residual spans one',
+            noted=True,
         )
-        run.warnings.append(note)
-        run.note(note)
-    lin, pairs = solve_linear(hand, found.eye, 0.0, cfg)
-    return found.eye, lin, pairs, (sh, se)
+    return Split(found.eye, solve_at(hand, found.eye, 0.0, cfg), (sh, se), said)
 
 
 def refine_vector(
-    hand: Trajectory,
-    eye: Trajectory,
-    dt: float,
-    lin: LinearSolution,
-    pairs: PosePairs,
-    cfg: CalibrationConfig,
-    run: Findings,
-) -> tuple[float, LinearSolution, PosePairs, TimeAlignment | None]:
-    """dt from the body angular velocities with stage 2's rotation, iterated with stage 2."""
+    hand: Trajectory, eye: Trajectory, solved: Solved, cfg: CalibrationConfig
+) -> tuple[Solved, TimeAlignment | None, Findings]:
+    """dt from the body angular velocities with stage 2's rotation, iterated with stage 2 from
+    ``solved``; the vector refinement's alignment (None when it did not run), and a warning
+    when it failed."""
+    lin = solved.solution
     if not cfg.vector_refinement or lin.unobservable or eye.keyframes:
-        return dt, lin, pairs, None
+        return solved, None, Findings()
     tv = None
     for _ in range(MAX_VECTOR_ITERATIONS):
         try:
             tv = align_time_vector(
                 hand,
                 eye,
-                matrix_from_quat(lin.q_HE),
-                around_s=dt,
+                matrix_from_quat(solved.solution.q_HE),
+                around_s=solved.dt,
                 half_window_s=VECTOR_HALF_WINDOW_S,
                 resample_rate_hz=cfg.resample_rate_hz,
             )
         except TimeAlignmentError as err:
-            run.warnings.append(f'vector refinement of the time offset not used: {err}')
-            return dt, lin, pairs, tv
-        moved = tv.time_offset_s - dt
-        dt = tv.time_offset_s
+            return (
+                solved,
+                tv,
+                Findings.warned(f'vector refinement of the time offset not used: {err}'),
+            )
+        moved = tv.time_offset_s - solved.dt
+        solved = replace(solved, dt=tv.time_offset_s)
         if abs(moved) <= LINEAR_REDO_S:
             break
-        lin, pairs = solve_linear(hand, eye, dt, cfg)
-    return dt, lin, pairs, tv
+        solved = solve_at(hand, eye, solved.dt, cfg)
+    return solved, tv, Findings()
 
 
 def self_check(
@@ -210,56 +236,60 @@ def self_check(
     eye: Trajectory,
     ta: TimeAlignment,
     shift_ns: int,
-    dt: float,
-    lin: LinearSolution,
-    pairs: PosePairs,
+    solved: Solved,
     cfg: CalibrationConfig,
-    run: Findings,
-) -> tuple[float, LinearSolution, PosePairs]:
+) -> tuple[Solved, Findings]:
     """Stage 2 at every distinct candidate offset, on a bounded excerpt of the recording
     (:mod:`~handeye_ros.core.checks.excerpt`), scored alike; the best one wins, and stage 2
-    runs on the whole recording at it."""
+    runs on the whole recording at it. Found: why each candidate lost, the self-check's note
+    or tie, the candidates."""
+    dt, lin = solved.dt, solved.solution
     same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
     tried = [_Tried(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin)]
-    proposals = [(0.0, 'correlation peak')] + [
-        (c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})') for c, r in ta.candidates
+    proposals = [_Proposal(0.0, 'correlation peak')] + [
+        _Proposal(c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})')
+        for c, r in ta.candidates
     ]
     # eq. 9 first: an offset whose motions turn by other angles than the eye's is wrong
     # whatever T_HE is, and costs no RANSAC to rule out
     i, j = eye_keyframes(eye, np.deg2rad(cfg.eta))
     motions = spread_sample(i, j)
-    examined = len(run.candidates)
+    found = Findings()
     in_hand = screw_disagreement(hand, eye, dt, *motions)
-    for offset, source in proposals:
-        if any(abs(offset - t.offset_s) < same for t in tried):
+    for proposal in proposals:
+        if any(abs(proposal.offset_s - t.offset_s) < same for t in tried):
             continue
-        there = screw_disagreement(hand, eye, offset, *motions)
+        there = screw_disagreement(hand, eye, proposal.offset_s, *motions)
         if screw_rejects(there, in_hand):
-            run.note(
-                f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: '
+            why = (
                 f'the motions turn by angles {there:.2g} deg apart there in the median, '
                 f'{in_hand:.2g} deg at {(shift_ns * 1e-9 + dt):+.4f} s (eq. 9)'
             )
-            run.candidates.append(_unscored(offset, f'{source}: rejected by eq. 9', lin))
+            found = found + proposal.ruled_out(shift_ns, 'rejected by eq. 9', why, lin)
             continue
-        found = _stage2_at(hand, eye, offset, source, shift_ns, lin, i.size, cfg, run)
-        if found is not None and not any(abs(found.offset_s - t.offset_s) < same for t in tried):
-            tried.append(found)
+        try:
+            candidate = _stage2_at(hand, eye, proposal, i.size, cfg)
+        except HandeyeError as err:
+            how = 'rejected, stage 2 fails there'
+            found = found + proposal.ruled_out(shift_ns, how, str(err), lin)
+            continue
+        if not any(abs(candidate.offset_s - t.offset_s) < same for t in tried):
+            tried.append(candidate)
     if len(tried) == 1:
-        if len(run.candidates) > examined:  # every other candidate was ruled out
-            run.candidates.append(replace(_unscored(dt, tried[0].source, lin), chosen=True))
-        return dt, lin, pairs
+        if found.candidates:  # every other candidate was ruled out
+            chosen = replace(_unscored(dt, tried[0].source, lin), chosen=True)
+            found = found + Findings(candidates=(chosen,))
+        return solved, found
     scored = score_candidates(hand, eye, [t.hypothesis() for t in tried], motions)
-    best = judge_tie(scored, shift_ns, run)
-    run.candidates.extend(replace(c, chosen=k == best) for k, c in enumerate(scored))
-    if best == 0:
-        return dt, lin, pairs
-    # the winner was judged on the excerpt: stage 2 and its refinement on the whole recording
-    won = tried[best].offset_s
-    won, won_lin, won_pairs, _ = refine_vector(
-        hand, eye, won, *solve_linear(hand, eye, won, cfg), cfg, Findings()
+    best, judged = judge_tie(scored, shift_ns)
+    found = found + Findings(
+        log=(judged,), candidates=tuple(replace(c, chosen=k == best) for k, c in enumerate(scored))
     )
-    return won, won_lin, won_pairs
+    if best == 0:
+        return solved, found
+    # the winner was judged on the excerpt: stage 2 and its refinement on the whole recording
+    won, _, _ = refine_vector(hand, eye, solve_at(hand, eye, tried[best].offset_s, cfg), cfg)
+    return won, found
 
 
 @dataclass(frozen=True)
@@ -275,34 +305,34 @@ class _Tried:
         return Hypothesis(self.offset_s, self.source, self.solution.q_HE, self.solution.p_HE)
 
 
+@dataclass(frozen=True)
+class _Proposal:
+    """A candidate offset: offset_s (s, from stage 1's) and where it came from."""
+
+    offset_s: float
+    source: str
+
+    def ruled_out(self, shift_ns: int, how: str, why: str, lin: LinearSolution) -> Findings:
+        """The note of why it lost and the candidate unscored (its source followed by ``how``),
+        with stage 2's extrinsic ``lin`` in hand."""
+        at = shift_ns * 1e-9 + self.offset_s
+        text = f'candidate offset {at:+.4f} s ({self.source}) rejected: {why}'
+        lost = _unscored(self.offset_s, f'{self.source}: {how}', lin)
+        return Findings(log=(text,), candidates=(lost,))
+
+
 def _stage2_at(
-    hand: Trajectory,
-    eye: Trajectory,
-    offset: float,
-    source: str,
-    shift_ns: int,
-    lin: LinearSolution,
-    n_motions: int,
-    cfg: CalibrationConfig,
-    run: Findings,
-) -> _Tried | None:
-    """Stage 2 at a candidate offset (s, from ``shift_ns``) with its vector refinement, on the
-    recording's excerpt at that offset (the eye has ``n_motions`` keyframe motions), or None
-    when stage 2 fails there (noted, and counted among the candidates unscored)."""
+    hand: Trajectory, eye: Trajectory, proposal: _Proposal, n_motions: int, cfg: CalibrationConfig
+) -> _Tried:
+    """Stage 2 at a candidate offset with its vector refinement, on the recording's excerpt at
+    that offset (the eye has ``n_motions`` keyframe motions); raises a HandeyeError when stage 2
+    fails there."""
+    offset = proposal.offset_s
     part_hand, part_eye = excerpt(hand, eye, offset, n_motions)
-    try:
-        lin_c, pairs_c = solve_linear(part_hand, part_eye, offset, cfg)
-        if offset != 0.0 and cfg.vector_refinement and not lin_c.unobservable:
-            offset, lin_c, pairs_c, _ = refine_vector(
-                part_hand, part_eye, offset, lin_c, pairs_c, cfg, Findings()
-            )
-    except HandeyeError as err:
-        run.note(
-            f'candidate offset {(shift_ns * 1e-9 + offset):+.4f} s ({source}) rejected: {err}'
-        )
-        run.candidates.append(_unscored(offset, f'{source}: rejected, stage 2 fails there', lin))
-        return None
-    return _Tried(offset, source, lin_c)
+    there = solve_at(part_hand, part_eye, offset, cfg)
+    if offset != 0.0 and cfg.vector_refinement and not there.solution.unobservable:
+        there, _, _ = refine_vector(part_hand, part_eye, there, cfg)
+    return _Tried(there.dt, proposal.source, there.solution)
 
 
 def _unscored(offset: float, source: str, lin: LinearSolution) -> Candidate:
@@ -319,19 +349,18 @@ def seed_check(
     lin: LinearSolution,
     batch: BatchSolution | None,
     cfg: CalibrationConfig,
-    run: Findings,
     pairs: PosePairs | None = None,
-) -> LinearSolution | None:
+) -> tuple[LinearSolution | None, Findings]:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
-    uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`). ``pairs``: the streams associated at dt, when already made."""
+    uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact.
+    ``pairs``: the streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
-        return None
+        return None, Findings()
     try:
         other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
-        run.record(SeedFailed(cfg.seed + 1, str(err)))
-        return None
+        return None, Findings.of(SeedFailed(cfg.seed + 1, str(err)))
     d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
     d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
-    run.record(SeedCompared(cfg.seed + 1, d_rot, d_t, None if batch is None else batch.std))
-    return other
+    std = None if batch is None else batch.std
+    return other, Findings.of(SeedCompared(cfg.seed + 1, d_rot, d_t, std))

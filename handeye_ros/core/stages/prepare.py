@@ -11,48 +11,57 @@ import numpy as np
 from ..checks.conventions import check_stamp_units, epoch_note
 from ..checks.orientations import reread
 from ..checks.screening import Screening, damaged, describe_damage, screen
+from ..checks.verdict import Findings
 from ..config import CalibrationConfig
 from ..errors import InputError
 from ..trajectory import Trajectory, TrajectoryInfo, is_keyframe_only
-from .findings import Findings
 
 
 @dataclass(frozen=True)
 class Inputs:
     """hand (T_GH), eye (T_WE): the streams after the conventions and screening, each on its
     own clock; screening: what was removed from each (hand, eye); given: the streams as handed
-    over, described (names, counts, rates, spans)."""
+    over, described (names, counts, rates, spans); found: the readers' notes, the readings
+    corrected, the epochs and a keyframe-only eye named, the damaged rows left out."""
 
     hand: Trajectory
     eye: Trajectory
     screening: tuple[Screening, Screening]
     given: tuple[TrajectoryInfo, TrajectoryInfo]
+    found: Findings
 
 
-def prepare(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: Findings) -> Inputs:
+def prepare(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> Inputs:
     """The inputs of the stages (see the module docstring)."""
     given = (hand.info(), eye.info())
-    run.warnings += [*hand.notes, *eye.notes]
-    hand, eye = prepare_streams(hand, eye, cfg, run)
-    hand, eye, screening = screen_streams(hand, eye, cfg, run)
-    return Inputs(hand, eye, screening, given)
+    read = Findings.warned(*hand.notes, *eye.notes)
+    hand, eye, conventions = prepare_streams(hand, eye, cfg)
+    hand, eye, screening = screen_streams(hand, eye, cfg)
+    damage = [rep.damage for rep in screening if rep.damage]
+    return Inputs(
+        hand,
+        eye,
+        (screening[0].report, screening[1].report),
+        given,
+        read + conventions + Findings.warned(*(f'{d}; those rows were left out' for d in damage)),
+    )
 
 
 def prepare_streams(
-    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: Findings
-) -> tuple[Trajectory, Trajectory]:
-    """Explicit inversions, stamp units, epochs."""
+    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig
+) -> tuple[Trajectory, Trajectory, Findings]:
+    """Explicit inversions, stamp units, epochs, and what was found on the way."""
     if cfg.invert_hand:
         hand = reread(hand, 'inverse')
     if cfg.invert_eye:
         eye = reread(eye, 'inverse')
+    found = Findings()
     if cfg.check_conventions:
-        hand, eye, found = check_stamp_units(hand, eye)
-        run.corrected(found)
+        hand, eye, corrections = check_stamp_units(hand, eye)
+        found = Findings.corrected(corrections)
     note = epoch_note(hand, eye)
     if note:
-        run.warnings.append(note)
-        run.note(note)
+        found = found + Findings.warned(note, noted=True)
     if is_keyframe_only(eye):
         eye = replace(eye, keyframes=True)
         step = np.diff(eye.t_ns) * 1e-9
@@ -62,35 +71,41 @@ def prepare_streams(
             'rotation angles over keyframe pairs (screw congruence), not from the angular-speed '
             'correlation; no vector refinement and no drift windows'
         )
-        run.warnings.append(note)
-        run.note(note)
-    return hand, eye
+        found = found + Findings.warned(note, noted=True)
+    return hand, eye, found
+
+
+@dataclass(frozen=True)
+class Screened:
+    """What screening removed from a stream (``report``), and the damaged rows among them
+    described (``damage``; empty when none)."""
+
+    report: Screening
+    damage: str
 
 
 def screen_streams(
-    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, run: Findings
-) -> tuple[Trajectory, Trajectory, tuple[Screening, Screening]]:
+    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig
+) -> tuple[Trajectory, Trajectory, tuple[Screened, Screened]]:
     """Both streams screened (see :mod:`.checks.screening`); refuse a stream that would lose too much."""
     if not cfg.screening:
         return (
             hand,
             eye,
             (
-                Screening('hand', len(hand), np.zeros(0, np.int64), ()),
-                Screening('eye', len(eye), np.zeros(0, np.int64), ()),
+                Screened(Screening('hand', len(hand), np.zeros(0, np.int64), ()), ''),
+                Screened(Screening('eye', len(eye), np.zeros(0, np.int64), ()), ''),
             ),
         )
-    out, reports = [], []
+    out, screened = [], []
     for traj, stream in ((hand, 'hand'), (eye, 'eye')):
         kept, rep = screen(traj, stream, cfg.outlier_threshold)
         wrecked = damaged(traj)
         damage = describe_damage(traj, wrecked) if wrecked.any() else ''
         check_fraction(rep, traj, cfg, damage)
-        if damage:
-            run.warnings.append(f'{damage}; those rows were left out')
         out.append(kept)
-        reports.append(rep)
-    return out[0], out[1], (reports[0], reports[1])
+        screened.append(Screened(rep, damage))
+    return out[0], out[1], (screened[0], screened[1])
 
 
 def check_fraction(

@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..association import PosePairs, associate
+from ..checks.verdict import Findings
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
 from ..geometry import matrix_from_quat
@@ -18,7 +19,6 @@ from ..linear.refits import drift_weights
 from ..linear.robust import LinearSolution, calibrate_linear
 from ..linear.scale import ScaleFit, observable, scale_prior, translation_and_scale
 from ..trajectory import Trajectory
-from .findings import Findings
 
 
 def scale_from_rotations(
@@ -50,20 +50,21 @@ def scale_from_rotations(
 
 
 def fold_linear_scale(
-    eye: Trajectory, model: EyeModel, lin: LinearSolution, run: Findings
-) -> tuple[Trajectory, EyeModel]:
+    eye: Trajectory, model: EyeModel, lin: LinearSolution
+) -> tuple[Trajectory, EyeModel, Findings]:
     """Stage 2's scale (on top of the first one) into the eye, whose translations its T_HE
-    assumes."""
+    assumes; a note when its two paths disagree."""
     if not model.scale_observable or not observable(lin.scale, lin.scale_std):
         std = lin.scale_std * model.scale if np.isfinite(lin.scale_std) else np.inf
-        return eye, replace(model, scale_std=max(std, model.scale_std))
+        return eye, replace(model, scale_std=max(std, model.scale_std)), Findings()
+    found = Findings()
     if lin.scale_dq > 0 and abs(lin.scale_dq / lin.scale - 1.0) > 0.05:
-        run.note(
+        found = Findings.of(
             f'the dual-quaternion path gives a scale {lin.scale_dq:.4f} against '
             f"the translation refit's {lin.scale:.4f} (relative to the first "
             'estimate)'
         )
-    return model.add_scale(eye, lin.scale, model.scale * lin.scale_std)
+    return *model.add_scale(eye, lin.scale, model.scale * lin.scale_std), found
 
 
 def scale_check(pairs: PosePairs, lin: LinearSolution, cfg: CalibrationConfig) -> ScaleFit | None:

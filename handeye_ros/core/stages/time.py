@@ -10,13 +10,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..checks.orientations import check_orientations
-from ..checks.verdict import WEAK_CORRELATION
+from ..checks.verdict import WEAK_CORRELATION, Findings
 from ..config import CalibrationConfig
 from ..errors import TimeAlignmentError
 from ..time.align import TimeAlignment, align_time
 from ..time.keyframe_only import align_time_keyframes
 from ..trajectory import Trajectory
-from .findings import Findings
 from .prepare import Inputs
 
 #: A search window given by its guess alone is this wide on each side (s).
@@ -29,12 +28,14 @@ FIXED_OFFSET_DISAGREEMENT_S = 0.01
 @dataclass(frozen=True)
 class Offset:
     """alignment: stage 1's result (or the offset fixed by the user); hand, eye: the streams
-    after the orientation conventions; fixed: the user gave the offset."""
+    after the orientation conventions; fixed: the user gave the offset; found: a fixed offset
+    the data disagree with, the orientation readings corrected."""
 
     alignment: TimeAlignment
     hand: Trajectory
     eye: Trajectory
     fixed: bool
+    found: Findings
 
     @property
     def shift_ns(self) -> int:
@@ -42,18 +43,19 @@ class Offset:
         return self.alignment.time_offset_ns
 
 
-def align_stage(inputs: Inputs, cfg: CalibrationConfig, run: Findings) -> Offset:
+def align_stage(inputs: Inputs, cfg: CalibrationConfig) -> Offset:
     """Stage 1 (see the module docstring)."""
     hand, eye = inputs.hand, inputs.eye
     fixed = cfg.time_offset is not None
     guess, half = search_window(cfg)
+    found = Findings()
     if cfg.time_offset is not None:
         ta = TimeAlignment(
             time_offset_s=cfg.time_offset,
             method='fixed',
             time_offset_ns=round(cfg.time_offset * 1e9),
         )
-        run.warnings += check_fixed_offset(hand, eye, cfg.time_offset, cfg)
+        found = Findings.warned(*check_fixed_offset(hand, eye, cfg.time_offset, cfg))
     elif eye.keyframes:
         ta = align_time_keyframes(hand, eye, max_time_offset=half, time_offset_guess=guess)
     else:
@@ -66,9 +68,11 @@ def align_stage(inputs: Inputs, cfg: CalibrationConfig, run: Findings) -> Offset
             peak_fit=cfg.peak_fit,
         )
     if cfg.check_conventions:
-        hand, eye, found = check_orientations(hand, eye, ta.time_offset_s, np.deg2rad(cfg.eta))
-        run.corrected(found)
-    return Offset(ta, hand, eye, fixed)
+        hand, eye, corrections = check_orientations(
+            hand, eye, ta.time_offset_s, np.deg2rad(cfg.eta)
+        )
+        found = found + Findings.corrected(corrections)
+    return Offset(ta, hand, eye, fixed, found)
 
 
 def search_window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:

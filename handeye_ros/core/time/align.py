@@ -120,26 +120,36 @@ class Curve:
         return self.base_ns * 1e-9 + lag * self.step
 
 
+@dataclass(frozen=True)
+class _Search:
+    """Where stage 1 looks: the lag grid's step [s], and the offsets time_offset_guess +-
+    max_time_offset [s] (every lag when max_time_offset is None)."""
+
+    step: float
+    max_time_offset: float | None
+    time_offset_guess: float | None
+
+
 def _correlate(
     hand: Trajectory,
     eye: Trajectory,
-    x: np.ndarray,
-    mx: np.ndarray,
-    y: np.ndarray,
-    my: np.ndarray,
-    step: float,
-    max_time_offset: float | None,
-    time_offset_guess: float | None,
+    hand_signal: tuple[np.ndarray, np.ndarray],
+    eye_signal: tuple[np.ndarray, np.ndarray],
+    search: _Search,
 ) -> Curve:
+    """The correlation of the two signals on their grids (each (values, valid mask)) over the
+    lags ``search`` allows, with the lags that overlap enough eligible."""
+    (x, mx), (y, my) = hand_signal, eye_signal
+    step = search.step
     lags, ncc, overlap = masked_normalised_correlation(y, my, x, mx)
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
     need = max(MIN_OVERLAP_S / step, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()))
     eligible = (overlap >= need) & np.isfinite(ncc)
-    if max_time_offset is not None:
-        guess = 0.0 if time_offset_guess is None else time_offset_guess
+    if search.max_time_offset is not None:
+        guess = search.time_offset_guess or 0.0
         # offsets relative to the guess, computed without forming base + lag in float
         rel = (base_ns - round(guess * 1e9)) * 1e-9 + lags * step
-        eligible &= np.abs(rel) <= max_time_offset + 0.5 * step
+        eligible &= np.abs(rel) <= search.max_time_offset + 0.5 * step
     return Curve(base_ns, step, lags, ncc, eligible)
 
 
@@ -247,9 +257,9 @@ def align_time(
         msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
         raise ValueError(msg)
     step = grid_step(hand, eye, resample_rate_hz)
-    w_h, w_e = signals or (angular_speed(hand), angular_speed(eye))
+    signals = signals or (angular_speed(hand), angular_speed(eye))
     return _align(
-        hand, eye, w_h, w_e, step, max_time_offset, time_offset_guess, peak_fit, peak_fit
+        hand, eye, signals, _Search(step, max_time_offset, time_offset_guess), peak_fit, peak_fit
     )
 
 
@@ -277,30 +287,30 @@ def align_time_vector(
     step = grid_step(hand, eye, resample_rate_hz)
     w_h, w_e = signals or (angular_speed(hand, vector=True), angular_speed(eye, vector=True))
     w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
-    return _align(hand, eye, w_h, w_e, step, half_window_s, around_s, 'quadratic', 'vector')
+    search = _Search(step, half_window_s, around_s)
+    return _align(hand, eye, (w_h, w_e), search, 'quadratic', 'vector')
 
 
 def _align(
     hand: Trajectory,
     eye: Trajectory,
-    w_h: AngularSpeed,
-    w_e: AngularSpeed,
-    step: float,
-    max_time_offset: float | None,
-    time_offset_guess: float | None,
+    signals: tuple[AngularSpeed, AngularSpeed],
+    search: _Search,
     peak_fit: str,
     method: str,
 ) -> TimeAlignment:
-    """Stage 1 on two signals (magnitudes or vectors): each on its own grid, robust,
-    standardised, correlated over the searched lags, the peak and its candidates."""
+    """Stage 1 on two signals (hand's, eye's: magnitudes or vectors): each on its own grid,
+    robust, standardised, correlated over the lags ``search`` allows, the peak (``peak_fit``)
+    and its candidates; ``method`` names it in the result."""
+    (w_h, w_e), step = signals, search.step
     x, mx = resample(w_h, grid(hand, step))
     y, my = resample(w_e, grid(eye, step))
     x, mx = clip_signal(x, mx, step)
     y, my = clip_signal(y, my, step)
     x = standardise(x, mx, hand.name)
     y = standardise(y, my, eye.name)
-    curve = _correlate(hand, eye, x, mx, y, my, step, max_time_offset, time_offset_guess)
-    window = offset_window(max_time_offset, time_offset_guess)
+    curve = _correlate(hand, eye, (x, mx), (y, my), search)
+    window = offset_window(search.max_time_offset, search.time_offset_guess)
     need_s = max(MIN_OVERLAP_S, MIN_OVERLAP_FRACTION * min(mx.sum(), my.sum()) * step)
     k, frac = _peak(curve, peak_fit, hand, eye, window, need_s)
     eligible = np.flatnonzero(curve.eligible)

@@ -31,7 +31,7 @@ peak_correlation the Pearson correlation of the two angle sets at the offset.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -101,32 +101,29 @@ def align_time_keyframes(
         When too few keyframe pairs fall inside the hand at any searched offset, when the eye
         does not rotate, or when the best offset is at the edge of the searched ones.
     """
-    a, b, angle_e = _eye_angles(eye)
+    pairs = _eye_angles(eye)
     # the hand's rate (the eye's is no grid), bounded as stage 1 bounds its grids by the spans
     step = grid_step(hand, eye, min(hand.rate_hz, MAX_RESAMPLE_RATE_HZ))
     orient = _HandOrientation.of(hand)
-    grid_q, grid_ok = _hand_grid(orient, step)
+    on_grid = _OnGrid(*_hand_grid(orient, step), *_grid_points(eye, pairs, step), pairs.angle_e)
     base_ns = int(eye.t_ns[0]) - int(hand.t_ns[0])
-    ga, gb = _grid_points(eye, a, b, step)
     window = offset_window(max_time_offset, time_offset_guess)
-    k_lo, k_hi = _lag_range(ga, gb, grid_q.shape[0], base_ns, step, window)
+    k_lo, k_hi = _lag_range(on_grid.ga, on_grid.gb, on_grid.q.shape[0], base_ns, step, window)
     if k_hi - k_lo < 2:
         raise _too_few(hand, eye, window)
     m = max(1, round(COARSE_STEP_S / step))
-    coarse, c_score, c_ok, counted = _coarse_pass(grid_q, grid_ok, ga, gb, angle_e, k_lo, k_hi, m)
+    coarse, c_score, c_ok, counted = _coarse_pass(on_grid, k_lo, k_hi, m)
     if not c_ok.any():
         raise _too_few(hand, eye, window)
     kc = int(np.argmax(np.where(c_ok, c_score, -np.inf)))
     # every grid lag around the coarse best, with all pairs
     fine = np.arange(max(k_lo, coarse[kc] - 2 * m), min(k_hi, coarse[kc] + 2 * m) + 1)
-    k = _best_lag(
-        grid_q, grid_ok, ga, gb, angle_e, fine, max(MIN_PAIRS, MIN_OVERLAP_FRACTION * counted)
-    )
+    k = _best_lag(on_grid, fine, max(MIN_PAIRS, MIN_OVERLAP_FRACTION * counted))
     if k is None:
         raise _too_few(hand, eye, window)
     if not coarse[c_ok][0] < k < coarse[c_ok][-1]:
         raise _at_the_edge(base_ns * 1e-9 + k * step, window)
-    lag_s, agree = _refine(orient, eye, a, b, angle_e, k * step, step)
+    lag_s, agree = _refine(orient, eye, pairs, k * step, step)
     if not agree >= MIN_AGREEMENT:
         raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
     first, last = np.flatnonzero(c_ok)[[0, -1]]
@@ -147,48 +144,59 @@ def align_time_keyframes(
     )
 
 
-def _grid_points(
-    eye: Trajectory, a: np.ndarray, b: np.ndarray, step: float
-) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class _Pairs:
+    """The eye's keyframe pairs: indices (a, b) and the eye's rotation angle over each (rad)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    angle_e: np.ndarray
+
+
+@dataclass(frozen=True)
+class _OnGrid:
+    """The hand and the keyframe pairs on the lag grid: the hand's orientation at each grid
+    point (``q``, x y z w, (G, 4)) and which points lie in a gap-free interval (``ok``); the
+    pairs' stamps in grid steps (``ga``, ``gb``) and the eye's angle over each (rad)."""
+
+    q: np.ndarray
+    ok: np.ndarray
+    ga: np.ndarray
+    gb: np.ndarray
+    angle_e: np.ndarray
+
+    def some(self, pick: np.ndarray) -> _OnGrid:
+        """The pairs ``pick`` only."""
+        return replace(self, ga=self.ga[pick], gb=self.gb[pick], angle_e=self.angle_e[pick])
+
+
+def _grid_points(eye: Trajectory, pairs: _Pairs, step: float) -> tuple[np.ndarray, np.ndarray]:
     """The keyframe pairs' stamps in grid steps from the eye's first: at lag k (dt = base + k
     step) the eye stamp te falls on the hand's grid point te / step - k."""
     te = eye.seconds(int(eye.t_ns[0]))
+    a, b = pairs.a, pairs.b
     return np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
 
 
-def _best_lag(
-    grid_q: np.ndarray,
-    grid_ok: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    angle_e: np.ndarray,
-    lags: np.ndarray,
-    need: float,
-) -> int | None:
+def _best_lag(on_grid: _OnGrid, lags: np.ndarray, need: float) -> int | None:
     """The best-scoring of ``lags`` with all pairs among those with at least ``need`` pairs;
     None when none has."""
-    score, count = _scores(grid_q, grid_ok, ga, gb, angle_e, lags)
+    score, count = _scores(on_grid, lags)
     ok = count >= need
     return int(lags[int(np.argmax(np.where(ok, score, -np.inf)))]) if ok.any() else None
 
 
 def _coarse_pass(
-    grid_q: np.ndarray,
-    grid_ok: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    angle_e: np.ndarray,
-    k_lo: int,
-    k_hi: int,
-    m: int,
+    on_grid: _OnGrid, k_lo: int, k_hi: int, m: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Every m-th lag of [k_lo, k_hi] scored on a subset of the keyframe pairs (fewer for very
     long searches, so that the pass stays bounded): (lags, scores, which lags have enough
     pairs, the most pairs any lag had, scaled to all pairs)."""
     coarse = np.arange(k_lo, k_hi + 1, m)
+    ga = on_grid.ga
     n_pick = min(ga.size, COARSE_PAIRS, max(MIN_PAIRS * 10, COARSE_WORK // max(coarse.size, 1)))
     pick = np.unique(np.linspace(0, ga.size - 1, n_pick).astype(int))
-    c_score, c_count = _scores(grid_q, grid_ok, ga[pick], gb[pick], angle_e[pick], coarse)
+    c_score, c_count = _scores(on_grid.some(pick), coarse)
     need = max(MIN_PAIRS * pick.size / ga.size, MIN_OVERLAP_FRACTION * c_count.max())
     return coarse, c_score, c_count >= max(need, 1), c_count.max() * ga.size / pick.size
 
@@ -220,7 +228,7 @@ def _others(curve: Curve, kc: int, lag_s: float) -> tuple[tuple[float, float], .
     )
 
 
-def _eye_angles(eye: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _eye_angles(eye: Trajectory) -> _Pairs:
     """The keyframe pairs (a, b) and the eye's rotation angle over each; refused when there are
     too few, or when the keyframes hardly rotate."""
     a, b = keyframe_pairs(eye)
@@ -235,7 +243,7 @@ def _eye_angles(eye: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
             'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
         )
-    return a, b, angle_e
+    return _Pairs(a, b, angle_e)
 
 
 @dataclass(frozen=True)
@@ -269,15 +277,10 @@ def _hand_grid(hand: _HandOrientation, step: float) -> tuple[np.ndarray, np.ndar
     return hand.slerp(grid).as_quat(), hand.ok[k]
 
 
-def _scores(
-    grid_q: np.ndarray,
-    grid_ok: np.ndarray,
-    ga: np.ndarray,
-    gb: np.ndarray,
-    angle_e: np.ndarray,
-    lags: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+def _scores(on_grid: _OnGrid, lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(score, pairs inside the hand) at each lag (grid steps), a chunk of lags at a time."""
+    grid_q, grid_ok = on_grid.q, on_grid.ok
+    ga, gb, angle_e = on_grid.ga, on_grid.gb, on_grid.angle_e
     n = grid_q.shape[0]
     score, count = np.zeros(lags.size), np.zeros(lags.size, np.int64)
     rows = max(1, CHUNK // max(ga.size, 1))
@@ -296,19 +299,14 @@ def _scores(
 
 
 def _refine(
-    hand: _HandOrientation,
-    eye: Trajectory,
-    a: np.ndarray,
-    b: np.ndarray,
-    angle_e: np.ndarray,
-    lag_s: float,
-    step: float,
+    hand: _HandOrientation, eye: Trajectory, pairs: _Pairs, lag_s: float, step: float
 ) -> tuple[float, float]:
     """The lag (s, after the epoch difference) within one grid step of ``lag_s`` that minimises
     the mean squared angle difference of the pairs that agree there, the hand interpolated
     exactly; and the Pearson correlation of the eye's and the hand's angles at it."""
     # at lag L a keyframe stamped te (s from the eye's first stamp) meets the hand at te - L
     # (s from the hand's first stamp): dt = base + L, base the difference of the first stamps
+    a, b, angle_e = pairs.a, pairs.b, pairs.angle_e
     te = eye.seconds(int(eye.t_ns[0]))
 
     def at(lag: float, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

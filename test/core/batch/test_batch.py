@@ -22,7 +22,6 @@ from handeye_ros.core.errors import ConfigError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.stages.batch import check_batch, run_batch
-from handeye_ros.core.stages.findings import Findings
 
 
 def test_noise_free_is_exact() -> None:
@@ -142,17 +141,15 @@ def test_batch_far_from_the_linear_result_is_judged_by_the_self_check() -> None:
     sol, _ = run_batch(rec.hand, rec.eye, dt, q_bad, bad_lin.p_HE, CalibrationConfig())
     assert sol is not None
     assert calibration_error(rec.truth, sol.time_offset_s, sol.q_HE, sol.p_HE).translation_m < 0.01
-    run = Findings()
-    assert check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig(), run) is sol
-    said = judged(run)
+    kept, found = check_batch(rec.hand, rec.eye, dt, bad_lin, sol, CalibrationConfig())
+    assert kept is sol
+    said = judged(found)
     assert not said.reasons and any('supports it' in n for n in said.notes)
     # a batch solution far off a good linear result is refused
     bad_sol = replace(sol, q_HE=q_bad, p_HE=bad_lin.p_HE)
-    run = Findings()
-    assert (
-        check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig(), run) is None
-    )
-    assert judged(run).codes == ('stages_disagree',)
+    kept, found = check_batch(rec.hand, rec.eye, dt, good.linear, bad_sol, CalibrationConfig())
+    assert kept is None
+    assert judged(found).codes == ('stages_disagree',)
 
 
 @pytest.mark.parametrize(

@@ -117,7 +117,7 @@ def test_buffer_since_reads_the_tail_across_the_ring() -> None:
     """PoseBuffer.since: from the newest pose at or before the stamp, across the ring's wrap."""
     buf = PoseBuffer('hand', capacity=10)
     for k in range(1, 26):  # wraps twice; holds 16..25
-        assert buf.add(k * 100, 0.0, 0.0, float(k), 0.0, 0.0, 0.0, 1.0) is None
+        assert buf.add((k * 100, 0.0, 0.0, float(k), 0.0, 0.0, 0.0, 1.0)) is None
     assert buf.oldest_ns == 1600 and buf.newest_ns == 2500
     np.testing.assert_array_equal(buf.since(2150).t_ns, [2100, 2200, 2300, 2400, 2500])
     np.testing.assert_array_equal(buf.since(2100).t_ns, [2100, 2200, 2300, 2400, 2500])

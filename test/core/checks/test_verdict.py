@@ -174,17 +174,20 @@ def test_the_verdict_reads_the_stages_facts_in_the_order_found() -> None:
     notes keep their places among them, and a fact the verdict does not know is an error, not
     a silent pass."""
     from handeye_ros.core.checks import verdict
-    from handeye_ros.core.stages.findings import Findings
 
-    run = Findings()
-    run.note('first note')
-    run.record(verdict.SeedCompared(1, 0.01, 0.001, None))  # within the limits: nothing
-    run.record(verdict.StagesDisagree('the batch stage moved dt by 5 ms', failed='no motions'))
-    run.note('second note')
-    run.record(verdict.DriftUnobservable(None))
-    run.record(verdict.SeedFailed(1, 'no consensus'))
-    run.corrected([])  # nothing corrected: nothing recorded
-    said = verdict.judged(run)
+    Findings = verdict.Findings
+
+    found = (
+        Findings.of('first note')
+        + Findings.of(verdict.SeedCompared(1, 0.01, 0.001, None))  # within the limits: nothing
+        + Findings.of(
+            verdict.StagesDisagree('the batch stage moved dt by 5 ms', failed='no motions')
+        )
+        + Findings.of('second note', verdict.DriftUnobservable(None))
+        + Findings.of(verdict.SeedFailed(1, 'no consensus'))
+        + Findings.corrected([])  # nothing corrected: nothing recorded
+    )
+    said = verdict.judged(found)
     assert said.codes == ('stages_disagree', 'unobservable', 'seed_dependent')
     assert said.notes == ('first note', 'second note')
     assert said.verdict == Verdict.DOUBTFUL

@@ -11,7 +11,8 @@ import pytest
 from conftest import REAL_DATA, ROOT, recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch.refine import BatchOptions, refine
+from handeye_ros.core.batch.options import BatchOptions
+from handeye_ros.core.batch.refine import refine
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
 from handeye_ros.core.linear.scale import dual_quaternion_scale, translation_and_scale

@@ -63,9 +63,12 @@ batch stage's move the self-check did not support, a reading corrected, a drift 
 observe) and never makes a reason; :mod:`.during` says what each fact means (:func:`read`) and
 holds the decisions a stage needs to go on (the batch stage's move, the self-check's tie, a
 scale that keeps the eye whole); :mod:`.final` holds the rules judged on the finished run
-(:func:`assess`, :func:`assess_model`) and the verdict they end in (:func:`judged`).
+(:func:`assess_streams`, :func:`assess_answer`, :func:`assess_model`) and the verdict they
+end in (:func:`judged`). Each step returns what it found as a frozen :class:`Findings`
+(:mod:`.findings`: its warnings, notes, facts and reasons in order), and the verdict reads
+their sum once.
 
-A rig of many recordings (:mod:`..shared`) has its own verdict, from its own rules
+A rig of many recordings (:mod:`..rig_pipeline`) has its own verdict, from its own rules
 (:mod:`.rig`: :func:`assess_rig`; the groups are :mod:`..consistency`'s):
 
 ==========================  =========  =================================================
@@ -89,60 +92,31 @@ from __future__ import annotations
 
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
-    AMBIGUOUS_SCORE_RATIO,
-    BATCH_DT_MIN_S,
-    BATCH_ROTATION_MIN_DEG,
-    BATCH_SCORE_FACTOR,
-    BATCH_SIGMAS,
-    BATCH_TRANSLATION_MIN_M,
-    DRIFT_NOTICE_S,
-    DRIFT_SIGMAS,
-    FAILED_MOTION_ROTATION_DEG,
-    FAILED_MOTION_TRANSLATION_FRACTION,
-    FAILED_MOTION_TRANSLATION_M,
-    INFLATION_DOUBTFUL,
-    LOW_INLIER_FRACTION,
-    OUTLIER_FRACTION_DOUBTFUL,
-    SEED_ROTATION_DEG,
-    SEED_SIGMAS,
-    SEED_TRANSLATION_M,
     SEVERITY,
     WEAK_CORRELATION,
-    WEAK_EXCITATION_DEG,
     Code,
-    Findings,
     Quality,
     Reason,
     Verdict,
 )
 from .during import (
-    SCALE_NAMED,
-    SCALE_NAMED_SIGMAS,
     batch_moved,
     batch_supported,
     convention_corrected,
-    drift_constant_note,
     drift_explains,
     drift_explains_note,
     drift_fitted_note,
-    drift_message,
-    drift_reason,
     drift_significant,
     drift_threshold_sigmas,
-    drift_unobservable,
     judge_tie,
     read,
     scale_doubtful,
-    scale_message,
-    scale_reason,
     scale_uncertainty_note,
-    seed_failed,
     seed_reason,
     stages_disagree,
     varies_note,
 )
 from .facts import (
-    ConventionCorrected,
     DriftMeasured,
     DriftUnobservable,
     ScaleMeasured,
@@ -151,44 +125,25 @@ from .facts import (
     StagesDisagree,
 )
 from .final import (
-    assess,
+    assess_answer,
     assess_model,
+    assess_streams,
     judged,
     motion_inconsistency,
     precision_ratio,
     precision_ratios,
     sigmas_of,
 )
+from .findings import Findings
 from .rig import (
     assess_rig,
 )
 
 __all__ = [
     'AMBIGUOUS_PEAK_RATIO',
-    'AMBIGUOUS_SCORE_RATIO',
-    'BATCH_DT_MIN_S',
-    'BATCH_ROTATION_MIN_DEG',
-    'BATCH_SCORE_FACTOR',
-    'BATCH_SIGMAS',
-    'BATCH_TRANSLATION_MIN_M',
-    'DRIFT_NOTICE_S',
-    'DRIFT_SIGMAS',
-    'FAILED_MOTION_ROTATION_DEG',
-    'FAILED_MOTION_TRANSLATION_FRACTION',
-    'FAILED_MOTION_TRANSLATION_M',
-    'INFLATION_DOUBTFUL',
-    'LOW_INLIER_FRACTION',
-    'OUTLIER_FRACTION_DOUBTFUL',
-    'SCALE_NAMED',
-    'SCALE_NAMED_SIGMAS',
-    'SEED_ROTATION_DEG',
-    'SEED_SIGMAS',
-    'SEED_TRANSLATION_M',
     'SEVERITY',
     'WEAK_CORRELATION',
-    'WEAK_EXCITATION_DEG',
     'Code',
-    'ConventionCorrected',
     'DriftMeasured',
     'DriftUnobservable',
     'Findings',
@@ -199,21 +154,18 @@ __all__ = [
     'SeedFailed',
     'StagesDisagree',
     'Verdict',
-    'assess',
+    'assess_answer',
     'assess_model',
     'assess_rig',
+    'assess_streams',
     'batch_moved',
     'batch_supported',
     'convention_corrected',
-    'drift_constant_note',
     'drift_explains',
     'drift_explains_note',
     'drift_fitted_note',
-    'drift_message',
-    'drift_reason',
     'drift_significant',
     'drift_threshold_sigmas',
-    'drift_unobservable',
     'judge_tie',
     'judged',
     'motion_inconsistency',
@@ -221,10 +173,7 @@ __all__ = [
     'precision_ratios',
     'read',
     'scale_doubtful',
-    'scale_message',
-    'scale_reason',
     'scale_uncertainty_note',
-    'seed_failed',
     'seed_reason',
     'sigmas_of',
     'stages_disagree',

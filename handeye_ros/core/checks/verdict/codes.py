@@ -6,10 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TYPE_CHECKING, Any, Protocol
-
-if TYPE_CHECKING:
-    from ..selfcheck import Candidate
+from typing import Any
 
 
 class Verdict(StrEnum):
@@ -100,24 +97,6 @@ class Reason:
     @property
     def severity(self) -> Verdict:
         return SEVERITY[self.code]
-
-
-class Findings(Protocol):
-    """What the rules read and add to: the stages' findings
-    (:class:`~handeye_ros.core.stages.findings.Findings`, which sits above the checks): their
-    notes and facts in the order found (``log``), and the candidate offsets scored."""
-
-    log: list[object]
-    candidates: list[Candidate]
-
-    def record(self, fact: Any) -> None: ...
-
-    def note(self, text: str) -> None: ...
-
-
-def say(run: Findings, code: Code, message: str) -> None:
-    """A reason for the verdict, added to the findings (only the rules here make reasons)."""
-    run.record(Reason(code, message))
 
 
 @dataclass(frozen=True)

@@ -22,9 +22,7 @@ from .codes import (
     SEED_SIGMAS,
     SEED_TRANSLATION_M,
     Code,
-    Findings,
     Reason,
-    say,
 )
 from .facts import (
     ConventionCorrected,
@@ -123,19 +121,18 @@ def batch_supported(score: list[float], far_dt: bool) -> bool:
     return offset_ok and score[-1] <= BATCH_SCORE_FACTOR * score[-2]
 
 
-def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
-    """Index of the winner. Candidates scoring within AMBIGUOUS_SCORE_RATIO of the best are a
-    tie (the verdict says so); a tie goes to the smallest offset, the likelier one when two
-    clocks were started together."""
+def judge_tie(scored: list[Candidate], shift_ns: int) -> tuple[int, Reason | str]:
+    """Index of the winner, and what the self-check says: a note when one candidate won, the
+    AMBIGUOUS_OFFSET reason when candidates scoring within AMBIGUOUS_SCORE_RATIO of the best
+    tie; a tie goes to the smallest offset, the likelier one when two clocks were started
+    together."""
     best = next(k for k, c in enumerate(scored) if c.chosen)
     win = scored[best]
     if not np.isfinite(win.score):
-        say(
-            run,
+        return best, Reason(
             Code.AMBIGUOUS_OFFSET,
             'the candidate offsets could not be compared (too few motions covered at all of them)',
         )
-        return best
     tied = [
         k
         for k, c in enumerate(scored)
@@ -146,21 +143,18 @@ def judge_tie(scored: list[Candidate], shift_ns: int, run: Findings) -> int:
         for c in scored
     )
     if len(tied) == 1:
-        run.note(
+        return best, (
             f'self-check over the candidate offsets {text}: '
             f'{shift_ns * 1e-9 + win.time_offset_s:+.4f} s ({win.source}) won'
         )
-        return best
     best = min(tied, key=lambda k: abs(shift_ns * 1e-9 + scored[k].time_offset_s))
-    say(
-        run,
+    return best, Reason(
         Code.AMBIGUOUS_OFFSET,
         f'the motion repeats itself: the self-check cannot separate '
         f'the candidate offsets {text}; the smallest of the tied ones was taken. Narrow '
         'the search with time_offset_guess and max_time_offset (less than half the '
         'period of the motion), or record a less repetitive motion',
     )
-    return best
 
 
 def scale_message(fit: ScaleFit) -> str:

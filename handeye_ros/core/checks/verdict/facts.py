@@ -2,8 +2,8 @@
 and only the verdict says what that means (:func:`read`: a reason, a note, or nothing).
 
 The stages' findings keep the facts among their notes, in the order they were found
-(:class:`~handeye_ros.core.stages.findings.Findings`), so that the reasons and the notes read
-from them keep that order. A :class:`~.codes.Reason` the rules make on the way (a tie of the
+(:class:`~.findings.Findings`), so that the reasons and the notes read from them keep that
+order. A :class:`~.codes.Reason` the rules make on the way (a tie of the
 self-check) is kept there too, and reads as itself.
 """
 

@@ -1,7 +1,7 @@
-"""The rules judged once a run is finished (:func:`assess`, :func:`assess_model`), the verdict
-they end in (:func:`judged`: every fact the stages recorded read, with these rules' reasons),
-and the one "precise enough" rule (:func:`precision_ratio`) the verdict, the readiness and the
-node's auto mode share."""
+"""The rules judged once a run is finished (:func:`assess_streams`, :func:`assess_answer`,
+:func:`assess_model`), the verdict they end in (:func:`judged`: every fact the stages recorded
+read, with these rules' reasons), and the one "precise enough" rule (:func:`precision_ratio`)
+the verdict, the readiness and the node's auto mode share."""
 
 from __future__ import annotations
 
@@ -20,12 +20,11 @@ from .codes import (
     WEAK_CORRELATION,
     WEAK_EXCITATION_DEG,
     Code,
-    Findings,
     Quality,
     Reason,
-    say,
 )
 from .during import read
+from .findings import Findings
 
 if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math
     from ...batch.refine import BatchSolution
@@ -38,74 +37,94 @@ if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' 
     from ..screening import Screening
 
 
-def assess(
+def assess_streams(
     ta: TimeAlignment,
     tv: TimeAlignment | None,
-    lin: LinearSolution,
-    batch: BatchSolution | None,
     screening: tuple[Screening, Screening],
-    metrics: Metrics,
-    cfg: CalibrationConfig,
-    run: Findings,
-) -> None:
-    """The reasons judged on the finished run: the screening's share, a peak no self-check
-    settled, weak correlation, few inliers, unobservable parts, weak excitation, no or too large
-    an uncertainty, residuals not white, AX = XB failing (the others are added where they arise,
-    their severities here: :data:`SEVERITY`)."""
+    so_far: Findings,
+) -> Findings:
+    """The reasons and notes judged on the streams of the finished run (after what the stages
+    found, ``so_far``): the screening's share, a peak no self-check settled (stage 1's
+    alignment ``ta``), weak correlation (of ``ta`` and the vector refinement's ``tv``)."""
+    said: list[Reason | str] = []
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
-            say(
-                run,
-                Code.OUTLIERS_REMOVED,
-                f'screening removed {rep.fraction:.1%} of the '
-                f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+            said.append(
+                Reason(
+                    Code.OUTLIERS_REMOVED,
+                    f'screening removed {rep.fraction:.1%} of the '
+                    f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+                )
             )
         elif rep.n_removed:
-            run.note(f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses')
-    checked = any(c.chosen for c in run.candidates)
+            said.append(f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses')
+    checked = any(c.chosen for c in so_far.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
-        say(
-            run,
-            Code.AMBIGUOUS_OFFSET,
-            f'the correlation has a second peak at '
-            f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
-            'other candidate offset could be checked',
+        said.append(
+            Reason(
+                Code.AMBIGUOUS_OFFSET,
+                f'the correlation has a second peak at '
+                f'{ta.second_peak_ratio:.0%} of the main one (repetitive motion) and no '
+                'other candidate offset could be checked',
+            )
         )
     peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
     if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
-        say(
-            run,
-            Code.WEAK_CORRELATION,
-            f'the angular velocities of the two streams hardly agree '
-            f'(correlation {max(peaks):.2f}): check that both show the same motion',
+        said.append(
+            Reason(
+                Code.WEAK_CORRELATION,
+                f'the angular velocities of the two streams hardly agree '
+                f'(correlation {max(peaks):.2f}): check that both show the same motion',
+            )
         )
-    _assess_linear(lin, run)
-    _assess_uncertainty(batch, cfg, run)
-    _assess_consistency(metrics, run)
+    return Findings.of(*said)
 
 
-def _assess_linear(lin: LinearSolution, run: Findings) -> None:
+def assess_answer(
+    lin: LinearSolution,
+    batch: BatchSolution | None,
+    metrics: Metrics,
+    cfg: CalibrationConfig,
+    so_far: Findings,
+) -> Findings:
+    """The reasons judged on the answer (after what the stages found, ``so_far``): few inliers,
+    unobservable parts, weak excitation (stage 2's ``lin``), no or too large an uncertainty,
+    residuals not white (stage 3's ``batch``), AX = XB failing at the result (``metrics``). The
+    others are read from the stages' facts, their severities here: :data:`SEVERITY`."""
+    said = _assess_linear(lin)
+    unobservable = Code.UNOBSERVABLE in reasons_in((*so_far.log, *said))
+    said += _assess_uncertainty(batch, cfg, unobservable)
+    reason = motion_inconsistency(metrics)
+    return Findings.of(*said, *([] if reason is None else [reason]))
+
+
+def _assess_linear(lin: LinearSolution) -> list[Reason | str]:
     """Stage 2's consensus and excitation."""
+    said: list[Reason | str] = []
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
-        say(
-            run,
-            Code.FEW_INLIERS,
-            f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers',
+        said.append(
+            Reason(
+                Code.FEW_INLIERS,
+                f'only {lin.n_inliers} of {lin.n_motions} motions are RANSAC inliers',
+            )
         )
     if lin.unobservable:
-        say(
-            run,
-            Code.UNOBSERVABLE,
-            'part of the extrinsic cannot be observed from this motion: '
-            + '; '.join(lin.unobservable),
+        said.append(
+            Reason(
+                Code.UNOBSERVABLE,
+                'part of the extrinsic cannot be observed from this motion: '
+                + '; '.join(lin.unobservable),
+            )
         )
     elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
-        say(
-            run,
-            Code.WEAK_EXCITATION,
-            f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
-            'deg: the extrinsic is weakly constrained; rotate about more different axes',
+        said.append(
+            Reason(
+                Code.WEAK_EXCITATION,
+                f'the rotation axes spread only {lin.axis_spread_deg:.1f} '
+                'deg: the extrinsic is weakly constrained; rotate about more different axes',
+            )
         )
+    return said
 
 
 def sigmas_of(std: np.ndarray) -> tuple[float, float, float]:
@@ -160,14 +179,17 @@ NARROWS = {
 
 
 def _assess_uncertainty(
-    batch: BatchSolution | None, cfg: CalibrationConfig, run: Findings
-) -> None:
-    """Stage 3's uncertainty: none, larger than required, or shaped by something unmodelled."""
-    if cfg.batch and batch is None and Code.UNOBSERVABLE not in reasons_so_far(run):
-        say(
-            run,
-            Code.NO_UNCERTAINTY,
-            'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+    batch: BatchSolution | None, cfg: CalibrationConfig, unobservable: bool
+) -> list[Reason | str]:
+    """Stage 3's uncertainty: none (said unless a part of the answer is ``unobservable``, which
+    says why), larger than required, or shaped by something unmodelled."""
+    said: list[Reason | str] = []
+    if cfg.batch and batch is None and not unobservable:
+        said.append(
+            Reason(
+                Code.NO_UNCERTAINTY,
+                'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+            )
         )
     if batch is not None:
         sd, need = sigmas_of(batch.std), cfg.precision
@@ -189,28 +211,24 @@ def _assess_uncertainty(
             if r > 1.0
         ]
         if over:
-            say(
-                run,
-                Code.IMPRECISE,
-                'the 1-sigma uncertainty exceeds the required precision: '
-                + '; '.join(over)
-                + '. The precision_* options set what is required',
+            said.append(
+                Reason(
+                    Code.IMPRECISE,
+                    'the 1-sigma uncertainty exceeds the required precision: '
+                    + '; '.join(over)
+                    + '. The precision_* options set what is required',
+                )
             )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
-        say(
-            run,
-            Code.RESIDUALS_NOT_WHITE,
-            f'the residuals are strongly correlated in time (the '
-            f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
-            'something the model lacks (clock drift, a scale error) shapes them',
+        said.append(
+            Reason(
+                Code.RESIDUALS_NOT_WHITE,
+                f'the residuals are strongly correlated in time (the '
+                f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
+                'something the model lacks (clock drift, a scale error) shapes them',
+            )
         )
-
-
-def _assess_consistency(m: Metrics, run: Findings) -> None:
-    """AX = XB at the result, over the keyframe motions: failing it fails the result."""
-    reason = motion_inconsistency(m)
-    if reason is not None:
-        run.record(reason)
+    return said
 
 
 def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None:
@@ -233,45 +251,47 @@ def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None
     return None
 
 
-def assess_model(
-    model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig, run: Findings
-) -> None:
+def assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig) -> Findings:
     """Reasons about the clock drift and the scale, when they were estimated."""
+    said: list[Reason | str] = []
     if cfg.estimate_scale:
         std = model.scale_std
         if not model.scale_observable:
             sd = f' +- {std:.2g}' if np.isfinite(std) else ''
-            say(
-                run,
-                Code.UNOBSERVABLE,
-                f"the eye's scale cannot be observed (s = "
-                f'{model.scale:.4g}{sd}): the hand translates too little for its '
-                'translations to be told from a lever arm, so the translation of T_HE '
-                'is as uncertain. Move the rig through space, not only about itself',
+            said.append(
+                Reason(
+                    Code.UNOBSERVABLE,
+                    f"the eye's scale cannot be observed (s = "
+                    f'{model.scale:.4g}{sd}): the hand translates too little for its '
+                    'translations to be told from a lever arm, so the translation of T_HE '
+                    'is as uncertain. Move the rig through space, not only about itself',
+                )
             )
     if cfg.clock_drift and model.drift_estimated and clock is not None:
         half = 0.5 * clock.span_s * model.drift_std
         if half > cfg.precision_time_offset:
-            say(
-                run,
-                Code.IMPRECISE,
-                f'the clock drift is {model.drift * 1e6:+.1f} +- '
-                f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
-                f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
-                f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+            said.append(
+                Reason(
+                    Code.IMPRECISE,
+                    f'the clock drift is {model.drift * 1e6:+.1f} +- '
+                    f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
+                    f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
+                    f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+                )
             )
+    return Findings.of(*said)
 
 
-def reasons_so_far(run: Findings) -> set[Code]:
-    """The codes of the reasons the run's facts make so far."""
-    return {r.code for r in (read(e)[0] for e in run.log if not isinstance(e, str)) if r}
+def reasons_in(log: tuple[object, ...]) -> set[Code]:
+    """The codes of the reasons the entries of a log (notes, facts, reasons) make."""
+    return {r.code for r in (read(e)[0] for e in log if not isinstance(e, str)) if r}
 
 
-def judged(run: Findings) -> Quality:
+def judged(found: Findings) -> Quality:
     """The verdict of a finished run: every fact read into its reason or note, in the order
     found, beside the notes the stages wrote."""
     reasons, notes = [], []
-    for entry in run.log:
+    for entry in found.log:
         reason, note = (None, entry) if isinstance(entry, str) else read(entry)
         if reason is not None:
             reasons.append(reason)

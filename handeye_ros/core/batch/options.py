@@ -1,0 +1,36 @@
+"""How stage 3 solves (:class:`BatchOptions`): the options of :func:`.refine.refine` and of
+the two solves (:mod:`.solves`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How stage 3 solves (the defaults are :class:`~handeye_ros.core.config.CalibrationConfig`'s).
+
+    knot_spacing (s) and order: the hand's spline. hand_noise / eye_noise: (rotation rad,
+    translation m) per axis of each MoCap pose / of the eye's relative poses between
+    consecutive frames; None estimates it from the data's own residuals. huber_delta, in
+    sigmas; max_iterations of the solver. ``joint`` also frees the spline's control poses (the
+    full problem of eq. 15, analytic sparse Jacobian and sparse direct solve; slower, and the
+    same answer while the MoCap is much less noisy than the VIO). fix_time_offset: dt held at
+    its start. decoupled: rotation then translation (:func:`.solves.solve_offset_extrinsic`).
+    drift_stamp_ns: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns) with t
+    the eye's stamps (:mod:`.time.clock`); scale: also a factor on the eye's translations. Both
+    are corrections to what the eye already has (0 and 1 to start), and only the default (not
+    the joint) solve estimates them.
+    """
+
+    knot_spacing: float = 0.05
+    order: int = 4
+    hand_noise: tuple[float | None, float | None] = (None, None)
+    eye_noise: tuple[float | None, float | None] = (None, None)
+    huber_delta: float = 1.345
+    max_iterations: int = 50
+    joint: bool = False
+    fix_time_offset: bool = False
+    decoupled: bool = True
+    drift_stamp_ns: int | None = None
+    scale: bool = False

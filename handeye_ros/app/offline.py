@@ -17,14 +17,17 @@ import argparse
 import json
 import logging
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .offline_options import STREAM_OPTION_KEYS, build_parser
+
+if TYPE_CHECKING:  # imported where used: --help answers before the core is loaded
+    from .request import Request
 
 LOG = logging.getLogger('handeye_ros.offline')  # not __name__: it is __main__ under -m
 
 
-def request_of(args: argparse.Namespace) -> Any:
+def request_of(args: argparse.Namespace) -> Request:
     """The application's request from the parsed command line: the ``--config`` file's options
     overridden by those given on the command line."""
     from ..core.config import CalibrationConfig

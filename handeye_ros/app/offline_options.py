@@ -7,8 +7,9 @@ usually needs; ``--help-all`` every one.
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import Any, Protocol
 
+from ..core.options import Options
 from .request import PROGRESS_DELAY_S
 
 #: Stream options given on the command line (the algorithm ones come from their specs).
@@ -23,7 +24,13 @@ STREAM_OPTION_KEYS = (
 )
 
 
-def add_options(group: Any, cls: Any, show_all: bool = True) -> None:
+class ArgumentAdder(Protocol):
+    """An argparse parser or argument group: what options are added to."""
+
+    def add_argument(self, *names: str, **kwargs: Any) -> argparse.Action: ...
+
+
+def add_options(group: ArgumentAdder, cls: type[Options], show_all: bool = True) -> None:
     """Command-line options generated from an option set's specs (names, help, types); the
     expert ones (:attr:`.core.options.Spec.expert`) parse alike but are listed only when
     ``show_all``."""

@@ -91,8 +91,9 @@ class NodeConfig(Options):
         choices=('best_effort', 'reliable'),
         expert=True,
     )
-    # 5 s of a 1 kHz stream: a node that stalls for a second or two under load (a 1.1-s stall
-    # lost 320 of 6000 poses at 1.2 kHz with 1000, none with 5000; an idle queue costs nothing)
+    # 5 s of a 1 kHz stream: DDS keeps at most this many messages for a reader that does not
+    # take them, so a stall of the executor loses about stall x rate - depth (a second or two
+    # under load loses nothing: bench/qos_stall.py); an idle queue costs nothing
     qos_depth: int = option(
         5000,
         'int',

@@ -29,10 +29,13 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core.errors import ConfigError
 from .results_table import row_of
+
+if TYPE_CHECKING:  # imported where used: a manifest is read without the core
+    from .request import Request
 
 #: Keys of a manifest run that are not calibration options.
 RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options', 'report')
@@ -64,7 +67,7 @@ class RunSpec:
         keep = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in self.name)
         return keep.strip('._') or 'run'
 
-    def request(self, **fields: Any) -> Any:
+    def request(self, **fields: Any) -> Request:
         """The application's Request for this run's inputs and options, with ``fields`` (what
         to write); ConfigError when it names neither two files nor a bag (missing or
         unreadable files are named by the readers themselves)."""

@@ -12,13 +12,12 @@ rclpy; matplotlib is imported only by the plots.
 """
 
 from .aligned import AlignedTrajectories, calibrated, uncalibrated
-from .metrics import ErrorStats, Evaluation, evaluate
+from .metrics import ErrorStats, Evaluation
 
 __all__ = [
     'AlignedTrajectories',
     'ErrorStats',
     'Evaluation',
     'calibrated',
-    'evaluate',
     'uncalibrated',
 ]

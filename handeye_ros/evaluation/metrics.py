@@ -169,6 +169,28 @@ class Evaluation:
     sigmas: CalibrationSigmas | None = None
     sigmas_why: str = ''
 
+    @classmethod
+    def of(
+        cls,
+        cal: AlignedTrajectories,
+        base: AlignedTrajectories | None,
+        *,
+        delta_s: float = 1.0,
+        delta_m: float = 1.0,
+        why: str = '',
+        sigmas: tuple[CalibrationSigmas | None, str] = (None, 'not computed'),
+    ) -> Evaluation:
+        """APE/RPE of the eye with the calibration (``cal``) and without it (``base``; ``why``
+        when there is none), with the calibrated figures' error bars where given."""
+        return cls(
+            delta_s,
+            delta_m,
+            PoseErrors.of(cal, delta_s, delta_m),
+            None if base is None else PoseErrors.of(base, delta_s, delta_m),
+            why,
+            *sigmas,
+        )
+
     def to_dict(self) -> dict:
         calibrated = self.calibrated.to_dict()
         if self.sigmas is not None:
@@ -187,24 +209,3 @@ class Evaluation:
                 else self.sigmas.to_dict(exclude_sigmas=True)
             ),
         }
-
-
-def evaluate(
-    cal: AlignedTrajectories,
-    base: AlignedTrajectories | None,
-    *,
-    delta_s: float = 1.0,
-    delta_m: float = 1.0,
-    why: str = '',
-    sigmas: tuple[CalibrationSigmas | None, str] = (None, 'not computed'),
-) -> Evaluation:
-    """APE/RPE of the eye with the calibration (``cal``) and without it (``base``), with the
-    calibrated figures' error bars where given."""
-    return Evaluation(
-        delta_s,
-        delta_m,
-        PoseErrors.of(cal, delta_s, delta_m),
-        None if base is None else PoseErrors.of(base, delta_s, delta_m),
-        why,
-        *sigmas,
-    )

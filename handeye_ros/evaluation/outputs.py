@@ -13,7 +13,7 @@ from ..core.errors import InputError
 from ..core.result import CalibrationResult
 from .aligned import calibrated, uncalibrated
 from .error_bars import calibration_sigmas
-from .metrics import ape, evaluate
+from .metrics import Evaluation, ape
 
 LOG = logging.getLogger(__name__)
 
@@ -73,7 +73,11 @@ def evaluation_of(result: CalibrationResult, delta_s: float = 1.0, delta_m: floa
     cal = calibrated(result)
     base, why = uncalibrated(result)
     sigmas = calibration_sigmas(result, delta_s, delta_m)
-    return evaluate(cal, base, delta_s=delta_s, delta_m=delta_m, why=why, sigmas=sigmas), cal, base
+    return (
+        Evaluation.of(cal, base, delta_s=delta_s, delta_m=delta_m, why=why, sigmas=sigmas),
+        cal,
+        base,
+    )
 
 
 def write_report(

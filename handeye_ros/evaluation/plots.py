@@ -238,7 +238,7 @@ def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, n
     eye = used.eye
     k = np.flatnonzero(eye.interval_ok())
     R_err, p_err, covered = eye_motion_residuals(
-        used.hand, eye, k, k + 1, used.time_offset_s, matrix_from_quat(result.q_HE), result.p_HE
+        used.hand, eye, k, k + 1, used.time_offset_s, (matrix_from_quat(result.q_HE), result.p_HE)
     )
     t = eye.seconds(int(eye.t_ns[0]))[k[covered]]
     return t, Rotation.from_matrix(R_err[covered]).as_rotvec(), p_err[covered]

@@ -19,6 +19,7 @@ import importlib
 import multiprocessing
 import os
 import signal
+from multiprocessing.queues import SimpleQueue
 from typing import Any
 
 #: What a calibration in the worker imports (the application, the evaluation, the snapshot's
@@ -34,7 +35,7 @@ MODULES = (
 #: Worker processes: one for calibrations, one for the status (either takes either job).
 WORKERS = 2
 #: BLAS threads of a worker, unless the user's environment says otherwise. Its jobs are small
-#: matrices: a calibration (5 min of 200 + 30 Hz, 2 min of 1 kHz + 200 Hz) took the same wall
+#: matrices: a calibration (5 min of 200 + 30 Hz, 2 min of 1 kHz + 200 Hz) takes the same wall
 #: time with one thread as with two, and 27-37 % less CPU, which ingest and the status's
 #: budget (status.MAX_DUTY) pay for. Read by OpenBLAS when the spawned worker imports numpy.
 BLAS_THREADS = {'OPENBLAS_NUM_THREADS': '1', 'OMP_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
@@ -45,7 +46,7 @@ class Pool:
     they started (the executor keeps its processes to itself; stopping a running call needs
     them)."""
 
-    def __init__(self, executor: cf.ProcessPoolExecutor, said: Any):
+    def __init__(self, executor: cf.ProcessPoolExecutor, said: SimpleQueue[int]):
         self._executor, self._said = executor, said
         self._pids: list[int] = []
 
@@ -105,7 +106,7 @@ def stop(pool: Pool) -> None:
     pool.stop()
 
 
-def start(said: Any) -> None:
+def start(said: SimpleQueue[int]) -> None:
     """Process pool initializer: ignore SIGINT, say this worker's process id, import the
     core."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -321,7 +321,7 @@ def fit_spline(
             break
     # positions are linear in the control points, p(t) = A c: least squares by the normal
     # equations, which are banded (k - 1 off-diagonals) and well conditioned for a B-spline
-    # basis; an hour of 1 kHz MoCap is 3.6 million rows, where an iterative solver took 22 s
+    # basis; an hour of 1 kHz MoCap is 3.6 million rows, where an iterative solver takes 22 s
     i, s = spline.segments(t)
     b = plain_basis(cumulative_basis(s, order))
     pc = _banded_least_squares(i, b, p, M, pc)

@@ -33,6 +33,7 @@ from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
 from .auto_mode import GROWTH, AutoMode, carry_over
+from .clocks import Arrivals, ClockWatch, jump_advice
 from .jobs import readiness_measure, readiness_start
 from .lifecycle import steady_timer
 
@@ -48,13 +49,6 @@ MAX_DUTY = 0.03
 #: A stream with no usable pose for this long (s) has stopped, or lost its poses (messages
 #: still coming).
 STOPPED_S = diagnostics.STOPPED_S
-#: The two streams' stamps may move against their arrivals by this much (s, at least) before
-#: the status says a clock jumped: their periods and the executor's lag jitter them.
-JUMP_S = 1.0
-#: The clocks are compared by the median of this many snapshots, first ones against last ones:
-#: a delivery held up by a busy machine moves one snapshot's arrivals, a jump moves every one
-#: after it.
-JUMP_SNAPSHOTS = 3
 #: Snapshots count while both streams flow (a pose within this many periods, STOPPED_S at
 #: least): after one ends, the other's stamps run at the pace of a replay, which is no clock's.
 FLOWING_PERIODS = 10
@@ -86,8 +80,8 @@ class ReadinessStatus:
         self._pending = {'start': False, 'measure': False}
         self._next = {'start': 0.0, 'measure': 0.0}
         self._logged = (0.0, '')
-        #: clocks_apart at the first JUMP_SNAPSHOTS snapshots, and at the last ones
-        self._apart: tuple[list[float], list[float]] = ([], [])
+        #: the streams' clocks against their arrivals, snapshot by snapshot
+        self._watch = ClockWatch()
         #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
         #: the buffered span (s) when a check of READY was last started
@@ -302,9 +296,9 @@ class ReadinessStatus:
         return [said]
 
     def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
-        """Whether the streams' clocks moved against each other (:func:`clocks_apart`, the
-        median of the JUMP_SNAPSHOTS first snapshots taken while both flow against the last
-        ones). Kept in ``_jumped`` until :meth:`reset`: the buffers hold both clocks' times."""
+        """Whether the streams' clocks moved against each other, from the snapshots taken
+        while both flow (:class:`.clocks.ClockWatch`). Kept in ``_jumped`` until :meth:`reset`:
+        the buffers hold both clocks' times."""
         node = self._node
         now, ticked = time.monotonic(), node.last_ticked
         period = max((t[-1] - t[0]) * 1e-9 / (t.size - 1) for t in (hand_ns, eye_ns))
@@ -314,28 +308,16 @@ class ReadinessStatus:
         # backlog of its executor (a loaded machine: a 3-s backlog of the device stream read
         # as a clock that jumped 3 s)
         received = node.last_received
-        apart = clocks_apart(
-            hand_ns, eye_ns, received if all(received.values()) else node.last_ticked
-        )
-        first, last = self._apart
-        if len(first) < JUMP_SNAPSHOTS:
-            first.append(apart)
-            return
-        last[:] = [*last[1 - JUMP_SNAPSHOTS :], apart]
-        if len(last) < JUMP_SNAPSHOTS:
-            return
-        moved = float(np.median(last) - np.median(first))
-        said = (
-            f"the device's stamps moved {moved:+.1f} s against the MoCap's: a clock jumped, "
-            "or one stream's messages are refused (see the log); call ~/reset to start over"
-        )
-        # arrivals jitter by the streams' periods and the executor's lag
-        self._jumped = [said] if abs(moved) > max(JUMP_S, 6.0 * period) else []
+        seen = received if all(received.values()) else node.last_ticked
+        snap = Arrivals(int(hand_ns[-1]), int(eye_ns[-1]), seen['hand'], seen['eye'])
+        moved = self._watch.moved(snap, period)
+        self._jumped = [] if moved is None else [jump_advice(moved)]
 
     def reset(self) -> None:
         """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
         (a new recording: its first result is published whatever the last one reported)."""
-        self._apart, self._jumped = ([], []), []
+        self._watch.reset()
+        self._jumped = []
         self._checked_span = 0.0
         self._progress = None
         self._generation += 1
@@ -386,15 +368,3 @@ class ReadinessStatus:
         if key != last_key or now - last_t >= LOG_PERIOD_S:
             self._logged = (now, key)
             self._node.get_logger().info(f'status: {line}')
-
-
-def clocks_apart(hand_ns: np.ndarray, eye_ns: np.ndarray, seen: dict[str, float]) -> float:
-    """How far (s) the device's clock is ahead of the MoCap's, as far as arrivals tell: each
-    stream's newest accepted stamp (int64 ns) against when its last pose that moved its clock
-    came (``seen``, s, one clock for both: DDS's reception times, the node's
-    ``last_received``, else its monotonic ``last_ticked``; refusals for going back in time
-    included). Changes when a clock jumps, or when a stream's every message is refused for
-    going back (a clock that went back); not when a stream pauses, ends before the other one,
-    or loses its poses (a MoCap dropout): its stamp and its arrival stop together."""
-    stamps = (int(eye_ns[-1]) - int(hand_ns[-1])) * 1e-9
-    return stamps - (seen['eye'] - seen['hand'])

@@ -20,7 +20,7 @@ from handeye_ros.ros.auto_mode import (
     predictor_factors,
     richer,
 )
-from handeye_ros.ros.status import clocks_apart
+from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
 
 
 @pytest.mark.parametrize(
@@ -96,10 +96,8 @@ def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
 
     def apart(h_end: float, e_end: float, e_seen: float, jump_s: float = 0.0) -> float:
         h, e = hand[hand <= h_end * 1e9], eye[eye <= e_end * 1e9]
-        e_stamp = e.copy()
-        e_stamp[-1] += round(jump_s * 1e9)
-        seen = {'hand': h[-1] * 1e-9 + 0.005, 'eye': e_seen}
-        return clocks_apart(h, e_stamp, seen)
+        snap = Arrivals(int(h[-1]), int(e[-1]) + round(jump_s * 1e9), h[-1] * 1e-9 + 0.005, e_seen)
+        return clocks_apart(snap)
 
     first = apart(10.0, 10.0, 10.005)
     # the device's stream ends 1 s before the MoCap's: nothing moved
@@ -108,14 +106,34 @@ def test_the_clocks_move_apart_only_when_stamps_move_unlike_arrivals() -> None:
     assert apart(19.0, 16.0, 19.005) - first == pytest.approx(-3.0, abs=1e-9)
     # its clock jumped 5 s forward
     assert apart(19.0, 19.0, 19.005, jump_s=5.0) - first == pytest.approx(5.0, abs=1e-9)
-    # replayed 8 times faster than real time, the MoCap's last second after the device's end
-    # arrives in 1/8 s: the two move apart by 7/8 s, no clock's doing, which is why the status
-    # compares the snapshots taken while both streams flow only (status.FLOWING_PERIODS)
-    h, e = hand[hand <= 19e9], eye[eye <= 18e9]
-    ended = clocks_apart(h, e, {'hand': h[-1] * 1e-9 / 8, 'eye': e[-1] * 1e-9 / 8})
-    assert ended - clocks_apart(h[:1001], e[:201], {'hand': 1.25, 'eye': 1.25}) == pytest.approx(
-        -0.875, abs=1e-9
-    )
+
+
+def _replayed(pace: float, lag_s: list[float], jump_s: float = 0.0) -> float | None:
+    """What a ClockWatch says of snapshots every 0.5 s of a replay at ``pace`` (stamps per
+    second of arrivals), the device's deliveries late by ``lag_s`` at each, its clock moved by
+    ``jump_s`` from the fifth snapshot on; the last answer."""
+    watch, said = ClockWatch(), None
+    for k, lag in enumerate(lag_s):
+        wall = 0.5 * (k + 1)
+        stamp = round(wall * pace * 1e9)
+        moved = round(jump_s * 1e9) if k >= 4 else 0
+        # the newest device pose that came is the one sent lag_s ago
+        eye_ns = round((wall - lag) * pace * 1e9) + moved
+        said = watch.moved(Arrivals(stamp, eye_ns, wall, wall), 0.05)
+    return said
+
+
+def test_a_replay_faster_than_real_time_jumps_only_when_its_clocks_do() -> None:
+    """A bag replayed 8 times faster than real time on a loaded machine: the device's
+    deliveries lag the MoCap's by up to a quarter of a second at some snapshots (2 s of
+    stamps) and no clock jumped; the pace the snapshots show (replay_pace) scales what counts
+    as a jump. A 20-s jump is said at that pace, a 2-s one live."""
+    lags = [0.0, 0.25, 0.0, 0.1, 0.25, 0.0, 0.25, 0.25, 0.0, 0.1]
+    assert _replayed(8.0, lags) is None
+    assert _replayed(8.0, [0.0] * 10, jump_s=20.0) == pytest.approx(20.0, abs=1e-6)
+    assert _replayed(1.0, [0.0] * 10, jump_s=2.0) == pytest.approx(2.0, abs=1e-6)
+    assert _replayed(1.0, [0.0] * 10) is None
+    assert replay_pace(Arrivals(0, 0, 0.0, 0.0), Arrivals(8_000_000_000, 0, 1.0, 1.0)) == 8.0
 
 
 def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:

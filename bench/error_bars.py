@@ -39,18 +39,14 @@ def case(rec) -> tuple[np.ndarray, float, float]:
     assert bars is not None, why
     keep, window = error_bars._windows(res.used.eye_stamps_ns, 1.0)
     eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
-    model = (None, None, 0)
-    at = error_bars._figures(res, eye, stamps, window, np.zeros(7), model, (1.0, 1.0))
+    sample = error_bars._Sample(eye, stamps, window, (None, None, 0), (1.0, 1.0))
+    at = error_bars._figures(res, sample, np.zeros(7))
     true = error_bars._figures(
         res,
-        eye,
-        stamps,
-        window,
+        sample,
         move_to_truth(
             rec.truth, res.time_offset_s, res.q_HE, res.p_HE, res.batch.covariance.shape[0]
         ),
-        model,
-        (1.0, 1.0),
     )
     z = np.array([(true[n]['rmse'] - at[n]['rmse']) / bars.sigmas[n]['rmse'] for n in POSE_ERRORS])
     return z, t1 - t0, t2 - t1

@@ -33,8 +33,9 @@ def test_the_true_calibrations_figures_lie_within_the_error_bars() -> None:
         assert bars is not None, why
         keep, window = error_bars._windows(res.used.eye_stamps_ns, 1.0)
         eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
+        sample = error_bars._Sample(eye, stamps, window, (None, None, 0), (1.0, 1.0))
         figures = [
-            error_bars._figures(res, eye, stamps, window, d, (None, None, 0), (1.0, 1.0))
+            error_bars._figures(res, sample, d)
             for d in (
                 np.zeros(7),
                 move_to_truth(

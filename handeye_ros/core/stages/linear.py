@@ -177,24 +177,24 @@ def split_eye(
     """Breaks (VIO resets) and leftover wild poses of the eye, against the hand, at stage 2's
     answer ``solved`` (at offset 0); stage 2 again when any were found."""
     lin = solved.solution
-    found = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
-    if not (found.breaks_ns.size or found.outliers_ns.size or found.short_ns.size):
+    breaks = find_eye_breaks(hand, eye, 0.0, matrix_from_quat(lin.q_HE), lin.p_HE)
+    if not (breaks.breaks_ns.size or breaks.outliers_ns.size or breaks.short_ns.size):
         return Split(eye, solved, screening, Findings())
     sh, se = screening
     # the report keeps the eye's own stamps; this eye was moved by shift_ns
-    se = se.merged(found.outliers_ns + shift_ns, 'outlier').merged(
-        found.short_ns + shift_ns, 'short_segment', found.breaks_ns + shift_ns
+    se = se.merged(breaks.outliers_ns + shift_ns, 'outlier').merged(
+        breaks.short_ns + shift_ns, 'short_segment', breaks.breaks_ns + shift_ns
     )
     check_fraction(se, eye, cfg)
     said = Findings()
-    if found.breaks_ns.size:
+    if breaks.breaks_ns.size:
         said = Findings.warned(
-            f'the eye stream was split at {found.breaks_ns.size} break(s) (a VIO reset or '
+            f'the eye stream was split at {breaks.breaks_ns.size} break(s) (a VIO reset or '
             "jump of its world frame: its motion there disagrees with the hand's); no "
             'motion or residual spans one',
             noted=True,
         )
-    return Split(found.eye, solve_at(hand, found.eye, 0.0, cfg), (sh, se), said)
+    return Split(breaks.eye, solve_at(hand, breaks.eye, 0.0, cfg), (sh, se), said)
 
 
 def refine_vector(

@@ -57,11 +57,3 @@ class Findings:
             log=tuple(ConventionCorrected(c.message) for c in found),
             corrections=found,
         )
-
-
-def total(parts: Iterable[Findings]) -> Findings:
-    """The findings of ``parts`` in their order."""
-    out = Findings()
-    for part in parts:
-        out = out + part
-    return out

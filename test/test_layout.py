@@ -49,7 +49,10 @@ TOP_LEVEL = {'__init__.py', 'offline.py', 'evaluate.py'}
 #: never import the checks or the wiring), the checks around it, the stages as the pipeline
 #: wires them (core/stages, which alone call the checks), and the recipe with its result.
 CORE_FLOORS = (
-    ('foundations', {'errors', 'geometry', 'chunked', 'trajectory', 'options', 'config'}),
+    (
+        'foundations',
+        {'arrays', 'errors', 'geometry', 'chunked', 'trajectory', 'options', 'config'},
+    ),
     ('foundations', {'association', 'world'}),
     ('math', {'time', 'linear', 'batch', 'eye_model', 'rig', 'simulate'}),
     ('checks', {'checks'}),

@@ -19,9 +19,9 @@ The layout follows the method. The stages, in :func:`.pipeline.calibrate`'s orde
 Algorithm 1), :mod:`.batch` (stage 3, eq. 14-16): the paper's math, which never imports what
 is above it; :mod:`.checks` holds what real recordings need around them and the verdict; and
 :mod:`.stages` wires each stage with its checks as the pipeline runs it (test_layout keeps that
-order). Beside them the foundations: poses and streams
-(:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options (:mod:`.options`,
-:mod:`.config`), the result (:mod:`.result`, its plain-data sections :mod:`.result_sections`,
+order). Beside them the foundations: the array types of every signature (:mod:`.arrays`),
+poses and streams (:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options
+(:mod:`.options`, :mod:`.config`), the result (:mod:`.result`, its plain-data sections :mod:`.result_sections`,
 :mod:`.world`, :mod:`.eye_model`) and the errors.
 Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and
 :mod:`.rig_pipeline` (the rig's recipe, and a recording's result at the rig's T_HE). Tools: :mod:`.chunked`

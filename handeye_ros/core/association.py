@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import Floats, Indices, Mask, Stamps
 from .chunked import chunked
 from .errors import TimeAlignmentError
 from .geometry import (
@@ -47,15 +48,15 @@ class PosePairs:
         segments, whose VIO worlds differ.
     """
 
-    t_eye_s: np.ndarray
-    R_GH: np.ndarray
-    p_GH: np.ndarray
-    R_WE: np.ndarray
-    p_WE: np.ndarray
-    segment: np.ndarray
+    t_eye_s: Floats
+    R_GH: Floats
+    p_GH: Floats
+    R_WE: Floats
+    p_WE: Floats
+    segment: Indices
 
 
-def interpolate(traj: Trajectory, t_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def interpolate(traj: Trajectory, t_ns: Stamps) -> tuple[Floats, Floats, Mask]:
     """Poses of ``traj`` at stamps ``t_ns`` (int64 ns, any order).
 
     Returns rotation matrices (M, 3, 3), positions (M, 3) and a mask (M,) that is False outside
@@ -102,7 +103,7 @@ def associate(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> PosePa
 
 def pairs_at_eye(
     hand: Trajectory, eye: Trajectory, time_offset_s: float
-) -> tuple[PosePairs, np.ndarray]:
+) -> tuple[PosePairs, Mask]:
     """Pairs ``(T_GH(t - dt), T_WE(t))`` at every eye stamp the hand covers, and the mask (N,)
     of those eye poses (no check of how many there are)."""
     dt_ns = np.int64(round(time_offset_s * 1e9))
@@ -118,7 +119,7 @@ def pairs_at_eye(
     return pairs, ok
 
 
-def _seconds(t_ns: np.ndarray) -> np.ndarray:
+def _seconds(t_ns: Stamps) -> Floats:
     return (t_ns - t_ns[0]).astype(float) * 1e-9 if t_ns.size else np.zeros(0)
 
 
@@ -135,11 +136,11 @@ def _check_overlap(n: int, hand: Trajectory, eye: Trajectory, time_offset_s: flo
 def eye_motion_residuals(
     hand: Trajectory,
     eye: Trajectory,
-    i: np.ndarray,
-    j: np.ndarray,
+    i: Indices,
+    j: Indices,
     time_offset_s: float,
     T_HE: Pose,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[Floats, Floats, Mask]:
     """``(T_HE^-1 A T_HE)^-1 B`` for each eye motion ``B = T_WE_i^-1 T_WE_j``, with
     ``A = T_GH(t_i - dt)^-1 T_GH(t_j - dt)`` the hand's motion over the same instants
     (AX = XB, eq. 2), in the eye frame.
@@ -169,7 +170,7 @@ def eye_motion_residuals(
     return err_R, err_p, ok[i] & ok[j]
 
 
-def residual_motions(A: Pose, B: Pose, X: Pose) -> tuple[np.ndarray, np.ndarray]:
+def residual_motions(A: Pose, B: Pose, X: Pose) -> tuple[Floats, Floats]:
     """``(X^-1 A X)^-1 B`` for hand motions A, eye motions B (rotations (M, 3, 3), translations
     (M, 3)) and the extrinsic X = T_HE: the motion by which AX = XB (eq. 2) fails, in the eye
     frame."""
@@ -179,11 +180,11 @@ def residual_motions(A: Pose, B: Pose, X: Pose) -> tuple[np.ndarray, np.ndarray]
 def eye_motion_errors(
     hand: Trajectory,
     eye: Trajectory,
-    i: np.ndarray,
-    j: np.ndarray,
+    i: Indices,
+    j: Indices,
     time_offset_s: float,
     T_HE: Pose,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[Floats, Floats, Mask]:
     """How far each eye motion is from the hand's (:func:`eye_motion_residuals`): the rotation
     angle (rad) and the translation norm (m) of the residual motion, and ``covered``."""
     err_R, err_p, covered = eye_motion_residuals(hand, eye, i, j, time_offset_s, T_HE)

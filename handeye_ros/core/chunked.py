@@ -13,8 +13,10 @@ from typing import TypeVar, cast
 
 import numpy as np
 
+from .arrays import Floats
+
 #: What the function returns: an array, or a tuple of arrays.
-Rows = TypeVar('Rows', bound='np.ndarray | tuple[np.ndarray, ...]')
+Rows = TypeVar('Rows', bound='Floats | tuple[Floats, ...]')
 
 #: Rows per chunk.
 CHUNK_ROWS = 1 << 16

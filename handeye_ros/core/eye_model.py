@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .arrays import Stamps
 from .linear.scale import observable
 from .time.clock import retime
 from .trajectory import Trajectory
@@ -66,9 +67,7 @@ class EyeModel:
         """The reference stamp on the eye's own clock, ns."""
         return int(self.shift_ns + self.stamp_ns)
 
-    def own_clock_ns(
-        self, t_ns: np.ndarray, eye_stamps_ns: np.ndarray | None = None
-    ) -> np.ndarray:
+    def own_clock_ns(self, t_ns: Stamps, eye_stamps_ns: Stamps | None = None) -> Stamps:
         """Stamps [int64 ns] of an eye this model was applied to, back on the eye's own clock.
 
         Inverts the shift and the drift (``u = v - drift (v - stamp)`` with ``v = t - shift``);

@@ -14,20 +14,22 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .arrays import Floats, Indices
 from .chunked import chunked
 
-Pose = tuple[np.ndarray, np.ndarray]
+Pose = tuple[Floats, Floats]
 
 
-def matrix_from_quat(q_xyzw: np.ndarray) -> np.ndarray:
+def matrix_from_quat(q_xyzw: Floats) -> Floats:
     """Rotation matrices, shape (..., 3, 3), from quaternions (..., 4) in x y z w order."""
     q = np.asarray(q_xyzw, dtype=float)
     if not q.size:  # scipy 1.11 (Jazzy's) refuses an empty stack
         return np.zeros(q.shape[:-1] + (3, 3))
-    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
+    out: Floats = Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))
+    return out
 
 
-def quat_from_matrix(R: np.ndarray) -> np.ndarray:
+def quat_from_matrix(R: Floats) -> Floats:
     """Quaternions (..., 4), x y z w with w >= 0, from rotation matrices (..., 3, 3)."""
     R = np.asarray(R, dtype=float)
     if not R.size:  # scipy 1.11 (Jazzy's) refuses an empty stack
@@ -36,7 +38,7 @@ def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     return positive_w(q)
 
 
-def row_sums(a: np.ndarray) -> np.ndarray:
+def row_sums(a: Floats) -> Floats:
     """``a.sum(axis=-1)`` for a few columns (k < 8), added column by column: the same numbers
     (numpy's reduction adds so few in order) at a tenth of its time on millions of short
     rows, where that reduction pays per row."""
@@ -46,7 +48,7 @@ def row_sums(a: np.ndarray) -> np.ndarray:
     return s
 
 
-def row_norms(v: np.ndarray) -> np.ndarray:
+def row_norms(v: Floats) -> Floats:
     """Euclidean norms over the last axis of vectors (..., k): the same numbers as
     ``np.linalg.norm(v, axis=-1)`` (:func:`row_sums`; 3.6 million quaternions: 0.35 s against
     0.02 s)."""
@@ -54,15 +56,16 @@ def row_norms(v: np.ndarray) -> np.ndarray:
     return np.sqrt(row_sums(v * v))
 
 
-def positive_w(q: np.ndarray) -> np.ndarray:
+def positive_w(q: Floats) -> Floats:
     """The same rotations (..., 4), x y z w, with w >= 0: the one sign every output uses."""
     q = np.asarray(q, dtype=float)
     return np.where(q[..., 3:] < 0.0, -q, q)
 
 
-def apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+def apply(R: Floats, v: Floats) -> Floats:
     """``R @ v`` for stacks: R (..., 3, 3), v (..., 3) -> (..., 3)."""
-    return np.matmul(R, v[..., None])[..., 0]
+    out: Floats = np.matmul(R, v[..., None])[..., 0]
+    return out
 
 
 def compose(a: Pose, b: Pose) -> Pose:
@@ -79,19 +82,20 @@ def inverse(a: Pose) -> Pose:
     return Rt, -apply(Rt, p)
 
 
-def relative(a: Pose, i: np.ndarray, j: np.ndarray) -> Pose:
+def relative(a: Pose, i: Indices, j: Indices) -> Pose:
     """Relative motions ``T_i^-1 T_j`` (the pose of frame j expressed in frame i), stacked."""
     R, p = a
     return compose(inverse((R[i], p[i])), (R[j], p[j]))
 
 
-def rotation_angle(R: np.ndarray) -> np.ndarray:
+def rotation_angle(R: Floats) -> Floats:
     """Rotation angles in radians, [0, pi], of matrices (..., 3, 3), via the trace."""
     cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+    out: Floats = np.arccos(np.clip(cos, -1.0, 1.0))
+    return out
 
 
-def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_angle(a: Floats, b: Floats) -> Floats:
     """Angle in radians, [0, pi], of the rotation between unit x y z w quaternions a and b
     (either sign of each stands for the same rotation).
 
@@ -103,10 +107,11 @@ def quat_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     sign = np.where(np.einsum('...i,...i->...', a, b) < 0.0, -1.0, 1.0)
     d = a - b * sign[..., None]
     chord2 = np.einsum('...i,...i->...', d, d)
-    return 4.0 * np.arctan2(np.sqrt(chord2), np.sqrt(np.maximum(4.0 - chord2, 0.0)))
+    out: Floats = 4.0 * np.arctan2(np.sqrt(chord2), np.sqrt(np.maximum(4.0 - chord2, 0.0)))
+    return out
 
 
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_multiply(a: Floats, b: Floats) -> Floats:
     """Hamilton product ``a (x) b`` of x y z w quaternion stacks (broadcasting).
 
     Written out per component: twice as fast as through np.cross on long stacks (screening
@@ -123,7 +128,7 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def consecutive_rotvecs(q_xyzw: np.ndarray) -> np.ndarray:
+def consecutive_rotvecs(q_xyzw: Floats) -> Floats:
     """Rotation vectors (N-1, 3) of ``R_k^T R_k+1`` (body frame) for consecutive x y z w
     quaternions (N, 4), the shorter way, from ``q_k* (x) q_k+1`` with the angle by atan2 (exact
     at small angles; no rotation matrices for a stream of millions of poses)."""
@@ -131,7 +136,7 @@ def consecutive_rotvecs(q_xyzw: np.ndarray) -> np.ndarray:
     return chunked(lambda s: _rotvecs_between(q[:-1][s], q[1:][s]), q.shape[0] - 1)
 
 
-def _rotvecs_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _rotvecs_between(a: Floats, b: Floats) -> Floats:
     d = quat_multiply(quat_conjugate(a), b)
     d *= np.where(d[:, 3:] < 0.0, -1.0, 1.0)
     s = row_norms(d[:, :3])
@@ -143,21 +148,23 @@ def _rotvecs_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     # near zero angle / s -> 2 / w, w ~ 1 for unit quaternions; the floor only keeps a
     # degenerate (near-zero) input from overflowing in the branch np.where discards
     scale = np.where(small, 2.0 / np.maximum(w, 1e-12), angle / np.where(small, 1.0, s))
-    return d[:, :3] * scale[:, None]
+    out: Floats = d[:, :3] * scale[:, None]
+    return out
 
 
-def quat_conjugate(q: np.ndarray) -> np.ndarray:
+def quat_conjugate(q: Floats) -> Floats:
     """Conjugate (the inverse, for unit quaternions) of x y z w quaternions."""
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
+    out: Floats = q * np.array([-1.0, -1.0, -1.0, 1.0])
+    return out
 
 
-def dual_quat_from_pose(q_xyzw: np.ndarray, p_xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def dual_quat_from_pose(q_xyzw: Floats, p_xyz: Floats) -> tuple[Floats, Floats]:
     """Unit dual quaternions ``(q, qd)`` of poses; ``qd = 0.5 * (p, 0) (x) q``."""
     p_quat = np.concatenate((p_xyz, np.zeros(p_xyz.shape[:-1] + (1,))), axis=-1)
     return q_xyzw, 0.5 * quat_multiply(p_quat, q_xyzw)
 
 
-def pose_from_dual_quat(q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def pose_from_dual_quat(q: Floats, qd: Floats) -> tuple[Floats, Floats]:
     """Quaternion (x y z w, w >= 0) and translation of unit dual quaternions.
 
     The translation is ``p = 2 (qd (x) q*)_vec``; the dual quaternion is normalised first
@@ -172,7 +179,7 @@ def pose_from_dual_quat(q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.n
     return q * sign, p
 
 
-def skew(v: np.ndarray) -> np.ndarray:
+def skew(v: Floats) -> Floats:
     """Skew-symmetric (cross-product) matrices, (..., 3, 3), of vectors (..., 3)."""
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     o = np.zeros_like(x)
@@ -181,7 +188,7 @@ def skew(v: np.ndarray) -> np.ndarray:
     )
 
 
-def exp_so3(v: np.ndarray) -> np.ndarray:
+def exp_so3(v: Floats) -> Floats:
     """Rotation matrices Exp(v) of rotation vectors (N, 3), by Rodrigues' formula.
 
     The hot path of the batch stage's spline: several times faster than going through scipy's
@@ -192,8 +199,8 @@ def exp_so3(v: np.ndarray) -> np.ndarray:
     small = theta < 1e-4
     safe = np.where(small, 1.0, theta)
     # sin(t)/t and (1 - cos t)/t^2, with their Taylor series near 0
-    a = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    a: Floats = np.where(small, 1.0 - theta2 / 6.0, np.sin(safe) / safe)
+    b: Floats = np.where(small, 0.5 - theta2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
     # I + a K + b K^2 with K^2 = v v^T - theta^2 I, written out (no 3x3 matmul)
     R = b[:, None, None] * (v[:, :, None] * v[:, None, :])
     diag = 1.0 - b * theta2
@@ -210,7 +217,7 @@ def exp_so3(v: np.ndarray) -> np.ndarray:
     return R
 
 
-def log_so3(R: np.ndarray) -> np.ndarray:
+def log_so3(R: Floats) -> Floats:
     """Rotation vectors Log(R) of rotation matrices (N, 3, 3).
 
     From the skew part ``w = sin(theta) axis`` and ``theta = atan2(|w|, cos theta)``, which is
@@ -225,7 +232,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     theta = np.arctan2(s, c)
     small = s < 1e-8
     scale = np.where(small, 1.0 + theta * theta / 6.0, theta / np.where(small, 1.0, s))
-    out = w * scale[:, None]
+    out: Floats = w * scale[:, None]
     near_pi = theta > 3.0
     if near_pi.any():
         from scipy.spatial.transform import Rotation
@@ -234,7 +241,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     return out
 
 
-def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
+def right_jacobian(v: Floats, inverse: bool = False) -> Floats:
     """Right Jacobians Jr(v) of SO(3) (or their inverses), (N, 3, 3), for rotation vectors (N, 3).
 
     ``Exp(v + dv) = Exp(v) Exp(Jr(v) dv)`` to first order; the left Jacobian is ``Jr(-v)``.
@@ -247,6 +254,8 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     K = skew(v)
     K2 = v[..., :, None] * v[..., None, :]  # K^2 = v v^T - |v|^2 I (no stacked matmul)
     K2[..., [0, 1, 2], [0, 1, 2]] -= t2[..., None]
+    a: Floats
+    b: Floats
     if inverse:
         a = np.full(t.shape, 0.5)
         b = np.where(
@@ -257,10 +266,11 @@ def right_jacobian(v: np.ndarray, inverse: bool = False) -> np.ndarray:
     else:
         a = -np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(s)) / (s * s))
         b = np.where(small, 1.0 / 6.0 - t2 / 120.0, (s - np.sin(s)) / (s * s * s))
-    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * K2
+    out: Floats = np.eye(3) + a[..., None, None] * K + b[..., None, None] * K2
+    return out
 
 
-def quat_slerp(q0: np.ndarray, q1: np.ndarray, f: np.ndarray) -> np.ndarray:
+def quat_slerp(q0: Floats, q1: Floats, f: Floats) -> Floats:
     """Spherical interpolation ``q0 (q0^-1 q1)^f`` of unit x y z w quaternion stacks (..., 4)
     at fractions f (...,): f in [0, 1] interpolates, outside extrapolates along the same
     geodesic. The shorter way is taken (q1's sign is matched to q0's first).
@@ -297,12 +307,12 @@ def quat_slerp(q0: np.ndarray, q1: np.ndarray, f: np.ndarray) -> np.ndarray:
 SLERP_SERIES_CHORD = 0.05
 
 
-def _slerp_weights_series(c2: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _slerp_weights_series(c2: Floats, f: Floats) -> tuple[Floats, Floats]:
     """sin((1 - f) W) / sin W and sin(f W) / sin W for small W, from the chord^2 c2."""
     # W^2 = (2 asin(c / 2))^2 = c^2 + c^4 / 12 + c^6 / 90 + c^8 / 560 + ...
     W2 = c2 * (1.0 + c2 * (1.0 / 12.0 + c2 * (1.0 / 90.0 + c2 / 560.0)))
 
-    def sin_over(x: np.ndarray) -> np.ndarray:  # sin(x W) / (x W) in x^2 W^2
+    def sin_over(x: Floats) -> Floats:  # sin(x W) / (x W) in x^2 W^2
         z = x * x * W2
         return 1.0 - z / 6.0 * (1.0 - z / 20.0 * (1.0 - z / 42.0 * (1.0 - z / 72.0)))
 

@@ -93,9 +93,10 @@ class Options:
         except ConfigError as err:
             raise ConfigError(f'{source}: {err}') from None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, object]:
         """Plain values, the inverse of :meth:`from_mapping`."""
-        return asdict(self)  # type: ignore[call-overload]
+        values: dict[str, object] = asdict(self)  # type: ignore[call-overload]
+        return values
 
 
 def _refuse_unknown(values: dict[str, Any], known: list[str], source: str) -> None:

@@ -37,6 +37,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .arrays import Floats
 from .association import PosePairs, associate
 from .batch.pieces import check_joint_size
 from .batch.refine import BatchSolution
@@ -261,7 +262,7 @@ def metrics_at(
     eye: Trajectory,
     pairs: PosePairs,
     world: WorldAlignment,
-    solved: tuple[float, np.ndarray, np.ndarray],
+    solved: tuple[float, Floats, Floats],
     eta_deg: float,
 ) -> Metrics:
     """APE/ARE of the eye at (dt, T_HE) ``solved`` with its world alignment, and AX = XB over
@@ -283,7 +284,7 @@ def _readiness(
     offset: Offset,
     linear: LinearStage,
     eye: Trajectory,
-    solved: tuple[float, np.ndarray, np.ndarray],
+    solved: tuple[float, Floats, Floats],
     time_offset_s: float,
     cfg: CalibrationConfig,
 ) -> Readiness:

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import Floats, Stamps
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
@@ -89,7 +90,7 @@ class UsedStreams:
 
     hand: Trajectory
     eye: Trajectory
-    eye_stamps_ns: np.ndarray
+    eye_stamps_ns: Stamps
     time_offset_s: float
 
 
@@ -103,8 +104,8 @@ class CalibrationResult:
     """
 
     time_offset_s: float
-    q_HE: np.ndarray
-    p_HE: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
     world: WorldAlignment
     time_alignment: TimeAlignment
     linear: LinearSolution
@@ -140,7 +141,7 @@ class CalibrationResult:
         m = self.eye_model
         return m.scale if m is not None and m.scale_estimated else None
 
-    def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
+    def time_offset_at(self, t_eye_ns: Stamps) -> Floats:
         """dt(t) [s] at eye stamps [ns, eye clock]: the time offset with the drift, if any."""
         if self.clock_drift is None or self.eye_model is None:
             return np.full(np.shape(t_eye_ns), self.time_offset_s)

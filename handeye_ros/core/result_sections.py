@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import Floats
 from .batch.correlated import BLOCKS
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
@@ -253,7 +254,7 @@ def _noise_dict(n: Any) -> dict[str, Any]:
     }
 
 
-def transform_dict(R: np.ndarray, p: np.ndarray, parent: str, child: str) -> dict[str, Any]:
+def transform_dict(R: Floats, p: Floats, parent: str, child: str) -> dict[str, Any]:
     """``{parent, child, translation, rotation (x y z w), matrix}`` of T_parent_child."""
     M = np.eye(4)
     M[:3, :3], M[:3, 3] = R, p

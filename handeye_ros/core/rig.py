@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import Floats
 from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
 
 #: Index of T_HE (translation, rotation) in a batch covariance (dt first).
@@ -46,14 +47,14 @@ class Member:
     """
 
     name: str
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    covariance: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    covariance: Floats
     order: tuple[str, ...]
     values: dict[str, float]
 
     @property
-    def extrinsic_covariance(self) -> np.ndarray:
+    def extrinsic_covariance(self) -> Floats:
         """Its T_HE's 6x6 marginal (translation, rotation): the Schur complement of its
         information over its own parameters, inverted."""
         return self.covariance[EXTRINSIC, EXTRINSIC]
@@ -121,16 +122,16 @@ class Joint:
     """The T_HE the members share: q_HE (x y z w), p_HE [m] and covariance 6x6 (translation,
     rotation; :func:`fuse`)."""
 
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    covariance: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    covariance: Floats
 
     @property
-    def std(self) -> np.ndarray:
+    def std(self) -> Floats:
         return np.sqrt(np.diag(self.covariance))
 
 
-def difference(q_a: np.ndarray, p_a: np.ndarray, q_b: np.ndarray, p_b: np.ndarray) -> np.ndarray:
+def difference(q_a: Floats, p_a: Floats, q_b: Floats, p_b: Floats) -> Floats:
     """a [-] b: (p_a - p_b, Log(R_b^T R_a)), translation [m] then rotation [rad]."""
     R_a, R_b = matrix_from_quat(q_a), matrix_from_quat(q_b)
     return np.concatenate([np.asarray(p_a) - np.asarray(p_b), log_so3((R_b.T @ R_a)[None])[0]])
@@ -156,7 +157,7 @@ def fuse(members: Sequence[Member]) -> Joint:
     return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T))
 
 
-def chi2_against(member: Member, others: Joint) -> tuple[float, np.ndarray]:
+def chi2_against(member: Member, others: Joint) -> tuple[float, Floats]:
     """Mahalanobis distance squared (6 dof) of a member's T_HE from a joint estimate that
     does not include it (their errors independent), and the difference (member [-] joint)."""
     d = difference(member.q_HE, member.p_HE, others.q_HE, others.p_HE)
@@ -173,7 +174,7 @@ class Conditioned:
 
     values: dict[str, float]
     std: dict[str, float]
-    covariance: np.ndarray
+    covariance: Floats
 
 
 def conditioned(member: Member, joint: Joint) -> Conditioned:

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial.transform import Rotation
 
+from .arrays import Floats, Stamps
 from .errors import InputError
 from .geometry import Pose, compose, inverse, quat_from_matrix
 from .time.clock import linear_clock
@@ -48,15 +49,15 @@ class Truth:
     """The values a calibration should recover (conventions of the package docstring)."""
 
     time_offset_s: float
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    q_WG: np.ndarray
-    p_WG: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    q_WG: Floats
+    p_WG: Floats
     clock_drift: float = 0.0
     time_offset_stamp_ns: int = 0
     scale: float = 1.0
 
-    def time_offset_at(self, t_eye_ns: np.ndarray) -> np.ndarray:
+    def time_offset_at(self, t_eye_ns: Stamps) -> Floats:
         """The true dt(t) [s] at eye stamps [ns] (the linear clock of :mod:`.time.clock`)."""
         return linear_clock(
             self.time_offset_s, self.clock_drift, self.time_offset_stamp_ns, t_eye_ns
@@ -82,8 +83,8 @@ class CalibrationError:
 
 
 def move_to_truth(
-    truth: Truth, time_offset_s: float, q_HE: np.ndarray, p_HE: np.ndarray, size: int = 7
-) -> np.ndarray:
+    truth: Truth, time_offset_s: float, q_HE: Floats, p_HE: Floats, size: int = 7
+) -> Floats:
     """(size,) the move from an estimated (dt, T_HE) to the truth's in the order of a batch
     covariance: dt [s], translation [m], rotation [rad] in the tangent on the right; zeros
     beyond (a drift, a scale)."""
@@ -95,7 +96,7 @@ def move_to_truth(
 
 
 def calibration_error(
-    truth: Truth, time_offset_s: float, q_HE: np.ndarray, p_HE: np.ndarray
+    truth: Truth, time_offset_s: float, q_HE: Floats, p_HE: Floats
 ) -> CalibrationError:
     """Errors of an estimated (dt, T_HE) against the truth (rotation: geodesic angle)."""
     rot = Rotation.from_quat(q_HE).inv() * Rotation.from_quat(truth.q_HE)
@@ -161,8 +162,8 @@ def smooth_motion(
     k = 3
     n_ctrl = int(np.ceil(duration_s / knot_spacing_s)) + k + 2
     knots = (np.arange(n_ctrl + k + 1) - k) * knot_spacing_s - knot_spacing_s
-    pos_ctrl = rng.normal(0.0, position_std_m, (n_ctrl, 3))
-    rot_ctrl = rng.normal(0.0, rotation_std_rad, (n_ctrl, 3))
+    pos_ctrl: Floats = rng.normal(0.0, position_std_m, (n_ctrl, 3))
+    rot_ctrl: Floats = rng.normal(0.0, rotation_std_rad, (n_ctrl, 3))
     if motion == 'planar_start':
         # the first third planar (yaw only, in the x-y plane), the rest about every axis,
         # continuing from where the planar part left off
@@ -203,12 +204,12 @@ def smooth_motion(
     return BSpline(knots, pos_ctrl, k), BSpline(knots, rot_ctrl, k)
 
 
-def _laps(ctrl: np.ndarray, per: int) -> np.ndarray:
+def _laps(ctrl: Floats, per: int) -> Floats:
     """The first ``per`` control points (rows) repeated to the length of ``ctrl``."""
     return np.tile(ctrl[:per], (int(np.ceil(len(ctrl) / per)), 1))[: len(ctrl)]
 
 
-def cumulative_compose(R: np.ndarray, p: np.ndarray) -> Pose:
+def cumulative_compose(R: Floats, p: Floats) -> Pose:
     """Prefix products ``T_0 T_1 ... T_k`` of a pose stack, by a parallel scan (log2 N passes)."""
     R, p = R.copy(), p.copy()
     s = 1
@@ -234,19 +235,20 @@ def _with_white_noise(
     return R, p + rng.normal(0.0, noise_m, (n, 3))
 
 
-def _eye_stamps(seed: int, duration_s: float, eye_rate_hz: float, dt_ns: int) -> np.ndarray:
+def _eye_stamps(seed: int, duration_s: float, eye_rate_hz: float, dt_ns: int) -> Stamps:
     """The eye's stamps (int64 ns, its clock): the hand's span less 1 s at each end, shifted by
     dt, its first frame at an arbitrary phase of its period, as two free-running sensors are
     (drawn apart, so that a seed's other draws do not change)."""
     n_eye = int((duration_s - 2.0) * eye_rate_hz) + 1
     phase_ns = int(np.random.default_rng([seed, 1]).integers(0, int(1e9 / eye_rate_hz)))
-    return (
+    out: Stamps = (
         EPOCH_NS
         + 1_000_000_000
         + dt_ns
         + phase_ns
         + np.rint(np.arange(n_eye) * 1e9 / eye_rate_hz).astype(np.int64)
     )
+    return out
 
 
 def simulate(
@@ -284,7 +286,7 @@ def simulate(
     truth = truth if truth is not None else random_truth(rng)
     pos, rot = smooth_motion(rng, duration_s + 2.0, motion=motion)
 
-    def hand_pose(t_s: np.ndarray) -> Pose:
+    def hand_pose(t_s: Floats) -> Pose:
         return Rotation.from_rotvec(rot(t_s)).as_matrix(), pos(t_s)
 
     n_hand = int(duration_s * hand_rate_hz) + 1
@@ -311,7 +313,7 @@ def simulate(
     return Recording(hand, eye, truth)
 
 
-def _wander(rng: np.random.Generator, t_s: np.ndarray, rms_s: float) -> np.ndarray:
+def _wander(rng: np.random.Generator, t_s: Floats, rms_s: float) -> Floats:
     """(N,) [s] a smooth wander at the eye's times ``t_s`` [s] (a VIO's latency that changes
     with its load): three sinusoids of random phases and of periods between a quarter of the
     span and all of it, of zero mean over ``t_s`` (so that the time offset is its mean) and
@@ -323,11 +325,12 @@ def _wander(rng: np.random.Generator, t_s: np.ndarray, rms_s: float) -> np.ndarr
     phases = rng.uniform(0.0, 2.0 * np.pi, 3)
     w = np.sin(2.0 * np.pi * t_s[:, None] / periods + phases).sum(axis=1)
     w -= w.mean()
-    return rms_s * w / np.sqrt(np.mean(w**2))
+    out: Floats = rms_s * w / np.sqrt(np.mean(w**2))
+    return out
 
 
 def _add_cumulative_error(
-    rng: np.random.Generator, R: np.ndarray, p: np.ndarray, noise_m: float, noise_deg: float
+    rng: np.random.Generator, R: Floats, p: Floats, noise_m: float, noise_deg: float
 ) -> Pose:
     """Perturb every consecutive relative motion in its body frame and re-chain the poses."""
     n = R.shape[0]

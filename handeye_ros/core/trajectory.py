@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
+from .arrays import Floats, Indices, Mask, Stamps
 from .errors import InputError
 from .geometry import row_norms
 
@@ -79,20 +80,20 @@ class Trajectory:
         The stream holds keyframes only: no interval is a gap (see the module docstring).
     """
 
-    t_ns: np.ndarray
-    p_xyz: np.ndarray
-    q_xyzw: np.ndarray
+    t_ns: Stamps
+    p_xyz: Floats
+    q_xyzw: Floats
     name: str = 'trajectory'
-    breaks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    breaks: Indices = field(default_factory=lambda: np.zeros(0, dtype=int))
     notes: tuple[str, ...] = ()
     keyframes: bool = False
 
     @classmethod
     def from_arrays(
         cls,
-        t_ns: np.ndarray,
-        p_xyz: np.ndarray,
-        q_xyzw: np.ndarray,
+        t_ns: Stamps,
+        p_xyz: Floats,
+        q_xyzw: Floats,
         name: str = 'trajectory',
         min_poses: int = 2,
         notes: tuple[str, ...] = (),
@@ -150,7 +151,7 @@ class Trajectory:
     def __len__(self) -> int:
         return int(self.t_ns.shape[0])
 
-    def seconds(self, origin_ns: int) -> np.ndarray:
+    def seconds(self, origin_ns: int) -> Floats:
         """Stamps in float seconds relative to ``origin_ns`` (subtraction done in int64)."""
         return (self.t_ns - np.int64(origin_ns)).astype(float) * 1e-9
 
@@ -175,7 +176,7 @@ class Trajectory:
             int(self.t_ns[-1]),
         )
 
-    def select(self, mask_or_index: np.ndarray | slice) -> Trajectory:
+    def select(self, mask_or_index: Mask | Indices | slice) -> Trajectory:
         """A sub-trajectory (rows kept in order; no re-validation needed).
 
         A break survives when both of its poses are kept; when poses around a break are
@@ -196,7 +197,7 @@ class Trajectory:
             self.keyframes,
         )
 
-    def with_breaks(self, breaks: np.ndarray) -> Trajectory:
+    def with_breaks(self, breaks: Indices) -> Trajectory:
         """The same poses with these intervals (index of their first pose) marked as breaks,
         in addition to the existing ones."""
         b = np.union1d(self.breaks, np.asarray(breaks, dtype=int)).astype(int)
@@ -214,7 +215,7 @@ class Trajectory:
         """Longest interval that is not a gap [s]: GAP_FACTOR median periods."""
         return GAP_FACTOR * float(np.median(np.diff(self.t_ns))) * 1e-9
 
-    def interval_ok(self) -> np.ndarray:
+    def interval_ok(self) -> Mask:
         """(N - 1,) bool: intervals that are neither a gap nor a break (see module docstring)."""
         step = np.diff(self.t_ns)
         ok = (
@@ -225,7 +226,7 @@ class Trajectory:
         ok[self.breaks] = False
         return ok
 
-    def segment_ids(self) -> np.ndarray:
+    def segment_ids(self) -> Indices:
         """(N,) int: 0 for the poses before the first break, 1 after it, ..."""
         seg = np.zeros(len(self), dtype=int)
         seg[self.breaks + 1] = 1
@@ -256,7 +257,7 @@ def lengths_text(seconds: npt.ArrayLike) -> str:
     return f'{seconds.min():.2f} to {seconds.max():.2f} s, {seconds.sum():.1f} s in all'
 
 
-def segment_spans(labels: np.ndarray) -> list[tuple[int, int]]:
+def segment_spans(labels: Indices) -> list[tuple[int, int]]:
     """(start, stop) index ranges of the runs of equal labels in a non-decreasing label array
     (the segments of :meth:`Trajectory.segment_ids`, or of pose pairs)."""
     starts = np.flatnonzero(np.diff(labels, prepend=labels[:1] - 1))
@@ -264,7 +265,7 @@ def segment_spans(labels: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(starts, stops, strict=True)]
 
 
-def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:
+def make_continuous(q_xyzw: Floats) -> Floats:
     """Flip quaternion signs so that consecutive quaternions have a non-negative dot product.
 
     Parameters
@@ -280,10 +281,11 @@ def make_continuous(q_xyzw: np.ndarray) -> np.ndarray:
     if not (dots < 0.0).any():  # continuous already (no copy of millions of rows)
         return q_xyzw
     flips = np.concatenate(([1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))))
-    return q_xyzw * flips[:, None]
+    out: Floats = q_xyzw * flips[:, None]
+    return out
 
 
-def _check_finite(name: str, values: np.ndarray, what: str) -> None:
+def _check_finite(name: str, values: Floats, what: str) -> None:
     if np.isfinite(values).all():  # the usual case, at a tenth of the time of the row test
         return
     bad = np.flatnonzero(~np.isfinite(values).all(axis=1))

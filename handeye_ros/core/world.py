@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .arrays import Floats, Indices
 from .association import PosePairs
 from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle, row_norms
 
@@ -33,8 +34,8 @@ MIN_PLANAR_SPREAD_M = 0.05
 class WorldAlignment:
     """T_WG: the MoCap world G expressed in the VIO world W, and how it was found."""
 
-    R_WG: np.ndarray
-    p_WG: np.ndarray
+    R_WG: Floats
+    p_WG: Floats
     method: str
     segment: int = 0
     segments: int = 1
@@ -67,7 +68,7 @@ def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
     return compose((pairs.R_GH, pairs.p_GH), X)
 
 
-def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldAlignment:
+def align_worlds(pairs: PosePairs, q_HE: Floats, p_HE: Floats) -> WorldAlignment:
     """Least-squares T_WG from the calibrated pairs of the longest eye segment (see module
     docstring)."""
     labels, counts = np.unique(pairs.segment, return_counts=True)
@@ -76,9 +77,7 @@ def align_worlds(pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray) -> WorldA
     return WorldAlignment(out.R_WG, out.p_WG, out.method, longest, int(labels.size))
 
 
-def _align_segment(
-    pairs: PosePairs, sel: np.ndarray, q_HE: np.ndarray, p_HE: np.ndarray
-) -> WorldAlignment:
+def _align_segment(pairs: PosePairs, sel: Indices, q_HE: Floats, p_HE: Floats) -> WorldAlignment:
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
     R_GE, c_G = predicted_eye(pairs, X)
     R_GE, c_G = R_GE[sel], c_G[sel]
@@ -101,7 +100,7 @@ def _align_segment(
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
 
 
-def rigid_fit(points_a: np.ndarray, points_b: np.ndarray) -> Pose:
+def rigid_fit(points_a: Floats, points_b: Floats) -> Pose:
     """The rotation and translation (R, p) that best map ``points_a`` (N, 3) onto ``points_b``
     in the least-squares sense: Kabsch/Umeyama without scale (``b ~ R a + p``)."""
     mean_a, mean_b = points_a.mean(axis=0), points_b.mean(axis=0)
@@ -110,9 +109,7 @@ def rigid_fit(points_a: np.ndarray, points_b: np.ndarray) -> Pose:
     return R, mean_b - R @ mean_a
 
 
-def metrics_of(
-    pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray, world: WorldAlignment
-) -> Metrics:
+def metrics_of(pairs: PosePairs, q_HE: Floats, p_HE: Floats, world: WorldAlignment) -> Metrics:
     """APE/ARE of the eye poses against ``T_WG T_GH T_HE`` (see module docstring), each eye
     segment against its own T_WG (``world`` is the longest segment's)."""
     X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
@@ -130,9 +127,7 @@ def metrics_of(
     )
 
 
-def worlds_per_pair(
-    pairs: PosePairs, q_HE: np.ndarray, p_HE: np.ndarray, world: WorldAlignment
-) -> Pose:
+def worlds_per_pair(pairs: PosePairs, q_HE: Floats, p_HE: Floats, world: WorldAlignment) -> Pose:
     """T_WG for every pair: ``world`` on its own segment, each other eye segment aligned on its
     own pairs (a VIO reset starts a new world W). Shapes (N, 3, 3), (N, 3)."""
     R_WG = np.empty((pairs.segment.size, 3, 3))

@@ -46,6 +46,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import chdtri, stdtrit
 
+from ..arrays import Floats
+
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
 #: the recording each); with fewer than MIN_BLOCK_POSES eye poses in a block the term is not
 #: estimated.
@@ -76,11 +78,11 @@ class Uncertainty:
     missing.
     """
 
-    white: np.ndarray
-    long_run: np.ndarray
+    white: Floats
+    long_run: Floats
     factors: dict[str, float] | None
-    scale: tuple[float, float, np.ndarray] | None
-    covariance: np.ndarray
+    scale: tuple[float, float, Floats] | None
+    covariance: Floats
     not_estimated: tuple[str, ...] = field(default=())
     varies: dict[str, tuple[float, float]] = field(default_factory=dict)
 
@@ -102,7 +104,7 @@ class Uncertainty:
             }
         return out
 
-    def std(self, group: str) -> np.ndarray:
+    def std(self, group: str) -> Floats:
         """The reported 1-sigma of each of the group's axes."""
         i = list(GROUPS[group])
         return np.sqrt(np.clip(np.diag(self.covariance)[i], 0.0, None))
@@ -123,13 +125,11 @@ class Uncertainty:
         """Per group, the term that contributes the most variance."""
         return {g: max(TERMS, key=lambda t: s[t]) for g, s in self.terms().items()}
 
-    def _scale_part(self) -> np.ndarray:
+    def _scale_part(self) -> Floats:
         return self.covariance - inflated(self.long_run, self.factors or {})
 
 
-def error_of_mean(
-    deviations: np.ndarray, covariances: np.ndarray, long_run: np.ndarray
-) -> dict[str, float]:
+def error_of_mean(deviations: Floats, covariances: Floats, long_run: Floats) -> dict[str, float]:
     """k_g (>= 1) per group: the error of the recording's value over the long-run 1-sigma
     (module docstring), from the blocks' deviations (B, 7), their covariances (B, 7, 7) and the
     long-run covariance (reported order); a group held fixed (zero variance) has none."""
@@ -152,7 +152,7 @@ def error_of_mean(
     return out
 
 
-def varies(deviations: np.ndarray, covariances: np.ndarray) -> dict[str, tuple[float, float]]:
+def varies(deviations: Floats, covariances: Floats) -> dict[str, tuple[float, float]]:
     """The groups whose blocks disagree beyond their own covariances (B, 7, 7) (Birge's ratio
     above its VARIES_QUANTILE), each with (the blocks' spread: the norm over the group's axes
     of the deviations' (B, 7) sample standard deviation; the square root of Birge's ratio: how
@@ -174,7 +174,7 @@ def varies(deviations: np.ndarray, covariances: np.ndarray) -> dict[str, tuple[f
     return out
 
 
-def inflated(cov: np.ndarray, factors: dict[str, float]) -> np.ndarray:
+def inflated(cov: Floats, factors: dict[str, float]) -> Floats:
     """``cov`` (at least 7 x 7, reported order) with each group's rows and columns multiplied
     by its factor."""
     d = np.ones(cov.shape[0])
@@ -183,11 +183,12 @@ def inflated(cov: np.ndarray, factors: dict[str, float]) -> np.ndarray:
     return cov * np.outer(d, d)
 
 
-def scale_term(fixed: np.ndarray, free: np.ndarray, shift: np.ndarray) -> np.ndarray:
+def scale_term(fixed: Floats, free: Floats, shift: Floats) -> Floats:
     """What not knowing the eye's scale adds to the covariance of (dt, translation, rotation)
     (7, 7) at s = 1: the marginal (``free``) minus the conditional (``fixed``) covariance, and
     the shift (7,) of the estimate when s is fitted; the nearest positive semi-definite
     matrix (two separately estimated covariances may differ by more than the term)."""
     term = free - fixed + np.outer(shift, shift)
     w, V = np.linalg.eigh(0.5 * (term + term.T))
-    return (V * np.clip(w, 0.0, None)) @ V.T
+    out: Floats = (V * np.clip(w, 0.0, None)) @ V.T
+    return out

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.sparse import csc_matrix, diags
 from scipy.sparse.linalg import splu
 
+from ..arrays import Floats, Mask
 from .joint_jacobian import central_jacobian, joint_jacobian
 from .long_run import (
     LongRunCovariance,
@@ -33,11 +34,11 @@ from .residuals import BatchProblem, Weights
 def eye_covariance(
     prob: BatchProblem,
     weights: Weights,
-    y: np.ndarray,
+    y: Floats,
     layout: ParameterLayout,
     delta: float,
     decoupled: bool,
-) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+) -> tuple[Floats, LongRunCovariance, float, int]:
     """(white covariance, long-run covariance (:mod:`.batch.long_run`), Huber cost, number of
     residuals) of the default solve at y, in the order of y (zero rows for a fixed dt), from
     one pass over the eye pairs with their analytic Jacobian (:class:`CovarianceSums`)."""
@@ -58,13 +59,13 @@ class CovarianceSums:
     def __init__(self, layout: ParameterLayout, delta: float, decoupled: bool) -> None:
         self.layout, self.delta, self.decoupled = layout, delta, decoupled
         self.cost, self.n_res = 0.0, 0
-        self.g_parts: dict[str, list[np.ndarray]] = {'a': [], 'b': [], 'all': []}
-        self.sums: dict[str, np.ndarray] = {}
+        self.g_parts: dict[str, list[Floats]] = {'a': [], 'b': [], 'all': []}
+        self.sums: dict[str, Floats] = {}
 
-    def _add_sum(self, name: str, value: np.ndarray) -> None:
+    def _add_sum(self, name: str, value: Floats) -> None:
         self.sums[name] = self.sums[name] + value if name in self.sums else value
 
-    def add(self, r: np.ndarray, J: np.ndarray) -> None:
+    def add(self, r: Floats, J: Floats) -> None:
         """One chunk: weighted residuals r (n, 6) and their Jacobian J (n, 6, n_y)."""
         layout, delta = self.layout, self.delta
         self.cost += huber_cost(r, delta)
@@ -93,7 +94,7 @@ class CovarianceSums:
             self._add_sum('H', H)
             self._add_sum('N', f.T @ f)
 
-    def result(self) -> tuple[np.ndarray, LongRunCovariance, float, int]:
+    def result(self) -> tuple[Floats, LongRunCovariance, float, int]:
         """(white covariance, long-run covariance, Huber cost, number of residuals), as
         :func:`eye_covariance` returns them."""
         layout, sums, k = self.layout, self.sums, len(self.layout.time)
@@ -121,13 +122,13 @@ class CovarianceSums:
         return cov, _long_run_in_y(psi, layout), self.cost, self.n_res
 
 
-def _two_step_influences(psi_theta: np.ndarray, psi_b: np.ndarray, k: int) -> np.ndarray:
+def _two_step_influences(psi_theta: Floats, psi_b: Floats, k: int) -> Floats:
     """The two-step estimate's influences (T, free) in the order of :attr:`ParameterLayout.all`:
     step B's k time parameters, step A's dtheta, then step B's others."""
     return np.concatenate((psi_b[:, :k], psi_theta, psi_b[:, k:]), axis=1)
 
 
-def _long_run_in_y(psi: np.ndarray, layout: ParameterLayout) -> LongRunCovariance:
+def _long_run_in_y(psi: Floats, layout: ParameterLayout) -> LongRunCovariance:
     """Long-run covariance (:mod:`.batch.long_run`) of influences psi (T, free), as matrices in
     the order of y (zero rows and columns for the entries held fixed)."""
     lr = long_run_covariance(psi)
@@ -142,8 +143,8 @@ def _long_run_in_y(psi: np.ndarray, layout: ParameterLayout) -> LongRunCovarianc
 
 
 def eye_jacobians(
-    residuals: Callable[..., np.ndarray], y: np.ndarray, layout: ParameterLayout, decoupled: bool
-) -> dict[str, np.ndarray]:
+    residuals: Callable[..., Floats], y: Floats, layout: ParameterLayout, decoupled: bool
+) -> dict[str, Floats]:
     """Central-difference Jacobians of the eye residuals at y (the joint solve's, where the
     spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
     rows; dt if free, dp) and 'theta' (all rows; dtheta); otherwise 'all' (all rows; every
@@ -159,8 +160,8 @@ def eye_jacobians(
 
 
 def eye_long_run(
-    r: np.ndarray,
-    jac: dict[str, np.ndarray],
+    r: Floats,
+    jac: dict[str, Floats],
     layout: ParameterLayout,
     delta: float,
     decoupled: bool,
@@ -192,9 +193,7 @@ def eye_long_run(
     return _long_run_in_y(psi, layout)
 
 
-def two_step_from_normals(
-    N_A: np.ndarray, N_B: np.ndarray, N_Bt: np.ndarray, s2: float, k: int
-) -> np.ndarray:
+def two_step_from_normals(N_A: Floats, N_B: Floats, N_Bt: Floats, s2: float, k: int) -> Floats:
     """Covariance of the decoupled estimate under white residuals, in the order (dt if free,
     dtheta, dp); k is 1 when dt is free.
 
@@ -211,7 +210,7 @@ def two_step_from_normals(
     return assemble_two_step(cov_tt, s2 * N_B_inv, S, k)
 
 
-def assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray, k: int) -> np.ndarray:
+def assemble_two_step(cov_tt: Floats, cov_b: Floats, S: Floats, k: int) -> Floats:
     """The two-step estimate's covariance in the order (time parameters, dtheta, dp, scale?).
 
     cov_tt: dtheta from step A; cov_b: step B's (time, dp, scale?) from its own noise; S: how
@@ -230,7 +229,7 @@ def assemble_two_step(cov_tt: np.ndarray, cov_b: np.ndarray, S: np.ndarray, k: i
     return out
 
 
-def marginal_covariance(J: csc_matrix | np.ndarray, n_nuisance: int) -> np.ndarray:
+def marginal_covariance(J: csc_matrix | Floats, n_nuisance: int) -> Floats:
     """(J^T J)^-1 block of the parameters after the first ``n_nuisance`` (the control poses,
     and dt where it is marginalised too), by the Schur complement over those."""
     J = csc_matrix(J)
@@ -246,15 +245,15 @@ def marginal_covariance(J: csc_matrix | np.ndarray, n_nuisance: int) -> np.ndarr
 def joint_covariance(
     prob: BatchProblem,
     weights: Weights,
-    x: np.ndarray,
-    f: np.ndarray,
-    free: np.ndarray,
-    rot_rows: np.ndarray,
-    theta: np.ndarray,
-    trans: np.ndarray,
+    x: Floats,
+    f: Floats,
+    free: Mask,
+    rot_rows: Mask,
+    theta: Mask,
+    trans: Mask,
     delta: float,
     decoupled: bool,
-) -> np.ndarray:
+) -> Floats:
     """White 7x7 covariance of (dt, dtheta_X, dp_X) of the joint solve at x, the control
     poses marginalised; ``f``: the weighted residuals at x; ``free``, ``theta``, ``trans``:
     masks over x (free parameters, rotation of T_HE, translation of T_HE); ``rot_rows``: the
@@ -290,8 +289,8 @@ def joint_covariance(
 def joint_long_run(
     prob: BatchProblem,
     weights: Weights,
-    x: np.ndarray,
-    cov: np.ndarray,
+    x: Floats,
+    cov: Floats,
     layout: ParameterLayout,
     delta: float,
     decoupled: bool,
@@ -302,7 +301,7 @@ def joint_long_run(
     spline, y = prob.unpack(x)
     w_eye = weights.eye
 
-    def eye_rows(yy: np.ndarray, rotation_only: bool = False) -> np.ndarray:
+    def eye_rows(yy: Floats, rotation_only: bool = False) -> Floats:
         r = prob.eye_raw_at(spline, yy) * w_eye
         return (r[:, :3] if rotation_only else r).ravel()
 

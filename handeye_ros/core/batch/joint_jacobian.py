@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from ..arrays import Floats, Indices
 from ..geometry import log_so3, right_jacobian, skew
 from .residuals import FD_STEP, FD_STEP_S, BatchProblem, Weights
 from .spline import PoseSpline
@@ -22,14 +23,14 @@ from .spline import PoseSpline
 class _Triplets:
     """The (row, column, value) entries of a sparse Jacobian, gathered block by block."""
 
-    def __init__(self, Jc: np.ndarray) -> None:
+    def __init__(self, Jc: Floats) -> None:
         #: (M, 3, 3) right Jacobians of the control rotations' parameters
         self.Jc = Jc
-        self.rows: list[np.ndarray] = []
-        self.cols: list[np.ndarray] = []
-        self.values: list[np.ndarray] = []
+        self.rows: list[Indices] = []
+        self.cols: list[Indices] = []
+        self.values: list[Floats] = []
 
-    def add(self, row0: np.ndarray, cp: np.ndarray, col_off: int, block: np.ndarray) -> None:
+    def add(self, row0: Indices, cp: Indices, col_off: int, block: Floats) -> None:
         """Blocks (N, k, 3, 3): rows row0 + 0..2, columns 6 cp + col_off + 0..2 (col_off 0:
         a control rotation, whose parameter enters through its right Jacobian)."""
         if col_off == 0:
@@ -42,7 +43,7 @@ class _Triplets:
         self.values.append(block.ravel())
 
 
-def joint_jacobian(prob: BatchProblem, x: np.ndarray, weights: Weights) -> csr_matrix:
+def joint_jacobian(prob: BatchProblem, x: Floats, weights: Weights) -> csr_matrix:
     """Sparse Jacobian of :meth:`BatchProblem.residuals`: analytic in the control poses (through
     :meth:`PoseSpline.poses_and_jacobian_at`), central differences in the 7 (dt, T_HE)
     columns, which only the eye rows depend on.
@@ -63,7 +64,7 @@ def joint_jacobian(prob: BatchProblem, x: np.ndarray, weights: Weights) -> csr_m
     # (dt, dtheta_X, dp_X): central differences of the eye rows
     w_eye = weights.eye
 
-    def eye_rows(yy: np.ndarray) -> np.ndarray:
+    def eye_rows(yy: Floats) -> Floats:
         return (prob.eye_raw_at(spline, yy) * w_eye).ravel()
 
     d = central_jacobian(eye_rows, y, np.arange(7))
@@ -91,7 +92,7 @@ def _hand_blocks(prob: BatchProblem, spline: PoseSpline, weights: Weights, out: 
 
 
 def _eye_blocks(
-    prob: BatchProblem, spline: PoseSpline, y: np.ndarray, weights: Weights, out: _Triplets
+    prob: BatchProblem, spline: PoseSpline, y: Floats, weights: Weights, out: _Triplets
 ) -> None:
     """The eye rows' blocks in the control poses (see :func:`joint_jacobian`)."""
     RX, pX = prob.extrinsic(y)
@@ -122,11 +123,11 @@ def _eye_blocks(
 
 
 def central_jacobian(
-    fun: Callable[[np.ndarray], np.ndarray],
-    y: np.ndarray,
-    cols: np.ndarray,
-    steps: np.ndarray | None = None,
-) -> np.ndarray:
+    fun: Callable[[Floats], Floats],
+    y: Floats,
+    cols: Indices,
+    steps: Floats | None = None,
+) -> Floats:
     """Central-difference Jacobian of fun(y) wrt the entries ``cols`` of y = (dt, dtheta_X,
     dp_X, ...), with ``steps`` per entry (default: FD_STEP_S for dt, FD_STEP otherwise)."""
     out = []

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.sparse import csc_matrix, csr_matrix, dia_matrix, diags
 from scipy.sparse.linalg import splu
 
+from ..arrays import Floats, Indices, Mask
 from .loss import huber_cost, huber_psi
 
 #: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
@@ -49,10 +50,10 @@ class NormalSums:
     whatever else the caller gathered on the same pass (the solver hands it back untouched)."""
 
     cost: float
-    A: np.ndarray
-    g: np.ndarray
-    D: np.ndarray
-    raw: np.ndarray | None = None
+    A: Floats
+    g: Floats
+    D: Floats
+    raw: Floats | None = None
     extra: object = None
 
 
@@ -64,12 +65,12 @@ STEP_TOL_SIGMA = 1e-2
 
 
 def levenberg_marquardt_dense(
-    sums_at: Callable[[np.ndarray], NormalSums],
-    y: np.ndarray,
-    free: np.ndarray,
+    sums_at: Callable[[Floats], NormalSums],
+    y: Floats,
+    free: Indices,
     max_iterations: int,
     start: NormalSums | None = None,
-) -> tuple[np.ndarray, SolverReport, NormalSums]:
+) -> tuple[Floats, SolverReport, NormalSums]:
     """Huber-robust Levenberg-Marquardt on a few parameters (``free`` entries of y) with an
     analytic Jacobian: the Newton model of the module docstring solved densely.
     ``sums_at(y)``: the normal sums at y (:class:`SumsOfChunks`); ``start``: those at the
@@ -125,15 +126,15 @@ def levenberg_marquardt_dense(
 
 
 def levenberg_marquardt_sparse(
-    residuals: Callable[[np.ndarray], np.ndarray],
-    jacobian: Callable[[np.ndarray], csr_matrix],
-    x: np.ndarray,
-    free: np.ndarray,
-    rows: np.ndarray,
+    residuals: Callable[[Floats], Floats],
+    jacobian: Callable[[Floats], csr_matrix],
+    x: Floats,
+    free: Mask,
+    rows: Mask,
     delta: float,
     max_iterations: int,
     ftol: float,
-) -> tuple[np.ndarray, SolverReport]:
+) -> tuple[Floats, SolverReport]:
     """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
 
     Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
@@ -186,9 +187,7 @@ def levenberg_marquardt_sparse(
     return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
 
 
-def _huber_normal(
-    J: csr_matrix, f: np.ndarray, delta: float
-) -> tuple[csc_matrix, np.ndarray, dia_matrix]:
+def _huber_normal(J: csr_matrix, f: Floats, delta: float) -> tuple[csc_matrix, Floats, dia_matrix]:
     """The Newton model of the Huber cost at residuals f with Jacobian J: (A, g, D), the normal
     matrix (rows beyond delta add no curvature), the gradient (their residuals clipped to
     +-delta) and Marquardt's diagonal scaling."""
@@ -203,12 +202,12 @@ class SumsOfChunks:
     """:class:`NormalSums` over the free columns of chunks of weighted residuals r (n, rows)
     with their Jacobians J (n, rows, n_y), summed as they come (no chunk is kept)."""
 
-    def __init__(self, free: np.ndarray, delta: float) -> None:
+    def __init__(self, free: Indices, delta: float) -> None:
         p = free.size
         self.free, self.delta = free, delta
         self.cost, self.A, self.g, self.D = 0.0, np.zeros((p, p)), np.zeros(p), np.zeros(p)
 
-    def add(self, r: np.ndarray, J: np.ndarray) -> None:
+    def add(self, r: Floats, J: Floats) -> None:
         r = r.ravel()
         Jf = J[:, :, self.free].reshape(r.size, self.free.size)
         psi, dpsi = huber_psi(r, self.delta)
@@ -217,5 +216,5 @@ class SumsOfChunks:
         self.g += Jf.T @ psi
         self.D += np.einsum('ij,ij->j', Jf, Jf)
 
-    def sums(self, raw: np.ndarray | None = None, extra: object = None) -> NormalSums:
+    def sums(self, raw: Floats | None = None, extra: object = None) -> NormalSums:
         return NormalSums(self.cost, self.A, self.g, self.D, raw, extra)

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from .loss import huber_psi
 
 #: Largest AR(1) coefficient used in the bandwidth (a unit root has no long-run variance).
@@ -48,21 +49,20 @@ class LongRunCovariance:
     bandwidth: L, in eye poses; samples: T.
     """
 
-    covariance: np.ndarray
-    white: np.ndarray
+    covariance: Floats
+    white: Floats
     bandwidth: int
     samples: int
 
     @property
-    def inflation(self) -> np.ndarray:
+    def inflation(self) -> Floats:
         """(p,) ratio of the long-run to the white standard deviations (>= 0)."""
         w = np.sqrt(np.clip(np.diag(self.white), 1e-300, None))
-        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
+        out: Floats = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None)) / w
+        return out
 
 
-def influence(
-    r: np.ndarray, J: np.ndarray, delta: float, rows_per_sample: int
-) -> tuple[np.ndarray, np.ndarray]:
+def influence(r: Floats, J: Floats, delta: float, rows_per_sample: int) -> tuple[Floats, Floats]:
     """Per-sample influence ``psi_e = -H^-1 g_e`` of an M-estimate and ``H^-1``.
 
     Parameters
@@ -79,8 +79,8 @@ def influence(
 
 
 def influence_sums(
-    r: np.ndarray, J: np.ndarray, delta: float, other: np.ndarray | None = None
-) -> tuple[np.ndarray, ...]:
+    r: Floats, J: Floats, delta: float, other: Floats | None = None
+) -> tuple[Floats, ...]:
     """What the influences need of some samples, to be summed over all of them: per sample
     ``g_e = sum_rows J_row^T psi(r_row)`` (T, p) and ``H = sum J^T psi' J`` (p, p); with
     ``other`` (T, rows, q) also ``sum J^T psi' other`` (p, q).
@@ -99,23 +99,23 @@ def influence_sums(
     return g, H, Jw.reshape(-1, J.shape[-1]).T @ other.reshape(-1, other.shape[-1])
 
 
-def influence_from_sums(g: np.ndarray, H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def influence_from_sums(g: Floats, H: Floats) -> tuple[Floats, Floats]:
     """Influences ``psi_e = -H^-1 g_e`` (T, p) and ``H^-1`` from :func:`influence_sums`."""
     H_inv = np.linalg.inv(H)
     return -g @ H_inv.T, H_inv
 
 
 def influence_two_step(
-    r_a: np.ndarray,
-    J_a: np.ndarray,
-    r_b: np.ndarray,
-    J_b: np.ndarray,
-    J_theta: np.ndarray,
+    r_a: Floats,
+    J_a: Floats,
+    r_b: Floats,
+    J_b: Floats,
+    J_theta: Floats,
     delta: float,
     rows_a: int,
     rows_b: int,
-    theta_in_a: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    theta_in_a: Indices,
+) -> tuple[Floats, Floats]:
     """Influences of a two-step estimate: theta from step A, then step B's parameters b with
     theta fixed (b moves by ``S dtheta``, ``S = -H_b^-1 J_b^T psi' J_theta``).
 
@@ -134,13 +134,13 @@ def influence_two_step(
 
 
 def two_step_from_sums(
-    g_a: np.ndarray,
-    H_a: np.ndarray,
-    g_b: np.ndarray,
-    H_b: np.ndarray,
-    C: np.ndarray,
-    theta_in_a: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    g_a: Floats,
+    H_a: Floats,
+    g_b: Floats,
+    H_b: Floats,
+    C: Floats,
+    theta_in_a: Indices,
+) -> tuple[Floats, Floats]:
     """:func:`influence_two_step` from the sums of :func:`influence_sums` of both steps (C:
     step B's ``J_b^T psi' J_theta``)."""
     psi_a, _ = influence_from_sums(g_a, H_a)
@@ -150,7 +150,7 @@ def two_step_from_sums(
     return psi_theta, psi_b + psi_theta @ S.T
 
 
-def andrews_bandwidth(psi: np.ndarray) -> int:
+def andrews_bandwidth(psi: Floats) -> int:
     """Bartlett bandwidth by Andrews' (1991) AR(1) plug-in rule over the columns of psi (T, p)."""
     T = psi.shape[0]
     if T < 8:
@@ -171,7 +171,7 @@ def andrews_bandwidth(psi: np.ndarray) -> int:
     return int(min(np.floor(L), MAX_BANDWIDTH_FRACTION * T))
 
 
-def long_run_covariance(psi: np.ndarray, bandwidth: int | None = None) -> LongRunCovariance:
+def long_run_covariance(psi: Floats, bandwidth: int | None = None) -> LongRunCovariance:
     """Newey-West covariance of ``sum_e psi_e`` (see module docstring); ``bandwidth`` None
     chooses it by :func:`andrews_bandwidth`."""
     T = psi.shape[0]

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats
+
 #: Noise estimates never go below these (rad, m): a noise-free stream would get infinite weight.
 MIN_SIGMA_ROT = 1e-6
 MIN_SIGMA_TRANS = 1e-6
@@ -26,13 +28,13 @@ class Noise:
     estimated: bool
 
 
-def robust_sigma(r: np.ndarray) -> float:
+def robust_sigma(r: Floats) -> float:
     """Per-axis standard deviation from the median absolute deviation (robust to outliers)."""
     return float(1.4826 * np.median(np.abs(r - np.median(r, axis=0))))
 
 
 def sigmas(
-    r: np.ndarray, given: tuple[float | None, float | None], fitted: int = 0, n: int | None = None
+    r: Floats, given: tuple[float | None, float | None], fitted: int = 0, n: int | None = None
 ) -> tuple[float, float, bool]:
     """Per-axis (rotation, translation) noise of residuals r (N, 6), unless given.
 

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from .residuals import EYE_CHUNK_PAIRS, FD_STEP, FD_STEP_DRIFT, FD_STEP_S, Weights
 
 if TYPE_CHECKING:
@@ -37,19 +38,19 @@ class ParameterLayout:
         return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
 
     @property
-    def a(self) -> np.ndarray:
+    def a(self) -> Indices:
         return np.array((*self.time, 1, 2, 3))
 
     @property
-    def b(self) -> np.ndarray:
+    def b(self) -> Indices:
         return np.array((*self.time, 4, 5, 6, *self.scale))
 
     @property
-    def all(self) -> np.ndarray:
+    def all(self) -> Indices:
         return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
 
     @property
-    def steps(self) -> np.ndarray:
+    def steps(self) -> Floats:
         """Central-difference steps for the entries of y."""
         h = np.full(self.size, FD_STEP)
         h[0] = FD_STEP_S
@@ -61,11 +62,11 @@ class ParameterLayout:
 def weighted_eye_chunks(
     prob: BatchProblem,
     w: Weights,
-    y: np.ndarray,
+    y: Floats,
     rotation_only: bool = False,
-    raw: list[np.ndarray] | None = None,
+    raw: list[Floats] | None = None,
     every: int = 1,
-) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+) -> Iterator[tuple[Floats, Floats]]:
     """(r (n, rows), J (n, rows, n_y)) of each chunk of eye pairs (of every ``every``-th
     chunk), weighted by 1/sigma; the unweighted residuals of each chunk are appended to
     ``raw`` when given."""
@@ -73,6 +74,7 @@ def weighted_eye_chunks(
     w_rows = w.eye[:rows]
     for k in prob.chunks()[::every]:
         r, J = prob.eye_chunk(y, k, min(k + EYE_CHUNK_PAIRS, prob.ei.size), True, rotation_only)
+        assert J is not None  # asked for (True above)
         if raw is not None:
             raw.append(r)
         yield r * w_rows, J * w_rows[None, :, None]

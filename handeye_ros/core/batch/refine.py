@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..arrays import Floats
 from ..errors import BatchError
 from ..geometry import quat_from_matrix
 from ..trajectory import Trajectory
@@ -68,10 +69,10 @@ class BatchSolution:
     """
 
     time_offset_s: float
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    covariance: np.ndarray
-    std: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    covariance: Floats
+    std: Floats
     cost_before: float
     cost_after: float
     iterations: int
@@ -85,7 +86,7 @@ class BatchSolution:
     n_control_points: int
     seconds: float
     reduced_chi2: float
-    covariance_white: np.ndarray
+    covariance_white: Floats
     decoupled: bool = False
     warnings: tuple[str, ...] = field(default=())
     bandwidth: int = 0
@@ -110,19 +111,20 @@ class BatchSolution:
         return None if self.scale is None else float(self.std[7 + (self.clock_drift is not None)])
 
     @property
-    def inflation(self) -> np.ndarray:
+    def inflation(self) -> Floats:
         """(7,) long-run over white standard deviation (1: the residuals look white)."""
         lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run
         w = np.sqrt(np.clip(np.diag(self.covariance_white), 1e-300, None))
-        return np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
+        out: Floats = np.sqrt(np.clip(np.diag(lr), 0.0, None)) / w
+        return out
 
 
 def refine(
     hand: Trajectory,
     eye: Trajectory,
     time_offset_s: float,
-    q_HE: np.ndarray,
-    p_HE: np.ndarray,
+    q_HE: Floats,
+    p_HE: Floats,
     options: BatchOptions | None = None,
     spline: PoseSpline | None = None,
 ) -> BatchSolution:
@@ -167,7 +169,7 @@ def refine(
 
 def _solve(
     prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: BatchOptions
-) -> tuple[Solve, np.ndarray]:
+) -> tuple[Solve, Floats]:
     """The joint solve or the default one, as ``o`` says: (the solve, y = (dt, dtheta_X, dp_X,
     ...) at its solution)."""
     if o.joint:
@@ -191,7 +193,7 @@ def _hand_noise(
 def _solution(
     prob: BatchProblem,
     solved: Solve,
-    y: np.ndarray,
+    y: Floats,
     o: BatchOptions,
     piece_note: str,
     seconds: float,

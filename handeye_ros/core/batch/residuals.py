@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..arrays import Floats, Indices, Mask
 from ..errors import BatchError
 from ..geometry import (
     Pose,
@@ -60,19 +61,19 @@ class _ChunkPairs:
     (RX, pX); the rotation residuals; the scale s; the spline's body rates W and velocities V;
     and, with translations, u and the predicted relative translation p_rel."""
 
-    a: np.ndarray
-    b: np.ndarray
-    te: np.ndarray
-    Q: np.ndarray
-    Ra_t: np.ndarray
-    RX: np.ndarray
-    pX: np.ndarray
-    r_rot: np.ndarray
+    a: Indices
+    b: Indices
+    te: Floats
+    Q: Floats
+    Ra_t: Floats
+    RX: Floats
+    pX: Floats
+    r_rot: Floats
     s: float
-    W: np.ndarray
-    V: np.ndarray
-    u: np.ndarray | None
-    p_rel: np.ndarray | None
+    W: Floats
+    V: Floats
+    u: Floats | None
+    p_rel: Floats | None
 
 
 @dataclass(frozen=True)
@@ -87,28 +88,28 @@ class Weights:
     eye_translation: float = 1.0
 
     @property
-    def hand(self) -> np.ndarray:
+    def hand(self) -> Floats:
         """(6,) per component of a hand residual."""
         return np.repeat([self.hand_rotation, self.hand_translation], 3)
 
     @property
-    def eye(self) -> np.ndarray:
+    def eye(self) -> Floats:
         """(6,) per component of an eye residual."""
         return np.repeat([self.eye_rotation, self.eye_translation], 3)
 
 
-def eye_pairs(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+def eye_pairs(traj: Trajectory) -> tuple[Indices, Indices]:
     """Consecutive pose indices not spanning a gap or a break (as stage 1)."""
     i = np.flatnonzero(traj.interval_ok())
     return i, i + 1
 
 
-def _times(M: np.ndarray, C: np.ndarray) -> np.ndarray:
+def _times(M: Floats, C: Floats) -> Floats:
     """``M C`` for a stack M (N, 3, 3) and a constant C (3, 3), as one matrix product."""
     return (M.reshape(-1, 3) @ C).reshape(M.shape)
 
 
-def _conjugate(C: np.ndarray, M: np.ndarray, right: bool = True) -> np.ndarray:
+def _conjugate(C: Floats, M: Floats, right: bool = True) -> Floats:
     """``C M C^T`` (or ``C M`` with ``right`` False) for a constant C (3, 3) and a stack M
     (N, 3, 3), as plain matrix products over the stack (numpy's stacked 3x3 matmul is several
     times slower)."""
@@ -119,7 +120,7 @@ def _conjugate(C: np.ndarray, M: np.ndarray, right: bool = True) -> np.ndarray:
     return (CM.reshape(3 * n, 3) @ C.T).reshape(n, 3, 3)
 
 
-def residual_parts(pred: Pose, obs: Pose) -> np.ndarray:
+def residual_parts(pred: Pose, obs: Pose) -> Floats:
     """(N, 6): rotation (rad) and translation (m) differences of predicted and observed poses
     (the spline's and the MoCap's, or relative ones of the eye)."""
     dR = np.matmul(pred[0], np.swapaxes(obs[0], -1, -2))
@@ -134,8 +135,8 @@ class BatchProblem:
         hand: Trajectory,
         eye: Trajectory,
         dt0: float,
-        q0: np.ndarray,
-        p0: np.ndarray,
+        q0: Floats,
+        p0: Floats,
         knot_spacing: float,
         order: int,
         drift_stamp_ns: int | None = None,
@@ -187,11 +188,12 @@ class BatchProblem:
             else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9
         )
 
-    def _inside(self, t: np.ndarray) -> np.ndarray:
+    def _inside(self, t: Floats) -> Mask:
         """Hand times (s) at least DT_MARGIN_S inside a piece of the spline."""
         spans = np.array(self.spline0.spans())
         k = np.clip(np.searchsorted(spans[:, 0], t, side='right') - 1, 0, None)
-        return (t >= spans[k, 0] + DT_MARGIN_S) & (t <= spans[k, 1] - DT_MARGIN_S)
+        out: Mask = (t >= spans[k, 0] + DT_MARGIN_S) & (t <= spans[k, 1] - DT_MARGIN_S)
+        return out
 
     @property
     def hand_obs(self) -> Pose:
@@ -202,7 +204,7 @@ class BatchProblem:
         return obs
 
     @property
-    def hand_basis(self) -> tuple[np.ndarray, np.ndarray]:
+    def hand_basis(self) -> tuple[Indices, Floats]:
         """Spline basis at every MoCap stamp (the knots never move; the times neither): made
         once, when the joint solve first asks."""
         basis = self.__dict__.get('_hand_basis')
@@ -210,7 +212,7 @@ class BatchProblem:
             basis = self.__dict__['_hand_basis'] = self.spline0.basis(self.th)
         return basis
 
-    def hand_noise_residuals(self) -> np.ndarray:
+    def hand_noise_residuals(self) -> Floats:
         """Hand residuals of the spline fit (n, 6) at up to HAND_NOISE_SAMPLES MoCap poses evenly
         spread: what the default solve needs of the hand is its noise level, which a robust
         sigma of 2e5 residuals gives to 0.3 %; an hour of 1 kHz MoCap would take 10 s more."""
@@ -220,19 +222,19 @@ class BatchProblem:
         obs = (matrix_from_quat(self.hand_q[pick]), self.hand_p[pick])
         return residual_parts(self.spline0.poses_at(self.th[pick]), obs)
 
-    def extrinsic(self, y: np.ndarray) -> Pose:
+    def extrinsic(self, y: Floats) -> Pose:
         """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
         return self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]
 
-    def clock(self, y: np.ndarray) -> tuple[float, float]:
+    def clock(self, y: Floats) -> tuple[float, float]:
         """(dt at t_ref, clock drift) of y."""
         return self.dt0 + y[0], (0.0 if self.i_drift is None else float(y[self.i_drift]))
 
-    def scale(self, y: np.ndarray) -> float:
+    def scale(self, y: Floats) -> float:
         """The factor on the eye's translations (1 without a scale parameter)."""
         return 1.0 if self.i_scale is None else 1.0 + float(y[self.i_scale])
 
-    def eye_times(self, y: np.ndarray, first: int = 0, stop: int | None = None) -> np.ndarray:
+    def eye_times(self, y: Floats, first: int = 0, stop: int | None = None) -> Floats:
         """The hand-clock times of the eye stamps first..stop-1: ``t - dt - drift (t - t_ref)``
         (the linear clock of :mod:`.time.clock`)."""
         dt, drift = self.clock(y)
@@ -240,7 +242,7 @@ class BatchProblem:
         return te - dt - drift * (te - self.t_ref)
 
     # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
-    def unpack(self, x: np.ndarray) -> tuple[PoseSpline, np.ndarray]:
+    def unpack(self, x: Floats) -> tuple[PoseSpline, Floats]:
         """(spline, y) of the full parameter vector (joint solve)."""
         c = x[: self.n_spline].reshape(self.M, 6)
         s0 = self.spline0
@@ -248,11 +250,11 @@ class BatchProblem:
         spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:], s0.pieces)
         return spline, x[self.n_spline :]
 
-    def hand_raw(self, spline: PoseSpline) -> np.ndarray:
+    def hand_raw(self, spline: PoseSpline) -> Floats:
         """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
         return residual_parts(spline.poses_at(self.th, self.hand_basis), self.hand_obs)
 
-    def eye_raw_at(self, spline: PoseSpline, y: np.ndarray) -> np.ndarray:
+    def eye_raw_at(self, spline: PoseSpline, y: Floats) -> Floats:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
         and X; with a scale s, the predicted relative translations divided by it), a chunk
         of pairs at a time (:meth:`eye_chunk`)."""
@@ -267,13 +269,13 @@ class BatchProblem:
 
     def eye_chunk(
         self,
-        y: np.ndarray,
+        y: Floats,
         k0: int,
         k1: int,
         jacobian: bool = True,
         rotation_only: bool = False,
         spline: PoseSpline | None = None,
-    ) -> tuple[np.ndarray, np.ndarray | None]:
+    ) -> tuple[Floats, Floats | None]:
         """Unweighted eye residuals of the pairs k0..k1-1 ((n, 6), or (n, 3) rotation only)
         predicted from ``spline`` (default: the hand's fit) and y, and with ``jacobian`` their
         Jacobian (n, 6 or 3, n_y) in y, analytic (the spline held fixed). The pairs are taken a
@@ -318,7 +320,7 @@ class BatchProblem:
         pairs = _ChunkPairs(a, b, te, Q, Ra_t, RX, pX, r_rot, s, W, V, *translations)
         return r, self._eye_chunk_jacobian(pairs, y, rows)
 
-    def _eye_chunk_jacobian(self, p: _ChunkPairs, y: np.ndarray, rows: int) -> np.ndarray:
+    def _eye_chunk_jacobian(self, p: _ChunkPairs, y: Floats, rows: int) -> Floats:
         """The Jacobian (n, rows, n_y) of :meth:`eye_chunk`'s residuals in y, analytic (the
         spline held fixed).
 
@@ -339,7 +341,7 @@ class BatchProblem:
         Jr_theta = right_jacobian(y[None, 1:4])[0]
         rel_R = _conjugate(RX.T, Q)
         J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
-        time_cols = [(0, -1.0, -1.0)]
+        time_cols: list[tuple[int, float | Floats, float | Floats]] = [(0, -1.0, -1.0)]
         if self.i_drift is not None:
             time_cols.append(
                 (self.i_drift, -(te[a] - self.t_ref)[:, None], -(te[b] - self.t_ref)[:, None])
@@ -367,17 +369,17 @@ class BatchProblem:
         """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
         return range(0, self.ei.size, EYE_CHUNK_PAIRS)
 
-    def raw(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def raw(self, x: Floats) -> tuple[Floats, Floats]:
         """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
         spline, y = self.unpack(x)
         return self.hand_raw(spline), self.eye_raw_at(spline, y)
 
-    def eye_raw(self, y: np.ndarray) -> np.ndarray:
+    def eye_raw(self, y: Floats) -> Floats:
         """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
         fixed to the hand."""
         return self.eye_raw_at(self.spline0, y)
 
-    def residuals(self, x: np.ndarray, w: Weights) -> np.ndarray:
+    def residuals(self, x: Floats, w: Weights) -> Floats:
         """Weighted hand then eye residuals, flat (joint solve)."""
         r_h, r_e = self.raw(x)
         return np.concatenate(((r_h * w.hand).ravel(), (r_e * w.eye).ravel()))

@@ -13,6 +13,7 @@ from functools import partial
 
 import numpy as np
 
+from ..arrays import Floats, Indices, Mask
 from .covariance import CovarianceSums, eye_covariance, joint_covariance, joint_long_run
 from .joint_jacobian import joint_jacobian
 from .levenberg_marquardt import (
@@ -47,13 +48,13 @@ class Solve:
     solver run's.
     """
 
-    x: np.ndarray
+    x: Floats
     cost_before: float
     cost_after: float
     hand_noise: Noise
     eye_noise: Noise
     weights: Weights
-    covariance: np.ndarray
+    covariance: Floats
     long_run: LongRunCovariance
     n_residuals: int
     n_free: int
@@ -80,7 +81,7 @@ def solve_offset_extrinsic(
     (None: measured), the Huber delta, the iterations, ``decoupled``.
     """
     eye_noise, delta, decoupled = o.eye_noise, o.huber_delta, o.decoupled
-    y = np.zeros(layout.size)
+    y: Floats = np.zeros(layout.size)
     r_start = prob.eye_raw(y)  # kept: the cost before, at the final weights
     en = Noise(*sigmas(r_start, eye_noise))
     passes = 2 if en.estimated else 1
@@ -123,11 +124,11 @@ def solve_offset_extrinsic(
 
 def _noise_pass(
     prob: BatchProblem,
-    y: np.ndarray,
-    steps: list[tuple[np.ndarray, bool]],
+    y: Floats,
+    steps: list[tuple[Indices, bool]],
     plan: _SweepPlan,
     iterations: int,
-) -> tuple[np.ndarray, SolverReport, NormalSums]:
+) -> tuple[Floats, SolverReport, NormalSums]:
     """One of :func:`solve_offset_extrinsic`'s two passes (one per noise estimate): its steps
     (free parameters, rotation rows only) solved in turn from y, each evaluation a sweep over
     the eye pairs (:func:`_sweep`). ``plan``: the pass's weights, chunks and what its last
@@ -164,9 +165,9 @@ class _SweepPlan:
     weights: Weights
     delta: float
     every: int = 1
-    free: np.ndarray | None = None
+    free: Indices | None = None
     rotation_only: bool = False
-    then: np.ndarray | None = None
+    then: Indices | None = None
     covariance: tuple[ParameterLayout, bool] | None = None
     keep_raw: bool = False
 
@@ -185,7 +186,7 @@ def _same_sweep(sums: NormalSums) -> _SameSweep | None:
     return sums.extra if isinstance(sums.extra, _SameSweep) else None
 
 
-def _sweep(prob: BatchProblem, y: np.ndarray, plan: _SweepPlan) -> NormalSums:
+def _sweep(prob: BatchProblem, y: Floats, plan: _SweepPlan) -> NormalSums:
     """One sweep over the eye pairs at y (every ``plan.every``-th chunk), summed as
     :class:`_SweepPlan` says."""
     full_rows = not plan.rotation_only or plan.then is not None
@@ -196,7 +197,7 @@ def _sweep(prob: BatchProblem, y: np.ndarray, plan: _SweepPlan) -> NormalSums:
     if plan.covariance is not None:
         layout, decoupled = plan.covariance
         cov = CovarianceSums(layout, plan.delta, decoupled)
-    raw: list[np.ndarray] | None = [] if plan.keep_raw else None
+    raw: list[Floats] | None = [] if plan.keep_raw else None
     rows = 3 if plan.rotation_only else 6
     for r, J in weighted_eye_chunks(prob, plan.weights, y, not full_rows, raw, plan.every):
         step.add(r[:, :rows], J[:, :rows])
@@ -261,9 +262,7 @@ def solve_joint(prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: Batch
     return Solve(x, cost_before, cost_after, hn, en, weights, cov, lr, f.size, n_free, report)
 
 
-def _joint_masks(
-    prob: BatchProblem, fix_time_offset: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _joint_masks(prob: BatchProblem, fix_time_offset: bool) -> tuple[Mask, Mask, Mask, Mask]:
     """The joint solve's masks: the free parameters (control poses, dt unless fixed, T_HE), the
     rows of its rotation step (the MoCap's and the eye's rotation rows), and which parameters
     are the rotation and the translation of T_HE."""

@@ -27,6 +27,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..arrays import Floats, Indices
 from ..geometry import Pose, exp_so3, log_so3, quat_multiply, right_jacobian
 
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
@@ -46,7 +47,7 @@ def _cardinal(order: int) -> Any:
     return BSpline.basis_element(np.arange(order + 1, dtype=float), extrapolate=False)
 
 
-def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
+def cumulative_basis(s: Floats, order: int) -> Floats:
     """``Bc_j(s)``, j = 0..k-1, for s in [0, 1): shape (N, k); column 0 is 1."""
     s = np.asarray(s, dtype=float)
     if order == 4:  # the cubic's closed form (Sommer et al. 2020), as scipy's below
@@ -64,10 +65,11 @@ def cumulative_basis(s: np.ndarray, order: int) -> np.ndarray:
     # the basis function of control point i + j on segment i is the cardinal B-spline at
     # s + k - 1 - j
     b = np.stack([np.nan_to_num(N(s + order - 1 - j)) for j in range(order)], axis=-1)
-    return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+    out: Floats = np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+    return out
 
 
-def cumulative_basis_derivative(s: np.ndarray, order: int) -> np.ndarray:
+def cumulative_basis_derivative(s: Floats, order: int) -> Floats:
     """``dBc_j / ds``, j = 0..k-1, for s in [0, 1): shape (N, k); column 0 is 0."""
     s = np.asarray(s, dtype=float)
     if order == 4:
@@ -83,10 +85,11 @@ def cumulative_basis_derivative(s: np.ndarray, order: int) -> np.ndarray:
         )
     dN = _cardinal(order).derivative()
     b = np.stack([np.nan_to_num(dN(s + order - 1 - j)) for j in range(order)], axis=-1)
-    return np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+    out: Floats = np.cumsum(b[:, ::-1], axis=1)[:, ::-1]
+    return out
 
 
-def plain_basis(Bc: np.ndarray) -> np.ndarray:
+def plain_basis(Bc: Floats) -> Floats:
     """The B-spline basis (N, k) of control points i..i+k-1 from the cumulative one:
     ``b_j = Bc_j - Bc_j+1``, the last one as it is."""
     b = np.empty(Bc.shape)
@@ -95,7 +98,7 @@ def plain_basis(Bc: np.ndarray) -> np.ndarray:
     return b
 
 
-def exp_quat(v: np.ndarray) -> np.ndarray:
+def exp_quat(v: Floats) -> Floats:
     """Unit quaternions (N, 4), x y z w, of rotation vectors (N, 3)."""
     theta = np.sqrt(np.einsum('ij,ij->i', v, v))
     small = theta < 1e-4
@@ -106,14 +109,14 @@ def exp_quat(v: np.ndarray) -> np.ndarray:
     return np.concatenate((v * k[:, None], np.cos(0.5 * theta)[:, None]), axis=1)
 
 
-def _rotate_back(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+def _rotate_back(q: Floats, v: Floats) -> Floats:
     """``R(q)^T v`` for unit quaternions q (N, 4) and vectors v (N, 3)."""
     u, w = -q[:, :3], q[:, 3:]
     t = 2.0 * _cross(u, v)
     return v + w * t + _cross(u, t)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _cross(a: Floats, b: Floats) -> Floats:
     """a x b row-wise for (N, 3) arrays (np.cross's generality costs it twice the time)."""
     out = np.empty_like(b)
     out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
@@ -137,9 +140,9 @@ class PoseSpline:
     t0: float
     dt: float
     order: int
-    R: np.ndarray
-    p: np.ndarray
-    pieces: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    R: Floats
+    p: Floats
+    pieces: tuple[Floats, Indices, Indices] | None = None
 
     @property
     def t_end(self) -> float:
@@ -147,7 +150,7 @@ class PoseSpline:
         if self.pieces is not None:
             starts, _, n_seg = self.pieces
             return float(starts[-1] + n_seg[-1] * self.dt)
-        return self.t0 + (self.R.shape[0] - self.order + 1) * self.dt
+        return float(self.t0 + (self.R.shape[0] - self.order + 1) * self.dt)
 
     def spans(self) -> list[tuple[float, float]]:
         """(start, end) of each piece, s (one for a plain spline)."""
@@ -156,13 +159,13 @@ class PoseSpline:
         starts, _, n_seg = self.pieces
         return [(float(a), float(a + n * self.dt)) for a, n in zip(starts, n_seg, strict=True)]
 
-    def segments(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def segments(self, t: Floats) -> tuple[Indices, Floats]:
         """(segment index i, fraction s) of times t; times outside are clamped to the ends (of
         the piece that starts last before them)."""
         t = np.asarray(t, dtype=float)
-        t0: float | np.ndarray
-        first: int | np.ndarray
-        n_seg: int | np.ndarray
+        t0: float | Floats
+        first: int | Indices
+        n_seg: int | Indices
         if self.pieces is None:
             t0, first, n_seg = self.t0, 0, self.R.shape[0] - self.order + 1
         else:
@@ -173,7 +176,7 @@ class PoseSpline:
         i = np.clip(np.floor(u).astype(int), 0, n_seg - 1)
         return first + i, np.clip(u - i, 0.0, 1.0)
 
-    def _increments(self) -> tuple[np.ndarray, np.ndarray]:
+    def _increments(self) -> tuple[Floats, Floats]:
         """Log of consecutive control rotations and position differences, computed once."""
         cached = self.__dict__.get('_inc')
         if cached is None:
@@ -184,34 +187,35 @@ class PoseSpline:
             object.__setattr__(self, '_inc', cached)  # frozen: the cache is not state
         return cached
 
-    def _control_quats(self) -> np.ndarray:
+    def _control_quats(self) -> Floats:
         """The control rotations as quaternions (M, 4), computed once."""
         cached = self.__dict__.get('_quat')
         if cached is None:
             cached = Rotation.from_matrix(self.R).as_quat()
             object.__setattr__(self, '_quat', cached)  # frozen: the cache is not state
-        return cached
+        out: Floats = cached
+        return out
 
-    def basis(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def basis(self, t: Floats) -> tuple[Indices, Floats]:
         """(segment index, cumulative basis (N, k)) of times t: all that :meth:`poses_at` needs
         of the times, to reuse across splines with the same knots."""
         i, s = self.segments(t)
         return i, cumulative_basis(s, self.order)
 
-    def basis_derivative(self, t: np.ndarray) -> np.ndarray:
+    def basis_derivative(self, t: Floats) -> Floats:
         """``dBc_j / dt`` (N, k) at times t (1/s), for :meth:`poses_and_rates_at`."""
         _, s = self.segments(t)
         return cumulative_basis_derivative(s, self.order) / self.dt
 
-    def poses_at(self, t: np.ndarray, basis: tuple[np.ndarray, np.ndarray] | None = None) -> Pose:
+    def poses_at(self, t: Floats, basis: tuple[Indices, Floats] | None = None) -> Pose:
         """Poses at times t (s): rotations (N, 3, 3), positions (N, 3); ``basis``: the
         :meth:`basis` of t, if already at hand."""
         R, p, _, _ = self._product(self.basis(t) if basis is None else basis)
         return R, p
 
     def poses_and_rates_at(
-        self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        self, basis: tuple[Indices, Floats], dbasis: Floats
+    ) -> tuple[Floats, Floats, Floats, Floats]:
         """Poses at the times of ``basis`` and their rates: R (N, 3, 3), p (N, 3), the body
         angular velocity w (N, 3) with ``dR/dt = R [w]x`` [rad/s], and dp/dt (N, 3) [m/s].
         ``dbasis``: :meth:`basis_derivative` at the same times."""
@@ -220,8 +224,8 @@ class PoseSpline:
         return R, p, w, v
 
     def _product(
-        self, basis: tuple[np.ndarray, np.ndarray], dbasis: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        self, basis: tuple[Indices, Floats], dbasis: Floats | None = None
+    ) -> tuple[Floats, Floats, Floats | None, Floats | None]:
         """Eq. 14's product factor by factor: (R, p) and, with ``dbasis``, the rates (w, v).
 
         In quaternions (a product is 16 multiplications where numpy's stacked 3x3 matmul is
@@ -233,8 +237,8 @@ class PoseSpline:
         omega, dp = self._increments()
         q = self._control_quats()[i]
         p = self.p[i].copy()
-        w: np.ndarray | None = None
-        v: np.ndarray | None = None
+        w: Floats | None = None
+        v: Floats | None = None
         if dbasis is not None:
             w, v = np.zeros((i.size, 3)), np.zeros((i.size, 3))
         for j in range(1, self.order):
@@ -247,8 +251,8 @@ class PoseSpline:
         return Rotation.from_quat(q).as_matrix(), p, w, v
 
     def poses_and_jacobian_at(
-        self, basis: tuple[np.ndarray, np.ndarray]
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        self, basis: tuple[Indices, Floats]
+    ) -> tuple[Floats, Floats, Floats, Floats]:
         """Poses at the times of ``basis`` (:meth:`basis`) and their derivatives with respect to
         the k control poses of each time's segment, i + c (c = 0..k-1).
 
@@ -282,9 +286,7 @@ class PoseSpline:
         return R, p, JR, b
 
 
-def fit_spline(
-    t: np.ndarray, R: np.ndarray, p: np.ndarray, knot_spacing: float, order: int = 4
-) -> PoseSpline:
+def fit_spline(t: Floats, R: Floats, p: Floats, knot_spacing: float, order: int = 4) -> PoseSpline:
     """A spline through stamped poses (the hand's spline of the batch stage).
 
     Control poses start as the poses interpolated where each control point weighs most (the
@@ -329,9 +331,9 @@ def fit_spline(
 
 
 def fit_pieces(
-    t: np.ndarray,
-    R: np.ndarray,
-    p: np.ndarray,
+    t: Floats,
+    R: Floats,
+    p: Floats,
     knot_spacing: float,
     order: int,
     spans: list[tuple[int, int]],
@@ -358,9 +360,7 @@ def fit_pieces(
     )
 
 
-def _banded_least_squares(
-    i: np.ndarray, b: np.ndarray, y: np.ndarray, M: int, start: np.ndarray
-) -> np.ndarray:
+def _banded_least_squares(i: Indices, b: Floats, y: Floats, M: int, start: Floats) -> Floats:
     """Control values c (M, d) minimising sum_n |sum_c b[n, c] c[i_n + c] - y_n|^2.
 
     Normal equations in LAPACK's lower banded storage, by Cholesky; when a control value has
@@ -379,7 +379,8 @@ def _banded_least_squares(
         axis=1,
     )
     try:
-        return solveh_banded(ab, rhs, lower=True)
+        out: Floats = solveh_banded(ab, rhs, lower=True)
+        return out
     except LinAlgError:
         rows = np.repeat(np.arange(i.size), k)
         cols = (i[:, None] + np.arange(k)).ravel()

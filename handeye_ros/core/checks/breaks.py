@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats, Stamps
 from ..association import eye_motion_errors
 from ..trajectory import Trajectory, segment_spans
 
@@ -36,13 +37,13 @@ class EyeBreaks:
     break."""
 
     eye: Trajectory
-    outliers_ns: np.ndarray
-    short_ns: np.ndarray
-    breaks_ns: np.ndarray
+    outliers_ns: Stamps
+    short_ns: Stamps
+    breaks_ns: Stamps
 
 
 def find_eye_breaks(
-    hand: Trajectory, eye: Trajectory, time_offset_s: float, R_HE: np.ndarray, p_HE: np.ndarray
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, R_HE: Floats, p_HE: Floats
 ) -> EyeBreaks:
     """Breaks (resets of the VIO world) and leftover wild poses of the eye, found against the
     hand's motion once stage 2 has an extrinsic.
@@ -63,10 +64,11 @@ def find_eye_breaks(
         return EyeBreaks(eye, *(np.zeros(0, dtype=np.int64),) * 3)
     scale = np.sqrt(np.maximum(step / np.median(step[usual]), 1.0))
 
-    def limit(e: np.ndarray, floor: float) -> np.ndarray:
+    def limit(e: Floats, floor: float) -> Floats:
         m = np.median(e[usual])
         s = 1.4826 * np.median(np.abs(e[usual] - m))
-        return np.maximum(m + BREAK_SIGMAS * s, floor) * scale
+        out: Floats = np.maximum(m + BREAK_SIGMAS * s, floor) * scale
+        return out
 
     bad = covered & (
         (e_r > limit(e_r, BREAK_FLOOR_ROTATION_RAD))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import Indices, Mask, Stamps
 from ..trajectory import Trajectory
 
 #: Windows of the eye in an excerpt, and the eye's keyframe motions (eq. 6) they hold in all:
@@ -86,14 +87,15 @@ def excerpt(
     )
 
 
-def _covers(hand: Trajectory, t_ns: np.ndarray) -> np.ndarray:
+def _covers(hand: Trajectory, t_ns: Stamps) -> Mask:
     """Which stamps ``t_ns`` (int64 ns, sorted) the hand covers: inside its span, in no gap."""
     k = np.clip(np.searchsorted(hand.t_ns, t_ns, side='right'), 1, len(hand) - 1)
     inside = (t_ns >= hand.t_ns[0]) & (t_ns <= hand.t_ns[-1])
-    return inside & hand.interval_ok()[k - 1]
+    covered: Mask = inside & hand.interval_ok()[k - 1]
+    return covered
 
 
-def _rows(traj: Trajectory, rows: np.ndarray, t_ns: np.ndarray) -> Trajectory:
+def _rows(traj: Trajectory, rows: Mask | Indices, t_ns: Stamps) -> Trajectory:
     """The poses ``rows`` of a stream (its breaks among them kept) at new stamps."""
     part = traj.select(rows)
     return Trajectory(
@@ -101,7 +103,7 @@ def _rows(traj: Trajectory, rows: np.ndarray, t_ns: np.ndarray) -> Trajectory:
     )
 
 
-def spread_sample(i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def spread_sample(i: Indices, j: Indices) -> tuple[Indices, Indices]:
     """At most SAMPLE_MOTIONS of the motions (i -> j), evenly spread over them."""
     if i.size <= SAMPLE_MOTIONS:
         return i, j

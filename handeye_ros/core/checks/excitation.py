@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats
 from ..geometry import consecutive_rotvecs
 from ..trajectory import Trajectory
 
@@ -32,7 +33,7 @@ class Turned:
 
     t0_ns: int
     t1_ns: int
-    deg: np.ndarray
+    deg: Floats
     rate_sq: float
     steps: int
     travel_m: float

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..arrays import Floats
 from ..association import associate
 from ..errors import InputError, TimeAlignmentError
 from ..geometry import matrix_from_quat, quat_from_matrix, relative
@@ -79,8 +80,8 @@ def reread(traj: Trajectory, reading: str) -> Trajectory:
 
 
 def _reread_poses(
-    pose: tuple[np.ndarray, np.ndarray], q_xyzw: np.ndarray, reading: str
-) -> tuple[np.ndarray, np.ndarray]:
+    pose: tuple[Floats, Floats], q_xyzw: Floats, reading: str
+) -> tuple[Floats, Floats]:
     """Poses (R (N, 3, 3), p (N, 3); q_xyzw: R's quaternions) under another reading than as
     given, as :func:`reread` does to a stream."""
     R, p = pose
@@ -102,9 +103,7 @@ class ReadingFit:
     score: float = float('nan')
 
 
-def _fit(
-    R_A: np.ndarray, t_A: np.ndarray, R_B: np.ndarray, t_B: np.ndarray
-) -> tuple[float, float, float]:
+def _fit(R_A: Floats, t_A: Floats, R_B: Floats, t_B: Floats) -> tuple[float, float, float]:
     """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart as the
     linear stage's refit does (unweighted here), and |t_X|."""
     with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should

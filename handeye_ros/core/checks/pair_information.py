@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats, Indices, Mask
 from ..association import interpolate, residual_motions
 from ..chunked import CHUNK_ROWS
 from ..geometry import Pose, exp_so3, log_so3, matrix_from_quat, relative
@@ -37,8 +38,8 @@ class Estimate:
     """The point the chunks are linearised at: dt [s], R_HE (3, 3), p_HE [m] in H."""
 
     time_offset_s: float
-    R_HE: np.ndarray
-    p_HE: np.ndarray
+    R_HE: Floats
+    p_HE: Floats
 
 
 @dataclass(frozen=True)
@@ -53,9 +54,9 @@ class Chunk:
     t1_ns: int
     pairs: int
     span_s: float
-    info: np.ndarray
-    grad: np.ndarray
-    hist: np.ndarray
+    info: Floats
+    grad: Floats
+    hist: Indices
 
     def __add__(self, other: Chunk) -> Chunk:
         return Chunk(
@@ -69,7 +70,7 @@ class Chunk:
         )
 
 
-def histogram(r: np.ndarray) -> np.ndarray:
+def histogram(r: Floats) -> Indices:
     """(NBINS,) counts of |r| (every component) on the log10 bins."""
     with np.errstate(divide='ignore'):
         k = np.floor((np.log10(np.abs(r).ravel()) - LOG_LO) / LOG_STEP)
@@ -78,7 +79,7 @@ def histogram(r: np.ndarray) -> np.ndarray:
     )
 
 
-def robust_sigma(hist: np.ndarray) -> float:
+def robust_sigma(hist: Indices) -> float:
     """A robust standard deviation (1.4826 times the median magnitude, about 0) from a
     histogram of magnitudes, the median interpolated in log inside its bin; floored."""
     n = float(hist.sum())
@@ -89,19 +90,18 @@ def robust_sigma(hist: np.ndarray) -> float:
     below = cum[k - 1] if k else 0.0
     frac = (n / 2.0 - below) / max(float(hist[k]), 1.0)
     median = 10.0 ** (LOG_LO + (k + frac) * LOG_STEP)
-    return max(1.4826 * median, 1e-9)
+    return float(max(1.4826 * median, 1e-9))
 
 
-def pairs_of(eye: Trajectory, start_ns: int, stop_ns: int) -> np.ndarray:
+def pairs_of(eye: Trajectory, start_ns: int, stop_ns: int) -> Indices:
     """The eye's usable pairs (index of their first pose) that start at or after ``start_ns``
     and end at or before ``stop_ns``."""
     i = np.flatnonzero(eye.interval_ok())
-    return i[(eye.t_ns[i] >= start_ns) & (eye.t_ns[i + 1] <= stop_ns)]
+    inside: Indices = i[(eye.t_ns[i] >= start_ns) & (eye.t_ns[i + 1] <= stop_ns)]
+    return inside
 
 
-def residuals(
-    hand: Trajectory, eye: Trajectory, i: np.ndarray, est: Estimate
-) -> tuple[np.ndarray, np.ndarray]:
+def residuals(hand: Trajectory, eye: Trajectory, i: Indices, est: Estimate) -> tuple[Floats, Mask]:
     """(n, 6) residuals (Log of the rotation [rad], translation [m]) of the eye pairs ``i``
     at ``est`` (eq. 16, in the eye frame), and which pairs the hand covers."""
     A, ok = _hand_motions(hand, eye, i, est.time_offset_s)
@@ -113,7 +113,7 @@ def residuals(
 def chunks(
     hand: Trajectory,
     eye: Trajectory,
-    i: np.ndarray,
+    i: Indices,
     est: Estimate,
     h: float,
     sigma: tuple[float, float],
@@ -169,20 +169,20 @@ def chunks(
     return out
 
 
-def weights(hist: np.ndarray) -> tuple[float, float]:
+def weights(hist: Indices) -> tuple[float, float]:
     """The robust noise of the rotation [rad] and translation [m] rows from a (2, NBINS)
     histogram."""
     return robust_sigma(hist[0]), robust_sigma(hist[1])
 
 
-def normal_equations(total: Chunk) -> tuple[np.ndarray, np.ndarray]:
+def normal_equations(total: Chunk) -> tuple[Floats, Floats]:
     """The weighted (7, 7) information and (7,) gradient of summed chunks."""
     s_rot, s_t = weights(total.hist)
     w = np.array([1 / s_rot**2, 1 / s_t**2])
     return np.tensordot(w, total.info, 1), np.tensordot(w, total.grad, 1)
 
 
-def covariance(info: np.ndarray) -> np.ndarray:
+def covariance(info: Floats) -> Floats:
     """The information's inverse; inf where no motion observes a direction."""
     with np.errstate(all='ignore'):
         try:
@@ -192,7 +192,7 @@ def covariance(info: np.ndarray) -> np.ndarray:
     return cov if np.all(np.isfinite(cov)) else np.full((7, 7), np.inf)
 
 
-def sigmas(cov: np.ndarray) -> tuple[float, float, float]:
+def sigmas(cov: Floats) -> tuple[float, float, float]:
     """1-sigma of dt [s], the translation [m] (norm of three) and the rotation [deg] (norm)."""
     d = np.diag(cov)
     return (
@@ -202,7 +202,7 @@ def sigmas(cov: np.ndarray) -> tuple[float, float, float]:
     )
 
 
-def step(info: np.ndarray, grad: np.ndarray) -> np.ndarray:
+def step(info: Floats, grad: Floats) -> Floats:
     """The Gauss-Newton step the chunks call for (7,), NaN where unobservable."""
     with np.errstate(all='ignore'):
         try:
@@ -211,7 +211,7 @@ def step(info: np.ndarray, grad: np.ndarray) -> np.ndarray:
             return np.full(7, np.nan)
 
 
-def step_sizes(d: np.ndarray) -> tuple[float, float, float]:
+def step_sizes(d: Floats) -> tuple[float, float, float]:
     """A step's size in the units of :func:`sigmas`."""
     return (
         abs(float(d[0])),
@@ -220,9 +220,7 @@ def step_sizes(d: np.ndarray) -> tuple[float, float, float]:
     )
 
 
-def _hand_motions(
-    hand: Trajectory, eye: Trajectory, i: np.ndarray, dt: float
-) -> tuple[Pose, np.ndarray]:
+def _hand_motions(hand: Trajectory, eye: Trajectory, i: Indices, dt: float) -> tuple[Pose, Mask]:
     """The hand's motions between the stamps of eye poses i and i + 1 less dt, and where the
     hand covers both ends."""
     shift = np.int64(round(dt * 1e9))
@@ -231,22 +229,22 @@ def _hand_motions(
     return relative((R, p), np.arange(n), np.arange(n, 2 * n)), ok[:n] & ok[n:]
 
 
-def _eye_motions(eye: Trajectory, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _eye_motions(eye: Trajectory, i: Indices) -> Pose:
     ends = np.concatenate([i, i + 1])
     pose = (matrix_from_quat(eye.q_xyzw[ends]), eye.p_xyz[ends])
     n = i.size
     return relative(pose, np.arange(n), np.arange(n, 2 * n))
 
 
-def _select(m: tuple[np.ndarray, np.ndarray], ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _select(m: tuple[Floats, Floats], ok: Mask) -> tuple[Floats, Floats]:
     return m[0][ok], m[1][ok]
 
 
-def _rows(m: tuple[np.ndarray, np.ndarray], rows: slice) -> tuple[np.ndarray, np.ndarray]:
+def _rows(m: tuple[Floats, Floats], rows: slice) -> tuple[Floats, Floats]:
     return m[0][rows], m[1][rows]
 
 
-def _jacobian(A: list[Pose], B: Pose, X: Pose, h: float) -> np.ndarray:
+def _jacobian(A: list[Pose], B: Pose, X: Pose, h: float) -> Floats:
     """(n, 6, 7) central differences of the residuals in (dt, p_HE in H, the rotation
     R_HE Exp(d) with d in E): dt over +-h (A: the hand's motions at dt, dt - h, dt + h), the
     extrinsic over +-1e-6."""
@@ -256,14 +254,15 @@ def _jacobian(A: list[Pose], B: Pose, X: Pose, h: float) -> np.ndarray:
     for k in range(3):
         d = np.zeros(3)
         d[k] = eps
-        up, down = (X[0], X[1] + d), (X[0], X[1] - d)
+        up: Pose = (X[0], X[1] + d)
+        down: Pose = (X[0], X[1] - d)
         J[:, :, 1 + k] = (_residuals(A[0], B, up) - _residuals(A[0], B, down)) / (2 * eps)
         up, down = (X[0] @ exp_so3(d[None])[0], X[1]), (X[0] @ exp_so3(-d[None])[0], X[1])
         J[:, :, 4 + k] = (_residuals(A[0], B, up) - _residuals(A[0], B, down)) / (2 * eps)
     return J
 
 
-def _residuals(A: Pose, B: Pose, X: Pose) -> np.ndarray:
+def _residuals(A: Pose, B: Pose, X: Pose) -> Floats:
     """(n, 6) residual motions as (Log of the rotation, translation): the relative-pose
     residuals of eq. 16 in the eye frame."""
     err_R, err_p = residual_motions(A, B, X)

@@ -17,6 +17,7 @@ from typing import Protocol, Self, TypeVar
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from ..config import CalibrationConfig
 from ..errors import HandeyeError, InputError
 from ..geometry import matrix_from_quat
@@ -78,8 +79,8 @@ class Known:
     prediction needs no stage 1 or 2 of its own."""
 
     time_offset_s: float
-    R_HE: np.ndarray
-    p_HE: np.ndarray
+    R_HE: Floats
+    p_HE: Floats
     motions: int
     peak_correlation: float = float('nan')
     second_peak_ratio: float = float('nan')
@@ -135,7 +136,7 @@ class Progress:
     span_s: float = 0.0
     #: the Gauss-Newton step the pairs called for when :func:`start` read them (7,): from
     #: stage 2's linear estimate to where the batch stage would go; None without pairs
-    first_step: np.ndarray | None = None
+    first_step: Floats | None = None
     pairs: list[info.Chunk] = field(default_factory=list)
     eye_turn: list[Turned] = field(default_factory=list)
     hand_turn: list[Turned] = field(default_factory=list)
@@ -199,7 +200,7 @@ class Progress:
             return f'the recording has grown from {self.span_s:.0f} s to {span_s:.0f} s'
         return self.moved()
 
-    def step_vector(self) -> np.ndarray | None:
+    def step_vector(self) -> Floats | None:
         """The Gauss-Newton step (7,) the pairs gathered call for from the estimate (the
         parameters of :mod:`.pair_information`); None without pairs."""
         total = self.total()
@@ -358,7 +359,7 @@ def _all_pairs(
 
 def _new_pairs(
     hand: Trajectory, eye: Trajectory, est: info.Estimate, h: float, from_ns: int
-) -> tuple[np.ndarray, int]:
+) -> tuple[Indices, int]:
     """The eye pairs from ``from_ns`` on whose ends the hand reaches at dt - h (later ones wait
     for the hand), and the stamp the next ones start at."""
     limit = int(hand.t_ns[-1]) + round((est.time_offset_s - h) * 1e9)
@@ -370,5 +371,5 @@ def _new_pairs(
     return i, int(eye.t_ns[stop - 1])
 
 
-def _noise(r: np.ndarray) -> tuple[float, float]:
+def _noise(r: Floats) -> tuple[float, float]:
     return info.weights(np.stack([info.histogram(r[:, :3]), info.histogram(r[:, 3:])]))

@@ -26,6 +26,7 @@ from typing import Any, TypedDict
 
 import numpy as np
 
+from ..arrays import Floats
 from ..config import CalibrationConfig
 from ..trajectory import Trajectory
 from . import pair_information as info
@@ -65,8 +66,8 @@ class Readiness:
     ready: bool
     sigma: tuple[float, float, float]
     target: tuple[float, float, float]
-    rotation_deg: np.ndarray
-    hand_rotation_deg: np.ndarray
+    rotation_deg: Floats
+    hand_rotation_deg: Floats
     angular_speed_dps: float
     travel_m: float
     motions: int = 0
@@ -125,8 +126,8 @@ def readiness(
 class _Moved(TypedDict):
     """What a :class:`Readiness` says of the motion so far (its fields of the same names)."""
 
-    rotation_deg: np.ndarray
-    hand_rotation_deg: np.ndarray
+    rotation_deg: Floats
+    hand_rotation_deg: Floats
     angular_speed_dps: float
     travel_m: float
     dropout: dict[str, float]
@@ -236,8 +237,8 @@ def _predict(
 def _advice(
     sigma: tuple[float, float, float],
     cfg: CalibrationConfig,
-    cov_r: np.ndarray,
-    cov_p: np.ndarray,
+    cov_r: Floats,
+    cov_p: Floats,
     speed_dps: float,
 ) -> list[str]:
     """What narrows each sigma that is over its target, in the device's axes."""
@@ -261,7 +262,7 @@ def _advice(
 ONE_AXIS_RATIO = 3.0
 
 
-def _turn_advice(cov: np.ndarray, translation_sigma: float) -> str:
+def _turn_advice(cov: Floats, translation_sigma: float) -> str:
     """Turns about one axis leave T_HE about and along it unobserved (the covariance's widest
     direction u, in the device frame): say where that axis lies among the device's axes (the
     bars are the turns' projections on them, so a diagonal axis fills two) and name the device

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import median_filter
 
+from ..arrays import Floats, Indices, Mask, Stamps
 from ..chunked import chunked
 from ..geometry import quat_angle, quat_slerp, row_norms
 from ..trajectory import Trajectory
@@ -99,11 +100,11 @@ class Screening:
 
     stream: str
     n_input: int
-    removed_ns: np.ndarray
+    removed_ns: Stamps
     removed_kind: tuple[str, ...]
     threshold_translation_m: float = float('nan')
     threshold_rotation_rad: float = float('nan')
-    breaks_ns: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    breaks_ns: Stamps = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def counts(self) -> dict[str, int]:
@@ -119,9 +120,7 @@ class Screening:
         """Removed poses over input poses."""
         return self.n_removed / max(self.n_input, 1)
 
-    def merged(
-        self, removed_ns: np.ndarray, kind: str, breaks_ns: np.ndarray | None = None
-    ) -> Screening:
+    def merged(self, removed_ns: Stamps, kind: str, breaks_ns: Stamps | None = None) -> Screening:
         """This report with more removed poses (all of one kind) and breaks."""
         ns = np.concatenate((self.removed_ns, np.asarray(removed_ns, dtype=np.int64)))
         kinds = self.removed_kind + (kind,) * int(np.size(removed_ns))
@@ -138,7 +137,7 @@ class Screening:
         )
 
 
-def resolution(values: np.ndarray) -> float:
+def resolution(values: Floats) -> float:
     """The step the values were rounded to: 10^-k for the fewest decimals k (0..9) that
     represent them all (within 1e-3 of a step); 0 when they carry more than 9 decimals."""
     v = np.asarray(values, dtype=float).ravel()
@@ -151,21 +150,21 @@ def resolution(values: np.ndarray) -> float:
 
 
 def _predict(
-    t: np.ndarray, p: np.ndarray, q: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    t: Floats, p: Floats, q: Floats, a: Indices, b: Indices, k: Indices
+) -> tuple[Floats, Floats]:
     """Residuals (m, rad) of poses k against the line through poses a and b at t_k
     (interpolation when a < k < b, extrapolation otherwise; q: x y z w quaternions)."""
     return chunked(lambda s: _predict_rows(t, p, q, a[s], b[s], k[s]), k.size)
 
 
 def _predict_rows(
-    t: np.ndarray,
-    p: np.ndarray,
-    q: np.ndarray,
-    a: np.ndarray | slice,
-    b: np.ndarray | slice,
-    k: np.ndarray | slice,
-) -> tuple[np.ndarray, np.ndarray]:
+    t: Floats,
+    p: Floats,
+    q: Floats,
+    a: Indices | slice,
+    b: Indices | slice,
+    k: Indices | slice,
+) -> tuple[Floats, Floats]:
     """:func:`_predict` on the rows a, b, k (index arrays, or slices: views of a long stream)
     of the stamps (s), positions (m) and x y z w quaternions."""
     ta, tb, tk = t[a], t[b], t[k]
@@ -174,9 +173,7 @@ def _predict_rows(
     return row_norms(p[k] - p_pred), quat_angle(quat_slerp(q[a], q[b], f), q[k])
 
 
-def interpolation_residuals(
-    t: np.ndarray, p: np.ndarray, q: np.ndarray, d: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
+def interpolation_residuals(t: Floats, p: Floats, q: Floats, d: int = 1) -> tuple[Floats, Floats]:
     """(N,) position (m) and rotation (rad) residual of each pose against the interpolation of
     the poses ``d`` before and after it (near the ends: the extrapolation of the two on the
     side that exists)."""
@@ -187,7 +184,7 @@ def interpolation_residuals(
     # gathered three times), a chunk at a time; the 2d poses at the ends by index
     e_p, e_r = np.empty(n), np.empty(n)
 
-    def inner(s: slice) -> tuple[np.ndarray, np.ndarray]:
+    def inner(s: slice) -> tuple[Floats, Floats]:
         a, k, b = (
             slice(s.start, s.stop),
             slice(s.start + d, s.stop + d),
@@ -201,9 +198,7 @@ def interpolation_residuals(
     return e_p, e_r
 
 
-def _end_residuals(
-    t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, d: int
-) -> tuple[np.ndarray, np.ndarray]:
+def _end_residuals(t: Floats, p: Floats, q: Floats, k: Indices, d: int) -> tuple[Floats, Floats]:
     """:func:`interpolation_residuals` of the poses k, each against its neighbours d away, or
     near an end the extrapolation of the two on the side that exists."""
     n = t.size
@@ -216,8 +211,8 @@ def _end_residuals(
 
 
 def side_residuals(
-    t: np.ndarray, p: np.ndarray, q: np.ndarray, k: np.ndarray, side: int, d: int = 1
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t: Floats, p: Floats, q: Floats, k: Indices, side: int, d: int = 1
+) -> tuple[Floats, Floats, Mask]:
     """Residuals of poses k against the extrapolation from the poses d and 2d before (side -1)
     or after (side +1) them, and whether that side exists."""
     n = t.size
@@ -229,9 +224,7 @@ def side_residuals(
     return e_p, e_r, ok
 
 
-def hampel_thresholds(
-    res: np.ndarray, scale_window: int, n_sigma: float, floor: float
-) -> np.ndarray:
+def hampel_thresholds(res: Floats, scale_window: int, n_sigma: float, floor: float) -> Floats:
     """Per-pose threshold ``max(m + n_sigma * 1.4826 * s, floor)`` from the running median m
     and median absolute deviation s of the residuals. A window of more than MEDIAN_SAMPLES
     residuals (a stream faster than 200 Hz) takes them from every k-th residual, k =
@@ -253,22 +246,23 @@ def hampel_thresholds(
 MEDIAN_SAMPLES = 401
 
 
-def _hampel(res: np.ndarray, size: int, n_sigma: float, floor: float) -> np.ndarray:
+def _hampel(res: Floats, size: int, n_sigma: float, floor: float) -> Floats:
     # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
     size = min(size, 2 * (res.size // 2) - 1)
     m = median_filter(res, size=size, mode='mirror')
     s = median_filter(np.abs(res - m), size=size, mode='mirror')
-    return np.maximum(m + n_sigma * 1.4826 * s, floor)
+    limit: Floats = np.maximum(m + n_sigma * 1.4826 * s, floor)
+    return limit
 
 
 def _outliers(
-    t: np.ndarray,
-    p: np.ndarray,
-    q: np.ndarray,
+    t: Floats,
+    p: Floats,
+    q: Floats,
     n_sigma: float,
     floors: tuple[float, float],
     d: int,
-) -> tuple[np.ndarray, float, float]:
+) -> tuple[Mask, float, float]:
     """(N,) bool outliers of one round at scale d, and the median thresholds (m, rad)."""
     rate = 1.0 / max(float(np.median(np.diff(t))), 1e-9)
     scale_window = int(max(SCALE_WINDOW_MIN, min(2001, SCALE_WINDOW_S * rate))) | 1
@@ -287,7 +281,7 @@ def _outliers(
     return bad, float(np.median(tp)), float(np.median(tr))
 
 
-def placeholders(traj: Trajectory, floors: tuple[float, float]) -> np.ndarray:
+def placeholders(traj: Trajectory, floors: tuple[float, float]) -> Mask:
     """(N,) bool: rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``: the
     placeholder of evaluation toolboxes, the dropout of MoCap drivers) while the nearest other
     rows are elsewhere (by more than the floors)."""
@@ -309,13 +303,14 @@ def placeholders(traj: Trajectory, floors: tuple[float, float]) -> np.ndarray:
     return out
 
 
-def damaged(traj: Trajectory) -> np.ndarray:
+def damaged(traj: Trajectory) -> Mask:
     """(N,) bool: rows with a physically absurd position (:data:`ABSURD_POSITION_M`)."""
     a = np.abs(traj.p_xyz)  # column by column: a max over rows of three is slow in numpy
-    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2]) > ABSURD_POSITION_M
+    wrecked: Mask = np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2]) > ABSURD_POSITION_M
+    return wrecked
 
 
-def describe_damage(traj: Trajectory, bad: np.ndarray) -> str:
+def describe_damage(traj: Trajectory, bad: Mask) -> str:
     """How many rows are damaged, in how many blocks, where and what (for a message)."""
     k = np.flatnonzero(bad)
     edges = np.diff(np.concatenate(([0], bad.astype(np.int8), [0])))

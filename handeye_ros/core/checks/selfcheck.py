@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from ..association import eye_motion_errors, interpolate
 from ..batch.loss import huber_rho
 from ..geometry import matrix_from_quat, rotation_angle, row_norms
@@ -61,8 +62,8 @@ class Candidate:
     score: float
     rotation_residual_deg: float
     translation_residual_m: float
-    q_HE: np.ndarray
-    p_HE: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
     chosen: bool = False
 
 
@@ -73,11 +74,11 @@ class Hypothesis:
 
     time_offset_s: float
     source: str
-    q_HE: np.ndarray
-    p_HE: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
 
 
-def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[Indices, Indices]:
     """Keyframe motions (eq. 6) chosen on the eye's own rotations, within its segments: they
     do not depend on the offset, so every candidate is scored on the same ones."""
     return segment_motion_indices(
@@ -85,14 +86,14 @@ def eye_keyframes(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarr
     )
 
 
-def scored_motions(eye: Trajectory, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+def scored_motions(eye: Trajectory, eta_rad: float) -> tuple[Indices, Indices]:
     """The keyframe motions (i -> j) candidates are judged on: the eye's
     (:func:`eye_keyframes`), at most :data:`~.excerpt.SAMPLE_MOTIONS` of them evenly spread."""
     return spread_sample(*eye_keyframes(eye, eta_rad))
 
 
 def screw_disagreement(
-    hand: Trajectory, eye: Trajectory, time_offset_s: float, i: np.ndarray, j: np.ndarray
+    hand: Trajectory, eye: Trajectory, time_offset_s: float, i: Indices, j: Indices
 ) -> float:
     """Median difference (deg) between the rotation angles of the eye's motions (i -> j) and
     of the hand's over the same instants at ``time_offset_s`` (eq. 9's screw congruence, which
@@ -124,8 +125,8 @@ def motion_consistency(
     hand: Trajectory,
     eye: Trajectory,
     time_offset_s: float,
-    q_HE: np.ndarray,
-    p_HE: np.ndarray,
+    q_HE: Floats,
+    p_HE: Floats,
     eta_rad: float,
 ) -> tuple[float, float, float, int]:
     """Median AX = XB rotation (deg) and translation (m) error over the eye's keyframe
@@ -149,7 +150,7 @@ def score_candidates(
     hand: Trajectory,
     eye: Trajectory,
     hypotheses: list[Hypothesis],
-    motions: tuple[np.ndarray, np.ndarray],
+    motions: tuple[Indices, Indices],
 ) -> list[Candidate]:
     """Score hypotheses on one set of the eye's motions (i -> j,
     :func:`scored_motions`; see the module docstring).

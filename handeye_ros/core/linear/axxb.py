@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from ..association import PosePairs
 from ..geometry import (
     Pose,
@@ -39,15 +40,15 @@ class Motions:
     quaternions have their signs chosen so that both scalar parts are >= 0, as eq. 4 requires.
     """
 
-    i: np.ndarray
-    j: np.ndarray
+    i: Indices
+    j: Indices
     A: Pose
     B: Pose
-    qa: np.ndarray
-    qad: np.ndarray
-    qb: np.ndarray
-    qbd: np.ndarray
-    duration_s: np.ndarray
+    qa: Floats
+    qad: Floats
+    qb: Floats
+    qbd: Floats
+    duration_s: Floats
 
     def __len__(self) -> int:
         return int(self.i.size)
@@ -75,7 +76,7 @@ def scaled_motions(m: Motions, s: float) -> Motions:
     return replace(m, B=(m.B[0], m.B[1] * s), qbd=m.qbd * s)
 
 
-def constraint_gram(m: Motions) -> np.ndarray:
+def constraint_gram(m: Motions) -> Floats:
     """Gram matrices ``S_i^T S_i``, (n, 8, 8), of the 6x8 blocks of eq. 4.
 
     With r, r' (s, s') the vector parts of the hand (eye) dual quaternion, and our column order
@@ -93,10 +94,11 @@ def constraint_gram(m: Motions) -> np.ndarray:
     S[:, 3:, 3] = rd - sd
     S[:, 3:, 4:7] = skew(r + s)
     S[:, 3:, 7] = r - s
-    return np.matmul(np.swapaxes(S, -1, -2), S)
+    out: Floats = np.matmul(np.swapaxes(S, -1, -2), S)
+    return out
 
 
-def screw_log_weights(m: Motions, mu: float) -> np.ndarray:
+def screw_log_weights(m: Motions, mu: float) -> Floats:
     """``log W_i = mu (1 - E_i^2)`` of the screw-congruence kernel (eq. 10-11).
 
     E_i (eq. 10) compares the scalar parts of the hand and eye dual quaternions, which are equal
@@ -105,15 +107,16 @@ def screw_log_weights(m: Motions, mu: float) -> np.ndarray:
     Logs are returned so that large E cannot underflow the weights to zero before normalising.
     """
 
-    def ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def ratio(a: Floats, b: Floats) -> Floats:
         a, b = np.abs(a), np.abs(b)
-        return np.maximum(a, b) / np.maximum(np.minimum(a, b), 1e-15)
+        out: Floats = np.maximum(a, b) / np.maximum(np.minimum(a, b), 1e-15)
+        return out
 
     e = 0.5 * (ratio(m.qa[:, 3], m.qb[:, 3]) + ratio(m.qad[:, 3], m.qbd[:, 3]))
     return mu * (1.0 - e * e)
 
 
-def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def solve_gram(G: Floats) -> tuple[Floats, Floats, Floats]:
     """Unit dual quaternion in the 2-D null space of stacked systems with Gram matrices G.
 
     Parameters
@@ -136,8 +139,9 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     v1, v2 = V[..., :, 0], V[..., :, 1]
     u1, u1d, u2, u2d = v1[..., :4], v1[..., 4:], v2[..., :4], v2[..., 4:]
 
-    def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.sum(a * b, axis=-1)
+    def dot(a: Floats, b: Floats) -> Floats:
+        out: Floats = np.sum(a * b, axis=-1)
+        return out
 
     # x = l1 v1 + l2 v2 with q . qd = 0: a homogeneous quadratic in (l1, l2). In the eigenbasis
     # of its 2x2 matrix Q it reads e1 m1^2 + e2 m2^2 = 0, solved by m = (sqrt(e2), +-sqrt(-e1)).
@@ -167,7 +171,7 @@ def solve_gram(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return best_q * scale, best_qd * scale, sigma
 
 
-def sigma_ratio(sigma: np.ndarray) -> np.ndarray:
+def sigma_ratio(sigma: Floats) -> Floats:
     """Algorithm 1's score sigma7 / sigma6 of singular values (..., 8), descending.
 
     When sigma6 too is zero to round-off (exact motions about one axis: the null space has more
@@ -181,8 +185,8 @@ def sigma_ratio(sigma: np.ndarray) -> np.ndarray:
 
 
 def motion_errors(
-    m: Motions, q_HE: np.ndarray, p_HE: np.ndarray, chunk: int = 4_000_000
-) -> tuple[np.ndarray, np.ndarray]:
+    m: Motions, q_HE: Floats, p_HE: Floats, chunk: int = 4_000_000
+) -> tuple[Floats, Floats]:
     """Inlier criteria of eq. 13 for K hypotheses against n motions.
 
     ``E = X B X^-1 A^-1``; e1 = rotation angle of E (rad), e2 = norm of its translation (m).

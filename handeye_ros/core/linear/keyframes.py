@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..arrays import Floats, Indices
 from ..trajectory import segment_spans
 
 
 def motion_indices(
-    R: np.ndarray, strategy: str = 'rotation', eta_rad: float = np.deg2rad(5.0)
-) -> tuple[np.ndarray, np.ndarray]:
+    R: Floats, strategy: str = 'rotation', eta_rad: float = np.deg2rad(5.0)
+) -> tuple[Indices, Indices]:
     """Index pairs ``(i, j)``, i < j, of the relative motions, for rotations R of shape (N, 3, 3).
 
     ``eta_rad`` is used by the ``rotation`` strategy only.
@@ -29,19 +30,19 @@ def motion_indices(
     return WITHOUT_ETA[strategy](R)
 
 
-def global_pairs(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def global_pairs(R: Floats) -> tuple[Indices, Indices]:
     """Every frame against the first."""
     j = np.arange(1, R.shape[0])
     return np.zeros_like(j), j
 
 
-def interframe_pairs(R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def interframe_pairs(R: Floats) -> tuple[Indices, Indices]:
     """Consecutive frames."""
     i = np.arange(R.shape[0] - 1)
     return i, i + 1
 
 
-def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.ndarray]:
+def rotation_keyframes(R: Floats, eta_rad: float) -> tuple[Indices, Indices]:
     """Chain of keyframes k_0 = 0, k_m+1 = first j > k_m with angle(R_k_m^T R_j) >= eta (eq. 6).
 
     The loop runs once per keyframe, not per pose: the rotation path length s (cumulative sum of
@@ -80,11 +81,11 @@ def rotation_keyframes(R: np.ndarray, eta_rad: float) -> tuple[np.ndarray, np.nd
 
 
 def segment_motion_indices(
-    R: np.ndarray,
-    segment: np.ndarray,
+    R: Floats,
+    segment: Indices,
     strategy: str = 'rotation',
     eta_rad: float = np.deg2rad(5.0),
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[Indices, Indices]:
     """:func:`motion_indices` within each segment (``segment``: (N,) labels, non-decreasing),
     so that no motion joins two segments."""
     spans = segment_spans(segment)

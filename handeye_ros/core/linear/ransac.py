@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats, Mask
 from ..errors import DegenerateMotionError
 from ..geometry import pose_from_dual_quat
 from .axxb import Motions, motion_errors, sigma_ratio, solve_gram
@@ -35,10 +36,10 @@ class System:
     (M,), eq. 12)."""
 
     m: Motions
-    gram: np.ndarray
-    w2: np.ndarray
+    gram: Floats
+    w2: Floats
 
-    def solve(self, inliers: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def solve(self, inliers: Mask) -> tuple[Floats, Floats, Floats]:
         """(q, q', singular values) of the weighted system on the motions ``inliers`` (bool,
         (M,))."""
         return solve_gram(((inliers * self.w2) @ self.gram).reshape(8, 8))
@@ -49,18 +50,16 @@ class Consensus:
     """A solution of Algorithm 1: T_HE (q_HE x y z w, p_HE [m]), the motions it holds
     (``inliers``, bool (M,)), the singular values of its system and their sigma7/sigma6."""
 
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    inliers: np.ndarray
-    singular_values: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    inliers: Mask
+    singular_values: Floats
     sigma_ratio: float
 
 
 def _ransac(
     system: System, iterations: int, thresholds: tuple[float, float], rng: np.random.Generator
-) -> tuple[
-    np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]
-]:
+) -> tuple[Floats, Floats, Floats, Floats, Floats, tuple[Floats, Floats]]:
     """Algorithm 1's loop: per 2-motion hypothesis, its consensus size, the robust re-solve on
     that consensus (q, qd, sigma7/sigma6), evaluated in chunks so that memory does not grow
     with the number of hypotheses; ``thresholds``: eq. 13's (rotation [rad], translation [m]).
@@ -96,7 +95,7 @@ def _ransac(
     return counts, q1, qd1, ratio, spread, (q0_all, p0_all)
 
 
-def well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:
+def well_spread(eligible: Mask, spread: Floats) -> Mask:
     """The eligible hypotheses whose consensus spreads its rotation axes the most, by tier:
     at least WARN_AXIS_SPREAD_DEG where any does, else at least MIN_AXIS_SPREAD_DEG, else all.
 
@@ -107,7 +106,8 @@ def well_spread(eligible: np.ndarray, spread: np.ndarray) -> np.ndarray:
     for floor in (WARN_AXIS_SPREAD_DEG, MIN_AXIS_SPREAD_DEG):
         tier = eligible & (spread >= floor)
         if tier.any():
-            return tier
+            out: Mask = tier
+            return out
     return eligible
 
 

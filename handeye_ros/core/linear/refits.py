@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..arrays import Floats, Mask
 from .axxb import Motions
 
 #: With one rotation axis, the rotation about it is taken as determined when its standard
@@ -28,7 +29,7 @@ MIN_AXIS_SPREAD_DEG = 1.0
 WARN_AXIS_SPREAD_DEG = 10.0
 
 
-def refit_rotation(m: Motions, mask: np.ndarray) -> np.ndarray:
+def refit_rotation(m: Motions, mask: Mask) -> Floats:
     """Rotation of T_HE from the rotation parts alone of the selected motions, x y z w.
 
     ``R_A = R_X R_B R_X^T`` makes the rotation vectors satisfy ``log R_A = R_X log R_B``; the
@@ -36,12 +37,11 @@ def refit_rotation(m: Motions, mask: np.ndarray) -> np.ndarray:
     1994), solved by ``Rotation.align_vectors``. Longer rotations, whose axes are better
     defined, weigh more by their length.
     """
-    return rotation_from_motions(m.A[0][mask], m.B[0][mask])[0].as_quat()
+    out: Floats = rotation_from_motions(m.A[0][mask], m.B[0][mask])[0].as_quat()
+    return out
 
 
-def rotation_from_motions(
-    R_A: np.ndarray, R_B: np.ndarray
-) -> tuple[Rotation, np.ndarray, np.ndarray]:
+def rotation_from_motions(R_A: Floats, R_B: Floats) -> tuple[Rotation, Floats, Floats]:
     """The least-squares R_X of ``log R_A = R_X log R_B`` over motions (n, 3, 3), and the two
     rotation-vector stacks (n, 3) it aligns (for residuals)."""
     a = Rotation.from_matrix(R_A).as_rotvec()
@@ -50,8 +50,8 @@ def rotation_from_motions(
 
 
 def translation_from_motions(
-    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray, w: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+    R_A: Floats, t_A: Floats, t_B: Floats, R_X: Floats, w: Floats | None = None
+) -> tuple[Floats, Floats]:
     """The least-squares t_X of ``(R_A - I) t_X = R_X t_B - t_A`` over motions, each motion's
     three rows weighted by w (n,) when given; returns t_X and the (n, 3) residuals (weighted
     as solved)."""
@@ -62,13 +62,14 @@ def translation_from_motions(
     return t_X, (lhs @ t_X - rhs).reshape(-1, 3)
 
 
-def drift_weights(m: Motions, mask: np.ndarray) -> np.ndarray:
+def drift_weights(m: Motions, mask: Mask) -> Floats:
     """``1 / sqrt(duration)`` of the selected motions: a drifting eye's error variance grows
     with the motion's length (see :func:`refit_translation_gls`)."""
-    return 1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6))
+    out: Floats = 1.0 / np.sqrt(np.maximum(m.duration_s[mask], 1e-6))
+    return out
 
 
-def refit_translation_gls(m: Motions, mask: np.ndarray, R_HE: np.ndarray) -> np.ndarray:
+def refit_translation_gls(m: Motions, mask: Mask, R_HE: Floats) -> Floats:
     """Translation of T_HE given its rotation, from the translation part of AX = XB (eq. 2).
 
     ``(R_A - I) t_X = R_X t_B - t_A`` for every selected motion, solved by least squares with
@@ -94,7 +95,7 @@ def refit_translation_gls(m: Motions, mask: np.ndarray, R_HE: np.ndarray) -> np.
     )[0]
 
 
-def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
+def axis_spread_deg(m: Motions, mask: Mask) -> float:
     """Spread of the hand rotation axes of the selected motions, degrees.
 
     From the eigenvalues l1 >= l2 of the axes' scatter matrix: ``2 atan(sqrt(l2 / l1))``, which
@@ -103,24 +104,25 @@ def axis_spread_deg(m: Motions, mask: np.ndarray) -> float:
     return float(axis_spreads_deg(rotation_axes(m), np.asarray(mask, dtype=float)[None])[0])
 
 
-def rotation_axes(m: Motions) -> np.ndarray:
+def rotation_axes(m: Motions) -> Floats:
     """(n, 3) unit hand rotation axes of the motions (zero rows for no rotation)."""
     v = m.qa[:, :3]
     norms = np.linalg.norm(v, axis=1)
     return np.where(norms[:, None] > 1e-12, v / np.maximum(norms, 1e-300)[:, None], 0.0)
 
 
-def axis_spreads_deg(axes: np.ndarray, masks: np.ndarray) -> np.ndarray:
+def axis_spreads_deg(axes: Floats, masks: Mask) -> Floats:
     """:func:`axis_spread_deg` of many selections at once: ``axes`` from
     :func:`rotation_axes`, ``masks`` (k, n) -> (k,) degrees."""
     scatter = (masks @ (axes[:, :, None] * axes[:, None, :]).reshape(-1, 9)).reshape(-1, 3, 3)
     lam = np.linalg.eigvalsh(scatter)  # ascending
     with np.errstate(divide='ignore', invalid='ignore'):
         r = np.where(lam[:, 2] > 0.0, np.maximum(lam[:, 1], 0.0) / lam[:, 2], 0.0)
-    return np.degrees(2.0 * np.arctan(np.sqrt(r)))
+    out: Floats = np.degrees(2.0 * np.arctan(np.sqrt(r)))
+    return out
 
 
-def common_axis(v: np.ndarray) -> np.ndarray:
+def common_axis(v: Floats) -> Floats:
     """Unit principal direction of vectors (n, 3) (the eigenvector of their scatter matrix with
     the largest eigenvalue), signed to agree with the first long vector."""
     _, V = np.linalg.eigh(v.T @ v)
@@ -129,9 +131,7 @@ def common_axis(v: np.ndarray) -> np.ndarray:
     return a if float(v[k] @ a) >= 0.0 else -a
 
 
-def degenerate_refit(
-    m: Motions, mask: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+def degenerate_refit(m: Motions, mask: Mask) -> tuple[Floats, Floats, tuple[str, ...]]:
     """T_HE when every motion rotates about one axis (a ground robot, a turntable).
 
     The rotation axes fix R_X up to a rotation phi about the common axis a (hand frame):

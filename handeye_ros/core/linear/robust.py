@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..arrays import Floats, Mask
 from ..errors import DegenerateMotionError
 from ..geometry import matrix_from_quat
 from .axxb import (
@@ -87,15 +88,15 @@ class LinearSolution:
         ``inliers``: for plots and diagnostics.
     """
 
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    q_HE_dq: np.ndarray
-    p_HE_dq: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    q_HE_dq: Floats
+    p_HE_dq: Floats
     sigma_ratio: float
-    singular_values: np.ndarray
+    singular_values: Floats
     n_motions: int
     n_inliers: int
-    inliers: np.ndarray
+    inliers: Mask
     axis_spread_deg: float
     rotation_residual_deg: float
     translation_residual_m: float
@@ -119,11 +120,12 @@ def _check_enough(n: int, min_motions: int) -> None:
         )
 
 
-def _squared_weights(m: Motions, mu: float) -> np.ndarray:
+def _squared_weights(m: Motions, mu: float) -> Floats:
     """The robust kernel's weights (eq. 11) squared, scaled to a largest of 1 (the rows of
     eq. 12 carry W, their Gram matrices W^2)."""
     log_w = screw_log_weights(m, mu)
-    return np.exp(2.0 * (log_w - log_w.max()))
+    out: Floats = np.exp(2.0 * (log_w - log_w.max()))
+    return out
 
 
 def calibrate_linear(
@@ -177,10 +179,10 @@ class _Refit:
     dual-quaternion solution's (q_dq, p_dq), what is unobservable, the warnings, and the eye's
     scale with its dual-quaternion value and standard deviation (1, 1 and NaN without one)."""
 
-    q_HE: np.ndarray
-    p_HE: np.ndarray
-    q_dq: np.ndarray
-    p_dq: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
+    q_dq: Floats
+    p_dq: Floats
     unobservable: tuple[str, ...]
     warnings: tuple[str, ...]
     scale: float
@@ -272,8 +274,8 @@ def _refit(
 
 
 def _dual_quaternion_scale(
-    m: Motions, inliers: np.ndarray, q_dq: np.ndarray, p_HE: np.ndarray
-) -> tuple[np.ndarray, float]:
+    m: Motions, inliers: Mask, q_dq: Floats, p_HE: Floats
+) -> tuple[Floats, float]:
     """The paper's baseline with a scale: the rotation of the dual-quaternion solution, then its
     dual part and s from the lower rows of eq. 4 (:func:`.scale.dual_quaternion_scale`); the
     translation ``p_HE`` and s = 1 when that gives no positive finite s."""
@@ -291,8 +293,8 @@ def _dual_quaternion_scale(
 
 
 def _decoupled(
-    m: Motions, inliers: np.ndarray, q_dq: np.ndarray, estimate_scale: bool
-) -> tuple[np.ndarray, np.ndarray, float, float]:
+    m: Motions, inliers: Mask, q_dq: Floats, estimate_scale: bool
+) -> tuple[Floats, Floats, float, float]:
     """The decoupled refit: the rotation from the motions' rotation vectors
     (:func:`.refits.refit_rotation`, in q_dq's hemisphere), then the translation (and the
     scale, when estimated and observable) by weighted least squares: (q_HE, p_HE, s, std of

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import null_space
 
+from ..arrays import Floats
 from ..geometry import matrix_from_quat, pose_from_dual_quat, skew
 
 #: The scale is not observable when its relative standard deviation exceeds this: the hand
@@ -50,10 +51,10 @@ class ScaleFit:
 
     scale: float
     scale_std: float
-    p_HE: np.ndarray
+    p_HE: Floats
     rms_with: float
     rms_without: float
-    p_HE_unscaled: np.ndarray | None = None
+    p_HE_unscaled: Floats | None = None
 
     @property
     def clear(self) -> bool:
@@ -87,8 +88,8 @@ class ScaleFit:
 
 
 def _system(
-    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, R_X: np.ndarray, w: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    R_A: Floats, t_A: Floats, t_B: Floats, R_X: Floats, w: Floats
+) -> tuple[Floats, Floats]:
     """Rows of ``(R_A - I) v + u t_A = R_X t_B`` over (v, u) = (t_X / s, 1 / s), three per
     motion, weighted: eq. 2's translation part divided by s, so that the noisy eye is on the
     right and the exact MoCap on the left (with s on the left, a motion's eye noise would sit in
@@ -99,11 +100,11 @@ def _system(
 
 
 def translation_and_scale(
-    R_A: np.ndarray,
-    t_A: np.ndarray,
-    t_B: np.ndarray,
-    R_X: np.ndarray,
-    w: np.ndarray | None = None,
+    R_A: Floats,
+    t_A: Floats,
+    t_B: Floats,
+    R_X: Floats,
+    w: Floats | None = None,
     robust: bool = False,
 ) -> ScaleFit:
     """(t_X, s) by least squares from motions (n,) given R_X, each motion's rows weighted by w
@@ -158,15 +159,15 @@ def observable(scale: float, std: float) -> bool:
     )
 
 
-def _rms(r: np.ndarray, w: np.ndarray) -> float:
+def _rms(r: Floats, w: Floats) -> float:
     """RMS of the unweighted residual norms per motion (m), robustly: the median norm."""
     norms = np.linalg.norm(r.reshape(-1, 3), axis=1) / np.maximum(w, 1e-12)
     return float(np.median(norms))
 
 
 def dual_quaternion_scale(
-    qa: np.ndarray, qad: np.ndarray, qb: np.ndarray, qbd: np.ndarray, q: np.ndarray, w: np.ndarray
-) -> tuple[np.ndarray, float]:
+    qa: Floats, qad: Floats, qb: Floats, qbd: Floats, q: Floats, w: Floats
+) -> tuple[Floats, float]:
     """The dual part q' and the scale s of eq. 4 with the rotation q (x y z w) fixed.
 
     The eye's dual part scales with its translation, so the lower rows of each 6x8 block read
@@ -187,9 +188,7 @@ def dual_quaternion_scale(
     return p, float(z[3])
 
 
-def scale_prior(
-    R_A: np.ndarray, t_A: np.ndarray, t_B: np.ndarray, q_HE: np.ndarray, w: np.ndarray
-) -> ScaleFit:
+def scale_prior(R_A: Floats, t_A: Floats, t_B: Floats, q_HE: Floats, w: Floats) -> ScaleFit:
     """A first scale for an eye of unknown scale, from motions and a rotation of T_HE found
     from rotations alone (robust: a scale is needed before stage 2's thresholds in metres
     mean anything)."""

@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..arrays import Floats
 from ..batch.correlated import (
     BLOCKS,
     MIN_BLOCK_POSES,
@@ -59,8 +60,8 @@ class Refined:
     the self-check's word on it, the uncertainty's notes)."""
 
     dt: float
-    q_HE: np.ndarray
-    p_HE: np.ndarray
+    q_HE: Floats
+    p_HE: Floats
     batch: BatchSolution | None
     eye: Trajectory
     model: EyeModel
@@ -112,8 +113,8 @@ def run_batch(
     hand: Trajectory,
     eye: Trajectory,
     dt: float,
-    q_HE: np.ndarray,
-    p_HE: np.ndarray,
+    q_HE: Floats,
+    p_HE: Floats,
     cfg: CalibrationConfig,
     model: EyeModel | None = None,
 ) -> tuple[BatchSolution | None, str]:
@@ -254,11 +255,12 @@ def with_correlated(
     )
 
 
-def _covered(hand: Trajectory, eye: Trajectory, dt: float) -> np.ndarray:
+def _covered(hand: Trajectory, eye: Trajectory, dt: float) -> Floats:
     """(N,) bool: eye poses whose instant on the hand's clock (t - dt) the hand covers."""
     t = eye.t_ns - np.int64(round(dt * 1e9))
     k = np.clip(np.searchsorted(hand.t_ns, t, side='right'), 1, len(hand) - 1)
-    return (t >= hand.t_ns[0]) & (t <= hand.t_ns[-1]) & hand.interval_ok()[k - 1]
+    out: Floats = (t >= hand.t_ns[0]) & (t <= hand.t_ns[-1]) & hand.interval_ok()[k - 1]
+    return out
 
 
 def _decimated(eye: Trajectory) -> Trajectory:
@@ -292,7 +294,7 @@ def _aux(
     return sol if np.all(np.isfinite(sol.covariance)) else None
 
 
-def _deviation(fit: BatchSolution, of: BatchSolution) -> np.ndarray:
+def _deviation(fit: BatchSolution, of: BatchSolution) -> Floats:
     """(7,) a refit's (dt, translation, rotation) from ``of``'s, the rotation in the tangent
     of T_HE on the right (eye frame), as the covariance's."""
     rot = (Rotation.from_quat(of.q_HE).inv() * Rotation.from_quat(fit.q_HE)).as_rotvec()
@@ -301,7 +303,7 @@ def _deviation(fit: BatchSolution, of: BatchSolution) -> np.ndarray:
 
 def _scale(
     hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
-) -> tuple[tuple[float, float, np.ndarray] | None, np.ndarray | str]:
+) -> tuple[tuple[float, float, Floats] | None, Floats | str]:
     """The scale term (:func:`.correlated.scale_term`) and the nuisance fit's (s, 1-sigma,
     shift), or (None, why not)."""
     # the shift and the covariances on the same (decimated) data

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..arrays import Floats, Stamps
 from ..checks.verdict import DriftMeasured, DriftUnobservable, Findings
 from ..config import CalibrationConfig
 from ..eye_model import EyeModel
@@ -80,7 +81,7 @@ def _absolute_clock(fit: DriftFit, model: EyeModel) -> DriftFit:
     """A window fit measured on an eye the model was applied to, on the eye's own clock:
     the model's drift added back to the offsets and the rate."""
 
-    def back(t_ns: np.ndarray | int) -> np.ndarray:
+    def back(t_ns: Stamps | int) -> Floats:
         return model.drift * (np.asarray(t_ns) - np.int64(model.stamp_ns)) * 1e-9
 
     out = fit.shifted(model.shift_ns)

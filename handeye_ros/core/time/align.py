@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..arrays import Floats, Indices, Mask
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory, gap_free_parts, lengths_text
 from .correlation import (
@@ -99,8 +100,8 @@ class TimeAlignment:
     second_peak_ratio: float = float('nan')
     step_s: float = float('nan')
     window_s: tuple[float, float] = (float('nan'), float('nan'))
-    lags_s: np.ndarray | None = None
-    correlation: np.ndarray | None = None
+    lags_s: Floats | None = None
+    correlation: Floats | None = None
     candidates: tuple[tuple[float, float], ...] = field(default=())
     time_offset_ns: int = 0
 
@@ -112,9 +113,9 @@ class Curve:
 
     base_ns: int  # eye origin - hand origin (ns): dt = base + lag * step
     step: float
-    lags: np.ndarray
-    ncc: np.ndarray
-    eligible: np.ndarray
+    lags: Floats | Indices
+    ncc: Floats
+    eligible: Mask
 
     def offset_s(self, lag: float) -> float:
         return self.base_ns * 1e-9 + lag * self.step
@@ -133,8 +134,8 @@ class _Search:
 def _correlate(
     hand: Trajectory,
     eye: Trajectory,
-    hand_signal: tuple[np.ndarray, np.ndarray],
-    eye_signal: tuple[np.ndarray, np.ndarray],
+    hand_signal: tuple[Floats, Mask],
+    eye_signal: tuple[Floats, Mask],
     search: _Search,
 ) -> Curve:
     """The correlation of the two signals on their grids (each (values, valid mask)) over the
@@ -266,7 +267,7 @@ def align_time(
 def align_time_vector(
     hand: Trajectory,
     eye: Trajectory,
-    R_HE: np.ndarray,
+    R_HE: Floats,
     *,
     around_s: float,
     half_window_s: float,

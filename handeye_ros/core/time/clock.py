@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..arrays import Floats, Mask, Stamps
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import align_time, align_time_vector
@@ -54,9 +55,7 @@ INLIER_FLOOR_S = 5e-4
 MIN_WINDOW_CORRELATION = 0.3
 
 
-def linear_clock(
-    offset_s: float, drift: float, stamp_ns: int, t_ns: np.ndarray | int
-) -> np.ndarray:
+def linear_clock(offset_s: float, drift: float, stamp_ns: int, t_ns: Stamps | int) -> Floats:
     """dt(t) = offset + drift (t - stamp) [s] at stamps t_ns [ns] (int64 differences first)."""
     return offset_s + drift * (np.asarray(t_ns) - np.int64(stamp_ns)) * 1e-9
 
@@ -80,10 +79,10 @@ class DriftFit:
     offset_std: float
     stamp_ns: int
     span_s: float
-    centres_ns: np.ndarray
-    offsets_s: np.ndarray
-    correlation: np.ndarray
-    inliers: np.ndarray
+    centres_ns: Stamps
+    offsets_s: Floats
+    correlation: Floats
+    inliers: Mask
     why: str = ''
 
     @property
@@ -95,7 +94,7 @@ class DriftFit:
         """How far the offset moves between the first and the last covered eye pose [s]."""
         return float(self.drift * self.span_s)
 
-    def offset_at(self, t_ns: np.ndarray | int) -> np.ndarray | float:
+    def offset_at(self, t_ns: Stamps | int) -> Floats | float:
         """dt [s] at eye stamps t_ns (the clock this fit was measured on)."""
         return linear_clock(self.offset_s, self.drift, self.stamp_ns, t_ns)
 
@@ -121,7 +120,7 @@ def covered_span(hand: Trajectory, eye: Trajectory) -> tuple[int, int, int]:
     return int(t[0]), int(t[-1]), mean
 
 
-def window_bounds(first_ns: int, last_ns: int) -> np.ndarray:
+def window_bounds(first_ns: int, last_ns: int) -> Stamps:
     """(W, 2) window edges [ns] covering first..last: TARGET_WINDOWS windows, fewer when that
     would make them shorter than MIN_WINDOW_S."""
     span = (last_ns - first_ns) * 1e-9
@@ -135,13 +134,13 @@ def window_bounds(first_ns: int, last_ns: int) -> np.ndarray:
 def window_offsets(
     hand: Trajectory,
     eye: Trajectory,
-    bounds: np.ndarray,
-    predicted_s: np.ndarray,
-    half_window_s: float | np.ndarray,
-    R_HE: np.ndarray | None = None,
+    bounds: Stamps,
+    predicted_s: Floats,
+    half_window_s: float | Floats,
+    R_HE: Floats | None = None,
     resample_rate_hz: float | None = None,
     signals: tuple[AngularSpeed, AngularSpeed] | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[Stamps, Floats, Floats]:
     """Stage 1 in each window of the eye, searched ``predicted_s +- half_window_s``.
 
     With ``R_HE`` the vector form (``w_E = R_HE^T w_H(t - dt)``), otherwise the angular-speed
@@ -190,7 +189,7 @@ def window_offsets(
 
 
 def stream_signals(
-    hand: Trajectory, eye: Trajectory, R_HE: np.ndarray | None
+    hand: Trajectory, eye: Trajectory, R_HE: Floats | None
 ) -> tuple[AngularSpeed, AngularSpeed]:
     """The angular signals of the whole streams that :func:`window_offsets` cuts into windows:
     body angular velocities with ``R_HE``, angular speeds without."""
@@ -199,9 +198,9 @@ def stream_signals(
 
 
 def fit_drift(
-    centres_ns: np.ndarray,
-    offsets_s: np.ndarray,
-    correlation: np.ndarray,
+    centres_ns: Stamps,
+    offsets_s: Floats,
+    correlation: Floats,
     stamp_ns: int,
     span_s: float,
 ) -> DriftFit:
@@ -258,7 +257,7 @@ def fit_drift(
     )
 
 
-def repeated_medians_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+def repeated_medians_line(x: Floats, y: Floats) -> tuple[float, float]:
     """(slope, intercept) of Siegel's repeated-medians line, as scipy.stats.siegelslopes
     (hierarchical): the median over i of the median over j != i of the slopes through points
     i and j, and the median of y - slope x. Robust to nearly half the points being wild.
@@ -272,7 +271,7 @@ def repeated_medians_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     return slope, float(np.median(y - slope * x))
 
 
-def least_squares_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+def least_squares_line(x: Floats, y: Floats) -> tuple[float, float, float]:
     """(slope, intercept, the slope's standard error) of the least-squares line, as
     scipy.stats.linregress (n - 2 degrees of freedom)."""
     xm, ym = float(np.mean(x)), float(np.mean(y))
@@ -288,7 +287,7 @@ def least_squares_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float, floa
 def measure_drift(
     hand: Trajectory,
     eye: Trajectory,
-    R_HE: np.ndarray | None = None,
+    R_HE: Floats | None = None,
     resample_rate_hz: float | None = None,
     start: DriftFit | None = None,
     around_s: float = 0.0,

@@ -8,12 +8,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
+from ..arrays import Floats, Indices, Mask
 from ..geometry import row_sums
 
 
 def masked_normalised_correlation(
-    y: np.ndarray, my: np.ndarray, x: np.ndarray, mx: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    y: Floats, my: Mask, x: Floats, mx: Mask
+) -> tuple[Indices, Floats, Floats]:
     """Pearson correlation of ``y[k + lag]`` with ``x[k]`` over the samples valid in both.
 
     For each lag the means and variances are those of the overlapping valid samples only
@@ -27,18 +28,19 @@ def masked_normalised_correlation(
     ncc : ndarray, same shape, NaN where the overlap has no variance
     overlap : ndarray, same shape, number of samples valid in both
     """
-    y2 = y.reshape(y.shape[0], -1) * my[:, None]
-    x2 = x.reshape(x.shape[0], -1) * mx[:, None]
+    y2: Floats = y.reshape(y.shape[0], -1) * my[:, None]
+    x2: Floats = x.reshape(x.shape[0], -1) * mx[:, None]
     fy, fx = my.astype(float), mx.astype(float)
     ny, nx = y2.shape[0], x2.shape[0]
     # One zero-padded FFT per signal, then every sum is a product of spectra. (scipy.fft
     # rather than scipy.signal, whose import alone takes a second.)
     nfft = fft.next_fast_len(ny + nx - 1, real=True)
 
-    def fwd(v: np.ndarray) -> np.ndarray:
-        return fft.rfft(v, nfft, axis=0)
+    def fwd(v: Floats) -> Floats:
+        out: Floats = fft.rfft(v, nfft, axis=0)
+        return out
 
-    def corr(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    def corr(A: Floats, B: Floats) -> Floats:
         c = fft.irfft(A * B, nfft, axis=0)  # c[L] = sum_m a[m + L] b[m], negative L wrapped
         return np.concatenate((c[nfft - (nx - 1) :], c[:ny]))
 
@@ -67,7 +69,7 @@ def parabola_vertex(c_minus: float, c0: float, c_plus: float) -> float:
     return float(np.clip(0.5 * (c_minus - c_plus) / den, -0.5, 0.5))
 
 
-def lobe(scores: np.ndarray, k: int) -> tuple[int, int]:
+def lobe(scores: Floats, k: int) -> tuple[int, int]:
     """First and last index of the peak's lobe (bounded by the nearest local minima)."""
     d = np.diff(np.where(np.isfinite(scores), scores, -2.0))  # ineligible lags: below any NCC
     left = np.flatnonzero(d[:k] < 0.0)  # a rise towards the left of the peak ends the lobe
@@ -77,7 +79,7 @@ def lobe(scores: np.ndarray, k: int) -> tuple[int, int]:
     return int(lo), int(hi)
 
 
-def second_peak_ratio(scores: np.ndarray, k: int) -> float:
+def second_peak_ratio(scores: Floats, k: int) -> float:
     """Best correlation outside the main lobe (bounded by the nearest local minima) over peak."""
     lo, hi = lobe(scores, k)
     outside = np.concatenate((scores[:lo], scores[hi + 1 :]))

@@ -37,6 +37,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..arrays import Floats, Indices, Mask
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import (
@@ -70,14 +71,15 @@ PARTNERS = (1, 2)
 CHUNK = 1 << 21
 
 
-def rotation_angles(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+def rotation_angles(q_a: Floats, q_b: Floats) -> Floats:
     """Rotation angle (rad, in [0, pi]) of ``R(q_a)^T R(q_b)`` for unit quaternions (..., 4):
     ``2 acos |<q_a, q_b>|``."""
     dot = np.abs(np.sum(q_a * q_b, axis=-1))
-    return 2.0 * np.arccos(np.minimum(dot, 1.0))
+    out: Floats = 2.0 * np.arccos(np.minimum(dot, 1.0))
+    return out
 
 
-def keyframe_pairs(eye: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+def keyframe_pairs(eye: Trajectory) -> tuple[Floats, Floats]:
     """Indices (a, b) of each keyframe and its PARTNERS that no break separates."""
     seg = eye.segment_ids()
     a = np.concatenate([np.arange(len(eye) - d) for d in PARTNERS])
@@ -148,9 +150,9 @@ def align_time_keyframes(
 class _Pairs:
     """The eye's keyframe pairs: indices (a, b) and the eye's rotation angle over each (rad)."""
 
-    a: np.ndarray
-    b: np.ndarray
-    angle_e: np.ndarray
+    a: Floats
+    b: Floats
+    angle_e: Floats
 
 
 @dataclass(frozen=True)
@@ -159,18 +161,18 @@ class _OnGrid:
     point (``q``, x y z w, (G, 4)) and which points lie in a gap-free interval (``ok``); the
     pairs' stamps in grid steps (``ga``, ``gb``) and the eye's angle over each (rad)."""
 
-    q: np.ndarray
-    ok: np.ndarray
-    ga: np.ndarray
-    gb: np.ndarray
-    angle_e: np.ndarray
+    q: Floats
+    ok: Mask
+    ga: Indices
+    gb: Indices
+    angle_e: Floats
 
-    def some(self, pick: np.ndarray) -> _OnGrid:
+    def some(self, pick: Indices) -> _OnGrid:
         """The pairs ``pick`` only."""
         return replace(self, ga=self.ga[pick], gb=self.gb[pick], angle_e=self.angle_e[pick])
 
 
-def _grid_points(eye: Trajectory, pairs: _Pairs, step: float) -> tuple[np.ndarray, np.ndarray]:
+def _grid_points(eye: Trajectory, pairs: _Pairs, step: float) -> tuple[Indices, Indices]:
     """The keyframe pairs' stamps in grid steps from the eye's first: at lag k (dt = base + k
     step) the eye stamp te falls on the hand's grid point te / step - k."""
     te = eye.seconds(int(eye.t_ns[0]))
@@ -178,7 +180,7 @@ def _grid_points(eye: Trajectory, pairs: _Pairs, step: float) -> tuple[np.ndarra
     return np.rint(te[a] / step).astype(np.int64), np.rint(te[b] / step).astype(np.int64)
 
 
-def _best_lag(on_grid: _OnGrid, lags: np.ndarray, need: float) -> int | None:
+def _best_lag(on_grid: _OnGrid, lags: Indices, need: float) -> int | None:
     """The best-scoring of ``lags`` with all pairs among those with at least ``need`` pairs;
     None when none has."""
     score, count = _scores(on_grid, lags)
@@ -188,7 +190,7 @@ def _best_lag(on_grid: _OnGrid, lags: np.ndarray, need: float) -> int | None:
 
 def _coarse_pass(
     on_grid: _OnGrid, k_lo: int, k_hi: int, m: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+) -> tuple[Indices, Floats, Mask, float]:
     """Every m-th lag of [k_lo, k_hi] scored on a subset of the keyframe pairs (fewer for very
     long searches, so that the pass stays bounded): (lags, scores, which lags have enough
     pairs, the most pairs any lag had, scaled to all pairs)."""
@@ -198,12 +200,12 @@ def _coarse_pass(
     pick = np.unique(np.linspace(0, ga.size - 1, n_pick).astype(int))
     c_score, c_count = _scores(on_grid.some(pick), coarse)
     need = max(MIN_PAIRS * pick.size / ga.size, MIN_OVERLAP_FRACTION * c_count.max())
-    return coarse, c_score, c_count >= max(need, 1), c_count.max() * ga.size / pick.size
+    return coarse, c_score, c_count >= max(need, 1), float(c_count.max() * ga.size / pick.size)
 
 
 def _lag_range(
-    ga: np.ndarray,
-    gb: np.ndarray,
+    ga: Indices,
+    gb: Indices,
     n_grid: int,
     base_ns: int,
     step: float,
@@ -252,23 +254,24 @@ class _HandOrientation:
     3.6 million rotations): t_s, its stamps (s from its first); slerp, the interpolator between
     its poses; ok, which intervals are gap-free."""
 
-    t_s: np.ndarray
+    t_s: Floats
     slerp: Slerp
-    ok: np.ndarray
+    ok: Mask
 
     @classmethod
     def of(cls, hand: Trajectory) -> _HandOrientation:
         th = hand.seconds(int(hand.t_ns[0]))
         return cls(th, Slerp(th, Rotation.from_quat(hand.q_xyzw)), hand.interval_ok())
 
-    def inside(self, t: np.ndarray) -> np.ndarray:
+    def inside(self, t: Floats) -> Mask:
         """Times (s) inside the hand's span and a gap-free interval of it."""
         th = self.t_s
         j = np.clip(np.searchsorted(th, t, side='right') - 1, 0, th.size - 2)
-        return (t >= th[0]) & (t <= th[-1]) & self.ok[j]
+        out: Mask = (t >= th[0]) & (t <= th[-1]) & self.ok[j]
+        return out
 
 
-def _hand_grid(hand: _HandOrientation, step: float) -> tuple[np.ndarray, np.ndarray]:
+def _hand_grid(hand: _HandOrientation, step: float) -> tuple[Floats, Mask]:
     """The hand's orientation (x y z w) on a uniform grid from its first stamp, and which grid
     points lie inside a gap-free interval."""
     th = hand.t_s
@@ -277,7 +280,7 @@ def _hand_grid(hand: _HandOrientation, step: float) -> tuple[np.ndarray, np.ndar
     return hand.slerp(grid).as_quat(), hand.ok[k]
 
 
-def _scores(on_grid: _OnGrid, lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _scores(on_grid: _OnGrid, lags: Indices) -> tuple[Floats, Indices]:
     """(score, pairs inside the hand) at each lag (grid steps), a chunk of lags at a time."""
     grid_q, grid_ok = on_grid.q, on_grid.ok
     ga, gb, angle_e = on_grid.ga, on_grid.gb, on_grid.angle_e
@@ -309,7 +312,7 @@ def _refine(
     a, b, angle_e = pairs.a, pairs.b, pairs.angle_e
     te = eye.seconds(int(eye.t_ns[0]))
 
-    def at(lag: float, use: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def at(lag: float, use: Mask) -> tuple[Floats, Mask]:
         """Hand angles over the pairs ``use`` at a lag (NaN outside the hand), and inside."""
         ta, tb = te[a[use]] - lag, te[b[use]] - lag
         inside = hand.inside(ta) & hand.inside(tb)

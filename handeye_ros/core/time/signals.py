@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arrays import Floats, Mask
 from ..errors import TimeAlignmentError
 from ..geometry import consecutive_rotvecs, row_norms
 from ..trajectory import Trajectory
@@ -66,9 +67,9 @@ class AngularSpeed:
         False for intervals that span a gap or a break.
     """
 
-    t_s: np.ndarray
-    speed: np.ndarray
-    valid: np.ndarray
+    t_s: Floats
+    speed: Floats
+    valid: Mask
 
     def part(self, traj: Trajectory, first: int, stop: int) -> AngularSpeed:
         """The signal of the poses ``first..stop-1`` of the stream ``traj`` it was computed
@@ -99,9 +100,7 @@ def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
     return AngularSpeed(cached.t_s, row_norms(cached.speed), cached.valid)
 
 
-def resample(
-    sig: AngularSpeed, grid_s: np.ndarray, shift_s: float = 0.0
-) -> tuple[np.ndarray, np.ndarray]:
+def resample(sig: AngularSpeed, grid_s: Floats, shift_s: float = 0.0) -> tuple[Floats, Mask]:
     """Linear interpolation of a signal at ``grid_s + shift_s``.
 
     Returns values (shape of the grid, with a trailing 3 for vectors) and a mask that is False
@@ -113,14 +112,14 @@ def resample(
     kc = np.clip(k, 1, sig.t_s.size - 1)
     ok = inside & sig.valid[kc - 1] & sig.valid[kc]
     if sig.speed.ndim == 1:
-        values = np.where(ok, np.interp(t, sig.t_s, sig.speed), 0.0)
+        values: Floats = np.where(ok, np.interp(t, sig.t_s, sig.speed), 0.0)
     else:
         values = np.stack([np.interp(t, sig.t_s, sig.speed[:, a]) for a in range(3)], axis=1)
         values[~ok] = 0.0
     return values, ok
 
 
-def grid(traj: Trajectory, step: float) -> np.ndarray:
+def grid(traj: Trajectory, step: float) -> Floats:
     """Uniform grid over a stream's span, seconds from its first stamp."""
     return step * np.arange(int(np.floor(traj.duration_s / step)) + 1)
 
@@ -142,7 +141,7 @@ def grid_step(hand: Trajectory, eye: Trajectory, resample_rate_hz: float | None)
     return 1.0 / rate
 
 
-def clip_signal(v: np.ndarray, mask: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+def clip_signal(v: Floats, mask: Mask, step: float) -> tuple[Floats, Mask]:
     """A robust signal: samples beyond median + MASK_SIGMAS robust deviations (1.4826 MAD) are
     masked out like a gap, the others clipped at median + CLIP_SIGMAS (vectors by their
     norm), each at the higher of the whole signal's level and its block's
@@ -156,18 +155,17 @@ def clip_signal(v: np.ndarray, mask: np.ndarray, step: float) -> tuple[np.ndarra
     mask_level, clip_level = _levels(mag, mask, step, med, dev)
     mask = mask & (mag <= mask_level)
     scale = np.minimum(1.0, clip_level / np.maximum(mag, 1e-300))
-    return v * (scale if v.ndim == 1 else scale[:, None]), mask
+    clipped: Floats = v * (scale if v.ndim == 1 else scale[:, None])
+    return clipped, mask
 
 
-def _median_mad(values: np.ndarray) -> tuple[float, float]:
+def _median_mad(values: Floats) -> tuple[float, float]:
     """Median and robust standard deviation (1.4826 MAD)."""
     med = float(np.median(values))
     return med, 1.4826 * float(np.median(np.abs(values - med)))
 
 
-def _levels(
-    mag: np.ndarray, mask: np.ndarray, step: float, med: float, dev: float
-) -> tuple[np.ndarray, np.ndarray]:
+def _levels(mag: Floats, mask: Mask, step: float, med: float, dev: float) -> tuple[Floats, Floats]:
     """Per-sample mask and clip levels: the whole signal's, raised to its block's where that
     is higher (the highest of the block and its two neighbours, so that a block boundary
     inside a fast stretch changes nothing)."""
@@ -188,7 +186,7 @@ def _levels(
     return block[0, index], block[1, index]
 
 
-def standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
+def standardise(v: Floats, mask: Mask, name: str) -> Floats:
     """Zero mean, unit variance over the valid samples (keeps the FFT sums well scaled)."""
     if mask.sum() < 3:
         msg = f'{name}: too few samples to compute an angular speed signal'
@@ -201,6 +199,6 @@ def standardise(v: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
             'time offset cannot be observed. Record a motion with varying rotation'
         )
         raise TimeAlignmentError(msg)
-    out = (v - mean) / std
+    out: Floats = (v - mean) / std
     out[~mask] = 0.0
     return out

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ...arrays import Floats
 from .codes import (
     AMBIGUOUS_SCORE_RATIO,
     BATCH_DT_MIN_S,
@@ -78,7 +79,7 @@ def drift_reason(fit: DriftFit) -> Reason | None:
 
 
 def seed_reason(
-    seed: int, d_rot_deg: float, d_t_m: float, batch_std: np.ndarray | None
+    seed: int, d_rot_deg: float, d_t_m: float, batch_std: Floats | None
 ) -> Reason | None:
     """SEED_DEPENDENT: stage 2 with RANSAC seed ``seed`` lands d_rot_deg / d_t_m away, beyond
     SEED_SIGMAS of the batch stage's sigmas (``batch_std``: dt, p, theta) and at least
@@ -98,7 +99,7 @@ def seed_reason(
 
 
 def batch_moved(
-    moved_dt_s: float, moved_t_m: float, moved_r_deg: float, std: np.ndarray
+    moved_dt_s: float, moved_t_m: float, moved_r_deg: float, std: Floats
 ) -> tuple[bool, bool]:
     """Whether the batch stage moved dt, and T_HE, beyond its own sigmas ``std`` (dt, p,
     theta): BATCH_SIGMAS of them and at least BATCH_DT_MIN_S, BATCH_TRANSLATION_MIN_M,

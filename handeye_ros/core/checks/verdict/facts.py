@@ -12,9 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:  # the records of the stages' math, for the facts' fields only
-    import numpy as np
+from ...arrays import Floats
 
+if TYPE_CHECKING:  # the records of the stages' math, for the facts' fields only
     from ...linear.scale import ScaleFit
     from ...time.clock import DriftFit
 
@@ -66,7 +66,7 @@ class SeedCompared:
     seed: int
     rotation_deg: float
     translation_m: float
-    batch_std: np.ndarray | None
+    batch_std: Floats | None
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ...arrays import Floats
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
     FAILED_MOTION_ROTATION_DEG,
@@ -127,7 +128,7 @@ def _assess_linear(lin: LinearSolution) -> list[Reason | str]:
     return said
 
 
-def sigmas_of(std: np.ndarray) -> tuple[float, float, float]:
+def sigmas_of(std: Floats) -> tuple[float, float, float]:
     """The three 1-sigmas the precision targets judge, from a batch std (dt [s], translation
     [m] x3, rotation [rad] x3): dt [s], the translation's norm [m], the rotation's [deg]."""
     return (

@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 from dataclasses import replace as _replace
 from pathlib import Path
+from typing import cast
 
 from ..core.errors import ConfigError, InputError
 from ..formats.bag import BagReader, Topic
@@ -22,6 +23,7 @@ from ..stream.convert import (
     UnsupportedTypeError,
     normalise_type,
 )
+from ..stream.shapes import Message, RigidBodies, TFMessage
 from ..stream.sources import parse_selector
 
 #: Words that mark a topic as MoCap (hand) or VO/VIO (eye) when the topics are not given.
@@ -163,7 +165,8 @@ def replay(
                     continue
                 for k, (topic, t_ns, msg) in enumerate(bag.messages(topics)):
                     for stream, is_static in routes[topic]:
-                        rec.add(stream, msg, is_static, t_ns)
+                        # of the type set for the stream from this topic's connection
+                        rec.add(stream, cast(Message, msg), is_static, t_ns)
                     if k % 4096 == 4095:
                         bar.update(4096)
             bar.update(total - bar.n)
@@ -178,12 +181,13 @@ def _items(bag: BagReader, topic: Topic) -> str:
     seen: dict[str, None] = {}
     for k, (_, _, msg) in enumerate(bag.messages([topic.name])):
         if kind in RIGID_BODIES_TYPES:
-            seen.update(dict.fromkeys(b.rigid_body_name for b in msg.rigidbodies))
+            bodies = cast(RigidBodies, msg).rigidbodies  # of the topic's type, as kind says
+            seen.update(dict.fromkeys(b.rigid_body_name for b in bodies))
         else:
             seen.update(
                 dict.fromkeys(
                     f'{tf.header.frame_id.lstrip("/")}.{tf.child_frame_id.lstrip("/")}'
-                    for tf in msg.transforms
+                    for tf in cast(TFMessage, msg).transforms
                 )
             )
         if k >= 200 or len(seen) > 20:

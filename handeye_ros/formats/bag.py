@@ -113,7 +113,7 @@ class BagReader:
                 continue
         return out
 
-    def messages(self, topics: list[str]) -> Iterator[tuple[str, int, Any]]:
+    def messages(self, topics: list[str]) -> Iterator[tuple[str, int, object]]:
         """(topic, record time [ns], deserialised message) in recorded order; the record time
         is when the recorder received it (its arrival time)."""
         conns = [c for c in self.reader.connections if c.topic in topics]

@@ -50,6 +50,7 @@ from std_srvs.srv import Trigger
 
 from ..core.errors import HandeyeError, InputError
 from ..stream import STREAMS, Recorder
+from ..stream.shapes import Message, MessageInfo
 from . import diagnostics, parameters, worker
 from .calls import ABORTED, BUSY, answer_with, waiting
 from .files import inside
@@ -156,7 +157,7 @@ class CalibratorNode(Node):
         )
         return answer
 
-    def _on_pose(self, stream: str, msg: Any, static: bool, info: Any = None) -> None:
+    def _on_pose(self, stream: str, msg: Message, static: bool, info: MessageInfo) -> None:
         self.last_seen[stream] = now = time.monotonic()
         arrival = self.get_clock().now().nanoseconds if stream in self.recorder.arrival else None
         buffer = self.recorder.buffers[stream]
@@ -164,11 +165,11 @@ class CalibratorNode(Node):
         self._add(stream, msg, static, arrival)
         if buffer.ticked != ticked:
             self.last_ticked[stream] = now
-            received = int((info or {}).get('received_timestamp', 0)) * 1e-9
+            received = int(info.get('received_timestamp', 0)) * 1e-9
             self.last_received[stream] = received
             self.taken_late[stream] = time.time() - received if received else 0.0
 
-    def _add(self, stream: str, msg: Any, static: bool, arrival: int | None) -> None:
+    def _add(self, stream: str, msg: Message, static: bool, arrival: int | None) -> None:
         reason = self.recorder.add(stream, msg, static, arrival)
         if reason is not None:
             now = time.monotonic()

@@ -29,6 +29,7 @@ from rclpy.qos import (
 from ..core.errors import ConfigError
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
 from ..stream.convert import TF_TYPE, UnsupportedTypeError
+from ..stream.shapes import Message, MessageInfo
 from .lifecycle import steady_timer
 from .types import message_class
 
@@ -51,7 +52,7 @@ class Subscriptions:
         self,
         node: CalibratorNode,
         recorder: Recorder,
-        on_pose: Callable[[str, Any, bool, Any], None],
+        on_pose: Callable[[str, Message, bool, MessageInfo], None],
     ) -> None:
         self._node, self._recorder, self._on_pose = node, recorder, on_pose
         self._log = node.get_logger()
@@ -138,10 +139,10 @@ class Subscriptions:
         """The auto-typed streams whose type the graph has not named yet."""
         return [s for s in STREAMS if s not in self.subs or s in self.guessed]
 
-    def _callback(self, stream: str, static: bool) -> Callable[[Any, Any], None]:
+    def _callback(self, stream: str, static: bool) -> Callable[[Message, MessageInfo], None]:
         """The subscription's callback: rclpy hands it the message and its MessageInfo."""
 
-        def on_message(msg: Any, info: Any) -> None:
+        def on_message(msg: Message, info: MessageInfo) -> None:
             self._on_pose(stream, msg, static, info)
 
         return on_message

@@ -8,9 +8,21 @@ The functions read attributes only, so they serve rclpy messages (live) and rosb
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import cast
 
 from ..core.errors import InputError
+from .shapes import (
+    Odometry,
+    OnePose,
+    Pose,
+    PoseStamped,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    Stamped,
+    Transform,
+    TransformStamped,
+    Vector,
+)
 
 #: A pose as plain numbers: (stamp ns, x, y, z, qx, qy, qz, qw).
 StampedPose = tuple[int, float, float, float, float, float, float, float]
@@ -20,12 +32,12 @@ class UnsupportedTypeError(InputError):
     """A topic's message type carries no pose we can read."""
 
 
-def _stamp(msg: Any) -> int:
+def _stamp(msg: Stamped) -> int:
     s = msg.header.stamp
     return int(s.sec) * 1_000_000_000 + int(s.nanosec)
 
 
-def stamped_pose(t_ns: int, p: Any, q: Any) -> StampedPose:
+def stamped_pose(t_ns: int, p: Vector, q: Quaternion) -> StampedPose:
     """``(t_ns, x, y, z, qx, qy, qz, qw)`` of a position (Point or Vector3) and a Quaternion."""
     return (
         t_ns,
@@ -39,19 +51,25 @@ def stamped_pose(t_ns: int, p: Any, q: Any) -> StampedPose:
     )
 
 
-def _from_pose(t_ns: int, pose: Any) -> StampedPose:
+def _from_pose(t_ns: int, pose: Pose) -> StampedPose:
     return stamped_pose(t_ns, pose.position, pose.orientation)
 
 
-def _from_transform(t_ns: int, tf: Any) -> StampedPose:
+def _from_transform(t_ns: int, tf: Transform) -> StampedPose:
     return stamped_pose(t_ns, tf.translation, tf.rotation)
 
 
-_CONVERTERS: dict[str, Callable[[Any], StampedPose]] = {
-    'geometry_msgs/msg/PoseStamped': lambda m: _from_pose(_stamp(m), m.pose),
-    'geometry_msgs/msg/PoseWithCovarianceStamped': lambda m: _from_pose(_stamp(m), m.pose.pose),
-    'geometry_msgs/msg/TransformStamped': lambda m: _from_transform(_stamp(m), m.transform),
-    'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), m.pose.pose),
+#: The pose of a message by its type's name (what the topic says it is: hence the casts).
+Converter = Callable[[OnePose], StampedPose]
+_CONVERTERS: dict[str, Converter] = {
+    'geometry_msgs/msg/PoseStamped': lambda m: _from_pose(_stamp(m), cast(PoseStamped, m).pose),
+    'geometry_msgs/msg/PoseWithCovarianceStamped': lambda m: _from_pose(
+        _stamp(m), cast(PoseWithCovarianceStamped, m).pose.pose
+    ),
+    'geometry_msgs/msg/TransformStamped': lambda m: _from_transform(
+        _stamp(m), cast(TransformStamped, m).transform
+    ),
+    'nav_msgs/msg/Odometry': lambda m: _from_pose(_stamp(m), cast(Odometry, m).pose.pose),
 }
 
 
@@ -60,7 +78,7 @@ def frame_name(name: str) -> str:
     return name.strip().lstrip('/')
 
 
-def frames_of(msg: Any) -> tuple[str, str]:
+def frames_of(msg: OnePose) -> tuple[str, str]:
     """(world, body) frame ids a one-pose message names: header.frame_id and child_frame_id
     (empty where the type has none, as PoseStamped)."""
     return frame_name(msg.header.frame_id), frame_name(getattr(msg, 'child_frame_id', ''))
@@ -95,6 +113,6 @@ def normalise_type(name: str) -> str:
     raise UnsupportedTypeError(msg)
 
 
-def pose_of(msgtype: str) -> Callable[[Any], StampedPose]:
+def pose_of(msgtype: str) -> Converter:
     """The converter of a one-pose message type (KeyError for the many-pose ones)."""
     return _CONVERTERS[normalise_type(msgtype)]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, cast
 
 from ..core.config import CalibrationConfig
 from ..core.errors import ConfigError, InputError
@@ -21,12 +21,13 @@ from .config import StreamConfig
 from .convert import (
     RIGID_BODIES_TYPES,
     TF_TYPE,
-    StampedPose,
+    Converter,
     frame_name,
     frames_of,
     normalise_type,
     pose_of,
 )
+from .shapes import Message, OnePose, RigidBodies, TFMessage
 from .sources import TF_STATIC, RigidBodyPicker, Selector, TfChain, parse_selector
 
 STREAMS = ('hand', 'eye')
@@ -87,7 +88,7 @@ class Recorder:
             for name in STREAMS
         }
         self.types: dict[str, str | None] = {name: None for name in STREAMS}
-        self._convert: dict[str, Callable[[Any], StampedPose]] = {}
+        self._convert: dict[str, Converter] = {}
         self._tf: dict[str, TfChain] = {}
         self._bodies: dict[str, RigidBodyPicker] = {}
         #: (world, body) frame ids the first message of each stream named
@@ -137,33 +138,35 @@ class Recorder:
         return out
 
     def add(
-        self, stream: str, msg: Any, static: bool = False, arrival_ns: int | None = None
+        self, stream: str, msg: Message, static: bool = False, arrival_ns: int | None = None
     ) -> str | None:
         """Convert and buffer one message; returns None or why (one of) its pose(s) was
         rejected. ``static``: the message came on a tf selector's static topic.
         ``arrival_ns``: when it arrived (node clock, or the bag's record time); it replaces
-        header.stamp for the streams in :attr:`arrival`."""
+        header.stamp for the streams in :attr:`arrival`. The message is of the type
+        :meth:`set_type` was told for the stream (hence the casts)."""
         restamp = arrival_ns if stream in self.arrival else None
         convert = self._convert.get(stream)
         if convert is not None:
             if stream not in self.seen_frames:
-                self.seen_frames[stream] = frames_of(msg)
-            pose = convert(msg)
+                self.seen_frames[stream] = frames_of(cast(OnePose, msg))
+            pose = convert(cast(OnePose, msg))
             if restamp is not None:
                 pose = (restamp, *pose[1:])
             return self.buffers[stream].add(pose)
         picker = self._bodies.get(stream)
         if picker is not None:
+            bodies = cast(RigidBodies, msg)
             if stream not in self.seen_frames:
-                self.seen_frames[stream] = (frame_name(msg.header.frame_id), picker.name)
-            body = picker.pose(msg)
+                self.seen_frames[stream] = (frame_name(bodies.header.frame_id), picker.name)
+            body = picker.pose(bodies)
             if body is None:
                 return self.buffers[stream].reject('not_in_message')
             if restamp is not None:
                 body = (restamp, *body[1:])
             return self.buffers[stream].add(body)
         reason = None
-        for pose in self._tf[stream].poses(msg, static):
+        for pose in self._tf[stream].poses(cast(TFMessage, msg), static):
             if restamp is not None:
                 pose = (restamp, *pose[1:])
             reason = self.buffers[stream].add(pose) or reason

@@ -21,7 +21,6 @@ per-message cost to one dictionary look-up at 1 kHz and the result exact to roun
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -29,6 +28,7 @@ from scipy.spatial.transform import Rotation
 from ..core.errors import ConfigError
 from ..core.trajectory import Trajectory
 from .convert import StampedPose, frame_name, stamped_pose
+from .shapes import Header, RigidBodies, TFMessage
 
 #: The static topic of a tf selector that names none.
 TF_STATIC = '/tf_static'
@@ -90,7 +90,7 @@ def parse_selector(text: str) -> Selector:
     return Selector(text, topic, item, static or None)
 
 
-def _stamp(header: Any) -> int:
+def _stamp(header: Header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
@@ -101,7 +101,7 @@ class RigidBodyPicker:
         self.name = name
         self.seen: dict[str, int] = {}
 
-    def pose(self, msg: Any) -> StampedPose | None:
+    def pose(self, msg: RigidBodies) -> StampedPose | None:
         """The body's stamped pose, or None when this message lacks it (not tracked)."""
         for body in msg.rigidbodies:
             if body.rigid_body_name == self.name:
@@ -150,7 +150,7 @@ class TfChain:
 
     # -------------------------------------------------------------- messages
 
-    def poses(self, msg: Any, static: bool) -> list[StampedPose]:
+    def poses(self, msg: TFMessage, static: bool) -> list[StampedPose]:
         """Learn a TFMessage's transforms; the moving link's samples it holds (raw values,
         see :meth:`finish`), as stamped poses."""
         out: list[StampedPose] = []

@@ -9,13 +9,16 @@ Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
                                                        values)
        ros_client.py tf_static                        (the latched /tf_static; needs tf2_msgs)
        ros_client.py paths                            (the latched eye and ground-truth paths)
-       ros_client.py status SECONDS                   (every ~/status of /calibrator and when
-                                                       each new extrinsic came, for SECONDS)
+       ros_client.py status SECONDS [UNTIL ...]       (every ~/status of /calibrator and when
+                                                       each new extrinsic came, for SECONDS;
+                                                       or until each regex UNTIL has matched a
+                                                       status's message or value, then LINGER_S)
 """
 
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 
@@ -32,6 +35,9 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 TIMEOUT_S = 60.0
+#: How long status mode goes on once its UNTIL regexes have matched: three status periods of
+#: the tests (0.5 s), so that a state that should hold, or should not follow, is seen.
+LINGER_S = 1.5
 
 
 def call(node: Node, names: list[str], concurrent: bool, gap_s: float = 0.0) -> list[dict]:
@@ -154,11 +160,15 @@ def tf_static(node: Node) -> list[dict]:
     ]
 
 
-def status(node: Node, seconds: float) -> dict:
+def status(node: Node, seconds: float, until: list[str]) -> dict:
+    """The statuses and extrinsics for ``seconds`` at most; once every regex of ``until``
+    has matched (a message or a value of some status), LINGER_S more, so that what follows a
+    state is seen too."""
     from diagnostic_msgs.msg import DiagnosticStatus
 
     t0 = time.monotonic()
-    got: dict = {'status': [], 'extrinsic': []}
+    got: dict = {'status': [], 'extrinsic': [], 'until_met': None}
+    pending = [re.compile(u) for u in until]
 
     def on_status(m: DiagnosticStatus) -> None:
         got['status'].append(
@@ -171,6 +181,10 @@ def status(node: Node, seconds: float) -> dict:
                 'values': {kv.key: kv.value for kv in m.values},
             }
         )
+        texts = [m.message, *(kv.value for kv in m.values)]
+        pending[:] = [u for u in pending if not any(u.search(t) for t in texts)]
+        if until and not pending and got['until_met'] is None:
+            got['until_met'] = time.monotonic() - t0
 
     qos = QoSProfile(
         depth=1,
@@ -184,8 +198,11 @@ def status(node: Node, seconds: float) -> dict:
         lambda m: got['extrinsic'].append(time.monotonic() - t0),
         qos,
     )
-    while time.monotonic() - t0 < seconds:
+    end = t0 + seconds
+    while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
+        if got['until_met'] is not None:
+            end = min(end, t0 + got['until_met'] + LINGER_S)
     return got
 
 
@@ -239,7 +256,7 @@ def main() -> int:
     elif mode == 'paths':
         out = paths(node)
     elif mode == 'status':
-        out = status(node, float(names[0]))
+        out = status(node, float(names[0]), names[1:])
     elif mode == 'param':
         out = set_parameters(node, names)
     else:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.simulate import calibration_error, noise_level, simulate
+from ..core.simulate import Truth, calibration_error, noise_level, simulate
 from ..formats import write_tum
 from ..formats.bag import write_recording
 from . import offline
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _print_beside_truth(result: dict, t: Any) -> None:
+def _print_beside_truth(result: dict[str, Any], t: Truth) -> None:
     """The result's dt and T_HE beside the simulation's truth, their errors, the reported
     1-sigma and the verdict."""
     q = np.asarray(result['extrinsic']['rotation'])

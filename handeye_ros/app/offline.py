@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 from .offline_options import STREAM_OPTION_KEYS, build_parser
 
 if TYPE_CHECKING:  # imported where used: --help answers before the core is loaded
+    from ..core.result import CalibrationResult
     from .request import Request
 
 LOG = logging.getLogger('handeye_ros.offline')  # not __name__: it is __main__ under -m
@@ -106,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     return _said(args, document, result)
 
 
-def _said(args: argparse.Namespace, document: dict, result: Any) -> int:
+def _said(args: argparse.Namespace, document: dict[str, Any], result: CalibrationResult) -> int:
     """The result on stdout (the report, or JSON), its warnings on stderr; the exit code: 2 for
     a verdict other than good under --strict, else 0."""
     from ..core.checks.verdict import Verdict

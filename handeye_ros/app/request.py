@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,7 +50,7 @@ class Request:
     eye_stamp_unit: str = 'auto'
     hand_quaternion_order: str = 'auto'
     eye_quaternion_order: str = 'auto'
-    options: dict[str, Any] = field(default_factory=dict)
+    options: Mapping[str, object] = field(default_factory=dict)
     evaluation: bool = True
     rpe_delta: float = 1.0
     rpe_distance: float = 1.0
@@ -186,7 +187,7 @@ def _check_outputs(req: Request) -> None:
             check_directory(path, flag)
 
 
-def load_options(path: str | None) -> dict[str, Any]:
+def load_options(path: str | None) -> dict[str, object]:
     """Options from a YAML file: a flat mapping or a ROS 2 params file for the node.
 
     Node-only parameters (services, QoS, ...) are dropped, so one file configures both.

@@ -265,5 +265,5 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict[str, Any], Calibra
     return doc, result
 
 
-def _folder(output: Path | None, run: Any) -> str | None:
+def _folder(output: Path | None, run: RunSpec) -> str | None:
     return str(output / 'runs' / run.slug()) if output else None

@@ -10,8 +10,9 @@ bound or a sentence is written once.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Any, TypeVar, overload
+from typing import TYPE_CHECKING, TypedDict, TypeVar, Unpack, overload
 
 from .errors import ConfigError
 
@@ -54,8 +55,24 @@ class Spec:
         return f'{"(" if self.open_low else "["}{lo}, {hi}{"]" if self.high is not None else ")"}'
 
 
-def option(default: Any, kind: str, description: str, **spec: Any) -> Any:
-    """A dataclass field carrying its :class:`Spec`."""
+class SpecFields(TypedDict, total=False):
+    """:class:`Spec`'s fields after kind and description, as :func:`option` takes them."""
+
+    low: float | None
+    high: float | None
+    open_low: bool
+    optional: bool
+    choices: tuple[str, ...]
+    alias: str
+    expert: bool
+
+
+_T = TypeVar('_T')
+
+
+def option(default: _T, kind: str, description: str, **spec: Unpack[SpecFields]) -> _T:
+    """A dataclass field carrying its :class:`Spec` (typed as its default, as
+    ``dataclasses.field`` is)."""
     return field(default=default, metadata={'spec': Spec(kind, description, **spec)})
 
 
@@ -76,13 +93,13 @@ class Options:
             _check(name, getattr(self, name), spec)
 
     @classmethod
-    def from_mapping(cls, values: dict[str, Any], source: str = 'config') -> Self:
+    def from_mapping(cls, values: Mapping[str, object], source: str = 'config') -> Self:
         """Options from a mapping (a parsed YAML file or node parameters).
 
         Unknown keys are refused (a typo must not silently fall back to a default); for an
         optional option, null or NaN means 'automatic'. Errors name ``source`` and the option.
         """
-        if not isinstance(values, dict):
+        if not isinstance(values, Mapping):
             msg = f'{source}: expected a mapping of option names to values'
             raise ConfigError(msg)
         specs = cls.specs()
@@ -99,7 +116,7 @@ class Options:
         return values
 
 
-def _refuse_unknown(values: dict[str, Any], known: list[str], source: str) -> None:
+def _refuse_unknown(values: Mapping[str, object], known: list[str], source: str) -> None:
     """ConfigError naming the keys of ``values`` not in ``known``: a typo must not silently
     fall back to a default."""
     unknown = sorted(set(values) - set(known))
@@ -111,7 +128,7 @@ def _refuse_unknown(values: dict[str, Any], known: list[str], source: str) -> No
         raise ConfigError(msg)
 
 
-def _coerce(key: str, value: Any, spec: Spec, source: str) -> Any:
+def _coerce(key: str, value: object, spec: Spec, source: str) -> object:
     if spec.optional and (value is None or (isinstance(value, float) and math.isnan(value))):
         return None
     ok = {
@@ -123,10 +140,10 @@ def _coerce(key: str, value: Any, spec: Spec, source: str) -> Any:
     if not ok:
         msg = f'{source}: option {key} must be of type {spec.kind}, got {value!r}'
         raise ConfigError(msg)
-    return float(value) if spec.kind == 'float' else value
+    return float(value) if spec.kind == 'float' and isinstance(value, int | float) else value
 
 
-def _check(name: str, value: Any, spec: Spec) -> None:
+def _check(name: str, value: object, spec: Spec) -> None:
     if value is None:
         if spec.optional:
             return
@@ -139,6 +156,9 @@ def _check(name: str, value: Any, spec: Spec) -> None:
         return
     if spec.kind not in ('float', 'int'):
         return
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        msg = f'option {name} must be a number; got {value!r}'
+        raise ConfigError(msg)
     if not math.isfinite(value):
         msg = f'option {name} must be a finite number; got {value!r}'
         raise ConfigError(msg)
@@ -156,14 +176,14 @@ _C = TypeVar('_C', bound='Options')
 
 @overload
 def split_options(
-    values: dict[str, Any], classes: tuple[type[_A], type[_B]], source: str = ...
+    values: Mapping[str, object], classes: tuple[type[_A], type[_B]], source: str = ...
 ) -> tuple[_A, _B]: ...
 @overload
 def split_options(
-    values: dict[str, Any], classes: tuple[type[_A], type[_B], type[_C]], source: str = ...
+    values: Mapping[str, object], classes: tuple[type[_A], type[_B], type[_C]], source: str = ...
 ) -> tuple[_A, _B, _C]: ...
 def split_options(
-    values: dict[str, Any], classes: tuple[type[Options], ...], source: str = 'config'
+    values: Mapping[str, object], classes: tuple[type[Options], ...], source: str = 'config'
 ) -> tuple[Options, ...]:
     """One flat mapping (a params file, node parameters, command-line options) as one instance
     of each option set in ``classes``; a key none of them knows is refused, naming ``source``.

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from .arrays import Floats
-from .batch.correlated import BLOCKS
+from .batch.correlated import BLOCKS, Uncertainty
+from .batch.noise import Noise
 from .batch.refine import BatchSolution
 from .checks.conventions import Correction
 from .checks.screening import Screening
@@ -246,7 +247,7 @@ def covariance_section(b: BatchSolution | None) -> dict[str, Any] | None:
     }
 
 
-def _noise_dict(n: Any) -> dict[str, Any]:
+def _noise_dict(n: Noise) -> dict[str, Any]:
     return {
         'rotation_rad': float(n.rotation),
         'translation_m': float(n.translation),
@@ -283,7 +284,7 @@ def num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def _uncertainty_dict(u: Any) -> dict[str, Any]:
+def _uncertainty_dict(u: Uncertainty | None) -> dict[str, Any]:
     """The reported 1-sigma's terms (white, correlated, scale) per group (norms over the axes,
     in the groups' units), the term that dominates each, and what could not be estimated."""
     if u is None:

@@ -18,7 +18,7 @@ motion than the data it converged on.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -26,6 +26,9 @@ from scipy.spatial.transform import Rotation
 from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
 from ..stream import STREAMS
 from .jobs import Calibrated
+
+if TYPE_CHECKING:  # the node owns its auto mode
+    from .node import CalibratorNode
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
@@ -46,7 +49,7 @@ class AutoMode:
     """Auto mode of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`); ``said`` is
     where it stands, as the status says it ('off' when not asked for)."""
 
-    def __init__(self, node: Any, on: bool) -> None:
+    def __init__(self, node: CalibratorNode, on: bool) -> None:
         self._node = node
         self.said = 'waiting for READY' if on else 'off'
         self._span_calibrated = 0.0

@@ -21,7 +21,12 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where used, after quiet_start
+    from rclpy.executors import Executor
+
+    from .node import CalibratorNode
 
 from .lifecycle import (
     ignore_signals,
@@ -134,7 +139,9 @@ def _rclpy_missing() -> str | None:
     return None
 
 
-def send_answers(node: Any, executor: Any, timeout_s: float, linger_s: float) -> None:
+def send_answers(
+    node: CalibratorNode, executor: Executor, timeout_s: float, linger_s: float
+) -> None:
     """At the stop, after the node's ``close``: spin until every ``~/calibrate`` call waiting
     for a calibration has been answered (close gave them ABORTED), at most timeout_s,
     then on for linger_s when any was: a reliable DDS writer repeats a response its reader

@@ -8,11 +8,23 @@ back to the node is small: the result without its poses and the paths drawn in R
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..app.request import Request, run, write_outputs
+
+if TYPE_CHECKING:  # imported where used: a worker starts without the core's modules
+    from ..core.arrays import Floats, Stamps
+    from ..core.checks.progress import Cursor, Measured, Progress
+    from ..core.config import CalibrationConfig
+    from ..core.result import CalibrationResult
+    from ..core.trajectory import Trajectory
+    from ..stream.recorder import Snapshot
+
+#: A path to draw: stamps [int64 ns, eye clock], positions (N, 3) [m], x y z w quaternions (N, 4).
+Path3D = tuple['Stamps', 'Floats', 'Floats']
 
 
 @dataclass(frozen=True)
@@ -23,12 +35,12 @@ class Calibrated:
     to send back from the worker) and its frame names (see StreamConfig.frames)."""
 
     document: dict[str, Any]
-    result: Any
+    result: CalibrationResult
     frames: dict[str, str]
     #: 'eye' and 'ground_truth' (the hand in the eye's world and clock, T_WG T_GH(t - dt)
     #: T_HE), each (stamps int64 ns on the eye clock, p (N, 3), q (N, 4) x y z w), at most
     #: MAX_PATH_POSES poses, in the eye's world frame; empty without an evaluation
-    paths: dict[str, tuple[Any, Any, Any]] = field(default_factory=dict)
+    paths: dict[str, Path3D] = field(default_factory=dict)
 
     @property
     def summary(self) -> str:
@@ -61,8 +73,8 @@ class Calibrated:
 
 
 def calibrate_buffers(
-    snapshot: Any,
-    options: dict[str, Any],
+    snapshot: Snapshot,
+    options: Mapping[str, object],
     report_dir: str | None = None,
     rig: tuple[str, str] | None = None,
 ) -> Calibrated:
@@ -95,7 +107,7 @@ def calibrate_buffers(
 MAX_PATH_POSES = 2000
 
 
-def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
+def _paths(result: CalibrationResult) -> dict[str, Path3D]:
     """The eye's path and the calibrated ground truth's (see :class:`Calibrated`)."""
     from ..core.geometry import quat_from_matrix
     from ..evaluation.aligned import calibrated
@@ -111,7 +123,7 @@ def _paths(result: Any) -> dict[str, tuple[Any, Any, Any]]:
     }
 
 
-def readiness_start(snapshot: Any, options: dict[str, Any]) -> tuple[Any, float]:
+def readiness_start(snapshot: Snapshot, options: Mapping[str, object]) -> tuple[Progress, float]:
     """The node's status job on the whole buffers
     (:func:`~handeye_ros.core.checks.progress.start`: stages 1 and 2, then every piece), and
     the CPU time it took in its process (all threads) [s]."""
@@ -124,8 +136,8 @@ def readiness_start(snapshot: Any, options: dict[str, Any]) -> tuple[Any, float]
 
 
 def readiness_measure(
-    cursor: Any, tails: dict[str, Any], options: dict[str, Any]
-) -> tuple[Any, float]:
+    cursor: Cursor, tails: dict[str, Trajectory], options: Mapping[str, object]
+) -> tuple[Measured, float]:
     """The node's status job on the poses new since the cursor
     (:func:`~handeye_ros.core.checks.progress.measure`), and its CPU time [s]."""
     import time
@@ -137,7 +149,7 @@ def readiness_measure(
     return out, time.process_time() - t0
 
 
-def _calibration(options: dict[str, Any]) -> Any:
+def _calibration(options: Mapping[str, object]) -> CalibrationConfig:
     from ..core.config import CalibrationConfig
     from ..core.options import split_options
     from ..stream.config import StreamConfig

@@ -19,7 +19,13 @@ imports site and the ROS wheels' .pth bootstrapper), is CPython's to handle, not
 from __future__ import annotations
 
 import signal
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # rclpy is imported where used: quiet_start runs before its import
+    from rclpy.executors import Executor, SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.timer import Timer
 
 _state = {'stop': False}
 
@@ -67,7 +73,7 @@ def stop_requested() -> bool:
     return _state['stop']
 
 
-def steady_timer(node: Any, period_s: float, callback: Any) -> Any:
+def steady_timer(node: Node, period_s: float, callback: Callable[[], None]) -> Timer:
     """A timer of ``node`` on the steady clock: it fires every ``period_s`` of real time
     whatever the node's clock does. A node with ``use_sim_time`` runs its own timers on /clock,
     which stands still before ``ros2 bag play --clock`` starts, on pause and after the end."""
@@ -76,7 +82,7 @@ def steady_timer(node: Any, period_s: float, callback: Any) -> Any:
     return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
-def stoppable_executor(node: Any) -> Any:
+def stoppable_executor(node: Node) -> SingleThreadedExecutor:
     """A single-threaded executor spinning ``node``, with a steady timer that wakes it every
     :data:`STOP_POLL_S`, so that :func:`spin_until_stopped` sees a noted signal."""
     from rclpy.executors import SingleThreadedExecutor
@@ -87,7 +93,7 @@ def stoppable_executor(node: Any) -> Any:
     return executor
 
 
-def spin_until_stopped(executor: Any) -> None:
+def spin_until_stopped(executor: Executor) -> None:
     """Spin until a SIGINT or SIGTERM is noted (or the context is shut down)."""
     import rclpy
 

@@ -15,13 +15,12 @@ executor holds the GIL most of the time, and a calibration thread beside it ran 
 slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
 start-up. A job's answer comes back on the executor's thread
 (:meth:`CalibratorNode.on_executor`), which alone publishes and changes the node's state.
-Ctrl-C, SIGINT or SIGTERM stop the node with exit code 0: the worker (a running calibration is
-abandoned) is stopped and joined first (:meth:`CalibratorNode.close`), and a ``~/calibrate``
-caller still waiting is answered "aborted: shutting down" (:mod:`.calibrator`).
-Every calibration, successful or not, updates every output together. A success publishes on
-every latched output at once, stamped alike (:mod:`.outputs`). A failure cannot unpublish
-latched messages: /diagnostics then says ERROR with the reason, and names the latched outputs
-as stale (the result they come from and when). Status goes to /diagnostics.
+SIGINT or SIGTERM stop the node (exit code 0) after its worker (:meth:`CalibratorNode.close`;
+a running calibration is abandoned, a waiting caller told "aborted: shutting down").
+Every calibration, successful or not, updates every output together: a success publishes on
+every latched output at once, stamped alike (:mod:`.outputs`); a failure, which cannot
+unpublish latched messages, says ERROR on /diagnostics with the reason and names the latched
+outputs as stale (the result they come from and when).
 
 The subscriptions (types learnt from the graph, QoS, why a stream is empty) are in
 :mod:`.subscriptions`, the parameters (declared from the option specs, changed at run time,
@@ -37,7 +36,8 @@ import shutil
 import sys
 import tempfile
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import (
@@ -45,6 +45,7 @@ from rcl_interfaces.msg import (
 )
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -63,15 +64,16 @@ from .types import RclpyTypes
 
 #: Seconds between two warnings about rejected messages of one stream.
 REJECT_WARN_PERIOD_S = 5.0
+_R = TypeVar('_R')
 
 
 class CalibratorNode(Node):
     """See the module docstring."""
 
-    def __init__(self, pool: worker.Pool, **kwargs: Any):
+    def __init__(self, pool: worker.Pool) -> None:
         """``pool``: the worker (:func:`.worker.new_pool`, started before rclpy.init); the
         node owns it from here and stops it in :meth:`close`."""
-        super().__init__('calibrator', **kwargs)
+        super().__init__('calibrator')
         self.calib_cfg, self.stream_cfg, self.node_cfg = parameters.declare_and_read(self)
         parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
@@ -97,8 +99,7 @@ class CalibratorNode(Node):
         self._types = RclpyTypes()
         self._outputs = Outputs(self, self._types)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        # its own reentrant group: a callback group stays busy while a coroutine in it awaits,
-        # and the default (mutually exclusive) group would then hold back every subscription
+        # reentrant: an awaiting coroutine keeps its group busy (the default one: every callback)
         self.create_service(
             Trigger, '~/calibrate', self._on_calibrate, callback_group=ReentrantCallbackGroup()
         )
@@ -131,17 +132,17 @@ class CalibratorNode(Node):
         """Whether the node is stopping (its worker is being stopped)."""
         return self._closing
 
-    def options(self) -> dict[str, Any]:
+    def options(self) -> dict[str, object]:
         """The algorithm's options as the worker's jobs take them."""
         return self.calib_cfg.to_dict()
 
-    def submit(self, fn: Any, *args: Any) -> cf.Future:
+    def submit(self, fn: Callable[..., _R], *args: object) -> cf.Future[_R]:
         """A job for the worker pool (RuntimeError once it is shut down)."""
         if self._pool is None:
             raise RuntimeError('the node is closing: its worker pool is stopped')
         return self._pool.submit(fn, *args)
 
-    def on_executor(self, fn: Any, *args: Any) -> None:
+    def on_executor(self, fn: Callable[..., object], *args: object) -> None:
         """Run ``fn(*args)`` on the executor's thread, from any thread (a worker job's done
         callback runs in the pool's): every output is published, and every state changed,
         from the one thread that spins the node."""
@@ -151,7 +152,7 @@ class CalibratorNode(Node):
         else:
             executor.create_task(fn, *args)
 
-    def _on_set_parameters(self, params: list[Any]) -> SetParametersResult:
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         answer, self.calib_cfg, self.node_cfg = parameters.apply_changes(
             params, self.calib_cfg, self.node_cfg
         )
@@ -293,51 +294,51 @@ class CalibratorNode(Node):
             if queued is not None:
                 answer_with(queued, self.calibrate())
 
-    async def _on_calibrate(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+    async def _on_calibrate(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
         future = self.calibrate()
         if future is None:
-            response.success = False
-            response.message = BUSY
-            return response
+            res.success = False
+            res.message = BUSY
+            return res
         self._open_calls += 1
         try:
-            response.success, response.message = await future
+            res.success, res.message = await future
         finally:
             # the executor sends the response in the same step, right after this returns
             self._open_calls -= 1
-        return response
+        return res
 
     def _periodic_calibrate(self) -> None:
         if self.poses.why_no_data() is None:
             self.calibrate()
 
-    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+    def _on_reset(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
         self.recorder.reset()
         self._session = _session_name()
         self.status.reset()
-        response.success = True
-        response.message = 'buffers cleared' + (
+        res.success = True
+        res.message = 'buffers cleared' + (
             ' (the running calibration works on its own copy and will still answer)'
             if self._busy
             else ''
         )
-        return response
+        return res
 
-    def _on_save(self, request: Trigger.Request, response: Trigger.Response) -> Any:
+    def _on_save(self, req: Trigger.Request, res: Trigger.Response) -> Trigger.Response:
         if self._last_result is None:
-            response.success = False
-            response.message = (
+            res.success = False
+            res.message = (
                 'no result to save: call calibrate first'
                 if self._last_error is None
                 else f'no result to save: the calibration failed ({self._last_error})'
             )
-            return response
-        response.success, response.message = save(self._last_result, self.node_cfg)
-        if response.success and self._last_error is not None:
-            response.message += (
+            return res
+        res.success, res.message = save(self._last_result, self.node_cfg)
+        if res.success and self._last_error is not None:
+            res.message += (
                 f' (the latest calibration failed: this is the result of {self._last_when})'
             )
-        return response
+        return res
 
     @staticmethod
     def _drop_stage(stage: str | Calibrated | None) -> None:

@@ -12,9 +12,9 @@ later gets the last result. A failure cannot withdraw them; /diagnostics names t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..app.params_file import NodeConfig
@@ -73,7 +73,7 @@ class Outputs:
             if key in session.paths:
                 self._paths[name].publish(messages.path(self._types, world, *session.paths[key]))
 
-    def _static_broadcaster(self) -> Any:
+    def _static_broadcaster(self) -> Publisher | None:
         """A latched /tf_static publisher, as tf2's static broadcaster keeps one, where
         tf2_msgs is importable (a ROS 2 install; the PyPI wheels have neither tf2_msgs nor
         tf2_ros); None otherwise, said once."""

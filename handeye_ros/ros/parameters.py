@@ -10,7 +10,6 @@ import os
 import re
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -24,6 +23,7 @@ from rclpy.exceptions import (
     ParameterException,
 )
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from ..app.params_file import REMOVED, RUNTIME_KEYS, RUNTIME_NODE_KEYS, NodeConfig, all_specs
 from ..core.config import CalibrationConfig
@@ -58,7 +58,7 @@ def descriptor(name: str, spec: Spec) -> ParameterDescriptor:
     return d
 
 
-def _default(value: Any) -> Any:
+def _default(value: object) -> object:
     # ROS parameters have no null: an optional float is NaN when 'automatic'
     return float('nan') if value is None else value
 
@@ -66,7 +66,7 @@ def _default(value: Any) -> Any:
 def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeConfig]:
     """Declare every option as a parameter of ``node`` and read the three configurations;
     raises ConfigError naming a parameter whose value is refused."""
-    values: dict[str, Any] = {}
+    values: dict[str, object] = {}
     defaults = {
         **CalibrationConfig().to_dict(),
         **StreamConfig().to_dict(),
@@ -98,7 +98,7 @@ def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeC
 PATH_KEYS = ('output_file', 'report_dir', 'rig_file')
 
 
-def _confined(cfg: NodeConfig, keys: Any) -> NodeConfig:
+def _confined(cfg: NodeConfig, keys: tuple[str, ...]) -> NodeConfig:
     """``cfg`` with ``output_dir`` made absolute (its default filled in); ConfigError when one
     of ``keys`` leads out of it (``report_dir`` and ``rig_file`` may be empty: off)."""
     root = os.path.abspath(os.path.expanduser(cfg.output_dir or files.default_output_dir()))
@@ -113,7 +113,7 @@ def _confined(cfg: NodeConfig, keys: Any) -> NodeConfig:
 
 
 def apply_changes(
-    params: list[Any], calib: CalibrationConfig, node_cfg: NodeConfig
+    params: list[Parameter], calib: CalibrationConfig, node_cfg: NodeConfig
 ) -> tuple[SetParametersResult, CalibrationConfig, NodeConfig]:
     """Run-time parameter changes: (the answer, the new calibration and node
     configurations); a refused value leaves both as they were."""
@@ -127,7 +127,7 @@ def apply_changes(
             source='parameters',
         )
         new_node = NodeConfig.from_mapping({**node_cfg.to_dict(), **ours}, source='parameters')
-        new_node = _confined(new_node, ours)
+        new_node = _confined(new_node, tuple(ours))
     except ConfigError as err:
         return SetParametersResult(successful=False, reason=str(err)), calib, node_cfg
     return SetParametersResult(successful=True), new_calib, new_node

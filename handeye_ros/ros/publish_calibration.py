@@ -15,7 +15,10 @@ import importlib.util
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where used, after quiet_start
+    from ..formats import messages
 
 from .lifecycle import (
     ignore_signals,
@@ -95,7 +98,7 @@ def main(args: list[str] | None = None) -> int:
     return _publish(published, a.namespace.rstrip('/'))
 
 
-def _publish(published: Any, namespace: str) -> int:
+def _publish(published: messages.Published, namespace: str) -> int:
     """Publish a :class:`~handeye_ros.formats.messages.Published` latched until a signal.
 
     The signals stay ours (:mod:`.lifecycle`), as in the calibrator: a noted signal ends the

@@ -20,8 +20,10 @@ With ``auto_calibrate``, :mod:`.auto_mode` calibrates by the status.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -36,6 +38,12 @@ from .auto_mode import GROWTH, AutoMode, carry_over
 from .clocks import Arrivals, ClockWatch, jump_advice
 from .jobs import readiness_measure, readiness_start
 from .lifecycle import steady_timer
+
+if TYPE_CHECKING:  # the node owns its status
+    from .node import CalibratorNode
+
+#: What a status job gives back (with its CPU time).
+_V = TypeVar('_V')
 
 #: Each of the status's two jobs (reading the whole buffers, reading the new poses) takes at
 #: most this share of one core on average: one that cost c seconds of CPU (the node's copy of
@@ -66,7 +74,7 @@ LOG_PERIOD_S = 10.0
 class ReadinessStatus:
     """The status of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`)."""
 
-    def __init__(self, node: Any, period_s: float, auto: bool) -> None:
+    def __init__(self, node: CalibratorNode, period_s: float, auto: bool) -> None:
         self._node = node
         #: the last readiness (the result's ``readiness`` section), or None with why_not
         self.last: dict[str, Any] | None = None
@@ -138,11 +146,11 @@ class ReadinessStatus:
     def _measure(self) -> None:
         node, t0, p = self._node, time.thread_time(), self._progress
         buffers = node.recorder.buffers
-        newest = [buffers[s].newest_ns for s in STREAMS]
-        if p is None or None in newest:
+        hand_ns, eye_ns = (buffers[s].newest_ns for s in STREAMS)
+        if p is None or hand_ns is None or eye_ns is None:
             return
         try:
-            tails = node.recorder.tails(dict(zip(STREAMS, p.wants(*newest), strict=True)))
+            tails = node.recorder.tails(dict(zip(STREAMS, p.wants(hand_ns, eye_ns), strict=True)))
         except HandeyeError:  # emptied meanwhile: the next tick says so
             return
         self._clocks(tails['hand'].t_ns, tails['eye'].t_ns)
@@ -150,7 +158,14 @@ class ReadinessStatus:
             'measure', readiness_measure, (p.cursor(), tails, node.options()), t0, self._measured
         )
 
-    def _ask(self, kind: str, fn: Any, args: tuple, t0: float, then: Any) -> None:
+    def _ask(
+        self,
+        kind: str,
+        fn: Callable[..., tuple[_V, float]],
+        args: tuple[object, ...],
+        t0: float,
+        then: Callable[[_V], None],
+    ) -> None:
         """Submit one of the status's jobs; its answer goes to ``then`` on the executor, unless
         the buffers were reset or read whole again meanwhile."""
         node, generation = self._node, self._generation
@@ -165,7 +180,14 @@ class ReadinessStatus:
             lambda job: node.on_executor(self._done, kind, generation, job, node_cpu, then)
         )
 
-    def _done(self, kind: str, generation: int, job: Any, node_cpu: float, then: Any) -> None:
+    def _done(
+        self,
+        kind: str,
+        generation: int,
+        job: cf.Future[tuple[_V, float]],
+        node_cpu: float,
+        then: Callable[[_V], None],
+    ) -> None:
         """On the executor: a job's answer; the next job of its kind waits for its cost."""
         self._pending[kind] = False
         if self._node.closing:  # the node stopped the worker under this job: nothing to say
@@ -198,11 +220,11 @@ class ReadinessStatus:
     def _report(self) -> None:
         """Judge the pieces of the poses still buffered, and publish."""
         p, buffers = self._progress, self._node.recorder.buffers
-        oldest = [buffers[s].oldest_ns for s in STREAMS]
-        if p is None or None in oldest:
+        hand_ns, eye_ns = (buffers[s].oldest_ns for s in STREAMS)
+        if p is None or hand_ns is None or eye_ns is None:
             return
-        p.drop_before(*oldest)
-        durations = tuple(buffers[s].span_s for s in STREAMS)
+        p.drop_before(hand_ns, eye_ns)
+        durations = (buffers['hand'].span_s, buffers['eye'].span_s)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         auto = self.auto
         last = carry_over(found, auto.factors, auto.held)

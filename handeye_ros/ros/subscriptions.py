@@ -15,9 +15,9 @@ import difflib
 import time
 from collections.abc import Callable
 from functools import partial
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -25,6 +25,7 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
+from rclpy.subscription import Subscription
 
 from ..core.errors import ConfigError
 from ..stream import STREAMS, SUPPORTED_TYPES, Recorder, normalise_type
@@ -56,8 +57,8 @@ class Subscriptions:
     ) -> None:
         self._node, self._recorder, self._on_pose = node, recorder, on_pose
         self._log = node.get_logger()
-        self.subs: dict[str, Any] = {}
-        self._static_subs: dict[str, Any] = {}
+        self.subs: dict[str, Subscription] = {}
+        self._static_subs: dict[str, Subscription] = {}
         self._sub_errors: dict[str, str] = {}
         self._qos_problems: dict[str, str] = {}
         self._type_warned = dict.fromkeys(STREAMS, time.monotonic())
@@ -188,7 +189,7 @@ class Subscriptions:
         else:
             self._log.info(f'{stream}: subscribed to {self.shown(stream)} ({msgtype})')
 
-    def _on_incompatible_qos(self, stream: str, event: Any) -> None:
+    def _on_incompatible_qos(self, stream: str, event: QoSRequestedIncompatibleQoSInfo) -> None:
         """A publisher whose QoS this subscription cannot match: nothing of it will arrive."""
         why = self.qos_mismatch(stream)
         if why is None:

@@ -5,21 +5,20 @@ from __future__ import annotations
 
 import importlib
 import sys
-from typing import Any
 
 from ..core.errors import ConfigError
 
 
-class RclpyTypes(dict):
+class RclpyTypes(dict[str, type]):
     """rclpy message classes by 'pkg/msg/Name', imported on first use (the ``types`` of
     :mod:`handeye_ros.formats.messages`)."""
 
-    def __missing__(self, msgtype: str) -> Any:
+    def __missing__(self, msgtype: str) -> type:
         cls = self[msgtype] = message_class(msgtype)
         return cls
 
 
-def message_class(msgtype: str) -> Any:
+def message_class(msgtype: str) -> type:
     """The rclpy class of 'pkg/msg/Name'; ConfigError naming the package when this Python
     cannot import it (tf2_msgs and mocap4r2_msgs come with a ROS 2 install, not from PyPI)."""
     pkg, _, name = msgtype.split('/')

@@ -19,8 +19,11 @@ import importlib
 import multiprocessing
 import os
 import signal
+from collections.abc import Callable
 from multiprocessing.queues import SimpleQueue
-from typing import Any
+from typing import TypeVar
+
+_R = TypeVar('_R')
 
 #: What a calibration in the worker imports (the application, the evaluation, the snapshot's
 #: class and the core with scipy.optimize): imported when the worker starts, not on the first call.
@@ -50,7 +53,7 @@ class Pool:
         self._executor, self._said = executor, said
         self._pids: list[int] = []
 
-    def submit(self, fn: Any, *args: Any) -> cf.Future:
+    def submit(self, fn: Callable[..., _R], *args: object) -> cf.Future[_R]:
         """A job (RuntimeError once the pool is stopped)."""
         return self._executor.submit(fn, *args)
 

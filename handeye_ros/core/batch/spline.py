@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import LinAlgError, solveh_banded
@@ -30,6 +30,9 @@ from scipy.spatial.transform import Rotation, Slerp
 from ..arrays import Floats, Indices
 from ..geometry import Pose, exp_so3, log_so3, quat_multiply, right_jacobian
 
+if TYPE_CHECKING:  # imported where used (see _cardinal)
+    from scipy.interpolate import BSpline
+
 #: Passes of the rotation control-point correction in :func:`fit_spline`.
 ROTATION_FIT_ITERATIONS = 12
 #: ... which end early once no control rotation moves by more than this (rad, 2 arcsec: far
@@ -38,7 +41,7 @@ ROTATION_FIT_TOL = 1e-5
 
 
 @lru_cache(maxsize=8)
-def _cardinal(order: int) -> Any:
+def _cardinal(order: int) -> BSpline:
     """The cardinal B-spline of an order (scipy's BSpline): the cubic has a closed form
     below, and scipy.interpolate's import (0.6 s, with scipy.optimize) is left to other
     orders."""

@@ -10,13 +10,14 @@ self-check) is kept there too, and reads as itself.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ...arrays import Floats
 
 if TYPE_CHECKING:  # the records of the stages' math, for the facts' fields only
     from ...linear.scale import ScaleFit
     from ...time.clock import DriftFit
+    from ..selfcheck import Candidate
 
 
 @dataclass(frozen=True)
@@ -77,7 +78,7 @@ class StagesDisagree:
 
     what: str
     failed: str | None = None
-    scored: tuple[Any, ...] | None = None
+    scored: tuple[Candidate, ...] | None = None
 
 
 #: Every fact a stage records (and a reason a rule made on the way).

@@ -100,11 +100,11 @@ class TransformStamped(Stamped, Protocol):
     def transform(self) -> Transform: ...
 
 
-class Odometry(Stamped, Protocol):
+class Odometry(PoseWithCovarianceStamped, Protocol):
+    """nav_msgs Odometry: a PoseWithCovarianceStamped with the body's frame (its twist unread)."""
+
     @property
     def child_frame_id(self) -> str: ...
-    @property
-    def pose(self) -> PoseWithCovariance: ...
 
 
 class TFMessage(Protocol):

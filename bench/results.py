@@ -73,6 +73,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'wander': ('wander', [], ['wander'], '12 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),
+    'readiness_live_real': ('readiness_live_real', [], ['readiness_live_real'], '15 min'),
     'defects': (
         'defects',
         [],

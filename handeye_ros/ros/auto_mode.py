@@ -3,27 +3,30 @@ status (:mod:`.status`), and which of their results are published.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
 time the buffered span has grown by GROWTH, READY or not (the status carries the last result's
-factors and reasons: only a new result settles them). A result is measured by its *precision ratio*, its
-largest reported 1-sigma over that sigma's ``precision_*`` target (:func:`precision_ratio`: below
-1, the verdict is not ``imprecise``). A later result of auto mode's own is published when its
-ratio is no larger than the published one's; once one improves it by no more than IMPROVEMENT
-of itself (or of 1, the targets), or is not published, auto mode has converged (said in the
-status); so it has, said so, once the buffers are full (their span can no longer grow by
-GROWTH). Converged or done, it calibrates again when the status's predicted ratio falls below
-the one predicted at its last calibration by more than RECALIBRATE of it (or of 1): richer
-motion than the data it converged on.
+factors and reasons: only a new result settles them, and READY waits for one that is
+``good``). A result is measured by its *precision ratio*, its largest reported 1-sigma over
+that sigma's ``precision_*`` target (:func:`precision_ratio`: below 1, the verdict is not
+``imprecise``). A later result of auto mode's own is published when its ratio is no larger than
+the published one's; once one improves it by no more than IMPROVEMENT of itself (or of 1, the
+targets), or is not published, auto mode has converged (said in the status; *stalled* when the
+published result is not ``good``); so it has, said so, once the buffers are full (their span
+can no longer grow by GROWTH). Converged, stalled or done, it calibrates again when the
+status's predicted ratio falls below the one predicted at its last calibration by more than
+RECALIBRATE of it (or of 1): richer motion than the data it converged on.
 ``~/calibrate`` works at any time, and its result is always published.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..core.arrays import Floats
 from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
+from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
 from .jobs import Calibrated
 
@@ -65,14 +68,14 @@ class AutoMode:
         #: whether a result of these buffers (published, or a check of READY) set them
         self.confirmed = False
         #: the published auto result's estimate: dt [s], translation [m], rotation (x y z w)
-        self._estimate: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._estimate: tuple[float, Floats, Floats] | None = None
 
     @property
     def ended(self) -> bool:
-        """Converged or done: it calibrates again only for richer motion."""
-        return self.said.startswith(('converged', 'done'))
+        """Converged, stalled or done: it calibrates again only for richer motion."""
+        return self.said.startswith(('converged', 'stalled', 'done'))
 
-    def step(self, last: dict[str, Any] | None) -> None:
+    def step(self, last: ReadinessDoc | None) -> None:
         """On each tick of the status, with its last readiness: calibrate once READY is
         predicted (its first result is the one that confirms it), again as the buffers grow by
         GROWTH, and, converged or done, when the motion gets richer."""
@@ -92,7 +95,7 @@ class AutoMode:
             self._predicted_then, self._estimate = math.inf, None
         self.factors, self.held, self.confirmed = {}, [], False
 
-    def _predicted(self, last: dict[str, Any] | None) -> float:
+    def _predicted(self, last: ReadinessDoc | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
         sigma = last['sigma'] if last else {}
         ms, mm, deg = (
@@ -105,7 +108,7 @@ class AutoMode:
         seconds_metres_degrees = (ms * 1e-3, mm * 1e-3, deg)
         return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
 
-    def _calibrate(self, last: dict[str, Any], grown: bool = False) -> None:
+    def _calibrate(self, last: ReadinessDoc, grown: bool = False) -> None:
         buffers = [self._node.recorder.buffers[s] for s in STREAMS]
         span = min(b.span_s for b in buffers)
         if not grown and self._span_calibrated and span < GROWTH * self._span_calibrated:
@@ -142,20 +145,31 @@ class AutoMode:
             admitted, converged = True, False
         if admitted:
             self._sigmas = sigmas
-        if converged:
-            best = self._sigmas or sigmas
-            self.said = (
-                f'converged: more of the same motion no longer improves the result by '
-                f'{IMPROVEMENT:.0%} of the targets (1-sigma {_sigmas_text(best)}); it calibrates '
-                'again if the motion gets richer'
-            )
         if admitted or published is None:
             self._published(doc)
+        if converged:
+            self.said = self._ended(self._sigmas or sigmas)
+        if admitted or published is None:
             return ''
         return (
             f'auto_calibrate keeps the published result: its largest sigma against its target, '
             f"{_largest(sigmas, targets)}, is above the published one's, "
             f'{_largest(published, targets)}'
+        )
+
+    def _ended(self, best: tuple[float, float, float]) -> str:
+        """What auto mode says once more of the same motion no longer improves the published
+        result: converged when that result is ``good``, stalled when it is not (the motion, or
+        the recording, must change before it can be)."""
+        gain = f'no longer improves the result by {IMPROVEMENT:.0%} of the targets'
+        if self.held:
+            return (
+                f'stalled: more of the same motion {gain}, and it is doubtful ({self.held[0]}); '
+                'it calibrates again if the motion gets richer'
+            )
+        return (
+            f'converged: more of the same motion {gain} (1-sigma {_sigmas_text(best)}); it '
+            'calibrates again if the motion gets richer'
         )
 
     def confirm(self, session: Calibrated) -> str:
@@ -164,7 +178,7 @@ class AutoMode:
         self._published(session.document)
         return 'it checked READY'
 
-    def _published(self, doc: dict[str, Any]) -> None:
+    def _published(self, doc: ResultDoc) -> None:
         """What the status carries of the result being published (or checking READY)."""
         self.confirmed = True
         self.factors = predictor_factors(doc)
@@ -172,19 +186,23 @@ class AutoMode:
         self._estimate = _estimate_of(doc)
 
 
-def held_reasons(doc: dict[str, Any]) -> list[str]:
-    """The messages of a result's reasons other than its precision: they hold READY back."""
-    return [r['message'] for r in doc['quality']['reasons'] if r['code'] != Code.IMPRECISE.value]
+def held_reasons(doc: ResultDoc) -> list[str]:
+    """The messages of a result's reasons, its precision's last (more recording is the remedy
+    for that one alone): a result that is not ``good`` holds READY back until a calibration of
+    more data is, since READY says that a calibration now would be ``good``, and predictions
+    carried from a result that was not are a coin toss near the targets."""
+    reasons = sorted(doc['quality']['reasons'], key=lambda r: r['code'] == Code.IMPRECISE.value)
+    return [r['message'] for r in reasons]
 
 
-def _estimate_of(doc: dict[str, Any]) -> tuple[float, np.ndarray, np.ndarray]:
+def _estimate_of(doc: ResultDoc) -> tuple[float, Floats, Floats]:
     ext = doc['extrinsic']
     return doc['time_offset'], np.asarray(ext['translation']), np.asarray(ext['rotation'])
 
 
 def moved_beyond(
-    new: tuple[float, np.ndarray, np.ndarray],
-    old: tuple[float, np.ndarray, np.ndarray] | None,
+    new: tuple[float, Floats, Floats],
+    old: tuple[float, Floats, Floats] | None,
     old_sigmas: tuple[float, float, float] | None,
 ) -> str | None:
     """Whether a new estimate (dt [s], translation [m], rotation x y z w) lies beyond the
@@ -207,12 +225,13 @@ def moved_beyond(
 SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
 
 
-def predictor_factors(document: dict[str, Any]) -> dict[str, float]:
+def predictor_factors(document: ResultDoc) -> dict[str, float]:
     """A published result's reported 1-sigmas over the ones its own ``readiness`` predicted on
     the same data, per sigma key: how far the status's predictions (from consecutive pairs:
     they see neither the errors correlated over minutes nor the scale) fall short of the result's
     covariance on this recording, or exceed it. Empty without both."""
-    std, predicted = document.get('std'), (document.get('readiness') or {}).get('sigma') or {}
+    std, readiness = document.get('std'), document.get('readiness')
+    predicted = readiness['sigma'] if readiness else {}
     if not std or not predicted:
         return {}
     reported = sigmas_of(np.r_[std['time_offset'], std['translation'], std['rotation']])
@@ -263,11 +282,11 @@ def judge(
     return admitted, converged
 
 
-def carry_over(last: dict[str, Any], factors: dict[str, float], held: list[str]) -> dict[str, Any]:
+def carry_over(last: ReadinessDoc, factors: dict[str, float], held: list[str]) -> ReadinessDoc:
     """The readiness with its predicted sigmas times the published result's
     :func:`predictor_factors` (the same covariance model as the result's), READY only if they
-    still meet the targets and the published result is doubtful for no other reason than its
-    precision (``held``: those reasons' messages)."""
+    still meet the targets and the published result was ``good`` (``held``: the messages of
+    its reasons, :func:`held_reasons`)."""
     if not factors and not held:
         return last
     sigma = {

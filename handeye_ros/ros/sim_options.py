@@ -73,6 +73,22 @@ def parser() -> argparse.ArgumentParser:
         help='messages per second, both topics together (default: 1000)',
     )
     ap.add_argument(
+        '--replay',
+        nargs=2,
+        default=None,
+        metavar=('HAND', 'EYE'),
+        help='publish these two trajectory files (TUM or EuRoC, as offline_calibrate reads '
+        'them) instead of a simulation, at the pace of their own stamps (--speed); the '
+        'simulation options are then not used',
+    )
+    ap.add_argument(
+        '--speed',
+        type=float,
+        default=None,
+        help="pace by the recording's stamps, this many times real time (default: --rate for "
+        'a simulation, 1 for --replay)',
+    )
+    ap.add_argument(
         '--clock-jump',
         type=float,
         default=0.0,
@@ -126,6 +142,10 @@ def parser() -> argparse.ArgumentParser:
     return ap
 
 
+#: What a positive option counts, as its error says it.
+_UNITS = {'--duration': ' of seconds', '--speed': ''}
+
+
 def parse(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line, its absurd values refused as argparse refuses a typo (exit 2)."""
     ap = parser()
@@ -136,11 +156,11 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
         '--eye-rate': args.eye_rate,
         '--rate': args.rate,
     }
+    if args.speed is not None:
+        positive['--speed'] = args.speed
     for flag, v in positive.items():
         if not (math.isfinite(v) and v > 0.0):
-            ap.error(
-                f'{flag} must be a positive number of {"seconds" if flag == "--duration" else "Hz"}, not {v}'
-            )
+            ap.error(f'{flag} must be a positive number{_UNITS.get(flag, " of Hz")}, not {v}')
     if args.mocap_dropout is not None and not all(
         math.isfinite(v) and v >= 0.0 for v in args.mocap_dropout
     ):

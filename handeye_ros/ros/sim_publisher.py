@@ -1,11 +1,15 @@
-"""A simulated MoCap + VIO rig on two topics, to try the calibrator node without hardware.
+"""A simulated MoCap + VIO rig on two topics, to try the calibrator node without hardware, or a
+recorded one replayed from its files.
 
 ``ros2 run handeye_ros sim_publisher [--seed 3 --level 3 --duration 40 ...]``
+``ros2 run handeye_ros sim_publisher --replay HAND.csv EYE.txt [--speed 1]``
 
 Simulates a recording with the paper's protocol (see ``handeye_ros.core.simulate``), waits for
 subscribers, publishes the hand and eye poses interleaved by stamp at ``--rate`` messages per
 second (stamps are the recording's, not the wall clock's), and prints one JSON line when done:
-the truth and how many messages went out per topic. ``--bag PATH[:mcap|sqlite3|ros1]`` also
+the truth (null for a replay) and how many messages went out per topic. ``--replay`` reads two
+trajectory files as ``offline_calibrate`` does and publishes them at the pace of their stamps
+(``--speed`` times real time), as ``ros2 bag play`` would a bag of them. ``--bag PATH[:mcap|sqlite3|ros1]`` also
 writes the very same messages to a bag, for ``offline_calibrate --bag``.
 
 Many-pose types (they need tf2_msgs / mocap4r2_msgs importable), as drivers publish them:
@@ -22,10 +26,32 @@ import json
 import math
 import sys
 import time
+from typing import TYPE_CHECKING, NamedTuple
 
 from .lifecycle import ignore_signals, quiet_start, stop_requested
 from .sim_options import parse, parser
 from .types import RclpyTypes
+
+if TYPE_CHECKING:  # the core is imported once the command line is read
+    from rclpy.node import Node
+    from rclpy.publisher import Publisher
+
+    from handeye_ros.core.simulate import Truth
+    from handeye_ros.core.trajectory import Trajectory
+    from handeye_ros.formats.messages import Vec
+    from handeye_ros.stream.shapes import Message
+
+    #: Per stream: what goes on the wire (trajectory, frame, child frame).
+    Wire = dict[str, tuple[Trajectory, str, str]]
+
+
+class Outgoing(NamedTuple):
+    """What is published: the hand's and the eye's poses, and the truth when simulated."""
+
+    hand: Trajectory
+    eye: Trajectory
+    truth: Truth | None
+
 
 #: rclpy message classes, imported on first use.
 TYPES = RclpyTypes()
@@ -33,13 +59,13 @@ TYPES = RclpyTypes()
 WAND = ('wand', (1.0, 2.0, 0.5), (0.0, 0.0, 0.0, 1.0))
 
 
-def message_class(cls_name: str):
+def message_class(cls_name: str) -> type:
     from handeye_ros.stream import normalise_type
 
     return TYPES[normalise_type(cls_name)]
 
 
-def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
+def message(cls_name: str, t_ns: int, p: Vec, q: Vec, frame: str, child: str) -> Message:
     """One pose as a message of type ``cls_name`` (formats/messages.py builds it)."""
     from handeye_ros.formats import messages
     from handeye_ros.stream import normalise_type
@@ -50,7 +76,7 @@ def message(cls_name: str, t_ns: int, p, q, frame: str, child: str):
     return messages.pose_message(TYPES, msgtype, t_ns, p, q, (frame, child))
 
 
-def _publishers(node, args: argparse.Namespace, rec) -> dict:
+def _publishers(node: Node, args: argparse.Namespace, rec: Outgoing) -> dict[str, Publisher]:
     """The hand's and the eye's publishers ('hand', 'eye'); with a TFMessage hand, the rig's
     marker also on /tf_static (latched), as a MoCap driver publishes it."""
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -86,7 +112,7 @@ def _publishers(node, args: argparse.Namespace, rec) -> dict:
     return pubs
 
 
-def _subscribed(pubs: dict, args: argparse.Namespace) -> bool:
+def _subscribed(pubs: dict[str, Publisher], args: argparse.Namespace) -> bool:
     """Wait for a subscriber on both topics, at most ``args.wait_subscribers`` (said on stderr
     when it passes); False when a signal came meanwhile."""
     deadline = time.monotonic() + args.wait_subscribers
@@ -108,10 +134,13 @@ def _subscribed(pubs: dict, args: argparse.Namespace) -> bool:
     return True
 
 
-def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, float] | None:
-    """Publish the recording's poses interleaved by stamp at ``args.rate`` per second, once a
-    subscriber is on both topics (or ``args.wait_subscribers`` has passed, said on stderr);
-    (sent per stream, seconds), or None when a signal stopped it."""
+def _publish(
+    node: Node, args: argparse.Namespace, rec: Outgoing, wire: Wire
+) -> tuple[dict[str, int], float] | None:
+    """Publish the recording's poses interleaved by stamp (at ``--rate`` messages per second,
+    or at the pace of their stamps: :func:`_due_s`), once a subscriber is on both topics (or
+    ``args.wait_subscribers`` has passed, said on stderr); (sent per stream, seconds), or None
+    when a signal stopped it."""
     import numpy as np
 
     pubs = _publishers(node, args, rec)
@@ -122,12 +151,7 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
         [(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
         + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)]
     )
-    print(
-        f'sim_publisher: publishing {len(rec.hand)} MoCap poses on {args.hand_topic} and '
-        f'{len(rec.eye)} device poses on {args.eye_topic} at {args.rate:g} messages/s',
-        file=sys.stderr,
-        flush=True,
-    )
+    due = _due_s([t for t, _, _ in items], args, rec)
     sent = {'hand': 0, 'eye': 0}
     jump_ns, jump_from = round(args.clock_jump * 1e9), len(rec.eye) // 2
     lost = (0, 0)  # the MoCap dropout's stamps [ns), from the first hand stamp
@@ -148,25 +172,38 @@ def _publish(node, args: argparse.Namespace, rec, wire: dict) -> tuple[dict, flo
         unset = args.zero_stamps in (name, 'both')
         if name == 'eye' and k >= jump_from:
             t += jump_ns
-        pubs[name].publish(
-            message(
-                args.hand_type if s == 0 else args.eye_type,
-                0 if unset else t,
-                p,
-                traj.q_xyzw[k],
-                frame,
-                child,
-            )
-        )
+        kind = args.hand_type if s == 0 else args.eye_type
+        pubs[name].publish(message(kind, 0 if unset else t, p, traj.q_xyzw[k], frame, child))
         sent[name] += 1
-        ahead = (j + 1) / args.rate - (time.monotonic() - t0)
+        ahead = due[j] - (time.monotonic() - t0)
         if ahead > 0:
             time.sleep(ahead)
     _let_leave(pubs, args.reliable)
     return sent, time.monotonic() - t0
 
 
-def _let_leave(pubs: dict, reliable: bool) -> None:
+def _due_s(stamps: list[int], args: argparse.Namespace, rec: Outgoing) -> list[float]:
+    """When each message (by its stamp [ns]) is due, in seconds from the first: at ``--rate``
+    per second, or at ``--speed`` times the pace of the stamps; said on stderr."""
+    speed = _speed(args)
+    pace = f'{args.rate:g} messages/s' if speed is None else f'{speed:g}x their stamps'
+    print(
+        f'sim_publisher: publishing {len(rec.hand)} MoCap poses on {args.hand_topic} and '
+        f'{len(rec.eye)} device poses on {args.eye_topic} at {pace}',
+        file=sys.stderr,
+        flush=True,
+    )
+    if speed is None:
+        return [(j + 1) / args.rate for j in range(len(stamps))]
+    return [(t - stamps[0]) * 1e-9 / speed for t in stamps]
+
+
+def _speed(args: argparse.Namespace) -> float | None:
+    """How many times real time the stamps are followed; None: at ``--rate`` messages/s."""
+    return args.speed if args.speed is not None or args.replay is None else 1.0
+
+
+def _let_leave(pubs: dict[str, Publisher], reliable: bool) -> None:
     """Let the last messages leave: reliable, until every subscriber acknowledged each (at most
     10 s); then 0.5 s, for a subscriber to take them from its queue before this leaves (a call
     right after it must see them)."""
@@ -178,26 +215,15 @@ def _let_leave(pubs: dict, reliable: bool) -> None:
     time.sleep(0.5)
 
 
-def _recording(args: argparse.Namespace):
-    """The simulated recording (:func:`handeye_ros.core.simulate.simulate`), written into the
-    ``--bag`` files asked for; a bad simulation option is a usage error."""
+def _recording(args: argparse.Namespace) -> Outgoing:
+    """The recording: the ``--replay`` files' (no truth), or a simulated one
+    (:func:`handeye_ros.core.simulate.simulate`); written into the ``--bag`` files asked for.
+    A file that cannot be read, or a bad simulation option, is a usage error."""
     from handeye_ros.core.errors import InputError
-    from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.formats.bag import write_recording
 
-    nm, nd = noise_level(args.level)
     try:
-        rec = simulate(
-            args.seed,
-            duration_s=args.duration,
-            hand_rate_hz=args.hand_rate,
-            eye_rate_hz=args.eye_rate,
-            noise_m=nm,
-            noise_deg=nd,
-            hand_noise_m=args.mocap_noise[0] * 1e-3,
-            hand_noise_deg=args.mocap_noise[1],
-            motion=args.motion,
-        )
+        rec = _replayed(args.replay) if args.replay else _simulated(args)
     except InputError as err:
         parser().error(str(err))
     for spec in args.bag:
@@ -213,12 +239,38 @@ def _recording(args: argparse.Namespace):
     return rec
 
 
-def _wire(args: argparse.Namespace, rec) -> dict:
+def _replayed(paths: list[str]) -> Outgoing:
+    """The two trajectory files as a recording without a truth."""
+    from handeye_ros.formats import read_trajectory
+
+    hand, eye = (read_trajectory(p) for p in paths)
+    return Outgoing(hand, eye, None)
+
+
+def _simulated(args: argparse.Namespace) -> Outgoing:
+    from handeye_ros.core.simulate import noise_level, simulate
+
+    nm, nd = noise_level(args.level)
+    rec = simulate(
+        args.seed,
+        duration_s=args.duration,
+        hand_rate_hz=args.hand_rate,
+        eye_rate_hz=args.eye_rate,
+        noise_m=nm,
+        noise_deg=nd,
+        hand_noise_m=args.mocap_noise[0] * 1e-3,
+        hand_noise_deg=args.mocap_noise[1],
+        motion=args.motion,
+    )
+    return Outgoing(rec.hand, rec.eye, rec.truth)
+
+
+def _wire(args: argparse.Namespace, rec: Outgoing) -> Wire:
     """What goes on the wire, and between which frames (see the module docstring): per
     stream (trajectory, frame, child frame)."""
     from handeye_ros.formats.bag import tf_links
 
-    wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
+    wire: Wire = {'hand': (rec.hand, 'mocap', 'marker'), 'eye': (rec.eye, 'odom', 'imu')}
     rig, imu = tf_links(rec.hand, rec.eye)
     if args.hand_type == 'TFMessage':
         wire['hand'] = (rig, 'world', 'rig')
@@ -229,7 +281,9 @@ def _wire(args: argparse.Namespace, rec) -> dict:
     return wire
 
 
-def _say_truth(args: argparse.Namespace, rec, sent: dict, seconds: float) -> None:
+def _say_truth(
+    args: argparse.Namespace, rec: Outgoing, sent: dict[str, int], seconds: float
+) -> None:
     """One JSON line on stdout: what was sent, the types, the truth and the seconds taken."""
     from handeye_ros.core.geometry import positive_w
     from handeye_ros.stream import normalise_type
@@ -243,7 +297,9 @@ def _say_truth(args: argparse.Namespace, rec, sent: dict, seconds: float) -> Non
                     'hand': normalise_type(args.hand_type),
                     'eye': normalise_type(args.eye_type),
                 },
-                'truth': {
+                'truth': None
+                if t is None
+                else {
                     'time_offset': t.time_offset_s,
                     'q_HE': positive_w(t.q_HE).tolist(),
                     'p_HE': t.p_HE.tolist(),

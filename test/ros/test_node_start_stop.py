@@ -187,6 +187,8 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
         (['--duration', '1'], 'holds no eye poses'),
         (['--mocap-noise', '-1', '0'], '--mocap-noise takes two amounts >= 0'),
         (['--mocap-dropout', 'nan', '2'], '--mocap-dropout takes two times >= 0'),
+        (['--speed', '0'], '--speed must be a positive number, not 0'),
+        (['--replay', 'nowhere.csv', 'nowhere.txt'], 'nowhere.csv'),
     ):
         proc = subprocess.run(
             [str(resolve_executable(env, 'handeye_ros', 'sim_publisher')), *bad],

@@ -1,8 +1,11 @@
 """auto_calibrate's rules (auto_mode.judge, auto_mode.richer): a later result published only when it
-improves the precision ratio, converged once it improves it too little, calibrated again when
-the predicted ratio falls well below; and how the status tells that a clock jumped."""
+improves the precision ratio, converged (stalled while doubtful) once it improves it too little,
+READY held back by a result that is not good, calibrated again when the predicted ratio falls
+well below; and how the status tells that a clock jumped."""
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -10,11 +13,14 @@ import pytest
 pytest.importorskip('diagnostic_msgs')
 
 from handeye_ros.core.checks.verdict import precision_ratio
+from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.ros.auto_mode import (
     GROWTH,
     IMPROVEMENT,
     RECALIBRATE,
+    AutoMode,
     carry_over,
+    held_reasons,
     judge,
     moved_beyond,
     predictor_factors,
@@ -209,3 +215,53 @@ def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
         'stopped: no message for 12 s (100.0 Hz before)',
         '0.00',
     )
+
+
+def test_a_last_calibration_not_good_for_its_precision_holds_ready_back() -> None:
+    # READY says that a calibration now would be good: predictions carried from an imprecise
+    # result (V2_02 stereo's prefixes: 8.7 mm carried, 10.5 mm calibrated) do not say it
+    document = {
+        'quality': {
+            'reasons': [
+                {'code': 'imprecise', 'message': 'translation 1-sigma 10.5 mm'},
+                {'code': 'residuals_not_white', 'message': 'the residuals are correlated'},
+            ]
+        }
+    }
+    held = held_reasons(document)
+    assert held == ['the residuals are correlated', 'translation 1-sigma 10.5 mm']
+    last = {
+        'ready': True,
+        'sigma': {'time_offset_ms': 0.2, 'translation_mm': 8.7, 'rotation_deg': 0.2},
+        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
+        'missing': [],
+    }
+    status = carry_over(last, {}, held[1:])
+    assert not status['ready']
+    assert status['missing'][0] == 'the last calibration is doubtful: translation 1-sigma 10.5 mm'
+
+
+def _result(mm: float, reasons: list[dict[str, str]]) -> SimpleNamespace:
+    """What auto mode reads of a calibration: its document's sigmas, estimate and reasons."""
+    t = mm * 1e-3 / np.sqrt(3)
+    return SimpleNamespace(
+        document={
+            'std': {'time_offset': 2e-4, 'translation': [t] * 3, 'rotation': [1e-3] * 3},
+            'quality': {'reasons': reasons},
+            'time_offset': 0.0,
+            'extrinsic': {'translation': [0.0] * 3, 'rotation': [0.0, 0.0, 0.0, 1.0]},
+        }
+    )
+
+
+def test_auto_mode_stalled_not_converged_while_its_result_is_doubtful() -> None:
+    node = SimpleNamespace(calib_cfg=CalibrationConfig())
+    auto = AutoMode(node, on=True)  # type: ignore[arg-type]
+    imprecise = [{'code': 'imprecise', 'message': 'translation 1-sigma 36 mm'}]
+    assert auto.admit(_result(40.0, imprecise), auto=True) == ''
+    assert auto.admit(_result(38.0, imprecise), auto=True) == ''  # 5 %: no longer improving
+    assert auto.said.startswith('stalled') and '36 mm' in auto.said and auto.ended
+    good = AutoMode(node, on=True)  # type: ignore[arg-type]
+    good.admit(_result(8.0, []), auto=True)
+    good.admit(_result(7.9, []), auto=True)
+    assert good.said.startswith('converged') and good.ended

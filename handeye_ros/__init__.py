@@ -24,7 +24,7 @@ importing a submodule (the node's ``--help``, the params file) costs no numpy or
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 __all__ = [
     'CalibrationConfig',
@@ -61,7 +61,7 @@ if TYPE_CHECKING:
     from .stream.config import StreamConfig
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     if name in _HOMES:
         value = getattr(importlib.import_module(_HOMES[name]), name)
         globals()[name] = value

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.arrays import Floats
 from ..core.simulate import Truth, calibration_error, noise_level, simulate
 from ..formats import write_tum
 from ..formats.bag import write_recording
@@ -113,7 +114,7 @@ def _print_beside_truth(result: dict[str, Any], t: Truth) -> None:
     print(f'verdict: {q["verdict"]}' + ''.join(f'\n  - {r["message"]}' for r in q['reasons']))
 
 
-def _vec(v: np.ndarray) -> str:
+def _vec(v: Floats) -> str:
     return ' '.join(f'{x:+.4f}' for x in v)
 
 

@@ -22,10 +22,16 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where used: --help answers before the core is loaded
+    from distributed import Client
+
+    from ..core.document import Row
+    from .runs import RunSpec
 
 LOG = logging.getLogger('handeye_ros.evaluate')  # not __name__: it is __main__ under -m
 #: Exit code when nothing could be run (a bad manifest or option).
@@ -159,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     return min(len(failed), MAX_EXIT_FAILED)
 
 
-def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
+def evaluate_runs(runs: list[RunSpec], output: Path, args: argparse.Namespace) -> list[Row]:
     """Every run's row, in manifest order (cached rows reused); writes the tables and plots."""
     from tqdm import tqdm
 
@@ -168,7 +174,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     cache = output / 'cache'
     code = code_fingerprint()
     keys = {r.name: cache_key(r, code) for r in runs}
-    rows: dict[str, dict[str, Any]] = {}
+    rows: dict[str, Row] = {}
     todo = []
     for r in runs:
         hit = None if args.no_cache else read_cached(cache, keys[r.name])
@@ -185,9 +191,9 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
         disable=None if args.progress is None else not args.progress,
     )
 
-    def done(run, row: dict[str, Any]) -> None:
+    def done(run: RunSpec, row: Row) -> None:
         row['cached'] = False
-        if row['status'] == 'ok' or not row['reason'].startswith('internal error'):
+        if row['status'] == 'ok' or not str(row['reason']).startswith('internal error'):
             write_cached(cache, keys[run.name], row)
         rows[run.name] = row
         bar.update(1)
@@ -205,7 +211,7 @@ def evaluate_runs(runs: list, output: Path, args: argparse.Namespace) -> list[di
     return ordered
 
 
-def _tables(output: Path, rows: list[dict[str, Any]]) -> None:
+def _tables(output: Path, rows: list[Row]) -> None:
     """results.csv, results.md and summary.png."""
     from .results_table import write_tables
 
@@ -224,7 +230,7 @@ class ClusterError(OSError):
     """A running cluster that cannot run the tasks (it cannot import the package)."""
 
 
-def _check_cluster(client, address: str) -> None:
+def _check_cluster(client: Client, address: str) -> None:
     """Refuse a cluster whose scheduler or workers cannot import the package: they unpickle
     every task, and without it each run would fail with "Error during deserialization of the
     task graph" and nothing more."""
@@ -256,7 +262,7 @@ def _check_cluster(client, address: str) -> None:
 
 
 @contextmanager
-def _client(args: argparse.Namespace) -> Iterator[Any]:
+def _client(args: argparse.Namespace) -> Iterator[Client]:
     """A Dask client on a LocalCluster (or ``args.scheduler``), closed on leaving."""
     from distributed import Client, LocalCluster
 
@@ -298,7 +304,12 @@ def _client(args: argparse.Namespace) -> Iterator[Any]:
         LOG.info('timing: cluster stop %.2f s', time.perf_counter() - t0)
 
 
-def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
+def _on_dask(
+    todo: list[RunSpec],
+    output: Path,
+    args: argparse.Namespace,
+    done: Callable[[RunSpec, Row], None],
+) -> None:
     """Run ``todo`` on a LocalCluster (or ``args.scheduler``); ``done(run, row)`` as each ends.
 
     A task whose worker died is rescheduled by Dask itself (the scheduler's allowed-failures);
@@ -334,7 +345,7 @@ def _on_dask(todo: list, output: Path, args: argparse.Namespace, done) -> None:
         LOG.info('timing: runs %.2f s', time.perf_counter() - t0)
 
 
-def evaluate_rig(runs: list, output: Path, args: argparse.Namespace) -> list[dict[str, Any]]:
+def evaluate_rig(runs: list[RunSpec], output: Path, args: argparse.Namespace) -> list[Row]:
     """``--shared-extrinsic``: the rig's two rounds (:mod:`handeye_ros.app.rig`) on Dask, or in
     this process with ``--sequential``; writes rig.yaml, the tables and the plots; the rows at
     the rig's T_HE. Nothing is cached: the rig changes with any of its recordings."""

@@ -17,11 +17,12 @@ import argparse
 import json
 import logging
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from .offline_options import STREAM_OPTION_KEYS, build_parser
 
 if TYPE_CHECKING:  # imported where used: --help answers before the core is loaded
+    from ..core.document import ResultDoc
     from ..core.result import CalibrationResult
     from .request import Request
 
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     return _said(args, document, result)
 
 
-def _said(args: argparse.Namespace, document: dict[str, Any], result: CalibrationResult) -> int:
+def _said(args: argparse.Namespace, document: ResultDoc, result: CalibrationResult) -> int:
     """The result on stdout (the report, or JSON), its warnings on stderr; the exit code: 2 for
     a verdict other than good under --strict, else 0."""
     from ..core.checks.verdict import Verdict

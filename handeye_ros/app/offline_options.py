@@ -7,7 +7,8 @@ usually needs; ``--help-all`` every one.
 from __future__ import annotations
 
 import argparse
-from typing import Any, Protocol
+from collections.abc import Callable, Sequence
+from typing import Any, Literal, Protocol
 
 from ..core.options import Options
 from .request import PROGRESS_DELAY_S
@@ -25,9 +26,20 @@ STREAM_OPTION_KEYS = (
 
 
 class ArgumentAdder(Protocol):
-    """An argparse parser or argument group: what options are added to."""
+    """An argparse parser or argument group: what options are added to (the keywords
+    :func:`add_options` passes)."""
 
-    def add_argument(self, *names: str, **kwargs: Any) -> argparse.Action: ...
+    def add_argument(
+        self,
+        *names: str,
+        dest: str | None = ...,
+        action: Literal['store_const'] = ...,
+        const: object = ...,
+        choices: Sequence[str] | None = ...,
+        type: Callable[[str], object] = ...,
+        metavar: str | None = ...,
+        help: str | None = ...,
+    ) -> argparse.Action: ...
 
 
 def add_options(group: ArgumentAdder, cls: type[Options], show_all: bool = True) -> None:

@@ -127,7 +127,7 @@ REMOVED = {
 NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'} | frozenset(REMOVED)
 
 
-def all_specs() -> dict:
+def all_specs() -> dict[str, Spec]:
     """Every node parameter name -> Spec (algorithm, streams, node)."""
     return {**CalibrationConfig.specs(), **StreamConfig.specs(), **NodeConfig.specs()}
 

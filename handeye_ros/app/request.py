@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # imported where used: the offline tool starts without numpy's import
     from ..core.config import CalibrationConfig
+    from ..core.document import ResultDoc
     from ..core.result import CalibrationResult
     from ..stream.recorder import Snapshot
 
@@ -64,7 +65,7 @@ class Request:
     outputs_required: bool = True
 
 
-def run(req: Request) -> tuple[dict[str, Any], CalibrationResult]:
+def run(req: Request) -> tuple[ResultDoc, CalibrationResult]:
     """Read, calibrate, evaluate, export and report; the result dictionary (with its
     ``evaluation``) and the CalibrationResult. Raises HandeyeError on bad input."""
     from ..core.config import CalibrationConfig
@@ -137,7 +138,7 @@ def _calibrate_files(req: Request, calib: CalibrationConfig) -> CalibrationResul
 
 
 def write_outputs(
-    req: Request, result: CalibrationResult, out: dict[str, Any], frames: dict[str, str]
+    req: Request, result: CalibrationResult, out: ResultDoc, frames: dict[str, str]
 ) -> CalibrationResult:
     """The evaluation (into ``out``), the exports, the report and the output bag; returns the
     result, with a warning when a failed evaluation or report is not to stop the run."""
@@ -223,7 +224,7 @@ def load_options(path: str | None) -> dict[str, object]:
 
 
 @contextmanager
-def _progress_bar(show: bool | None, steps: int):
+def _progress_bar(show: bool | None, steps: int) -> Iterator[Callable[[str], None]]:
     """A step counter on stderr (tqdm) that appears only after PROGRESS_DELAY_S, so that short
     runs print nothing; ``show`` None: only when stderr is a terminal. Yields ``step(name)``.
     With ``show`` False no bar is made at all: tqdm's lock is a multiprocessing semaphore, which

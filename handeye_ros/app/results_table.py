@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import Any
+
+from ..core.document import ErrorKey, Json, PoseErrorsDoc, ResultDoc, Row
 
 #: Columns of results.csv, in order.
 COLUMNS = (
@@ -60,28 +61,28 @@ def _norm(v: list[float]) -> float:
     return float(sum(x * x for x in v) ** 0.5)
 
 
-def row_of(d: dict[str, Any]) -> dict[str, Any]:
+def row_of(d: ResultDoc) -> Row:
     """A run's row (the result columns of :data:`COLUMNS`) from its result document."""
-    s = d.get('std') or {}
-    ev = d.get('evaluation') or {}
-    cal, base = ev.get('calibrated') or {}, ev.get('uncalibrated') or {}
+    s = d['std']
+    ev = d.get('evaluation')
+    cal, base = (ev['calibrated'], ev['uncalibrated']) if ev else (None, None)
 
-    def stat(pe: dict, key: str, k: float) -> float | None:
-        v = (pe.get(key) or {}).get('rmse')
+    def stat(pe: PoseErrorsDoc | None, key: ErrorKey, k: float) -> float | None:
+        v = pe[key]['rmse'] if pe else None
         return None if v is None else v * k
 
-    def bar(key: str, k: float) -> float | None:
-        v = ((cal.get(key) or {}).get('calibration_sigma') or {}).get('rmse')
+    def bar(key: ErrorKey, k: float) -> float | None:
+        v = cal[key].get('calibration_sigma', {}).get('rmse') if cal else None
         return None if v is None else v * k
 
-    t, q = d['extrinsic']['translation'], d['extrinsic']['rotation']
+    t, q, drift = d['extrinsic']['translation'], d['extrinsic']['rotation'], d['clock_drift']
     return {
         'verdict': d['quality']['verdict'],
         'verdict_reasons': ' '.join(r['code'] for r in d['quality']['reasons']),
         'time_offset_ms': d['time_offset'] * 1e3,
-        'time_offset_std_ms': None if s.get('time_offset') is None else s['time_offset'] * 1e3,
-        'clock_drift_ppm': None if d.get('clock_drift') is None else d['clock_drift'] * 1e6,
-        'scale': d.get('scale'),
+        'time_offset_std_ms': None if not s else s['time_offset'] * 1e3,
+        'clock_drift_ppm': None if drift is None else drift * 1e6,
+        'scale': d['scale'],
         'tx_m': t[0],
         'ty_m': t[1],
         'tz_m': t[2],
@@ -110,7 +111,7 @@ def row_of(d: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
+def write_tables(output: Path, rows: list[Row]) -> tuple[Path, Path]:
     """results.csv (one row per run, :data:`COLUMNS`) and results.md; returns both paths."""
     csv_path, md_path = output / 'results.csv', output / 'results.md'
     with csv_path.open('w', newline='') as f:
@@ -141,13 +142,13 @@ def write_tables(output: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
     return csv_path, md_path
 
 
-def _cell(v: Any) -> Any:
+def _cell(v: Json) -> Json:
     if isinstance(v, float):
         return f'{v:.6g}'
     return '' if v is None else v
 
 
-def _md(v: Any) -> str:
+def _md(v: Json) -> str:
     if isinstance(v, float):
         return f'{v:.4g}'
     return ('' if v is None else str(v)).replace('|', '\\|').replace('\n', ' ')[:200]

@@ -18,16 +18,19 @@ rounds; the calling process never holds them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 from ..core.checks.verdict import Code
 from .rig_file import RIG_FILE, part_of, read_members, rig_document, write_rig_file
 
 if TYPE_CHECKING:  # imported where used (the rig's math only when a rig is solved)
+    from ..core.document import Json, ResultDoc
     from ..core.result import CalibrationResult
     from ..core.rig import Joint, Member
+    from ..core.rig_document import RigDoc
     from ..core.rig_pipeline import Rig
     from .runs import RunSpec
 
@@ -37,7 +40,7 @@ class Own:
     """A recording calibrated alone: its result dictionary and result, or why there is none."""
 
     name: str
-    document: dict[str, Any] | None
+    document: ResultDoc | None
     result: CalibrationResult | None
     reason: str = ''
 
@@ -91,7 +94,7 @@ def summary_of(own: Own) -> Summary:
 
 def at_rig(
     own: Own, joint: Joint | None, member: Member | None, take_rig: bool
-) -> tuple[dict[str, Any], CalibrationResult]:
+) -> tuple[ResultDoc, CalibrationResult]:
     """The recording's result dictionary and result at the rig's T_HE ``joint`` when
     ``take_rig`` (its offset conditioned on it when ``member`` is given, a follower's own
     otherwise), else its own; without the evaluation."""
@@ -99,7 +102,7 @@ def at_rig(
 
     d, result = own.document, own.result
     assert d is not None and result is not None, 'a recording calibrated alone has both'
-    doc = dict(d)
+    doc = d.copy()
     if take_rig and joint is not None:
         result = at_shared(result, joint, member)
         doc.update(
@@ -122,14 +125,14 @@ def shared_outputs(
     take_rig: bool,
     folder: str | None,
     report: bool,
-) -> dict:
+) -> ResultDoc | None:
     """Round 2: :func:`at_rig` with the evaluation; writes ``folder``/result.yaml and
     ``folder``/export (and ``folder``/report with ``report``) when ``folder`` is given."""
     from ..evaluation.outputs import evaluate_and_write
     from ..formats.result_file import write_result
 
     if own.document is None:
-        return {}
+        return None
     doc, result = at_rig(own, joint, member, take_rig)
     out = Path(folder) if folder else None
     evaluate_and_write(
@@ -143,41 +146,48 @@ def shared_outputs(
     return doc
 
 
-def _own_values(d: dict[str, Any]) -> dict[str, Any]:
-    s = d.get('std') or {}
+def _own_values(d: ResultDoc) -> dict[str, Json]:
+    s = d['std']
     return {
         'time_offset': d['time_offset'],
-        'time_offset_std': s.get('time_offset'),
-        'translation': d['extrinsic']['translation'],
-        'rotation': d['extrinsic']['rotation'],
-        'translation_std': s.get('translation'),
-        'rotation_std': s.get('rotation'),
+        'time_offset_std': s['time_offset'] if s else None,
+        'translation': list(d['extrinsic']['translation']),
+        'rotation': list(d['extrinsic']['rotation']),
+        'translation_std': list(s['translation']) if s else None,
+        'rotation_std': list(s['rotation']) if s else None,
         'verdict': d['quality']['verdict'],
     }
 
 
 def calibrate_rig(
-    runs: list, output: Path | None, submit: Any = None, gather: Any = list
-) -> tuple[dict, list]:
-    """Both rounds; the rig document and each recording's result dictionary (written under
-    ``output``/runs/<name>/ when given, with its report when the run asks for one).
+    runs: list[RunSpec],
+    output: Path | None,
+    submit: Callable[..., object] | None = None,
+    gather: Callable[[list[object]], list[object]] = list,
+) -> tuple[RigDoc, list[ResultDoc | None]]:
+    """Both rounds; the rig document and each recording's result dictionary (None when its
+    own calibration gave none; written under ``output``/runs/<name>/ when given, with its
+    report when the run asks for one).
 
-    ``submit(fn, *args)`` runs a task and ``gather`` collects what the tasks return: by default
-    here, one recording after the other; on Dask, a client's ``submit`` (pure=False) and
-    ``gather``, so that round 1's results, poses included, stay on the worker that made them
-    until round 2 runs there, and only each recording's summary comes back."""
-    submit = submit or (lambda fn, *args: fn(*args))
-    owns = [submit(own_calibration, r) for r in runs]
-    rig = solve(gather([submit(summary_of, own) for own in owns]))
+    ``submit(fn, *args)`` runs a task and returns its handle, and ``gather`` turns handles
+    into what the tasks returned: by default here, one recording after the other (the handle
+    is the result); on Dask, a client's ``submit`` (pure=False) and ``gather``, so that round
+    1's results, poses included, stay on the worker that made them until round 2 runs there,
+    and only each recording's summary comes back."""
+    run_task = submit or (lambda fn, *args: fn(*args))
+    owns = [run_task(own_calibration, r) for r in runs]
+    summaries = gather([run_task(summary_of, own) for own in owns])
+    rig = solve(cast('list[Summary]', summaries))
     docs = gather(
         [
-            submit(
+            run_task(
                 shared_outputs, own, rig.joint, *role(rig, r.name), _folder(output, r), r.report
             )
             for r, own in zip(runs, owns, strict=True)
         ]
     )
-    return finish(rig, [r.name for r in runs], docs, output), docs
+    results = cast('list[ResultDoc | None]', docs)  # what shared_outputs returned
+    return finish(rig, [r.name for r in runs], results, output), results
 
 
 def solve(summaries: list[Summary]) -> Rig:
@@ -199,8 +209,8 @@ def role(rig: Rig, name: str) -> tuple[Member | None, bool]:
 
 
 def finish(
-    rig: Rig, names: list[str], docs: list[dict[str, Any]], output: Path | None
-) -> dict[str, Any]:
+    rig: Rig, names: list[str], docs: list[ResultDoc | None], output: Path | None
+) -> RigDoc:
     """The rig document, once every recording's result at the rig's T_HE is known (``docs``,
     by ``names``): a follower whose motions the rig's T_HE does not explain is left out;
     written under ``output``."""
@@ -215,9 +225,9 @@ def finish(
     if unfit:
         rig = rig.leaving_out(unfit)
     document = rig_document(rig)
-    offsets = {name: doc.get('time_offset') for name, doc in zip(names, docs, strict=True)}
+    offsets = {name: doc['time_offset'] for name, doc in zip(names, docs, strict=True) if doc}
     for rec in document['recordings']:
-        if rec.get('follows'):
+        if rec.get('follows') and rec['name'] in offsets:
             rec['shared'] = {'values': {'time_offset': offsets[rec['name']]}, 'std': {}}
     if output:
         from ..formats.result_file import write_result
@@ -226,7 +236,7 @@ def finish(
     return document
 
 
-def join_rig(path: str, session: str, own: Own) -> tuple[dict[str, Any], CalibrationResult]:
+def join_rig(path: str, session: str, own: Own) -> tuple[ResultDoc, CalibrationResult]:
     """The node's rig (its ``rig_file`` parameter): this session's own calibration ``own``
     joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
     the file is made when missing) and the rig is solved again. Returns the session's result
@@ -240,7 +250,7 @@ def join_rig(path: str, session: str, own: Own) -> tuple[dict[str, Any], Calibra
     member, take = role(rig, session)
     doc, result = at_rig(own, rig.joint, member, take)
     names = [s.name for s in earlier] + [session]
-    docs: list[dict[str, Any]] = [{}] * len(earlier) + [doc]
+    docs: list[ResultDoc | None] = [None] * len(earlier) + [doc]
     document = finish(rig, names, docs, None)
     write_rig_file(file, document)
     r = document['rig']

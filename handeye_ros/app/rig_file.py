@@ -6,24 +6,33 @@ recording's own estimate with its full covariance, so that a file read back is a
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from ..core.errors import ConfigError
 from ..core.geometry import matrix_from_quat
 from ..core.result_sections import transform_dict
-from ..core.rig import Member
+from ..core.rig import Joint, Member
+from ..core.rig_document import (
+    RigDoc,
+    RigExtrinsicDoc,
+    RigRecordingDoc,
+    RigSectionDoc,
+)
+
+if TYPE_CHECKING:  # the rig's solution module imports the rig's math only when solved
+    from ..core.rig_pipeline import Rig
 
 #: The rig's result file, beside the per-recording folders.
 RIG_FILE = 'rig.yaml'
 
 
-def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[str, Any]:
+def rig_document(rig: Rig, frames: tuple[str, str] = ('hand', 'eye')) -> RigDoc:
     """The rig's result file (:data:`RIG_FILE`): its T_HE with covariance, its verdict, its
     groups and every recording's own and conditioned values."""
     names = [m.name for m in rig.members]
-    recordings = [_member(rig, k) for k in range(len(rig.members))]
+    recordings: list[RigRecordingDoc] = [_member(rig, k) for k in range(len(rig.members))]
     recordings += [
         {
             'name': n,
@@ -70,7 +79,7 @@ def rig_document(rig: Any, frames: tuple[str, str] = ('hand', 'eye')) -> dict[st
     }
 
 
-def _extrinsic(joint: Any, frames: tuple[str, str]) -> dict[str, Any]:
+def _extrinsic(joint: Joint, frames: tuple[str, str]) -> RigExtrinsicDoc:
     return {
         **transform_dict(matrix_from_quat(joint.q_HE), joint.p_HE, *frames),
         'std': {
@@ -80,10 +89,10 @@ def _extrinsic(joint: Any, frames: tuple[str, str]) -> dict[str, Any]:
     }
 
 
-def _member(rig: Any, k: int) -> dict[str, Any]:
+def _member(rig: Rig, k: int) -> RigRecordingDoc:
     """A member's entry: its own estimate (with the full covariance, read back by
     :func:`read_members`), its test and its values conditioned on the rig's T_HE."""
-    m, test, shared = rig.members[k], rig.split.tests[k], rig.shared[k]
+    m, test, shared = rig.members[k], rig.split.tests[k] if rig.split else None, rig.shared[k]
     return {
         'name': m.name,
         'used': m.name in rig.used,
@@ -104,7 +113,7 @@ def _member(rig: Any, k: int) -> dict[str, Any]:
     }
 
 
-def rig_summary(doc: dict[str, Any]) -> str:
+def rig_summary(doc: RigDoc) -> str:
     """A few lines for the terminal: the verdict with its reasons, T_HE, the recordings."""
     r = doc['rig']
     q = r['quality']
@@ -121,8 +130,9 @@ def rig_summary(doc: dict[str, Any]) -> str:
         )
     lines += [f'  {reason["code"]}: {reason["message"]}' for reason in q['reasons']]
     for rec in doc['recordings']:
-        if rec.get('shared'):
-            v, s = rec['shared']['values'], rec['shared']['std']
+        shared = rec.get('shared')
+        if shared:
+            v, s = shared['values'], shared['std']
             sigma = s.get('time_offset')
             lines.append(
                 f'  {rec["name"]}: dt {v["time_offset"] * 1e3:+.3f} ms '
@@ -135,7 +145,7 @@ def rig_summary(doc: dict[str, Any]) -> str:
     return '\n'.join(lines)
 
 
-def part_of(rig: dict[str, Any], name: str) -> str:
+def part_of(rig: RigSectionDoc, name: str) -> str:
     """A recording's part in a rig (the ``rig`` section of :func:`rig_document`): 'used',
     'follows' or 'left out'."""
     if name in rig['used']:
@@ -151,7 +161,7 @@ def read_members(file: Path, said: str) -> list[Member]:
     import yaml
 
     try:
-        recs = yaml.safe_load(file.read_text())['recordings']
+        recs = cast(RigDoc, yaml.safe_load(file.read_text()))['recordings']
         return [Member.from_dict(r['name'], r['own']) for r in recs if r.get('own')]
     except (OSError, yaml.YAMLError, UnicodeDecodeError):
         why = 'not readable as YAML'
@@ -163,7 +173,7 @@ def read_members(file: Path, said: str) -> list[Member]:
     )
 
 
-def write_rig_file(file: Path, document: dict[str, Any]) -> None:
+def write_rig_file(file: Path, document: RigDoc) -> None:
     """Write a rig document whole or not at all (a node stopped while writing leaves the
     previous file)."""
     from ..formats.result_file import write_result

@@ -27,14 +27,17 @@ import hashlib
 import json
 import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 from ..core.errors import ConfigError
 from .results_table import row_of
 
 if TYPE_CHECKING:  # imported where used: a manifest is read without the core
+    from ..core.document import ResultDoc, Row
+    from ..core.rig_document import RigDoc
     from .request import Request
 
 #: Keys of a manifest run that are not calibration options.
@@ -43,6 +46,15 @@ RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'opt
 CACHE_VERSION = 1
 HASH_CHUNK = 1 << 20
 BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
+
+
+class Writes(TypedDict, total=False):
+    """What a run's Request writes (the fields of :class:`~.request.Request` a run sets)."""
+
+    evaluation: bool
+    export: str | None
+    report: str | None
+    progress: bool | None
 
 
 @dataclass(frozen=True)
@@ -56,7 +68,7 @@ class RunSpec:
     algorithm: str = ''
     sequence: str = ''
     trial: str = ''
-    options: dict[str, Any] = field(default_factory=dict)
+    options: Mapping[str, object] = field(default_factory=dict)
     report: bool = False
 
     def inputs(self) -> list[str]:
@@ -67,7 +79,7 @@ class RunSpec:
         keep = ''.join(c if c.isalnum() or c in '-_.' else '_' for c in self.name)
         return keep.strip('._') or 'run'
 
-    def request(self, **fields: Any) -> Request:
+    def request(self, **fields: Unpack[Writes]) -> Request:
         """The application's Request for this run's inputs and options, with ``fields`` (what
         to write); ConfigError when it names neither two files nor a bag (missing or
         unreadable files are named by the readers themselves)."""
@@ -208,7 +220,7 @@ def cache_key(run: RunSpec, code: str) -> str:
     return h.hexdigest()[:32]
 
 
-def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
+def calibrate_run(run: RunSpec, output: str) -> Row:
     """Calibrate, export and evaluate one run into ``output/runs/<slug>/``; its table row.
 
     Never raises for bad input: the row says ``status: failed`` and why.
@@ -218,7 +230,7 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     from .request import run as run_request
 
     t0 = time.perf_counter()
-    row: dict[str, Any] = {
+    row: Row = {
         'name': run.name,
         'algorithm': run.algorithm,
         'sequence': run.sequence,
@@ -248,10 +260,10 @@ def calibrate_run(run: RunSpec, output: str) -> dict[str, Any]:
     return row
 
 
-def rig_row(run: RunSpec, doc: dict[str, Any], rig: dict[str, Any]) -> dict[str, Any]:
+def rig_row(run: RunSpec, doc: ResultDoc | None, rig: RigDoc) -> Row:
     """A run's row of ``evaluate --shared-extrinsic``: its result at the rig's T_HE (its own
     when left out), and in ``rig`` its part in the rig (used, follows, left out: why)."""
-    row: dict[str, Any] = {
+    row: Row = {
         'name': run.name,
         'algorithm': run.algorithm,
         'sequence': run.sequence,
@@ -282,7 +294,7 @@ def _rss_mb() -> float | None:
     return round(pages * os.sysconf('SC_PAGE_SIZE') / 2**20, 1)
 
 
-def read_cached(cache: Path, key: str) -> dict[str, Any] | None:
+def read_cached(cache: Path, key: str) -> Row | None:
     """The row cached under ``key``, or None."""
     try:
         return json.loads((cache / f'{key}.json').read_text())
@@ -290,7 +302,7 @@ def read_cached(cache: Path, key: str) -> dict[str, Any] | None:
         return None
 
 
-def write_cached(cache: Path, key: str, row: dict[str, Any]) -> None:
+def write_cached(cache: Path, key: str, row: Row) -> None:
     """Cache a row atomically (a killed writer leaves no half file to be read back)."""
     cache.mkdir(parents=True, exist_ok=True)
     tmp = cache / f'.{key}.{os.getpid()}.tmp'

@@ -21,9 +21,11 @@ is above it; :mod:`.checks` holds what real recordings need around them and the 
 :mod:`.stages` wires each stage with its checks as the pipeline runs it (test_layout keeps that
 order). Beside them the foundations: the array types of every signature (:mod:`.arrays`),
 poses and streams (:mod:`.geometry`, :mod:`.trajectory`, :mod:`.association`), the options
-(:mod:`.options`, :mod:`.config`), the result (:mod:`.result`, its plain-data sections :mod:`.result_sections`,
-:mod:`.world`, :mod:`.eye_model`) and the errors.
-Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share) and
+(:mod:`.options`, :mod:`.config`), the result (:mod:`.result`, its plain-data sections
+:mod:`.result_sections` and their schema :mod:`.document`, :mod:`.world`, :mod:`.eye_model`)
+and the errors.
+Beyond one recording: :mod:`.rig` (the T_HE many recordings of one rig share, its file's schema
+:mod:`.rig_document`) and
 :mod:`.rig_pipeline` (the rig's recipe, and a recording's result at the rig's T_HE). Tools: :mod:`.chunked`
 (element-wise work on long streams, a chunk of rows at a time) and :mod:`.simulate` (recordings
 with a known truth, the paper's protocol).

@@ -2,7 +2,8 @@
 
 ``Floats`` holds floating-point values (float64 throughout: poses, rates, seconds after a
 common origin), ``Stamps`` int64 nanoseconds, ``Indices`` row numbers (numpy's intp, what
-``flatnonzero`` and ``searchsorted`` return) and ``Mask`` booleans (which rows to keep). The
+``flatnonzero`` and ``searchsorted`` return), ``Mask`` booleans (which rows to keep) and
+``Bytes`` a file's bytes (the readers of :mod:`handeye_ros.formats`). The
 bit width stays open where numpy's stubs leave it open (``np.linalg.solve`` returns
 ``floating[Any]``). Shapes are in each function's docstring, as scipy.spatial.transform writes
 them.
@@ -19,3 +20,4 @@ Floats = npt.NDArray[np.floating[Any]]
 Stamps = npt.NDArray[np.int64]
 Indices = npt.NDArray[np.integer[Any]]
 Mask = npt.NDArray[np.bool_]
+Bytes = npt.NDArray[np.uint8]

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import TYPE_CHECKING, TypedDict, TypeVar, Unpack, overload
 
+from .document import Json
 from .errors import ConfigError
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
@@ -110,9 +111,9 @@ class Options:
         except ConfigError as err:
             raise ConfigError(f'{source}: {err}') from None
 
-    def to_dict(self) -> dict[str, object]:
+    def to_dict(self) -> dict[str, Json]:
         """Plain values, the inverse of :meth:`from_mapping`."""
-        values: dict[str, object] = asdict(self)  # type: ignore[call-overload]
+        values: dict[str, Json] = asdict(self)  # type: ignore[call-overload]
         return values
 
 

@@ -32,7 +32,6 @@ to guess the direction.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -45,6 +44,7 @@ from .checks.screening import Screening
 from .checks.selfcheck import Candidate
 from .checks.verdict import Quality, Verdict
 from .config import CalibrationConfig
+from .document import ResultDoc
 from .eye_model import EyeModel
 from .geometry import inverse, matrix_from_quat, positive_w
 from .linear.robust import LinearSolution
@@ -212,8 +212,8 @@ class CalibrationResult:
         eye_frame: str = 'eye',
         hand_world: str = 'hand_world',
         eye_world: str = 'eye_world',
-    ) -> dict[str, Any]:
-        """Plain Python data (floats, lists, strings) for YAML/JSON.
+    ) -> ResultDoc:
+        """Plain Python data (floats, lists, strings) for YAML/JSON (:mod:`.document`).
 
         The frame names label the transforms' parent and child (H, E, G and W).
         """
@@ -253,10 +253,7 @@ class CalibrationResult:
                 self.batch, self.config, self.time_offset_s - self.time_alignment.time_offset_s
             ),
             'metrics': metrics_section(self.metrics),
-            'inputs': {
-                name: trajectory_section(info)
-                for name, info in (('hand', self.hand), ('eye', self.eye))
-            },
+            'inputs': {'hand': trajectory_section(self.hand), 'eye': trajectory_section(self.eye)},
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
         }

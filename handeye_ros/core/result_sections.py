@@ -7,8 +7,6 @@ null (:func:`num`); every transform carries its parent and child frames (:func:`
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from .arrays import Floats
@@ -20,6 +18,22 @@ from .checks.screening import Screening
 from .checks.selfcheck import Candidate
 from .checks.verdict import drift_significant
 from .config import CalibrationConfig
+from .document import (
+    BatchDoc,
+    ClockDoc,
+    ConventionDoc,
+    CovarianceDoc,
+    LinearDoc,
+    MetricsDoc,
+    NoiseDoc,
+    ScreeningDoc,
+    SelfCheckDoc,
+    StdDoc,
+    TimeAlignmentDoc,
+    TrajectoryDoc,
+    TransformDoc,
+    UncertaintyDoc,
+)
 from .eye_model import EyeModel
 from .geometry import positive_w, quat_from_matrix
 from .linear.robust import LinearSolution
@@ -31,9 +45,9 @@ from .world import Metrics
 
 def batch_section(
     b: BatchSolution | None, c: CalibrationConfig, offset_change_s: float
-) -> dict[str, Any]:
+) -> BatchDoc:
     """Stage 3: its settings, noise, solver run, and how far it moved the offset (s)."""
-    out: dict[str, Any] = {'enabled': c.batch, 'used': b is not None}
+    out: BatchDoc = {'enabled': c.batch, 'used': b is not None}
     if b is None:
         return out
     out.update(
@@ -59,7 +73,7 @@ def batch_section(
     return out
 
 
-def clock_section(c: DriftFit | None) -> dict[str, Any] | None:
+def clock_section(c: DriftFit | None) -> ClockDoc | None:
     """The offset measured in windows along the recording (eye clock) and the line through
     them: the drift check of every run, the first estimate with clock_drift."""
     if c is None:
@@ -85,7 +99,7 @@ def clock_section(c: DriftFit | None) -> dict[str, Any] | None:
 
 def screening_section(
     screening: tuple[Screening, Screening] | None,
-) -> dict[str, Any] | None:
+) -> dict[str, ScreeningDoc] | None:
     """Per stream: the poses removed, by kind and stamp, its breaks and its thresholds."""
     if screening is None:
         return None
@@ -106,7 +120,7 @@ def screening_section(
     }
 
 
-def std_section(b: BatchSolution | None, m: EyeModel | None) -> dict[str, Any] | None:
+def std_section(b: BatchSolution | None, m: EyeModel | None) -> StdDoc | None:
     """The 1-sigmas of stage 3 (and of the drift and scale), how they were made, and their
     terms."""
     if b is None:
@@ -134,7 +148,7 @@ def std_section(b: BatchSolution | None, m: EyeModel | None) -> dict[str, Any] |
 
 def linear_section(
     lin: LinearSolution, c: CalibrationConfig, seed_check: LinearSolution | None
-) -> dict[str, Any]:
+) -> LinearDoc:
     """Stage 2: its motions, consensus, solutions and checks."""
     return {
         'relative_poses': c.relative_poses,
@@ -169,7 +183,7 @@ def linear_section(
     }
 
 
-def metrics_section(m: Metrics) -> dict[str, Any]:
+def metrics_section(m: Metrics) -> MetricsDoc:
     """APE / ARE of the eye against the calibrated hand, and AX = XB over the keyframe motions."""
     return {
         'ape_rmse': m.ape_rmse_m,
@@ -191,7 +205,7 @@ def metrics_section(m: Metrics) -> dict[str, Any]:
     }
 
 
-def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> dict[str, Any]:
+def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> TimeAlignmentDoc:
     """Stage 1: its method, peak, window and candidates, and the vector refinement."""
     return {
         'method': ta.method,
@@ -212,7 +226,7 @@ def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> dict
     }
 
 
-def conventions_entry(c: Correction) -> dict[str, Any]:
+def conventions_entry(c: Correction) -> ConventionDoc:
     """A convention the data contradicted, and the reading applied."""
     return {
         'stream': c.stream,
@@ -223,7 +237,7 @@ def conventions_entry(c: Correction) -> dict[str, Any]:
     }
 
 
-def self_check_entry(c: Candidate) -> dict[str, Any]:
+def self_check_entry(c: Candidate) -> SelfCheckDoc:
     """A candidate offset of the self-check, its score and whether it was chosen."""
     return {
         'time_offset': float(c.time_offset_s),
@@ -235,7 +249,7 @@ def self_check_entry(c: Candidate) -> dict[str, Any]:
     }
 
 
-def covariance_section(b: BatchSolution | None) -> dict[str, Any] | None:
+def covariance_section(b: BatchSolution | None) -> CovarianceDoc | None:
     """Stage 3's covariance with the order of its rows (SI units, rotation in rad)."""
     if b is None:
         return None
@@ -247,7 +261,7 @@ def covariance_section(b: BatchSolution | None) -> dict[str, Any] | None:
     }
 
 
-def _noise_dict(n: Noise) -> dict[str, Any]:
+def _noise_dict(n: Noise) -> NoiseDoc:
     return {
         'rotation_rad': float(n.rotation),
         'translation_m': float(n.translation),
@@ -255,7 +269,7 @@ def _noise_dict(n: Noise) -> dict[str, Any]:
     }
 
 
-def transform_dict(R: Floats, p: Floats, parent: str, child: str) -> dict[str, Any]:
+def transform_dict(R: Floats, p: Floats, parent: str, child: str) -> TransformDoc:
     """``{parent, child, translation, rotation (x y z w), matrix}`` of T_parent_child."""
     M = np.eye(4)
     M[:3, :3], M[:3, 3] = R, p
@@ -268,7 +282,7 @@ def transform_dict(R: Floats, p: Floats, parent: str, child: str) -> dict[str, A
     }
 
 
-def trajectory_section(info: TrajectoryInfo) -> dict[str, Any]:
+def trajectory_section(info: TrajectoryInfo) -> TrajectoryDoc:
     return {
         'source': info.source,
         'poses': info.poses,
@@ -284,7 +298,7 @@ def num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def _uncertainty_dict(u: Uncertainty | None) -> dict[str, Any]:
+def _uncertainty_dict(u: Uncertainty | None) -> UncertaintyDoc:
     """The reported 1-sigma's terms (white, correlated, scale) per group (norms over the axes,
     in the groups' units), the term that dominates each, and what could not be estimated."""
     if u is None:

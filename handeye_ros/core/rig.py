@@ -21,14 +21,15 @@ hand frame, rotation [rad] on the right (eye frame), in that order.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from .arrays import Floats
+from .document import ResultDoc
 from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
+from .rig_document import MemberDoc
 
 #: Index of T_HE (translation, rotation) in a batch covariance (dt first).
 EXTRINSIC = slice(1, 7)
@@ -60,7 +61,7 @@ class Member:
         return self.covariance[EXTRINSIC, EXTRINSIC]
 
     @classmethod
-    def from_document(cls, name: str, doc: Mapping[str, Any]) -> Member:
+    def from_document(cls, name: str, doc: ResultDoc) -> Member:
         """Of a result document (:meth:`.result.CalibrationResult.to_dict`); ValueError when
         it has no covariance (no batch stage) or one that is not positive definite."""
         cov = doc.get('covariance')
@@ -73,7 +74,7 @@ class Member:
         e = doc['extrinsic']
         names = {'time_offset': doc['time_offset'], 'clock_drift': doc.get('clock_drift')}
         names['scale'] = doc.get('scale')
-        values = {k: float(names[k]) for k in order if k in names and names[k] is not None}
+        values = {k: float(v) for k in order if (v := names.get(k)) is not None}
         return cls(
             name,
             np.asarray(e['rotation'], dtype=float),
@@ -83,7 +84,7 @@ class Member:
             values,
         )
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> MemberDoc:
         """Plain data for a rig file; :meth:`from_dict` reads it back."""
         return {
             'translation': [float(v) for v in self.p_HE],
@@ -96,8 +97,8 @@ class Member:
         }
 
     @classmethod
-    def from_dict(cls, name: str, d: Mapping[str, Any]) -> Member:
-        """Of :meth:`to_dict`'s data; ValueError when it is not that."""
+    def from_dict(cls, name: str, d: MemberDoc) -> Member:
+        """Of :meth:`to_dict`'s data as a file holds it; ValueError when it is not that."""
         try:
             C = np.asarray(d['covariance']['matrix'], dtype=float)
             out = cls(

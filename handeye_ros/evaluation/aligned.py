@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.arrays import Floats, Indices, Stamps
 from ..core.association import MIN_PAIRS, interpolate, pairs_at_eye
 from ..core.geometry import compose, matrix_from_quat
 from ..core.result import CalibrationResult
@@ -32,18 +33,18 @@ class AlignedTrajectories:
     what: a short label for tables and plots.
     """
 
-    t_ns: np.ndarray
-    R_ref: np.ndarray
-    p_ref: np.ndarray
-    R_est: np.ndarray
-    p_est: np.ndarray
-    segment: np.ndarray
+    t_ns: Stamps
+    R_ref: Floats
+    p_ref: Floats
+    R_est: Floats
+    p_est: Floats
+    segment: Indices
     what: str
 
     def __len__(self) -> int:
         return int(self.t_ns.size)
 
-    def seconds(self) -> np.ndarray:
+    def seconds(self) -> Floats:
         """Stamps in seconds from the first one."""
         return (self.t_ns - self.t_ns[0]).astype(float) * 1e-9
 

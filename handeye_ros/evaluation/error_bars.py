@@ -21,7 +21,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..core.arrays import Floats, Indices, Stamps
 from ..core.association import MIN_PAIRS, pairs_at_eye
+from ..core.document import ErrorKey, SigmasMethodDoc
 from ..core.geometry import compose, matrix_from_quat
 from ..core.result import CalibrationResult
 from ..core.time.clock import retime
@@ -50,13 +52,13 @@ class CalibrationSigmas:
     ``parameters`` names what was drawn.
     """
 
-    sigmas: dict[str, dict[str, float | None]]
+    sigmas: dict[ErrorKey, dict[str, float | None]]
     draws: int
     poses: int
     parameters: tuple[str, ...]
 
-    def to_dict(self, exclude_sigmas: bool = False) -> dict:
-        out = {
+    def to_dict(self, exclude_sigmas: bool = False) -> SigmasMethodDoc:
+        out: SigmasMethodDoc = {
             'draws': self.draws,
             'poses': self.poses,
             'parameters': list(self.parameters),
@@ -65,7 +67,9 @@ class CalibrationSigmas:
                 'T_WG refitted; its 1-sigma the root-mean-square of the changes'
             ),
         }
-        return out if exclude_sigmas else {**out, 'sigmas': self.sigmas}
+        if not exclude_sigmas:
+            out['sigmas'] = {str(k): v for k, v in self.sigmas.items()}
+        return out
 
 
 def calibration_sigmas(
@@ -95,7 +99,7 @@ def calibration_sigmas(
 
     sample = _Sample(eye, stamps, window, (drift_at, scale_at, stamp_ns), (delta_s, delta_m))
 
-    def figures(d: np.ndarray) -> dict[str, dict[str, float]] | None:
+    def figures(d: Floats) -> dict[str, dict[str, float]] | None:
         return _figures(result, sample, d)
 
     zero = figures(np.zeros(cov.shape[0]))
@@ -124,7 +128,7 @@ def _rms_change(at: float, moved: list[float]) -> float | None:
     return float(np.sqrt(np.mean(changes**2))) if np.isfinite(at) and changes.size else None
 
 
-def _windows(t_ns: np.ndarray, delta_s: float) -> tuple[np.ndarray, np.ndarray]:
+def _windows(t_ns: Stamps, delta_s: float) -> tuple[Indices, Indices]:
     """The eye poses (stamps ``t_ns``) the draws run on, as indices, and the run of consecutive
     poses each is in: every one of them, thinned to THINNED_PER_STEP per ``delta_s``, and when
     more than MAX_POSES are left, WINDOWS runs of them spread evenly."""
@@ -142,7 +146,7 @@ def _windows(t_ns: np.ndarray, delta_s: float) -> tuple[np.ndarray, np.ndarray]:
     return keep, np.repeat(np.arange(WINDOWS), length)
 
 
-def _factor(cov: np.ndarray) -> np.ndarray:
+def _factor(cov: Floats) -> Floats:
     """L with L L^T = cov, for a covariance that may be only semi-definite."""
     w, V = np.linalg.eigh(0.5 * (cov + cov.T))
     return V * np.sqrt(np.clip(w, 0.0, None))
@@ -156,14 +160,14 @@ class _Sample:
     stamp [ns]; ``deltas``: the RPE steps (s, m)."""
 
     eye: Trajectory
-    stamps: np.ndarray
-    window: np.ndarray
+    stamps: Stamps
+    window: Indices
     model: tuple[int | None, int | None, int]
     deltas: tuple[float, float]
 
 
 def _figures(
-    result: CalibrationResult, sample: _Sample, d: np.ndarray
+    result: CalibrationResult, sample: _Sample, d: Floats
 ) -> dict[str, dict[str, float]] | None:
     """The figures with the calibration moved by ``d`` (reported order: dt, translation,
     rotation in the tangent on the right, [drift], [scale]), or None when too few eye poses

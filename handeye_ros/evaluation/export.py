@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.arrays import Floats, Stamps
 from ..core.errors import InputError
 from ..core.geometry import inverse, matrix_from_quat, quat_from_matrix
 from ..core.result import CalibrationResult
@@ -31,7 +32,7 @@ from .aligned import AlignedTrajectories
 FILES = ('groundtruth.tum', 'estimate.tum', 'T_HE.json', 'T_EH.json', 'export.json')
 
 
-def transform_json(R: np.ndarray, p: np.ndarray) -> dict[str, float]:
+def transform_json(R: Floats, p: Floats) -> dict[str, float]:
     """evo's transform JSON of ``(R, p)``: ``{x, y, z, qx, qy, qz, qw}``."""
     q = quat_from_matrix(np.asarray(R, dtype=float))
     return {
@@ -69,7 +70,7 @@ def write_exports(
     return paths
 
 
-def _trajectory(t_ns: np.ndarray, R: np.ndarray, p: np.ndarray, name: str) -> Trajectory:
+def _trajectory(t_ns: Stamps, R: Floats, p: Floats, name: str) -> Trajectory:
     return Trajectory.from_arrays(t_ns, p, quat_from_matrix(R), name=name)
 
 

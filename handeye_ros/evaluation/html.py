@@ -7,11 +7,15 @@ from __future__ import annotations
 import base64
 import html
 from pathlib import Path
-from typing import Any
 
 from ..core.checks.verdict import Verdict
+from ..core.document import ErrorKey, EvaluationDoc, ResultDoc, TransformDoc
 
-VERDICT_COLOUR = {Verdict.GOOD: '#1a7f37', Verdict.DOUBTFUL: '#9a6700', Verdict.FAILED: '#cf222e'}
+VERDICT_COLOUR: dict[str, str] = {
+    Verdict.GOOD: '#1a7f37',
+    Verdict.DOUBTFUL: '#9a6700',
+    Verdict.FAILED: '#cf222e',
+}
 
 STYLE = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
@@ -24,15 +28,15 @@ code{background:#f6f8fa;padding:0 .2em}pre{background:#f6f8fa;padding:.5em;overf
 """
 
 
-def _e(x: Any) -> str:
+def _e(x: object) -> str:
     return html.escape(str(x))
 
 
-def _f(x: Any, fmt: str = '.4f', scale: float = 1.0) -> str:
+def _f(x: float | None, fmt: str = '.4f', scale: float = 1.0) -> str:
     return '&ndash;' if x is None else format(float(x) * scale, fmt)
 
 
-def _transform(title: str, t: dict[str, Any]) -> str:
+def _transform(title: str, t: TransformDoc) -> str:
     rows = ''.join(
         '<tr>' + ''.join(f'<td>{v:+.6f}</td>' for v in row) + '</tr>' for row in t['matrix']
     )
@@ -45,32 +49,33 @@ def _transform(title: str, t: dict[str, Any]) -> str:
     )
 
 
-def _numbers(d: dict[str, Any]) -> str:
+def _numbers(d: ResultDoc) -> str:
     """The numbers table of the report: the offset, drift, scale and T_HE with their 1-sigmas,
     the coverage and the readiness."""
-    s = d.get('std') or {}
+    s = d['std']
     rows = [
         (
             'time offset dt (eye clock minus hand clock)',
             f'{d["time_offset"] * 1e3:+.4f} ms',
-            _f(s.get('time_offset'), '.4f', 1e3) + ' ms',
+            _f(s['time_offset'] if s else None, '.4f', 1e3) + ' ms',
         ),
         ('time offset, exact', f'{d["time_offset_ns"]} ns', ''),
     ]
-    if d.get('clock_drift') is not None:
+    drift, scale = d['clock_drift'], d['scale']
+    if drift is not None:
         rows.append(
             (
                 'clock drift',
-                f'{d["clock_drift"] * 1e6:+.3f} ppm',
-                _f(s.get('clock_drift'), '.3f', 1e6) + ' ppm',
+                f'{drift * 1e6:+.3f} ppm',
+                _f(s['clock_drift'] if s else None, '.3f', 1e6) + ' ppm',
             )
         )
-    if d.get('scale') is not None:
+    if scale is not None:
         rows.append(
             (
                 'scale (s * eye positions are metric)',
-                f'{d["scale"]:.5f}',
-                _f(s.get('scale'), '.5f'),
+                f'{scale:.5f}',
+                _f(s['scale'] if s else None, '.5f'),
             )
         )
     if s:
@@ -98,7 +103,7 @@ def _numbers(d: dict[str, Any]) -> str:
     )
 
 
-def _recording_rows(d: dict[str, Any]) -> list[tuple[str, str, str]]:
+def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
     """The numbers table's rows on the recording: the MoCap's coverage and the readiness."""
     rows = []
     cov = d.get('coverage')
@@ -130,10 +135,10 @@ def _recording_rows(d: dict[str, Any]) -> list[tuple[str, str, str]]:
     return rows
 
 
-def _metrics(ev: dict[str, Any] | None) -> str:
+def _metrics(ev: EvaluationDoc | None) -> str:
     if not ev:
         return '<p>no evaluation</p>'
-    cols = [
+    cols: list[tuple[ErrorKey, str, float, str]] = [
         ('ape_translation', 'APE translation', 1e3, 'mm'),
         ('ape_rotation', 'APE rotation', 1.0, 'deg'),
         ('rpe_time_translation', f'RPE per {ev["rpe_delta_s"]:g} s translation', 1e3, 'mm'),
@@ -148,8 +153,7 @@ def _metrics(ev: dict[str, Any] | None) -> str:
     )
     rows = []
     for key, name, k, unit in cols:
-        for side in ('calibrated', 'uncalibrated'):
-            pe = ev.get(side)
+        for pe in (ev['calibrated'], ev['uncalibrated']):
             if pe is None:
                 continue
             st = pe[key]
@@ -157,17 +161,19 @@ def _metrics(ev: dict[str, Any] | None) -> str:
                 f'<tr><td class="l">{_e(name)} [{unit}]</td><td class="l">'
                 f'{_e(pe["what"])}</td><td>{_f(st["rmse"], ".3f", k)}</td>'
                 + (
-                    f'<td>{_f(st["calibration_sigma"]["rmse"], ".3f", k)}</td>'
+                    f'<td>{_f(st["calibration_sigma"].get("rmse"), ".3f", k)}</td>'
                     if 'calibration_sigma' in st
                     else '<td>-</td>'
                 )
-                + ''.join(f'<td>{_f(st[f], ".3f", k)}</td>' for f in ('mean', 'median', 'max'))
+                + ''.join(
+                    f'<td>{_f(v, ".3f", k)}</td>' for v in (st['mean'], st['median'], st['max'])
+                )
                 + f'<td>{st["n"]}</td></tr>'
             )
     why = ev.get('uncalibrated_why')
     note = f'<p>Without the calibration: {_e(why)}</p>' if why else ''
-    bars = ev.get('calibration_sigmas') or {}
-    if 'draws' in bars:
+    bars = ev['calibration_sigmas']
+    if 'draws' in bars and 'parameters' in bars and 'poses' in bars:
         note += (
             '<p>The 1-sigma from the calibration: how much each figure moves when dt and T_HE '
             f'({_e(", ".join(bars["parameters"]))}) move within their reported uncertainty '
@@ -180,13 +186,12 @@ def _metrics(ev: dict[str, Any] | None) -> str:
     return f'<table>{head}{"".join(rows)}</table>{note}'
 
 
-def _inputs(d: dict[str, Any]) -> str:
+def _inputs(d: ResultDoc) -> str:
     rows = ''.join(
         f'<tr><td class="l">{name}</td><td class="l">{_e(i["source"])}</td>'
         f'<td>{i["poses"]}</td><td>{i["rate_hz"]:.1f}</td>'
         f'<td>{i["duration_s"]:.1f}</td></tr>'
-        for name, i in d['inputs'].items()
-        if isinstance(i, dict)
+        for name, i in (('hand', d['inputs']['hand']), ('eye', d['inputs']['eye']))
     )
     return (
         '<table><tr><th class="l">stream</th><th class="l">source</th><th>poses</th>'
@@ -194,7 +199,7 @@ def _inputs(d: dict[str, Any]) -> str:
     )
 
 
-def render(d: dict[str, Any], figures: list[tuple[Path, str]]) -> str:
+def render(d: ResultDoc, figures: list[tuple[Path, str]]) -> str:
     """The page for result dictionary ``d`` and ``figures`` (PNG path, caption)."""
     q = d['quality']
     colour = VERDICT_COLOUR.get(q['verdict'], '#555')

@@ -13,11 +13,13 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..core.arrays import Floats, Indices
+from ..core.document import ErrorKey, ErrorStatsDoc, EvaluationDoc, PoseErrorsDoc
 from ..core.geometry import rotation_angle, row_norms
 from .aligned import AlignedTrajectories
 
@@ -25,7 +27,7 @@ if TYPE_CHECKING:
     from .error_bars import CalibrationSigmas
 
 #: The figures of :class:`PoseErrors`, and the statistics of each that carry error bars.
-POSE_ERRORS = (
+POSE_ERRORS: tuple[ErrorKey, ...] = (
     'ape_translation',
     'ape_rotation',
     'rpe_time_translation',
@@ -49,7 +51,7 @@ class ErrorStats:
     n: int
 
     @classmethod
-    def of(cls, e: np.ndarray) -> ErrorStats:
+    def of(cls, e: Floats) -> ErrorStats:
         e = np.asarray(e, dtype=float)
         if e.size == 0:
             nan = float('nan')
@@ -62,20 +64,26 @@ class ErrorStats:
             int(e.size),
         )
 
-    def to_dict(self) -> dict[str, float | int | None]:
+    def to_dict(self) -> ErrorStatsDoc:
+        def num(v: float) -> float | None:
+            return v if np.isfinite(v) else None
+
         return {
-            k: (None if isinstance(v, float) and not np.isfinite(v) else v)
-            for k, v in asdict(self).items()
+            'rmse': num(self.rmse),
+            'mean': num(self.mean),
+            'median': num(self.median),
+            'max': num(self.max),
+            'n': self.n,
         }
 
 
-def ape(al: AlignedTrajectories) -> tuple[np.ndarray, np.ndarray]:
+def ape(al: AlignedTrajectories) -> tuple[Floats, Floats]:
     """Per-pose translation (m) and rotation (deg) errors (module docstring)."""
     R_err = np.matmul(np.swapaxes(al.R_ref, -1, -2), al.R_est)  # R(Q^-1 P)
     return row_norms(al.p_est - al.p_ref), np.degrees(rotation_angle(R_err))
 
 
-def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndarray, np.ndarray]:
+def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[Indices, Indices]:
     """Index pairs (i, j) for the RPE per ``unit`` 's' (time) or 'm' (reference path length)."""
     if not delta > 0:
         msg = f'the RPE delta must be positive, got {delta!r}'
@@ -104,9 +112,7 @@ def rpe_pairs(al: AlignedTrajectories, delta: float, unit: str) -> tuple[np.ndar
     return i[keep], j[keep]
 
 
-def rpe(
-    al: AlignedTrajectories, delta: float, unit: str = 's'
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rpe(al: AlignedTrajectories, delta: float, unit: str = 's') -> tuple[Floats, Floats, Indices]:
     """Per-pair translation (m) and rotation (deg) errors and the pairs' first indices."""
     i, j = rpe_pairs(al, delta, unit)
     # with dQ = Q_i^-1 Q_j = (R_Qi^T R_Qj, R_Qi^T (q_j - q_i)) and dP alike, E = dQ^-1 dP has
@@ -117,9 +123,7 @@ def rpe(
     return (row_norms(t_dP - t_dQ), np.degrees(rotation_angle(R_err)), i)
 
 
-def _relative(
-    R: np.ndarray, p: np.ndarray, i: np.ndarray, j: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def _relative(R: Floats, p: Floats, i: Indices, j: Indices) -> tuple[Floats, Floats]:
     """``T_i^-1 T_j`` for index pairs: rotations (M, 3, 3), translations (M, 3)."""
     Ri_T = np.swapaxes(R[i], -1, -2)
     return np.matmul(Ri_T, R[j]), np.einsum('nab,nb->na', Ri_T, p[j] - p[i])
@@ -144,10 +148,15 @@ class PoseErrors:
         rd_t, rd_r, _ = rpe(al, delta_m, 'm')
         return cls(al.what, *(ErrorStats.of(e) for e in (a_t, a_r, rt_t, rt_r, rd_t, rd_r)))
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> PoseErrorsDoc:
         return {
             'what': self.what,
-            **{k: v.to_dict() for k, v in vars(self).items() if isinstance(v, ErrorStats)},
+            'ape_translation': self.ape_translation.to_dict(),
+            'ape_rotation': self.ape_rotation.to_dict(),
+            'rpe_time_translation': self.rpe_time_translation.to_dict(),
+            'rpe_time_rotation': self.rpe_time_rotation.to_dict(),
+            'rpe_distance_translation': self.rpe_distance_translation.to_dict(),
+            'rpe_distance_rotation': self.rpe_distance_rotation.to_dict(),
         }
 
 
@@ -191,7 +200,7 @@ class Evaluation:
             *sigmas,
         )
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> EvaluationDoc:
         calibrated = self.calibrated.to_dict()
         if self.sigmas is not None:
             for name, sigma in self.sigmas.sigmas.items():

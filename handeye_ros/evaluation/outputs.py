@@ -7,11 +7,11 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import Any
 
+from ..core.document import FilesDoc, ResultDoc
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
-from .aligned import calibrated, uncalibrated
+from .aligned import AlignedTrajectories, calibrated, uncalibrated
 from .error_bars import calibration_sigmas
 from .metrics import Evaluation, ape
 
@@ -37,7 +37,7 @@ def check_directory(path: str | Path, what: str) -> Path:
 
 def evaluate_and_write(
     result: CalibrationResult,
-    out: dict[str, Any],
+    out: ResultDoc,
     *,
     export_dir: str | Path | None = None,
     report_dir: str | Path | None = None,
@@ -52,7 +52,7 @@ def evaluate_and_write(
         return
     ev, cal, base = evaluated
     out['evaluation'] = ev.to_dict()
-    files: dict[str, Any] = {}
+    files: FilesDoc = {}
     if export_dir:
         from .export import write_exports
 
@@ -63,7 +63,9 @@ def evaluate_and_write(
         out['files'] = files
 
 
-def evaluation_of(result: CalibrationResult, delta_s: float = 1.0, delta_m: float = 1.0):
+def evaluation_of(
+    result: CalibrationResult, delta_s: float = 1.0, delta_m: float = 1.0
+) -> tuple[Evaluation, AlignedTrajectories, AlignedTrajectories | None] | None:
     """(APE/RPE evaluation with and without the calibration, the calibrated figures with their
     error bars from the calibration, the calibrated and the uncalibrated aligned trajectories)
     of a result, or None when it has no poses
@@ -81,7 +83,11 @@ def evaluation_of(result: CalibrationResult, delta_s: float = 1.0, delta_m: floa
 
 
 def write_report(
-    directory: str | Path, result: CalibrationResult, out: dict[str, Any], cal=None, base=None
+    directory: str | Path,
+    result: CalibrationResult,
+    out: ResultDoc,
+    cal: AlignedTrajectories | None = None,
+    base: AlignedTrajectories | None = None,
 ) -> Path:
     """Write the report's PNGs and report.html into ``directory``; returns the page's path."""
     from . import plots

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.arrays import Floats
+from ..core.document import Row
 from ..core.result import CalibrationResult
 from ..core.time.signals import angular_speed
 from .aligned import AlignedTrajectories
@@ -218,14 +220,14 @@ def excitation(result: CalibrationResult, path: Path) -> str:
     )
 
 
-def _axes(q: np.ndarray) -> np.ndarray:
+def _axes(q: Floats) -> Floats:
     v = np.asarray(q)[:, :3]
     n = np.linalg.norm(v, axis=1, keepdims=True)
     v = np.divide(v, n, out=np.zeros_like(v), where=n > 0)
     return v * np.where(v[:, 2:3] < 0, -1.0, 1.0)
 
 
-def step_residuals(result: CalibrationResult) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def step_residuals(result: CalibrationResult) -> tuple[Floats, Floats, Floats]:
     """Relative-pose residuals of consecutive eye poses against the calibrated hand
     (eq. 16's, with the hand interpolated rather than splined): times (s, eye), rotation
     residual vectors (rad, (M, 3)) and translation residuals (m, (M, 3)), in the eye frame."""
@@ -278,7 +280,7 @@ def residuals(result: CalibrationResult, path: Path) -> str:
     )
 
 
-def _acf(x: np.ndarray, lags: int) -> np.ndarray:
+def _acf(x: Floats, lags: int) -> Floats:
     x = np.asarray(x, dtype=float) - np.mean(x) if np.size(x) else np.zeros(1)
     d = float(np.dot(x, x))
     out = np.full(lags + 1, np.nan)
@@ -292,9 +294,9 @@ def _acf(x: np.ndarray, lags: int) -> np.ndarray:
 def trajectories(
     al: AlignedTrajectories,
     path: Path,
-    ape_t: np.ndarray,
+    ape_t: Floats,
     base: AlignedTrajectories | None = None,
-    base_ape_t: np.ndarray | None = None,
+    base_ape_t: Floats | None = None,
 ) -> str:
     """Top view, x/y/z over time and APE over time of the eye and the calibrated ground truth."""
     from matplotlib.figure import Figure
@@ -348,7 +350,7 @@ def trajectories(
     )
 
 
-def summary(rows: list[dict], path: Path) -> str:
+def summary(rows: list[Row], path: Path) -> str:
     """Box plots of the successful runs' APE and RPE per algorithm and per sequence."""
     ok = [r for r in rows if r.get('status') == 'ok' and r.get('ape_mm') is not None]
     metrics = (

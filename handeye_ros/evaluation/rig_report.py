@@ -9,11 +9,12 @@ the rig's point by far is one the consistency test names.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from ..core.arrays import Floats
 from ..core.rig import EXTRINSIC, difference
+from ..core.rig_document import RigDoc, RigExtrinsicDoc, RigRecordingDoc
 from .figures import canvas, save
 from .html import STYLE, VERDICT_COLOUR, _e
 
@@ -23,29 +24,31 @@ PLANES = ((0, 1), (0, 2), (1, 2))
 AXES = 'xyz'
 
 
-def _ellipse(cov2: np.ndarray) -> np.ndarray:
+def _ellipse(cov2: Floats) -> Floats:
     """Points (2, 64) of the ELLIPSE_CHI2 contour of a 2x2 covariance, about 0."""
     lam, V = np.linalg.eigh(0.5 * (cov2 + cov2.T))
     a = np.linspace(0.0, 2 * np.pi, 64)
     return V @ (np.sqrt(np.clip(lam, 0.0, None) * ELLIPSE_CHI2)[:, None] * [np.cos(a), np.sin(a)])
 
 
-def figure(doc: dict[str, Any], path: Path) -> str:
+def figure(doc: RigDoc, path: Path) -> str:
     """The recordings' own T_HE around the rig's (module docstring); returns the caption."""
     rig = doc['rig']
     fig, axes = canvas(2, 3, height=3.2, width=11.0)
-    e = rig['extrinsic']
+    e, cov = rig['extrinsic'], rig['covariance']
+    assert e is not None and cov is not None, 'drawn for a rig with a T_HE'
     q0, p0 = np.asarray(e['rotation']), np.asarray(e['translation'])
-    C0 = np.asarray(rig['covariance']['matrix'])
-    scale = np.r_[[1e3] * 3, [np.degrees(1.0)] * 3]
+    C0 = np.asarray(cov['matrix'], dtype=float)
+    scale: Floats = np.array([1e3] * 3 + [np.degrees(1.0)] * 3)
+    outer = np.outer(scale, scale)
     colours = {'used': '#1f77b4', 'out': '#cf222e'}
     for rec in doc['recordings']:
         own = rec.get('own')
-        if not own or own.get('covariance') is None:
+        if not own:
             continue
         d = difference(np.asarray(own['rotation']), np.asarray(own['translation']), q0, p0)
         d = d * scale
-        C = np.asarray(own['covariance']['matrix'])[EXTRINSIC, EXTRINSIC] * np.outer(scale, scale)
+        C = np.asarray(own['covariance']['matrix'], dtype=float)[EXTRINSIC, EXTRINSIC] * outer
         colour = colours['used' if rec['used'] else 'out']
         for row, off in ((0, 0), (1, 3)):
             for col, (i, j) in enumerate(PLANES):
@@ -59,7 +62,7 @@ def figure(doc: dict[str, Any], path: Path) -> str:
         for col, (i, j) in enumerate(PLANES):
             ax = axes[row][col]
             idx = [off + i, off + j]
-            ring = _ellipse((C0 * np.outer(scale, scale))[np.ix_(idx, idx)])
+            ring = _ellipse((C0 * outer)[np.ix_(idx, idx)])
             ax.plot(ring[0], ring[1], color='k', lw=1.5)
             ax.plot(0, 0, 'k+', ms=10)
             what = 'translation' if row == 0 else 'rotation'
@@ -73,7 +76,7 @@ def figure(doc: dict[str, Any], path: Path) -> str:
     )
 
 
-def write_rig_report(doc: dict[str, Any], directory: Path) -> Path:
+def write_rig_report(doc: RigDoc, directory: Path) -> Path:
     """rig.html and rig.png in ``directory`` (created); returns the page's path."""
     import base64
 
@@ -109,7 +112,7 @@ def write_rig_report(doc: dict[str, Any], directory: Path) -> Path:
     return page
 
 
-def _extrinsic(e: dict[str, Any] | None) -> str:
+def _extrinsic(e: RigExtrinsicDoc | None) -> str:
     if not e:
         return '<p>none: no recording gave a T_HE the others agree with</p>'
     t = ' '.join(f'{v:+.5f}' for v in e['translation'])
@@ -122,7 +125,7 @@ def _extrinsic(e: dict[str, Any] | None) -> str:
     )
 
 
-def _recordings(recs: list[dict[str, Any]]) -> str:
+def _recordings(recs: list[RigRecordingDoc]) -> str:
     head = (
         '<tr><th class="l">recording</th><th class="l">part</th><th>dt [ms]</th>'
         '<th>1-sigma [ms]</th><th>chi2</th><th>from the rig [mm]</th>'
@@ -130,10 +133,9 @@ def _recordings(recs: list[dict[str, Any]]) -> str:
     )
     rows = []
     for rec in recs:
-        shared = rec.get('shared') or {}
-        dt = (shared.get('values') or {}).get('time_offset')
-        sd = (shared.get('std') or {}).get('time_offset')
-        test = rec.get('test') or {}
+        shared, test = rec.get('shared'), rec.get('test')
+        dt = shared['values'].get('time_offset') if shared else None
+        sd = shared['std'].get('time_offset') if shared else None
         part = 'used' if rec['used'] else ('follows' if rec.get('follows') else 'left out')
         cells = [
             _e(rec['name']),
@@ -143,7 +145,7 @@ def _recordings(recs: list[dict[str, Any]]) -> str:
             '&ndash;' if not test else f'{test["chi2"]:.1f}',
             '&ndash;' if not test else f'{test["translation_mm"]:.1f}',
             '&ndash;' if not test else f'{test["rotation_deg"]:.3f}',
-            _e(rec.get('reason', '')),
+            _e(rec['reason']),
         ]
         rows.append(
             '<tr>'

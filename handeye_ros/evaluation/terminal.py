@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+
+from ..core.document import ErrorStatsDoc, ReadinessDoc, ResultDoc, TransformDoc
 
 
-def format_report(d: dict[str, Any]) -> str:
+def format_report(d: ResultDoc) -> str:
     """A terminal report of a result dictionary (see :mod:`handeye_ros.core.result`)."""
     ta, lin, m = d['time_alignment'], d['linear'], d['metrics']
     lines = _heading_lines(d)
@@ -44,10 +45,10 @@ def format_report(d: dict[str, Any]) -> str:
         *readiness_lines(d.get('readiness')),
     ]
     files = d.get('files') or {}
-    if files.get('export'):
+    export = files.get('export')
+    if export:
         lines.append(
-            f'exports: {Path(files["export"][0]).parent}/ (evo_ape tum groundtruth.tum '
-            'estimate.tum, no -a)'
+            f'exports: {Path(export[0]).parent}/ (evo_ape tum groundtruth.tum estimate.tum, no -a)'
         )
     if files.get('report'):
         lines.append(f'report: {files["report"]}')
@@ -56,7 +57,7 @@ def format_report(d: dict[str, Any]) -> str:
     return '\n'.join(lines)
 
 
-def _heading_lines(d: dict[str, Any]) -> list[str]:
+def _heading_lines(d: ResultDoc) -> list[str]:
     """The verdict with its reasons and notes, the inputs and the MoCap's coverage."""
     q = d['quality']
     lines = [
@@ -67,8 +68,7 @@ def _heading_lines(d: dict[str, Any]) -> list[str]:
     ]
     lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
     lines += [f'  note: {n}' for n in q['notes']]
-    for name in ('hand', 'eye'):
-        info = d['inputs'][name]
+    for name, info in (('hand', d['inputs']['hand']), ('eye', d['inputs']['eye'])):
         lines.append(
             f'  {name:4s}: {info["source"]} ({info["poses"]} poses, '
             f'{info["rate_hz"]:.1f} Hz, {info["duration_s"]:.1f} s)'
@@ -83,18 +83,17 @@ def _heading_lines(d: dict[str, Any]) -> list[str]:
     return lines
 
 
-def _transform(title: str, t: dict[str, Any]) -> str:
+def _transform(title: str, t: TransformDoc) -> str:
     tr = ' '.join(f'{v:+.5f}' for v in t['translation'])
     q = ' '.join(f'{v:+.6f}' for v in t['rotation'])
     rows = '\n'.join('    [' + ' '.join(f'{v:+.6f}' for v in row) + ']' for row in t['matrix'])
     return f'{title}\n  translation [m]: {tr}\n  rotation [qx qy qz qw]: {q}\n{rows}'
 
 
-def _batch_lines(d: dict[str, Any]) -> list[str]:
-    b = d.get('batch') or {}
-    if not b.get('used'):
-        return ['batch stage: ' + ('off' if not b.get('enabled') else 'not used (see warnings)')]
-    s = d['std']
+def _batch_lines(d: ResultDoc) -> list[str]:
+    b, s = d['batch'], d['std']
+    if not b['used'] or s is None:
+        return ['batch stage: ' + ('off' if not b['enabled'] else 'not used (see warnings)')]
     return [
         (
             f'batch stage: cost {b["cost_before"]:.6g} -> {b["cost_after"]:.6g} in '
@@ -109,7 +108,7 @@ def _batch_lines(d: dict[str, Any]) -> list[str]:
     ]
 
 
-def _screening_lines(d: dict[str, Any]) -> list[str]:
+def _screening_lines(d: ResultDoc) -> list[str]:
     sc = d.get('screening') or {}
     out = []
     for name, rep in sc.items():
@@ -127,13 +126,12 @@ def _screening_lines(d: dict[str, Any]) -> list[str]:
     return out
 
 
-def _evaluation_lines(d: dict[str, Any]) -> list[str]:
+def _evaluation_lines(d: ResultDoc) -> list[str]:
     ev = d.get('evaluation')
     if not ev:
         return []
     out = []
-    for side in ('calibrated', 'uncalibrated'):
-        pe = ev.get(side)
+    for pe in (ev['calibrated'], ev['uncalibrated']):
         if pe is None:
             continue
         out.append(
@@ -145,8 +143,8 @@ def _evaluation_lines(d: dict[str, Any]) -> list[str]:
         )
     if ev.get('uncalibrated_why'):
         out.append(f'  without the calibration: {ev["uncalibrated_why"]}')
-    bars = ev.get('calibration_sigmas') or {}
-    if 'draws' in bars:
+    bars = ev['calibration_sigmas']
+    if 'draws' in bars and 'parameters' in bars:
         out.append(
             "  (+- x: the 1-sigma of that figure from the calibration's own uncertainty, "
             f'{bars["draws"]} draws of {", ".join(bars["parameters"])})'
@@ -156,21 +154,21 @@ def _evaluation_lines(d: dict[str, Any]) -> list[str]:
     return ['evaluation of the eye against the MoCap:', *out] if out else []
 
 
-def _mm(st: dict[str, Any]) -> str:
+def _mm(st: ErrorStatsDoc) -> str:
     if st['rmse'] is None:
         return 'n/a'
     bar = (st.get('calibration_sigma') or {}).get('rmse')
     return f'{st["rmse"] * 1e3:.1f}' + ('' if bar is None else f' (+-{bar * 1e3:.2g})')
 
 
-def _deg(st: dict[str, Any]) -> str:
+def _deg(st: ErrorStatsDoc) -> str:
     if st['rmse'] is None:
         return 'n/a'
     bar = (st.get('calibration_sigma') or {}).get('rmse')
     return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar:.2g})')
 
 
-def readiness_lines(r: dict[str, Any] | None) -> list[str]:
+def readiness_lines(r: ReadinessDoc | None) -> list[str]:
     """What the recording supports (the ``readiness`` section; the node's status says the same
     while recording)."""
     if not r:
@@ -199,7 +197,7 @@ BAR_FULL_DEG = 360.0
 SHOWN_TIMES_TARGET = 100.0
 
 
-def status_line(r: dict[str, Any], width: int = 8) -> str:
+def status_line(r: ReadinessDoc, width: int = 8) -> str:
     """One line in the spirit of the camera calibrator's bars: rotation about each device axis,
     keyframe motions, the predicted 1-sigmas against their targets, READY."""
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, cast
 
 from ..core.errors import InputError
 from ..core.trajectory import Trajectory
@@ -26,6 +26,13 @@ from . import messages
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations here are never evaluated
     from typing import Self
+
+    from rosbags.interfaces import Connection, Qos
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys.store import Typestore
+
+    from ..stream.shapes import Message
 
 STORAGES = ('mcap', 'sqlite3', 'ros1')
 
@@ -50,7 +57,7 @@ MOCAP4R2_MSGS = {
 }
 
 
-def _typestore() -> Any:
+def _typestore() -> Typestore:
     """Jazzy's types (tf2_msgs included) and mocap4r2_msgs."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -125,8 +132,8 @@ class BagReader:
 
 
 def pose_messages(
-    store: Any, traj: Trajectory, msgtype: str, frame_id: str, child_frame_id: str
-) -> Iterator[tuple[int, Any]]:
+    store: Typestore, traj: Trajectory, msgtype: str, frame_id: str, child_frame_id: str
+) -> Iterator[tuple[int, Message]]:
     """(stamp ns, message) of a trajectory as one of the supported types (rosbags classes;
     :func:`handeye_ros.formats.messages.pose_message` builds each)."""
     msgtype = normalise_type(msgtype)
@@ -134,7 +141,7 @@ def pose_messages(
         yield t, messages.pose_message(store.types, msgtype, t, p, q, (frame_id, child_frame_id))
 
 
-def _latched_qos() -> Any:
+def _latched_qos() -> Qos:
     from rosbags.interfaces import (
         Qos,
         QosDurability,
@@ -180,10 +187,10 @@ class BagWriter:
 
             plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
             self.writer = Writer(self.path, version=9, storage_plugin=plugin)
-        self._conns: dict[str, Any] = {}
+        self._conns: dict[str, Connection] = {}
 
     # the two rosbags writers share the calls made here
-    writer: Any
+    writer: Writer1 | Writer2
 
     def __enter__(self) -> Self:
         self.writer.open()
@@ -192,17 +199,20 @@ class BagWriter:
     def __exit__(self, *exc: object) -> None:
         self.writer.close()
 
-    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any, latched: bool = False) -> None:
+    def write(
+        self, topic: str, msgtype: str, t_ns: int, msg: object, latched: bool = False
+    ) -> None:
         """Append one message. ``latched`` (the first message of a topic decides): the topic is
         recorded as offered transient local, reliable, depth 1, so that a replay latches it as
         tf2's static broadcaster does (ROS 1 bags have no QoS; their reader latches
         /tf_static by name)."""
-        if topic not in self._conns:
-            qos = (LATCHED_QOS,) if latched and self.storage != 'ros1' else ()
-            extra: dict[str, Any] = {'offered_qos_profiles': qos} if qos else {}
-            self._conns[topic] = self.writer.add_connection(
-                topic, msgtype, typestore=self.store, **extra
+        if topic not in self._conns and latched and self.storage != 'ros1':
+            ros2 = cast('Writer2', self.writer)
+            self._conns[topic] = ros2.add_connection(
+                topic, msgtype, typestore=self.store, offered_qos_profiles=[LATCHED_QOS]
             )
+        elif topic not in self._conns:
+            self._conns[topic] = self.writer.add_connection(topic, msgtype, typestore=self.store)
         if self.storage == 'ros1':
             data = self.store.serialize_ros1(msg, msgtype)
         else:
@@ -271,11 +281,14 @@ def write_result_bag(
     with BagWriter(path, storage) as w:
         T = w.store.types
         out = messages.outputs(T, published, stamp_ns)
+        frames = (published.parent, published.child)  # T_HE, as out[EXTRINSIC] states it
         w.write(
             '/tf_static',
             TF_TYPE,
             stamp_ns,
-            T[TF_TYPE](transforms=[out[messages.EXTRINSIC]]),
+            messages.pose_message(
+                T, TF_TYPE, stamp_ns, published.translation, published.rotation, frames
+            ),
             latched=True,
         )
         for name, m in out.items():

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.arrays import Bytes, Floats, Indices, Mask, Stamps
+
 #: Longest stamp token (characters) read from the bytes; longer ones go line by line.
 MAX_STAMP_CHARS = 40
 #: Most whole digits read here: 18 always fit int64 (19 may not; the line-by-line path checks).
@@ -44,11 +46,11 @@ class SplitStamps:
     only a unit coarser than the second needs (stamps written in units of 1e9 s).
     """
 
-    whole: np.ndarray
-    frac9: np.ndarray
-    fractional: np.ndarray
-    neg: np.ndarray
-    frac18: np.ndarray
+    whole: Stamps
+    frac9: Stamps
+    fractional: Mask
+    neg: Mask
+    frac18: Stamps
 
 
 @dataclass(frozen=True)
@@ -56,13 +58,13 @@ class BulkTable:
     """Data lines of a file: 1-based line numbers (N,), the first data line's text, the stamps
     and the seven pose columns (N, 7) as written (x y z and the four quaternion columns)."""
 
-    numbers: np.ndarray
+    numbers: Indices
     first_row: str
     stamps: SplitStamps
-    values: np.ndarray
+    values: Floats
 
 
-def data_line_bounds(buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def data_line_bounds(buf: Bytes) -> tuple[Indices, Indices, Indices] | None:
     """(1-based numbers, starts, ends) of the data lines of a file's bytes (not blank, not a
     ``#`` comment); None when a line starts with a blank (the line-by-line reader strips it)."""
     # newlines a block at a time: one comparison over 430 MB would make a 430 MB mask
@@ -80,7 +82,7 @@ def data_line_bounds(buf: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return data + 1, starts[data], ends[data]
 
 
-def split_stamps(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> SplitStamps | None:
+def split_stamps(buf: Bytes, starts: Indices, ends: Indices) -> SplitStamps | None:
     """The first token of each line, split into whole and fractional digits; None when any is
     not a plain decimal (see the module docstring).
 
@@ -114,7 +116,7 @@ MAX_LAYOUTS = 24
 _POW10 = 10 ** np.arange(19, dtype=np.int64)
 
 
-def _layout(buf: np.ndarray, start: int, end: int) -> tuple[int, int, int] | None:
+def _layout(buf: Bytes, start: int, end: int) -> tuple[int, int, int] | None:
     """(sign characters 0/1, position of the point (= length without one), length) of the
     stamp token of one line; None unless it is a plain decimal."""
     line = bytes(buf[start : min(end, start + MAX_STAMP_CHARS + 1)])
@@ -135,12 +137,12 @@ def _layout(buf: np.ndarray, start: int, end: int) -> tuple[int, int, int] | Non
 
 
 def _read_layout(
-    buf: np.ndarray,
-    lines: tuple[np.ndarray, np.ndarray],
+    buf: Bytes,
+    lines: tuple[Indices, Indices],
     layout: tuple[int, int, int],
     out: SplitStamps,
-    rows: np.ndarray,
-) -> np.ndarray:
+    rows: Indices,
+) -> Mask:
     """Read the stamps of the lines (their (starts, ends) in ``buf``) that have this layout
     (sign, point, length: :func:`_layout`) into ``out`` (at ``rows``); returns which lines had
     it."""
@@ -164,8 +166,8 @@ def _read_layout(
 
 
 def _layout_block(
-    buf: np.ndarray, at: np.ndarray, sign: int, dot: int, length: int
-) -> tuple[np.ndarray, ...]:
+    buf: Bytes, at: Indices, sign: int, dot: int, length: int
+) -> tuple[Mask, Stamps, Stamps, Mask, Mask, Stamps]:
     """(fits, whole, frac9, fractional, neg, frac18) of the stamps starting at ``at`` read with one
     layout: a block of lines at a time, so that every column is read from cache."""
     chars = buf[at[:, None] + np.arange(length + 1)]

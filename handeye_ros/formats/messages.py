@@ -25,17 +25,23 @@ What the calibration publishes (the node's latched topics, the output bag and
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypeAlias, cast
 
 import numpy as np
 
+from ..core.arrays import Floats, Stamps
+from ..core.document import ResultDoc
+
 if TYPE_CHECKING:  # the message builders serve sim_publisher, which needs no scipy
     from ..core.result import CalibrationResult
+    from ..stream import shapes
 
-#: Message classes by their 'pkg/msg/Name'.
-Types = Mapping[str, Any]
+#: Message classes by their 'pkg/msg/Name' (each takes its fields as keywords).
+Types: TypeAlias = Mapping[str, Callable[..., object]]
+#: A position (x y z) or a quaternion (x y z w).
+Vec: TypeAlias = Sequence[float] | Floats
 
 #: Topic names of the calibration, relative to the node (see the module docstring).
 EXTRINSIC = 'extrinsic'
@@ -61,20 +67,23 @@ def is_ros_time(t_ns: int) -> bool:
     return 0 <= t_ns <= ROS_TIME_MAX_NS
 
 
-def time(types: Types, t_ns: int) -> Any:
+def time(types: Types, t_ns: int) -> shapes.Time:
     """builtin_interfaces/Time of an int64 nanosecond stamp."""
     sec, nanosec = divmod(int(t_ns), 1_000_000_000)
-    return types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
+    return cast('shapes.Time', types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec))
 
 
-def header(types: Types, t_ns: int, frame_id: str) -> Any:
-    return types['std_msgs/msg/Header'](stamp=time(types, t_ns), frame_id=frame_id)
+def header(types: Types, t_ns: int, frame_id: str) -> shapes.Header:
+    msg = types['std_msgs/msg/Header'](stamp=time(types, t_ns), frame_id=frame_id)
+    return cast('shapes.Header', msg)
 
 
-def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any, q: Any) -> Any:
+def transform_stamped(
+    types: Types, t_ns: int, parent: str, child: str, p: Vec, q: Vec
+) -> shapes.TransformStamped:
     """geometry_msgs/TransformStamped: the pose (p x y z, q x y z w) of ``child`` in
     ``parent`` at ``t_ns``."""
-    return types['geometry_msgs/msg/TransformStamped'](
+    msg = types['geometry_msgs/msg/TransformStamped'](
         header=header(types, t_ns, parent),
         child_frame_id=child,
         transform=types['geometry_msgs/msg/Transform'](
@@ -84,17 +93,19 @@ def transform_stamped(types: Types, t_ns: int, parent: str, child: str, p: Any, 
             rotation=_quaternion(types, q),
         ),
     )
+    return cast('shapes.TransformStamped', msg)
 
 
-def pose(types: Types, p: Any, q: Any) -> Any:
+def pose(types: Types, p: Vec, q: Vec) -> shapes.Pose:
     """geometry_msgs/Pose of a position (x y z) and a quaternion (x y z w)."""
-    return types['geometry_msgs/msg/Pose'](
+    msg = types['geometry_msgs/msg/Pose'](
         position=types['geometry_msgs/msg/Point'](x=float(p[0]), y=float(p[1]), z=float(p[2])),
         orientation=_quaternion(types, q),
     )
+    return cast('shapes.Pose', msg)
 
 
-def path(types: Types, frame_id: str, t_ns: Any, p: Any, q: Any) -> Any:
+def path(types: Types, frame_id: str, t_ns: Stamps, p: Floats, q: Floats) -> object:
     """nav_msgs/Path of poses (stamps int64 ns, p (N, 3), q (N, 4) x y z w) in ``frame_id``,
     stamped with its last pose."""
     poses = [
@@ -108,10 +119,10 @@ def path(types: Types, frame_id: str, t_ns: Any, p: Any, q: Any) -> Any:
 
 
 def rigid_bodies(
-    types: Types, t_ns: int, frame_id: str, bodies: list[tuple[str, Any, Any]]
-) -> Any:
+    types: Types, t_ns: int, frame_id: str, bodies: list[tuple[str, Vec, Vec]]
+) -> shapes.RigidBodies:
     """mocap4r2_msgs/RigidBodies of (name, p x y z, q x y z w) bodies, in ``frame_id``."""
-    return types['mocap4r2_msgs/msg/RigidBodies'](
+    return cast('shapes.RigidBodies', types['mocap4r2_msgs/msg/RigidBodies'](
         header=header(types, t_ns, frame_id),
         frame_number=0,
         rigidbodies=[
@@ -119,41 +130,43 @@ def rigid_bodies(
                                                   pose=pose(types, p, q))
             for name, p, q in bodies
         ],
-    )  # fmt: skip
+    ))  # fmt: skip
 
 
 def pose_message(
-    types: Types, msgtype: str, t_ns: int, p: Any, q: Any, frames: tuple[str, str]
-) -> Any:
+    types: Types, msgtype: str, t_ns: int, p: Vec, q: Vec, frames: tuple[str, str]
+) -> shapes.Message:
     """One pose (p [m], q x y z w) of the frame child_frame_id in frame_id (``frames``) as a
     message of any supported type ('pkg/msg/Name'): a TFMessage holds one transform, a
     RigidBodies message one body named child_frame_id, an Odometry a zero twist; covariances
     are zero (unknown to a simulator or a file)."""
     frame_id, child_frame_id = frames
     if msgtype == 'tf2_msgs/msg/TFMessage':
-        return types[msgtype](
+        tf = types[msgtype](
             transforms=[transform_stamped(types, t_ns, frame_id, child_frame_id, p, q)]
         )
+        return cast('shapes.TFMessage', tf)
     if msgtype.endswith('/msg/RigidBodies'):
         return rigid_bodies(types, t_ns, frame_id, [(child_frame_id, p, q)])
     if msgtype == 'geometry_msgs/msg/TransformStamped':
         return transform_stamped(types, t_ns, frame_id, child_frame_id, p, q)
     head = header(types, t_ns, frame_id)
     if msgtype == 'geometry_msgs/msg/PoseStamped':
-        return types[msgtype](header=head, pose=pose(types, p, q))
+        return cast('shapes.PoseStamped', types[msgtype](header=head, pose=pose(types, p, q)))
     pwc = types['geometry_msgs/msg/PoseWithCovariance'](
         pose=pose(types, p, q), covariance=np.zeros(36)
     )
     if msgtype == 'geometry_msgs/msg/PoseWithCovarianceStamped':
-        return types[msgtype](header=head, pose=pwc)
+        return cast('shapes.PoseWithCovarianceStamped', types[msgtype](header=head, pose=pwc))
     zero = types['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.0)
     twist = types['geometry_msgs/msg/TwistWithCovariance'](
         twist=types['geometry_msgs/msg/Twist'](linear=zero, angular=zero), covariance=np.zeros(36)
     )
-    return types[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+    odometry = types[msgtype](header=head, child_frame_id=child_frame_id, pose=pwc, twist=twist)
+    return cast('shapes.Odometry', odometry)
 
 
-def _quaternion(types: Types, q: Any) -> Any:
+def _quaternion(types: Types, q: Vec) -> object:
     return types['geometry_msgs/msg/Quaternion'](
         x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])
     )
@@ -171,13 +184,13 @@ class Published:
 
     parent: str
     child: str
-    translation: np.ndarray
-    rotation: np.ndarray
-    R: np.ndarray
+    translation: Floats
+    rotation: Floats
+    R: Floats
     time_offset_s: float
     time_offset_ns: int
     instant_ns: int
-    covariance: np.ndarray | None
+    covariance: Floats | None
 
     @classmethod
     def from_result(cls, result: CalibrationResult, frames: Mapping[str, str]) -> Published:
@@ -207,10 +220,10 @@ class Published:
         )
 
     @classmethod
-    def from_document(cls, d: Mapping[str, Any]) -> Published:
+    def from_document(cls, d: ResultDoc) -> Published:
         """Of a result file's contents (:func:`handeye_ros.formats.result_file.read_result`)."""
         e = d['extrinsic']
-        cov = (d.get('covariance') or {}).get('matrix')
+        cov = (d.get('covariance') or {'matrix': None})['matrix']
         stamp = d.get('time_offset_stamp_ns')
         return cls(
             parent=e['parent'],
@@ -225,12 +238,12 @@ class Published:
         )
 
 
-def extrinsic(types: Types, pub: Published, t_ns: int) -> Any:
+def extrinsic(types: Types, pub: Published, t_ns: int) -> shapes.TransformStamped:
     """T_HE as geometry_msgs/TransformStamped (parent H, child E), stamped ``t_ns``."""
     return transform_stamped(types, t_ns, pub.parent, pub.child, pub.translation, pub.rotation)
 
 
-def extrinsic_covariance(pub: Published) -> np.ndarray:
+def extrinsic_covariance(pub: Published) -> Floats:
     """The 36 covariance values of T_HE in ROS order: x, y, z, then rotations about the
     parent's (H) fixed X, Y, Z axes. [-1, 0, ...] when the result has none.
 
@@ -246,27 +259,30 @@ def extrinsic_covariance(pub: Published) -> np.ndarray:
     return (J @ pub.covariance @ J.T).ravel()
 
 
-def extrinsic_with_covariance(types: Types, pub: Published, t_ns: int) -> Any:
+def extrinsic_with_covariance(
+    types: Types, pub: Published, t_ns: int
+) -> shapes.PoseWithCovarianceStamped:
     """T_HE with its covariance (see :func:`extrinsic_covariance`), stamped ``t_ns``."""
     x, y, z = (float(v) for v in pub.translation)
     pose = types['geometry_msgs/msg/Pose'](
         position=types['geometry_msgs/msg/Point'](x=x, y=y, z=z),
         orientation=_quaternion(types, pub.rotation),
     )
-    return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
+    msg = types['geometry_msgs/msg/PoseWithCovarianceStamped'](
         header=header(types, t_ns, pub.parent),
         pose=types['geometry_msgs/msg/PoseWithCovariance'](
             pose=pose, covariance=extrinsic_covariance(pub)
         ),
     )
+    return cast('shapes.PoseWithCovarianceStamped', msg)
 
 
-def time_offset(types: Types, pub: Published) -> Any:
+def time_offset(types: Types, pub: Published) -> object:
     """dt [s] as std_msgs/Float64."""
     return types['std_msgs/msg/Float64'](data=pub.time_offset_s)
 
 
-def time_reference(types: Types, pub: Published) -> Any | None:
+def time_reference(types: Types, pub: Published) -> object | None:
     """dt as sensor_msgs/TimeReference (see the module docstring). Returns None when the
     instant on either clock is no ROS time (a boot clock minus a larger offset)."""
     t_eye = pub.instant_ns
@@ -280,7 +296,7 @@ def time_reference(types: Types, pub: Published) -> Any | None:
     )
 
 
-def outputs(types: Types, pub: Published, t_ns: int) -> dict[str, Any]:
+def outputs(types: Types, pub: Published, t_ns: int) -> dict[str, object]:
     """Every output of one result (topic relative to the node -> message), the transforms
     stamped ``t_ns``. time_reference is left out when it cannot be stated (see
     :func:`time_reference`)."""

@@ -4,16 +4,18 @@ and read back (``publish_calibration``)."""
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import cast
 
 import yaml
 
+from ..core.document import ResultDoc
 from ..core.errors import InputError
 
 
-def write_result(path: str | Path, data: dict[str, Any]) -> None:
-    """Write the result dictionary as JSON (``.json``) or YAML (anything else)."""
+def write_result(path: str | Path, data: Mapping[str, object]) -> None:
+    """Write a result document (or the rig's) as JSON (``.json``) or YAML (anything else)."""
     path = Path(path)
     try:
         with path.open('w') as f:
@@ -26,7 +28,7 @@ def write_result(path: str | Path, data: dict[str, Any]) -> None:
         raise InputError(f'{path}: cannot write the result ({err.strerror})') from None
 
 
-def read_result(path: str | Path) -> dict[str, Any]:
+def read_result(path: str | Path) -> ResultDoc:
     """A result file written by :func:`write_result` (``~/save``, ``offline_calibrate -o``).
 
     Raises InputError naming what is missing when the file is no such result."""
@@ -57,4 +59,4 @@ def read_result(path: str | Path) -> dict[str, Any]:
             'translation [3], rotation [4], time_offset and time_offset_ns, as '
             '~/save and offline_calibrate -o write them)'
         )
-    return data
+    return cast(ResultDoc, data)  # the keys read back checked above

@@ -12,9 +12,14 @@ from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
+from ..core.arrays import Indices, Mask, Stamps
 from ..core.errors import InputError
 from .bulk import SplitStamps
+
+#: A column of a file as text (a stamp per row); digit strings, or Decimal's as objects.
+Text = npt.NDArray[np.str_]
 
 #: Stamp units a file may use: nanoseconds per unit. 'Gs' is 1e9 s: Unix seconds divided by
 #: 1e9, as some comparisons publish them (TUM-VI room1 estimates: ``1.520530308199e+00``).
@@ -29,8 +34,8 @@ INT64_MAX = np.iinfo(np.int64).max
 
 
 def parse_stamps(
-    path: Path, numbers: np.ndarray, split: SplitStamps, fmt: str, unit: str
-) -> tuple[np.ndarray, list[str], np.ndarray]:
+    path: Path, numbers: Indices, split: SplitStamps, fmt: str, unit: str
+) -> tuple[Stamps, list[str], Mask]:
     """Exact int64 nanoseconds of a stamp column, notes on the unit assumed, and which rows'
     stamps fit int64 ns in that unit (the others are 0 here; the caller drops or refuses them).
 
@@ -97,7 +102,7 @@ def _in_gigaseconds(split: SplitStamps) -> bool:
     return 0.0 <= step_s < DENSEST_PERIOD_S and UNIX_YEARS_S[0] <= typical_s <= UNIX_YEARS_S[1]
 
 
-def too_large(path: Path, numbers: np.ndarray, whole: np.ndarray, unit: str = 'ns') -> None:
+def too_large(path: Path, numbers: Indices, whole: Stamps, unit: str = 'ns') -> None:
     k = int(np.argmax(whole))
     msg = (
         f'{path}, line {numbers[k]}: a stamp ({unit}) is beyond what int64 nanoseconds can '
@@ -107,21 +112,21 @@ def too_large(path: Path, numbers: np.ndarray, whole: np.ndarray, unit: str = 'n
     raise InputError(msg)
 
 
-def _split_of(whole: np.ndarray, frac: np.ndarray, neg: np.ndarray) -> SplitStamps:
+def _split_of(whole: Stamps, frac: Text | npt.NDArray[np.object_], neg: Mask) -> SplitStamps:
     """SplitStamps of whole parts, fractional digit strings and signs."""
-    frac = np.char.ljust(frac.astype(str), 18, '0')
-    nine = frac.astype('U9')  # billionths of the unit
-    rest = np.array([f[9:18] for f in frac.tolist()], dtype='U9')
+    digits = np.char.ljust(frac.astype(str), 18, '0')
+    nine = digits.astype('U9')  # billionths of the unit
+    rest = np.array([f[9:18] for f in digits.tolist()], dtype='U9')
     return SplitStamps(
         whole,
         nine.astype(np.int64),
-        np.char.str_len(np.char.rstrip(frac, '0')) > 0,
+        np.char.str_len(np.char.rstrip(digits, '0')) > 0,
         neg,
         rest.astype(np.int64),
     )
 
 
-def split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamps:
+def split_decimal(path: Path, numbers: list[int], col: Text) -> SplitStamps:
     """Decimal stamps (strings) split into whole parts, fractional digits and signs; exponent
     forms (1.4e9) go through Decimal."""
     body = np.char.lstrip(col, '-+')
@@ -146,7 +151,7 @@ def split_decimal(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamp
     return _split_of(whole_txt.astype(np.int64), parts[:, 2], neg)
 
 
-def _split_decimal_fallback(path: Path, numbers: list[int], col: np.ndarray) -> SplitStamps:
+def _split_decimal_fallback(path: Path, numbers: list[int], col: Text) -> SplitStamps:
     whole = np.empty(col.size, dtype=np.int64)
     frac = np.empty(col.size, dtype=object)
     neg = np.zeros(col.size, dtype=bool)

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.arrays import Floats, Indices, Mask, Stamps
 from ..core.errors import InputError
 from ..core.geometry import row_norms
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
@@ -105,10 +106,10 @@ def read_trajectory(
 
 def _drop_bad_rows(
     path: Path,
-    numbers: np.ndarray,
-    rows: tuple[np.ndarray, np.ndarray, np.ndarray],
-    fits: np.ndarray,
-) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], str]:
+    numbers: Indices,
+    rows: tuple[Stamps, Floats, Floats],
+    fits: Mask,
+) -> tuple[tuple[Stamps, Floats, Floats], str]:
     """The rows (stamps ns, values, x y z w quaternions) without those no pose stream holds
     (:func:`_bad_rows`), and a note naming them (line ``numbers``), when they are at most
     MAX_BAD_ROW_FRACTION; with more, all rows (the validation refuses them), except that a
@@ -166,15 +167,15 @@ def _quaternion_order(
     return 'wxyz' if fmt == 'euroc' else 'xyzw'
 
 
-def _bad_rows(
-    t_ns: np.ndarray, values: np.ndarray, q_xyzw: np.ndarray, fits: np.ndarray
-) -> np.ndarray:
+def _bad_rows(t_ns: Stamps, values: Floats, q_xyzw: Floats, fits: Mask) -> Mask:
     """(N,) bool: rows no pose stream can hold: a stamp that does not fit int64 ns, a
     non-finite value, a quaternion whose norm is off by more than the tolerance, or a stamp
     out of order with both neighbours while they are in order (one wild stamp, not an unsorted
     file)."""
-    finite = np.isfinite(values)
-    finite = np.ones(len(values), bool) if finite.all() else finite.all(axis=1)
+    each = np.isfinite(values)
+    finite: Mask = np.ones(len(values), bool)
+    if not each.all():  # (no per-row reduction of a clean file's millions of rows)
+        finite = np.all(each, axis=1)
     with np.errstate(invalid='ignore', over='ignore'):
         norm = row_norms(np.where(finite[:, None], q_xyzw, 0.0))
     bad = ~fits | ~finite | (np.abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE)
@@ -194,7 +195,7 @@ def _bad_rows(
     return bad
 
 
-def _last_of_repeated(t_ns: np.ndarray) -> np.ndarray:
+def _last_of_repeated(t_ns: Stamps) -> Mask:
     """(N,) bool: every row but those followed by a row with the same stamp."""
     return np.concatenate((t_ns[1:] != t_ns[:-1], [True]))
 
@@ -245,9 +246,7 @@ def _data_lines(path: Path, data: bytes | None = None) -> tuple[list[int], list[
     return numbers, rows
 
 
-def _read_lines(
-    path: Path, data: bytes, fmt: str
-) -> tuple[list[int], np.ndarray, SplitStamps, str]:
+def _read_lines(path: Path, data: bytes, fmt: str) -> tuple[list[int], Floats, SplitStamps, str]:
     """The file line by line (what :mod:`.bulk` leaves): (line numbers, the seven pose columns,
     the split stamps, the format), or an InputError naming the line at fault."""
     numbers, rows = _data_lines(path, data)

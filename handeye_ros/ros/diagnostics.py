@@ -5,10 +5,12 @@ topics hold)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from ..core.checks.verdict import Verdict
+from ..core.document import ReadinessDoc, RigPartDoc
 from ..formats import messages
 from ..stream.buffer import BufferStats
 from .jobs import Calibrated
@@ -129,7 +131,7 @@ def _result_values(session: Calibrated, when: str) -> list[KeyValue]:
     ]
 
 
-def _rig_values(rig: dict | None) -> list[tuple[str, object]]:
+def _rig_values(rig: RigPartDoc | None) -> list[tuple[str, object]]:
     """What a session's rig (the node's rig_file) rests on, when it has one."""
     if not rig or 'file' not in rig:
         return []
@@ -146,7 +148,9 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def readiness_status(name: str, ready: dict | None, why_not: str | None) -> DiagnosticStatus:
+def readiness_status(
+    name: str, ready: ReadinessDoc | None, why_not: str | None
+) -> DiagnosticStatus:
     """The readiness while recording (``~/status`` and /diagnostics): OK when ready, WARN with
     the first thing to do otherwise; the values are the result's ``readiness`` section
     flattened (``sigma.translation_mm``, ``rotation_deg.z``, ``missing.1``, ...)."""
@@ -160,11 +164,11 @@ def readiness_status(name: str, ready: dict | None, why_not: str | None) -> Diag
     return st
 
 
-def _flat(d: dict, prefix: str = '') -> list[tuple[str, object]]:
+def _flat(d: Mapping[str, object], prefix: str = '') -> list[tuple[str, object]]:
     out: list[tuple[str, object]] = []
     for k, v in d.items():
         key = f'{prefix}{k}'
-        if isinstance(v, dict):
+        if isinstance(v, Mapping):
             out += _flat(v, key + '.')
         elif isinstance(v, list):
             out += [(f'{key}.{i + 1}', x) for i, x in enumerate(v)]

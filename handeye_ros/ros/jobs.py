@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..app.request import Request, run, write_outputs
 
@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # imported where used: a worker starts without the core's mod
     from ..core.arrays import Floats, Stamps
     from ..core.checks.progress import Cursor, Measured, Progress
     from ..core.config import CalibrationConfig
+    from ..core.document import ResultDoc
     from ..core.result import CalibrationResult
     from ..core.trajectory import Trajectory
     from ..stream.recorder import Snapshot
@@ -34,7 +35,7 @@ class Calibrated:
     (:meth:`~handeye_ros.core.result.CalibrationResult.detached`: an hour of MoCap is too large
     to send back from the worker) and its frame names (see StreamConfig.frames)."""
 
-    document: dict[str, Any]
+    document: ResultDoc
     result: CalibrationResult
     frames: dict[str, str]
     #: 'eye' and 'ground_truth' (the hand in the eye's world and clock, T_WG T_GH(t - dt)

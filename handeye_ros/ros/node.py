@@ -36,7 +36,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -132,7 +132,7 @@ class CalibratorNode(Node):
         """Whether the node is stopping (its worker is being stopped)."""
         return self._closing
 
-    def options(self) -> dict[str, object]:
+    def options(self) -> Mapping[str, object]:
         """The algorithm's options as the worker's jobs take them."""
         return self.calib_cfg.to_dict()
 
@@ -243,16 +243,17 @@ class CalibratorNode(Node):
         )
         return future
 
-    def _calibrated(self, job: cf.Future, future: Future, stage: str | None, t0: float) -> None:
-        """The worker's answer (on the executor) to the calibration running (``_running``): the
-        outputs, the log, the answer; the report's staging folder is kept with a success. The
-        node's stop ends a running job here too: its caller is then answered ABORTED. A call
-        that waited for a check is then calibrated."""
+    def _calibrated(
+        self, job: cf.Future[Calibrated], future: Future, stage: str | None, t0: float
+    ) -> None:
+        """The worker's answer to the running calibration, on the executor: the outputs, the
+        log, the answer (ABORTED when the node's stop ended it); a call that waited for a check
+        is calibrated next. A success keeps the report's staging folder."""
         kind, queued = self._running
         check = kind == 'check'
         kept = False
         try:
-            session: Calibrated = job.result()
+            session = job.result()
         except HandeyeError as err:
             if check:  # no result was asked for: the status keeps saying it checks
                 self.get_logger().info(f'checking READY: the calibration failed ({err})')
@@ -342,8 +343,7 @@ class CalibratorNode(Node):
 
     @staticmethod
     def _drop_stage(stage: str | Calibrated | None) -> None:
-        """Remove a staging folder of the worker's report (replaced, or never used): this
-        one, or a result's."""
+        """Remove a staging folder of the worker's report (this one, or a result's)."""
         folder = stage.staged_dir if isinstance(stage, Calibrated) else stage
         if folder:
             shutil.rmtree(folder, ignore_errors=True)

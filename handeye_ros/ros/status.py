@@ -23,13 +23,14 @@ from __future__ import annotations
 import concurrent.futures as cf
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 
+from ..core.arrays import Stamps
 from ..core.checks.progress import Measured, Progress
 from ..core.checks.readiness import readiness_of
+from ..core.document import ReadinessDoc
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
@@ -77,7 +78,7 @@ class ReadinessStatus:
     def __init__(self, node: CalibratorNode, period_s: float, auto: bool) -> None:
         self._node = node
         #: the last readiness (the result's ``readiness`` section), or None with why_not
-        self.last: dict[str, Any] | None = None
+        self.last: ReadinessDoc | None = None
         self.why_not = 'waiting for data'
         self.auto = AutoMode(node, auto)
         #: what the status has gathered of the buffers
@@ -317,7 +318,7 @@ class ReadinessStatus:
         )
         return [said]
 
-    def _clocks(self, hand_ns: np.ndarray, eye_ns: np.ndarray) -> None:
+    def _clocks(self, hand_ns: Stamps, eye_ns: Stamps) -> None:
         """Whether the streams' clocks moved against each other, from the snapshots taken
         while both flow (:class:`.clocks.ClockWatch`). Kept in ``_jumped`` until :meth:`reset`:
         the buffers hold both clocks' times."""

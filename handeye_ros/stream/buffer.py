@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.arrays import Floats, Stamps
 from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
 from .convert import StampedPose
 
@@ -165,7 +166,7 @@ class PoseBuffer:
         self._count -= n
         self.dropped += n
 
-    def _ordered(self) -> tuple[np.ndarray, np.ndarray]:
+    def _ordered(self) -> tuple[Stamps, Floats]:
         idx = (self._head + np.arange(self._count)) % self.capacity
         return self._t[idx], self._pq[idx]
 

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, cast
+from typing import cast
 
 from ..core.config import CalibrationConfig
+from ..core.document import ResultDoc, StreamDoc
 from ..core.errors import ConfigError, InputError
 from ..core.pipeline import calibrate
 from ..core.result import CalibrationResult
@@ -41,7 +42,7 @@ class Snapshot:
     eye: Trajectory
     #: frame names: hand (H), eye (E), hand_world (G), eye_world (W); see StreamConfig.frames
     frames: dict[str, str]
-    streams: dict[str, Any]
+    streams: dict[str, StreamDoc]
     warnings: tuple[str, ...]
 
     def result(
@@ -52,7 +53,7 @@ class Snapshot:
         result = calibrate(self.hand, self.eye, config, progress)
         return replace(result, warnings=result.warnings + self.warnings)
 
-    def describe(self, result: CalibrationResult) -> dict[str, Any]:
+    def describe(self, result: CalibrationResult) -> ResultDoc:
         """The result dictionary (schema of CalibrationResult.to_dict with this snapshot's
         frame names, plus ``streams`` and a one-line ``summary``)."""
         f = self.frames
@@ -296,9 +297,9 @@ class Recorder:
                 )
         return out
 
-    def stream_dict(self) -> dict[str, Any]:
+    def stream_dict(self) -> dict[str, StreamDoc]:
         """Per-stream bookkeeping for the result file."""
-        out = {
+        out: dict[str, StreamDoc] = {
             name: {
                 'topic': getattr(self.config, name + '_topic'),
                 'type': self.types[name],

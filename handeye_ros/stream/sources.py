@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..core.arrays import Floats
 from ..core.errors import ConfigError
 from ..core.trajectory import Trajectory
 from .convert import StampedPose, frame_name, stamped_pose
@@ -244,7 +245,7 @@ class TfChain:
         q = rot.as_quat()
         return Trajectory.from_arrays(raw.t_ns, pos, q, name=raw.name)
 
-    def _product(self, factors: list[tuple[str, bool]]) -> tuple[Rotation, np.ndarray]:
+    def _product(self, factors: list[tuple[str, bool]]) -> tuple[Rotation, Floats]:
         rot, pos = Rotation.identity(), np.zeros(3)
         for frame, inverted in factors:
             v = self.edges[frame].value

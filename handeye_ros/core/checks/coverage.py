@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..document import CoverageDoc
 from ..trajectory import Trajectory, gap_free_parts
 
 #: The notes name the coverage when the MoCap misses more than this fraction of the eye's span,
@@ -41,7 +42,7 @@ class Coverage:
     def fraction(self) -> float:
         return self.covered_s / self.eye_span_s if self.eye_span_s > 0 else 0.0
 
-    def to_dict(self) -> dict[str, float | int]:
+    def to_dict(self) -> CoverageDoc:
         return {
             'hand_gaps': self.gaps,
             'hand_gap_s': self.gap_s,

@@ -22,12 +22,13 @@ The targets are the verdict's own (``precision_time_offset``, ``precision_transl
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, TypedDict
+from typing import TypedDict
 
 import numpy as np
 
 from ..arrays import Floats
 from ..config import CalibrationConfig
+from ..document import ReadinessDoc
 from ..trajectory import Trajectory
 from . import pair_information as info
 from .excitation import RECENT_S
@@ -78,7 +79,7 @@ class Readiness:
     dropout: dict[str, float] = field(default_factory=dict)
     missing: tuple[str, ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> ReadinessDoc:
         """The ``readiness`` section of a result, and the node's status values."""
 
         def num(v: float, k: float = 1.0) -> float | None:

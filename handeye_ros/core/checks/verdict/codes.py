@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any
+
+from ...document import QualityDoc
 
 
 class Verdict(StrEnum):
@@ -122,7 +123,7 @@ class Quality:
         """The verdict and its reason codes, e.g. ``doubtful (ambiguous_offset)``."""
         return self.verdict + (f' ({sep.join(self.codes)})' if self.reasons else '')
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> QualityDoc:
         return {
             'verdict': str(self.verdict),
             'reasons': [

@@ -29,6 +29,7 @@ import argparse
 import itertools
 import json
 import pickle
+import subprocess
 import tempfile
 import threading
 import time
@@ -111,6 +112,24 @@ class LiveProbe:
             time.sleep(0.005)
         return (fut.result().success, fut.result().message) if fut.done() else (False, 'timeout')
 
+    def results_until(self, pub: subprocess.Popen, saved: Path, grace_s: float) -> list:
+        """Until ``grace_s`` after the publisher ``pub`` ends: (when, the file ``~/save`` wrote,
+        or why not) of every new result."""
+        docs, seen, grace = [], 0, None
+        while grace is None or time.monotonic() < grace:
+            if grace is None and pub.poll() is not None:
+                grace = time.monotonic() + grace_s
+            with self.lock:
+                n = len(self.results)
+            if n > seen:
+                seen = n
+                ok, msg = self.call_save()
+                docs.append(
+                    (self.results[n - 1], yaml.safe_load(saved.read_text()) if ok else msg)
+                )
+            time.sleep(0.05)
+        return docs
+
     def close(self) -> None:
         self.executor.shutdown()
         self.thread.join(timeout=5.0)
@@ -141,10 +160,11 @@ def run_seed(
 ) -> dict:
     """One recording through the node; what happened, against the truth."""
     probe.clear()
-    saved = out / f'seed{seed}.yaml'
+    saved = out / f'seed{seed}.yaml'  # inside output_dir: the node writes nowhere else
     node = start(
         'handeye_ros.ros.calibrator',
-        *('--ros-args', '-p', 'auto_calibrate:=true', '-p', f'output_file:={saved}'),
+        *('--ros-args', '-p', 'auto_calibrate:=true', '-p', f'output_dir:={out}'),
+        *('-p', f'output_file:={saved.name}'),
         log=out / f'node{seed}.log',
     )
     pub = start(
@@ -153,17 +173,7 @@ def run_seed(
         *PUBLISHER,
         *('--rate', str(230 * speedup)),  # the last --rate counts
     )
-    docs, seen, grace = [], 0, None
-    while grace is None or time.monotonic() < grace:
-        if grace is None and pub.poll() is not None:
-            grace = time.monotonic() + GRACE_S
-        with probe.lock:
-            n = len(probe.results)
-        if n > seen:
-            seen = n
-            ok, msg = probe.call_save()
-            docs.append((probe.results[n - 1], yaml.safe_load(saved.read_text()) if ok else msg))
-        time.sleep(0.05)
+    docs = probe.results_until(pub, saved, GRACE_S)
     truth_line = json.loads(pub.stdout.read().strip().splitlines()[-1])
     stop(node)
     t = truth_line['truth']

@@ -22,13 +22,11 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
-import time
 from pathlib import Path
 
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
 import readiness_real
-import yaml
 from common import emit, table
 from node_ingest import start, stop
 from readiness_live import LiveProbe, _reported, _sigmas
@@ -61,17 +59,7 @@ def replay(probe: LiveProbe, name: str, hand, eye, out: Path, speed: float) -> d
         'handeye_ros.ros.sim_publisher',
         *('--replay', *map(str, files), '--speed', str(speed)),
     )
-    docs, seen, grace = [], 0, None
-    while grace is None or time.monotonic() < grace:
-        if grace is None and pub.poll() is not None:
-            grace = time.monotonic() + GRACE_S
-        with probe.lock:
-            n = len(probe.results)
-        if n > seen:
-            seen = n
-            ok, msg = probe.call_save()
-            docs.append((probe.results[n - 1], yaml.safe_load(saved.read_text()) if ok else msg))
-        time.sleep(0.05)
+    docs = probe.results_until(pub, saved, GRACE_S)
     out_text, err = pub.communicate()
     stop(node)
     with probe.lock:

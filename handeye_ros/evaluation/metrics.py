@@ -14,7 +14,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 import numpy as np
 
@@ -27,14 +27,7 @@ if TYPE_CHECKING:
     from .error_bars import CalibrationSigmas
 
 #: The figures of :class:`PoseErrors`, and the statistics of each that carry error bars.
-POSE_ERRORS: tuple[ErrorKey, ...] = (
-    'ape_translation',
-    'ape_rotation',
-    'rpe_time_translation',
-    'rpe_time_rotation',
-    'rpe_distance_translation',
-    'rpe_distance_rotation',
-)
+POSE_ERRORS: tuple[ErrorKey, ...] = get_args(ErrorKey)
 STATS = ('rmse', 'mean', 'median')
 #: An RPE pair may miss the time or distance step by this fraction of it (evo's default).
 RPE_TOLERANCE = 0.1

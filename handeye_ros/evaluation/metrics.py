@@ -21,6 +21,7 @@ import numpy as np
 from ..core.arrays import Floats, Indices
 from ..core.document import ErrorKey, ErrorStatsDoc, EvaluationDoc, PoseErrorsDoc
 from ..core.geometry import rotation_angle, row_norms
+from ..core.result_sections import num
 from .aligned import AlignedTrajectories
 
 if TYPE_CHECKING:
@@ -58,9 +59,6 @@ class ErrorStats:
         )
 
     def to_dict(self) -> ErrorStatsDoc:
-        def num(v: float) -> float | None:
-            return v if np.isfinite(v) else None
-
         return {
             'rmse': num(self.rmse),
             'mean': num(self.mean),

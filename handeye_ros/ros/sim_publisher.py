@@ -151,7 +151,9 @@ def _publish(
         [(int(t), 0, k) for k, t in enumerate(rec.hand.t_ns)]
         + [(int(t), 1, k) for k, t in enumerate(rec.eye.t_ns)]
     )
-    due = _due_s([t for t, _, _ in items], args, rec)
+    speed = _speed(args)
+    _say_pace(args, rec, speed)
+    due = _due_s([t for t, _, _ in items], args.rate, speed)
     sent = {'hand': 0, 'eye': 0}
     jump_ns, jump_from = round(args.clock_jump * 1e9), len(rec.eye) // 2
     lost = (0, 0)  # the MoCap dropout's stamps [ns), from the first hand stamp
@@ -182,10 +184,8 @@ def _publish(
     return sent, time.monotonic() - t0
 
 
-def _due_s(stamps: list[int], args: argparse.Namespace, rec: Outgoing) -> list[float]:
-    """When each message (by its stamp [ns]) is due, in seconds from the first: at ``--rate``
-    per second, or at ``--speed`` times the pace of the stamps; said on stderr."""
-    speed = _speed(args)
+def _say_pace(args: argparse.Namespace, rec: Outgoing, speed: float | None) -> None:
+    """What is published where, and at which pace, on stderr."""
     pace = f'{args.rate:g} messages/s' if speed is None else f'{speed:g}x their stamps'
     print(
         f'sim_publisher: publishing {len(rec.hand)} MoCap poses on {args.hand_topic} and '
@@ -193,8 +193,13 @@ def _due_s(stamps: list[int], args: argparse.Namespace, rec: Outgoing) -> list[f
         file=sys.stderr,
         flush=True,
     )
+
+
+def _due_s(stamps: list[int], rate: float, speed: float | None) -> list[float]:
+    """When each message (by its stamp [ns]) is due, in seconds from the first: at ``rate``
+    per second, or at ``speed`` times the pace of the stamps."""
     if speed is None:
-        return [(j + 1) / args.rate for j in range(len(stamps))]
+        return [(j + 1) / rate for j in range(len(stamps))]
     return [(t - stamps[0]) * 1e-9 / speed for t in stamps]
 
 

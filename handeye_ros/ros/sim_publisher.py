@@ -245,10 +245,14 @@ def _recording(args: argparse.Namespace) -> Outgoing:
 
 
 def _replayed(paths: list[str]) -> Outgoing:
-    """The two trajectory files as a recording without a truth."""
+    """The two trajectory files as a recording without a truth; what the reader noted of them
+    (a unit or quaternion order it assumed, repeated stamps it kept one of) said on stderr, as
+    offline_calibrate's warnings say it."""
     from handeye_ros.formats import read_trajectory
 
     hand, eye = (read_trajectory(p) for p in paths)
+    for note in (*hand.notes, *eye.notes):
+        print(f'sim_publisher: {note}', file=sys.stderr, flush=True)
     return Outgoing(hand, eye, None)
 
 

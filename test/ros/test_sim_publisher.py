@@ -36,3 +36,17 @@ def test_a_replay_is_the_files_poses_paced_by_their_stamps(tmp_path: Path) -> No
     np.testing.assert_array_equal(written.eye.t_ns, rec.eye.t_ns)
     # a simulation keeps --rate unless --speed asks for its stamps' pace
     assert _speed(parse([])) is None and _speed(parse(['--speed', '3'])) == 3.0
+
+
+def test_a_replay_says_what_the_reader_noted(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rec = simulate(5, duration_s=12.0)
+    hand, eye = tmp_path / 'hand.csv', tmp_path / 'eye.txt'
+    write_euroc(hand, rec.hand)
+    write_tum(eye, rec.eye)
+    lines = eye.read_text().splitlines()
+    eye.write_text('\n'.join([*lines[:5], lines[4], *lines[5:]]) + '\n')  # one stamp twice
+    out = _recording(parse(['--replay', str(hand), str(eye)]))
+    assert len(out.eye) == len(rec.eye)
+    assert 'stamp(s) written twice; the last row of each was kept' in capsys.readouterr().err

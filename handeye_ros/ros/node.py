@@ -12,10 +12,11 @@ costs so much per callback that a 1 kHz stream overruns it). ``~/calibrate`` is 
 it snapshots the buffers, hands the snapshot to a worker *process* and awaits the result, so
 the executor keeps taking messages meanwhile. A process rather than a thread: at 1 kHz the
 executor holds the GIL most of the time, and a calibration thread beside it ran ten times
-slower. The worker is spawned, and imports the core, when the node starts, so a call pays no
-start-up. A job's answer comes back on the executor's thread
-(:meth:`CalibratorNode.on_executor`), which alone publishes and changes the node's state.
-SIGINT or SIGTERM stop the node (exit code 0) after its worker (:meth:`CalibratorNode.close`;
+slower. A worker is spawned, and imports the core, when the node starts, so a call pays no
+start-up; a second when a job comes while the first is busy. A job's answer comes back on the
+executor's thread (:meth:`CalibratorNode.on_executor`), which alone publishes and changes the
+node's state.
+SIGINT or SIGTERM stop the node (exit code 0) after its workers (:meth:`CalibratorNode.close`;
 a running calibration is abandoned, a waiting caller told "aborted: shutting down").
 Every calibration, successful or not, updates every output together: a success publishes on
 every latched output at once, stamped alike (:mod:`.outputs`); a failure, which cannot
@@ -25,7 +26,7 @@ outputs as stale (the result they come from and when).
 The subscriptions (types learnt from the graph, QoS, why a stream is empty) are in
 :mod:`.subscriptions`, the parameters (declared from the option specs, changed at run time,
 misspelt names said) in :mod:`.parameters`, the /diagnostics statuses in :mod:`.diagnostics`,
-the worker process in :mod:`.worker`, the result's publishers in :mod:`.outputs` (its
+the worker processes in :mod:`.worker`, the result's publishers in :mod:`.outputs` (its
 messages in :mod:`handeye_ros.formats.messages`), the start and stop in :mod:`.calibrator`.
 """
 
@@ -40,9 +41,7 @@ from collections.abc import Callable, Mapping
 from typing import TypeVar
 
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import (
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -266,7 +265,7 @@ class CalibratorNode(Node):
                 return
             self.get_logger().error(f'calibration worker failed: {err!r}')
             if isinstance(err, cf.process.BrokenProcessPool):
-                self._pool = worker.new_pool(ignore_sigint=False)
+                self._pool = worker.new_pool()
             self._failed(f'internal error: {err!r}')
             future.set_result((False, f'internal error: {err!r}'))
         else:

@@ -3,10 +3,12 @@ moments the start is most fragile: they exit 0, quietly, and leave no process be
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -144,3 +146,32 @@ def test_the_calibrator_without_rclpy_says_so_in_one_line() -> None:
     assert proc.returncode == 1, proc.stderr
     assert proc.stderr.startswith('calibrator: error: rclpy cannot be imported'), proc.stderr
     assert 'Traceback' not in proc.stderr and len(proc.stderr.splitlines()) == 1, proc.stderr
+
+
+def _pid_after(seconds: float) -> int:
+    """A worker's job: its process id, after ``seconds``."""
+    time.sleep(seconds)
+    return os.getpid()
+
+
+def test_the_second_worker_starts_only_when_two_jobs_meet() -> None:
+    """The node's pool starts one worker with the node; jobs one after another all run there;
+    a job that comes while it is busy starts the second, which both then share (a short run
+    never pays for a worker it does not use)."""
+    from handeye_ros.ros import worker
+
+    pool = worker.new_pool()
+    try:
+        assert len(multiprocessing.active_children()) == 1
+        alone = set()
+        for _ in range(3):  # 0.1 s apart, as the status's jobs come (the executor counts a
+            # worker idle a moment after its answer)
+            time.sleep(0.1)
+            alone.add(pool.submit(_pid_after, 0.0).result(timeout=60))
+        assert len(alone) == 1 and len(multiprocessing.active_children()) == 1
+        both = [pool.submit(_pid_after, 1.0) for _ in range(2)]
+        assert len({job.result(timeout=60) for job in both}) == 2
+        assert len(multiprocessing.active_children()) == worker.WORKERS == 2
+    finally:
+        worker.stop(pool)
+    assert multiprocessing.active_children() == []

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_cli
+from conftest import ROOT, run_cli, run_main
 
 from handeye_ros.core.geometry import compose, matrix_from_quat
 from handeye_ros.core.trajectory import Trajectory
@@ -168,7 +168,7 @@ def test_clocks_apart_have_no_baseline_and_say_why(tmp_path: Path, sim_files) ->
     far = tmp_path / 'eye_far.txt'
     e = rec.eye
     write_tum(far, Trajectory.from_arrays(e.t_ns + 10**15, e.p_xyz, e.q_xyzw, 'far'))
-    res = run_cli('--hand', hand, '--eye', far, '--json', '--report', tmp_path / 'r')
+    res = run_main('--hand', hand, '--eye', far, '--json', '--report', tmp_path / 'r')
     _ok(res)
     ev = json.loads(res.stdout)['evaluation']
     assert ev['uncalibrated'] is None
@@ -182,11 +182,11 @@ def test_unwritable_output_directory_fails_before_calibrating(sim_files, tmp_pat
     blocker = tmp_path / 'file'
     blocker.write_text('x')
     for flag in ('--report', '--export'):
-        res = run_cli('--hand', hand, '--eye', eye, flag, blocker / 'sub')
+        res = run_main('--hand', hand, '--eye', eye, flag, blocker / 'sub')
         assert res.returncode == 1 and 'Traceback' not in res.stderr
         assert res.stderr.startswith(f'offline_calibrate: error: {flag} '), res.stderr
         assert 'cannot write there' in res.stderr
-    res = run_cli('--hand', hand, '--eye', eye, '--rpe-delta', '-1')
+    res = run_main('--hand', hand, '--eye', eye, '--rpe-delta', '-1')
     assert res.returncode == 1 and '--rpe-delta must be a positive number' in res.stderr
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import recording, run_cli
+from conftest import recording, run_main
 
 from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
 from handeye_ros.stream import PoseBuffer
@@ -69,7 +69,7 @@ def test_every_storage_and_type_gives_the_same_result(tmp_path: Path, rec) -> No
             ('/vio/odom', eye_type),
             name=storage,
         )
-        d = _ok(run_cli('--bag', bag, '--json'))
+        d = _ok(run_main('--bag', bag, '--json'))
         assert d['streams']['hand']['received'] == len(rec.hand)
         assert d['streams']['eye']['type'].endswith(eye_type)
         results.append(d)
@@ -97,8 +97,8 @@ def test_bag_equals_text_files(tmp_path: Path, rec) -> None:
 
     write_tum(tmp_path / 'h.txt', rec.hand)
     write_tum(tmp_path / 'e.txt', rec.eye)
-    a = _ok(run_cli('--hand', tmp_path / 'h.txt', '--eye', tmp_path / 'e.txt', '--json'))
-    b = _ok(run_cli('--bag', _bag(tmp_path, rec), '--json'))
+    a = _ok(run_main('--hand', tmp_path / 'h.txt', '--eye', tmp_path / 'e.txt', '--json'))
+    b = _ok(run_main('--bag', _bag(tmp_path, rec), '--json'))
     assert a['time_offset'] == pytest.approx(b['time_offset'], abs=1e-7)
     np.testing.assert_allclose(
         a['extrinsic']['translation'], b['extrinsic']['translation'], atol=1e-6
@@ -112,23 +112,25 @@ def test_topics_picked_by_name_or_listed(tmp_path: Path, rec) -> None:
         hand=('/vicon/rig/pose', 'PoseStamped'),
         eye=('/ov_msckf/odomimu', 'Odometry'),
     )
-    d = _ok(run_cli('--bag', bag, '--json'))
+    d = _ok(run_main('--bag', bag, '--json'))
     assert d['streams']['hand']['topic'] == '/vicon/rig/pose'
     unclear = _bag(
         tmp_path, rec, hand=('/a', 'PoseStamped'), eye=('/b', 'Odometry'), name='unclear'
     )
-    _fails(run_cli('--bag', unclear), 'looks like the hand stream', '--hand-topic', '/a (', '/b (')
-    d = _ok(run_cli('--bag', unclear, '--hand-topic', '/a', '--eye-topic', '/b', '--json'))
+    _fails(
+        run_main('--bag', unclear), 'looks like the hand stream', '--hand-topic', '/a (', '/b ('
+    )
+    d = _ok(run_main('--bag', unclear, '--hand-topic', '/a', '--eye-topic', '/b', '--json'))
     assert d['streams']['eye']['topic'] == '/b'
 
 
 def test_wrong_topic_empty_bag_unsupported_type(tmp_path: Path, rec) -> None:
     bag = _bag(tmp_path, rec)
-    _fails(run_cli('--bag', bag, '--hand-topic', '/nope'), 'no topic /nope', '/mocap/pose (')
+    _fails(run_main('--bag', bag, '--hand-topic', '/nope'), 'no topic /nope', '/mocap/pose (')
     empty = tmp_path / 'empty'
     with BagWriter(empty):
         pass
-    _fails(run_cli('--bag', empty), 'holds no messages')
+    _fails(run_main('--bag', empty), 'holds no messages')
     imu = tmp_path / 'imu'
     with BagWriter(imu) as w:
         T = w.store.types
@@ -146,14 +148,14 @@ def test_wrong_topic_empty_bag_unsupported_type(tmp_path: Path, rec) -> None:
             )
             w.write('/imu', 'sensor_msgs/msg/Imu', k * 10**9, msg)
     _fails(
-        run_cli('--bag', imu, '--hand-topic', '/imu', '--eye-topic', '/imu'),
+        run_main('--bag', imu, '--hand-topic', '/imu', '--eye-topic', '/imu'),
         'sensor_msgs/msg/Imu',
         'carries no pose',
     )
-    _fails(run_cli('--bag', tmp_path / 'absent'), 'no such bag')
+    _fails(run_main('--bag', tmp_path / 'absent'), 'no such bag')
     (tmp_path / 'junk.bag').write_text('not a bag')
-    _fails(run_cli('--bag', tmp_path / 'junk.bag'), 'cannot be read')
-    _fails(run_cli('--bag', bag, '--hand', 'x.txt'), '--bag PATH')
+    _fails(run_main('--bag', tmp_path / 'junk.bag'), 'cannot be read')
+    _fails(run_main('--bag', bag, '--hand', 'x.txt'), '--bag PATH')
 
 
 def test_nan_poses_are_rejected_and_reported(tmp_path: Path, rec) -> None:
@@ -170,7 +172,7 @@ def test_nan_poses_are_rejected_and_reported(tmp_path: Path, rec) -> None:
             ('/vio/odom', 'Odometry', bad_eye, 'o', 'e'),
         ],
     )
-    d = _ok(run_cli('--bag', bag, '--json'))
+    d = _ok(run_main('--bag', bag, '--json'))
     n_bad = int(np.isnan(p[:, 0]).sum())
     assert d['streams']['eye']['rejected']['non_finite'] == n_bad
     assert any('rejected' in w and 'non finite' in w for w in d['warnings'])
@@ -183,7 +185,7 @@ def test_output_bag_holds_the_result(tmp_path: Path, rec) -> None:
 
     out = tmp_path / 'result_bag'
     d = _ok(
-        run_cli(
+        run_main(
             '--bag',
             _bag(tmp_path, rec),
             '--json',
@@ -232,11 +234,11 @@ def test_frames_come_from_the_messages(tmp_path: Path, rec) -> None:
             ('/vio/odom', 'Odometry', rec.eye, '/odom_vio', 'body_imu'),
         ],
     )
-    d = _ok(run_cli('--bag', bag, '--json'))
+    d = _ok(run_main('--bag', bag, '--json'))
     assert (d['extrinsic']['parent'], d['extrinsic']['child']) == ('rig_marker', 'body_imu')
     assert (d['world_alignment']['parent'], d['world_alignment']['child']) == ('odom_vio', 'vicon')
     assert d['streams']['hand']['frames'] == {'world': 'vicon', 'body': 'rig_marker'}
-    d = _ok(run_cli('--bag', bag, '--json', '--eye-frame-id', 'imu_link'))
+    d = _ok(run_main('--bag', bag, '--json', '--eye-frame-id', 'imu_link'))
     assert d['extrinsic']['child'] == 'imu_link'
     plain = tmp_path / 'plain'
     write_recording(
@@ -246,7 +248,7 @@ def test_frames_come_from_the_messages(tmp_path: Path, rec) -> None:
             ('/vio/odom', 'Odometry', rec.eye, 'odom', 'imu'),
         ],
     )
-    d = _ok(run_cli('--bag', plain, '--json'))
+    d = _ok(run_main('--bag', plain, '--json'))
     assert d['extrinsic']['parent'] == 'mocap_marker'
 
 
@@ -300,9 +302,9 @@ def test_unset_stamps_are_named_and_arrival_time_is_the_way_out(tmp_path: Path, 
         for t, topic, msgtype, m in sorted(items, key=lambda x: x[0]):
             w.write(topic, msgtype, t, m)
     _fails(
-        run_cli('--bag', bag, '--json'), 'had no stamp (header.stamp 0)', 'use_arrival_time: hand'
+        run_main('--bag', bag, '--json'), 'had no stamp (header.stamp 0)', 'use_arrival_time: hand'
     )
-    d = _ok(run_cli('--bag', bag, '--json', '--use-arrival-time', 'hand'))
+    d = _ok(run_main('--bag', bag, '--json', '--use-arrival-time', 'hand'))
     assert (d['streams']['hand']['stamps'], d['streams']['eye']['stamps']) == ('arrival', 'header')
     assert any('stamped on arrival' in w for w in d['warnings'])
     # the recorder's clock is the true one here: the offset as from the stamps

@@ -18,7 +18,7 @@ from bag_layouts import (
     write_rigid_bodies_recording,
     write_tf_recording,
 )
-from conftest import recording, run_cli
+from conftest import recording, run_main
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.errors import ConfigError
@@ -165,7 +165,7 @@ def _tf_bag(path: Path, rec, storage: str = 'mcap', slash: str = '') -> tuple[Pa
 
 
 def _run(bag: Path, *args: str) -> dict:
-    res = run_cli('--bag', bag, '--json', '--no-evaluation', *args)
+    res = run_main('--bag', bag, '--json', '--no-evaluation', *args)
     assert res.returncode == 0, res.stderr
     assert 'Traceback' not in res.stderr
     return json.loads(res.stdout)
@@ -206,15 +206,17 @@ def test_tf_bag_gives_the_plain_result(
 
 def test_tf_selection_errors_list_what_the_bag_holds(tmp_path: Path, rec) -> None:
     bag, _ = _tf_bag(tmp_path / 'tf', rec)
-    res = run_cli('--bag', bag, '--hand-topic', '/tf:world.nothing', '--eye-topic', '/tf:odom.imu')
+    res = run_main(
+        '--bag', bag, '--hand-topic', '/tf:world.nothing', '--eye-topic', '/tf:odom.imu'
+    )
     assert res.returncode == 1 and 'Traceback' not in res.stderr, res.stderr
     assert "no frame 'nothing'" in res.stderr and 'world.rig' in res.stderr, res.stderr
-    res = run_cli('--bag', bag, '--hand-topic', '/tf', '--eye-topic', '/tf:odom.imu')
+    res = run_main('--bag', bag, '--hand-topic', '/tf', '--eye-topic', '/tf:odom.imu')
     assert res.returncode == 1 and 'PARENT.CHILD' in res.stderr, res.stderr
     assert '/tf:world.rig' in res.stderr and '/tf:imu.odom' in res.stderr, res.stderr
-    res = run_cli('--bag', bag)
+    res = run_main('--bag', bag)
     assert res.returncode == 1 and '/tf (tf2_msgs/msg/TFMessage' in res.stderr, res.stderr
-    res = run_cli('--bag', bag, '--hand-topic', '/tf:odom.imu', '--eye-topic', '/tf:odom.imu')
+    res = run_main('--bag', bag, '--hand-topic', '/tf:odom.imu', '--eye-topic', '/tf:odom.imu')
     assert res.returncode == 1 and 'same topic /tf:odom.imu' in res.stderr, res.stderr
 
 
@@ -287,13 +289,13 @@ def test_rigid_body_lost_frames_are_counted_and_names_listed(
     assert d['streams']['hand']['buffered'] == len(rec.hand) - lost
     assert any(f'{lost} not in message' in w for w in d['warnings']), d['warnings']
     assert abs(d['time_offset'] - plain['time_offset']) < 1e-3
-    res = run_cli('--bag', bag, '--hand-topic', '/mocap/rigid_bodies:drone')
+    res = run_main('--bag', bag, '--hand-topic', '/mocap/rigid_bodies:drone')
     assert res.returncode == 1 and 'Traceback' not in res.stderr, res.stderr
     assert "no message held the rigid body 'drone'" in res.stderr
     assert "'wand'" in res.stderr and "'rig'" in res.stderr, res.stderr
-    res = run_cli('--bag', bag, '--hand-topic', '/mocap/rigid_bodies')
+    res = run_main('--bag', bag, '--hand-topic', '/mocap/rigid_bodies')
     assert res.returncode == 1 and '/mocap/rigid_bodies:rig' in res.stderr, res.stderr
-    res = run_cli(
+    res = run_main(
         '--bag', bag, '--hand-topic', '/mocap/rigid_bodies:rig', '--eye-topic', '/vio/odom:imu'
     )
     assert res.returncode == 1 and 'one pose per message' in res.stderr, res.stderr

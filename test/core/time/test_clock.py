@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import recording, run_cli
+from conftest import recording, run_main
 
 from handeye_ros.core.checks.verdict import drift_significant, drift_threshold_sigmas
 from handeye_ros.core.config import CalibrationConfig
@@ -199,7 +199,7 @@ def test_cli_flags_and_result_keys(tmp_path) -> None:
     rec = recording(seed=2, level=2.0, duration_s=60.0, scale=2.0)
     write_tum(tmp_path / 'h.txt', rec.hand)
     write_tum(tmp_path / 'e.txt', rec.eye)
-    out = run_cli(
+    out = run_main(
         '--hand',
         tmp_path / 'h.txt',
         '--eye',

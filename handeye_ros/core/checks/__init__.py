@@ -1,6 +1,7 @@
 """What real recordings need around the paper's three stages, and the verdict.
 
-Not in the paper: :mod:`.screening` (damaged rows, placeholders, isolated outlier poses),
+Not in the paper: :mod:`.screening` (damaged rows, placeholders, isolated outlier poses, on
+:mod:`.running_median`),
 :mod:`.breaks` (VIO resets found against the hand), :mod:`.conventions` (stamp units and epochs
 the data contradict), :mod:`.orientations` (quaternion orders and inverted poses likewise),
 :mod:`.selfcheck` (stage 2 at each candidate offset, scored alike) on :mod:`.excerpt` (a

@@ -45,12 +45,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.ndimage import median_filter
 
 from ..arrays import Floats, Indices, Mask, Stamps
 from ..chunked import chunked
 from ..geometry import quat_angle, quat_slerp, row_norms
 from ..trajectory import Trajectory
+from .running_median import running_median
 
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
 SCALE_WINDOW_S = 2.0
@@ -249,8 +249,8 @@ MEDIAN_SAMPLES = 401
 def _hampel(res: Floats, size: int, n_sigma: float, floor: float) -> Floats:
     # mirror, not nearest: repeating an end value would let a wild end pose set its own scale
     size = min(size, 2 * (res.size // 2) - 1)
-    m = median_filter(res, size=size, mode='mirror')
-    s = median_filter(np.abs(res - m), size=size, mode='mirror')
+    m = running_median(res, size)
+    s = running_median(np.abs(res - m), size)
     limit: Floats = np.maximum(m + n_sigma * 1.4826 * s, floor)
     return limit
 

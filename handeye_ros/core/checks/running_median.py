@@ -32,19 +32,23 @@ FAST_SCIPY = (1, 15)
 PAIRS_FROM = 8192
 
 
+def _scipy_version() -> tuple[int, int]:
+    major, minor = scipy.__version__.split('.')[:2]
+    return int(major), int(minor)
+
+
+#: Whether this scipy's median_filter keeps its window sorted.
+SCIPY_SORTS = _scipy_version() >= FAST_SCIPY
+
+
 def running_median(x: Floats, size: int) -> Floats:
     """The median of each window of ``size`` (odd, at most ``x.size``) centred on each
     element, the signal mirrored at its ends (d c b | a b c d | c b a): what
     ``median_filter(x, size=size, mode='mirror')`` gives."""
-    if _scipy_version() >= FAST_SCIPY or x.size < PAIRS_FROM or size < 3:
+    if SCIPY_SORTS or x.size < PAIRS_FROM or size < 3:
         out: Floats = median_filter(x, size=size, mode='mirror')
         return out
     return _pairs_of_blocks(np.asarray(x, dtype=np.float64), size)
-
-
-def _scipy_version() -> tuple[int, int]:
-    major, minor = scipy.__version__.split('.')[:2]
-    return int(major), int(minor)
 
 
 def _pairs_of_blocks(x: Floats, w: int) -> Floats:

@@ -71,8 +71,9 @@ def run_cli(*args: str, module: str = 'handeye_ros.offline', timeout: float = 12
 def run_main(*args: str) -> CliResult:
     """Run the offline tool's ``main`` in this process, as :func:`run_cli` runs it in a new one:
     the same exit codes and the same stdout and stderr, without an interpreter's start-up
-    (its imports: about 0.6 s a call). The argument, bag, source and evaluation tests use it; the tests
-    about the process itself (test_offline_cli, the report's fixture) keep :func:`run_cli`."""
+    (its imports: about 0.6 s a call). The argument, bag, source and evaluation tests use it;
+    the tests about the process itself (test_offline_cli, the report's fixture) keep
+    :func:`run_cli`."""
     import contextlib
     import io
     import logging

@@ -1,8 +1,9 @@
 """The node's status against its own calibrations on real recordings (issue 45, item 4), without
 DDS: each recording is read as the node's buffers would hold it after 20, 30, ... s, and at each
-prefix the status's readiness (the result's own ``readiness`` section: the figures the status
-shows for those buffers) is carried over as the node carries it (``auto_mode.carry_over`` with
-the factors and held reasons of the last result, ``predictor_factors``: at the first prefix
+prefix the status's readiness (the result's ``readiness`` before it is carried over: the
+figures the status shows for those buffers) is carried over as the node carries it
+(``core/checks/carry.py``: ``carry_over`` with the factors and held reasons of the last result,
+``predictor_factors``: at the first prefix
 predicted READY that prefix's own calibration, as the node checks it, then auto mode's, each
 time the span has grown by GROWTH), then compared with a calibration of that prefix.
 
@@ -25,11 +26,12 @@ import numpy as np
 import realdata
 from common import emit, table
 
+from handeye_ros.core.checks.carry import carry_over, held_reasons, predictor_factors
 from handeye_ros.core.checks.verdict import sigmas_of
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.formats import read_trajectory
-from handeye_ros.ros.auto_mode import GROWTH, carry_over, held_reasons, predictor_factors
+from handeye_ros.ros.auto_mode import GROWTH
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 FIRST_S = 20.0
@@ -75,7 +77,8 @@ def prefixes(hand, eye, step: float) -> list[list]:
         except HandeyeError:
             continue
         doc = res.to_dict()
-        status = doc.get('readiness')
+        # the status the node shows for these buffers: the predictions, before any result
+        status = None if res.readiness is None else res.readiness.to_dict()
         if status is None or res.batch is None:
             continue
         carried, had = _carried(status, published), published is not None

@@ -16,7 +16,9 @@ Three tables:
   (the 12 EuRoC pairs; the five real-time VI-SLAM runs of MH_01-MH_05, whose offset to the
   ground truth is one camera frame, 50 ms; TUM-VI room1 and outdoors4, ORB-SLAM3 and Basalt
   VIO), all in the IMU frame (truth T_HE = I): the verdict, the error and the reported 1-sigma
-  (norms), the groups noted to vary along the recording, and per axis the rms of error / sigma.
+  (norms), the groups noted to vary along the recording, per axis the rms of error / sigma,
+  and READY as the consecutive poses predict it against as the result's ``readiness`` carries
+  it (``core/checks/carry.py``: READY only beside ``good``).
 - ``uncertainty_sim``: the paper's protocol (white noise, 20 seeds a level): truth within 3
   sigma (dt; Mahalanobis of the translation and the rotation under chi^2_3's 99.73 %), before
   and now, and how much larger the reported sigma is than the long-run one.
@@ -110,10 +112,11 @@ def error_rows() -> tuple[list[list], np.ndarray]:
         try:
             r = calibrate(hand, eye)
         except HandeyeError as err:  # Basalt room1: its quaternion columns as published
-            rows.append([name, 'refused', '-', '-', '-', str(err)[:60]])
+            rows.append([name, 'refused', '-', '-', '-', str(err)[:60], '-'])
             continue
+        ready = f'{_yes(r.readiness.ready)} -> {_yes(r.to_dict()["readiness"]["ready"])}'
         if r.batch is None:
-            rows.append([name, r.quality.label(), '-', '-', '-', '-'])
+            rows.append([name, r.quality.label(), '-', '-', '-', '-', ready])
             continue
         sd = r.batch.std
         err = np.r_[r.p_HE, Rotation.from_quat(r.q_HE).as_rotvec()]
@@ -130,9 +133,14 @@ def error_rows() -> tuple[list[list], np.ndarray]:
                     f'{np.degrees(np.linalg.norm(sd[4:7])):.3f}'
                 ),
                 varies,
+                ready,
             ]
         )
     return rows, np.array(z)
+
+
+def _yes(flag: bool) -> str:
+    return 'yes' if flag else 'no'
 
 
 def _z(a, b, cov_a, cov_b) -> np.ndarray:
@@ -295,6 +303,7 @@ def main() -> None:
                 ' '.join(f'{v:.2f}' for v in rms[:3]),
                 ' '.join(f'{v:.2f}' for v in rms[3:]),
                 '',
+                '',
             ]
         )
         emit(
@@ -302,8 +311,9 @@ def main() -> None:
             table(
                 'Every real run with the default options against T_HE = I: the verdict, dt '
                 "and its 1-sigma, the translation's and the rotation's error / 1-sigma (norms), "
-                'the groups noted to vary along the recording',
-                ['run', 'verdict', 'dt ms', 'translation mm', 'rotation deg', 'varies'],
+                'the groups noted to vary along the recording, READY as the consecutive poses '
+                "predict it -> as the result's readiness carries it",
+                ['run', 'verdict', 'dt ms', 'translation mm', 'rotation deg', 'varies', 'READY'],
                 rows,
             ),
         )

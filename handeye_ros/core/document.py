@@ -124,11 +124,13 @@ class CoverageDoc(TypedDict):
 
 
 class ReadinessDoc(TypedDict):
-    """The status's figures: ``sigma`` (predicted 1-sigmas) and ``target`` by the keys
-    time_offset_ms, translation_mm and rotation_deg."""
+    """The status's figures: ``predicted`` (the 1-sigmas the consecutive eye pairs predict),
+    ``sigma`` (those times a result's factors, :mod:`.checks.carry`: the ones READY judges) and
+    ``target`` by the keys time_offset_ms, translation_mm and rotation_deg."""
 
     ready: bool
     sigma: dict[str, float | None]
+    predicted: dict[str, float | None]
     target: dict[str, float]
     rotation_deg: dict[str, float]
     hand_rotation_deg: dict[str, float]

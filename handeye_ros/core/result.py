@@ -23,6 +23,9 @@ Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
 - 5: ``readiness`` (:mod:`.checks.readiness`): whether the recording supports the required
   precision, the 1-sigmas it predicts, how far the device turned about each of its axes, and
   what it lacks.
+- 6: ``readiness.predicted`` (the 1-sigmas the consecutive eye pairs predict); its ``sigma``
+  and ``ready`` are those carried over with the result itself (:mod:`.checks.carry`): the
+  reported 1-sigmas, and READY only when the result is ``good``.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -37,6 +40,7 @@ import numpy as np
 
 from .arrays import Floats, Stamps
 from .batch.refine import BatchSolution
+from .checks.carry import carried
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
 from .checks.readiness import Readiness
@@ -67,7 +71,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
@@ -221,7 +225,7 @@ class CalibrationResult:
         R_EH, p_EH = inverse((R_HE, self.p_HE))
         model = None if self.clock_drift is None else self.eye_model
         stamp_ns = None if model is None else model.time_offset_stamp_ns
-        return {
+        doc: ResultDoc = {
             'schema_version': SCHEMA_VERSION,
             'convention': CONVENTION,
             'quality': self.quality.to_dict(),
@@ -257,3 +261,4 @@ class CalibrationResult:
             'config': self.config.to_dict(),
             'warnings': list(self.warnings),
         }
+        return {**doc, 'readiness': carried(doc)}

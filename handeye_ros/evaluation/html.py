@@ -120,19 +120,23 @@ def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
         )
     ready = d.get('readiness')
     if ready:
-        sig = ready['sigma']
+        sig, pred = ready['sigma'], ready['predicted']
         rows.append(
             (
                 'readiness (what the recording supports)',
                 ('ready' if ready['ready'] else 'not ready: ' + _e('; '.join(ready['missing']))),
-                ' / '.join(
-                    '?' if v is None else f'{v:.2g}'
-                    for v in (sig['time_offset_ms'], sig['translation_mm'], sig['rotation_deg'])
-                )
-                + ' ms / mm / deg predicted',
+                f'1-sigma {_ms_mm_deg(sig)} ms / mm / deg'
+                + ('' if sig == pred else f' (consecutive poses predicted {_ms_mm_deg(pred)})'),
             )
         )
     return rows
+
+
+def _ms_mm_deg(sigma: dict[str, float | None]) -> str:
+    return ' / '.join(
+        '?' if sigma[k] is None else f'{sigma[k]:.2g}'
+        for k in ('time_offset_ms', 'translation_mm', 'rotation_deg')
+    )
 
 
 def _metrics(ev: EvaluationDoc | None) -> str:

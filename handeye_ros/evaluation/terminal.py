@@ -170,21 +170,26 @@ def _deg(st: ErrorStatsDoc) -> str:
 
 def readiness_lines(r: ReadinessDoc | None) -> list[str]:
     """What the recording supports (the ``readiness`` section; the node's status says the same
-    while recording)."""
+    while recording): its 1-sigmas, and the consecutive pairs' predictions where a result's
+    factors made them others (:mod:`handeye_ros.core.checks.carry`)."""
     if not r:
         return []
-    s, t = r['sigma'], r['target']
+    s, p, t = r['sigma'], r['predicted'], r['target']
 
-    def fig(v: float | None, fmt: str) -> str:
-        return '?' if v is None else format(v, fmt)
+    def figs(d: dict[str, float | None]) -> str:
+        return ' / '.join(
+            '?' if d[k] is None else format(d[k], '.2g')
+            for k in ('time_offset_ms', 'translation_mm', 'rotation_deg')
+        )
 
     turned = ' '.join(f'{k} {v:.0f}' for k, v in r['rotation_deg'].items())
+    which = 'predicted 1-sigma' if s == p else '1-sigma'
+    pairs = '' if s == p else f', the consecutive poses predicted {figs(p)}'
     head = (
-        f'readiness: {"READY" if r["ready"] else "NOT READY"}, predicted 1-sigma '
-        f'{fig(s["time_offset_ms"], ".2g")} ms / {fig(s["translation_mm"], ".2g")} mm / '
-        f'{fig(s["rotation_deg"], ".2g")} deg (targets {t["time_offset_ms"]:g} / '
-        f'{t["translation_mm"]:g} / {t["rotation_deg"]:g}); the device turned {turned} deg '
-        f'about its x y z axes, {r["motions"]} keyframe motions'
+        f'readiness: {"READY" if r["ready"] else "NOT READY"}, {which} {figs(s)} ms / mm / '
+        f'deg (targets {t["time_offset_ms"]:g} / {t["translation_mm"]:g} / '
+        f'{t["rotation_deg"]:g}{pairs}); the device turned {turned} deg about its x y z axes, '
+        f'{r["motions"]} keyframe motions'
     )
     return [head, *(f'  to do: {m}' for m in r['missing'])]
 

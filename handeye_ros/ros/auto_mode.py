@@ -25,7 +25,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats
-from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
+from ..core.checks.carry import held_reasons, predictor_factors
+from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
 from .jobs import Calibrated
@@ -60,9 +61,9 @@ class AutoMode:
         #: predicted precision ratio when auto mode last calibrated
         self._sigmas: tuple[float, float, float] | None = None
         self._predicted_then = math.inf
-        #: the published result's reported over predicted 1-sigmas (status.predictor_factors),
-        #: which the status's predictions carry, and the reasons other than its precision that
-        #: make it doubtful (they hold READY back)
+        #: the published result's reported over predicted 1-sigmas (``predictor_factors``),
+        #: which the status's predictions carry, and the reasons that make it doubtful (they
+        #: hold READY back)
         self.factors: dict[str, float] = {}
         self.held: list[str] = []
         #: whether a result of these buffers (published, or a check of READY) set them
@@ -186,15 +187,6 @@ class AutoMode:
         self._estimate = _estimate_of(doc)
 
 
-def held_reasons(doc: ResultDoc) -> list[str]:
-    """The messages of a result's reasons, its precision's last (more recording is the remedy
-    for that one alone): a result that is not ``good`` holds READY back until a calibration of
-    more data is, since READY says that a calibration now would be ``good``, and predictions
-    carried from a result that was not are a coin toss near the targets."""
-    reasons = sorted(doc['quality']['reasons'], key=lambda r: r['code'] == Code.IMPRECISE.value)
-    return [r['message'] for r in reasons]
-
-
 def _estimate_of(doc: ResultDoc) -> tuple[float, Floats, Floats]:
     ext = doc['extrinsic']
     return doc['time_offset'], np.asarray(ext['translation']), np.asarray(ext['rotation'])
@@ -219,28 +211,6 @@ def moved_beyond(
     names = ('time offset', 'translation', 'rotation')
     over = [n for n, m, s in zip(names, moves, old_sigmas, strict=True) if m > s]
     return ', '.join(over) or None
-
-
-#: The readiness's sigma keys (ms, mm, deg), in the order of :func:`sigmas_of`.
-SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
-
-
-def predictor_factors(document: ResultDoc) -> dict[str, float]:
-    """A published result's reported 1-sigmas over the ones its own ``readiness`` predicted on
-    the same data, per sigma key: how far the status's predictions (from consecutive pairs:
-    they see neither the errors correlated over minutes nor the scale) fall short of the result's
-    covariance on this recording, or exceed it. Empty without both."""
-    std, readiness = document.get('std'), document.get('readiness')
-    predicted = readiness['sigma'] if readiness else {}
-    if not std or not predicted:
-        return {}
-    reported = sigmas_of(np.r_[std['time_offset'], std['translation'], std['rotation']])
-    out = {}
-    for key, value, k in zip(SIGMA_KEYS, reported, (1e3, 1e3, 1.0), strict=True):
-        p = predicted.get(key)
-        if p and np.isfinite(value) and value > 0.0:
-            out[key] = value * k / p
-    return out
 
 
 #: The three reported 1-sigmas, named and in the units they are said in.
@@ -280,31 +250,3 @@ def judge(
     admitted = new <= old
     converged = not admitted or old - new <= IMPROVEMENT * max(old, 1.0)
     return admitted, converged
-
-
-def carry_over(last: ReadinessDoc, factors: dict[str, float], held: list[str]) -> ReadinessDoc:
-    """The readiness with its predicted sigmas times the published result's
-    :func:`predictor_factors` (the same covariance model as the result's), READY only if they
-    still meet the targets and the published result was ``good`` (``held``: the messages of
-    its reasons, :func:`held_reasons`)."""
-    if not factors and not held:
-        return last
-    sigma = {
-        k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['sigma'].items()
-    }
-    target = last['target']
-    meets = all(v is not None and v <= target[k] for k, v in sigma.items())
-    missing = list(last['missing'])
-    if last['ready'] and not meets:
-        said = ', '.join(
-            f'{k.rsplit("_", 1)[0].replace("_", " ")} x{f:.2g}' for k, f in factors.items()
-        )
-        missing.insert(
-            0,
-            "keep recording: the last calibration's sigmas were its predictions times "
-            f'{said} (errors of the eye that consecutive poses do not show), and so are these',
-        )
-    if held:
-        missing.insert(0, f'the last calibration is doubtful: {held[0]}')
-    ready = bool(last['ready'] and meets and not held)
-    return {**last, 'sigma': sigma, 'ready': ready, 'missing': missing}

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, TypeVar
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from ..core.arrays import Stamps
+from ..core.checks.carry import carry_over
 from ..core.checks.progress import Measured, Progress
 from ..core.checks.readiness import readiness_of
 from ..core.document import ReadinessDoc
@@ -35,7 +36,7 @@ from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .auto_mode import GROWTH, AutoMode, carry_over
+from .auto_mode import GROWTH, AutoMode
 from .clocks import Arrivals, ClockWatch, jump_advice
 from .jobs import readiness_measure, readiness_start
 from .lifecycle import steady_timer

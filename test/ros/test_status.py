@@ -1,7 +1,7 @@
 """auto_calibrate's rules (auto_mode.judge, auto_mode.richer): a later result published only when it
 improves the precision ratio, converged (stalled while doubtful) once it improves it too little,
-READY held back by a result that is not good, calibrated again when the predicted ratio falls
-well below; and how the status tells that a clock jumped."""
+calibrated again when the predicted ratio falls well below; and how the status tells that a clock
+jumped. READY carried from a result: test/core/checks/test_carry.py."""
 
 from __future__ import annotations
 
@@ -19,11 +19,8 @@ from handeye_ros.ros.auto_mode import (
     IMPROVEMENT,
     RECALIBRATE,
     AutoMode,
-    carry_over,
-    held_reasons,
     judge,
     moved_beyond,
-    predictor_factors,
     richer,
 )
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
@@ -142,52 +139,6 @@ def test_a_replay_faster_than_real_time_jumps_only_when_its_clocks_do() -> None:
     assert replay_pace(Arrivals(0, 0, 0.0, 0.0), Arrivals(8_000_000_000, 0, 1.0, 1.0)) == 8.0
 
 
-def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
-    """The readiness predicts sigmas from consecutive pairs; the last calibration's reported
-    sigmas were 1.2 and 2 times what its own readiness predicted on the same data: the
-    predictions are too, and READY waits for them."""
-    last = {
-        'ready': True,
-        'sigma': {'time_offset_ms': 0.4, 'translation_mm': 6.0, 'rotation_deg': 0.2},
-        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
-        'missing': [],
-    }
-    assert carry_over(last, {}, []) == last
-    document = {
-        'std': {
-            'time_offset': 0.48e-3,
-            'translation': [12e-3 / np.sqrt(3)] * 3,
-            'rotation': [np.radians(0.2) / np.sqrt(3)] * 3,
-        },
-        'readiness': {'sigma': last['sigma']},
-    }
-    factors = predictor_factors(document)
-    assert factors == pytest.approx(
-        {'time_offset_ms': 1.2, 'translation_mm': 2.0, 'rotation_deg': 1.0}
-    )
-    wider = carry_over(last, factors, [])
-    assert wider['sigma']['translation_mm'] == pytest.approx(12.0)
-    assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
-    assert not wider['ready'] and wider['missing'][0].startswith('keep recording')
-    assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place
-    narrower = carry_over(last, {'translation_mm': 0.5}, [])
-    assert narrower['ready'] and narrower['sigma']['translation_mm'] == pytest.approx(3.0)
-
-
-def test_a_last_calibration_doubtful_for_another_reason_holds_ready_back() -> None:
-    last = {
-        'ready': True,
-        'sigma': {'time_offset_ms': 0.4, 'translation_mm': 6.0, 'rotation_deg': 0.2},
-        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
-        'missing': [],
-    }
-    held = carry_over(last, {}, ['the residuals are strongly correlated in time'])
-    assert not held['ready']
-    assert held['missing'][0] == (
-        'the last calibration is doubtful: the residuals are strongly correlated in time'
-    )
-
-
 def test_a_result_moved_beyond_the_published_sigma_is_said() -> None:
     q = np.array([0.0, 0.0, 0.0, 1.0])
     old = (0.010, np.array([0.1, 0.0, 0.0]), q)
@@ -215,30 +166,6 @@ def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
         'stopped: no message for 12 s (100.0 Hz before)',
         '0.00',
     )
-
-
-def test_a_last_calibration_not_good_for_its_precision_holds_ready_back() -> None:
-    # READY says that a calibration now would be good: predictions carried from an imprecise
-    # result (V2_02 stereo's prefixes: 8.7 mm carried, 10.5 mm calibrated) do not say it
-    document = {
-        'quality': {
-            'reasons': [
-                {'code': 'imprecise', 'message': 'translation 1-sigma 10.5 mm'},
-                {'code': 'residuals_not_white', 'message': 'the residuals are correlated'},
-            ]
-        }
-    }
-    held = held_reasons(document)
-    assert held == ['the residuals are correlated', 'translation 1-sigma 10.5 mm']
-    last = {
-        'ready': True,
-        'sigma': {'time_offset_ms': 0.2, 'translation_mm': 8.7, 'rotation_deg': 0.2},
-        'target': {'time_offset_ms': 1.0, 'translation_mm': 10.0, 'rotation_deg': 0.5},
-        'missing': [],
-    }
-    status = carry_over(last, {}, held[1:])
-    assert not status['ready']
-    assert status['missing'][0] == 'the last calibration is doubtful: translation 1-sigma 10.5 mm'
 
 
 def _result(mm: float, reasons: list[dict[str, str]]) -> SimpleNamespace:

@@ -80,18 +80,22 @@ class Readiness:
     missing: tuple[str, ...] = ()
 
     def to_dict(self) -> ReadinessDoc:
-        """The ``readiness`` section of a result, and the node's status values."""
+        """The ``readiness`` section of a result, and the node's status values, before a
+        result's factors and reasons are carried over (:mod:`.carry`): ``sigma`` is still
+        ``predicted``."""
 
         def num(v: float, k: float = 1.0) -> float | None:
             return float(v) * k if np.isfinite(v) else None
 
+        sigma = {
+            'time_offset_ms': num(self.sigma[0], 1e3),
+            'translation_mm': num(self.sigma[1], 1e3),
+            'rotation_deg': num(self.sigma[2]),
+        }
         return {
             'ready': bool(self.ready),
-            'sigma': {
-                'time_offset_ms': num(self.sigma[0], 1e3),
-                'translation_mm': num(self.sigma[1], 1e3),
-                'rotation_deg': num(self.sigma[2]),
-            },
+            'sigma': sigma,
+            'predicted': dict(sigma),
             'target': {
                 'time_offset_ms': self.target[0] * 1e3,
                 'translation_mm': self.target[1] * 1e3,

@@ -10,10 +10,11 @@ and a log-log plot of time and memory against the length (bench/out/runtime.png)
 show how both grow.
 
 ``--motion random loops`` runs each length on both motions and gives each one's time against
-the first's, measured in the same run (issue 47's figure: <= 1.3).
+the first's, measured in the same run (issue 47's figure: <= 1.3). ``--keyframes HZ`` thins
+the eye to keyframes at HZ (a keyframe-only eye, stage 1 from keyframe pairs).
 
 Usage: python bench/runtime.py [--minutes 1 5 10 30 60] [--hand-rate 1000] [--eye-rate 200]
-       [--repeat 3] [--motion random loops] [--options --clock-drift ...]
+       [--repeat 3] [--motion random loops] [--keyframes HZ] [--options --clock-drift ...]
 """
 
 from __future__ import annotations
@@ -39,9 +40,17 @@ STAGES = re.compile(
 
 
 def write_recording(
-    folder: Path, minutes: float, hand_hz: float, eye_hz: float, motion: str = 'random'
+    folder: Path,
+    minutes: float,
+    hand_hz: float,
+    eye_hz: float,
+    motion: str = 'random',
+    keyframes_hz: float | None = None,
 ) -> tuple[int, int]:
-    """Simulate and write h.txt / e.txt (TUM); returns the pose counts."""
+    """Simulate and write h.txt / e.txt (TUM), the eye thinned to every pose ``keyframes_hz``
+    apart when given (a keyframe-only eye); returns the pose counts."""
+    import numpy as np
+
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.formats import write_tum
 
@@ -55,9 +64,12 @@ def write_recording(
         noise_deg=noise_deg,
         motion=motion,
     )
+    eye = rec.eye
+    if keyframes_hz:
+        eye = eye.select(np.unique(np.arange(0, len(eye), eye_hz / keyframes_hz).astype(int)))
     write_tum(folder / 'h.txt', rec.hand)
-    write_tum(folder / 'e.txt', rec.eye)
-    return len(rec.hand), len(rec.eye)
+    write_tum(folder / 'e.txt', eye)
+    return len(rec.hand), len(eye)
 
 
 def pin_one_core() -> None:
@@ -120,7 +132,9 @@ def _measure(
     the pose counts and the files' size (MB)."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        n_h, n_e = write_recording(folder, minutes, args.hand_rate, args.eye_rate, motion)
+        n_h, n_e = write_recording(
+            folder, minutes, args.hand_rate, args.eye_rate, motion, args.keyframes
+        )
         size = sum(f.stat().st_size for f in folder.iterdir()) / 2**20
         runs = sorted(
             (run_offline(folder, args.options) for _ in range(max(args.repeat, 1))),
@@ -132,6 +146,8 @@ def _measure(
 def _output_name(args: argparse.Namespace) -> str:
     """bench/out's name of the table: runtime, or runtime_motions (with the rates where they
     are not the default 1 kHz + 200 Hz) when more motions than the default run."""
+    if args.keyframes:
+        return f'runtime_keyframes_{args.hand_rate:g}_{args.keyframes:g}'
     if args.motion == ['random']:
         return 'runtime'
     rates = (args.hand_rate, args.eye_rate)
@@ -158,6 +174,14 @@ def main() -> None:
         help="the simulation's motions (handeye_ros.core.simulate.MOTIONS), each at each "
         "length: 'loops' repeats a 3-minute lap, so that the correlation has runner-ups a lap "
         'away (issue 47: each costs stage 2 on a bounded excerpt)',
+    )
+    p.add_argument(
+        '--keyframes',
+        type=float,
+        default=None,
+        metavar='HZ',
+        help='thin the eye to keyframes at this rate (a keyframe-only eye: stage 1 from the '
+        "keyframe pairs' rotation angles, core/time/keyframe_only.py)",
     )
     p.add_argument(
         '--options',
@@ -194,8 +218,9 @@ def main() -> None:
     emit(
         _output_name(args),
         table(
-            f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye, '
-            f'TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
+            f'Whole offline run on one core ({args.hand_rate:g} Hz hand + {args.eye_rate:g} Hz eye'
+            + (f' thinned to {args.keyframes:g} Hz keyframes' if args.keyframes else '')
+            + f', TUM files, noise level 5, {opts}); target for 60 min: < 60 s and < 2 GB',
             [
                 'minutes',
                 'motion',

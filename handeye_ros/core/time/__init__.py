@@ -6,7 +6,8 @@ their own, their masked normalised cross-correlation over every lag and the quad
 the peak (:mod:`.correlation`); then the vector refinement with stage 2's rotation
 (``w_E(t) = R_EH w_H(t - dt)``).
 :mod:`.keyframe_only` aligns a keyframe-only eye from the rotation angles of its keyframe pairs
-(the screw congruence of eq. 9), where no angular speed can be resampled. :mod:`.clock` is
+(the screw congruence of eq. 9), where no angular speed can be resampled, and
+:mod:`.keyframe_errors` says why when it cannot. :mod:`.clock` is
 beyond the paper: the offset measured in windows along the recording, and a linear clock
 (drift) fitted to it.
 """

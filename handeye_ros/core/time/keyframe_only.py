@@ -19,7 +19,9 @@ The search, over every lag at which the streams overlap (or the window asked for
    recording: an hour of 1 Hz keyframes over every lag would be 10^10 angle comparisons), a
    score ``1 - mean(min(|angle_E - angle_H|, CAP_RAD)) / CAP_RAD``: 1 when all angles agree,
    near 0 at a lag where they are unrelated; a lag counts where at least half as many pairs
-   fall inside the hand as at the best-covered lag;
+   fall inside the hand as at the best-covered lag. Each pair is compared at the lags where it
+   falls inside the hand only, and lags where too few pairs can are not scored: the cost is
+   that of the pairs and lags that meet, not of every lag times every pair;
 3. the best coarse lag, then every grid lag around it with all pairs, then a continuous
    refinement: the mean squared angle difference of the pairs that agree there, with the hand
    interpolated exactly (SLERP between its own poses), minimised by Brent's method.
@@ -31,6 +33,7 @@ peak_correlation the Pearson correlation of the two angle sets at the offset.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,6 +51,7 @@ from .align import (
     offset_window,
 )
 from .correlation import second_peak_ratio
+from .keyframe_errors import at_the_edge, no_agreement, too_few
 from .signals import MAX_RESAMPLE_RATE_HZ, grid_step
 
 #: Angle differences are capped at this (rad, 11 deg) in the score: a pair that does not agree
@@ -112,22 +116,22 @@ def align_time_keyframes(
     window = offset_window(max_time_offset, time_offset_guess)
     k_lo, k_hi = _lag_range(on_grid.ga, on_grid.gb, on_grid.q.shape[0], base_ns, step, window)
     if k_hi - k_lo < 2:
-        raise _too_few(hand, eye, window)
+        raise too_few(hand, eye, window, MIN_PAIRS)
     m = max(1, round(COARSE_STEP_S / step))
     coarse, c_score, c_ok, counted = _coarse_pass(on_grid, k_lo, k_hi, m)
     if not c_ok.any():
-        raise _too_few(hand, eye, window)
+        raise too_few(hand, eye, window, MIN_PAIRS)
     kc = int(np.argmax(np.where(c_ok, c_score, -np.inf)))
     # every grid lag around the coarse best, with all pairs
     fine = np.arange(max(k_lo, coarse[kc] - 2 * m), min(k_hi, coarse[kc] + 2 * m) + 1)
     k = _best_lag(on_grid, fine, max(MIN_PAIRS, MIN_OVERLAP_FRACTION * counted))
     if k is None:
-        raise _too_few(hand, eye, window)
+        raise too_few(hand, eye, window, MIN_PAIRS)
     if not coarse[c_ok][0] < k < coarse[c_ok][-1]:
-        raise _at_the_edge(base_ns * 1e-9 + k * step, window)
+        raise at_the_edge(base_ns * 1e-9 + k * step, window)
     lag_s, agree = _refine(orient, eye, pairs, k * step, step)
     if not agree >= MIN_AGREEMENT:
-        raise _no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
+        raise no_agreement(hand, eye, base_ns * 1e-9 + lag_s, agree, window)
     first, last = np.flatnonzero(c_ok)[[0, -1]]
     sel = slice(first, last + 1)
     return TimeAlignment(
@@ -198,9 +202,30 @@ def _coarse_pass(
     ga = on_grid.ga
     n_pick = min(ga.size, COARSE_PAIRS, max(MIN_PAIRS * 10, COARSE_WORK // max(coarse.size, 1)))
     pick = np.unique(np.linspace(0, ga.size - 1, n_pick).astype(int))
+    least = max(MIN_PAIRS * pick.size / ga.size, 1.0)
+    coarse = coarse[_may_count(on_grid.some(pick), coarse, least)]
+    if not coarse.size:
+        return coarse, np.zeros(0), np.zeros(0, bool), 0.0
     c_score, c_count = _scores(on_grid.some(pick), coarse)
-    need = max(MIN_PAIRS * pick.size / ga.size, MIN_OVERLAP_FRACTION * c_count.max())
-    return coarse, c_score, c_count >= max(need, 1), float(c_count.max() * ga.size / pick.size)
+    need = max(least, MIN_OVERLAP_FRACTION * c_count.max())
+    return coarse, c_score, c_count >= need, float(c_count.max() * ga.size / pick.size)
+
+
+def _may_count(on_grid: _OnGrid, lags: Indices, least: float) -> Mask:
+    """The lags (sorted) from one before the first to one after the last at which at least
+    ``least`` of the pairs can fall inside the hand's grid: a pair (a, b) can at the lags
+    [b - (G - 1), a] (gaps left aside, so the count is an upper bound of the score's), and
+    outside that span no lag can count (the one on each side keeps the span's edges what they
+    were among the lags around it). A short hand far from a long eye thus costs the lags where
+    they can meet, not all of them."""
+    n = on_grid.q.shape[0]
+    first, last = np.sort(on_grid.gb - (n - 1)), np.sort(on_grid.ga)
+    can = np.searchsorted(first, lags, side='right') - np.searchsorted(last, lags, side='left')
+    at = np.flatnonzero(can >= least)
+    out = np.zeros(lags.size, bool)
+    if at.size:
+        out[max(at[0] - 1, 0) : at[-1] + 2] = True
+    return out
 
 
 def _lag_range(
@@ -281,24 +306,43 @@ def _hand_grid(hand: _HandOrientation, step: float) -> tuple[Floats, Mask]:
 
 
 def _scores(on_grid: _OnGrid, lags: Indices) -> tuple[Floats, Indices]:
-    """(score, pairs inside the hand) at each lag (grid steps), a chunk of lags at a time."""
+    """(score, pairs inside the hand) at each of the sorted ``lags`` (grid steps). Each pair
+    is compared at the lags where it falls inside the hand's grid only (:func:`_meetings`), a
+    chunk of (pair, lag) meetings at a time."""
     grid_q, grid_ok = on_grid.q, on_grid.ok
     ga, gb, angle_e = on_grid.ga, on_grid.gb, on_grid.angle_e
-    n = grid_q.shape[0]
-    score, count = np.zeros(lags.size), np.zeros(lags.size, np.int64)
-    rows = max(1, CHUNK // max(ga.size, 1))
-    for s in range(0, lags.size, rows):
-        k = lags[s : s + rows, None]
-        ia, ib = ga[None, :] - k, gb[None, :] - k
-        inside = (ia >= 0) & (ib < n) & (ib >= 0) & (ia < n)
-        ia, ib = np.clip(ia, 0, n - 1), np.clip(ib, 0, n - 1)
-        inside &= grid_ok[ia] & grid_ok[ib]
-        diff = np.minimum(np.abs(rotation_angles(grid_q[ia], grid_q[ib]) - angle_e), CAP_RAD)
-        c = inside.sum(axis=1)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            score[s : s + rows] = 1.0 - np.where(inside, diff, 0.0).sum(axis=1) / (c * CAP_RAD)
-        count[s : s + rows] = c
-    return score, count
+    total, count = np.zeros(lags.size), np.zeros(lags.size)
+    for p, j in _meetings(on_grid, lags):
+        k = lags[j]
+        ia, ib = ga[p] - k, gb[p] - k
+        ok = grid_ok[ia] & grid_ok[ib]
+        diff = np.minimum(np.abs(rotation_angles(grid_q[ia], grid_q[ib]) - angle_e[p]), CAP_RAD)
+        total += np.bincount(j, np.where(ok, diff, 0.0), lags.size)
+        count += np.bincount(j, ok, lags.size)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        score = 1.0 - total / (count * CAP_RAD)
+    return score, count.astype(np.int64)
+
+
+def _meetings(on_grid: _OnGrid, lags: Indices) -> Iterator[tuple[Indices, Indices]]:
+    """(pair, index into ``lags``) of every meeting of a pair (a, b) with the hand's grid of G
+    points, at the lags [b - (G - 1), a], in chunks of at most CHUNK meetings (one pair's may
+    be more)."""
+    n = on_grid.q.shape[0]
+    start = np.searchsorted(lags, on_grid.gb - (n - 1), side='left')
+    length = np.maximum(np.searchsorted(lags, on_grid.ga, side='right') - start, 0)
+    ends = np.cumsum(length)
+    first = 0
+    while first < length.size:
+        last = max(
+            int(np.searchsorted(ends, ends[first] - length[first] + CHUNK, 'right')), first + 1
+        )
+        some = np.arange(first, last)
+        p = np.repeat(some, length[some])
+        # the meetings of the pairs ``some``, each pair's run of lags from its start
+        run = np.arange(p.size) - np.repeat(np.cumsum(length[some]) - length[some], length[some])
+        yield p, start[p] + run
+        first = last
 
 
 def _refine(
@@ -344,53 +388,3 @@ def _refine(
     ang, inside = at(lag, every)
     r = np.corrcoef(ang[inside], angle_e[inside])[0, 1] if inside.sum() > 2 else np.nan
     return lag, float(r)
-
-
-def _too_few(
-    hand: Trajectory, eye: Trajectory, window: tuple[float, float] | None
-) -> TimeAlignmentError:
-    where = (
-        'at any offset'
-        if window is None
-        else f'at any offset in [{window[0]:+.3f}, {window[1]:+.3f}] s'
-    )
-    return TimeAlignmentError(
-        f'too few keyframe pairs of {eye.name} fall inside {hand.name} {where} (need '
-        f'{MIN_PAIRS}, and half as many as at the best-covered offset; hand covers '
-        f'{hand.duration_s:.1f} s, eye {eye.duration_s:.1f} s, eye starts '
-        f'{(eye.t_ns[0] - hand.t_ns[0]) * 1e-9:+.3f} s after hand on their own clocks)'
-    )
-
-
-def _at_the_edge(offset_s: float, window: tuple[float, float] | None) -> TimeAlignmentError:
-    where = 'the edge of the search window' if window else 'the edge of the lags searched'
-    return TimeAlignmentError(
-        f'the keyframe rotation angles agree best at {where} (at {offset_s:+.3f} s): the time '
-        'offset is probably outside it. '
-        + (
-            'Widen max_time_offset or move time_offset_guess'
-            if window
-            else 'Do the two recordings show the same motion?'
-        )
-    )
-
-
-def _no_agreement(
-    hand: Trajectory,
-    eye: Trajectory,
-    offset_s: float,
-    agree: float,
-    window: tuple[float, float] | None,
-) -> TimeAlignmentError:
-    where = 'in the search window' if window else 'at any offset'
-    return TimeAlignmentError(
-        f'the rotation angles of the keyframe pairs of {eye.name} and of {hand.name} do not '
-        f'agree {where}: at the best offset ({offset_s:+.3f} s) they correlate at {agree:.2f} '
-        '(at the right one, 0.95 or more). '
-        + (
-            'The time offset is probably outside the window: widen max_time_offset or '
-            'move time_offset_guess'
-            if window
-            else 'Do the two recordings show the same motion?'
-        )
-    )

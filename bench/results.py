@@ -101,6 +101,13 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['runtime_motions_200_30'],
         '2 min',
     ),
+    'runtime_keyframes': (
+        'runtime',
+        ['--minutes', '2', '10', '30', '--hand-rate', '200', '--eye-rate', '20', '--repeat', '1']
+        + ['--keyframes', '0.5'],
+        ['runtime_keyframes_200_0.5'],
+        '2 min',
+    ),
     'candidates': ('candidates', ['--seeds', '20'], ['candidates'], '6 min'),
     'evaluate': (
         'evaluate',

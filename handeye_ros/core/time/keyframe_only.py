@@ -71,8 +71,9 @@ MIN_PAIRS = 20
 MIN_AGREEMENT = 0.5
 #: Partners of each keyframe: the next one and the one after it.
 PARTNERS = (1, 2)
-#: Lags x pairs compared at once (memory of a chunk: 4 quaternions of 8 bytes each).
-CHUNK = 1 << 21
+#: (pair, lag) meetings compared at once (memory of a chunk: its quaternions, 4 x 8 bytes each
+#: of two, and their indices: some 150 MB).
+CHUNK = 1 << 20
 
 
 def rotation_angles(q_a: Floats, q_b: Floats) -> Floats:

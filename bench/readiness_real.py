@@ -26,7 +26,12 @@ import numpy as np
 import realdata
 from common import emit, table
 
-from handeye_ros.core.checks.carry import carry_over, held_reasons, predictor_factors
+from handeye_ros.core.checks.carry import (
+    SIGMA_KEYS,
+    carry_over,
+    held_reasons,
+    predictor_factors,
+)
 from handeye_ros.core.checks.verdict import sigmas_of
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
@@ -35,7 +40,6 @@ from handeye_ros.ros.auto_mode import GROWTH
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 FIRST_S = 20.0
-KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
 
 
 def recordings() -> list[tuple[str, object, object]]:
@@ -84,8 +88,8 @@ def prefixes(hand, eye, step: float) -> list[list]:
         carried, had = _carried(status, published), published is not None
         if carried['ready'] and published is None:  # the node checks it with this calibration
             carried, published, span = _carried(status, doc), doc, s
-        raw = np.array([status['sigma'][k] or np.nan for k in KEYS])
-        now = np.array([carried['sigma'][k] or np.nan for k in KEYS])
+        raw = np.array([status['sigma'][k] or np.nan for k in SIGMA_KEYS])
+        now = np.array([carried['sigma'][k] or np.nan for k in SIGMA_KEYS])
         rows.append(
             [
                 float(s),

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..core.checks.verdict import Verdict
 from ..core.document import ErrorKey, EvaluationDoc, ResultDoc, TransformDoc
+from .terminal import sigma_figures
 
 VERDICT_COLOUR: dict[str, str] = {
     Verdict.GOOD: '#1a7f37',
@@ -125,18 +126,11 @@ def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
             (
                 'readiness (what the recording supports)',
                 ('ready' if ready['ready'] else 'not ready: ' + _e('; '.join(ready['missing']))),
-                f'1-sigma {_ms_mm_deg(sig)} ms / mm / deg'
-                + ('' if sig == pred else f' (consecutive poses predicted {_ms_mm_deg(pred)})'),
+                f'1-sigma {sigma_figures(sig)} ms / mm / deg'
+                + ('' if sig == pred else f' (consecutive poses predicted {sigma_figures(pred)})'),
             )
         )
     return rows
-
-
-def _ms_mm_deg(sigma: dict[str, float | None]) -> str:
-    return ' / '.join(
-        '?' if sigma[k] is None else f'{sigma[k]:.2g}'
-        for k in ('time_offset_ms', 'translation_mm', 'rotation_deg')
-    )
 
 
 def _metrics(ev: EvaluationDoc | None) -> str:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..core.checks.carry import SIGMA_KEYS
 from ..core.document import ErrorStatsDoc, ReadinessDoc, ResultDoc, TransformDoc
 
 
@@ -168,6 +169,12 @@ def _deg(st: ErrorStatsDoc) -> str:
     return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar:.2g})')
 
 
+def sigma_figures(sigma: dict[str, float | None]) -> str:
+    """A readiness's 1-sigmas as ``ms / mm / deg`` figures (``?`` where none), in the order of
+    :data:`~handeye_ros.core.checks.carry.SIGMA_KEYS`."""
+    return ' / '.join('?' if sigma[k] is None else format(sigma[k], '.2g') for k in SIGMA_KEYS)
+
+
 def readiness_lines(r: ReadinessDoc | None) -> list[str]:
     """What the recording supports (the ``readiness`` section; the node's status says the same
     while recording): its 1-sigmas, and the consecutive pairs' predictions where a result's
@@ -175,18 +182,11 @@ def readiness_lines(r: ReadinessDoc | None) -> list[str]:
     if not r:
         return []
     s, p, t = r['sigma'], r['predicted'], r['target']
-
-    def figs(d: dict[str, float | None]) -> str:
-        return ' / '.join(
-            '?' if d[k] is None else format(d[k], '.2g')
-            for k in ('time_offset_ms', 'translation_mm', 'rotation_deg')
-        )
-
     turned = ' '.join(f'{k} {v:.0f}' for k, v in r['rotation_deg'].items())
     which = 'predicted 1-sigma' if s == p else '1-sigma'
-    pairs = '' if s == p else f', the consecutive poses predicted {figs(p)}'
+    pairs = '' if s == p else f', the consecutive poses predicted {sigma_figures(p)}'
     head = (
-        f'readiness: {"READY" if r["ready"] else "NOT READY"}, {which} {figs(s)} ms / mm / '
+        f'readiness: {"READY" if r["ready"] else "NOT READY"}, {which} {sigma_figures(s)} ms / mm / '
         f'deg (targets {t["time_offset_ms"]:g} / {t["translation_mm"]:g} / '
         f'{t["rotation_deg"]:g}{pairs}); the device turned {turned} deg about its x y z axes, '
         f'{r["motions"]} keyframe motions'

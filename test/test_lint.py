@@ -10,6 +10,9 @@ import sys
 import pytest
 from conftest import ROOT
 
+# the source, read: the same in every venv (setup.cfg's markers)
+pytestmark = pytest.mark.static
+
 
 def _tool(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
     """``python -m TOOL ARGS`` at the repository root, its output captured."""

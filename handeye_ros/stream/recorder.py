@@ -14,7 +14,6 @@ from typing import cast
 from ..core.config import CalibrationConfig
 from ..core.document import ResultDoc, StreamDoc
 from ..core.errors import ConfigError, InputError
-from ..core.pipeline import calibrate
 from ..core.result import CalibrationResult
 from ..core.trajectory import Trajectory
 from .buffer import BufferStats, PoseBuffer
@@ -50,6 +49,10 @@ class Snapshot:
     ) -> CalibrationResult:
         """Calibrate the snapshot; the streams' dropped/rejected messages join the warnings.
         ``progress``: as :func:`~handeye_ros.core.pipeline.calibrate`'s."""
+        # imported here: the node buffers with this module and calibrates in its worker, whose
+        # start imports the pipeline (ros/worker.MODULES); the node's own start need not
+        from ..core.pipeline import calibrate
+
         result = calibrate(self.hand, self.eye, config, progress)
         return replace(result, warnings=result.warnings + self.warnings)
 

@@ -147,6 +147,9 @@ class Processes:
     def __init__(self, env: dict[str, str], logs: Path):
         self.env, self.logs = env, logs
         self.procs: list[tuple[subprocess.Popen, Path, Path]] = []
+        #: the test's client of Trigger services (:meth:`calls`) and how many calls it has had
+        self._caller: subprocess.Popen | None = None
+        self._asked = 0
 
     def start(self, cmd: list[str], name: str) -> subprocess.Popen:
         out, err = self.logs / f'{name}.out', self.logs / f'{name}.err'
@@ -175,6 +178,38 @@ class Processes:
         assert p.returncode == 0, f'{name} failed ({p.returncode}):\n{out}\n{err}'
         return json.loads(out.strip().splitlines()[-1])
 
+    def calls(self, services: tuple[str, ...], timeout: float = 120.0) -> list[dict]:
+        """The Trigger ``services`` called in turn by the test's one client process
+        (ros_client.py serve, started at the first call), as ``ros_client.py call`` would:
+        its clients are discovered once, where a process of their own waits for DDS
+        discovery at every call (0.3-3 s)."""
+        if self._caller is None:
+            out, err = self.logs / 'caller.out', self.logs / 'caller.err'
+            self._caller = subprocess.Popen(
+                self.script('ros_client.py', 'serve'),
+                env=self.env,
+                stdin=subprocess.PIPE,
+                stdout=out.open('w'),
+                stderr=err.open('w'),
+                start_new_session=True,
+                cwd=self.logs,
+                text=True,
+            )
+            self.procs.append((self._caller, out, err))
+        caller, self._asked = self._caller, self._asked + 1
+        assert caller.stdin is not None
+        caller.stdin.write(json.dumps(services) + '\n')
+        caller.stdin.flush()
+
+        def answers() -> list[str]:
+            return self.output(caller)[0].splitlines()
+
+        assert wait_for(
+            lambda: len(answers()) >= self._asked or caller.poll() is not None, timeout
+        )
+        assert len(answers()) >= self._asked, self.output(caller)
+        return json.loads(answers()[self._asked - 1])
+
     def script(self, script: str, *args: str) -> list[str]:
         return [sys.executable, str(SCRIPTS / script), *args]
 
@@ -190,6 +225,12 @@ class Processes:
         return p.returncode
 
     def stop_all(self) -> None:
+        if self._caller is not None and self._caller.stdin is not None:
+            self._caller.stdin.close()  # its input ends: it exits by itself
+            try:
+                self._caller.wait(timeout=10.0)
+            except subprocess.TimeoutExpired:
+                pass  # stopped below
         for p, _, _ in self.procs:
             self.stop(p)
         left = [p.pid for p, _, _ in self.procs if p.poll() is None]
@@ -277,5 +318,9 @@ def assert_near_truth(t: dict, result: dict) -> None:
 
 
 def call(ros: Processes, *services: str, mode: str = 'call', name: str = 'client'):
-    """ros_scripts/ros_client.py calling (or reading) ``services`` in its own process: its JSON."""
+    """ros_scripts/ros_client.py calling (or reading) ``services``: its JSON. The calls in
+    turn are the test's one client's (:meth:`Processes.calls`); each other mode runs in a
+    process of its own (named ``name``)."""
+    if mode == 'call':
+        return ros.calls(services)
     return ros.run_json(ros.script('ros_client.py', mode, *services), name)

@@ -1,6 +1,8 @@
 """A client process: call Trigger services and read the node's latched topics; prints JSON.
 
 Usage: ros_client.py call SERVICE [SERVICE ...]      (each called in turn)
+       ros_client.py serve                            (the same for each JSON list of
+                                                       services on stdin, a JSON line each)
        ros_client.py concurrent SERVICE SERVICE ...  (all sent at once, answers in order)
        ros_client.py staggered SERVICE SERVICE ...   (sent 0.3 s apart, without waiting)
        ros_client.py latched                          (the latched outputs of /calibrator
@@ -26,6 +28,7 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -40,8 +43,19 @@ TIMEOUT_S = 60.0
 LINGER_S = 1.5
 
 
-def call(node: Node, names: list[str], concurrent: bool, gap_s: float = 0.0) -> list[dict]:
-    clients = [node.create_client(Trigger, n) for n in names]
+def call(
+    node: Node,
+    names: list[str],
+    concurrent: bool,
+    gap_s: float = 0.0,
+    made: dict[str, Client] | None = None,
+) -> list[dict]:
+    """Call the services; ``made``: clients kept from earlier calls, by service (serve mode)."""
+    made = {} if made is None else made
+    for n in names:
+        if n not in made:
+            made[n] = node.create_client(Trigger, n)
+    clients = [made[n] for n in names]
     for c, n in zip(clients, names, strict=True):
         if not c.wait_for_service(timeout_sec=TIMEOUT_S):
             return [{'error': f'service {n} not available'}]
@@ -245,6 +259,15 @@ def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
     return [{'success': r.successful, 'message': r.reason} for r in f.result().results]
 
 
+def serve(node: Node) -> None:
+    """call mode for each line of stdin (a JSON list of services) until it ends, an answer
+    line each. Its clients are made once: a new client waits 0.3-3 s for DDS to discover it,
+    a new process as long again."""
+    made: dict[str, Client] = {}
+    for line in sys.stdin:
+        print(json.dumps(call(node, json.loads(line), concurrent=False, made=made)), flush=True)
+
+
 def main() -> int:
     rclpy.init()
     node = Node('test_client')
@@ -259,6 +282,9 @@ def main() -> int:
         out = status(node, float(names[0]), names[1:])
     elif mode == 'param':
         out = set_parameters(node, names)
+    elif mode == 'serve':
+        serve(node)
+        out = []
     else:
         out = call(
             node,

@@ -261,8 +261,8 @@ def set_parameters(node: Node, assignments: list[str]) -> list[dict]:
 
 def serve(node: Node) -> None:
     """call mode for each line of stdin (a JSON list of services) until it ends, an answer
-    line each. Its clients are made once: a new client waits 0.3-3 s for DDS to discover it,
-    a new process as long again."""
+    line each. Its clients are made once: a new client, in this process or in a new one,
+    waits up to 3 s for DDS discovery."""
     made: dict[str, Client] = {}
     for line in sys.stdin:
         print(json.dumps(call(node, json.loads(line), concurrent=False, made=made)), flush=True)

@@ -151,11 +151,12 @@ class Processes:
         self._caller: subprocess.Popen | None = None
         self._asked = 0
 
-    def start(self, cmd: list[str], name: str) -> subprocess.Popen:
+    def start(self, cmd: list[str], name: str, stdin: int | None = None) -> subprocess.Popen:
         out, err = self.logs / f'{name}.out', self.logs / f'{name}.err'
         p = subprocess.Popen(
             cmd,
             env=self.env,
+            stdin=stdin,
             stdout=out.open('w'),
             stderr=err.open('w'),
             start_new_session=True,
@@ -184,29 +185,18 @@ class Processes:
         its clients are discovered once, where a process of their own waits for DDS
         discovery at every call (0.3-3 s)."""
         if self._caller is None:
-            out, err = self.logs / 'caller.out', self.logs / 'caller.err'
-            self._caller = subprocess.Popen(
-                self.script('ros_client.py', 'serve'),
-                env=self.env,
-                stdin=subprocess.PIPE,
-                stdout=out.open('w'),
-                stderr=err.open('w'),
-                start_new_session=True,
-                cwd=self.logs,
-                text=True,
+            self._caller = self.start(
+                self.script('ros_client.py', 'serve'), 'caller', stdin=subprocess.PIPE
             )
-            self.procs.append((self._caller, out, err))
         caller, self._asked = self._caller, self._asked + 1
         assert caller.stdin is not None
-        caller.stdin.write(json.dumps(services) + '\n')
+        caller.stdin.write((json.dumps(services) + '\n').encode())
         caller.stdin.flush()
 
         def answers() -> list[str]:
             return self.output(caller)[0].splitlines()
 
-        assert wait_for(
-            lambda: len(answers()) >= self._asked or caller.poll() is not None, timeout
-        )
+        wait_for(lambda: len(answers()) >= self._asked or caller.poll() is not None, timeout)
         assert len(answers()) >= self._asked, self.output(caller)
         return json.loads(answers()[self._asked - 1])
 

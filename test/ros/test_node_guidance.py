@@ -22,6 +22,9 @@ pytestmark = [
     pytest.mark.ros,
     pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed'),
 ]
+#: The status once both streams have stopped (ros/status.py, ``ended``): the statuses of a whole
+#: recording are in when it is said, however late the publisher started.
+RECORDING_ENDED = '^neither stream has sent a pose'
 
 
 def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
@@ -115,9 +118,9 @@ def test_a_mocap_dropout_is_said_while_it_lasts_and_is_no_clock_jump(
     node = start_node(ros, install, 'status_period:=0.5', name='node')
     wait_started(ros, node)
     ros.start(
-        publisher(ros, '--duration', '24', '--rate', '120', '--mocap-dropout', '10', '5'), 'pub'
+        publisher(ros, '--duration', '16', '--rate', '120', '--mocap-dropout', '5', '5'), 'pub'
     )
-    got = call(ros, '26', mode='status')
+    got = call(ros, '40', RECORDING_ENDED, mode='status')
     said = [s['message'] for s in got['status']]
     assert not [m for m in said if 'a clock jumped' in m], said
     assert [m for m in said if m.startswith('the MoCap lost the marker') and 'ago' in m], said
@@ -132,10 +135,10 @@ def test_a_clock_that_jumps_is_said(ros: Processes, install: Path, jump: str) ->
     node = start_node(ros, install, 'status_period:=0.5', name='node')
     wait_started(ros, node)
     ros.start(
-        publisher(ros, '--duration', '24', '--rate', '120', '--clock-jump', jump, '--level', '3'),
+        publisher(ros, '--duration', '16', '--rate', '120', '--clock-jump', jump, '--level', '3'),
         'pub',
     )
-    got = call(ros, '26', mode='status')
+    got = call(ros, '40', RECORDING_ENDED, mode='status')
     said = [s['message'] for s in got['status']]
     jumped = [m for m in said if 'a clock jumped' in m]
     assert jumped, said

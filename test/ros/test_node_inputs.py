@@ -176,7 +176,7 @@ def test_unset_stamps_are_named_live(ros: Processes, install: Path, tmp_path: Pa
             '--level',
             '2',
             '--duration',
-            '25',
+            '15',
             '--rate',
             '120',
             '--zero-stamps',

@@ -9,7 +9,11 @@ node's status gathers it (core/checks/progress.py: the whole prefix read when
   targets (precision_time_offset, _translation, _rotation; 1 ms, 10 mm, 0.5 deg): must be 0;
 - when READY, the predicted 1-sigmas over the batch stage's reported ones (target: within a
   factor 2);
-- recordings that stay planar or one-axis: READY never, and the axis named.
+- recordings that stay planar or one-axis: READY never, and the axis named;
+- the status carried over as the node carries it (bench/readiness_real.py's ``prefixes``, on
+  the same recordings from 20 s): READY while the calibration of the same prefix is not
+  ``good`` (target: 0), and the predicted over reported 1-sigmas, raw and carried (target:
+  0.5-2), their median and the share of prefixes within.
 
 Hand 200 Hz with 0.1 mm / 0.0057 deg white noise, eye 30 Hz at noise level 5, 90 s.
 
@@ -23,6 +27,7 @@ import time
 
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
+import readiness_real
 from common import emit, table
 
 from handeye_ros.core.checks.progress import measure, start
@@ -144,6 +149,29 @@ def stays_poor(seeds: int, cfg: CalibrationConfig) -> tuple[int, int, int]:
     return n, ready, named
 
 
+def carried(seeds: int, step_s: float) -> list[list]:
+    """The poor-then-rich recordings' statuses carried over as the node carries them: a row
+    of READY while not ``good``, READY, ``good`` and the ratios, raw and carried."""
+    rows = []
+    for seed in range(seeds):
+        rec = _record(seed, 'planar_start')
+        rows += readiness_real.prefixes(rec.hand, rec.eye, step_s)
+    with_result = [r for r in rows if r[5]]
+    raw = np.array([r[3] for r in rows])
+    now = np.array([r[4] for r in with_result]) if with_result else np.full((1, 3), np.nan)
+    return [
+        [
+            f'{seeds} poor then rich',
+            len(rows),
+            sum(r[1] and r[2] != 'good' for r in rows),
+            sum(r[1] for r in rows),
+            sum(r[2] == 'good' for r in rows),
+            readiness_real.spread(raw),
+            readiness_real.spread(now),
+        ]
+    ]
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--seeds', type=int, default=20)
@@ -184,6 +212,16 @@ def main() -> None:
             rows,
         ),
         seeds=f'0..{args.seeds - 1} (poor then rich), 100..{100 + args.seeds // 2 - 1} (planar, one-axis)',
+    )
+    emit(
+        'readiness_carried',
+        table(
+            f'The status carried over as the node carries it (from {readiness_real.FIRST_S:.0f} s, '
+            f'every {args.step:g} s), against a calibration of each prefix',
+            readiness_real.HEADER,
+            carried(args.seeds, args.step),
+        ),
+        seeds=f'0..{args.seeds - 1}',
     )
 
 

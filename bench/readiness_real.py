@@ -40,6 +40,15 @@ from handeye_ros.ros.auto_mode import GROWTH
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 FIRST_S = 20.0
+HEADER = [
+    'recording',
+    'prefixes',
+    'READY, result not good',
+    'READY',
+    'good',
+    'predicted / reported (dt t r), raw',
+    'carried over',
+]
 
 
 def recordings() -> list[tuple[str, object, object]]:
@@ -105,7 +114,7 @@ def prefixes(hand, eye, step: float) -> list[list]:
     return rows
 
 
-def _spread(ratios: np.ndarray) -> str:
+def spread(ratios: np.ndarray) -> str:
     """Per group (dt t r): the median ratio and the share of prefixes within 0.5-2."""
     inside = np.mean((ratios >= 0.5) & (ratios <= 2.0), axis=0)
     return ' '.join(
@@ -130,8 +139,8 @@ def main() -> None:
                 sum(r[1] and r[2] != 'good' for r in rows),
                 sum(r[1] for r in rows),
                 sum(r[2] == 'good' for r in rows),
-                _spread(raw),
-                _spread(now),
+                spread(raw),
+                spread(now),
             ]
         )
         print(out[-1], flush=True)
@@ -140,15 +149,7 @@ def main() -> None:
         table(
             f'The status on prefixes of real recordings ({FIRST_S:.0f} s, then every {a.step:g} s), '
             'carried over as the node carries it, against a calibration of each prefix',
-            [
-                'recording',
-                'prefixes',
-                'READY, result not good',
-                'READY',
-                'good',
-                'predicted / reported (dt t r), raw',
-                'carried over',
-            ],
+            HEADER,
             out,
         ),
     )

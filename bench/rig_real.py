@@ -5,6 +5,9 @@
   Each sequence's ground truth is its own estimate (they differ at the centimetre level), so the
   figures are about consistency: the rig's sigma against a single sequence's, each sequence
   inside the joint estimate's 3 sigma or named with its difference, the same named for both.
+- EuRoC MH_01-MH_05, the real-time VI-SLAM runs of rpg's ``vislam_rp`` (loop-closure jumps,
+  one camera frame of offset) against the ground truth: one rig (issue 45: its consistency
+  test rests on the correlated term's sigmas).
 - TUM-VI room1 + outdoors4, ORB-SLAM3 VIO, ``clock_drift`` (ground truth in the IMU frame,
   truth I): the rig's T_HE against I.
 
@@ -21,6 +24,7 @@ import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
 import realdata
 from common import emit, table
+from uncertainty_real import EUROC_GT, VISLAM
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
@@ -42,6 +46,17 @@ def rigs() -> dict[str, list[tuple[str, object]]]:
             pair = next(p for p in realdata.PAIRS if p.name == f'{seq} {kind}')
             runs.append((seq, calibrate(*realdata.load(pair))))
         out[f'EuRoC vio_{kind}'] = runs
+    gt = realdata.REAL_DATA / 'open_vins/ov_data/euroc_mav'
+    out['EuRoC VI-SLAM'] = [
+        (
+            seq,
+            calibrate(
+                read_trajectory(gt / f'{name}.txt'),
+                read_trajectory(VISLAM / f'laptop_vislam_rp_{seq}' / 'stamped_traj_estimate0.txt'),
+            ),
+        )
+        for seq, name in EUROC_GT.items()
+    ]
     drift = CalibrationConfig(clock_drift=True)
     out['TUM-VI ORB-SLAM3'] = [
         (

@@ -12,18 +12,31 @@ reported 0.4-1.2 mm). Two terms, added to the long-run covariance ``C``:
 
    - Translation and rotation: a VIO's errors over minutes (biases, a slow drift of its
      attitude) move each block's fit, and the recording's value is uncertain by the error of the
-     blocks' mean, ``v_g = t^2 sum_b |d_b,g - mean_b d_b,g|^2 / (B (B - 1))``.
+     blocks' mean as the solution weighs them, by their information (the cluster-robust
+     covariance of a weighted mean, the blocks its clusters): with ``W_b = (sum_k C_k,g^-1)^-1
+     C_b,g^-1`` and ``e_b = d_b,g - sum_k W_k d_k,g``, ``v_g = t^2 B / (B - 1) sum_b |W_b
+     e_b|^2``. Blocks of equal information give the plain ``t^2 sum_b |d_b,g - mean_b
+     d_b,g|^2 / (B (B - 1))``; a block that hardly determines the group (a planar start, a
+     drone still on the ground) moves its own fit far and the mean little, and counts as
+     little.
    - Time offset: a block's offset is the eye's latency over that block, and a latency that
      wanders (with a VIO's load, from one segment of a broken stream to the next) is a variation
      of the quantity, not an error of it: the result is the recording's mean offset, known to
-     the long-run covariance plus how far the solution's weighting of the blocks (by their
-     information) takes it from their plain mean, ``v = tr C_g + t^2 (sum_b (w_b - 1 / B)
-     d_b,g)^2`` with ``w_b`` proportional to ``1 / C_b,g``. (On simulations whose offset wanders
-     by 3 ms the error of the blocks' mean would be 4 times the errors; bench/wander.py.)
+     the long-run covariance plus how far the solution's weighting of the blocks (``w_b``
+     proportional to their information ``1 / C_b,g``) takes it from their plain mean when
+     their latencies differ by ``tau^2``: ``v = tr C_g + t^2 tau^2 sum_b (w_b - 1 / B)^2``.
+     ``tau^2`` is the blocks' variance beyond their own noise (DerSimonian and Laird's moment
+     estimate, ``(Q - (B - 1)) / (S_1 - S_2 / S_1)`` and at least 0, with ``Q = sum_b (d_b,g -
+     sum_k w_k d_k,g)^2 / C_b,g`` and ``S_n = sum_b C_b,g^-n``): spread over every block, it
+     keeps one block that hardly determines the offset (a planar start), whose refit strays
+     beyond its own sigma, from passing its error off as the mean's. (On simulations whose
+     offset wanders by 3 ms the error of the blocks' mean would be 4 times the errors;
+     bench/wander.py.)
 
-   ``t`` is the Student-t 1-sigma factor of B - 1 degrees of freedom (1.20 for four blocks: a
-   spread measured on four values is itself uncertain). Where ``v_g`` exceeds the long-run
-   variance of the group, its rows and columns of ``C`` are multiplied by
+   ``t`` is the Student-t 1-sigma factor of B_eff - 1 degrees of freedom (1.20 for four
+   blocks of equal information: a spread measured on four values is itself uncertain), B_eff =
+   1 / sum_b w_b^2 the blocks that count (``w_b = tr W_b / p_g``), at least two. Where ``v_g``
+   exceeds the long-run variance of the group, its rows and columns of ``C`` are multiplied by
    ``k_g = sqrt(v_g / tr C_g)``. Birge's ratio ``sum_b d_b^T C_b^-1 d_b / (p_g (B - 1))`` far
    above 1 (:func:`varies`) means that the group's value moves along the recording by more than
    the blocks' own noise: the result says so, with the blocks' spread. (Multiplying ``C`` by
@@ -134,20 +147,25 @@ def error_of_mean(deviations: Floats, covariances: Floats, long_run: Floats) -> 
     (module docstring), from the blocks' deviations (B, 7), their covariances (B, 7, 7) and the
     long-run covariance (reported order); a group held fixed (zero variance) has none."""
     B = deviations.shape[0]
-    t_1sigma = float(stdtrit(B - 1, 0.5 + 0.5 * ONE_SIGMA))
     out = {}
     for group, idx in GROUPS.items():
         i = list(idx)
         own = float(np.trace(long_run[np.ix_(i, i)]))
         if not own > 0.0 or not np.all(covariances[:, i, i] > 0.0):  # held fixed
             continue
+        info = np.linalg.inv(covariances[:, i][:, :, i])
+        W = np.linalg.solve(info.sum(axis=0), info)  # (B, p, p), their sum the identity
+        w = np.trace(W, axis1=1, axis2=2) / len(i)
+        t_1sigma = float(stdtrit(max(1.0 / np.sum(w**2), 2.0) - 1.0, 0.5 + 0.5 * ONE_SIGMA))
+        d = deviations[:, i]
         if group == 'time_offset':
-            w = 1.0 / covariances[:, i[0], i[0]]
-            mismatch = float(np.sum((w / w.sum() - 1.0 / B) * deviations[:, i[0]]))
-            v = own + t_1sigma**2 * mismatch**2
+            a = info[:, 0, 0]
+            q = float(np.sum(a * (d[:, 0] - np.sum(w * d[:, 0])) ** 2))
+            tau2 = max(0.0, (q - (B - 1)) / (a.sum() - np.sum(a**2) / a.sum()))
+            v = own + t_1sigma**2 * tau2 * float(np.sum((w - 1.0 / B) ** 2))
         else:
-            d = deviations[:, i] - deviations[:, i].mean(axis=0)
-            v = t_1sigma**2 * float(np.sum(d**2)) / (B * (B - 1))
+            e = d - np.einsum('bij,bj->i', W, d)
+            v = t_1sigma**2 * B / (B - 1) * float(np.sum(np.einsum('bij,bj->bi', W, e) ** 2))
         out[group] = float(np.sqrt(max(1.0, v / own)))
     return out
 

@@ -27,6 +27,7 @@ import realdata
 from common import emit, table
 
 from handeye_ros.core.checks.carry import (
+    CARRIED_MARGIN,
     SIGMA_KEYS,
     carry_over,
     held_reasons,
@@ -75,7 +76,9 @@ def _carried(status: dict, published: dict | None) -> dict:
     """The status as the node carries it over from the result ``published``."""
     if published is None:
         return carry_over(status, {}, [])
-    return carry_over(status, predictor_factors(published), held_reasons(published))
+    return carry_over(
+        status, predictor_factors(published), held_reasons(published), margin=CARRIED_MARGIN
+    )
 
 
 def prefixes(hand, eye, step: float) -> list[list]:

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, TypeVar
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from ..core.arrays import Stamps
-from ..core.checks.carry import carry_over
+from ..core.checks.carry import CARRIED_MARGIN, carry_over
 from ..core.checks.progress import Measured, Progress
 from ..core.checks.readiness import readiness_of
 from ..core.document import ReadinessDoc
@@ -229,7 +229,7 @@ class ReadinessStatus:
         durations = (buffers['hand'].span_s, buffers['eye'].span_s)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         auto = self.auto
-        last = carry_over(found, auto.factors, auto.held)
+        last = carry_over(found, auto.factors, auto.held, margin=CARRIED_MARGIN)
         if last['ready'] and not auto.confirmed:
             # READY is said once a calibration of these buffers agrees: auto mode's first one,
             # or a check of its own
@@ -241,7 +241,11 @@ class ReadinessStatus:
             }
             if auto.said == 'off':
                 self._check(min(durations))
-        elif auto.held and auto.said == 'off' and carry_over(found, auto.factors, [])['ready']:
+        elif (
+            auto.held
+            and auto.said == 'off'
+            and carry_over(found, auto.factors, [], margin=CARRIED_MARGIN)['ready']
+        ):
             self._check(min(durations))  # READY but for the last result's reasons: check again
         self.last, self.why_not = last, ''
         self._publish()

@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 from conftest import recording
 
-from handeye_ros.core.checks.carry import carry_over, held_reasons, predictor_factors
+from handeye_ros.core.checks.carry import (
+    CARRIED_MARGIN,
+    carry_over,
+    held_reasons,
+    predictor_factors,
+)
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.evaluation.terminal import readiness_lines
 
@@ -47,6 +52,29 @@ def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
     assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place
     narrower = carry_over(last, {'translation_mm': 0.5}, [])
     assert narrower['ready'] and narrower['sigma']['translation_mm'] == pytest.approx(3.0)
+
+
+def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> None:
+    """Carried from a result to the buffers that grew since, 9 mm against 10 is not READY:
+    the next calibration measures its sigmas again on four blocks (CARRIED_MARGIN, 0.81);
+    7 mm is."""
+    assert CARRIED_MARGIN == pytest.approx(1 / (1 + 1 / np.sqrt(18)))
+    near = carry_over(_ready({**SIGMA, 'translation_mm': 9.0}), {'translation_mm': 1.0}, [])
+    assert near['ready']  # the result's own data: the targets as they are
+    grown = carry_over(
+        _ready({**SIGMA, 'translation_mm': 9.0}),
+        {'translation_mm': 1.0},
+        [],
+        margin=CARRIED_MARGIN,
+    )
+    assert not grown['ready'] and 'READY within 81% of the targets' in grown['missing'][0]
+    inside = carry_over(
+        _ready({**SIGMA, 'translation_mm': 7.0}),
+        {'translation_mm': 1.0},
+        [],
+        margin=CARRIED_MARGIN,
+    )
+    assert inside['ready']
 
 
 def test_a_last_calibration_doubtful_for_another_reason_holds_ready_back() -> None:

@@ -44,7 +44,9 @@ class Member:
 
     time_offset_s: dt [s]; q_HE (x y z w), p_HE [m]: its own T_HE; covariance: its batch
     covariance in ``order`` (time_offset, tx, ty, tz, rx, ry, rz[, clock_drift][, scale]);
-    values: the estimates in the same order where they are not T_HE (dt, drift, scale).
+    values: the estimates in the same order where they are not T_HE (dt, drift, scale);
+    precision: the 1-sigmas its calibration required of T_HE (translation [m], rotation [deg];
+    its options ``precision_translation``, ``precision_rotation``), None when not known.
     """
 
     name: str
@@ -53,6 +55,7 @@ class Member:
     covariance: Floats
     order: tuple[str, ...]
     values: dict[str, float]
+    precision: tuple[float, float] | None = None
 
     @property
     def extrinsic_covariance(self) -> Floats:
@@ -75,6 +78,8 @@ class Member:
         names = {'time_offset': doc['time_offset'], 'clock_drift': doc.get('clock_drift')}
         names['scale'] = doc.get('scale')
         values = {k: float(v) for k in order if (v := names.get(k)) is not None}
+        cfg = doc.get('config') or {}
+        need = _pair([cfg.get('precision_translation'), cfg.get('precision_rotation')])
         return cls(
             name,
             np.asarray(e['rotation'], dtype=float),
@@ -82,11 +87,12 @@ class Member:
             C,
             order,
             values,
+            need,
         )
 
     def to_dict(self) -> MemberDoc:
         """Plain data for a rig file; :meth:`from_dict` reads it back."""
-        return {
+        out: MemberDoc = {
             'translation': [float(v) for v in self.p_HE],
             'rotation': [float(v) for v in self.q_HE],
             'values': dict(self.values),
@@ -95,6 +101,9 @@ class Member:
                 'matrix': [[float(v) for v in row] for row in self.covariance],
             },
         }
+        if self.precision is not None:
+            out['precision'] = list(self.precision)
+        return out
 
     @classmethod
     def from_dict(cls, name: str, d: MemberDoc) -> Member:
@@ -108,6 +117,7 @@ class Member:
                 C,
                 tuple(d['covariance']['order']),
                 {str(k): float(v) for k, v in d['values'].items()},
+                _pair(d.get('precision')),
             )
         except (KeyError, TypeError, ValueError) as err:
             raise ValueError(
@@ -116,6 +126,14 @@ class Member:
         if C.shape != (len(out.order),) * 2 or 'time_offset' not in out.values:
             raise ValueError('not a recording of a rig file (its covariance does not fit)')
         return out
+
+
+def _pair(v: object) -> tuple[float, float] | None:
+    """Targets (translation [m], rotation [deg]) as a rig file or a result's options hold
+    them, None when either is missing."""
+    if not isinstance(v, list) or len(v) != 2 or any(x is None for x in v):
+        return None
+    return float(v[0]), float(v[1])
 
 
 @dataclass(frozen=True)

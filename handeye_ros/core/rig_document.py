@@ -18,6 +18,7 @@ class MemberDoc(TypedDict):
     rotation: list[float]
     values: dict[str, float]
     covariance: CovarianceDoc
+    precision: NotRequired[list[float]]
 
 
 class OwnDoc(MemberDoc):

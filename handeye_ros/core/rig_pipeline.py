@@ -16,6 +16,7 @@ sigmas are the rig's.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -59,7 +60,7 @@ class Rig:
             self,
             followers=tuple(f for f in self.followers if f not in why_not),
             why_not=out,
-            quality=assess_rig(names, groups, out),
+            quality=assess_rig(names, groups, out, _precision(self.joint, self.members, groups)),
         )
 
     @property
@@ -91,8 +92,23 @@ def solve_rig(
             why_not[m.name] = _disagrees(t, s.threshold, len(main))
     names = [m.name for m in members]
     shared = tuple(conditioned(m, joint) if k in main else None for k, m in enumerate(members))
-    quality = assess_rig(names, s.groups, why_not)
+    quality = assess_rig(names, s.groups, why_not, _precision(joint, members, s.groups))
     return Rig(joint, tuple(members), s, shared, tuple(followers), why_not, quality)
+
+
+def _precision(
+    joint: Joint | None, members: Sequence[Member], groups: tuple[tuple[int, ...], ...]
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """The joint T_HE's 1-sigmas (translation's norm [m], rotation's [deg]) and the strictest
+    targets of the recordings it rests on, for :func:`.checks.verdict.assess_rig`; None
+    without a joint T_HE or any recording's targets."""
+    needs = [m.precision for k, m in enumerate(members) if groups and k in groups[0]]
+    known = [n for n in needs if n is not None]
+    if joint is None or not known:
+        return None
+    sd = joint.std
+    sigmas = (float(np.linalg.norm(sd[:3])), float(np.degrees(np.linalg.norm(sd[3:]))))
+    return sigmas, (min(n[0] for n in known), min(n[1] for n in known))
 
 
 def _disagrees(test: Test | None, limit: float, n_main: int) -> str:

@@ -107,6 +107,27 @@ def test_a_consistent_rig_uses_every_member_and_names_none() -> None:
     assert solve_rig(members, {}).quality.verdict == 'good'
 
 
+def test_a_rig_less_precise_than_its_recordings_required_is_imprecise() -> None:
+    """Three recordings of 5 mm each (translation, 1-sigma norm) that asked for 2 mm: the
+    joint's 2.9 mm is said as a recording's would be; asking for 1 cm, the rig is good. The targets go through a rig
+    file; one written before they were kept has none, and its rig says nothing of them."""
+    rng = np.random.default_rng(5)
+    cov = _cov(rng, sigma_t=0.008 / np.sqrt(3) / 1.5)  # 5.0 mm, 0.16 deg a recording
+    strict = [replace(_member(f'm{k}', rng, cov), precision=(0.002, 0.5)) for k in range(3)]
+    rig = solve_rig(strict, {})
+    assert rig.quality.codes == ('imprecise',)
+    assert "the rig's 1-sigma exceeds the precision its recordings required: translation" in (
+        rig.quality.reasons[0].message
+    )
+    loose = [replace(m, precision=(0.01, 0.5)) for m in strict]
+    assert solve_rig(loose, {}).quality.verdict == 'good'
+    back = Member.from_dict('m0', strict[0].to_dict())
+    assert back.precision == (0.002, 0.5)
+    old = {k: v for k, v in strict[0].to_dict().items() if k != 'precision'}
+    assert Member.from_dict('m0', old).precision is None  # type: ignore[arg-type]
+    assert solve_rig([replace(m, precision=None) for m in strict], {}).quality.verdict == 'good'
+
+
 def test_nothing_to_fuse_fails_the_rig_with_reasons() -> None:
     rig = solve_rig([], {'a': 'it failed: x', 'b': 'it failed: y'}, followers=('c',))
     assert rig.joint is None and rig.quality.verdict == 'failed'

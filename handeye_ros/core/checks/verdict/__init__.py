@@ -82,6 +82,8 @@ groups                      doubtful   the recordings form groups that agree wit
 no_agreement                failed     fewer than two recordings agree, or the largest
                                        groups are as large as each other (a rig of one
                                        recording and nothing else is not said)
+imprecise                   doubtful   the rig's 1-sigma of T_HE exceeds the precision its
+                                       recordings required (the strictest of theirs)
 ==========================  =========  =================================================
 
 Notes that do not lower the verdict (resets split, an epoch difference, a self-check that

@@ -153,8 +153,9 @@ def error_of_mean(deviations: Floats, covariances: Floats, long_run: Floats) -> 
         own = float(np.trace(long_run[np.ix_(i, i)]))
         if not own > 0.0 or not np.all(covariances[:, i, i] > 0.0):  # held fixed
             continue
-        info = np.linalg.inv(covariances[:, i][:, :, i])
-        W = np.linalg.solve(info.sum(axis=0), info)  # (B, p, p), their sum the identity
+        # pseudo-inverses: a block's covariance may be singular along a direction it misses
+        info = np.linalg.pinv(covariances[:, i][:, :, i])
+        W = np.linalg.pinv(info.sum(axis=0)) @ info  # (B, p, p), their sum the identity
         w = np.trace(W, axis1=1, axis2=2) / len(i)
         t_1sigma = float(stdtrit(max(1.0 / np.sum(w**2), 2.0) - 1.0, 0.5 + 0.5 * ONE_SIGMA))
         d = deviations[:, i]
@@ -182,7 +183,7 @@ def varies(deviations: Floats, covariances: Floats) -> dict[str, tuple[float, fl
         if not np.all(covariances[:, i, i] > 0.0):  # held fixed (a given time offset)
             continue
         chi2 = sum(
-            float(d[i] @ np.linalg.solve(C[np.ix_(i, i)], d[i]))
+            float(d[i] @ np.linalg.pinv(C[np.ix_(i, i)]) @ d[i])
             for d, C in zip(deviations, covariances, strict=True)
         )
         dof = len(i) * (B - 1)

@@ -104,6 +104,9 @@ def test_a_group_held_fixed_has_no_factor() -> None:
     cov[:, 0, 0] = 0.0  # a given time offset
     assert 'time_offset' not in error_of_mean(d, cov, _whole(cov))
     assert 'time_offset' not in varies(d, cov)
+    cov[0, 1:4, 1:4] = 4e-6  # a block blind to two directions of the translation
+    assert set(error_of_mean(d, cov, _whole(cov))) == {'translation', 'rotation'}
+    varies(d, cov)  # and its Birge's ratio over the directions it sees
 
 
 @pytest.mark.slow

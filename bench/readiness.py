@@ -156,20 +156,7 @@ def carried(seeds: int, step_s: float) -> list[list]:
     for seed in range(seeds):
         rec = _record(seed, 'planar_start')
         rows += readiness_real.prefixes(rec.hand, rec.eye, step_s)
-    with_result = [r for r in rows if r[5]]
-    raw = np.array([r[3] for r in rows])
-    now = np.array([r[4] for r in with_result]) if with_result else np.full((1, 3), np.nan)
-    return [
-        [
-            f'{seeds} poor then rich',
-            len(rows),
-            sum(r[1] and r[2] != 'good' for r in rows),
-            sum(r[1] for r in rows),
-            sum(r[2] == 'good' for r in rows),
-            readiness_real.spread(raw),
-            readiness_real.spread(now),
-        ]
-    ]
+    return [readiness_real.summary(f'{seeds} poor then rich', rows)]
 
 
 def main() -> None:

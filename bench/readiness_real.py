@@ -125,27 +125,30 @@ def spread(ratios: np.ndarray) -> str:
     )
 
 
+def summary(name: str, rows: list[list]) -> list:
+    """A row of HEADER from :func:`prefixes`' rows: READY while not ``good``, READY, ``good``
+    and the ratios, raw and carried (those of prefixes with a result to carry)."""
+    carried = [r for r in rows if r[5]]
+    raw = np.array([r[3] for r in rows])
+    now = np.array([r[4] for r in carried]) if carried else np.full((1, 3), np.nan)
+    return [
+        name,
+        len(rows),
+        sum(r[1] and r[2] != 'good' for r in rows),
+        sum(r[1] for r in rows),
+        sum(r[2] == 'good' for r in rows),
+        spread(raw),
+        spread(now),
+    ]
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--step', type=float, default=10.0, help='seconds between prefixes')
     a = p.parse_args()
     out = []
     for name, hand, eye in recordings():
-        rows = prefixes(hand, eye, a.step)
-        carried = [r for r in rows if r[5]]
-        raw = np.array([r[3] for r in rows])
-        now = np.array([r[4] for r in carried]) if carried else np.full((1, 3), np.nan)
-        out.append(
-            [
-                name,
-                len(rows),
-                sum(r[1] and r[2] != 'good' for r in rows),
-                sum(r[1] for r in rows),
-                sum(r[2] == 'good' for r in rows),
-                spread(raw),
-                spread(now),
-            ]
-        )
+        out.append(summary(name, prefixes(hand, eye, a.step)))
         print(out[-1], flush=True)
     emit(
         'readiness_real',

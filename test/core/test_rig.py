@@ -109,8 +109,9 @@ def test_a_consistent_rig_uses_every_member_and_names_none() -> None:
 
 def test_a_rig_less_precise_than_its_recordings_required_is_imprecise() -> None:
     """Three recordings of 5 mm each (translation, 1-sigma norm) that asked for 2 mm: the
-    joint's 2.9 mm is said as a recording's would be; asking for 1 cm, the rig is good. The targets go through a rig
-    file; one written before they were kept has none, and its rig says nothing of them."""
+    joint's 2.9 mm is said as a recording's would be; asking for 1 cm, the rig is good. The
+    targets go through a rig file; one written before they were kept has none, and its rig
+    says nothing of them."""
     rng = np.random.default_rng(5)
     cov = _cov(rng, sigma_t=0.008 / np.sqrt(3) / 1.5)  # 5.0 mm, 0.16 deg a recording
     strict = [replace(_member(f'm{k}', rng, cov), precision=(0.002, 0.5)) for k in range(3)]

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import difflib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from functools import partial
 from typing import TYPE_CHECKING
 
 from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidHandle
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -43,6 +44,25 @@ GRAPH_POLL_S = 0.05
 #: The type a stream's plain pose topic most likely has, subscribed before the graph says
 #: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
 LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
+#: Messages a pose callback takes from its queue beyond the one the executor handed it: rclpy's
+#: executor rebuilds its wait set of the node's ~30 entities for each message (~0.5 ms), a
+#: direct take costs ~0.1 ms, so a node that fell behind catches up (bench/node_load.py); at
+#: 0.1 ms each, the executor is back to timers and services within ~10 ms.
+DRAIN_MAX = 100
+
+
+def taken(sub: Subscription, most: int) -> Iterator[tuple[Message, MessageInfo]]:
+    """Up to ``most`` messages waiting in ``sub``'s queue, with their MessageInfo, taken as
+    rclpy's executor takes them; none once the subscription is destroyed."""
+    for _ in range(most):
+        try:
+            with sub.handle:
+                got = sub.handle.take_message(sub.msg_type, sub.raw)
+        except InvalidHandle:
+            return
+        if got is None:
+            return
+        yield got
 
 
 class Subscriptions:
@@ -140,11 +160,16 @@ class Subscriptions:
         """The auto-typed streams whose type the graph has not named yet."""
         return [s for s in STREAMS if s not in self.subs or s in self.guessed]
 
-    def _callback(self, stream: str, static: bool) -> Callable[[Message, MessageInfo], None]:
-        """The subscription's callback: rclpy hands it the message and its MessageInfo."""
+    def _callback(
+        self, stream: str, static: bool, sub: list[Subscription]
+    ) -> Callable[[Message, MessageInfo], None]:
+        """The subscription's callback: rclpy hands it the message and its MessageInfo; it then
+        takes what else waits in the queue of ``sub[0]`` (its subscription, once made)."""
 
         def on_message(msg: Message, info: MessageInfo) -> None:
             self._on_pose(stream, msg, static, info)
+            for more, more_info in taken(sub[0], DRAIN_MAX) if sub else ():
+                self._on_pose(stream, more, static, more_info)
 
         return on_message
 
@@ -158,16 +183,19 @@ class Subscriptions:
         sel = self._recorder.selectors[stream]
         # rclpy calls a callback of two parameters with the message and its MessageInfo; its
         # annotation names the one-parameter form only
+        made: list[Subscription] = []
         self.subs[stream] = self._node.create_subscription(
             cls,
             sel.topic,
-            self._callback(stream, static=False),  # type: ignore[arg-type]
+            self._callback(stream, False, made),  # type: ignore[arg-type]
             self._pose_qos(),
             event_callbacks=SubscriptionEventCallbacks(
                 incompatible_qos=partial(self._on_incompatible_qos, stream)
             ),
         )
+        made.append(self.subs[stream])
         if sel.static_topic:
+            made_static: list[Subscription] = []
             static_qos = QoSProfile(
                 depth=100,
                 history=HistoryPolicy.KEEP_LAST,
@@ -177,9 +205,10 @@ class Subscriptions:
             self._static_subs[stream] = self._node.create_subscription(
                 cls,
                 sel.static_topic,
-                self._callback(stream, static=True),  # type: ignore[arg-type]
+                self._callback(stream, True, made_static),  # type: ignore[arg-type]
                 static_qos,
             )
+            made_static.append(self._static_subs[stream])
         if guess:
             self.guessed.add(stream)
             self._log.info(

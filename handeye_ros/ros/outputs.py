@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -33,6 +34,11 @@ LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+#: The node's publishers make no QoS event handlers: rclpy's executor puts each one in the wait
+#: set it rebuilds for every pose message (bench/results/node.md), and they would say nothing:
+#: a reliable transient-local offer matches every request, and a subscriber that asks for more
+#: than ~/status or /diagnostics offer is warned by its own rclpy.
+NO_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
 #: The latched nav_msgs/Path topics of each result (relative to the node), by path: the eye's
 #: trajectory and the calibrated ground truth (the hand in the eye's world and clock), both in
 #: the eye's world frame, for RViz or Foxglove to overlay.
@@ -45,11 +51,13 @@ class Outputs:
     def __init__(self, node: Node, types: RclpyTypes) -> None:
         self._node, self._types = node, types
         self._topics = {
-            name: node.create_publisher(types[t], f'~/{name}', LATCHED)
+            name: node.create_publisher(types[t], f'~/{name}', LATCHED, event_callbacks=NO_EVENTS)
             for name, t in messages.OUTPUT_TYPES.items()
         }
         self._paths = {
-            name: node.create_publisher(types['nav_msgs/msg/Path'], f'~/{name}', LATCHED)
+            name: node.create_publisher(
+                types['nav_msgs/msg/Path'], f'~/{name}', LATCHED, event_callbacks=NO_EVENTS
+            )
             for name in PATHS.values()
         }
         self._static_tf = self._static_broadcaster()
@@ -86,7 +94,7 @@ class Outputs:
                 'writes it into a bag)'
             )
             return None
-        return self._node.create_publisher(cls, '/tf_static', LATCHED)
+        return self._node.create_publisher(cls, '/tf_static', LATCHED, event_callbacks=NO_EVENTS)
 
 
 def save(session: Calibrated, cfg: NodeConfig) -> tuple[bool, str]:

@@ -7,7 +7,7 @@ processes beside it, and sim_publisher sending 10 s of 1 kHz MoCap and 200 Hz de
 ``--rate`` messages per second, reliable; then ``~/calibrate`` is called and the node's log says
 how many poses it buffered. CPU: the node's user + system seconds while the poses came.
 
-Usage: python bench/node_load.py [--depth 1000] [--hogs 0 8] [--runs 3]
+Usage: python bench/node_load.py [--depth 1000] [--hogs 0 8 16] [--runs 2]
 """
 
 from __future__ import annotations
@@ -89,9 +89,9 @@ def one(drain: int, depth: int, hogs: int, rate: float, domain: int) -> tuple[in
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--depth', type=int, default=1000)
-    p.add_argument('--hogs', type=int, nargs='+', default=[0, 8])
+    p.add_argument('--hogs', type=int, nargs='+', default=[0, 8, 16])
     p.add_argument('--rate', type=float, default=1200.0)
-    p.add_argument('--runs', type=int, default=3)
+    p.add_argument('--runs', type=int, default=2)
     args = p.parse_args()
     from handeye_ros.ros.subscriptions import DRAIN_MAX
 

@@ -138,7 +138,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
     'qos_stall': ('qos_stall', [], ['qos_stall'], '1 min'),
-    'node_load': ('node_load', [], ['node_load'], '6 min'),
+    'node_load': ('node_load', [], ['node_load'], '7 min'),
     'sim_time_stop': ('sim_time_stop', [], ['sim_time_stop'], '2 min'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),

@@ -56,7 +56,7 @@ from .calls import ABORTED, BUSY, answer_with, waiting
 from .files import inside
 from .jobs import Calibrated, calibrate_buffers
 from .lifecycle import steady_timer
-from .outputs import NO_EVENTS, Outputs, save
+from .outputs import Outputs, quiet_publisher, save
 from .status import ReadinessStatus
 from .subscriptions import Subscriptions
 from .types import RclpyTypes
@@ -97,9 +97,7 @@ class CalibratorNode(Node):
         self.taken_late = dict.fromkeys(STREAMS, 0.0)
         self._types = RclpyTypes()
         self._outputs = Outputs(self, self._types)
-        self.pub_diag = self.create_publisher(
-            DiagnosticArray, '/diagnostics', 10, event_callbacks=NO_EVENTS
-        )
+        self.pub_diag = quiet_publisher(self, DiagnosticArray, '/diagnostics', 10)
         # reentrant: an awaiting coroutine keeps its group busy (the default one: every callback)
         self.create_service(
             Trigger, '~/calibrate', self._on_calibrate, callback_group=ReentrantCallbackGroup()

@@ -34,15 +34,19 @@ LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-#: The node's publishers make no QoS event handlers: rclpy's executor puts each one in the wait
-#: set it rebuilds for every pose message (bench/results/node.md), and they would say nothing:
-#: a reliable transient-local offer matches every request, and a subscriber that asks for more
-#: than ~/status or /diagnostics offer is warned by its own rclpy.
-NO_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
 #: The latched nav_msgs/Path topics of each result (relative to the node), by path: the eye's
 #: trajectory and the calibrated ground truth (the hand in the eye's world and clock), both in
 #: the eye's world frame, for RViz or Foxglove to overlay.
 PATHS = {'eye': 'eye_path', 'ground_truth': 'ground_truth_path'}
+
+
+def quiet_publisher(node: Node, cls: type, topic: str, qos: QoSProfile | int) -> Publisher:
+    """``node.create_publisher`` without QoS event handlers: rclpy's executor puts each one in
+    the wait set it rebuilds for every pose message (bench/results/node.md), and they would say
+    nothing: a reliable transient-local offer matches every request, and a subscriber that asks
+    for more than ~/status or /diagnostics offer is warned by its own rclpy."""
+    quiet = PublisherEventCallbacks(use_default_callbacks=False)
+    return node.create_publisher(cls, topic, qos, event_callbacks=quiet)
 
 
 class Outputs:
@@ -51,13 +55,11 @@ class Outputs:
     def __init__(self, node: Node, types: RclpyTypes) -> None:
         self._node, self._types = node, types
         self._topics = {
-            name: node.create_publisher(types[t], f'~/{name}', LATCHED, event_callbacks=NO_EVENTS)
+            name: quiet_publisher(node, types[t], f'~/{name}', LATCHED)
             for name, t in messages.OUTPUT_TYPES.items()
         }
         self._paths = {
-            name: node.create_publisher(
-                types['nav_msgs/msg/Path'], f'~/{name}', LATCHED, event_callbacks=NO_EVENTS
-            )
+            name: quiet_publisher(node, types['nav_msgs/msg/Path'], f'~/{name}', LATCHED)
             for name in PATHS.values()
         }
         self._static_tf = self._static_broadcaster()
@@ -94,7 +96,7 @@ class Outputs:
                 'writes it into a bag)'
             )
             return None
-        return self._node.create_publisher(cls, '/tf_static', LATCHED, event_callbacks=NO_EVENTS)
+        return quiet_publisher(self._node, cls, '/tf_static', LATCHED)
 
 
 def save(session: Calibrated, cfg: NodeConfig) -> tuple[bool, str]:

@@ -40,7 +40,7 @@ from .auto_mode import GROWTH, AutoMode
 from .clocks import Arrivals, ClockWatch, jump_advice
 from .jobs import readiness_measure, readiness_start
 from .lifecycle import steady_timer
-from .outputs import NO_EVENTS
+from .outputs import quiet_publisher
 
 if TYPE_CHECKING:  # the node owns its status
     from .node import CalibratorNode
@@ -99,9 +99,7 @@ class ReadinessStatus:
         self._checked_span = 0.0
         #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
         self._sim_clock = (0, time.monotonic())
-        self.pub = node.create_publisher(
-            DiagnosticStatus, '~/status', 10, event_callbacks=NO_EVENTS
-        )
+        self.pub = quiet_publisher(node, DiagnosticStatus, '~/status', 10)
         if period_s > 0.0:
             steady_timer(node, period_s, self.tick)
 

@@ -45,9 +45,9 @@ GRAPH_POLL_S = 0.05
 #: (motion capture drivers publish PoseStamped; VIO estimators publish Odometry).
 LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Odometry'}
 #: Messages a pose callback takes from its queue beyond the one the executor handed it: rclpy's
-#: executor rebuilds its wait set of the node's ~30 entities for each message (~0.5 ms), a
-#: direct take costs ~0.1 ms, so a node that fell behind catches up (bench/node_load.py); at
-#: 0.1 ms each, the executor is back to timers and services within ~10 ms.
+#: executor rebuilds its wait set of the node's ~25 entities for each message (~0.3 ms of
+#: Python), a direct take costs ~0.07 ms, so a node that fell behind catches up
+#: (bench/node_load.py); the executor is back to timers and services within ~10 ms.
 DRAIN_MAX = 100
 
 

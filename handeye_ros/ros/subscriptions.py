@@ -160,15 +160,15 @@ class Subscriptions:
         """The auto-typed streams whose type the graph has not named yet."""
         return [s for s in STREAMS if s not in self.subs or s in self.guessed]
 
-    def _callback(
-        self, stream: str, static: bool, sub: list[Subscription]
-    ) -> Callable[[Message, MessageInfo], None]:
+    def _callback(self, stream: str, static: bool) -> Callable[[Message, MessageInfo], None]:
         """The subscription's callback: rclpy hands it the message and its MessageInfo; it then
-        takes what else waits in the queue of ``sub[0]`` (its subscription, once made)."""
+        takes what else waits in the queue of the stream's (static) subscription."""
+        subs = self._static_subs if static else self.subs
 
         def on_message(msg: Message, info: MessageInfo) -> None:
             self._on_pose(stream, msg, static, info)
-            for more, more_info in taken(sub[0], DRAIN_MAX) if sub else ():
+            sub = subs.get(stream)  # none once a wrong guess gave way to a type that failed
+            for more, more_info in taken(sub, DRAIN_MAX) if sub is not None else ():
                 self._on_pose(stream, more, static, more_info)
 
         return on_message
@@ -183,19 +183,16 @@ class Subscriptions:
         sel = self._recorder.selectors[stream]
         # rclpy calls a callback of two parameters with the message and its MessageInfo; its
         # annotation names the one-parameter form only
-        made: list[Subscription] = []
         self.subs[stream] = self._node.create_subscription(
             cls,
             sel.topic,
-            self._callback(stream, False, made),  # type: ignore[arg-type]
+            self._callback(stream, static=False),  # type: ignore[arg-type]
             self._pose_qos(),
             event_callbacks=SubscriptionEventCallbacks(
                 incompatible_qos=partial(self._on_incompatible_qos, stream)
             ),
         )
-        made.append(self.subs[stream])
         if sel.static_topic:
-            made_static: list[Subscription] = []
             static_qos = QoSProfile(
                 depth=100,
                 history=HistoryPolicy.KEEP_LAST,
@@ -205,10 +202,9 @@ class Subscriptions:
             self._static_subs[stream] = self._node.create_subscription(
                 cls,
                 sel.static_topic,
-                self._callback(stream, True, made_static),  # type: ignore[arg-type]
+                self._callback(stream, static=True),  # type: ignore[arg-type]
                 static_qos,
             )
-            made_static.append(self._static_subs[stream])
         if guess:
             self.guessed.add(stream)
             self._log.info(

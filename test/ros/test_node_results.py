@@ -33,6 +33,7 @@ pytestmark = [
 ]
 
 
+@pytest.mark.both_platforms
 def test_live_calibration_matches_truth_and_bag_replay(
     ros: Processes, install: Path, tmp_path: Path
 ) -> None:

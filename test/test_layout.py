@@ -511,7 +511,7 @@ STAGE_DECISIONS = {
     'batch_moved',
     'batch_supported',
     'judge_tie',
-    'scale_doubtful',
+    'scale_keeps_whole',
     'scale_uncertainty_note',
     'varies_note',
     'WEAK_CORRELATION',

@@ -53,7 +53,7 @@ class EyeModel:
         """Scale the positions of an eye this model was applied to by a further factor; ``std``
         is that of the total scale."""
         return (
-            replace(eye, p_xyz=eye.p_xyz * factor),
+            eye.scaled(factor),
             replace(self, scale=self.scale * factor, scale_std=std, scale_estimated=True),
         )
 

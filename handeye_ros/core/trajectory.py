@@ -211,6 +211,10 @@ class Trajectory:
         """The same poses with every stamp moved by ``delta_ns`` (int64 ns, exact)."""
         return replace(self, t_ns=self.t_ns + np.int64(delta_ns))
 
+    def scaled(self, factor: float) -> Trajectory:
+        """The same poses with every position multiplied by ``factor`` (an eye's scale)."""
+        return replace(self, p_xyz=self.p_xyz * factor)
+
     def gap_limit_s(self) -> float:
         """Longest interval that is not a gap [s]: GAP_FACTOR median periods."""
         return GAP_FACTOR * float(np.median(np.diff(self.t_ns))) * 1e-9

@@ -1,8 +1,9 @@
 """Stage 3 as the pipeline runs it (:class:`Refined`): the batch refinement from stage 2's
 answer (:mod:`.refine`), kept when it converged with a finite covariance and the self-check does
-not side against it; otherwise stage 2's answer is kept and the warnings say why. A drift or
-scale it estimated is folded into the eye. Its covariance then gains what a real VIO's errors
-over minutes and its scale add (:mod:`.correlated`: the blocks and the scale refitted here)."""
+not side against it; otherwise stage 2's answer is kept and the warnings say why. A drift it
+estimated is folded into the eye, and a scale with estimate_scale; a metric eye's scale is
+fitted beside (dt, T_HE) as a nuisance and marginalised out. Its covariance then gains what a
+real VIO's errors over minutes add (:mod:`.correlated`: the blocks refitted here)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,10 @@ from ..batch.correlated import (
     Uncertainty,
     error_of_mean,
     inflated,
-    scale_term,
+    scale_share,
+    scale_shift,
     varies,
+    without,
 )
 from ..batch.options import BatchOptions
 from ..batch.refine import BatchSolution, refine
@@ -47,8 +50,8 @@ from .linear import LinearStage
 #: reuse the estimate's spline of the MoCap, which depends on the MoCap alone: fitting it again
 #: for each would double their cost.
 MAX_AUX_POSES = 20_000
-#: A scale refit whose s is uncertain by more than this leaves the scale term out (the eye's
-#: translations are too short to tell a scale from the lever arm; the result says so).
+#: A nuisance scale uncertain by more than this is not fitted: the eye's translations are too
+#: short to tell a scale from the lever arm, and s = 1 is held (the result says so).
 SCALE_UNOBSERVABLE = 0.1
 
 
@@ -85,7 +88,7 @@ def batch_stage(hand: Trajectory, linear: LinearStage, cfg: CalibrationConfig) -
         why = why or 'the self-check sided with the linear result'
         kept = Findings.warned(f'batch stage not used, the linear result is kept: {why}')
         return Refined(dt, q_HE, p_HE, None, eye, model, found + kept)
-    eye, model = fold_batch(eye, model, batch)
+    eye, model = fold_batch(eye, model, batch, cfg)
     batch = with_correlated(hand, eye, batch, cfg)
     notes = uncertainty_notes(batch, linear.scale_named)
     found = found + Findings.warned(*batch.warnings) + notes
@@ -119,14 +122,23 @@ def run_batch(
     model: EyeModel | None = None,
 ) -> tuple[BatchSolution | None, str]:
     """The batch refinement, or None and why it was not used (never raises). It estimates a
-    clock drift when one was estimated before it, and a scale when asked."""
+    clock drift when one was estimated before it, and a scale: with estimate_scale when the
+    model's is observable, and for a metric eye as a nuisance (:mod:`.correlated`) unless the
+    eye's translations cannot tell it from the lever arm (SCALE_UNOBSERVABLE), where s = 1 is
+    held."""
     try:
         options = replace(
             batch_options(cfg),
             drift_stamp_ns=model.stamp_ns if model is not None and model.drift_estimated else None,
-            scale=cfg.estimate_scale and model is not None and model.scale_observable,
+            scale=(
+                model is not None and model.scale_observable
+                if cfg.estimate_scale
+                else not cfg.batch_joint
+            ),
         )
         sol = refine(hand, eye, dt, q_HE, p_HE, options)
+        if not cfg.estimate_scale and sol.scale is not None and not _told(sol):
+            sol = refine(hand, eye, dt, q_HE, p_HE, replace(options, scale=False))
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:
@@ -138,6 +150,12 @@ def run_batch(
     if not sol.decoupled and sol.cost_after > sol.cost_before * (1 + 1e-9):
         return None, (f'it made the cost worse ({sol.cost_before:.6g} -> {sol.cost_after:.6g})')
     return sol, ''
+
+
+def _told(sol: BatchSolution) -> bool:
+    """Whether the eye's translations tell its scale from the lever arm."""
+    std = sol.scale_std
+    return std is not None and bool(std < SCALE_UNOBSERVABLE)
 
 
 def check_batch(
@@ -190,12 +208,13 @@ def check_batch(
 
 
 def fold_batch(
-    eye: Trajectory, model: EyeModel, batch: BatchSolution
+    eye: Trajectory, model: EyeModel, batch: BatchSolution, cfg: CalibrationConfig
 ) -> tuple[Trajectory, EyeModel]:
-    """The batch stage's drift and scale corrections into the eye and the model."""
+    """The batch stage's drift and (with estimate_scale) scale corrections into the eye and
+    the model; a metric eye's nuisance scale stays out of it."""
     if batch.clock_drift is not None and batch.drift_std is not None:
         eye, model = model.add_drift(eye, batch.clock_drift, batch.drift_std * (1.0 - model.drift))
-    if batch.scale is not None and batch.scale_std is not None:
+    if cfg.estimate_scale and batch.scale is not None and batch.scale_std is not None:
         eye, model = model.add_scale(eye, batch.scale, batch.scale_std * model.scale * batch.scale)
     return eye, model
 
@@ -204,10 +223,56 @@ def with_correlated(
     hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
 ) -> BatchSolution:
     """The batch solution with the terms of :mod:`.correlated` in its covariance, from refits on
-    ``eye`` (its drift and scale folded in). A term that cannot be estimated is left out and
-    said in :attr:`Uncertainty.not_estimated`."""
+    ``eye`` (its drift, and with estimate_scale its scale, folded in; a metric eye's nuisance
+    scale held at the solution's), and that nuisance scale marginalised out.
+    A term that cannot be estimated is left out and said in :attr:`Uncertainty.not_estimated`."""
+    lr, white = batch.covariance, batch.covariance_white
+    scaled = batch.scale is not None
+    factors, moving, missing = _blocks(hand, eye, batch, cfg)
+    cov = inflated(lr, factors or {})
+    at = 7 + (batch.clock_drift is not None)
+    share = scale_share(cov, at) if scaled else None
+    known = white[:7, :7] - scale_share(white, at) if scaled else white[:7, :7]
+    nuisance = None
+    if batch.scale is not None and batch.scale_std is not None and not cfg.estimate_scale:
+        nuisance = (batch.scale, batch.scale_std, scale_shift(white, at, batch.scale))
+        cov, lr, white = without(cov, at), without(lr, at), without(white, at)
+    elif not scaled and not cfg.estimate_scale:
+        why = (
+            'the joint solve (batch_joint) fits no scale'
+            if cfg.batch_joint
+            else "the eye's scale could not be told from the lever arm (too little translation)"
+        )
+        missing.append(f'{why}: the uncertainty holds for a metric eye only')
+    unc = Uncertainty(
+        white=known,
+        long_run=lr,
+        factors=factors,
+        scale=nuisance,
+        covariance=cov,
+        not_estimated=tuple(missing),
+        varies=moving,
+        scale_part=share,
+    )
+    return replace(
+        batch,
+        covariance=cov,
+        covariance_white=white,
+        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+        scale=batch.scale if cfg.estimate_scale else None,
+        uncertainty=unc,
+        spline=None,
+    )
+
+
+def _blocks(
+    hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
+) -> tuple[dict[str, float] | None, dict[str, tuple[float, float]], list[str]]:
+    """The correlated term from the four blocks refitted alone: the groups' factors (None when
+    it could not be estimated), the groups that vary along the recording, and why not."""
     lr = batch.covariance
-    missing, factors, scaled, moving = [], None, None, {}
+    missing: list[str] = []
+    factors, moving = None, {}
     covered = np.flatnonzero(_covered(hand, eye, batch.time_offset_s))
     edges = np.linspace(0, covered.size, BLOCKS + 1).astype(int)
     if np.min(np.diff(edges)) < MIN_BLOCK_POSES:
@@ -216,8 +281,11 @@ def with_correlated(
             f'eye poses are too few for {BLOCKS} blocks of {MIN_BLOCK_POSES}'
         )
     else:
+        # each block with the solution's scale held: the whole recording's T_HE errs as its
+        # one scale does over each part (a VIO's scale wanders), which a block's own would hide
+        held = eye if cfg.estimate_scale or batch.scale is None else eye.scaled(batch.scale)
         tried = [
-            _aux(hand, eye.select(covered[a:b]), batch, cfg) for a, b in itertools.pairwise(edges)
+            _aux(hand, held.select(covered[a:b]), batch, cfg) for a, b in itertools.pairwise(edges)
         ]
         fits = [f for f in tried if f is not None]
         if len(fits) < len(tried):
@@ -230,29 +298,7 @@ def with_correlated(
             own = np.array([f.covariance[:7, :7] for f in fits])
             factors = error_of_mean(deviations, own, lr)
             moving = varies(deviations, own)
-    cov = inflated(lr, factors or {})
-    if not cfg.estimate_scale:
-        scaled, cov7_term = _scale(hand, eye, batch, cfg)
-        if isinstance(cov7_term, str):
-            missing.append(cov7_term)
-        else:
-            cov[:7, :7] += cov7_term
-    unc = Uncertainty(
-        white=batch.covariance_white,
-        long_run=lr,
-        factors=factors,
-        scale=scaled,
-        covariance=cov,
-        not_estimated=tuple(missing),
-        varies=moving,
-    )
-    return replace(
-        batch,
-        covariance=cov,
-        std=np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-        uncertainty=unc,
-        spline=None,
-    )
+    return factors, moving, missing
 
 
 def _covered(hand: Trajectory, eye: Trajectory, dt: float) -> Floats:
@@ -299,30 +345,6 @@ def _deviation(fit: BatchSolution, of: BatchSolution) -> Floats:
     of T_HE on the right (eye frame), as the covariance's."""
     rot = (Rotation.from_quat(of.q_HE).inv() * Rotation.from_quat(fit.q_HE)).as_rotvec()
     return np.concatenate(([fit.time_offset_s - of.time_offset_s], fit.p_HE - of.p_HE, rot))
-
-
-def _scale(
-    hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
-) -> tuple[tuple[float, float, Floats] | None, Floats | str]:
-    """The scale term (:func:`.correlated.scale_term`) and the nuisance fit's (s, 1-sigma,
-    shift), or (None, why not)."""
-    # the shift and the covariances on the same (decimated) data
-    same = _decimated(eye) is eye
-    fixed = batch if same else _aux(hand, eye, batch, cfg)
-    free = _aux(hand, eye, batch, cfg, scale=True)
-    if (
-        fixed is None
-        or free is None
-        or free.scale is None
-        or not free.std[-1] < SCALE_UNOBSERVABLE
-    ):
-        return None, (
-            "the eye's scale could not be told from the lever arm (too little translation): "
-            'the uncertainty holds for a metric eye only'
-        )
-    shift = _deviation(free, fixed)
-    term = scale_term(fixed.covariance[:7, :7], free.covariance[:7, :7], shift)
-    return (float(free.scale), float(free.std[-1]), shift), term
 
 
 def batch_options(cfg: CalibrationConfig) -> BatchOptions:

@@ -31,7 +31,7 @@ from ..checks.verdict import (
     SeedCompared,
     SeedFailed,
     judge_tie,
-    scale_doubtful,
+    scale_keeps_whole,
 )
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
@@ -112,8 +112,8 @@ def linear_stage(inputs: Inputs, offset: Offset, cfg: CalibrationConfig) -> Line
     scaled = None if cfg.estimate_scale else scale_check(solved.pairs, solved.solution, cfg)
     measured = () if scaled is None else (ScaleMeasured(scaled, cfg.precision_translation),)
     found = Findings.of(*measured)
-    # a scale that is a reason leaves the eye whole (scale_doubtful says why)
-    whole = scaled is not None and scale_doubtful(scaled, cfg.precision_translation)
+    # a clear scale leaves the eye whole (scale_keeps_whole says when)
+    whole = scaled is not None and scale_keeps_whole(scaled, cfg.precision_translation)
     if cfg.screening and not whole:
         split = split_eye(hand, eye, solved, cfg, screening, shift_ns)
         eye, solved, screening = split.eye, split.solved, split.screening

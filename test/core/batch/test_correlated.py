@@ -19,8 +19,10 @@ from handeye_ros.core.batch.correlated import (
     GROUPS,
     error_of_mean,
     inflated,
-    scale_term,
+    scale_share,
+    scale_shift,
     varies,
+    without,
 )
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
@@ -128,16 +130,20 @@ def test_a_wandering_offset_is_covered_said_and_not_overstated() -> None:
     assert np.median(sigmas) < 0.8e-3, sigmas
 
 
-def test_inflation_scales_each_group_and_the_scale_term_is_a_covariance() -> None:
+def test_inflation_scales_each_group_and_the_scale_is_marginalised() -> None:
     cov = np.diag(np.arange(1.0, 10.0))  # with a drift and a scale row
     out = inflated(cov, {'translation': 2.0})
     assert np.allclose(np.diag(out)[1:4], 4.0 * np.diag(cov)[1:4])
     assert np.allclose(np.diag(out)[[0, 4, 5, 6, 7, 8]], np.diag(cov)[[0, 4, 5, 6, 7, 8]])
-    fixed = np.eye(7)
-    free = np.eye(7) * 0.99  # estimated apart, the marginal can come out a little smaller
-    term = scale_term(fixed, free, np.r_[0.0, 3.0, 0, 0, 0, 0, 0])
-    assert np.all(np.linalg.eigvalsh(term) >= -1e-12)
-    assert term[1, 1] == pytest.approx(9.0 - 0.01, abs=0.02)
+    # x = 3 s + noise: the marginal of x minus its conditional given s is 9 var(s)
+    cov = np.eye(8)
+    cov[1, 7] = cov[7, 1] = 3.0
+    cov[1, 1] = 10.0
+    share = scale_share(cov, 7)
+    assert share[1, 1] == pytest.approx(9.0) and np.count_nonzero(share) == 1
+    assert without(cov, 7).shape == (7, 7) and without(cov, 7)[1, 1] == 10.0
+    # least squares: fixing s at 1 instead of s moves x by C_xs / C_ss (1 - s)
+    assert scale_shift(cov, 7, 1.02)[1] == pytest.approx(0.06)
     assert set(GROUPS) == {'time_offset', 'translation', 'rotation'}
 
 
@@ -151,16 +157,18 @@ def _covered(res, truth) -> tuple[bool, bool]:
 @pytest.mark.slow
 @pytest.mark.parametrize('seed', [6, 9])
 def test_a_metric_eye_off_in_scale_is_covered_and_named(seed: int) -> None:
-    """An eye 3 % long, calibrated as metric (no --scale): T_HE's translation errs by the lever
-    arm's share of the scale error, beyond what the long-run covariance covers (seeds whose
-    error it did not cover); the reported covariance covers it, and a note names the scale."""
+    """An eye 3 % long, calibrated as metric (no --scale): held at s = 1, T_HE's translation
+    would err by the lever arm's share of the scale error, beyond its sigma (the seeds where
+    it did); fitted with the scale free, the reported covariance covers the truth, the scale
+    is named in a note and the eye stays metric."""
     rec = recording(seed, 3.0, scale=1 / 1.03)
     res = calibrate(rec.hand, rec.eye)
     unc = res.batch.uncertainty
-    err = rec.truth.p_HE - res.p_HE
-    before = float(err @ np.linalg.solve(unc.long_run[1:4, 1:4], err))
-    assert before > CHI2_3, 'the case must need the terms'
+    held = res.p_HE - unc.scale[2][1:4]  # the estimate at s = 1, and its covariance
+    err, cov = rec.truth.p_HE - held, (unc.covariance - unc.scale_part)[1:4, 1:4]
+    assert float(err @ np.linalg.solve(cov, err)) > CHI2_3, 'a case in need'
     assert all(_covered(res, rec.truth))
+    assert res.batch.scale is None and res.eye_model.scale == 1.0
     assert unc.scale is not None and unc.scale[0] == pytest.approx(1 / 1.03, abs=0.005)
     assert any('fit a scale s = 0.97' in n and '% short' in n for n in res.quality.notes)
 

@@ -42,8 +42,9 @@ clock_drift                 doubtful   without clock_drift: the offset measured 
                                        changes along the recording by more than
                                        DRIFT_NOTICE_S and DRIFT_SIGMAS (the rate is named)
 scale                       doubtful   without estimate_scale: a scale explains the eye's
-                                       translations and is large, or moves T_HE by more
-                                       than precision_translation (named with its value)
+                                       translations and is large (a monocular VO, other
+                                       units; named with its value); a metric VIO a few per
+                                       cent off is a note (T_HE is fitted with it free)
 residuals_not_white         doubtful   the long-run covariance is more than
                                        INFLATION_DOUBTFUL times the white one (an
                                        unmodelled effect: clock drift, scale, ...)
@@ -112,7 +113,7 @@ from .during import (
     drift_threshold_sigmas,
     judge_tie,
     read,
-    scale_doubtful,
+    scale_keeps_whole,
     scale_uncertainty_note,
     seed_reason,
     stages_disagree,
@@ -174,7 +175,7 @@ __all__ = [
     'precision_ratio',
     'precision_ratios',
     'read',
-    'scale_doubtful',
+    'scale_keeps_whole',
     'scale_uncertainty_note',
     'seed_reason',
     'sigmas_of',

@@ -1,6 +1,6 @@
 """The rules of what the stages meet as they run (a fit, a rerun, a comparison): the decisions a
 stage needs to go on (:func:`batch_moved`, :func:`batch_supported`, :func:`judge_tie`,
-:func:`scale_doubtful`), and :func:`read`, which says what each fact a stage recorded
+:func:`scale_keeps_whole`), and :func:`read`, which says what each fact a stage recorded
 (:mod:`.facts`) means for the verdict. The rules of :mod:`.final` run once, at the end."""
 
 from __future__ import annotations
@@ -41,11 +41,13 @@ if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' 
     from ..selfcheck import Candidate
 
 
-def scale_reason(fit: ScaleFit, precision_m: float) -> Reason | None:
+def scale_reason(fit: ScaleFit) -> Reason | None:
     """SCALE, without estimate_scale: a scale explains the eye's translations
-    (:attr:`~handeye_ros.core.linear.scale.ScaleFit.clear`) and is large (``significant``) or
-    moves T_HE by more than ``precision_m`` when s = 1 is taken."""
-    if fit.clear and (fit.significant or fit.shift_m > precision_m):
+    (:attr:`~handeye_ros.core.linear.scale.ScaleFit.clear`) and is large (``significant``: a
+    monocular VO, other units), so that no metric of the eye as given means much. A smaller
+    one (a metric VIO a few per cent off) is a note: the batch stage fits T_HE with the scale
+    free (:mod:`...batch.correlated`)."""
+    if fit.clear and fit.significant:
         return Reason(Code.SCALE, scale_message(fit))
     return None
 
@@ -163,9 +165,9 @@ def scale_message(fit: ScaleFit) -> str:
         f"the eye's translations look scaled: s = {fit.scale:.4g} +- "
         f"{fit.scale_std:.2g} (s * eye positions metric) makes them fit the hand's "
         f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
-        f'{fit.rms_without * 1e3:.0f} mm without), and taking s = 1 moves the translation '
-        f'of T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose scale is '
-        f'off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
+        f'{fit.rms_without * 1e3:.0f} mm without), and s = 1 moves the translation of '
+        f"stage 2's T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose "
+        f'scale is off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
         '--scale (node parameter estimate_scale)'
     )
 
@@ -183,9 +185,9 @@ def scale_uncertainty_note(scale: float, std: float, shift_m: float) -> str | No
         return None
     return (
         f"the eye's translations fit a scale s = {scale:.4f} +- {std:.2g} ({d:.1%} "
-        f'{"long" if scale > 1.0 else "short"}): taking s = 1 moves the translation of T_HE '
-        f'by {shift_m * 1e3:.1f} mm, which its uncertainty includes. Estimate it with --scale '
-        '(node parameter estimate_scale) if the eye is not metric'
+        f'{"long" if scale > 1.0 else "short"}): T_HE is fitted with it free (s = 1 would move '
+        f'its translation by {shift_m * 1e3:.1f} mm) and the metrics keep the eye as given. '
+        'Estimate it with --scale (node parameter estimate_scale) if the eye is not metric'
     )
 
 
@@ -275,11 +277,12 @@ def stages_disagree(
     )
 
 
-def scale_doubtful(fit: ScaleFit, precision_m: float) -> bool:
-    """Whether the scale measured without estimate_scale is a reason (:func:`scale_reason`):
-    stage 2 then leaves the eye whole (its motion disagrees with the hand's everywhere by one
-    factor, and splitting it at "breaks" would only hide that)."""
-    return scale_reason(fit, precision_m) is not None
+def scale_keeps_whole(fit: ScaleFit, precision_m: float) -> bool:
+    """Whether stage 2 leaves the eye whole for the scale measured without estimate_scale: one
+    that explains the eye's translations and is large, or moves stage 2's T_HE (at s = 1) by
+    more than ``precision_m``: the eye's motion then disagrees with the hand's everywhere by
+    one factor, and splitting it at "breaks" would only hide that."""
+    return fit.clear and (fit.significant or fit.shift_m > precision_m)
 
 
 def drift_constant_note(fit: DriftFit) -> str | None:
@@ -329,10 +332,10 @@ def read(entry: object) -> tuple[Reason | None, str | None]:
     if isinstance(entry, ConventionCorrected):
         return convention_corrected(entry.message), None
     if isinstance(entry, ScaleMeasured):
-        reason = scale_reason(entry.fit, entry.precision_m)
+        reason = scale_reason(entry.fit)
         if reason is not None or not entry.fit.clear:
             return reason, None
-        return None, scale_message(entry.fit)  # named, but it costs less than the precision
+        return None, scale_message(entry.fit)  # named; T_HE is fitted with it free
     if isinstance(entry, DriftMeasured):
         reason = drift_reason(entry.fit)
         return (reason, None) if reason is not None else (None, drift_constant_note(entry.fit))

@@ -159,8 +159,8 @@ _EYE_OVER_MINUTES = (
     'narrows it at most as the square root of its length, and faster motion hardly at all'
 )
 _SCALE = (
-    "most of it is the eye's scale, which s = 1 leaves out: estimate it with --scale (node "
-    'parameter estimate_scale) if the eye is not metric; more motion does not narrow it'
+    "most of it is not knowing the eye's scale, fitted beside T_HE: translations of the rig "
+    'as long as its lever arm, with rotations about varied axes, narrow it'
 )
 NARROWS = {
     ('time_offset', 'white'): _MOTION,

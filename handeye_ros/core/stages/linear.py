@@ -110,7 +110,7 @@ def linear_stage(inputs: Inputs, offset: Offset, cfg: CalibrationConfig) -> Line
         eye, model = scale_from_rotations(hand, eye, model, cfg)
     solved = _first_solve(hand, eye, offset, cfg)
     scaled = None if cfg.estimate_scale else scale_check(solved.pairs, solved.solution, cfg)
-    measured = () if scaled is None else (ScaleMeasured(scaled, cfg.precision_translation),)
+    measured = () if scaled is None else (ScaleMeasured(scaled),)
     found = Findings.of(*measured)
     # a clear scale leaves the eye whole (scale_keeps_whole says when)
     whole = scaled is not None and scale_keeps_whole(scaled, cfg.precision_translation)

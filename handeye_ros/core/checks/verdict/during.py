@@ -167,8 +167,8 @@ def scale_message(fit: ScaleFit) -> str:
         f'(median translation residual {fit.rms_with * 1e3:.0f} mm with it, '
         f'{fit.rms_without * 1e3:.0f} mm without), and s = 1 moves the translation of '
         f"stage 2's T_HE by {fit.shift_m * 1e3:.0f} mm: a monocular VO, a metric VIO whose "
-        f'scale is off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate it with '
-        '--scale (node parameter estimate_scale)'
+        f'scale is off by {abs(fit.scale - 1.0):.1%}, or positions in other units. Estimate '
+        'it with --scale (node parameter estimate_scale)'
     )
 
 

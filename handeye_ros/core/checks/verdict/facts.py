@@ -30,10 +30,9 @@ class ConventionCorrected:
 @dataclass(frozen=True)
 class ScaleMeasured:
     """Without estimate_scale: the scale that would fit the eye's translations to the hand's
-    (stage 2's motions), and the required translation precision (m)."""
+    (stage 2's motions)."""
 
     fit: ScaleFit
-    precision_m: float
 
 
 @dataclass(frozen=True)

@@ -123,22 +123,17 @@ def run_batch(
 ) -> tuple[BatchSolution | None, str]:
     """The batch refinement, or None and why it was not used (never raises). It estimates a
     clock drift when one was estimated before it, and a scale: with estimate_scale when the
-    model's is observable, and for a metric eye as a nuisance (:mod:`.correlated`) unless the
-    eye's translations cannot tell it from the lever arm (SCALE_UNOBSERVABLE), where s = 1 is
-    held."""
+    model's is observable, and for a metric eye as a nuisance (:func:`_metric`)."""
     try:
         options = replace(
             batch_options(cfg),
             drift_stamp_ns=model.stamp_ns if model is not None and model.drift_estimated else None,
-            scale=(
-                model is not None and model.scale_observable
-                if cfg.estimate_scale
-                else not cfg.batch_joint
-            ),
+            scale=cfg.estimate_scale and model is not None and model.scale_observable,
         )
-        sol = refine(hand, eye, dt, q_HE, p_HE, options)
-        if not cfg.estimate_scale and sol.scale is not None and not _told(sol):
-            sol = refine(hand, eye, dt, q_HE, p_HE, replace(options, scale=False))
+        if cfg.estimate_scale or cfg.batch_joint:
+            sol = refine(hand, eye, dt, q_HE, p_HE, options)
+        else:
+            sol = _metric(hand, eye, dt, q_HE, p_HE, options)
     except HandeyeError as err:
         return None, str(err)
     except (ValueError, np.linalg.LinAlgError, RuntimeError) as err:
@@ -152,10 +147,20 @@ def run_batch(
     return sol, ''
 
 
-def _told(sol: BatchSolution) -> bool:
-    """Whether the eye's translations tell its scale from the lever arm."""
-    std = sol.scale_std
-    return std is not None and bool(std < SCALE_UNOBSERVABLE)
+def _metric(
+    hand: Trajectory, eye: Trajectory, dt: float, q_HE: Floats, p_HE: Floats, o: BatchOptions
+) -> BatchSolution:
+    """A metric eye's solve: its scale fitted beside (dt, T_HE) as a nuisance
+    (:mod:`.correlated`), or held at 1 where the eye's translations cannot tell it from the
+    lever arm (a sigma above SCALE_UNOBSERVABLE, or a singular solve)."""
+    try:
+        sol = refine(hand, eye, dt, q_HE, p_HE, replace(o, scale=True))
+        std = sol.scale_std
+        if std is not None and std < SCALE_UNOBSERVABLE and np.all(np.isfinite(sol.covariance)):
+            return sol
+    except (ValueError, np.linalg.LinAlgError, RuntimeError):
+        pass
+    return refine(hand, eye, dt, q_HE, p_HE, o)
 
 
 def check_batch(

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats
-from ..core.checks.carry import held_reasons, predictor_factors
+from ..core.checks.carry import held_reasons, held_words, predictor_factors
 from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
@@ -165,8 +165,8 @@ class AutoMode:
         gain = f'no longer improves the result by {IMPROVEMENT:.0%} of the targets'
         if self.held:
             return (
-                f'stalled: more of the same motion {gain}, and it is doubtful ({self.held[0]}); '
-                'it calibrates again if the motion gets richer'
+                f'stalled: more of the same motion {gain}, and it {held_words(self.held[0])}; it '
+                'calibrates again if the motion gets richer'
             )
         return (
             f'converged: more of the same motion {gain} (1-sigma {_sigmas_text(best)}); it '

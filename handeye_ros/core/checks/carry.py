@@ -45,13 +45,30 @@ def predictor_factors(document: ResultDoc) -> dict[str, float]:
     return out
 
 
+#: Why a result whose sigmas lack the blocks' term holds READY back.
+LACKS_BLOCKS = (
+    'its sigmas lack the errors a VIO correlates over minutes (too few eye poses for the four '
+    'blocks that measure them yet): more recording adds them'
+)
+
+
 def held_reasons(doc: ResultDoc) -> list[str]:
     """The messages of a result's reasons, its precision's last (more recording is the remedy
-    for that one alone): a result that is not ``good`` holds READY back until a calibration of
-    more data is, since READY says that a calibration now would be ``good``, and predictions
-    carried from a result that was not are a coin toss near the targets."""
+    for that one alone), and last of all LACKS_BLOCKS when its covariance could not gain the
+    blocks' term: a result that is not ``good`` holds READY back until a calibration of more
+    data is, since READY says that a calibration now would be ``good``, and predictions carried
+    from a result that was not, or whose sigmas miss the term that dominates them on a real
+    VIO, are a coin toss near the targets."""
     reasons = sorted(doc['quality']['reasons'], key=lambda r: r['code'] == Code.IMPRECISE.value)
-    return [r['message'] for r in reasons]
+    std = doc.get('std')
+    lacking = std is not None and 'block_factors' in std and std['block_factors'] is None
+    return [r['message'] for r in reasons] + [LACKS_BLOCKS] * lacking
+
+
+def held_words(first: str) -> str:
+    """What holds READY back, said after a result's name, from the first of
+    :func:`held_reasons`."""
+    return first if first == LACKS_BLOCKS else f'is doubtful: {first}'
 
 
 def carry_over(
@@ -86,7 +103,7 @@ def carry_over(
             f'the eye that consecutive poses do not show), and so are these{inside}',
         )
     if held:
-        missing.insert(0, f'{whose} is doubtful: {held[0]}')
+        missing.insert(0, f'{whose} {held_words(held[0])}')
     ready = bool(last['ready'] and meets and not held)
     return {**last, 'sigma': sigma, 'ready': ready, 'missing': missing}
 

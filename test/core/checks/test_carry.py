@@ -10,6 +10,7 @@ from conftest import recording
 
 from handeye_ros.core.checks.carry import (
     CARRIED_MARGIN,
+    LACKS_BLOCKS,
     carry_over,
     held_reasons,
     predictor_factors,
@@ -102,6 +103,21 @@ def test_a_last_calibration_not_good_for_its_precision_holds_ready_back() -> Non
     status = carry_over(last, {}, held[1:])
     assert not status['ready']
     assert status['missing'][0] == 'the last calibration is doubtful: translation 1-sigma 10.5 mm'
+
+
+def test_a_result_whose_sigmas_lack_the_blocks_holds_ready_back() -> None:
+    """A `good` result of too few eye poses for the blocks (EuRoC MH_01 stereo's first 15 s:
+    8.8 mm, then 16.6 mm with the blocks at 20 s, where a READY carried from it was wrong)
+    holds READY back as a doubtful one does, said as what it lacks; one with the blocks'
+    factors does not."""
+    document = {'quality': {'reasons': []}, 'std': {'block_factors': None}}
+    held = held_reasons(document)
+    assert held == [LACKS_BLOCKS]
+    status = carry_over(_ready(SIGMA), {}, held)
+    assert not status['ready']
+    assert status['missing'][0] == f'the last calibration {LACKS_BLOCKS}'
+    measured = {'quality': {'reasons': []}, 'std': {'block_factors': {'translation': 1.4}}}
+    assert held_reasons(measured) == []
 
 
 def test_a_results_own_readiness_is_ready_only_when_it_is_good() -> None:

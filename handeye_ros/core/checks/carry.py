@@ -23,12 +23,9 @@ SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
 #: Predictions carried from a result to more data are READY only this far inside the targets: a
 #: calibration of more data reports sigmas that the blocks' spread measures again, a 1-sigma
 #: of three axes with BLOCKS - 1 degrees of freedom each, uncertain by 1 / sqrt(2 dof) of
-#: itself (0.24), and READY says that such a calibration would be `good`: CARRIED_SIGMAS of
-#: those standard errors inside (one-sided 97.7 %; READY at most 0.68 of each target). At one
-#: (0.81), a READY carried from a `good` result of 8.0 mm was wrong of the same recording's
-#: calibration 10 s later, 10.5 mm (EuRoC V2_01 mono, live).
-CARRIED_SIGMAS = 2.0
-CARRIED_MARGIN = 1.0 / (1.0 + CARRIED_SIGMAS / np.sqrt(2.0 * 3 * (BLOCKS - 1)))
+#: itself (0.24: READY at most 0.81 of each target). Without it, a READY carried from a
+#: `good` result at 9.5 mm said so of data whose own calibration reported 10.4 mm.
+CARRIED_MARGIN = 1.0 / (1.0 + 1.0 / np.sqrt(2.0 * 3 * (BLOCKS - 1)))
 
 
 def predictor_factors(document: ResultDoc) -> dict[str, float]:

@@ -57,9 +57,9 @@ def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
 
 def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> None:
     """Carried from a result to the buffers that grew since, 9 mm against 10 is not READY:
-    the next calibration measures its sigmas again on four blocks, two of their standard errors
-    inside (CARRIED_MARGIN, 0.68); 6 mm is."""
-    assert CARRIED_MARGIN == pytest.approx(1 / (1 + 2 / np.sqrt(18)))
+    the next calibration measures its sigmas again on four blocks (CARRIED_MARGIN, 0.81);
+    7 mm is."""
+    assert CARRIED_MARGIN == pytest.approx(1 / (1 + 1 / np.sqrt(18)))
     near = carry_over(_ready({**SIGMA, 'translation_mm': 9.0}), {'translation_mm': 1.0}, [])
     assert near['ready']  # the result's own data: the targets as they are
     grown = carry_over(
@@ -68,9 +68,9 @@ def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> 
         [],
         margin=CARRIED_MARGIN,
     )
-    assert not grown['ready'] and 'READY within 68% of the targets' in grown['missing'][0]
+    assert not grown['ready'] and 'READY within 81% of the targets' in grown['missing'][0]
     inside = carry_over(
-        _ready({**SIGMA, 'translation_mm': 6.0}),
+        _ready({**SIGMA, 'translation_mm': 7.0}),
         {'translation_mm': 1.0},
         [],
         margin=CARRIED_MARGIN,

@@ -292,11 +292,13 @@ def _blocks(
         tried = [
             _aux(hand, held.select(covered[a:b]), batch, cfg) for a, b in itertools.pairwise(edges)
         ]
+        # a quarter whose refit fails determines nothing alone: it counts as nothing, as one
+        # that hardly determines a group counts as little (:func:`.correlated.error_of_mean`)
         fits = [f for f in tried if f is not None]
-        if len(fits) < len(tried):
+        if len(fits) < BLOCKS - 1:
             missing.append(
-                'the errors correlated over the recording are not in it: a quarter of the '
-                'recording alone could not be refitted (too little motion in it)'
+                'the errors correlated over the recording are not in it: two quarters of the '
+                'recording alone could not be refitted (too little motion in them)'
             )
         else:
             deviations = np.array([_deviation(f, batch) for f in fits])

@@ -105,7 +105,8 @@ def test_default_run_names_a_scale_of_a_few_percent(seed: int) -> None:
     ]
     assert len(named) == 1 and ('off by 4.' in named[0] or 'off by 5.' in named[0])
     s = float(named[0].split('s = ')[1].split(' ')[0])
-    assert ('scale' in res.quality.codes) == (abs(s - 1.0) > SCALE_NOTICE)
+    if abs(abs(s - 1.0) - SCALE_NOTICE) > 1e-3:  # the message gives s to four digits
+        assert ('scale' in res.quality.codes) == (abs(s - 1.0) > SCALE_NOTICE)
     err = calibration_error(rec.truth, res.time_offset_s, res.q_HE, res.p_HE)
     assert err.translation_m < 0.005 and res.eye_model.scale == 1.0
     assert calibrate(

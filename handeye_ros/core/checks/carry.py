@@ -47,8 +47,8 @@ def predictor_factors(document: ResultDoc) -> dict[str, float]:
 
 #: Why a result whose sigmas lack the blocks' term holds READY back.
 LACKS_BLOCKS = (
-    'its sigmas lack the errors a VIO correlates over minutes (too few eye poses for the four '
-    'blocks that measure them yet): more recording adds them'
+    'lacks in its sigmas the errors a VIO correlates over minutes (too few eye poses for the '
+    'four blocks that measure them yet): more recording adds them'
 )
 
 

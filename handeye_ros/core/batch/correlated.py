@@ -46,11 +46,10 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
 2. **Scale.** A metric VIO's translations are a little off in scale (TUM-VI outdoors4: Basalt's
    1.3-1.5 % long; EuRoC MH_03's real-time VI-SLAM 2.5 % short), and holding s = 1 moves T_HE
    by the lever arm's share of that error (61 mm from the ground truth's there, 17 mm with s
-   free). So the batch stage
-   fits a factor on the eye's translations beside (dt, T_HE) as a nuisance parameter, and the
-   reported covariance is the marginal one: T_HE carries what not knowing s adds
-   (:func:`scale_share`, ``C_xs C_ss^-1 C_sx``), and the user's eye stays metric for every
-   metric. (With ``estimate_scale`` s is a parameter of the result instead.)
+   free). So the batch stage fits a factor on the eye's translations beside (dt, T_HE) as a
+   nuisance parameter, and the reported covariance is the marginal one: T_HE carries what not
+   knowing s adds (:func:`scale_share`, ``C_xs C_ss^-1 C_sx``), and the user's eye stays metric
+   for every metric. (With ``estimate_scale`` s is a parameter of the result instead.)
 
 Neither term sees an error that is the same over the whole recording and is no scale (two
 estimators whose body frames differ by a lever arm); docs/method.md gives the figures.

@@ -2,17 +2,17 @@
 DDS: each recording is read as the node's buffers would hold it after 20, 30, ... s, and at each
 prefix the status's readiness (the result's ``readiness`` before it is carried over: the
 figures the status shows for those buffers) is carried over as the node carries it
-(``core/checks/carry.py``: ``carry_over`` with the covariance terms and held reasons of the last
-result, ``carried_terms``: at the first prefix predicted READY that prefix's own calibration, as
-the node checks it, then auto mode's, each time the span has grown by GROWTH), then compared
-with a calibration of that prefix.
+(``core/checks/carry.py``: ``carry_over`` with the factors and held reasons of the last result,
+``predictor_factors``: at the first prefix
+predicted READY that prefix's own calibration, as the node checks it, then auto mode's, each
+time the span has grown by GROWTH), then compared with a calibration of that prefix.
 
 Counted per recording: the prefixes whose carried status is READY while the calibration of the
 same prefix is not ``good`` (target: 0), and the predicted over reported 1-sigma (dt,
 translation, rotation) with and without the carry-over (target: 0.5-2): its median over the
-prefixes and the share of them within 0.5-2. A live replay through the node at the recordings'
-own stamps is bench/readiness_live_real.py: this runs the same functions on the same buffers,
-a step of 10 s apart instead of every status period.
+prefixes and the share of them within 0.5-2. A live replay through
+the node at the recordings' own stamps is not run here: this runs the same functions on the
+same buffers, a step of 10 s apart instead of every status period.
 
 Usage: python bench/readiness_real.py [--step 10]
 """
@@ -29,10 +29,9 @@ from common import emit, table
 from handeye_ros.core.checks.carry import (
     CARRIED_MARGIN,
     SIGMA_KEYS,
-    Carried,
-    carried_terms,
     carry_over,
     held_reasons,
+    predictor_factors,
 )
 from handeye_ros.core.checks.verdict import sigmas_of
 from handeye_ros.core.errors import HandeyeError
@@ -76,9 +75,9 @@ def _reported(res) -> np.ndarray:
 def _carried(status: dict, published: dict | None) -> dict:
     """The status as the node carries it over from the result ``published``."""
     if published is None:
-        return carry_over(status, Carried(), [])
+        return carry_over(status, {}, [])
     return carry_over(
-        status, carried_terms(published), held_reasons(published), margin=CARRIED_MARGIN
+        status, predictor_factors(published), held_reasons(published), margin=CARRIED_MARGIN
     )
 
 

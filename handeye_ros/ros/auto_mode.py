@@ -3,7 +3,7 @@ status (:mod:`.status`), and which of their results are published.
 
 With ``auto_calibrate`` the node calibrates as soon as the status is READY, then again each
 time the buffered span has grown by GROWTH, READY or not (the status carries the last result's
-covariance terms and reasons: only a new result settles them, and READY waits for one that is
+factors and reasons: only a new result settles them, and READY waits for one that is
 ``good``). A result is measured by its *precision ratio*, its largest reported 1-sigma over
 that sigma's ``precision_*`` target (:func:`precision_ratio`: below 1, the verdict is not
 ``imprecise``). A later result of auto mode's own is published when its ratio is no larger than
@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats
-from ..core.checks.carry import Carried, carried_terms, held_reasons, held_words
+from ..core.checks.carry import held_reasons, held_words, predictor_factors
 from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
@@ -61,9 +61,10 @@ class AutoMode:
         #: predicted precision ratio when auto mode last calibrated
         self._sigmas: tuple[float, float, float] | None = None
         self._predicted_then = math.inf
-        #: the published result's covariance terms (``carried_terms``), which the status's
-        #: predictions carry, and the reasons that make it doubtful (they hold READY back)
-        self.carried = Carried()
+        #: the published result's reported over predicted 1-sigmas (``predictor_factors``),
+        #: which the status's predictions carry, and the reasons that make it doubtful (they
+        #: hold READY back)
+        self.factors: dict[str, float] = {}
         self.held: list[str] = []
         #: whether a result of these buffers (published, or a check of READY) set them
         self.confirmed = False
@@ -80,7 +81,7 @@ class AutoMode:
         predicted (its first result is the one that confirms it), again as the buffers grow by
         GROWTH, and, converged or done, when the motion gets richer."""
         # READY starts it; once it has calibrated, the buffers growing do (READY then carries
-        # the last result's terms and reasons, which only a new result can settle)
+        # the last result's factors and reasons, which only a new result can settle)
         if not (last and (last['ready'] or last.get('checking') or self._span_calibrated)):
             return
         if self.said in ('waiting for READY', 'calibrating'):
@@ -93,7 +94,7 @@ class AutoMode:
         if self.said != 'off':
             self.said, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
             self._predicted_then, self._estimate = math.inf, None
-        self.carried, self.held, self.confirmed = Carried(), [], False
+        self.factors, self.held, self.confirmed = {}, [], False
 
     def _predicted(self, last: ReadinessDoc | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
@@ -173,7 +174,7 @@ class AutoMode:
         )
 
     def confirm(self, session: Calibrated) -> str:
-        """A calibration that checked a predicted READY: the status carries its terms and
+        """A calibration that checked a predicted READY: the status carries its factors and
         reasons as a published one's; returns why it is not published."""
         self._published(session.document)
         return 'it checked READY'
@@ -181,7 +182,7 @@ class AutoMode:
     def _published(self, doc: ResultDoc) -> None:
         """What the status carries of the result being published (or checking READY)."""
         self.confirmed = True
-        self.carried = carried_terms(doc)
+        self.factors = predictor_factors(doc)
         self.held = held_reasons(doc)
         self._estimate = _estimate_of(doc)
 

@@ -230,7 +230,7 @@ class ReadinessStatus:
         durations = (buffers['hand'].span_s, buffers['eye'].span_s)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         auto = self.auto
-        last = carry_over(found, auto.carried, auto.held, margin=CARRIED_MARGIN)
+        last = carry_over(found, auto.factors, auto.held, margin=CARRIED_MARGIN)
         if last['ready'] and not auto.confirmed:
             # READY is said once a calibration of these buffers agrees: auto mode's first one,
             # or a check of its own
@@ -245,7 +245,7 @@ class ReadinessStatus:
         elif (
             auto.held
             and auto.said == 'off'
-            and carry_over(found, auto.carried, [], margin=CARRIED_MARGIN)['ready']
+            and carry_over(found, auto.factors, [], margin=CARRIED_MARGIN)['ready']
         ):
             self._check(min(durations))  # READY but for the last result's reasons: check again
         self.last, self.why_not = last, ''

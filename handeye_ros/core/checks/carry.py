@@ -3,32 +3,23 @@
 :mod:`.readiness` predicts the 1-sigmas a calibration would report from the consecutive eye
 pairs, which see neither the errors a real VIO correlates over minutes nor its scale (on real
 recordings the predictions are 0.1-0.6 of the reported sigmas). Once a result exists, its
-covariance's terms carry into every later prediction (:class:`Carried`, :func:`carried_terms`):
-the white and scale terms shrink as the predictions do, the correlated term is carried as it
-is; and its reasons hold READY back until a result is ``good`` (:func:`carry_over`). The
-node's status carries its last result's (``ros/auto_mode.py``); a result carries its own
-(:func:`carried`), so that its ``readiness`` section never says READY beside a ``doubtful``
-verdict and its sigmas are the reported ones.
+reported over its own predicted sigmas on the same data (:func:`predictor_factors`) carry those
+terms into every later prediction, and its reasons hold READY back until a result is ``good``
+(:func:`carry_over`). The node's status carries its last result's (``ros/auto_mode.py``); a
+result carries its own (:func:`carried`), so that its ``readiness`` section never says READY
+beside a ``doubtful`` verdict and its sigmas are the reported ones.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..batch.correlated import BLOCKS
 from ..document import ReadinessDoc, ResultDoc
-from .verdict import Code
+from .verdict import Code, sigmas_of
 
-#: The readiness's sigma keys (ms, mm, deg), in the order of :func:`~.verdict.sigmas_of`; the
-#: uncertainty's group of each, and its unit per SI unit.
+#: The readiness's sigma keys (ms, mm, deg), in the order of :func:`sigmas_of`.
 SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
-_GROUPS = {
-    'time_offset_ms': ('time_offset', 1e3),
-    'translation_mm': ('translation', 1e3),
-    'rotation_deg': ('rotation', float(np.degrees(1.0))),
-}
 #: Predictions carried from a result to more data are READY only this far inside the targets: a
 #: calibration of more data reports sigmas that the blocks' spread measures again, a 1-sigma
 #: of three axes with BLOCKS - 1 degrees of freedom each, uncertain by 1 / sqrt(2 dof) of
@@ -37,65 +28,21 @@ _GROUPS = {
 CARRIED_MARGIN = 1.0 / (1.0 + 1.0 / np.sqrt(2.0 * 3 * (BLOCKS - 1)))
 
 
-@dataclass(frozen=True)
-class Carried:
-    """What a result's covariance says of the 1-sigmas of more data, per sigma key (SIGMA_KEYS,
-    in the keys' units).
-
-    scaled: the result's white and scale terms over what its own readiness predicted on the
-    same data: those terms shrink with more data as the consecutive pairs' predictions do;
-    held: its correlated term (what the long-run and the blocks add to the white one), errors
-    the eye correlates over seconds to minutes that the pairs do not see and more of the same
-    recording does not average down at their pace: carried as it is.
-    """
-
-    scaled: dict[str, float] = field(default_factory=dict)
-    held: dict[str, float] = field(default_factory=dict)
-
-    def sigma(self, key: str, predicted: float) -> float:
-        """The 1-sigma of ``key`` for data whose pairs predict ``predicted``."""
-        return float(np.hypot(predicted * self.scaled.get(key, 1.0), self.held.get(key, 0.0)))
-
-    def said(self) -> str:
-        """The carried terms in words: 'time offset x1.1, translation x1.2 with 8.1 mm held'."""
-        parts = []
-        for key in SIGMA_KEYS:
-            if key not in self.scaled:
-                continue
-            name, unit = key.rsplit('_', 1)
-            held = self.held.get(key, 0.0)
-            parts.append(
-                f'{name.replace("_", " ")} x{self.scaled[key]:.2g}'
-                + (f' with {held:.2g} {unit} held' if held > 0.0 else '')
-            )
-        return ', '.join(parts)
-
-
-def carried_terms(document: ResultDoc) -> Carried:
-    """A result's :class:`Carried`: its reported 1-sigmas' terms (``std.terms``) against the
-    1-sigmas its own ``readiness`` predicted on the same data (``readiness.predicted``). Empty
-    without both; a result without terms carries its whole reported sigmas as ``scaled``."""
+def predictor_factors(document: ResultDoc) -> dict[str, float]:
+    """A result's reported 1-sigmas over the ones its own ``readiness`` predicted on the same
+    data (``readiness.predicted``), per sigma key: how far the predictions fall short of the
+    result's covariance on this recording, or exceed it. Empty without both."""
     std, readiness = document.get('std'), document.get('readiness')
     predicted = readiness['predicted'] if readiness else {}
     if not std or not predicted:
-        return Carried()
-    terms = std.get('terms')
-    axes = {
-        'time_offset': [std['time_offset']],
-        'translation': std['translation'],
-        'rotation': std['rotation'],
-    }
-    scaled, held = {}, {}
-    for key, (group, k) in _GROUPS.items():
+        return {}
+    reported = sigmas_of(np.r_[std['time_offset'], std['translation'], std['rotation']])
+    out = {}
+    for key, value, k in zip(SIGMA_KEYS, reported, (1e3, 1e3, 1.0), strict=True):
         p = predicted.get(key)
-        if terms:
-            t = terms[group]
-            moving, correlated = np.hypot(t['white'], t['scale']) * k, t['correlated'] * k
-        else:
-            moving, correlated = float(np.linalg.norm(axes[group])) * k, 0.0
-        if p and np.isfinite(moving) and moving > 0.0:
-            scaled[key], held[key] = float(moving / p), float(correlated)
-    return Carried(scaled, held)
+        if p and np.isfinite(value) and value > 0.0:
+            out[key] = value * k / p
+    return out
 
 
 #: Why a result whose sigmas lack the blocks' term holds READY back.
@@ -126,31 +73,34 @@ def held_words(first: str) -> str:
 
 def carry_over(
     last: ReadinessDoc,
-    terms: Carried,
+    factors: dict[str, float],
     held: list[str],
     whose: str = 'the last calibration',
     margin: float = 1.0,
 ) -> ReadinessDoc:
-    """The readiness ``last`` with its predicted sigmas (``predicted``) carried through a
-    result's :class:`Carried` ``terms`` as its ``sigma`` (the same covariance model as the
-    result's), READY only if they still meet the targets (each times ``margin``: CARRIED_MARGIN
-    when they are carried to more data than the result's) and the result was ``good``
-    (``held``: the messages of its reasons, :func:`held_reasons`, the first said first);
-    ``whose`` names the result in what is said."""
-    if not terms.scaled and not held:
+    """The readiness ``last`` with its predicted sigmas (``predicted``) times a result's
+    :func:`predictor_factors` as its ``sigma`` (the same covariance model as the result's),
+    READY only if they still meet the targets (each times ``margin``: CARRIED_MARGIN when they
+    are carried to more data than the result's) and the result was ``good`` (``held``: the
+    messages of its reasons, :func:`held_reasons`, the first said first); ``whose`` names the
+    result in what is said."""
+    if not factors and not held:
         return last
-    sigma = {k: (terms.sigma(k, v) if v is not None else v) for k, v in last['predicted'].items()}
+    sigma = {
+        k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['predicted'].items()
+    }
     target = last['target']
     meets = all(v is not None and v <= margin * target[k] for k, v in sigma.items())
     missing = list(last['missing'])
     if last['ready'] and not meets and not held:
+        said = ', '.join(
+            f'{k.rsplit("_", 1)[0].replace("_", " ")} x{f:.2g}' for k, f in factors.items()
+        )
         inside = '' if margin == 1.0 else f' (READY within {margin:.0%} of the targets)'
         missing.insert(
             0,
-            f"keep recording: {whose}'s sigmas were its predictions times {terms.said()} "
-            '(errors of the eye that consecutive poses do not show; the held ones are correlated '
-            f'over the recording, and more of it does not average them down), and so are '
-            f'these{inside}',
+            f"keep recording: {whose}'s sigmas were its predictions times {said} (errors of "
+            f'the eye that consecutive poses do not show), and so are these{inside}',
         )
     if held:
         missing.insert(0, f'{whose} {held_words(held[0])}')
@@ -164,4 +114,6 @@ def carried(document: ResultDoc) -> ReadinessDoc | None:
     last = document.get('readiness')
     if last is None:
         return None
-    return carry_over(last, carried_terms(document), held_reasons(document), 'this calibration')
+    return carry_over(
+        last, predictor_factors(document), held_reasons(document), 'this calibration'
+    )

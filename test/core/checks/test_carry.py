@@ -1,7 +1,6 @@
-"""READY with a result's own terms and reasons (core/checks/carry.py): the predictions carried
-through the last result's covariance terms (white and scale scaled, the correlated term held),
-READY held back while a result is not ``good``, and a result's own ``readiness`` never READY
-beside a doubtful verdict."""
+"""READY with a result's own factors and reasons (core/checks/carry.py): the predictions times
+the last result's reported over predicted sigmas, READY held back while a result is not
+``good``, and a result's own ``readiness`` never READY beside a doubtful verdict."""
 
 from __future__ import annotations
 
@@ -12,10 +11,9 @@ from conftest import recording
 from handeye_ros.core.checks.carry import (
     CARRIED_MARGIN,
     LACKS_BLOCKS,
-    Carried,
-    carried_terms,
     carry_over,
     held_reasons,
+    predictor_factors,
 )
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.evaluation.terminal import readiness_lines
@@ -29,78 +27,32 @@ def _ready(sigma: dict[str, float]) -> dict:
     return {'ready': True, 'sigma': sigma, 'predicted': sigma, 'target': TARGET, 'missing': []}
 
 
-def _document(white: dict[str, float], correlated: dict[str, float]) -> dict:
-    """A result whose reported sigmas have these white and correlated terms (groups' units),
-    its own readiness predicting SIGMA on the same data and READY."""
-    group = {'time_offset': 1.0, 'translation': 1.0, 'rotation': 1.0}
-    total = {g: np.hypot(white[g], correlated.get(g, 0.0)) for g in group}
-    return {
+def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
+    """The readiness predicts sigmas from consecutive pairs; the last calibration's reported
+    sigmas were 1.2 and 2 times what its own readiness predicted on the same data: the
+    predictions are too, and READY waits for them."""
+    last = _ready(SIGMA)
+    assert carry_over(last, {}, []) == last
+    document = {
         'std': {
-            'time_offset': total['time_offset'],
-            'translation': [total['translation'] / np.sqrt(3)] * 3,
-            'rotation': [total['rotation'] / np.sqrt(3)] * 3,
-            'terms': {
-                g: {'white': white[g], 'correlated': correlated.get(g, 0.0), 'scale': 0.0}
-                for g in group
-            },
+            'time_offset': 0.48e-3,
+            'translation': [12e-3 / np.sqrt(3)] * 3,
+            'rotation': [np.radians(0.2) / np.sqrt(3)] * 3,
         },
         'readiness': {**_ready(SIGMA), 'sigma': {k: 2 * v for k, v in SIGMA.items()}},
     }
-
-
-def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
-    """The readiness predicts sigmas from consecutive pairs; the last calibration's reported
-    sigmas were 1.2 and 2 times what its own readiness predicted on the same data (white, as on
-    a simulation): the predictions are too, and READY waits for them."""
-    last = _ready(SIGMA)
-    assert carry_over(last, Carried(), []) == last
-    white = {'time_offset': 0.48e-3, 'translation': 12e-3, 'rotation': np.radians(0.2)}
-    terms = carried_terms(_document(white, {}))  # of the predictions, whatever was carried
-    assert terms.scaled == pytest.approx(
+    factors = predictor_factors(document)  # of the predictions, whatever was carried
+    assert factors == pytest.approx(
         {'time_offset_ms': 1.2, 'translation_mm': 2.0, 'rotation_deg': 1.0}
     )
-    assert terms.held == pytest.approx({k: 0.0 for k in SIGMA})
-    wider = carry_over(last, terms, [])
+    wider = carry_over(last, factors, [])
     assert wider['sigma']['translation_mm'] == pytest.approx(12.0)
     assert wider['sigma']['time_offset_ms'] == pytest.approx(0.48)
     assert wider['predicted'] == SIGMA
     assert not wider['ready'] and wider['missing'][0].startswith('keep recording')
-    assert 'translation x2' in wider['missing'][0]
     assert last['ready'] and last['sigma']['translation_mm'] == 6.0  # not changed in place
-    narrower = carry_over(last, Carried({'translation_mm': 0.5}), [])
+    narrower = carry_over(last, {'translation_mm': 0.5}, [])
     assert narrower['ready'] and narrower['sigma']['translation_mm'] == pytest.approx(3.0)
-
-
-def test_the_correlated_term_is_carried_as_it_is() -> None:
-    """A real VIO's result: 4.8 mm white and 8 mm correlated in translation (EuRoC V2_01 mono's
-    results from 54 s on: 9-10 mm reported all along, as the pairs predicted 30 % less). At its
-    own data the carried sigma is the reported one; for data whose pairs predict half as much,
-    the white term halves and the correlated one stays: 8.4 mm, not 4.7."""
-    white = {'time_offset': 0.2e-3, 'translation': 4.8e-3, 'rotation': np.radians(0.2)}
-    terms = carried_terms(_document(white, {'translation': 8e-3}))
-    assert terms.held['translation_mm'] == pytest.approx(8.0)
-    same = carry_over(_ready(SIGMA), terms, [])
-    assert same['sigma']['translation_mm'] == pytest.approx(np.hypot(4.8, 8.0))
-    half = carry_over(_ready({k: v / 2 for k, v in SIGMA.items()}), terms, [])
-    assert half['sigma']['translation_mm'] == pytest.approx(np.hypot(2.4, 8.0))
-    assert half['sigma']['time_offset_ms'] == pytest.approx(0.1)
-    grown = carry_over(
-        _ready({k: v / 2 for k, v in SIGMA.items()}), terms, [], margin=CARRIED_MARGIN
-    )
-    assert not grown['ready']
-    assert 'translation x0.8 with 8 mm held' in grown['missing'][0]
-
-
-def test_a_result_without_terms_carries_its_whole_sigmas() -> None:
-    """A result whose covariance has no terms (no uncertainty section) scales its reported
-    sigmas with the predictions, and one without a batch stage carries nothing."""
-    doc = _document({'time_offset': 1e-3, 'translation': 6e-3, 'rotation': 0.01}, {})
-    del doc['std']['terms']
-    terms = carried_terms(doc)
-    assert terms.scaled['translation_mm'] == pytest.approx(1.0) and terms.held == {
-        k: 0.0 for k in SIGMA
-    }
-    assert carried_terms({'std': None, 'readiness': doc['readiness']}) == Carried()
 
 
 def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> None:
@@ -108,20 +60,18 @@ def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> 
     the next calibration measures its sigmas again on four blocks (CARRIED_MARGIN, 0.81);
     7 mm is."""
     assert CARRIED_MARGIN == pytest.approx(1 / (1 + 1 / np.sqrt(18)))
-    near = carry_over(
-        _ready({**SIGMA, 'translation_mm': 9.0}), Carried({'translation_mm': 1.0}), []
-    )
+    near = carry_over(_ready({**SIGMA, 'translation_mm': 9.0}), {'translation_mm': 1.0}, [])
     assert near['ready']  # the result's own data: the targets as they are
     grown = carry_over(
         _ready({**SIGMA, 'translation_mm': 9.0}),
-        Carried({'translation_mm': 1.0}),
+        {'translation_mm': 1.0},
         [],
         margin=CARRIED_MARGIN,
     )
     assert not grown['ready'] and 'READY within 81% of the targets' in grown['missing'][0]
     inside = carry_over(
         _ready({**SIGMA, 'translation_mm': 7.0}),
-        Carried({'translation_mm': 1.0}),
+        {'translation_mm': 1.0},
         [],
         margin=CARRIED_MARGIN,
     )
@@ -129,7 +79,7 @@ def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> 
 
 
 def test_a_last_calibration_doubtful_for_another_reason_holds_ready_back() -> None:
-    held = carry_over(_ready(SIGMA), Carried(), ['the residuals are strongly correlated in time'])
+    held = carry_over(_ready(SIGMA), {}, ['the residuals are strongly correlated in time'])
     assert not held['ready']
     assert held['missing'] == [
         'the last calibration is doubtful: the residuals are strongly correlated in time'
@@ -150,7 +100,7 @@ def test_a_last_calibration_not_good_for_its_precision_holds_ready_back() -> Non
     held = held_reasons(document)
     assert held == ['the residuals are correlated', 'translation 1-sigma 10.5 mm']
     last = _ready({'time_offset_ms': 0.2, 'translation_mm': 8.7, 'rotation_deg': 0.2})
-    status = carry_over(last, Carried(), held[1:])
+    status = carry_over(last, {}, held[1:])
     assert not status['ready']
     assert status['missing'][0] == 'the last calibration is doubtful: translation 1-sigma 10.5 mm'
 
@@ -163,7 +113,7 @@ def test_a_result_whose_sigmas_lack_the_blocks_holds_ready_back() -> None:
     document = {'quality': {'reasons': []}, 'std': {'block_factors': None}}
     held = held_reasons(document)
     assert held == [LACKS_BLOCKS]
-    status = carry_over(_ready(SIGMA), Carried(), held)
+    status = carry_over(_ready(SIGMA), {}, held)
     assert not status['ready']
     assert status['missing'][0] == f'the last calibration {LACKS_BLOCKS}'
     measured = {'quality': {'reasons': []}, 'std': {'block_factors': {'translation': 1.4}}}

@@ -67,7 +67,13 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'uncertainty_real': (
         'uncertainty_real',
         [],
-        ['uncertainty_pairs', 'uncertainty_terms', 'uncertainty_errors', 'uncertainty_sim'],
+        [
+            'uncertainty_pairs',
+            'uncertainty_terms',
+            'uncertainty_errors',
+            'uncertainty_common',
+            'uncertainty_sim',
+        ],
         '1 min',
     ),
     'wander': ('wander', [], ['wander'], '12 min'),

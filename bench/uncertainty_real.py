@@ -2,7 +2,7 @@
 same MoCap, two estimators) must agree within their combined sigma; so must the truth on
 simulations of white noise.
 
-Three tables:
+Five tables:
 
 - ``uncertainty_pairs``: every pair of estimates of one recording: TUM-VI outdoors4 (Basalt
   VIO, ORB-SLAM3 VIO, Basalt VO; ``--clock-drift``, as the tool asks there) and EuRoC MH_01,
@@ -19,6 +19,8 @@ Three tables:
   (norms), the groups noted to vary along the recording, per axis the rms of error / sigma,
   and READY as the consecutive poses predict it against as the result's ``readiness`` carries
   it (``core/checks/carry.py``: READY only beside ``good``).
+- ``uncertainty_common``: the same runs by the reference they share (SHARED): the error common
+  to a set's runs, and the rms of error / sigma against I and against the set's other runs.
 - ``uncertainty_sim``: the paper's protocol (white noise, 20 seeds a level): truth within 3
   sigma (dt; Mahalanobis of the translation and the rotation under chi^2_3's 99.73 %), before
   and now, and how much larger the reported sigma is than the long-run one.
@@ -106,10 +108,10 @@ def real_runs() -> list[tuple[str, object, object]]:
     return out
 
 
-def error_rows() -> tuple[list[list], np.ndarray, list[str]]:
-    """A row per real run (default options), the (runs, 6) errors over sigmas of T_HE and
-    each such run's name."""
-    rows, z, names = [], [], []
+def error_rows() -> tuple[list[list], np.ndarray, np.ndarray, list[str]]:
+    """A row per real run (default options), the (runs, 6) errors of T_HE (m, rotation vector
+    rad) and their reported 1-sigmas, and each such run's name."""
+    rows, errors, sigmas, names = [], [], [], []
     for name, hand, eye in real_runs():
         try:
             r = calibrate(hand, eye)
@@ -122,7 +124,8 @@ def error_rows() -> tuple[list[list], np.ndarray, list[str]]:
             continue
         sd = r.batch.std
         err = np.r_[r.p_HE, Rotation.from_quat(r.q_HE).as_rotvec()]
-        z.append(err / sd[1:7])
+        errors.append(err)
+        sigmas.append(sd[1:7])
         names.append(name)
         fit = r.batch.uncertainty.scale
         sim3 = sim3_scale(hand, eye.shifted(-r.time_offset_ns)) if 'outdoors4' not in name else 0.0
@@ -142,7 +145,53 @@ def error_rows() -> tuple[list[list], np.ndarray, list[str]]:
                 f'{fit[0]:.4f} / ' + (f'{sim3:.4f}' if sim3 else '-') if fit else '-',
             ]
         )
-    return rows, np.array(z), names
+    return rows, np.array(errors), np.array(sigmas), names
+
+
+#: The sets whose runs share a reference (the ground truth's own MoCap and its body frame):
+#: EuRoC's Vicon room (V1, V2) and its Machine Hall (a Leica laser tracker), TUM-VI.
+SHARED = {
+    'EuRoC Vicon room': ('EuRoC V',),
+    'EuRoC Machine Hall': ('EuRoC MH',),
+    'VI-SLAM (Machine Hall)': ('VI-SLAM',),
+    'Machine Hall, both': ('EuRoC MH', 'VI-SLAM'),
+    'TUM-VI': ('TUM-VI',),
+}
+
+
+def common_rows(errors: np.ndarray, sigmas: np.ndarray, names: list[str]) -> list[list]:
+    """Per set of SHARED: the error its runs have in common (their inverse-variance mean per
+    axis, with its 1-sigma) and, per axis, the rms of each run's error / sigma against the
+    truth I and against the other runs' common one (leave one out: e_i minus the others' mean,
+    over the root of sigma_i^2 plus that mean's variance): what a run's sigma says of its own
+    error once an error common to every run of the set (a reference's body frame, which one
+    recording cannot see) is left aside."""
+    out = []
+    for label, prefixes in SHARED.items():
+        k = [i for i, n in enumerate(names) if n.startswith(prefixes)]
+        e, sd = errors[k], sigmas[k]
+        w = 1.0 / sd**2
+        mean, mean_sd = np.sum(w * e, 0) / np.sum(w, 0), 1.0 / np.sqrt(np.sum(w, 0))
+        z = []
+        for i in range(len(k)):
+            o = np.arange(len(k)) != i
+            m = np.sum(w[o] * e[o], 0) / np.sum(w[o], 0)
+            z.append((e[i] - m) / np.sqrt(sd[i] ** 2 + 1.0 / np.sum(w[o], 0)))
+        rms_truth = np.sqrt(np.mean((e / sd) ** 2, 0))
+        rms_common = np.sqrt(np.mean(np.array(z) ** 2, 0))
+        out.append(
+            [
+                label,
+                len(k),
+                ' '.join(f'{m * 1e3:+.1f}' for m in mean[:3])
+                + f' (+- {np.linalg.norm(mean_sd[:3]) * 1e3:.1f})',
+                ' '.join(f'{v:.2f}' for v in rms_truth[:3]),
+                ' '.join(f'{v:.2f}' for v in rms_common[:3]),
+                ' '.join(f'{v:.2f}' for v in rms_truth[3:]),
+                ' '.join(f'{v:.2f}' for v in rms_common[3:]),
+            ]
+        )
+    return out
 
 
 def _yes(flag: bool) -> str:
@@ -299,7 +348,8 @@ def main() -> None:
                 term_rows(runs),
             ),
         )
-        rows, z, sets = error_rows()
+        rows, errors, sigmas, sets = error_rows()
+        z = errors / sigmas
         for tag in ('EuRoC', 'VI-SLAM', 'TUM-VI', ''):
             rms = np.sqrt(np.mean(z[[s.startswith(tag) for s in sets]] ** 2, axis=0))
             rows.append(
@@ -334,6 +384,25 @@ def main() -> None:
                     's fit / Sim(3)',
                 ],
                 rows,
+            ),
+        )
+        emit(
+            'uncertainty_common',
+            table(
+                'The same runs by the reference they share: the error common to its runs '
+                "(inverse-variance mean of T_HE's translation, mm, and its 1-sigma) and the rms "
+                'of error / sigma per axis against the truth I and against the other runs of '
+                'the set (leave one out)',
+                [
+                    'set',
+                    'runs',
+                    'common error mm',
+                    'xyz vs I',
+                    'xyz vs the others',
+                    'rxryrz vs I',
+                    'rxryrz vs the others',
+                ],
+                common_rows(errors, sigmas, sets),
             ),
         )
     emit(

@@ -27,13 +27,12 @@ import realdata
 from common import emit, table
 
 from handeye_ros.core.checks.carry import (
-    CARRIED_MARGIN,
     SIGMA_KEYS,
     carry_over,
     held_reasons,
     predictor_factors,
 )
-from handeye_ros.core.checks.verdict import sigmas_of
+from handeye_ros.core.checks.verdict import BLOCKS_MARGIN, sigmas_of
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.formats import read_trajectory
@@ -77,7 +76,7 @@ def _carried(status: dict, published: dict | None) -> dict:
     if published is None:
         return carry_over(status, {}, [])
     return carry_over(
-        status, predictor_factors(published), held_reasons(published), margin=CARRIED_MARGIN
+        status, predictor_factors(published), held_reasons(published), margin=BLOCKS_MARGIN
     )
 
 

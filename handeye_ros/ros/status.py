@@ -28,9 +28,10 @@ from typing import TYPE_CHECKING, TypeVar
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from ..core.arrays import Stamps
-from ..core.checks.carry import CARRIED_MARGIN, carry_over
+from ..core.checks.carry import carry_over
 from ..core.checks.progress import Measured, Progress
 from ..core.checks.readiness import readiness_of
+from ..core.checks.verdict import BLOCKS_MARGIN
 from ..core.document import ReadinessDoc
 from ..core.errors import HandeyeError
 from ..evaluation.terminal import status_line
@@ -230,7 +231,7 @@ class ReadinessStatus:
         durations = (buffers['hand'].span_s, buffers['eye'].span_s)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         auto = self.auto
-        last = carry_over(found, auto.factors, auto.held, margin=CARRIED_MARGIN)
+        last = carry_over(found, auto.factors, auto.held, margin=BLOCKS_MARGIN)
         if last['ready'] and not auto.confirmed:
             # READY is said once a calibration of these buffers agrees: auto mode's first one,
             # or a check of its own
@@ -245,7 +246,7 @@ class ReadinessStatus:
         elif (
             auto.held
             and auto.said == 'off'
-            and carry_over(found, auto.factors, [], margin=CARRIED_MARGIN)['ready']
+            and carry_over(found, auto.factors, [], margin=BLOCKS_MARGIN)['ready']
         ):
             self._check(min(durations))  # READY but for the last result's reasons: check again
         self.last, self.why_not = last, ''

@@ -14,18 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..batch.correlated import BLOCKS
 from ..document import ReadinessDoc, ResultDoc
 from .verdict import Code, sigmas_of
 
 #: The readiness's sigma keys (ms, mm, deg), in the order of :func:`sigmas_of`.
 SIGMA_KEYS = ('time_offset_ms', 'translation_mm', 'rotation_deg')
-#: Predictions carried from a result to more data are READY only this far inside the targets: a
-#: calibration of more data reports sigmas that the blocks' spread measures again, a 1-sigma
-#: of three axes with BLOCKS - 1 degrees of freedom each, uncertain by 1 / sqrt(2 dof) of
-#: itself (0.24: READY at most 0.81 of each target). Without it, a READY carried from a
-#: `good` result at 9.5 mm said so of data whose own calibration reported 10.4 mm.
-CARRIED_MARGIN = 1.0 / (1.0 + 1.0 / np.sqrt(2.0 * 3 * (BLOCKS - 1)))
 
 
 def predictor_factors(document: ResultDoc) -> dict[str, float]:
@@ -80,7 +73,7 @@ def carry_over(
 ) -> ReadinessDoc:
     """The readiness ``last`` with its predicted sigmas (``predicted``) times a result's
     :func:`predictor_factors` as its ``sigma`` (the same covariance model as the result's),
-    READY only if they still meet the targets (each times ``margin``: CARRIED_MARGIN when they
+    READY only if they still meet the targets (each times ``margin``: BLOCKS_MARGIN when they
     are carried to more data than the result's) and the result was ``good`` (``held``: the
     messages of its reasons, :func:`held_reasons`, the first said first); ``whose`` names the
     result in what is said."""

@@ -9,12 +9,12 @@ import pytest
 from conftest import recording
 
 from handeye_ros.core.checks.carry import (
-    CARRIED_MARGIN,
     LACKS_BLOCKS,
     carry_over,
     held_reasons,
     predictor_factors,
 )
+from handeye_ros.core.checks.verdict import BLOCKS_MARGIN
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.evaluation.terminal import readiness_lines
 
@@ -57,23 +57,23 @@ def test_the_predictions_carry_the_last_calibrations_own_sigmas() -> None:
 
 def test_predictions_carried_to_more_data_are_ready_only_inside_the_margin() -> None:
     """Carried from a result to the buffers that grew since, 9 mm against 10 is not READY:
-    the next calibration measures its sigmas again on four blocks (CARRIED_MARGIN, 0.81);
+    the next calibration measures its sigmas again on four blocks (BLOCKS_MARGIN, 0.81);
     7 mm is."""
-    assert CARRIED_MARGIN == pytest.approx(1 / (1 + 1 / np.sqrt(18)))
+    assert BLOCKS_MARGIN == pytest.approx(1 / (1 + 1 / np.sqrt(18)))
     near = carry_over(_ready({**SIGMA, 'translation_mm': 9.0}), {'translation_mm': 1.0}, [])
     assert near['ready']  # the result's own data: the targets as they are
     grown = carry_over(
         _ready({**SIGMA, 'translation_mm': 9.0}),
         {'translation_mm': 1.0},
         [],
-        margin=CARRIED_MARGIN,
+        margin=BLOCKS_MARGIN,
     )
     assert not grown['ready'] and 'READY within 81% of the targets' in grown['missing'][0]
     inside = carry_over(
         _ready({**SIGMA, 'translation_mm': 7.0}),
         {'translation_mm': 1.0},
         [],
-        margin=CARRIED_MARGIN,
+        margin=BLOCKS_MARGIN,
     )
     assert inside['ready']
 

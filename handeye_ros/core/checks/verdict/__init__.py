@@ -95,6 +95,7 @@ from __future__ import annotations
 
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
+    BLOCKS_MARGIN,
     SEVERITY,
     WEAK_CORRELATION,
     Code,
@@ -144,6 +145,7 @@ from .rig import (
 
 __all__ = [
     'AMBIGUOUS_PEAK_RATIO',
+    'BLOCKS_MARGIN',
     'SEVERITY',
     'WEAK_CORRELATION',
     'Code',

@@ -12,6 +12,7 @@ import numpy as np
 from ...arrays import Floats
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
+    BLOCKS_MARGIN,
     FAILED_MOTION_ROTATION_DEG,
     FAILED_MOTION_TRANSLATION_FRACTION,
     FAILED_MOTION_TRANSLATION_M,
@@ -219,6 +220,27 @@ def _assess_uncertainty(
                     + '; '.join(over)
                     + '. The precision_* options set what is required',
                 )
+            )
+        near = [
+            f'{label} {v * k:.3g} {unit} against {n * k:.3g}'
+            for label, v, n, k, unit, r in zip(
+                ('time offset', 'translation', 'rotation'),
+                sd,
+                need,
+                (1e3, 1e3, 1.0),
+                ('ms', 'mm', 'deg'),
+                precision_ratios(sd, need),
+                strict=True,
+            )
+            if BLOCKS_MARGIN < r <= 1.0
+        ]
+        if near and not over and unc is not None and unc.factors is not None:
+            said.append(
+                'near the required precision: '
+                + '; '.join(near)
+                + f' required (beyond {BLOCKS_MARGIN:.0%} of it). A 1-sigma measured on four '
+                'blocks is itself uncertain by about a quarter: a calibration of more of this '
+                'recording may find it above'
             )
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         said.append(

@@ -184,7 +184,7 @@ def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, unobservable: bool
 ) -> list[Reason | str]:
     """Stage 3's uncertainty: none (said unless a part of the answer is ``unobservable``, which
-    says why), larger than required, or shaped by something unmodelled."""
+    says why), larger than required or near it, or shaped by something unmodelled."""
     said: list[Reason | str] = []
     if cfg.batch and batch is None and not unobservable:
         said.append(
@@ -221,27 +221,9 @@ def _assess_uncertainty(
                     + '. The precision_* options set what is required',
                 )
             )
-        near = [
-            f'{label} {v * k:.3g} {unit} against {n * k:.3g}'
-            for label, v, n, k, unit, r in zip(
-                ('time offset', 'translation', 'rotation'),
-                sd,
-                need,
-                (1e3, 1e3, 1.0),
-                ('ms', 'mm', 'deg'),
-                precision_ratios(sd, need),
-                strict=True,
-            )
-            if BLOCKS_MARGIN < r <= 1.0
-        ]
+        near = _near(sd, need)
         if near and not over and unc is not None and unc.factors is not None:
-            said.append(
-                'near the required precision: '
-                + '; '.join(near)
-                + f' required (beyond {BLOCKS_MARGIN:.0%} of it). A 1-sigma measured on four '
-                'blocks is itself uncertain by about a quarter: a calibration of more of this '
-                'recording may find it above'
-            )
+            said.append(near)
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         said.append(
             Reason(
@@ -252,6 +234,34 @@ def _assess_uncertainty(
             )
         )
     return said
+
+
+def _near(sd: tuple[float, float, float], need: tuple[float, float, float]) -> str:
+    """A note of the 1-sigmas ``sd`` (:func:`sigmas_of`) beyond BLOCKS_MARGIN of their targets
+    ``need`` and within them, '' when none is: near a target, a 1-sigma that the blocks measure
+    may be found above it by a calibration of more data."""
+    near = [
+        f'{label} {v * k:.3g} {unit} against {n * k:.3g}'
+        for label, v, n, k, unit, r in zip(
+            ('time offset', 'translation', 'rotation'),
+            sd,
+            need,
+            (1e3, 1e3, 1.0),
+            ('ms', 'mm', 'deg'),
+            precision_ratios(sd, need),
+            strict=True,
+        )
+        if BLOCKS_MARGIN < r <= 1.0
+    ]
+    if not near:
+        return ''
+    return (
+        'near the required precision: '
+        + '; '.join(near)
+        + f' required (beyond {BLOCKS_MARGIN:.0%} of it). A 1-sigma measured on four blocks is '
+        'itself uncertain by about a quarter: a calibration of more of this recording may find '
+        'it above'
+    )
 
 
 def motion_inconsistency(m: Metrics, where: str = 'the result') -> Reason | None:

@@ -198,18 +198,9 @@ def _assess_uncertainty(
         unc = batch.uncertainty
         dominant = unc.dominant() if unc is not None else {}
         over = [
-            f'{label} {v * k:.3g} {unit} (required {n * k:.3g}): '
+            f'{label} {v:.3g} {unit} (required {n:.3g}): '
             + NARROWS[group, dominant.get(group, 'white')]
-            for group, label, v, n, k, unit, r in zip(
-                ('time_offset', 'translation', 'rotation'),
-                ('time offset', 'translation', 'rotation'),
-                sd,
-                need,
-                (1e3, 1e3, 1.0),
-                ('ms', 'mm', 'deg'),
-                precision_ratios(sd, need),
-                strict=True,
-            )
+            for group, label, v, n, unit, r in _figures(sd, need)
             if r > 1.0
         ]
         if over:
@@ -236,14 +227,15 @@ def _assess_uncertainty(
     return said
 
 
-def _near(sd: tuple[float, float, float], need: tuple[float, float, float]) -> str:
-    """A note of the 1-sigmas ``sd`` (:func:`sigmas_of`) beyond BLOCKS_MARGIN of their targets
-    ``need`` and within them, '' when none is: near a target, a 1-sigma that the blocks measure
-    may be found above it by a calibration of more data."""
-    near = [
-        f'{label} {v * k:.3g} {unit} against {n * k:.3g}'
-        for label, v, n, k, unit, r in zip(
-            ('time offset', 'translation', 'rotation'),
+def _figures(
+    sd: tuple[float, float, float], need: tuple[float, float, float]
+) -> list[tuple[str, str, float, float, str, float]]:
+    """Per group: its name and label, its 1-sigma (:func:`sigmas_of`) and target in the unit
+    said (ms, mm, deg), that unit, and their ratio."""
+    return [
+        (group, group.replace('_', ' '), v * k, n * k, unit, r)
+        for group, v, n, k, unit, r in zip(
+            ('time_offset', 'translation', 'rotation'),
             sd,
             need,
             (1e3, 1e3, 1.0),
@@ -251,6 +243,16 @@ def _near(sd: tuple[float, float, float], need: tuple[float, float, float]) -> s
             precision_ratios(sd, need),
             strict=True,
         )
+    ]
+
+
+def _near(sd: tuple[float, float, float], need: tuple[float, float, float]) -> str:
+    """A note of the 1-sigmas ``sd`` (:func:`sigmas_of`) beyond BLOCKS_MARGIN of their targets
+    ``need`` and within them, '' when none is: near a target, a 1-sigma that the blocks measure
+    may be found above it by a calibration of more data."""
+    near = [
+        f'{label} {v:.3g} {unit} against {n:.3g}'
+        for _, label, v, n, unit, r in _figures(sd, need)
         if BLOCKS_MARGIN < r <= 1.0
     ]
     if not near:

@@ -6,15 +6,15 @@ after each new result, the file ``~/save`` writes.
 
 Counted per recording:
 - READY checked: every status that says READY, at most one per CHECK_S seconds of the
-  recording, is checked by an offline calibration of what that status judged (the recording's
-  first ``span_s`` seconds, the span of the buffers it read): READY while that calibration is
-  not ``good`` must not happen;
+  recording (``--check-every``, whose table is ``readiness_live_real_dense``), is checked by an
+  offline calibration of what that status judged (the recording's first ``span_s`` seconds, the
+  span of the buffers it read): READY while that calibration is not ``good`` must not happen;
 - each published result: its verdict, and the status's predicted 1-sigmas just before it over
   the result's reported ones (dt, translation, rotation; target 0.5-2);
 - what auto mode said last (converged must not be said of a doubtful result: that is
   ``stalled``).
 
-Usage: python bench/readiness_live_real.py [--speed 1] [--only NAME]
+Usage: python bench/readiness_live_real.py [--speed 1] [--only NAME] [--check-every S]
 """
 
 from __future__ import annotations
@@ -75,9 +75,10 @@ def _verdict_at(hand, eye, cut_ns: int) -> str:
     return res.quality.verdict.value
 
 
-def judged(run: dict, hand, eye) -> dict:
-    """READY statuses checked by a calibration of what the status judged (its buffers' span
-    from the start of the recording); results' verdicts and predicted over reported sigmas."""
+def judged(run: dict, hand, eye, every_s: float = CHECK_S) -> dict:
+    """READY statuses, at most one per ``every_s`` seconds of the recording, checked by a
+    calibration of what the status judged (its buffers' span from the start of the recording);
+    results' verdicts and predicted over reported sigmas."""
     t0 = max(int(hand.t_ns[0]), int(eye.t_ns[0]))
     ready, checked, last_s = 0, [], -np.inf
     for _, st in run['statuses']:
@@ -85,7 +86,7 @@ def judged(run: dict, hand, eye) -> dict:
             continue
         ready += 1
         s = float(st['span_s'])
-        if s - last_s < CHECK_S:
+        if s - last_s < every_s:
             continue
         last_s = s
         checked.append((s, _verdict_at(hand, eye, t0 + int(s * 1e9))))
@@ -113,6 +114,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--speed', type=float, default=1.0, help='times real time (default 1)')
     p.add_argument('--only', default='', help='only the recordings whose name contains this')
+    p.add_argument(
+        '--check-every',
+        type=float,
+        default=CHECK_S,
+        help=f'check a READY status at most once per this many recording seconds ({CHECK_S:g})',
+    )
     a = p.parse_args()
     probe = LiveProbe()
     rows = []
@@ -125,7 +132,7 @@ def main() -> None:
                 if not run['sent'].strip():
                     print(name, 'the replay did not end:', run['log'][-400:], flush=True)
                     continue
-                j = judged(run, hand, eye)
+                j = judged(run, hand, eye, a.check_every)
                 bad = [f'{s:.0f} s' for s, v in j['checked'] if v != 'good']
                 rows.append(
                     [
@@ -142,11 +149,11 @@ def main() -> None:
     finally:
         probe.close()
     emit(
-        'readiness_live_real',
+        'readiness_live_real' + ('' if a.check_every == CHECK_S else '_dense'),
         table(
             f'Real recordings replayed live at {a.speed:g}x their stamps through the node '
             '(auto_calibrate, defaults): READY statuses (checked, one per '
-            f'{CHECK_S:.0f} s) against a calibration of what the node had then; results',
+            f'{a.check_every:g} s) against a calibration of what the node had then; results',
             [
                 'recording',
                 'seconds',

@@ -80,6 +80,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),
     'readiness_live_real': ('readiness_live_real', [], ['readiness_live_real'], '15 min'),
+    'readiness_live_real_dense': (
+        'readiness_live_real',
+        ['--check-every', '2'],
+        ['readiness_live_real_dense'],
+        '16 min',
+    ),
     'defects': (
         'defects',
         [],

@@ -16,7 +16,7 @@ needs no 720 000 poses. The figure's own value is taken on the same poses.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -178,7 +178,7 @@ def _figures(
         eye = retime(eye, float(d[drift_at]), stamp_ns)
     scale = None if result.batch is None else result.batch.scale
     if scale_at is not None and scale is not None and d[scale_at]:
-        eye = replace(eye, p_xyz=eye.p_xyz * (1.0 + d[scale_at] / scale))
+        eye = eye.scaled(1.0 + d[scale_at] / scale)
     q = (Rotation.from_quat(result.q_HE) * Rotation.from_rotvec(d[4:7])).as_quat()
     p = np.asarray(result.p_HE, dtype=float) + d[1:4]
     pairs, ok = pairs_at_eye(used.hand, eye, used.time_offset_s + float(d[0]))

@@ -24,7 +24,7 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
      of the quantity, not an error of it: the result is the recording's mean offset, known to
      the long-run covariance plus how far the solution's weighting of the blocks (``w_b``
      proportional to their information ``1 / C_b,g``) takes it from their plain mean when
-     their latencies differ by ``tau^2``: ``v = tr C_g + t^2 tau^2 sum_b (w_b - 1 / B)^2``.
+     their latencies differ by ``tau^2``: ``v = tr C_g + t^2 tau^2 sum_b (w_b - n_b / n)^2``.
      ``tau^2`` is the blocks' variance beyond their own noise (DerSimonian and Laird's moment
      estimate, ``(Q - (B - 1)) / (S_1 - S_2 / S_1)`` and at least 0, with ``Q = sum_b (d_b,g -
      sum_k w_k d_k,g)^2 / C_b,g`` and ``S_n = sum_b C_b,g^-n``): spread over every block, it
@@ -35,14 +35,23 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
 
    ``t`` is the Student-t 1-sigma factor of B_eff - 1 degrees of freedom (1.20 for four
    blocks of equal information: a spread measured on four values is itself uncertain), B_eff =
-   1 / sum_b w_b^2 the blocks that count (``w_b = tr W_b / p_g``), at least two. Where ``v_g``
-   exceeds the long-run variance of the group, its rows and columns of ``C`` are multiplied by
-   ``k_g = sqrt(v_g / tr C_g)``. Birge's ratio ``sum_b d_b^T C_b^-1 d_b / (p_g (B - 1))`` far
-   above 1 (:func:`varies`) means that the group's value moves along the recording by more than
-   the blocks' own noise: the result says so, with the blocks' spread. (Multiplying ``C`` by
-   that ratio would count the long-run correlation twice where a block's covariance is not B
-   times the whole one's: on TUM-VI outdoors4, its MoCap at the two ends only, the offset's
-   1-sigma would be 35 ms, where the blocks' mean is uncertain by 3.7 ms.)
+   1 / sum_b w_b^2 the blocks that count (``w_b = tr W_b / p_g``), at least two. The plain mean
+   the offset's weighting is measured from weighs each block by its share ``n_b / n`` of the
+   covered poses (``1 / B`` for equal blocks).
+
+   A spread of four values is a noisy figure, and where the quarters' edges fall decides part
+   of it: prefixes of one recording 2 s apart (EuRoC V2_01 mono, 54-110 s) moved the
+   translation's 1-sigma between 6.6 and 11.3 mm. So the recording is cut twice (:func:`cuts`):
+   at its quarters, and again half a block later (three quarters between an eighth at each
+   end), and ``v_g`` is the mean of the two cuttings' (overlapping batch means, which average
+   over every start, here two). Where ``v_g`` exceeds the long-run variance of the group, its
+   rows and columns of ``C`` are multiplied by ``k_g = sqrt(v_g / tr C_g)``. The quarters'
+   Birge's ratio ``sum_b d_b^T C_b^-1 d_b / (p_g (B - 1))`` far above 1 (:func:`varies`) means
+   that the group's value moves along the recording by more than the blocks' own noise: the
+   result says so, with the blocks' spread. (Multiplying ``C`` by that ratio would count the
+   long-run correlation twice where a block's covariance is not B times the whole one's: on
+   TUM-VI outdoors4, its MoCap at the two ends only, the offset's 1-sigma would be 35 ms, where
+   the blocks' mean is uncertain by 3.7 ms.)
 2. **Scale.** A metric VIO's translations are a little off in scale (TUM-VI outdoors4: Basalt's
    1.3-1.5 % long; EuRoC MH_03's real-time VI-SLAM 2.5 % short), and holding s = 1 moves T_HE
    by the lever arm's share of that error (61 mm from the ground truth's there, 17 mm with s
@@ -57,12 +66,13 @@ estimators whose body frames differ by a lever arm); docs/method.md gives the fi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import chdtri, stdtrit
 
-from ..arrays import Floats
+from ..arrays import Floats, Indices
 
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
 #: the recording each); with fewer than MIN_BLOCK_POSES eye poses in a block the term is not
@@ -147,11 +157,42 @@ class Uncertainty:
         return np.zeros((7, 7)) if self.scale_part is None else self.scale_part
 
 
-def error_of_mean(deviations: Floats, covariances: Floats, long_run: Floats) -> dict[str, float]:
+@dataclass(frozen=True)
+class Blocks:
+    """One cutting's blocks, each refitted alone: their deviations (B, 7) from the solution and
+    covariances (B, 7, 7) in the reported order, and their shares (B,) of the covered eye poses
+    (equal when None)."""
+
+    deviations: Floats
+    covariances: Floats
+    shares: Floats | None = None
+
+
+def cuts(n: int) -> tuple[Indices, Indices]:
+    """The edges (indices into ``n`` covered eye poses, each from its first to past its last)
+    of the two cuttings: the BLOCKS quarters, and the same half a block later (an eighth at each
+    end)."""
+    quarters = np.linspace(0.0, n, BLOCKS + 1)
+    later = np.r_[0.0, quarters[1:] - 0.5 * quarters[1], n]
+    return quarters.astype(np.int64), later.astype(np.int64)
+
+
+def error_of_mean(cuttings: Sequence[Blocks], long_run: Floats) -> dict[str, float]:
     """k_g (>= 1) per group: the error of the recording's value over the long-run 1-sigma
-    (module docstring), from the blocks' deviations (B, 7), their covariances (B, 7, 7) and the
-    long-run covariance (reported order); a group held fixed (zero variance) has none."""
+    (module docstring), its variance the mean of the cuttings' (each a :class:`Blocks`), from
+    the long-run covariance (reported order); a group held fixed (zero variance) has none."""
+    ratios: dict[str, list[float]] = {}
+    for blocks in cuttings:
+        for group, ratio in _variance_ratios(blocks, long_run).items():
+            ratios.setdefault(group, []).append(ratio)
+    return {g: float(np.sqrt(max(1.0, float(np.mean(r))))) for g, r in ratios.items()}
+
+
+def _variance_ratios(blocks: Blocks, long_run: Floats) -> dict[str, float]:
+    """v_g / tr C_g per group for one cutting (module docstring)."""
+    deviations, covariances = blocks.deviations, blocks.covariances
     B = deviations.shape[0]
+    shares = np.full(B, 1.0 / B) if blocks.shares is None else blocks.shares / blocks.shares.sum()
     out = {}
     for group, idx in GROUPS.items():
         i = list(idx)
@@ -168,11 +209,11 @@ def error_of_mean(deviations: Floats, covariances: Floats, long_run: Floats) -> 
             a = info[:, 0, 0]
             q = float(np.sum(a * (d[:, 0] - np.sum(w * d[:, 0])) ** 2))
             tau2 = max(0.0, (q - (B - 1)) / (a.sum() - np.sum(a**2) / a.sum()))
-            v = own + t_1sigma**2 * tau2 * float(np.sum((w - 1.0 / B) ** 2))
+            v = own + t_1sigma**2 * tau2 * float(np.sum((w - shares) ** 2))
         else:
             e = d - np.einsum('bij,bj->i', W, d)
             v = t_1sigma**2 * B / (B - 1) * float(np.sum(np.einsum('bij,bj->bi', W, e) ** 2))
-        out[group] = float(np.sqrt(max(1.0, v / own)))
+        out[group] = v / own
     return out
 
 

@@ -13,11 +13,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..arrays import Floats
+from ..arrays import Floats, Indices
 from ..batch.correlated import (
     BLOCKS,
     MIN_BLOCK_POSES,
+    Blocks,
     Uncertainty,
+    cuts,
     error_of_mean,
     inflated,
     scale_share,
@@ -273,39 +275,58 @@ def with_correlated(
 def _blocks(
     hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
 ) -> tuple[dict[str, float] | None, dict[str, tuple[float, float]], list[str]]:
-    """The correlated term from the four blocks refitted alone: the groups' factors (None when
-    it could not be estimated), the groups that vary along the recording, and why not."""
-    lr = batch.covariance
+    """The correlated term from the blocks refitted alone, in both cuttings: the groups' factors
+    (None when it could not be estimated), the groups whose quarters vary along the recording,
+    and why not."""
     missing: list[str] = []
-    factors, moving = None, {}
     covered = np.flatnonzero(_covered(hand, eye, batch.time_offset_s))
-    edges = np.linspace(0, covered.size, BLOCKS + 1).astype(int)
-    if np.min(np.diff(edges)) < MIN_BLOCK_POSES:
+    quarters, later = cuts(covered.size)
+    if np.min(np.diff(quarters)) < MIN_BLOCK_POSES:
         missing.append(
             f'the errors correlated over the recording are not in it: {covered.size} covered '
             f'eye poses are too few for {BLOCKS} blocks of {MIN_BLOCK_POSES}'
         )
-    else:
-        # each block with the solution's scale held: the whole recording's T_HE errs as its
-        # one scale does over each part (a VIO's scale wanders), which a block's own would hide
-        held = eye if cfg.estimate_scale or batch.scale is None else eye.scaled(batch.scale)
-        tried = [
-            _aux(hand, held.select(covered[a:b]), batch, cfg) for a, b in itertools.pairwise(edges)
-        ]
-        # a quarter whose refit fails determines nothing alone: it counts as nothing, as one
-        # that hardly determines a group counts as little (:func:`.correlated.error_of_mean`)
-        fits = [f for f in tried if f is not None]
-        if len(fits) < BLOCKS - 1:
-            missing.append(
-                'the errors correlated over the recording are not in it: two quarters of the '
-                'recording alone could not be refitted (too little motion in them)'
-            )
-        else:
-            deviations = np.array([_deviation(f, batch) for f in fits])
-            own = np.array([f.covariance[:7, :7] for f in fits])
-            factors = error_of_mean(deviations, own, lr)
-            moving = varies(deviations, own)
-    return factors, moving, missing
+        return None, {}, missing
+    # each block with the solution's scale held: the whole recording's T_HE errs as its one
+    # scale does over each part (a VIO's scale wanders), which a block's own would hide
+    held = eye if cfg.estimate_scale or batch.scale is None else eye.scaled(batch.scale)
+    first = _refitted(hand, held, covered, quarters, batch, cfg)
+    if first is None:
+        missing.append(
+            'the errors correlated over the recording are not in it: two quarters of the '
+            'recording alone could not be refitted (too little motion in them)'
+        )
+        return None, {}, missing
+    second = _refitted(hand, held, covered, later, batch, cfg)
+    cuttings = [first] if second is None else [first, second]
+    return (
+        error_of_mean(cuttings, batch.covariance),
+        varies(first.deviations, first.covariances),
+        missing,
+    )
+
+
+def _refitted(
+    hand: Trajectory,
+    eye: Trajectory,
+    covered: Indices,
+    edges: Indices,
+    batch: BatchSolution,
+    cfg: CalibrationConfig,
+) -> Blocks | None:
+    """The blocks of ``eye`` between ``edges`` (into ``covered``) refitted alone, or None when more than
+    one could not be: a block whose refit fails determines nothing alone and counts as nothing,
+    as one that hardly determines a group counts as little (:func:`.correlated.error_of_mean`)."""
+    spans = list(itertools.pairwise(edges))
+    tried = [_aux(hand, eye.select(covered[a:b]), batch, cfg) for a, b in spans]
+    fits = [(f, b - a) for f, (a, b) in zip(tried, spans, strict=True) if f is not None]
+    if len(fits) < len(spans) - 1:
+        return None
+    return Blocks(
+        deviations=np.array([_deviation(f, batch) for f, _ in fits]),
+        covariances=np.array([f.covariance[:7, :7] for f, _ in fits]),
+        shares=np.array([n for _, n in fits], dtype=float),
+    )
 
 
 def _covered(hand: Trajectory, eye: Trajectory, dt: float) -> Floats:

@@ -26,12 +26,14 @@ MOCAP = {'hand_noise_m': 1e-4, 'hand_noise_deg': 0.0057}
 @pytest.mark.parametrize('seed', [1, 2])
 def test_rich_motion_is_ready_and_its_sigmas_are_the_batch_stages(seed: int) -> None:
     """The prediction is the batch stage's white covariance: with white eye noise the two
-    agree well within the factor 2 the issue allows (measured 0.8-1.0)."""
+    agree well within the factor 2 the issue allows (measured 0.83-1.04). The reported one adds
+    the blocks' term, which the status carries from a result (test_carry): on white noise a
+    chance factor up to about 2 (test_correlated)."""
     rec = recording(seed, 5, duration_s=60.0, **RATES, **MOCAP)
     r = readiness(rec.hand, rec.eye, CFG)
     assert r.ready, r.missing
     assert r.missing == ()
-    s = calibrate(rec.hand, rec.eye, CFG).batch.std
+    s = np.sqrt(np.diag(calibrate(rec.hand, rec.eye, CFG).batch.uncertainty.white))
     batch = (s[0], np.linalg.norm(s[1:4]), np.degrees(np.linalg.norm(s[4:7])))
     for predicted, reported in zip(r.sigma, batch, strict=True):
         assert 0.5 < predicted / reported < 2.0, (r.sigma, batch)

@@ -314,9 +314,10 @@ def _refitted(
     batch: BatchSolution,
     cfg: CalibrationConfig,
 ) -> Blocks | None:
-    """The blocks of ``eye`` between ``edges`` (into ``covered``) refitted alone, or None when more than
-    one could not be: a block whose refit fails determines nothing alone and counts as nothing,
-    as one that hardly determines a group counts as little (:func:`.correlated.error_of_mean`)."""
+    """The blocks of ``eye`` between ``edges`` (into ``covered``) refitted alone, or None when
+    more than one could not be: a block whose refit fails determines nothing alone and counts
+    as nothing, as one that hardly determines a group counts as little
+    (:func:`.correlated.error_of_mean`)."""
     spans = list(itertools.pairwise(edges))
     tried = [_aux(hand, eye.select(covered[a:b]), batch, cfg) for a, b in spans]
     fits = [(f, b - a) for f, (a, b) in zip(tried, spans, strict=True) if f is not None]

@@ -75,8 +75,8 @@ from scipy.special import chdtri, stdtrit
 from ..arrays import Floats, Indices
 
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
-#: the recording each); with fewer than MIN_BLOCK_POSES eye poses in a block the term is not
-#: estimated.
+#: the recording each), and the same cut half a block later (:func:`cuts`); with fewer than
+#: MIN_BLOCK_POSES eye poses in a quarter the term is not estimated.
 BLOCKS = 4
 MIN_BLOCK_POSES = 100
 #: Birge's ratio of the blocks above its upper quantile of this probability under their own

@@ -168,12 +168,19 @@ def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
     )
 
 
-def _result(mm: float, reasons: list[dict[str, str]]) -> SimpleNamespace:
-    """What auto mode reads of a calibration: its document's sigmas, estimate and reasons."""
+def _result(mm: float, reasons: list[dict[str, str]], blocks: bool = True) -> SimpleNamespace:
+    """What auto mode reads of a calibration: its document's sigmas (with the blocks' term or
+    without it), estimate and reasons."""
     t = mm * 1e-3 / np.sqrt(3)
+    factors = {'translation': 1.5} if blocks else None
     return SimpleNamespace(
         document={
-            'std': {'time_offset': 2e-4, 'translation': [t] * 3, 'rotation': [1e-3] * 3},
+            'std': {
+                'time_offset': 2e-4,
+                'translation': [t] * 3,
+                'rotation': [1e-3] * 3,
+                'block_factors': factors,
+            },
             'quality': {'reasons': reasons},
             'time_offset': 0.0,
             'extrinsic': {'translation': [0.0] * 3, 'rotation': [0.0, 0.0, 0.0, 1.0]},
@@ -192,3 +199,18 @@ def test_auto_mode_stalled_not_converged_while_its_result_is_doubtful() -> None:
     good.admit(_result(8.0, []), auto=True)
     good.admit(_result(7.9, []), auto=True)
     assert good.said.startswith('converged') and good.ended
+
+
+def test_a_result_with_the_blocks_term_replaces_one_without_it() -> None:
+    """A `good` 8.4-mm result of too few eye poses for the blocks is no bar for a later 11-mm
+    one that has their term (EuRoC MH_01 stereo, live: it kept every later result from being
+    published, and auto mode stalled on it); the next one is judged as before."""
+    node = SimpleNamespace(calib_cfg=CalibrationConfig())
+    auto = AutoMode(node, on=True)  # type: ignore[arg-type]
+    assert auto.admit(_result(8.4, [], blocks=False), auto=True) == ''
+    imprecise = [{'code': 'imprecise', 'message': 'translation 1-sigma 11 mm'}]
+    assert auto.admit(_result(11.0, imprecise), auto=True) == ''
+    assert not auto.ended
+    assert auto.admit(_result(9.0, []), auto=True) == ''
+    assert auto.admit(_result(9.5, []), auto=True) != ''  # no better: converged on the 9-mm one
+    assert auto.said.startswith('converged') and '9' in auto.said

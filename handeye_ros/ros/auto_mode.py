@@ -144,10 +144,10 @@ class AutoMode:
         admitted, converged = judge(sigmas, published, auto, targets)
         moved = moved_beyond(_estimate_of(doc), self._estimate, published) if auto else None
         # a published sigma without the blocks' term is no bar for one with it: it lacks what
-        # dominates a real VIO's (EuRoC MH_01 stereo, live: a `good` 8.4-mm result of 353 eye
-        # poses kept every later result, all with the term, from being published)
+        # dominates a real VIO's (EuRoC MH_01 stereo, live: a `good` 8.4-mm result of 393
+        # covered eye poses kept every later result, all with the term, from being published)
         completes = LACKS_BLOCKS in self.held and LACKS_BLOCKS not in held_reasons(doc)
-        if moved or completes:  # or the data since the published result move it beyond its sigma
+        if moved or completes:  # moved: the data since the published result move it beyond it
             admitted, converged = True, False
         if admitted:
             self._sigmas = sigmas

@@ -10,7 +10,8 @@ Counted per recording:
   offline calibration of what that status judged (the recording's first ``span_s`` seconds, the
   span of the buffers it read): READY while that calibration is not ``good`` must not happen;
 - each published result: its verdict, and the status's predicted 1-sigmas just before it over
-  the result's reported ones (dt, translation, rotation; target 0.5-2);
+  the result's reported ones (dt, translation, rotation; target 0.5-2): their medians, and the
+  results whose three lie within 0.5-2;
 - what auto mode said last (converged must not be said of a doubtful result: that is
   ``stalled``).
 
@@ -122,7 +123,7 @@ def main() -> None:
     )
     a = p.parse_args()
     probe = LiveProbe()
-    rows = []
+    rows, inside, results = [], 0, 0
     try:
         with tempfile.TemporaryDirectory() as tmp:
             for name, hand, eye in readiness_real.recordings():
@@ -134,6 +135,9 @@ def main() -> None:
                     continue
                 j = judged(run, hand, eye, a.check_every)
                 bad = [f'{s:.0f} s' for s, v in j['checked'] if v != 'good']
+                ratios = j['ratios'][np.all(np.isfinite(j['ratios']), axis=1)]
+                within = int(np.sum(np.all((ratios >= 0.5) & (ratios <= 2.0), axis=1)))
+                inside, results = inside + within, results + len(ratios)
                 rows.append(
                     [
                         name,
@@ -142,10 +146,11 @@ def main() -> None:
                         ', '.join(bad) or '0',
                         ', '.join(j['results']) or '-',
                         ' '.join(f'{v:.2f}' for v in np.nanmedian(j['ratios'], axis=0)),
+                        f'{within} of {len(ratios)}',
                         j['auto'],
                     ]
                 )
-                print(rows[-1], json.dumps(j['checked']), flush=True)
+                print(rows[-1], json.dumps(j['checked']), ratios.round(2).tolist(), flush=True)
     finally:
         probe.close()
     emit(
@@ -161,10 +166,12 @@ def main() -> None:
                 'READY, calibration not good',
                 'results (verdicts)',
                 'predicted / reported, median (dt t r)',
+                'all three in 0.5-2',
                 'auto mode said last',
             ],
             rows,
-        ),
+        )
+        + f'\nresults whose predicted / reported sigmas all lie in 0.5-2: {inside} of {results}',
     )
 
 

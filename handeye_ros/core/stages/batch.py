@@ -275,12 +275,12 @@ def with_correlated(
 def _blocks(
     hand: Trajectory, eye: Trajectory, batch: BatchSolution, cfg: CalibrationConfig
 ) -> tuple[dict[str, float] | None, dict[str, tuple[float, float]], list[str]]:
-    """The correlated term from the blocks refitted alone, in both cuttings: the groups' factors
+    """The correlated term from the blocks refitted alone, in every cutting: the groups' factors
     (None when it could not be estimated), the groups whose quarters vary along the recording,
     and why not."""
     missing: list[str] = []
     covered = np.flatnonzero(_covered(hand, eye, batch.time_offset_s))
-    quarters, later = cuts(covered.size)
+    quarters, *later = cuts(covered.size)
     if np.min(np.diff(quarters)) < MIN_BLOCK_POSES:
         missing.append(
             f'the errors correlated over the recording are not in it: {covered.size} covered '
@@ -297,8 +297,9 @@ def _blocks(
             'recording alone could not be refitted (too little motion in them)'
         )
         return None, {}, missing
-    second = _refitted(hand, held, covered, later, batch, cfg)
-    cuttings = [first] if second is None else [first, second]
+    # a later cutting two of whose blocks cannot be refitted alone is left out
+    others = (_refitted(hand, held, covered, edges, batch, cfg) for edges in later)
+    cuttings = [first, *(blocks for blocks in others if blocks is not None)]
     return (
         error_of_mean(cuttings, batch.covariance),
         varies(first.deviations, first.covariances),

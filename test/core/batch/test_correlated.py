@@ -83,20 +83,26 @@ def test_an_offset_that_varies_is_a_finding_not_an_error_of_its_mean() -> None:
     assert error_of_mean([Blocks(d, cov)], _whole(cov))['time_offset'] > 2.0
 
 
-def test_the_two_cuttings_average_their_variances_and_weigh_blocks_by_their_share() -> None:
-    """The recording cut at its quarters and half a block later (an eighth at each end); the
-    error of the mean's variance is the cuttings' mean. Blocks weighed by their share of the
-    poses (the later cutting's eighths hold half a quarter's information) are the plain mean
-    the offset is measured from: latencies that differ add nothing then."""
-    quarters, later = cuts(800)
+def test_the_cuttings_average_their_variances_and_weigh_blocks_by_their_share() -> None:
+    """The recording cut at its quarters and a quarter, a half and three quarters of a block
+    later (parts of a block at the ends); the error of the mean's variance is the cuttings'
+    mean. Blocks weighed by their share of the poses (a cutting's end parts hold part of a
+    quarter's information) are the plain mean the offset is measured from: latencies that
+    differ add nothing then."""
+    quarters, *later = cuts(800)
     assert list(quarters) == [0, 200, 400, 600, 800]
-    assert list(later) == [0, 100, 300, 500, 700, 800]
+    assert [list(edges) for edges in later] == [
+        [0, 150, 350, 550, 750, 800],
+        [0, 100, 300, 500, 700, 800],
+        [0, 50, 250, 450, 650, 800],
+    ]
+    halfway = later[1]  # half a block later: an eighth at each end
     rng = np.random.default_rng(4)
     one, two = (Blocks(*_blocks(rng, 4.0)) for _ in range(2))
     k1, k2 = (error_of_mean([b], _whole(b.covariances))['translation'] for b in (one, two))
     k = error_of_mean([one, two], _whole(one.covariances))['translation']
     assert k**2 == pytest.approx((k1**2 + k2**2) / 2.0)
-    shares = np.diff(later) / 800.0
+    shares = np.diff(halfway) / 800.0
     cov = np.diag(SIG**2)[None] / (4.0 * shares[:, None, None])  # a quarter's, per its share
     d = np.zeros((5, 7))
     d[:, 0] = rng.normal(size=5) * 10 * SIG[0]

@@ -89,7 +89,7 @@ BATCH_ROTATION_MIN_DEG = 1.0
 BATCH_SCORE_FACTOR = 1.5
 #: A 1-sigma that the blocks measure (core/batch/correlated.py) is itself uncertain: a norm of
 #: three axes with BLOCKS - 1 degrees of freedom each, by about 1 / sqrt(2 dof) of itself
-#: (0.24; the second cutting of the blocks makes it a little less). Within this share of its
+#: (0.24; the blocks' later cuttings make it a little less). Within this share of its
 #: target (0.81) it stays below the target by one such uncertainty; beyond it a `good` result
 #: is noted to be near its target, and READY carried from a result to more data waits for it
 #: (checks/carry.py). Without it, a READY carried from a `good` result at 9.5 mm said so of

@@ -11,7 +11,9 @@ Counted per recording:
   span of the buffers it read): READY while that calibration is not ``good`` must not happen;
 - each published result: its verdict, and the status's predicted 1-sigmas just before it over
   the result's reported ones (dt, translation, rotation; target 0.5-2): their medians, and the
-  results whose three lie within 0.5-2;
+  results whose three lie within 0.5-2, all and those whose prediction carried the last
+  result's blocks' term (not the first result's, nor one after a result of too few eye poses
+  for the blocks);
 - what auto mode said last (converged must not be said of a doubtful result: that is
   ``stalled``).
 
@@ -91,7 +93,7 @@ def judged(run: dict, hand, eye, every_s: float = CHECK_S) -> dict:
             continue
         last_s = s
         checked.append((s, _verdict_at(hand, eye, t0 + int(s * 1e9))))
-    results, ratios = [], []
+    results, ratios, carried, previous = [], [], [], None
     for when, doc in run['docs']:
         if not isinstance(doc, dict) or not doc.get('std'):
             results.append('no result')
@@ -100,6 +102,12 @@ def judged(run: dict, hand, eye, every_s: float = CHECK_S) -> dict:
         before = [st for w, st in run['statuses'] if w < when and 'sigma.translation_mm' in st]
         if before:
             ratios.append(_sigmas(before[-1]) / _reported(doc))
+            # the prediction carries the last result's blocks' term (or none: the first, or
+            # one of too few eye poses for the blocks)
+            carried.append(
+                previous is not None and previous['std'].get('block_factors') is not None
+            )
+        previous = doc
     auto = [st.get('auto_calibrate', '') for _, st in run['statuses']]
     return {
         'span': (min(hand.t_ns[-1], eye.t_ns[-1]) - t0) * 1e-9,
@@ -107,6 +115,7 @@ def judged(run: dict, hand, eye, every_s: float = CHECK_S) -> dict:
         'checked': checked,
         'results': results,
         'ratios': np.array(ratios) if ratios else np.full((1, 3), np.nan),
+        'carried': np.array(carried if ratios else [False]),
         'auto': next((a.split(':')[0] for a in reversed(auto) if a), '-'),
     }
 
@@ -123,7 +132,7 @@ def main() -> None:
     )
     a = p.parse_args()
     probe = LiveProbe()
-    rows, inside, results = [], 0, 0
+    rows, totals = [], [0, 0, 0, 0]
     try:
         with tempfile.TemporaryDirectory() as tmp:
             for name, hand, eye in readiness_real.recordings():
@@ -135,9 +144,11 @@ def main() -> None:
                     continue
                 j = judged(run, hand, eye, a.check_every)
                 bad = [f'{s:.0f} s' for s, v in j['checked'] if v != 'good']
-                ratios = j['ratios'][np.all(np.isfinite(j['ratios']), axis=1)]
-                within = int(np.sum(np.all((ratios >= 0.5) & (ratios <= 2.0), axis=1)))
-                inside, results = inside + within, results + len(ratios)
+                known = np.all(np.isfinite(j['ratios']), axis=1)
+                ratios, carried = j['ratios'][known], j['carried'][known]
+                ok = np.all((ratios >= 0.5) & (ratios <= 2.0), axis=1)
+                counts = (int(ok.sum()), len(ok), int(ok[carried].sum()), int(carried.sum()))
+                totals = [a + b for a, b in zip(totals, counts, strict=True)]
                 rows.append(
                     [
                         name,
@@ -146,7 +157,7 @@ def main() -> None:
                         ', '.join(bad) or '0',
                         ', '.join(j['results']) or '-',
                         ' '.join(f'{v:.2f}' for v in np.nanmedian(j['ratios'], axis=0)),
-                        f'{within} of {len(ratios)}',
+                        '{} of {} ({} of {})'.format(*counts),
                         j['auto'],
                     ]
                 )
@@ -166,12 +177,13 @@ def main() -> None:
                 'READY, calibration not good',
                 'results (verdicts)',
                 'predicted / reported, median (dt t r)',
-                'all three in 0.5-2',
+                "all three in 0.5-2 (carried from a result with the blocks' term)",
                 'auto mode said last',
             ],
             rows,
         )
-        + f'\nresults whose predicted / reported sigmas all lie in 0.5-2: {inside} of {results}',
+        + '\nresults whose predicted / reported sigmas all lie in 0.5-2: {} of {}; of those whose '
+        "prediction carried a result with the blocks' term: {} of {}".format(*totals),
     )
 
 

@@ -79,6 +79,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'wander': ('wander', [], ['wander'], '12 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),
+    'prefixes': ('prefixes', [], ['prefixes'], '3 min'),
     'readiness_live_real': ('readiness_live_real', [], ['readiness_live_real'], '15 min'),
     'readiness_live_real_dense': (
         'readiness_live_real',

@@ -7,7 +7,8 @@ outdoors4: Basalt VIO and ORB-SLAM3 VIO on the same MoCap put T_HE 11 mm apart i
 reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
 
 1. **Correlated (blocks).** The covered eye poses are cut into ``B`` contiguous blocks of as
-   many poses, each refitted alone from the solution, with deviations ``d_b`` from it and
+   many poses, each refitted alone by one step from the solution (its linearised influence,
+   which stays within what its covariance describes), with deviations ``d_b`` from it and
    covariances ``C_b``. What the blocks' disagreement means differs by group:
 
    - Translation and rotation: a VIO's errors over minutes (biases, a slow drift of its

@@ -10,8 +10,12 @@ mode's own is published when its ratio is no larger than the published one's (or
 one's sigmas lack the blocks' term and its own have it, or its estimate moved beyond the published
 sigma); once one improves it by no more than IMPROVEMENT of itself (or of 1, the targets), or is
 not published, auto mode has converged (said in the status; *stalled* when the published result is
-not ``good``); so it has, said so, once the buffers are full (their span can no longer grow by
-GROWTH). Converged, stalled or done, it calibrates again when the status's predicted ratio falls
+doubtful for a reason that more of the same recording does not remedy). A published result held
+back only by its precision, or by sigmas that lack the blocks' term, is not converged on: more
+recording is their remedy, and one later result no better is no evidence of a floor (a sigma of
+four blocks moves by a quarter between calibrations), so auto mode calibrates at each GROWTH
+until a result is ``good`` or the buffers are full (done, said so: their span can no longer grow
+by GROWTH). Converged, stalled or done, it calibrates again when the status's predicted ratio falls
 below the one predicted at its last calibration by more than RECALIBRATE of it (or of 1): richer
 motion than the data it converged on.
 ``~/calibrate`` works at any time, and its result is always published.
@@ -27,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats
 from ..core.checks.carry import LACKS_BLOCKS, held_reasons, held_words, predictor_factors
-from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
+from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
 from .jobs import Calibrated
@@ -67,6 +71,9 @@ class AutoMode:
         #: hold READY back)
         self.factors: dict[str, float] = {}
         self.held: list[str] = []
+        #: whether more of the same recording is the remedy for every one of those reasons
+        #: (precision, the blocks' term)
+        self._recording_helps = False
         #: whether a result of these buffers (published, or a check of READY) set them
         self.confirmed = False
         #: the published auto result's estimate: dt [s], translation [m], rotation (x y z w)
@@ -96,6 +103,7 @@ class AutoMode:
             self.said, self._span_calibrated, self._sigmas = 'waiting for READY', 0.0, None
             self._predicted_then, self._estimate = math.inf, None
         self.factors, self.held, self.confirmed = {}, [], False
+        self._recording_helps = False
 
     def _predicted(self, last: ReadinessDoc | None) -> float:
         """The status's predicted precision ratio (inf while a sigma is unknown)."""
@@ -153,7 +161,7 @@ class AutoMode:
             self._sigmas = sigmas
         if admitted or published is None:
             self._published(doc)
-        if converged:
+        if converged and not (self.held and self._recording_helps):
             self.said = self._ended(self._sigmas or sigmas)
         if admitted or published is None:
             return ''
@@ -189,6 +197,9 @@ class AutoMode:
         self.confirmed = True
         self.factors = predictor_factors(doc)
         self.held = held_reasons(doc)
+        self._recording_helps = all(
+            r['code'] == Code.IMPRECISE.value for r in doc['quality']['reasons']
+        )
         self._estimate = _estimate_of(doc)
 
 

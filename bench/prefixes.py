@@ -26,8 +26,7 @@ import numpy as np
 import readiness_real
 from common import emit, table
 
-from handeye_ros.core.checks.carry import SIGMA_KEYS, carry_over, held_reasons, predictor_factors
-from handeye_ros.core.checks.verdict import sigmas_of
+from handeye_ros.core.checks.carry import SIGMA_KEYS
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.ros.auto_mode import GROWTH
@@ -35,9 +34,9 @@ from handeye_ros.ros.auto_mode import GROWTH
 FIRST_S = 20.0
 
 
-def prefixes(hand, eye, step_s: float) -> list[tuple[float, dict, dict, str]]:
-    """(seconds, the status's readiness, the result's document, its verdict) for each prefix
-    that calibrates."""
+def prefixes(hand, eye, step_s: float) -> list[tuple[float, dict, dict, str, np.ndarray]]:
+    """(seconds, the status's readiness, the result's document, its verdict, its reported
+    1-sigmas in ms, mm, deg) for each prefix that calibrates."""
     t0 = max(int(hand.t_ns[0]), int(eye.t_ns[0]))
     span = (min(int(hand.t_ns[-1]), int(eye.t_ns[-1])) - t0) * 1e-9
     out = []
@@ -49,29 +48,22 @@ def prefixes(hand, eye, step_s: float) -> list[tuple[float, dict, dict, str]]:
             continue
         if res.readiness is None or res.batch is None:
             continue
-        doc = res.to_dict()
-        out.append((float(s), res.readiness.to_dict(), doc, res.quality.verdict.value))
+        status, verdict = res.readiness.to_dict(), res.quality.verdict.value
+        out.append((float(s), status, res.to_dict(), verdict, readiness_real._reported(res)))
     return out
 
 
-def _sigmas(doc: dict) -> np.ndarray:
-    """A result's reported 1-sigmas in the status's units (ms, mm, deg)."""
-    std = doc['std']
-    s = sigmas_of(np.r_[std['time_offset'], std['translation'], std['rotation']])
-    return np.array([s[0] * 1e3, s[1] * 1e3, s[2]])
-
-
-def steadiness(rows: list[tuple[float, dict, dict, str]], step_s: float) -> dict:
+def steadiness(rows: list[tuple[float, dict, dict, str, np.ndarray]], step_s: float) -> dict:
     """The verdict's turns, the sigmas' log changes and the carried predictions' ratios."""
     seconds = np.array([r[0] for r in rows])
-    sigmas = np.array([_sigmas(r[2]) for r in rows])
+    sigmas = np.array([r[4] for r in rows])
     verdicts = [r[3] for r in rows]
     ratios = []
-    for s, _, doc, _ in rows:
+    for s, _, doc, _, _ in rows:
         j = int(np.argmin(np.abs(seconds - GROWTH * s)))
         if seconds[j] <= s or abs(seconds[j] - GROWTH * s) > step_s / 2:
             continue
-        carried = carry_over(rows[j][1], predictor_factors(doc), held_reasons(doc))
+        carried = readiness_real._carried(rows[j][1], doc)
         predicted = np.array([carried['sigma'][k] for k in SIGMA_KEYS], dtype=float)
         ratios.append(predicted / sigmas[j])
     return {

@@ -30,8 +30,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats
-from ..core.checks.carry import LACKS_BLOCKS, held_reasons, held_words, predictor_factors
-from ..core.checks.verdict import Code, precision_ratio, precision_ratios, sigmas_of
+from ..core.checks.carry import (
+    LACKS_BLOCKS,
+    held_reasons,
+    held_words,
+    predictor_factors,
+    recording_remedies,
+)
+from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
 from .jobs import Calibrated
@@ -197,9 +203,7 @@ class AutoMode:
         self.confirmed = True
         self.factors = predictor_factors(doc)
         self.held = held_reasons(doc)
-        self._recording_helps = all(
-            r['code'] == Code.IMPRECISE.value for r in doc['quality']['reasons']
-        )
+        self._recording_helps = recording_remedies(doc)
         self._estimate = _estimate_of(doc)
 
 

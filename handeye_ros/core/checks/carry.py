@@ -58,6 +58,12 @@ def held_reasons(doc: ResultDoc) -> list[str]:
     return [r['message'] for r in reasons] + [LACKS_BLOCKS] * lacking
 
 
+def recording_remedies(doc: ResultDoc) -> bool:
+    """Whether more of the same recording is the remedy for all that holds ``doc`` back
+    (:func:`held_reasons`): its precision, and sigmas that lack the blocks' term."""
+    return all(r['code'] == Code.IMPRECISE.value for r in doc['quality']['reasons'])
+
+
 def held_words(first: str) -> str:
     """What holds READY back, said after a result's name, from the first of
     :func:`held_reasons`."""

@@ -147,8 +147,10 @@ def write_outputs(
     from ..evaluation.outputs import evaluate_and_write
 
     try:
-        if req.evaluation or req.export or req.report:
-            evaluate_and_write(
+        # purpose evaluation's verdict reads the evaluation's own figures
+        judged = result.config.purpose == 'evaluation'
+        if req.evaluation or req.export or req.report or judged:
+            result = evaluate_and_write(
                 result,
                 out,
                 export_dir=req.export,
@@ -156,6 +158,8 @@ def write_outputs(
                 delta_s=req.rpe_delta,
                 delta_m=req.rpe_distance,
             )
+            if not req.evaluation:  # judged, and not written where it was not asked for
+                out.pop('evaluation', None)
     except Exception as err:
         if req.outputs_required:
             raise

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 from .options import Options, option
 
 PEAK_FITS = ('quadratic', 'none')
+#: What the calibration is for (:class:`.checks.verdict.Purpose`'s values, repeated here so
+#: that reading the options imports no numpy): what the verdict's "precise enough" means.
+PURPOSES = ('evaluation', 'extrinsic')
 #: Names of the relative-pose strategies, owned by :data:`.linear.keyframes.STRATEGIES`; repeated here
 #: so that reading the options does not import numpy and scipy (instant --help).
 RELATIVE_POSES = ('rotation', 'global', 'interframe')
@@ -311,30 +314,52 @@ class CalibrationConfig(Options):
         'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2',
         expert=True,
     )
+    purpose: str = option(
+        'evaluation',
+        'str',
+        'what the result is for, which decides what precise enough means: evaluation (each '
+        "APE/RPE figure's calibration 1-sigma within 5 % of it) or extrinsic (T_HE and dt "
+        'within the precision_* targets); the result gives both verdicts',
+        choices=PURPOSES,
+    )
     precision_time_offset: float = option(
         1e-3,
         'float',
-        'verdict: a 1-sigma of the time offset above this [s] makes the result '
-        'doubtful (reason imprecise)',
+        'verdict for purpose extrinsic: a 1-sigma of the time offset above this [s] makes the '
+        'result doubtful (reason imprecise)',
         low=0.0,
         high=3600.0,
         open_low=True,
+        expert=True,
     )
     precision_translation: float = option(
         0.01,
         'float',
-        'verdict: a 1-sigma of the translation of T_HE above this [m] makes the result doubtful',
+        'verdict for purpose extrinsic: a 1-sigma of the translation of T_HE above this [m] '
+        'makes the result doubtful',
         low=0.0,
         high=100.0,
         open_low=True,
+        expert=True,
     )
     precision_rotation: float = option(
         0.5,
         'float',
-        'verdict: a 1-sigma of the rotation of T_HE above this [deg] makes the result doubtful',
+        'verdict for purpose extrinsic: a 1-sigma of the rotation of T_HE above this [deg] '
+        'makes the result doubtful',
         low=0.0,
         high=180.0,
         open_low=True,
+        expert=True,
+    )
+    held_lever_arm: float = option(
+        0.0,
+        'float',
+        'where the motion turns about one axis only (a ground robot): the translation of T_HE '
+        'along that axis [m], which no metric depends on and the data cannot tell, held here',
+        low=-100.0,
+        high=100.0,
+        expert=True,
     )
     min_motions: int = option(
         10, 'int', 'fewest relative motions accepted', low=2, high=1_000_000, expert=True

@@ -23,10 +23,22 @@ class Reason(TypedDict):
     message: str
 
 
+class JudgedDoc(TypedDict):
+    verdict: str
+    codes: list[str]
+
+
+class EvaluationJudgedDoc(JudgedDoc):
+    figures_judged: bool
+
+
 class QualityDoc(TypedDict):
     verdict: str
+    purpose: str
     reasons: list[Reason]
     notes: list[str]
+    for_evaluation: EvaluationJudgedDoc
+    for_extrinsic: JudgedDoc
 
 
 class ClockWindow(TypedDict):
@@ -91,6 +103,7 @@ class ScreeningDoc(TypedDict):
     poses_in: int
     removed: dict[str, int]
     fraction: float
+    short_segment_fraction: float
     removed_stamps_ns: list[int]
     removed_kinds: list[str]
     breaks_ns: list[int]

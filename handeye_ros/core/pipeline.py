@@ -47,6 +47,7 @@ from .checks.selfcheck import motion_consistency
 from .checks.verdict import (
     Code,
     Findings,
+    Purpose,
     assess_answer,
     assess_model,
     assess_streams,
@@ -247,7 +248,7 @@ def _finish(
         candidates=tuple(
             replace(c, time_offset_s=shift_ns * 1e-9 + c.time_offset_s) for c in found.candidates
         ),
-        quality=judged(found),
+        quality=judged(found, Purpose(cfg.purpose)),
         seed_check=seed_lin,
         eye_model=refined.model,
         clock=linear.clock,

@@ -108,6 +108,7 @@ def screening_section(
             'poses_in': s.n_input,
             'removed': s.counts,
             'fraction': s.fraction,
+            'short_segment_fraction': s.short_fraction,
             'removed_stamps_ns': [int(t) for t in s.removed_ns],
             'removed_kinds': list(s.removed_kind),
             'breaks_ns': [int(t) for t in s.breaks_ns],

@@ -120,6 +120,34 @@ def calibration_sigmas(
     return CalibrationSigmas(sigmas, len(moved), int(keep.size), tuple(names)), ''
 
 
+def figures_moved(
+    result: CalibrationResult, d: Floats, delta_s: float, delta_m: float
+) -> dict[str, dict[str, float]] | None:
+    """The APE/RPE figures (m, deg) on the draws' poses with the calibration moved by ``d``
+    (:func:`calibration_sigmas`' order: dt, translation, rotation in the tangent on the right,
+    [drift], [scale]): the figures a calibration other than the reported one would give, T_WG
+    fitted again; None when too few eye poses fall inside the hand recording."""
+    used = result.used
+    assert used is not None, 'a result with its poses'
+    batch = result.batch
+    k = 7
+    drift_at = scale_at = None
+    if batch is not None and batch.clock_drift is not None:
+        drift_at, k = k, k + 1
+    if batch is not None and batch.scale is not None:
+        scale_at = k
+    keep, window = _windows(used.eye_stamps_ns, delta_s)
+    stamp_ns = result.eye_model.stamp_ns if result.eye_model is not None else 0
+    sample = _Sample(
+        used.eye.select(keep),
+        used.eye_stamps_ns[keep],
+        window,
+        (drift_at, scale_at, stamp_ns),
+        (delta_s, delta_m),
+    )
+    return _figures(result, sample, d)
+
+
 def _rms_change(at: float, moved: list[float]) -> float | None:
     """The root-mean-square of the draws' changes from ``at``; None for a figure that has no
     value (an RPE step longer than the recording)."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..core.checks.verdict import Verdict
 from ..core.document import ErrorKey, EvaluationDoc, ResultDoc, TransformDoc
-from .terminal import sigma_figures
+from .terminal import other_purpose, purpose_words, sigma_figures
 
 VERDICT_COLOUR: dict[str, str] = {
     Verdict.GOOD: '#1a7f37',
@@ -216,6 +216,7 @@ def render(d: ResultDoc, figures: list[tuple[Path, str]]) -> str:
 <h1>handeye_ros calibration report</h1>
 <p><span class="verdict" style="background:{colour}">{_e(q['verdict'].upper())}</span>
 &nbsp;{_e(d.get('summary', ''))}</p>
+<p>Judged for {_e(purpose_words(q))}; {_e(other_purpose(q))}.</p>
 {f'<ul>{reasons}</ul>' if reasons else ''}{f'<p>Notes:</p><ul>{notes}</ul>' if notes else ''}
 <h2>Result</h2>{_numbers(d)}
 {_transform('T_HE: eye frame in hand frame', d['extrinsic'])}

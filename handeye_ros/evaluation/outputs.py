@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from pathlib import Path
 
-from ..core.document import FilesDoc, ResultDoc
+from ..core.checks.verdict import assess_evaluation
+from ..core.document import ErrorKey, FilesDoc, ResultDoc
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
 from .aligned import AlignedTrajectories, calibrated, uncalibrated
@@ -43,14 +45,19 @@ def evaluate_and_write(
     report_dir: str | Path | None = None,
     delta_s: float = 1.0,
     delta_m: float = 1.0,
-) -> None:
+) -> CalibrationResult:
     """Add ``evaluation`` (APE/RPE with and without the calibration) to the result dictionary
-    ``out``; write the exports and the report where asked (their paths go to
-    ``out['files']``). Raises InputError when a directory cannot be written."""
+    ``out`` and judge its figures (:func:`judge_figures`: the result returned, ``out``'s
+    quality and summary with it); write the exports and the report where asked (their paths
+    go to ``out['files']``). Raises InputError when a directory cannot be written."""
     evaluated = evaluation_of(result, delta_s, delta_m)
     if evaluated is None:
-        return
+        return result
     ev, cal, base = evaluated
+    result = judge_figures(result, ev)
+    out['quality'] = result.quality.to_dict()
+    if 'summary' in out:
+        out['summary'] = result.summary()
     out['evaluation'] = ev.to_dict()
     files: FilesDoc = {}
     if export_dir:
@@ -61,6 +68,38 @@ def evaluate_and_write(
         files['report'] = str(write_report(report_dir, result, out, cal, base))
     if files:
         out['files'] = files
+    return result
+
+
+#: The figures purpose evaluation judges: (key, label, the unit said, the factor to it).
+JUDGED: tuple[tuple[ErrorKey, str, str, float], ...] = (
+    ('ape_translation', 'APE translation rmse', 'mm', 1e3),
+    ('ape_rotation', 'APE rotation rmse', 'deg', 1.0),
+    ('rpe_time_translation', 'RPE translation rmse per {s:g} s', 'mm', 1e3),
+    ('rpe_time_rotation', 'RPE rotation rmse per {s:g} s', 'deg', 1.0),
+    ('rpe_distance_translation', 'RPE translation rmse per {m:g} m', 'mm', 1e3),
+    ('rpe_distance_rotation', 'RPE rotation rmse per {m:g} m', 'deg', 1.0),
+)
+
+
+def judge_figures(result: CalibrationResult, ev: Evaluation) -> CalibrationResult:
+    """The result with its verdict's rule on the evaluation's own figures
+    (:func:`~handeye_ros.core.checks.verdict.assess_evaluation`): each calibrated figure's rmse
+    against the 1-sigma the calibration gives it."""
+    figures = []
+    for key, label, unit, k in JUDGED:
+        stats = getattr(ev.calibrated, key)
+        sigma = None if ev.sigmas is None else ev.sigmas.sigmas[key]['rmse']
+        figures.append(
+            (
+                label.format(s=ev.delta_s, m=ev.delta_m),
+                stats.rmse * k,
+                None if sigma is None else sigma * k,
+                unit,
+            )
+        )
+    reasons, notes = assess_evaluation(figures, '' if ev.sigmas is not None else ev.sigmas_why)
+    return replace(result, quality=result.quality.with_evaluation(reasons, notes))
 
 
 def evaluation_of(

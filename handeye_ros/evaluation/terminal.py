@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..core.checks.carry import SIGMA_KEYS
-from ..core.document import ErrorStatsDoc, ReadinessDoc, ResultDoc, TransformDoc
+from ..core.document import ErrorStatsDoc, QualityDoc, ReadinessDoc, ResultDoc, TransformDoc
 
 
 def format_report(d: ResultDoc) -> str:
@@ -58,6 +58,26 @@ def format_report(d: ResultDoc) -> str:
     return '\n'.join(lines)
 
 
+def purpose_words(q: QualityDoc) -> str:
+    """What the verdict was judged for, in words."""
+    if q['purpose'] == 'extrinsic':
+        return 'the extrinsic: its precision_* targets'
+    judged = q['for_evaluation']['figures_judged']
+    return 'an evaluation: ' + (
+        "the calibration's share of each APE/RPE figure"
+        if judged
+        else 'the figures were not evaluated, so only the other rules'
+    )
+
+
+def other_purpose(q: QualityDoc) -> str:
+    """The verdict of the purpose not judged, in one line."""
+    other = 'extrinsic' if q['purpose'] == 'evaluation' else 'evaluation'
+    o = q['for_extrinsic'] if other == 'extrinsic' else q['for_evaluation']
+    codes = f' ({", ".join(o["codes"])})' if o['codes'] else ''
+    return f'for purpose {other}: {o["verdict"]}{codes}'
+
+
 def _heading_lines(d: ResultDoc) -> list[str]:
     """The verdict with its reasons and notes, the inputs and the MoCap's coverage."""
     q = d['quality']
@@ -65,9 +85,10 @@ def _heading_lines(d: ResultDoc) -> list[str]:
         'handeye_ros calibration',
         f'  convention: {d["convention"]}',
         '',
-        f'VERDICT: {q["verdict"].upper()}',
+        f'VERDICT: {q["verdict"].upper()} (judged for {purpose_words(q)})',
     ]
     lines += [f'  - {r["code"]}: {r["message"]}' for r in q['reasons']]
+    lines.append(f'  {other_purpose(q)}')
     lines += [f'  note: {n}' for n in q['notes']]
     for name, info in (('hand', d['inputs']['hand']), ('eye', d['inputs']['eye'])):
         lines.append(

@@ -4,7 +4,8 @@
 part of the MoCap; :mod:`.residuals` the cost functions: the relative eye residuals of eq. 16
 and their Jacobians (:mod:`.joint_jacobian` the joint solve's sparse one) (with the model
 ``T_WE(t) = T_WG T_GH(t - dt) T_HE`` stated with eq. 15);
-:mod:`.loss` the Huber loss of eq. 15; :mod:`.levenberg_marquardt` Levenberg-Marquardt;
+:mod:`.loss` the Huber loss of eq. 15; :mod:`.levenberg_marquardt` Levenberg-Marquardt, with
+:mod:`.rank` deciding which directions its normal matrices determine;
 :mod:`.covariance` and :mod:`.long_run` the uncertainty of (dt, T_HE), the latter for residuals
 correlated in time, and :mod:`.correlated` what a real VIO adds to it (errors correlated over
 minutes, its scale); :mod:`.refine` the problem: what is solved and the answer it gives;

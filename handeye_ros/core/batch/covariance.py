@@ -28,6 +28,7 @@ from .long_run import (
 )
 from .loss import huber_cost
 from .parameters import ParameterLayout, weighted_eye_chunks
+from .rank import inverse
 from .residuals import BatchProblem, Weights
 
 
@@ -117,7 +118,7 @@ class CovarianceSums:
                 k,
             )
         else:
-            cov[np.ix_(free_all, free_all)] = s2 * np.linalg.inv(sums['N'])
+            cov[np.ix_(free_all, free_all)] = s2 * inverse(sums['N'])
             psi, _ = influence_from_sums(np.concatenate(self.g_parts['all']), sums['H'])
         return cov, _long_run_in_y(psi, layout), self.cost, self.n_res
 
@@ -203,9 +204,9 @@ def two_step_from_normals(N_A: Floats, N_B: Floats, N_Bt: Floats, s2: float, k: 
     (J_t: all residuals wrt dtheta). The final dt is step B's. N_A, N_B, N_Bt: J_A^T J_A,
     J_B^T J_B and J_B^T J_t, summed over the eye pairs.
     """
-    cov_a = s2 * np.linalg.inv(N_A)
+    cov_a = s2 * inverse(N_A)
     cov_tt = cov_a[k:, k:]
-    N_B_inv = np.linalg.inv(N_B)
+    N_B_inv = inverse(N_B)
     S = -N_B_inv @ N_Bt
     return assemble_two_step(cov_tt, s2 * N_B_inv, S, k)
 
@@ -239,7 +240,7 @@ def marginal_covariance(J: csc_matrix | Floats, n_nuisance: int) -> Floats:
     C = Jc.T @ Jc
     lu = splu(A)
     S = C - B.T @ lu.solve(B)
-    return np.linalg.inv(S)
+    return inverse(S)
 
 
 def joint_covariance(

@@ -19,6 +19,7 @@ from scipy.sparse.linalg import splu
 
 from ..arrays import Floats, Indices, Mask
 from .loss import huber_cost, huber_psi
+from .rank import pseudo_inverse, solve_determined
 
 #: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
 #: the normal matrix's diagonal) and the relative cost change that ends it.
@@ -89,15 +90,16 @@ def levenberg_marquardt_dense(
     iterations = 0
     for _ in range(max_iterations):
         iterations += 1
-        sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(cur.A)), 1e-300, None))
+        # on the directions the data determine (:mod:`.rank`); along the others y stays
+        sigma = np.sqrt(np.clip(np.diag(pseudo_inverse(cur.A)), 1e-300, None))
         D = np.diag(np.maximum(cur.D, 1e-12))
-        if np.all(np.abs(np.linalg.solve(cur.A, -cur.g)) <= STEP_TOL_SIGMA * sigma):
+        if np.all(np.abs(solve_determined(cur.A, -cur.g)) <= STEP_TOL_SIGMA * sigma):
             # the Gauss-Newton step from here is below tolerance: y is the solution, and
             # the step is not worth a pass over the eye (it would change y by < 1e-2 sigma)
             message, success = "Gauss-Newton step below 1e-2 of every parameter's sigma", True
             break
         while True:
-            step = np.linalg.solve(cur.A + lam * D, -cur.g)
+            step = solve_determined(cur.A + lam * D, -cur.g)
             y_new = y.copy()
             y_new[free] += step
             new = sums_at(y_new)

@@ -34,6 +34,7 @@ import numpy as np
 
 from ..arrays import Floats, Indices
 from .loss import huber_psi
+from .rank import inverse
 
 #: Largest AR(1) coefficient used in the bandwidth (a unit root has no long-run variance).
 MAX_RHO = 0.97
@@ -101,7 +102,7 @@ def influence_sums(
 
 def influence_from_sums(g: Floats, H: Floats) -> tuple[Floats, Floats]:
     """Influences ``psi_e = -H^-1 g_e`` (T, p) and ``H^-1`` from :func:`influence_sums`."""
-    H_inv = np.linalg.inv(H)
+    H_inv = inverse(H)
     return -g @ H_inv.T, H_inv
 
 

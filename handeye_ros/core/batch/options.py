@@ -20,7 +20,11 @@ class BatchOptions:
     drift_stamp_ns: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns) with t
     the eye's stamps (:mod:`.time.clock`); scale: also a factor on the eye's translations. Both
     are corrections to what the eye already has (0 and 1 to start), and only the default (not
-    the joint) solve estimates them.
+    the joint) solve estimates them. held_axis: a unit direction (hand frame) along which the
+    translation of T_HE stays at its start: the only rotation axis of the motion, along which
+    no eye motion depends on it (the default solve only); held_rotation: the rotation of T_HE
+    about it held too (a rig turned in place, where any such rotation has its own translation
+    across the axis).
     """
 
     knot_spacing: float = 0.05
@@ -34,3 +38,5 @@ class BatchOptions:
     decoupled: bool = True
     drift_stamp_ns: int | None = None
     scale: bool = False
+    held_axis: tuple[float, ...] | None = None
+    held_rotation: bool = False

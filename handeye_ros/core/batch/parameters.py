@@ -22,32 +22,45 @@ if TYPE_CHECKING:
 class ParameterLayout:
     """Which entries of y = (dt, dtheta_X (3), dp_X (3), [drift], [scale]) each step frees.
 
-    time: dt (unless fixed) and the drift, free in both steps of the decoupled solve; scale:
-    with the translation (step B). Every covariance is in the order of :attr:`all`.
+    time: dt (unless fixed) and the drift, free in both steps of the decoupled solve;
+    rotation, translation: the entries of dtheta_X and dp_X that are free (y[3] and y[6] are
+    held with a held rotation and axis, :class:`.residuals.BatchProblem`); scale: with the translation (step B). Every covariance
+    is in the order of :attr:`all`.
     """
 
     time: tuple[int, ...]
     scale: tuple[int, ...]
     size: int
+    translation: tuple[int, ...] = (4, 5, 6)
+    rotation: tuple[int, ...] = (1, 2, 3)
 
     @classmethod
-    def of(cls, prob: BatchProblem, fix_time_offset: bool) -> ParameterLayout:
+    def of(
+        cls, prob: BatchProblem, fix_time_offset: bool, held_axis: bool, held_rotation: bool
+    ) -> ParameterLayout:
         time_idx = (() if fix_time_offset else (0,)) + (
             () if prob.i_drift is None else (prob.i_drift,)
         )
-        return cls(time_idx, () if prob.i_scale is None else (prob.i_scale,), prob.n_y)
+        scale = () if prob.i_scale is None else (prob.i_scale,)
+        return cls(
+            time_idx,
+            scale,
+            prob.n_y,
+            (4, 5) if held_axis else (4, 5, 6),
+            (1, 2) if held_rotation else (1, 2, 3),
+        )
 
     @property
     def a(self) -> Indices:
-        return np.array((*self.time, 1, 2, 3))
+        return np.array((*self.time, *self.rotation))
 
     @property
     def b(self) -> Indices:
-        return np.array((*self.time, 4, 5, 6, *self.scale))
+        return np.array((*self.time, *self.translation, *self.scale))
 
     @property
     def all(self) -> Indices:
-        return np.array((*self.time, 1, 2, 3, 4, 5, 6, *self.scale))
+        return np.array((*self.time, *self.rotation, *self.translation, *self.scale))
 
     @property
     def steps(self) -> Floats:

@@ -30,7 +30,7 @@ The noise of each stream is estimated from its own residuals unless given.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -93,6 +93,11 @@ class BatchSolution:
     clock_drift: float | None = None
     time_offset_stamp_ns: int | None = None
     scale: float | None = None
+    #: the unit direction (hand frame) along which T_HE's translation was held at its start
+    #: (the covariance has no variance along it), None when every direction was estimated
+    held_axis: Floats | None = None
+    #: the rotation of T_HE about held_axis was held too (a rig turned in place)
+    held_rotation: bool = False
     #: the covariance's parts (:mod:`.correlated`), once the stage has added them
     uncertainty: Uncertainty | None = None
     #: the hand's spline the solution was found on, for refits of the same hand (dropped once
@@ -141,11 +146,16 @@ def refine(
         hand long enough for a spline).
     """
     o = options or BatchOptions()
+    if o.held_axis is not None:
+        # about one axis the eye's relative rotations do not depend on T_HE's rotation about
+        # it (a conjugation by a rotation about the axis of the motion itself): only the
+        # translations tell it, so the rotation cannot be solved for first
+        o = replace(o, decoupled=False)
     t_start = time.perf_counter()
-    if o.joint and (o.drift_stamp_ns is not None or o.scale):
+    if o.joint and (o.drift_stamp_ns is not None or o.scale or o.held_axis is not None):
         raise BatchError(
             'the joint solve (batch_joint) does not estimate a clock drift or a '
-            'scale; leave batch_joint off to estimate them'
+            'scale, nor hold a direction; leave batch_joint off for them'
         )
     hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, o.knot_spacing, o.order)
     check_hand_rate(hand, o.knot_spacing, o.joint)
@@ -161,9 +171,13 @@ def refine(
         o.scale,
         pieces,
         spline,
+        None if o.held_axis is None else np.asarray(o.held_axis, float),
+        o.held_rotation,
     )
     hn = _hand_noise(prob, o.hand_noise, o.joint)
-    solved, y = _solve(prob, ParameterLayout.of(prob, o.fix_time_offset), hn, o)
+    held = o.held_axis is not None
+    layout = ParameterLayout.of(prob, o.fix_time_offset, held, held and o.held_rotation)
+    solved, y = _solve(prob, layout, hn, o)
     return _solution(prob, solved, y, o, piece_note, time.perf_counter() - t_start)
 
 
@@ -204,10 +218,13 @@ def _solution(
     sol = solved.report
     dof = max(solved.n_residuals - solved.n_free, 1)
     chi2 = 2.0 * solved.cost_after / dof
-    # parameter order (dt, dtheta, dp, ...) -> reported order (dt, translation, rotation, ...)
+    # parameter order (dt, dtheta, dp in the translation basis, ...) -> reported order (dt,
+    # translation in the hand frame, rotation in the eye frame, ...): T C T^T with T the bases
     perm = np.array([0, 4, 5, 6, 1, 2, 3, *range(7, prob.n_y)])
-    cov_white = solved.covariance[np.ix_(perm, perm)]
-    cov = solved.long_run.covariance[np.ix_(perm, perm)]
+    T = np.eye(prob.n_y)
+    T[1:4, 1:4], T[4:7, 4:7] = prob.translation_basis, prob.rotation_basis
+    cov_white = T @ solved.covariance[np.ix_(perm, perm)] @ T.T
+    cov = T @ solved.long_run.covariance[np.ix_(perm, perm)] @ T.T
     (dt, drift), X = prob.clock(y), prob.extrinsic(y)
     warnings = [piece_note] if piece_note else []
     if not sol.success:
@@ -238,5 +255,7 @@ def _solution(
         clock_drift=None if prob.i_drift is None else drift,
         time_offset_stamp_ns=o.drift_stamp_ns,
         scale=None if prob.i_scale is None else prob.scale(y),
+        held_axis=None if o.held_axis is None else np.asarray(o.held_axis, float),
+        held_rotation=o.held_axis is not None and o.held_rotation,
         spline=prob.spline0,
     )

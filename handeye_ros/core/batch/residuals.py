@@ -109,6 +109,15 @@ def _times(M: Floats, C: Floats) -> Floats:
     return (M.reshape(-1, 3) @ C).reshape(M.shape)
 
 
+def basis_ending_in(axis: Floats) -> Floats:
+    """(3, 3) orthonormal, right-handed, its last column the unit ``axis``."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    out: Floats = np.stack((e1, np.cross(a, e1), a), axis=1)
+    return out
+
+
 def _conjugate(C: Floats, M: Floats, right: bool = True) -> Floats:
     """``C M C^T`` (or ``C M`` with ``right`` False) for a constant C (3, 3) and a stack M
     (N, 3, 3), as plain matrix products over the stack (numpy's stacked 3x3 matmul is several
@@ -143,10 +152,12 @@ class BatchProblem:
         scale: bool = False,
         pieces: list[tuple[int, int]] | None = None,
         spline0: PoseSpline | None = None,
+        held_axis: Floats | None = None,
+        held_rotation: bool = False,
     ):
         """``pieces``: index ranges of the hand's gap-free parts, one spline each (default: one
         spline through the whole hand); ``spline0``: the spline already fitted to this hand
-        with these knots and pieces (it depends on nothing else)."""
+        with these knots and pieces; ``held_*``: the directions held (:meth:`_bases`)."""
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
@@ -175,6 +186,7 @@ class BatchProblem:
         self.te = te
         self.eye_obs = relative((Re, pe), self.ei, self.ej)
         self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
+        self.translation_basis, self.rotation_basis = self._bases(held_axis, held_rotation)
         self.n_spline = 6 * self.M
         self.n = self.n_spline + 7
         # optional entries of y after (dt, dtheta_X, dp_X): the clock drift about the reference
@@ -187,6 +199,18 @@ class BatchProblem:
             if drift_stamp_ns is None
             else (np.int64(drift_stamp_ns) - np.int64(self.origin)) * 1e-9
         )
+
+    def _bases(self, held_axis: Floats | None, held_rotation: bool) -> tuple[Floats, Floats]:
+        """The bases of dp_X (hand frame) and dtheta_X (eye frame): the identity, or with a
+        unit ``held_axis`` (hand frame; the only rotation axis of a ground robot) one whose last
+        vector is it, so that holding T_HE's translation along it is holding y[6]; with
+        ``held_rotation`` (the rotation about it held too) dtheta_X's is the axis in the eye
+        frame, y[3] held (:func:`basis_ending_in`)."""
+        eye3: Floats = np.eye(3)
+        if held_axis is None:
+            return eye3, eye3
+        rotation = basis_ending_in(self.RX0.T @ held_axis) if held_rotation else eye3
+        return basis_ending_in(held_axis), rotation
 
     def _inside(self, t: Floats) -> Mask:
         """Hand times (s) at least DT_MARGIN_S inside a piece of the spline."""
@@ -224,7 +248,8 @@ class BatchProblem:
 
     def extrinsic(self, y: Floats) -> Pose:
         """T_HE of the updates y = (ddt, dtheta_X, dp_X, ...) to the start values."""
-        return self.RX0 @ Rotation.from_rotvec(y[1:4]).as_matrix(), self.pX0 + y[4:7]
+        R = self.RX0 @ Rotation.from_rotvec(self.rotation_basis @ y[1:4]).as_matrix()
+        return R, self.pX0 + self.translation_basis @ y[4:7]
 
     def clock(self, y: Floats) -> tuple[float, float]:
         """(dt at t_ref, clock drift) of y."""
@@ -338,7 +363,8 @@ class BatchProblem:
         a, b, te, Q, RX, pX, s = p.a, p.b, p.te, p.Q, p.RX, p.pX, p.s
         J = np.zeros((a.size, rows, self.n_y))
         Jl_inv = right_jacobian(-p.r_rot, inverse=True)
-        Jr_theta = right_jacobian(y[None, 1:4])[0]
+        # the tangent on the right in the rotation basis: R_X0 Exp(B y[1:4])
+        Jr_theta = right_jacobian((self.rotation_basis @ y[1:4])[None])[0] @ self.rotation_basis
         rel_R = _conjugate(RX.T, Q)
         J[:, :3, 1:4] = _times(np.matmul(Jl_inv, rel_R - np.eye(3)), Jr_theta)
         time_cols: list[tuple[int, float | Floats, float | Floats]] = [(0, -1.0, -1.0)]
@@ -354,7 +380,7 @@ class BatchProblem:
             return J
         assert p.p_rel is not None and p.u is not None, 'translations were predicted'
         J[:, 3:, 1:4] = _times(skew(p.p_rel), Jr_theta / s)
-        J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) / s
+        J[:, 3:, 4:7] = _conjugate(RX.T, Q - np.eye(3), right=False) @ self.translation_basis / s
         if self.i_scale is not None:
             J[:, 3:, self.i_scale] = -p.p_rel / s**2
         dp_a = np.cross(p.u, Wa) - np.einsum('nij,nj->ni', p.Ra_t, p.V[a])

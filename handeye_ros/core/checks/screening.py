@@ -116,9 +116,25 @@ class Screening:
         return int(self.removed_ns.size)
 
     @property
+    def n_short(self) -> int:
+        """Poses in segments between breaks too short to use: not wrong, only unusable."""
+        return self.counts['short_segment']
+
+    @property
+    def n_outliers(self) -> int:
+        """Poses removed as wrong (damaged, placeholders, outliers)."""
+        return self.n_removed - self.n_short
+
+    @property
     def fraction(self) -> float:
-        """Removed poses over input poses."""
-        return self.n_removed / max(self.n_input, 1)
+        """Poses removed as wrong over input poses (what ``max_outlier_fraction`` bounds);
+        poses in short segments between breaks are not counted (:attr:`short_fraction`)."""
+        return self.n_outliers / max(self.n_input, 1)
+
+    @property
+    def short_fraction(self) -> float:
+        """Poses in segments too short to use over input poses."""
+        return self.n_short / max(self.n_input, 1)
 
     def merged(self, removed_ns: Stamps, kind: str, breaks_ns: Stamps | None = None) -> Screening:
         """This report with more removed poses (all of one kind) and breaks."""

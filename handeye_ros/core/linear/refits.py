@@ -131,7 +131,9 @@ def common_axis(v: Floats) -> Floats:
     return a if float(v[k] @ a) >= 0.0 else -a
 
 
-def degenerate_refit(m: Motions, mask: Mask) -> tuple[Floats, Floats, tuple[str, ...]]:
+def degenerate_refit(
+    m: Motions, mask: Mask
+) -> tuple[Floats, Floats, tuple[str, ...], Floats, bool]:
     """T_HE when every motion rotates about one axis (a ground robot, a turntable).
 
     The rotation axes fix R_X up to a rotation phi about the common axis a (hand frame):
@@ -145,7 +147,8 @@ def degenerate_refit(m: Motions, mask: Mask) -> tuple[Floats, Floats, tuple[str,
     it is taken when its standard deviation from the least squares is below MAX_PHI_STD_DEG.
     Undetermined parts are given their smallest value (no translation along a; phi = 0).
 
-    Returns (q_HE x y z w, p_HE, the undetermined components in words).
+    Returns (q_HE x y z w, p_HE, the undetermined components in words, the axis a, and
+    whether phi is undetermined too).
     """
     a_h = Rotation.from_matrix(m.A[0][mask]).as_rotvec()
     a_e = Rotation.from_matrix(m.B[0][mask]).as_rotvec()
@@ -203,4 +206,5 @@ def degenerate_refit(m: Motions, mask: Mask) -> tuple[Floats, Floats, tuple[str,
     rhs_t = ((R_X.apply(m.B[1][mask]) - t_A)[:, :, None] * w).reshape(-1)
     t2 = np.linalg.lstsq(lhs_t, rhs_t, rcond=None)[0]
     q = R_X.as_quat()
-    return q * (1.0 if q[3] >= 0.0 else -1.0), basis[:, :2] @ t2, tuple(unobservable)
+    q = q * (1.0 if q[3] >= 0.0 else -1.0)
+    return q, basis[:, :2] @ t2, tuple(unobservable), a, len(unobservable) > 1

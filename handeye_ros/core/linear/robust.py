@@ -79,6 +79,12 @@ class LinearSolution:
     unobservable : tuple of str
         Components of T_HE the motion cannot determine (one rotation axis), in words, with the
         value they were given; empty when the motion determines all of them.
+    held_axis : ndarray, shape (3,), or None
+        The only rotation axis (unit, hand frame) of a motion about one axis: the translation
+        of T_HE along it is undetermined, and stage 3 holds it.
+    held_rotation : bool
+        The rotation of T_HE about that axis is undetermined too (a rig turned in place, not
+        driven): stage 3 holds it as well.
     scale, scale_std, scale_dq : float
         With ``estimate_scale``: the factor s that makes the eye's translations metric (on top
         of any the eye already had), its least-squares standard deviation, and the
@@ -104,6 +110,8 @@ class LinearSolution:
     inlier_translation_m: float
     warnings: tuple[str, ...] = ()
     unobservable: tuple[str, ...] = ()
+    held_axis: Floats | None = None
+    held_rotation: bool = False
     scale: float = 1.0
     scale_std: float = float('nan')
     scale_dq: float = 1.0
@@ -188,6 +196,8 @@ class _Refit:
     scale: float
     scale_dq: float
     scale_std: float
+    held_axis: Floats | None
+    held_rotation: bool
 
 
 def _solution(
@@ -217,6 +227,8 @@ def _solution(
         inlier_translation_m=float(thresholds[1]),
         warnings=refit.warnings,
         unobservable=refit.unobservable,
+        held_axis=refit.held_axis,
+        held_rotation=refit.held_rotation,
         scale=refit.scale,
         scale_std=refit.scale_std,
         scale_dq=refit.scale_dq,
@@ -244,6 +256,7 @@ def _refit(
     inliers, q_HE, p_HE = won.inliers, won.q_HE, won.p_HE
     q_dq, p_dq = q_HE, p_HE
     unobservable: tuple[str, ...] = ()
+    held_axis, held_rotation = None, False
     warnings: list[str] = []
     scale = scale_dq = 1.0
     scale_std = float('nan')
@@ -254,7 +267,7 @@ def _refit(
     if spread < MIN_AXIS_SPREAD_DEG:
         # one rotation axis: the dual-quaternion system has a 3-D null space and picks an
         # arbitrary point of it; the determined part is solved apart and the rest named
-        q_HE, p_HE, unobservable = degenerate_refit(m, inliers)
+        q_HE, p_HE, unobservable, held_axis, held_rotation = degenerate_refit(m, inliers)
         warnings.append(
             f'the rotation axes of the {inliers.sum()} inlier motions are within '
             f'{spread:.2f} deg of one direction, so part of the extrinsic cannot be '
@@ -269,7 +282,17 @@ def _refit(
             'constrained; rotate about more different axes'
         )
     return _Refit(
-        q_HE, p_HE, q_dq, p_dq, unobservable, tuple(warnings), scale, scale_dq, scale_std
+        q_HE,
+        p_HE,
+        q_dq,
+        p_dq,
+        unobservable,
+        tuple(warnings),
+        scale,
+        scale_dq,
+        scale_std,
+        held_axis,
+        held_rotation,
     )
 
 

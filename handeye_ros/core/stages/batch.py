@@ -86,10 +86,10 @@ def batch_stage(hand: Trajectory, linear: LinearStage, cfg: CalibrationConfig) -
     q_HE, p_HE = lin.q_HE, lin.p_HE
     if not cfg.batch:
         return Refined(dt, q_HE, p_HE, None, eye, model, Findings())
-    if lin.unobservable:
-        why = 'batch stage not used: part of the extrinsic is unobservable'
-        return Refined(dt, q_HE, p_HE, None, eye, model, Findings.warned(why))
-    batch, why = run_batch(hand, eye, dt, q_HE, p_HE, cfg, model)
+    held = lin.held_axis
+    if held is not None:  # the lever arm along the only rotation axis: at the user's value
+        p_HE = p_HE - (p_HE @ held - cfg.held_lever_arm) * held
+    batch, why = run_batch(hand, eye, dt, q_HE, p_HE, cfg, model, held, lin.held_rotation)
     found = Findings()
     if batch is not None:
         batch, found = check_batch(hand, eye, dt, lin, batch, cfg)
@@ -129,13 +129,19 @@ def run_batch(
     p_HE: Floats,
     cfg: CalibrationConfig,
     model: EyeModel | None = None,
+    held_axis: Floats | None = None,
+    held_rotation: bool = False,
 ) -> tuple[BatchSolution | None, str]:
     """The batch refinement, or None and why it was not used (never raises). It estimates a
     clock drift when one was estimated before it, and a scale: with estimate_scale when the
-    model's is observable, and for a metric eye as a nuisance (:func:`_metric`)."""
+    model's is observable, and for a metric eye as a nuisance (:func:`_metric`). ``held_axis``:
+    the only rotation axis (hand frame), along which the translation stays at p_HE's, and
+    about which the rotation stays at q_HE's with ``held_rotation``."""
     try:
         options = replace(
             batch_options(cfg),
+            held_axis=None if held_axis is None else tuple(float(v) for v in held_axis),
+            held_rotation=held_rotation,
             drift_stamp_ns=model.stamp_ns if model is not None and model.drift_estimated else None,
             scale=cfg.estimate_scale and model is not None and model.scale_observable,
         )
@@ -368,6 +374,8 @@ def _aux(
             eye_noise=(of.eye_noise.rotation, of.eye_noise.translation),
             joint=False,
             max_iterations=BLOCK_STEPS,
+            held_axis=None if of.held_axis is None else tuple(float(v) for v in of.held_axis),
+            held_rotation=of.held_rotation,
         )
         sol = refine(
             hand, _decimated(eye), of.time_offset_s, of.q_HE, of.p_HE, options, spline=of.spline

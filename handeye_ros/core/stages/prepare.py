@@ -111,9 +111,12 @@ def screen_streams(
 def check_fraction(
     rep: Screening, traj: Trajectory, cfg: CalibrationConfig, damage: str = ''
 ) -> None:
-    """Refuse a stream screening would take too much of; damaged rows are named first."""
+    """Refuse a stream screening finds too much of wrong; damaged rows are named first. Poses
+    in segments too short to use between breaks (a VI-SLAM's loop closures) are not wrong and
+    do not count."""
     if rep.fraction > cfg.max_outlier_fraction:
-        counts = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in rep.counts.items() if v)
+        wrong = {k: v for k, v in rep.counts.items() if v and k != 'short_segment'}
+        counts = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in wrong.items())
         msg = (
             (
                 f'{damage}. Without them too little of the stream is left: screening would remove '

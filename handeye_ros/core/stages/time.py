@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..checks.orientations import check_orientations
-from ..checks.verdict import WEAK_CORRELATION, Findings
+from ..checks.verdict import WEAK_CORRELATION, Findings, FixedOffsetDisagrees
 from ..config import CalibrationConfig
 from ..errors import TimeAlignmentError
 from ..time.align import TimeAlignment, align_time
@@ -55,7 +55,7 @@ def align_stage(inputs: Inputs, cfg: CalibrationConfig) -> Offset:
             method='fixed',
             time_offset_ns=round(cfg.time_offset * 1e9),
         )
-        found = Findings.warned(*check_fixed_offset(hand, eye, cfg.time_offset, cfg))
+        found = check_fixed_offset(hand, eye, cfg.time_offset, cfg)
     elif eye.keyframes:
         ta = align_time_keyframes(hand, eye, max_time_offset=half, time_offset_guess=guess)
     else:
@@ -87,9 +87,9 @@ def search_window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
 
 def check_fixed_offset(
     hand: Trajectory, eye: Trajectory, fixed_s: float, cfg: CalibrationConfig
-) -> list[str]:
-    """Warn when a user-fixed offset ``fixed_s`` (s) disagrees with the angular-speed
-    correlation.
+) -> Findings:
+    """Warn, and lower the verdict (``offset_disagrees``), when a user-fixed offset
+    ``fixed_s`` (s) disagrees with the angular-speed correlation.
 
     Why: the linear stage cannot tell a wrong offset from a noisy eye (a 50 ms error still gives
     most motions as inliers at moderate speed), so a wrong fixed value would pass silently.
@@ -104,19 +104,19 @@ def check_fixed_offset(
             resample_rate_hz=cfg.resample_rate_hz,
         )
     except TimeAlignmentError as err:
-        return [f'could not check the fixed time offset against the data: {err}']
+        return Findings.warned(f'could not check the fixed time offset against the data: {err}')
     if (
         est.peak_correlation >= WEAK_CORRELATION
         and abs(est.time_offset_s - fixed_s) > FIXED_OFFSET_DISAGREEMENT_S
     ):
-        return [
-            (
-                f'the fixed time offset {fixed_s * 1e3:+.1f} ms disagrees with the '
-                f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
-                f'(correlation {est.peak_correlation:.2f}); check the fixed value'
-            )
-        ]
-    return []
+        text = (
+            f'the fixed time offset {fixed_s * 1e3:+.1f} ms disagrees with the '
+            f'angular-speed correlation, which peaks at {est.time_offset_s * 1e3:+.1f} ms '
+            f'(correlation {est.peak_correlation:.2f}); check the fixed value'
+        )
+        fact = FixedOffsetDisagrees(fixed_s, est.time_offset_s, est.peak_correlation)
+        return Findings(warnings=(text,), log=(fact,))
+    return Findings()
 
 
 def absolute(tv: TimeAlignment | None, shift_ns: int) -> TimeAlignment | None:

@@ -19,6 +19,7 @@ from handeye_ros.core.batch.refine import BatchError, refine
 from handeye_ros.core.checks.verdict import judged
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import ConfigError
+from handeye_ros.core.linear.solve import solve_linear
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.stages.batch import check_batch, run_batch
@@ -323,13 +324,23 @@ def test_analytic_eye_jacobian_matches_central_differences() -> None:
 
 
 def test_a_metric_eye_whose_scale_the_motion_cannot_tell_holds_it_at_one(monkeypatch) -> None:
-    """The nuisance scale needs translations that tell it from the lever arm: a ground robot's
-    (its solve with the scale is singular) holds s = 1 and the solve still runs; so does a
-    scale whose sigma is above SCALE_UNOBSERVABLE (here made 0); a rich motion fits it."""
+    """The nuisance scale needs translations that tell it from the lever arm. A ground robot's
+    solve has no covariance, on every BLAS kernel, until its lever arm along the rotation axis
+    is held; then its driving tells the scale. A scale whose sigma is above
+    SCALE_UNOBSERVABLE (here made 0) is held at s = 1 and the solve still runs; a rich
+    motion fits it."""
     rec = recording(seed=1, level=2.0, motion='planar')
     t, cfg = rec.truth, CalibrationConfig()
+    lin, _ = solve_linear(rec.hand, rec.eye, t.time_offset_s, cfg)
+    assert lin.held_axis is not None, lin.unobservable
     sol, why = run_batch(rec.hand, rec.eye, t.time_offset_s, t.q_HE, t.p_HE, cfg)
-    assert sol is not None and sol.scale is None, why
+    assert sol is None and 'no finite covariance' in why
+    held = lin.held_axis
+    sol, why = run_batch(rec.hand, rec.eye, t.time_offset_s, t.q_HE, t.p_HE, cfg, None, held)
+    assert sol is not None and sol.scale == pytest.approx(1.0, abs=0.01), why
+    # nothing moves along the held axis, and the covariance has no variance there
+    assert float((sol.p_HE - t.p_HE) @ lin.held_axis) == pytest.approx(0.0, abs=1e-12)
+    assert float(lin.held_axis @ sol.covariance[1:4, 1:4] @ lin.held_axis) < 1e-20
     rich = recording(seed=1, level=2.0)
     t = rich.truth
     sol, _ = run_batch(rich.hand, rich.eye, t.time_offset_s, t.q_HE, t.p_HE, cfg)

@@ -26,6 +26,7 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.time.align import align_time, align_time_vector
 from handeye_ros.core.trajectory import Trajectory
+from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 
 
 def test_clean_recording_is_good_with_no_reasons() -> None:
@@ -128,9 +129,31 @@ def test_one_spike_does_not_move_the_correlation_peak() -> None:
     [('planar', 'unobservable'), ('one_axis', 'unobservable'), ('slow', 'imprecise')],
 )
 def test_poor_motions_are_named(motion: str, code: str) -> None:
+    """For the extrinsic itself, what the motion leaves undetermined or imprecise."""
+    rec = recording(seed=6, level=3.0, hand_rate_hz=200.0, motion=motion)
+    res = calibrate(rec.hand, rec.eye, CalibrationConfig(purpose='extrinsic'))
+    assert code in res.quality.codes and res.quality.verdict != 'good'
+
+
+@pytest.mark.parametrize('motion', ['planar', 'one_axis'])
+def test_one_rotation_axis_is_calibrated_for_an_evaluation(motion: str) -> None:
+    """A ground robot (planar) or a turntable (one_axis): the batch stage runs with what the
+    motion leaves undetermined held (the lever arm along the axis; for the turntable the
+    rotation about it too), its covariance has nothing along them, the figures get error
+    bars, and only the extrinsic's verdict says unobservable."""
     rec = recording(seed=6, level=3.0, hand_rate_hz=200.0, motion=motion)
     res = calibrate(rec.hand, rec.eye)
-    assert code in res.quality.codes and res.quality.verdict != 'good'
+    batch = res.batch
+    assert batch is not None and batch.held_axis is not None
+    assert batch.held_rotation == (motion == 'one_axis')
+    axis = batch.held_axis
+    assert float(axis @ batch.covariance[1:4, 1:4] @ axis) < 1e-20
+    assert 'unobservable' in res.quality.other.codes
+    assert 'unobservable' not in res.quality.codes and 'no_uncertainty' not in res.quality.codes
+    ev = evaluation_of(res)
+    assert ev is not None and ev[0].sigmas is not None, ev[0].sigmas_why if ev else ''
+    judged = judge_figures(res, ev[0]).quality
+    assert judged.evaluated and judged.other.verdict == 'doubtful'
 
 
 def test_planar_motion_returns_the_observable_part() -> None:

@@ -1,6 +1,8 @@
 """The verdict: how far a calibration can be trusted, and why.
 
-Every calibration ends with ``quality.verdict``:
+Every calibration ends with ``quality.verdict``, judged for its ``purpose``
+(:class:`Purpose`: ``evaluation``, the default, or ``extrinsic``; each reason names the
+purposes whose verdict it lowers, and ``quality.other`` is the other purpose's verdict):
 
 - ``good``: every check passed; the numbers and their sigmas can be used as they are;
 - ``doubtful``: a number is given, but something the user must look at is wrong or unknown
@@ -23,6 +25,9 @@ ambiguous_offset            doubtful   two offsets explain the data almost equal
                                        AMBIGUOUS_SCORE_RATIO of the winner), or the
                                        correlation has a second peak above 0.9 that no
                                        self-check ran on
+offset_disagrees            doubtful   the time offset the user fixed disagrees with the
+                                       angular-speed correlation (by more than
+                                       FIXED_OFFSET_DISAGREEMENT_S)
 weak_correlation            doubtful   the angular velocities hardly agree (correlation
                                        below 0.5)
 stages_disagree             doubtful   the batch stage moved the offset or the extrinsic
@@ -31,13 +36,18 @@ stages_disagree             doubtful   the batch stage moved the offset or the e
 few_inliers                 doubtful   fewer than 20 % of the motions are RANSAC inliers
 weak_excitation             doubtful   the rotation axes spread less than 10 deg
 unobservable                doubtful   a component of T_HE, the clock drift or the scale
-                                       cannot be determined (named)
+                                       cannot be determined (named); for purpose
+                                       evaluation not the lever arm along a ground robot's
+                                       only rotation axis, held (no figure depends on it)
 seed_dependent              doubtful   the linear stage's answer moves with the RANSAC seed
                                        (beyond SEED_*)
 no_uncertainty              doubtful   the batch stage could not run: no sigmas
-imprecise                   doubtful   a 1-sigma exceeds the required precision
-                                       (options precision_time_offset, _translation,
-                                       _rotation; default 1 ms, 1 cm, 0.5 deg)
+imprecise                   doubtful   purpose evaluation: the calibration's 1-sigma on an
+                                       APE/RPE figure exceeds EVALUATION_SHARE of it;
+                                       purpose extrinsic: a 1-sigma of dt or T_HE exceeds
+                                       the required precision (options
+                                       precision_time_offset, _translation, _rotation;
+                                       default 1 ms, 1 cm, 0.5 deg)
 clock_drift                 doubtful   without clock_drift: the offset measured in windows
                                        changes along the recording by more than
                                        DRIFT_NOTICE_S and DRIFT_SIGMAS (the rate is named)
@@ -96,9 +106,11 @@ from __future__ import annotations
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
     BLOCKS_MARGIN,
+    EVALUATION_SHARE,
     SEVERITY,
     WEAK_CORRELATION,
     Code,
+    Purpose,
     Quality,
     Reason,
     Verdict,
@@ -123,6 +135,7 @@ from .during import (
 from .facts import (
     DriftMeasured,
     DriftUnobservable,
+    FixedOffsetDisagrees,
     ScaleMeasured,
     SeedCompared,
     SeedFailed,
@@ -130,6 +143,7 @@ from .facts import (
 )
 from .final import (
     assess_answer,
+    assess_evaluation,
     assess_model,
     assess_streams,
     judged,
@@ -146,12 +160,15 @@ from .rig import (
 __all__ = [
     'AMBIGUOUS_PEAK_RATIO',
     'BLOCKS_MARGIN',
+    'EVALUATION_SHARE',
     'SEVERITY',
     'WEAK_CORRELATION',
     'Code',
     'DriftMeasured',
     'DriftUnobservable',
     'Findings',
+    'FixedOffsetDisagrees',
+    'Purpose',
     'Quality',
     'Reason',
     'ScaleMeasured',
@@ -160,6 +177,7 @@ __all__ = [
     'StagesDisagree',
     'Verdict',
     'assess_answer',
+    'assess_evaluation',
     'assess_model',
     'assess_rig',
     'assess_streams',

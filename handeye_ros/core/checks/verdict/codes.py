@@ -20,12 +20,25 @@ class Verdict(StrEnum):
     FAILED = 'failed'
 
 
+class Purpose(StrEnum):
+    """What the calibration is for, which decides what "precise enough" means: the APE/RPE
+    of an evaluation (the calibration's share of each figure) or T_HE and dt themselves (the
+    ``precision_*`` targets). Every other rule judges both."""
+
+    EVALUATION = 'evaluation'
+    EXTRINSIC = 'extrinsic'
+
+
+BOTH = frozenset(Purpose)
+
+
 class Code(StrEnum):
     """Why a verdict is not better (the table of the module docstring)."""
 
     CONVENTION_CORRECTED = 'convention_corrected'
     OUTLIERS_REMOVED = 'outliers_removed'
     AMBIGUOUS_OFFSET = 'ambiguous_offset'
+    OFFSET_DISAGREES = 'offset_disagrees'
     WEAK_CORRELATION = 'weak_correlation'
     STAGES_DISAGREE = 'stages_disagree'
     FEW_INLIERS = 'few_inliers'
@@ -95,35 +108,76 @@ BATCH_SCORE_FACTOR = 1.5
 #: (checks/carry.py). Without it, a READY carried from a `good` result at 9.5 mm said so of
 #: data whose own calibration reported 10.4 mm.
 BLOCKS_MARGIN = 1.0 / (1.0 + 1.0 / math.sqrt(2.0 * 3 * (BLOCKS - 1)))
+#: For purpose evaluation, an APE/RPE figure is settled when the calibration's 1-sigma on it is
+#: at most this share of it: two systems whose figures differ by 15 % (three such sigmas) are
+#: then told apart whatever the calibration's error, and the share stays below the spread a
+#: figure has between runs of one system on one sequence (commonly 5-10 %).
+EVALUATION_SHARE = 0.05
 
 
 @dataclass(frozen=True)
 class Reason:
     """Why the verdict is not better: a stable ``code`` and a ``message`` for people; its
-    ``severity`` is the code's (:data:`SEVERITY`)."""
+    ``severity`` is the code's (:data:`SEVERITY`); ``purposes``: the purposes whose verdict it
+    lowers (:class:`Purpose`; both unless it judges only one)."""
 
     code: Code
     message: str
+    purposes: frozenset[Purpose] = BOTH
 
     @property
     def severity(self) -> Verdict:
         return SEVERITY[self.code]
 
 
+def _worst_first(reasons: tuple[Reason, ...]) -> tuple[Reason, ...]:
+    worst = list(Verdict)[::-1]  # failed first
+    return tuple(sorted(reasons, key=lambda r: worst.index(r.severity)))
+
+
 @dataclass(frozen=True)
 class Quality:
-    """The verdict, its reasons (worst first) and notes that did not lower it."""
+    """The verdict for ``purpose``, its reasons (worst first) and notes that did not lower
+    it; ``found``: every purpose's reasons, from which :meth:`judged_for` gives the other's.
+    ``evaluated``: the evaluation's own figures were judged (their calibration 1-sigmas,
+    which the evaluation layer computes; until then the evaluation's verdict holds the
+    other rules only)."""
 
     verdict: Verdict
     reasons: tuple[Reason, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    purpose: Purpose = Purpose.EVALUATION
+    found: tuple[Reason, ...] = ()
+    evaluated: bool = False
 
     @classmethod
-    def from_reasons(cls, reasons: list[Reason], notes: list[str]) -> Quality:
-        worst = list(Verdict)[::-1]  # failed first
-        reasons = sorted(reasons, key=lambda r: worst.index(r.severity))
-        verdict = reasons[0].severity if reasons else Verdict.GOOD
-        return cls(verdict, tuple(reasons), tuple(notes))
+    def from_reasons(
+        cls,
+        reasons: list[Reason],
+        notes: list[str],
+        purpose: Purpose = Purpose.EVALUATION,
+        evaluated: bool = False,
+    ) -> Quality:
+        found = _worst_first(tuple(reasons))
+        mine = tuple(r for r in found if purpose in r.purposes)
+        verdict = mine[0].severity if mine else Verdict.GOOD
+        return cls(verdict, mine, tuple(notes), purpose, found, evaluated)
+
+    def judged_for(self, purpose: Purpose) -> Quality:
+        """The same findings judged for ``purpose``."""
+        return Quality.from_reasons(list(self.found), list(self.notes), purpose, self.evaluated)
+
+    def with_evaluation(self, reasons: list[Reason], notes: list[str]) -> Quality:
+        """With the rules on the evaluation's figures (:func:`.final.assess_evaluation`)."""
+        return Quality.from_reasons(
+            [*self.found, *reasons], [*self.notes, *notes], self.purpose, evaluated=True
+        )
+
+    @property
+    def other(self) -> Quality:
+        """The verdict for the purpose not judged."""
+        (other,) = set(Purpose) - {self.purpose}
+        return self.judged_for(other)
 
     @property
     def codes(self) -> tuple[str, ...]:
@@ -134,11 +188,22 @@ class Quality:
         return self.verdict + (f' ({sep.join(self.codes)})' if self.reasons else '')
 
     def to_dict(self) -> QualityDoc:
+        judged = {p: self.judged_for(p) for p in Purpose}
         return {
             'verdict': str(self.verdict),
+            'purpose': str(self.purpose),
             'reasons': [
                 {'code': str(r.code), 'severity': str(r.severity), 'message': r.message}
                 for r in self.reasons
             ],
             'notes': list(self.notes),
+            'for_evaluation': {
+                'verdict': str(judged[Purpose.EVALUATION].verdict),
+                'codes': [str(c) for c in judged[Purpose.EVALUATION].codes],
+                'figures_judged': self.evaluated,
+            },
+            'for_extrinsic': {
+                'verdict': str(judged[Purpose.EXTRINSIC].verdict),
+                'codes': [str(c) for c in judged[Purpose.EXTRINSIC].codes],
+            },
         }

@@ -29,6 +29,7 @@ from .facts import (
     ConventionCorrected,
     DriftMeasured,
     DriftUnobservable,
+    FixedOffsetDisagrees,
     ScaleMeasured,
     SeedCompared,
     SeedFailed,
@@ -331,6 +332,13 @@ def read(entry: object) -> tuple[Reason | None, str | None]:
         return entry, None
     if isinstance(entry, ConventionCorrected):
         return convention_corrected(entry.message), None
+    if isinstance(entry, FixedOffsetDisagrees):
+        text = (
+            f'the fixed time offset {entry.fixed_s * 1e3:+.1f} ms is not where the angular '
+            f'speeds agree ({entry.measured_s * 1e3:+.1f} ms, correlation '
+            f'{entry.correlation:.2f}): every figure at it is off; check the fixed value'
+        )
+        return Reason(Code.OFFSET_DISAGREES, text), None
     if isinstance(entry, ScaleMeasured):
         reason = scale_reason(entry.fit)
         if reason is not None or not entry.fit.clear:

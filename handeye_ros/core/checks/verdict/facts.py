@@ -28,6 +28,16 @@ class ConventionCorrected:
 
 
 @dataclass(frozen=True)
+class FixedOffsetDisagrees:
+    """The time offset the user fixed (``fixed_s``) is not where the angular-speed correlation
+    peaks (``measured_s``, with its peak ``correlation``)."""
+
+    fixed_s: float
+    measured_s: float
+    correlation: float
+
+
+@dataclass(frozen=True)
 class ScaleMeasured:
     """Without estimate_scale: the scale that would fit the eye's translations to the hand's
     (stage 2's motions)."""
@@ -83,6 +93,7 @@ class StagesDisagree:
 #: Every fact a stage records (and a reason a rule made on the way).
 FACTS = (
     ConventionCorrected,
+    FixedOffsetDisagrees,
     ScaleMeasured,
     DriftMeasured,
     DriftUnobservable,

@@ -13,6 +13,8 @@ from ...arrays import Floats
 from .codes import (
     AMBIGUOUS_PEAK_RATIO,
     BLOCKS_MARGIN,
+    BOTH,
+    EVALUATION_SHARE,
     FAILED_MOTION_ROTATION_DEG,
     FAILED_MOTION_TRANSLATION_FRACTION,
     FAILED_MOTION_TRANSLATION_M,
@@ -22,6 +24,7 @@ from .codes import (
     WEAK_CORRELATION,
     WEAK_EXCITATION_DEG,
     Code,
+    Purpose,
     Quality,
     Reason,
 )
@@ -55,11 +58,19 @@ def assess_streams(
                 Reason(
                     Code.OUTLIERS_REMOVED,
                     f'screening removed {rep.fraction:.1%} of the '
-                    f'{rep.stream} stream ({rep.n_removed} of {rep.n_input} poses)',
+                    f'{rep.stream} stream as wrong ({rep.n_outliers} of {rep.n_input} poses)',
                 )
             )
-        elif rep.n_removed:
-            said.append(f'screening removed {rep.n_removed} of {rep.n_input} {rep.stream} poses')
+        elif rep.n_outliers:
+            said.append(
+                f'screening removed {rep.n_outliers} of {rep.n_input} {rep.stream} poses as wrong'
+            )
+        if rep.n_short:
+            said.append(
+                f'{rep.n_short} {rep.stream} poses ({rep.short_fraction:.1%}) lie in segments '
+                f'between its {rep.breaks_ns.size} break(s) too short to use, and are left out '
+                "(not outliers: the result's sigmas are those of the rest)"
+            )
     checked = any(c.chosen for c in so_far.candidates)
     if ta.method != 'fixed' and ta.second_peak_ratio > AMBIGUOUS_PEAK_RATIO and not checked:
         said.append(
@@ -93,15 +104,17 @@ def assess_answer(
     unobservable parts, weak excitation (stage 2's ``lin``), no or too large an uncertainty,
     residuals not white (stage 3's ``batch``), AX = XB failing at the result (``metrics``). The
     others are read from the stages' facts, their severities here: :data:`SEVERITY`."""
-    said = _assess_linear(lin)
+    said = _assess_linear(lin, batch)
     unobservable = Code.UNOBSERVABLE in reasons_in((*so_far.log, *said))
     said += _assess_uncertainty(batch, cfg, unobservable)
     reason = motion_inconsistency(metrics)
     return Findings.of(*said, *([] if reason is None else [reason]))
 
 
-def _assess_linear(lin: LinearSolution) -> list[Reason | str]:
-    """Stage 2's consensus and excitation."""
+def _assess_linear(lin: LinearSolution, batch: BatchSolution | None) -> list[Reason | str]:
+    """Stage 2's consensus and excitation. A lever arm along the only rotation axis that the
+    batch stage held (``batch.held_axis``) changes no figure of an evaluation: the world
+    alignment absorbs it, so only the extrinsic's verdict reads it."""
     said: list[Reason | str] = []
     if lin.n_inliers < LOW_INLIER_FRACTION * lin.n_motions:
         said.append(
@@ -111,11 +124,18 @@ def _assess_linear(lin: LinearSolution) -> list[Reason | str]:
             )
         )
     if lin.unobservable:
+        held = batch is not None and batch.held_axis is not None
         said.append(
             Reason(
                 Code.UNOBSERVABLE,
                 'part of the extrinsic cannot be observed from this motion: '
-                + '; '.join(lin.unobservable),
+                + '; '.join(lin.unobservable)
+                + (
+                    ' (held there by the batch stage; no APE/RPE figure depends on it)'
+                    if held
+                    else ''
+                ),
+                frozenset({Purpose.EXTRINSIC}) if held else BOTH,
             )
         )
     elif lin.axis_spread_deg < WEAK_EXCITATION_DEG:
@@ -210,6 +230,7 @@ def _assess_uncertainty(
                     'the 1-sigma uncertainty exceeds the required precision: '
                     + '; '.join(over)
                     + '. The precision_* options set what is required',
+                    frozenset({Purpose.EXTRINSIC}),
                 )
             )
         near = _near(sd, need)
@@ -312,6 +333,7 @@ def assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig
                     f'{model.drift_std * 1e6:.1f} ppm: at the ends of the recording the '
                     f'offset is uncertain by {half * 1e3:.2g} ms from the drift alone '
                     f'(required {cfg.precision_time_offset * 1e3:.3g} ms)',
+                    frozenset({Purpose.EXTRINSIC}),
                 )
             )
     return Findings.of(*said)
@@ -322,9 +344,38 @@ def reasons_in(log: tuple[object, ...]) -> set[Code]:
     return {r.code for r in (read(e)[0] for e in log if not isinstance(e, str)) if r}
 
 
-def judged(found: Findings) -> Quality:
-    """The verdict of a finished run: every fact read into its reason or note, in the order
-    found, beside the notes the stages wrote."""
+def assess_evaluation(
+    figures: list[tuple[str, float, float | None, str]], why_none: str
+) -> tuple[list[Reason], list[str]]:
+    """Purpose evaluation's rule on the evaluation's own figures: each (label, value, its
+    calibration 1-sigma, unit: 'mm' or 'deg'; value in that unit, NaN when it has none) is
+    settled when the 1-sigma is at most EVALUATION_SHARE of it. A figure with no value (an
+    RPE step longer than the recording) is noted and left out; no 1-sigmas at all
+    (``why_none``) is ``no_uncertainty``. Returns (reasons, notes)."""
+    only = frozenset({Purpose.EVALUATION})
+    if why_none:
+        text = f'the APE/RPE figures have no error bars from the calibration: {why_none}'
+        return [Reason(Code.NO_UNCERTAINTY, text, only)], []
+    over, notes = [], []
+    for label, value, sigma, unit in figures:
+        if not np.isfinite(value) or sigma is None or value <= 0.0:
+            notes.append(f'{label} could not be computed and is not judged')
+        elif sigma > EVALUATION_SHARE * value:
+            over.append(f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}')
+    if not over:
+        return [], notes
+    text = (
+        "the calibration's 1-sigma exceeds "
+        f'{EVALUATION_SHARE:.0%} of the figures it would change: '
+        + '; '.join(over)
+        + ' (with purpose extrinsic its own targets judge it instead)'
+    )
+    return [Reason(Code.IMPRECISE, text, only)], notes
+
+
+def judged(found: Findings, purpose: Purpose = Purpose.EVALUATION) -> Quality:
+    """The verdict of a finished run for ``purpose``: every fact read into its reason or
+    note, in the order found, beside the notes the stages wrote."""
     reasons, notes = [], []
     for entry in found.log:
         reason, note = (None, entry) if isinstance(entry, str) else read(entry)
@@ -332,4 +383,4 @@ def judged(found: Findings) -> Quality:
             reasons.append(reason)
         if note is not None:
             notes.append(note)
-    return Quality.from_reasons(reasons, notes)
+    return Quality.from_reasons(reasons, notes, purpose)

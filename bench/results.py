@@ -76,6 +76,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ],
         '1 min',
     ),
+    'purpose': ('purpose', [], ['purpose_real', 'purpose_one_axis'], '6 min'),
     'wander': ('wander', [], ['wander'], '12 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),

@@ -1,31 +1,6 @@
 """The calibration result and its plain-data form (written as YAML/JSON, published by the node).
 
-Schema history of :meth:`CalibrationResult.to_dict` (key ``schema_version``):
-
-- 1: time_offset, extrinsic (T_HE) and extrinsic_inverse (T_EH), world_alignment (T_WG),
-  time_alignment, association, linear, std, covariance, batch, metrics, inputs, config,
-  warnings (and, from the front ends, summary and streams). ``linear`` holds the stage-2
-  extrinsic apart (``linear.extrinsic``) when the batch stage refined it.
-- 2: ``quality`` (verdict, reasons, notes); ``time_offset_ns`` (exact, for clocks on
-  different epochs); ``screening`` (per stream: removed poses by kind with their stamps,
-  breaks); ``conventions`` (readings applied); ``self_check`` (candidate offsets, scores, the
-  winner); ``time_alignment.candidates`` and ``time_alignment.vector``; ``linear.unobservable``
-  and ``linear.seed_check``; ``std.method`` (the long-run covariance) with
-  ``std.white_inflation``; ``world_alignment.segments``.
-- 3: ``clock_drift`` [s/s] and ``time_offset_stamp`` [s, eye clock] (with
-  ``time_offset_stamp_ns``): the linear clock ``dt(t) = time_offset + clock_drift (t -
-  time_offset_stamp)``, null without ``clock_drift``; ``scale`` (s * eye positions metric),
-  null without ``estimate_scale``; ``clock`` (the offset measured in windows along the
-  recording, and the drift it shows); ``std.clock_drift`` and ``std.scale``; the covariance's
-  ``order`` gains ``clock_drift`` and ``scale`` when they were estimated by the batch stage.
-- 4: ``coverage`` (the MoCap's gaps inside the eye's span and the part of it the MoCap covers,
-  :mod:`.checks.coverage`); ``time_alignment.method`` may be ``keyframes`` (a keyframe-only eye).
-- 5: ``readiness`` (:mod:`.checks.readiness`): whether the recording supports the required
-  precision, the 1-sigmas it predicts, how far the device turned about each of its axes, and
-  what it lacks.
-- 6: ``readiness.predicted`` (the 1-sigmas the consecutive eye pairs predict); its ``sigma``
-  and ``ready`` are those carried over with the result itself (:mod:`.checks.carry`): the
-  reported 1-sigmas, and READY only when the result is ``good``.
+The document's schema is versioned (key ``schema_version``); its history is in CHANGELOG.md.
 
 Every transform is written as ``{translation: [x, y, z] (m), rotation: [qx, qy, qz, qw],
 matrix: 4x4 rows}`` with the parent/child frames spelled out, as Kalibr does, so that nobody has
@@ -71,7 +46,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '

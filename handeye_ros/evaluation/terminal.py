@@ -66,7 +66,7 @@ def purpose_words(q: QualityDoc) -> str:
     return 'an evaluation: ' + (
         "the calibration's share of each APE/RPE figure"
         if judged
-        else 'the figures were not evaluated, so only the other rules'
+        else "the figures were not evaluated, so the extrinsic's rules stand in"
     )
 
 

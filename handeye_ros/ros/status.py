@@ -68,8 +68,8 @@ FLOWING_PERIODS = 10
 LATE_S = 1.0
 #: What the status says while a calibration checks a predicted READY.
 CHECKING = (
-    'checking READY: the data so far are predicted to meet the targets, and a calibration of '
-    'them is confirming it'
+    'checking READY: a calibration of the data so far is judging them (for purpose extrinsic, '
+    'once they are predicted to meet the targets)'
 )
 #: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
@@ -231,7 +231,10 @@ class ReadinessStatus:
         durations = (buffers['hand'].span_s, buffers['eye'].span_s)
         found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
         auto = self.auto
-        last = carry_over(found, auto.factors, auto.held, margin=BLOCKS_MARGIN)
+        decide = self._node.calib_cfg.purpose == 'extrinsic'
+        last = carry_over(
+            found, auto.factors, auto.held, margin=BLOCKS_MARGIN, sigmas_decide=decide
+        )
         if last['ready'] and not auto.confirmed:
             # READY is said once a calibration of these buffers agrees: auto mode's first one,
             # or a check of its own
@@ -246,7 +249,9 @@ class ReadinessStatus:
         elif (
             auto.held
             and auto.said == 'off'
-            and carry_over(found, auto.factors, [], margin=BLOCKS_MARGIN)['ready']
+            and carry_over(found, auto.factors, [], margin=BLOCKS_MARGIN, sigmas_decide=decide)[
+                'ready'
+            ]
         ):
             self._check(min(durations))  # READY but for the last result's reasons: check again
         self.last, self.why_not = last, ''

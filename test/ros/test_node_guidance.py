@@ -42,6 +42,7 @@ def test_status_guides_and_auto_calibrate_answers_within_2_s_of_ready(
         'auto_calibrate:=true',
         'status_period:=0.5',
         'buffer_duration:=120.0',
+        'purpose:=extrinsic',  # the READY its predictions reach (evaluation: below)
         name='node',
     )
     wait_started(ros, node)
@@ -97,16 +98,36 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
         assert done and 'buffers are full' in done[0], sorted(set(auto))
 
 
-def test_a_planar_recording_never_becomes_ready_and_names_the_axis(
+def test_a_planar_recording_never_becomes_ready_for_its_extrinsic_and_names_the_axis(
     ros: Processes, install: Path
 ) -> None:
-    node = start_node(ros, install, 'status_period:=0.5', 'buffer_duration:=120.0', name='node')
+    """For T_HE itself, a ground robot's recording lacks the lever arm along its axis."""
+    node = start_node(
+        ros, install, 'status_period:=0.5', 'buffer_duration:=120.0', 'purpose:=extrinsic'
+    )
     wait_started(ros, node)
     ros.start(publisher(ros, '--duration', '30', '--motion', 'planar', '--level', '3'), 'pub')
     got = call(ros, '20', mode='status')
     messages_seen = [s['message'] for s in got['status']]
     assert messages_seen and 'READY' not in messages_seen
     assert any(m.startswith('turn the device about its') for m in messages_seen), messages_seen
+
+
+def test_a_planar_recording_is_calibrated_for_an_evaluation(ros: Processes, install: Path) -> None:
+    """For an evaluation (the default purpose) the same ground robot is calibrated: auto mode
+    checks the data by calibrating them once stages 1 and 2 stand, publishes a result whose
+    batch stage held the lever arm along the axis (its covariance latched), and the status never
+    asks the robot to turn about another axis. Read until the recording ends."""
+    node = start_node(
+        ros, install, 'auto_calibrate:=true', 'status_period:=0.5', 'buffer_duration:=120.0'
+    )
+    wait_started(ros, node)
+    ros.start(publisher(ros, '--duration', '30', '--motion', 'planar', '--level', '3'), 'pub')
+    got = call(ros, '45', RECORDING_ENDED, mode='status')
+    said = [s['message'] for s in got['status']]
+    assert got['extrinsic'], said[-3:]
+    assert not [m for m in said if m.startswith('turn the device about its')], said
+    assert any(m.startswith('checking READY') for m in said), said
 
 
 def test_a_mocap_dropout_is_said_while_it_lasts_and_is_no_clock_jump(

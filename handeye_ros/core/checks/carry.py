@@ -76,20 +76,24 @@ def carry_over(
     held: list[str],
     whose: str = 'the last calibration',
     margin: float = 1.0,
+    sigmas_decide: bool = True,
 ) -> ReadinessDoc:
     """The readiness ``last`` with its predicted sigmas (``predicted``) times a result's
     :func:`predictor_factors` as its ``sigma`` (the same covariance model as the result's),
     READY only if they still meet the targets (each times ``margin``: BLOCKS_MARGIN when they
     are carried to more data than the result's) and the result was ``good`` (``held``: the
     messages of its reasons, :func:`held_reasons`, the first said first); ``whose`` names the
-    result in what is said."""
+    result in what is said; ``sigmas_decide`` False (purpose evaluation): the carried sigmas
+    are shown and the result's verdict alone decides."""
     if not factors and not held:
         return last
     sigma = {
         k: (v * factors.get(k, 1.0) if v is not None else v) for k, v in last['predicted'].items()
     }
     target = last['target']
-    meets = all(v is not None and v <= margin * target[k] for k, v in sigma.items())
+    meets = not sigmas_decide or all(
+        v is not None and v <= margin * target[k] for k, v in sigma.items()
+    )
     missing = list(last['missing'])
     if last['ready'] and not meets and not held:
         said = ', '.join(

@@ -140,8 +140,8 @@ class Quality:
     """The verdict for ``purpose``, its reasons (worst first) and notes that did not lower
     it; ``found``: every purpose's reasons, from which :meth:`judged_for` gives the other's.
     ``evaluated``: the evaluation's own figures were judged (their calibration 1-sigmas,
-    which the evaluation layer computes; until then the evaluation's verdict holds the
-    other rules only)."""
+    which the evaluation layer computes: :func:`.final.assess_evaluation`); until then the
+    extrinsic's rules stand in for the evaluation's, which are never looser unjudged."""
 
     verdict: Verdict
     reasons: tuple[Reason, ...] = ()
@@ -159,7 +159,8 @@ class Quality:
         evaluated: bool = False,
     ) -> Quality:
         found = _worst_first(tuple(reasons))
-        mine = tuple(r for r in found if purpose in r.purposes)
+        judge = Purpose.EXTRINSIC if purpose == Purpose.EVALUATION and not evaluated else purpose
+        mine = tuple(r for r in found if judge in r.purposes)
         verdict = mine[0].severity if mine else Verdict.GOOD
         return cls(verdict, mine, tuple(notes), purpose, found, evaluated)
 

@@ -118,5 +118,9 @@ def carried(document: ResultDoc) -> ReadinessDoc | None:
     if last is None:
         return None
     return carry_over(
-        last, predictor_factors(document), held_reasons(document), 'this calibration'
+        last,
+        predictor_factors(document),
+        held_reasons(document),
+        'this calibration',
+        sigmas_decide=document['quality']['purpose'] == 'extrinsic',
     )

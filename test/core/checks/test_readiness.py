@@ -17,7 +17,9 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import with_dropouts
 from handeye_ros.core.trajectory import Trajectory
 
-CFG = CalibrationConfig()
+#: the readiness's predictions judge T_HE's sigmas for purpose extrinsic (an evaluation's READY
+#: is a calibration's verdict)
+CFG = CalibrationConfig(purpose='extrinsic')
 #: 200 Hz MoCap with 0.1 mm / 0.0057 deg noise, 30 Hz eye at noise level 5
 RATES = {'hand_rate_hz': 200.0, 'eye_rate_hz': 30.0}
 MOCAP = {'hand_noise_m': 1e-4, 'hand_noise_deg': 0.0057}

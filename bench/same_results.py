@@ -12,6 +12,7 @@ Usage:
     python bench/same_results.py record FILE     # numbers of this tree, as JSON
     python bench/same_results.py compare FILE    # this tree against FILE; exit 1 on a difference
     python bench/same_results.py compare FILE --tolerance 1e-6
+    python bench/same_results.py verdicts FILE   # only the verdicts and reason codes differ?
 
 A field differs when ``|a - b| > tolerance * max(1, |a|, |b|)`` (1e-9 unless given); run times
 and anything measured in seconds of the machine are left out. Across library versions (today's
@@ -156,6 +157,22 @@ def compare(before: dict, after: dict, tolerance: float = TOLERANCE) -> list[str
     return lines
 
 
+#: What ``verdicts`` compares: the verdict, each purpose's, the reasons' codes, a refusal.
+VERDICT_KEY = re.compile(
+    r'^/quality/(verdict|purpose|reasons/\d+/code|for_\w+/(verdict|codes/\d+))$|^/error$'
+)
+
+
+def verdicts(results: dict) -> dict:
+    """Of every case, only what :data:`VERDICT_KEY` names (a refusal as refused)."""
+    return {
+        case: {
+            k: ('refused' if k == '/error' else v) for k, v in r.items() if VERDICT_KEY.match(k)
+        }
+        for case, r in results.items()
+    }
+
+
 def largest(before: dict, after: dict) -> tuple[float, str]:
     """The largest relative difference of the numbers both hold, and where."""
     worst = (0.0, '-')
@@ -173,7 +190,7 @@ def main() -> int:
     if len(args) == 4 and args[2] == '--tolerance':
         tolerance = float(args.pop())
         args.pop()
-    if len(args) != 2 or args[0] not in ('record', 'compare'):
+    if len(args) != 2 or args[0] not in ('record', 'compare', 'verdicts'):
         print(__doc__.split('Usage:')[1].strip(), file=sys.stderr)
         return 2
     path = Path(args[1])
@@ -183,6 +200,10 @@ def main() -> int:
         print(f'{len(now)} cases recorded in {path}')
         return 0
     before = json.loads(path.read_text())
+    if args[0] == 'verdicts':  # another BLAS kernel or library: the numbers' last digits move
+        lines = compare(verdicts(before['results']), verdicts(now))
+        print('\n'.join(lines) if lines else f'{len(now)} cases: the same verdicts and reasons')
+        return 1 if lines else 0
     lines = compare(before['results'], now, tolerance)
     print(f'before: {before["provenance"]}\nafter:  {common.provenance()}')
     print('\n'.join(lines) if lines else f'{len(now)} cases: the same to {tolerance:g}')

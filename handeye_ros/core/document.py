@@ -147,6 +147,7 @@ class ReadinessDoc(TypedDict):
     target: dict[str, float]
     rotation_deg: dict[str, float]
     hand_rotation_deg: dict[str, float]
+    axis_spread_deg: float
     angular_speed_dps: float
     travel_m: float
     motions: int

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .arrays import Floats
+from .batch.rank import pseudo_inverse, solve_determined
 from .document import ResultDoc
 from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
 from .rig_document import MemberDoc
@@ -161,18 +162,23 @@ def fuse(members: Sequence[Member]) -> Joint:
     Gauss-Newton on SE(3) from the most informative member."""
     if not members:
         raise ValueError('no recordings to fuse')
-    info = [np.linalg.inv(m.extrinsic_covariance) for m in members]
+    # a member that held a direction (one rotation axis) informs nothing along it: its
+    # information is the pseudo-inverse of its covariance, rank decided as the batch stage does
+    info = [pseudo_inverse(m.extrinsic_covariance) for m in members]
     total = np.sum(info, axis=0)
     first = int(np.argmax([np.linalg.det(L) for L in info]))
     R, p = matrix_from_quat(members[first].q_HE), members[first].p_HE.astype(float)
     for _ in range(MAX_ROUNDS):
         q = quat_from_matrix(R)
-        g = sum(L @ difference(m.q_HE, m.p_HE, q, p) for m, L in zip(members, info, strict=True))
-        step = np.linalg.solve(total, g)
+        g = np.sum(
+            [L @ difference(m.q_HE, m.p_HE, q, p) for m, L in zip(members, info, strict=True)],
+            axis=0,
+        )
+        step = solve_determined(total, g)
         p, R = p + step[:3], R @ exp_so3(step[None, 3:])[0]
         if np.linalg.norm(step) < STEP_TOL:
             break
-    cov = np.linalg.inv(total)
+    cov = pseudo_inverse(total)
     return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T))
 
 
@@ -181,7 +187,7 @@ def chi2_against(member: Member, others: Joint) -> tuple[float, Floats]:
     does not include it (their errors independent), and the difference (member [-] joint)."""
     d = difference(member.q_HE, member.p_HE, others.q_HE, others.p_HE)
     S = member.extrinsic_covariance + others.covariance
-    return float(d @ np.linalg.solve(S, d)), d
+    return float(d @ solve_determined(S, d)), d
 
 
 @dataclass(frozen=True)
@@ -206,7 +212,7 @@ def conditioned(member: Member, joint: Joint) -> Conditioned:
     C = member.covariance
     own = [k for k in range(C.shape[0]) if not EXTRINSIC.start <= k < EXTRINSIC.stop]
     C_yx = C[own, EXTRINSIC]
-    K = np.linalg.solve(member.extrinsic_covariance, C_yx.T).T
+    K = C_yx @ pseudo_inverse(member.extrinsic_covariance)
     shift = K @ difference(joint.q_HE, joint.p_HE, member.q_HE, member.p_HE)
     cov = np.zeros_like(C)
     cov[np.ix_(own, own)] = C[np.ix_(own, own)] - K @ C_yx.T + K @ joint.covariance @ K.T

@@ -215,17 +215,19 @@ def readiness_lines(r: ReadinessDoc | None) -> list[str]:
     return [head, *(f'  to do: {m}' for m in r['missing'])]
 
 
-#: A bar is full when the device has turned this far about its axis (deg): display only; READY
-#: comes from the predicted sigmas.
-BAR_FULL_DEG = 360.0
+#: The bar of the turns' axes is full when they spread this far (deg: two axes or more turned
+#: about alike); display only.
+BAR_FULL_DEG = 90.0
 #: A predicted sigma beyond this many times its target is shown as a bound (an unobserved
 #: direction gives figures like 2.5e+10 mm, which mean nothing to the person moving the rig).
 SHOWN_TIMES_TARGET = 100.0
 
 
 def status_line(r: ReadinessDoc, width: int = 8) -> str:
-    """One line in the spirit of the camera calibrator's bars: rotation about each device axis,
-    keyframe motions, the predicted 1-sigmas against their targets, READY."""
+    """One line in the spirit of the camera calibrator's bars: how far the device turned and
+    how far apart the axes it turned about are (what the data observe of T_HE: one axis leaves
+    part of it out, whichever device axes that one fills), keyframe motions, the predicted
+    1-sigmas against their targets, READY."""
 
     def bar(v: float) -> str:
         n = round(width * min(1.0, v / BAR_FULL_DEG))
@@ -237,10 +239,12 @@ def status_line(r: ReadinessDoc, width: int = 8) -> str:
         v, bound = s[key], SHOWN_TIMES_TARGET * t[key]
         return '?' if v is None else f'>{bound:g}' if v > bound else f'{v:.2g}'
 
-    axes = ' '.join(f'{k} [{bar(v)}] {v:.0f}' for k, v in r['rotation_deg'].items())
+    total = sum(r['rotation_deg'].values())
+    spread = r['axis_spread_deg']
     head = 'READY' if r['ready'] else 'not ready'
     line = (
-        f'{head} | turned {axes} deg | {r["motions"]} motions | 1-sigma '
+        f'{head} | turned {total:.0f} deg, axes apart [{bar(spread)}] {spread:.0f} deg | '
+        f'{r["motions"]} motions | 1-sigma '
         f'{fig("time_offset_ms")} ms {fig("translation_mm")} mm '
         f'{fig("rotation_deg")} deg (need {t["time_offset_ms"]:g} {t["translation_mm"]:g} '
         f'{t["rotation_deg"]:g})'

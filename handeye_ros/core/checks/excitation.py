@@ -4,7 +4,9 @@ that add up as a recording grows.
 
 A rotation about an axis a says nothing of T_HE's rotation about a, nor of its translation
 along a (eq. 2); so the turn about each of the device's axes tells which one the user still
-has to turn it about.
+has to turn it about, and the spread of the turns' axes (:attr:`Turned.axis_spread_deg`) how
+far the data observe T_HE at all: about one axis only (a ground robot), 0 whichever device
+axes that one fills.
 """
 
 from __future__ import annotations
@@ -29,7 +31,9 @@ RECENT_S = 10.0
 class Turned:
     """A body's motion over the steps between stamps t0_ns and t1_ns: ``deg`` (3,) the sum of
     |rotation| about each of its axes [deg], ``rate_sq`` the sum over steps of the squared
-    angular speed [(rad/s)^2], ``steps`` how many, ``travel_m`` its path length [m]."""
+    angular speed [(rad/s)^2], ``steps`` how many, ``travel_m`` its path length [m],
+    ``scatter`` (3, 3) the steps' axes' scatter, each weighted by its angle (``sum r r^T /
+    |r|`` of the rotation vectors r [rad])."""
 
     t0_ns: int
     t1_ns: int
@@ -37,6 +41,7 @@ class Turned:
     rate_sq: float
     steps: int
     travel_m: float
+    scatter: Floats
 
     def __add__(self, other: Turned) -> Turned:
         return Turned(
@@ -46,7 +51,18 @@ class Turned:
             self.rate_sq + other.rate_sq,
             self.steps + other.steps,
             self.travel_m + other.travel_m,
+            self.scatter + other.scatter,
         )
+
+    @property
+    def axis_spread_deg(self) -> float:
+        """How far apart the turns' axes are [deg]: ``2 atan(sqrt(l2 / l1))`` of the scatter's
+        two largest eigenvalues, as stage 2 measures its motions' (:func:`.linear.refits.
+        axis_spreads_deg`): 0 about one axis, 90 about two or more equally."""
+        lam = np.linalg.eigvalsh(0.5 * (self.scatter + self.scatter.T))
+        if not lam[2] > 0.0:
+            return 0.0
+        return float(np.degrees(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[2]))))
 
     @property
     def rms_dps(self) -> float:
@@ -72,6 +88,8 @@ def turned(traj: Trajectory, from_ns: int | None = None) -> tuple[Turned | None,
     seconds = np.diff(traj.t_ns[idx])[whole] * 1e-9
     rate = turn / seconds[:, None]  # rad/s
     travel = float(np.sum(np.linalg.norm(np.diff(traj.p_xyz[idx], axis=0), axis=1)))
+    angle = np.maximum(np.linalg.norm(turn, axis=1), 1e-12)
+    scatter = (turn / angle[:, None]).T @ turn
     piece = Turned(
         int(traj.t_ns[idx[0]]),
         int(traj.t_ns[idx[-1]]),
@@ -79,6 +97,7 @@ def turned(traj: Trajectory, from_ns: int | None = None) -> tuple[Turned | None,
         float(np.sum(rate**2)),
         int(np.sum(whole)),
         travel,
+        scatter,
     )
     return piece, int(traj.t_ns[idx[-1]])
 

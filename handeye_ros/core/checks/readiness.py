@@ -55,7 +55,9 @@ class Readiness:
     sigma: predicted 1-sigma of dt [s], T_HE's translation [m] (norm of the three) and rotation
     [deg] (norm), NaN when not predicted; target: the same three required.
     rotation_deg: (3,) how far the device has turned about its x, y, z axes (sum of |rotation|
-    about each, deg); hand_rotation_deg: the same about the MoCap marker's axes.
+    about each, deg); hand_rotation_deg: the same about the MoCap marker's axes;
+    axis_spread_deg: how far apart the device's turns' axes are (0: one axis, 90: two or more
+    alike; :attr:`.excitation.Turned.axis_spread_deg`).
     angular_speed_dps: the device's RMS angular speed; travel_m: the marker's path length;
     motions: keyframe motions (rotating by eta, eq. 6) stage 2 had; span_s: the streams' overlap
     at the offset; time_offset_s: stage 1's offset (None when it failed); peak_correlation,
@@ -78,6 +80,7 @@ class Readiness:
     second_peak_ratio: float = float('nan')
     dropout: dict[str, float] = field(default_factory=dict)
     missing: tuple[str, ...] = ()
+    axis_spread_deg: float = 0.0
 
     def to_dict(self) -> ReadinessDoc:
         """The ``readiness`` section of a result, and the node's status values, before a
@@ -105,6 +108,7 @@ class Readiness:
             'hand_rotation_deg': dict(
                 zip(AXES, np.round(self.hand_rotation_deg, 1).tolist(), strict=True)
             ),
+            'axis_spread_deg': round(float(self.axis_spread_deg), 1),
             'angular_speed_dps': round(float(self.angular_speed_dps), 2),
             'travel_m': round(float(self.travel_m), 3),
             'motions': int(self.motions),
@@ -136,6 +140,7 @@ class _Moved(TypedDict):
     angular_speed_dps: float
     travel_m: float
     dropout: dict[str, float]
+    axis_spread_deg: float
 
 
 def readiness_of(
@@ -155,6 +160,7 @@ def readiness_of(
         angular_speed_dps=speed,
         travel_m=hand_turn.travel_m,
         dropout=dict(progress.dropout),
+        axis_spread_deg=eye_turn.axis_spread_deg,
     )
     health = _health(base['dropout'])
     if speed < STILL_DPS:

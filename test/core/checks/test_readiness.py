@@ -116,7 +116,8 @@ def test_the_status_line_and_report_lines_say_it_in_one_place() -> None:
     rec = recording(1, 5, duration_s=60.0, motion='planar', **RATES, **MOCAP)
     d = readiness(rec.hand, rec.eye, CFG).to_dict()
     line = status_line(d)
-    assert line.startswith('not ready | turned x [')
+    assert line.startswith('not ready | turned ') and ', axes apart [' in line
+    assert d['axis_spread_deg'] < 10.0  # one axis, whichever device axes it fills
     assert '(need 1 10 0.5)' in line and line.endswith(d['missing'][0])
     report = readiness_lines(d)
     assert report[0].startswith('readiness: NOT READY, predicted 1-sigma')

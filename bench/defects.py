@@ -50,6 +50,7 @@ from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
 from handeye_ros.core.trajectory import Trajectory
+from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 from handeye_ros.formats import read_trajectory
 
 #: Clock shift applied to the real pairs' hand (s): the true offset before any defect.
@@ -378,7 +379,11 @@ def run_files(hand: Stream, eye: Stream, workdir: Path, config: CalibrationConfi
     hp, ep = workdir / 'hand.csv', workdir / 'eye.txt'
     hand.write(hp)
     eye.write(ep)
-    return calibrate(read_trajectory(hp), read_trajectory(ep), config)
+    res = calibrate(read_trajectory(hp), read_trajectory(ep), config)
+    # the verdict a user reads: for purpose evaluation with its figures judged, as the front
+    # ends judge them
+    found = evaluation_of(res) if config.purpose == 'evaluation' else None
+    return res if found is None else judge_figures(res, found[0])
 
 
 def judge(res, ref_dt: float, ref_q: np.ndarray, ref_p: np.ndarray) -> tuple[bool, tuple]:

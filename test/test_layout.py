@@ -102,6 +102,19 @@ def test_core_has_floors_and_no_cycle() -> None:
     graphlib.TopologicalSorter(graph).prepare()  # raises CycleError naming the cycle
 
 
+def test_the_package_has_no_import_cycle() -> None:
+    """No import cycle anywhere in the package, runtime or TYPE_CHECKING (a part the node
+    holds reads it through a Protocol, ros/host.py, or explicit inputs)."""
+    import graphlib
+
+    graph = {}
+    for path in sorted((ROOT / 'handeye_ros').rglob('*.py')):
+        rel = path.relative_to(ROOT).with_suffix('')
+        module = '.'.join(rel.parts[:-1] if rel.name == '__init__' else rel.parts)
+        graph[module] = {t for t in _imports(path, module) if t != module}
+    graphlib.TopologicalSorter(graph).prepare()  # raises CycleError naming the cycle
+
+
 def test_the_top_level_holds_only_the_entry_points() -> None:
     assert {p.name for p in (ROOT / 'handeye_ros').glob('*.py')} == TOP_LEVEL
 

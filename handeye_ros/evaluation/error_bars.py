@@ -23,14 +23,13 @@ from scipy.spatial.transform import Rotation
 
 from ..core.arrays import Floats, Indices, Stamps
 from ..core.association import MIN_PAIRS, pairs_at_eye
-from ..core.document import ErrorKey, SigmasMethodDoc
 from ..core.geometry import compose, matrix_from_quat
 from ..core.result import CalibrationResult
 from ..core.time.clock import retime
 from ..core.trajectory import Trajectory
 from ..core.world import align_worlds, worlds_per_pair
 from .aligned import AlignedTrajectories
-from .metrics import POSE_ERRORS, STATS, PoseErrors
+from .metrics import POSE_ERRORS, STATS, CalibrationSigmas, PoseErrors
 
 #: Draws of the calibration's parameters: the sigma of a sigma from n draws is about
 #: 1 / sqrt(2 n) of it, 12.5 % here.
@@ -42,34 +41,6 @@ MAX_POSES = 5_000
 WINDOWS = 10
 #: The draws' generator's seed: the same result gives the same error bars.
 SEED = 0
-
-
-@dataclass(frozen=True)
-class CalibrationSigmas:
-    """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
-    its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
-    figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses;
-    ``parameters`` names what was drawn.
-    """
-
-    sigmas: dict[ErrorKey, dict[str, float | None]]
-    draws: int
-    poses: int
-    parameters: tuple[str, ...]
-
-    def to_dict(self, exclude_sigmas: bool = False) -> SigmasMethodDoc:
-        out: SigmasMethodDoc = {
-            'draws': self.draws,
-            'poses': self.poses,
-            'parameters': list(self.parameters),
-            'method': (
-                'each figure again at draws of the parameters from their reported covariance, '
-                'T_WG refitted; its 1-sigma the root-mean-square of the changes'
-            ),
-        }
-        if not exclude_sigmas:
-            out['sigmas'] = {str(k): v for k, v in self.sigmas.items()}
-        return out
 
 
 def calibration_sigmas(

@@ -14,18 +14,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, get_args
+from typing import get_args
 
 import numpy as np
 
 from ..core.arrays import Floats, Indices
-from ..core.document import ErrorKey, ErrorStatsDoc, EvaluationDoc, PoseErrorsDoc
+from ..core.document import ErrorKey, ErrorStatsDoc, EvaluationDoc, PoseErrorsDoc, SigmasMethodDoc
 from ..core.geometry import rotation_angle, row_norms
 from ..core.result_sections import num
 from .aligned import AlignedTrajectories
-
-if TYPE_CHECKING:
-    from .error_bars import CalibrationSigmas
 
 #: The figures of :class:`PoseErrors`, and the statistics of each that carry error bars.
 POSE_ERRORS: tuple[ErrorKey, ...] = get_args(ErrorKey)
@@ -149,6 +146,34 @@ class PoseErrors:
             'rpe_distance_translation': self.rpe_distance_translation.to_dict(),
             'rpe_distance_rotation': self.rpe_distance_rotation.to_dict(),
         }
+
+
+@dataclass(frozen=True)
+class CalibrationSigmas:
+    """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
+    its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
+    figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses;
+    ``parameters`` names what was drawn.
+    """
+
+    sigmas: dict[ErrorKey, dict[str, float | None]]
+    draws: int
+    poses: int
+    parameters: tuple[str, ...]
+
+    def to_dict(self, exclude_sigmas: bool = False) -> SigmasMethodDoc:
+        out: SigmasMethodDoc = {
+            'draws': self.draws,
+            'poses': self.poses,
+            'parameters': list(self.parameters),
+            'method': (
+                'each figure again at draws of the parameters from their reported covariance, '
+                'T_WG refitted; its 1-sigma the root-mean-square of the changes'
+            ),
+        }
+        if not exclude_sigmas:
+            out['sigmas'] = {str(k): v for k, v in self.sigmas.items()}
+        return out
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,6 @@ motion than the data it converged on.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -40,10 +39,8 @@ from ..core.checks.carry import (
 from ..core.checks.verdict import precision_ratio, precision_ratios, sigmas_of
 from ..core.document import ReadinessDoc, ResultDoc
 from ..stream import STREAMS
+from .host import StatusHost
 from .jobs import Calibrated
-
-if TYPE_CHECKING:  # the node owns its auto mode
-    from .node import CalibratorNode
 
 #: With auto_calibrate: calibrate again once the buffered span has grown by this factor.
 GROWTH = 1.5
@@ -64,7 +61,7 @@ class AutoMode:
     """Auto mode of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`); ``said`` is
     where it stands, as the status says it ('off' when not asked for)."""
 
-    def __init__(self, node: CalibratorNode, on: bool) -> None:
+    def __init__(self, node: StatusHost, on: bool) -> None:
         self._node = node
         self.said = 'waiting for READY' if on else 'off'
         self._span_calibrated = 0.0

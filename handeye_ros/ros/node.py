@@ -40,7 +40,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import TypeVar
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
@@ -108,10 +108,13 @@ class CalibratorNode(Node):
         self._closing, self._open_calls = False, 0  # ~/calibrate calls awaiting their answer
         self._busy_since = 0.0
         self._pool: worker.Pool | None = pool
-        self.poses = Subscriptions(self, self.recorder, self._on_pose)
-        self.status = ReadinessStatus(
-            self, self.node_cfg.status_period, self.node_cfg.auto_calibrate
+        self.poses = Subscriptions(
+            self, self.recorder, self._on_pose, lambda: (self.stream_cfg, self.node_cfg)
         )
+        status = quiet_publisher(self, DiagnosticStatus, '~/status', 10)
+        self.status = ReadinessStatus(self, self.node_cfg.auto_calibrate, status.publish)
+        if self.node_cfg.status_period > 0.0:
+            steady_timer(self, self.node_cfg.status_period, self.status.tick)
         steady_timer(self, self.node_cfg.diagnostics_period, self._publish_diagnostics)
         if self.node_cfg.calibrate_period > 0.0:
             steady_timer(self, self.node_cfg.calibrate_period, self._periodic_calibrate)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, TypeVar
+from typing import TypeVar
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
@@ -39,12 +39,8 @@ from ..stream import STREAMS
 from . import diagnostics
 from .auto_mode import GROWTH, AutoMode
 from .clocks import Arrivals, ClockWatch, jump_advice
+from .host import StatusHost
 from .jobs import readiness_measure, readiness_start
-from .lifecycle import steady_timer
-from .outputs import quiet_publisher
-
-if TYPE_CHECKING:  # the node owns its status
-    from .node import CalibratorNode
 
 #: What a status job gives back (with its CPU time).
 _V = TypeVar('_V')
@@ -78,8 +74,13 @@ LOG_PERIOD_S = 10.0
 class ReadinessStatus:
     """The status of ``node`` (a :class:`~handeye_ros.ros.node.CalibratorNode`)."""
 
-    def __init__(self, node: CalibratorNode, period_s: float, auto: bool) -> None:
+    def __init__(
+        self, node: StatusHost, auto: bool, publish: Callable[[DiagnosticStatus], None]
+    ) -> None:
+        """``publish``: what ``~/status`` sends with; the node ticks :meth:`tick` each
+        ``status_period``."""
         self._node = node
+        self._send = publish
         #: the last readiness (the result's ``readiness`` section), or None with why_not
         self.last: ReadinessDoc | None = None
         self.why_not = 'waiting for data'
@@ -100,9 +101,6 @@ class ReadinessStatus:
         self._checked_span = 0.0
         #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
         self._sim_clock = (0, time.monotonic())
-        self.pub = quiet_publisher(node, DiagnosticStatus, '~/status', 10)
-        if period_s > 0.0:
-            steady_timer(node, period_s, self.tick)
 
     def tick(self) -> None:
         """On the executor: maybe calibrate (auto mode), then ask the workers for a status:
@@ -379,7 +377,7 @@ class ReadinessStatus:
         if late and self.last is not None:
             self.last = {**self.last, 'missing': [*self.last['missing'], *late]}
         st = self.status()
-        self.pub.publish(st)
+        self._send(st)
         self._say(st.message if self.last is None else status_line(self.last))
 
     def status(self) -> DiagnosticStatus:

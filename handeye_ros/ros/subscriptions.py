@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle
+from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
     HistoryPolicy,
@@ -35,8 +36,9 @@ from ..stream.shapes import Message, MessageInfo
 from .lifecycle import steady_timer
 from .types import message_class
 
-if TYPE_CHECKING:  # the node owns its subscriptions
-    from .node import CalibratorNode
+if TYPE_CHECKING:  # the node owns its subscriptions; it hands them its settings
+    from ..app.params_file import NodeConfig
+    from ..stream import StreamConfig
 
 #: Seconds between looks at the graph while an auto-typed stream's type is unknown: a type
 #: learnt there is subscribed at the next look (one look costs ~0.02 ms).
@@ -67,15 +69,18 @@ def taken(sub: Subscription, most: int) -> Iterator[tuple[Message, MessageInfo]]
 
 class Subscriptions:
     """The pose subscriptions of ``node``, feeding ``on_pose(stream, msg, static, info)``
-    (``info``: the message's rclpy MessageInfo)."""
+    (``info``: the message's rclpy MessageInfo); ``settings()``: the node's stream and node
+    options as they are now (a parameter set later changes them)."""
 
     def __init__(
         self,
-        node: CalibratorNode,
+        node: Node,
         recorder: Recorder,
         on_pose: Callable[[str, Message, bool, MessageInfo], None],
+        settings: Callable[[], tuple[StreamConfig, NodeConfig]],
     ) -> None:
         self._node, self._recorder, self._on_pose = node, recorder, on_pose
+        self._settings = settings
         self._log = node.get_logger()
         self.subs: dict[str, Subscription] = {}
         self._static_subs: dict[str, Subscription] = {}
@@ -88,7 +93,7 @@ class Subscriptions:
         self.check_tf_selectors()
         self.check_topics()
         for stream in STREAMS:
-            declared = getattr(node.stream_cfg, f'{stream}_type')
+            declared = getattr(settings()[0], f'{stream}_type')
             if declared != 'auto':
                 self.subscribe(stream, normalise_type(declared))
             elif recorder.selectors[stream].item is None:
@@ -126,7 +131,7 @@ class Subscriptions:
         tf2_msgs comes with a ROS 2 install, not with the PyPI wheels."""
         for stream in STREAMS:
             sel = self._recorder.selectors[stream]
-            declared = getattr(self._node.stream_cfg, f'{stream}_type')
+            declared = getattr(self._settings()[0], f'{stream}_type')
             is_tf = (
                 normalise_type(declared) == TF_TYPE
                 if declared != 'auto'
@@ -146,11 +151,11 @@ class Subscriptions:
     def _pose_qos(self) -> QoSProfile:
         """The QoS of the pose subscriptions."""
         return QoSProfile(
-            depth=self._node.node_cfg.qos_depth,
+            depth=self._settings()[1].qos_depth,
             history=HistoryPolicy.KEEP_LAST,
             reliability=(
                 ReliabilityPolicy.BEST_EFFORT
-                if self._node.node_cfg.qos_reliability == 'best_effort'
+                if self._settings()[1].qos_reliability == 'best_effort'
                 else ReliabilityPolicy.RELIABLE
             ),
             durability=DurabilityPolicy.VOLATILE,
@@ -272,10 +277,10 @@ class Subscriptions:
                     )
                 except ConfigError as err:
                     self._sub_errors[stream] = str(err)
-                    if now - self._type_warned[stream] > self._node.node_cfg.topic_wait:
+                    if now - self._type_warned[stream] > self._settings()[1].topic_wait:
                         self._type_warned[stream] = now
                         self._log.error(f'{stream}: {err}')
-            elif now - self._type_warned[stream] > self._node.node_cfg.topic_wait:
+            elif now - self._type_warned[stream] > self._settings()[1].topic_wait:
                 self._type_warned[stream] = now
                 if types and not usable:
                     why = (

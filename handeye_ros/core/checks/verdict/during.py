@@ -5,7 +5,7 @@ stage needs to go on (:func:`batch_moved`, :func:`batch_supported`, :func:`judge
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, assert_never
 
 import numpy as np
 
@@ -29,6 +29,7 @@ from .facts import (
     ConventionCorrected,
     DriftMeasured,
     DriftUnobservable,
+    Fact,
     FixedOffsetDisagrees,
     ScaleMeasured,
     SeedCompared,
@@ -325,38 +326,39 @@ def drift_explains_note(spread_s: float, fitted: float) -> str:
     )
 
 
-def read(entry: object) -> tuple[Reason | None, str | None]:
+def read(entry: Fact | Reason) -> tuple[Reason | None, str | None]:
     """What a fact of the stages means for the verdict: (a reason or None, a note or None); a
     reason made on the way reads as itself."""
-    if isinstance(entry, Reason):
-        return entry, None
-    if isinstance(entry, ConventionCorrected):
-        return convention_corrected(entry.message), None
-    if isinstance(entry, FixedOffsetDisagrees):
-        text = (
-            f'the fixed time offset {entry.fixed_s * 1e3:+.1f} ms is not where the angular '
-            f'speeds agree ({entry.measured_s * 1e3:+.1f} ms, correlation '
-            f'{entry.correlation:.2f}): every figure at it is off; check the fixed value'
-        )
-        return Reason(Code.OFFSET_DISAGREES, text), None
-    if isinstance(entry, ScaleMeasured):
-        reason = scale_reason(entry.fit)
-        if reason is not None or not entry.fit.clear:
-            return reason, None
-        return None, scale_message(entry.fit)  # named; T_HE is fitted with it free
-    if isinstance(entry, DriftMeasured):
-        reason = drift_reason(entry.fit)
-        return (reason, None) if reason is not None else (None, drift_constant_note(entry.fit))
-    if isinstance(entry, DriftUnobservable):
-        return drift_unobservable(entry.why), None
-    if isinstance(entry, SeedFailed):
-        return seed_failed(entry.seed, entry.error), None
-    if isinstance(entry, SeedCompared):
-        return seed_reason(
-            entry.seed, entry.rotation_deg, entry.translation_m, entry.batch_std
-        ), None
-    if isinstance(entry, StagesDisagree):
-        scored = None if entry.scored is None else list(entry.scored)
-        return stages_disagree(entry.what, entry.failed, scored), None
-    msg = f'not a fact of the stages: {entry!r}'
-    raise TypeError(msg)
+    match entry:
+        case Reason():
+            return entry, None
+        case ConventionCorrected(message=message):
+            return convention_corrected(message), None
+        case FixedOffsetDisagrees():
+            text = (
+                f'the fixed time offset {entry.fixed_s * 1e3:+.1f} ms is not where the angular '
+                f'speeds agree ({entry.measured_s * 1e3:+.1f} ms, correlation '
+                f'{entry.correlation:.2f}): every figure at it is off; check the fixed value'
+            )
+            return Reason(Code.OFFSET_DISAGREES, text), None
+        case ScaleMeasured(fit=fit):
+            reason = scale_reason(fit)
+            if reason is not None or not fit.clear:
+                return reason, None
+            return None, scale_message(fit)  # named; T_HE is fitted with it free
+        case DriftMeasured(fit=fit):
+            reason = drift_reason(fit)
+            return (reason, None) if reason is not None else (None, drift_constant_note(fit))
+        case DriftUnobservable(why=why):
+            return drift_unobservable(why), None
+        case SeedFailed(seed=seed, error=error):
+            return seed_failed(seed, error), None
+        case SeedCompared():
+            return seed_reason(
+                entry.seed, entry.rotation_deg, entry.translation_m, entry.batch_std
+            ), None
+        case StagesDisagree():
+            scored = None if entry.scored is None else list(entry.scored)
+            return stages_disagree(entry.what, entry.failed, scored), None
+        case _:
+            assert_never(entry)

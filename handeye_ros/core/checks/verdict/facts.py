@@ -10,7 +10,7 @@ self-check) is kept there too, and reads as itself.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, get_args
 
 from ...arrays import Floats
 
@@ -90,14 +90,16 @@ class StagesDisagree:
     scored: tuple[Candidate, ...] | None = None
 
 
-#: Every fact a stage records (and a reason a rule made on the way).
-FACTS = (
-    ConventionCorrected,
-    FixedOffsetDisagrees,
-    ScaleMeasured,
-    DriftMeasured,
-    DriftUnobservable,
-    SeedFailed,
-    SeedCompared,
-    StagesDisagree,
+#: Every fact a stage records: a closed union, which the verdict reads case by case
+#: (:func:`.during.read`, checked exhaustive by the type checker).
+Fact = (
+    ConventionCorrected
+    | FixedOffsetDisagrees
+    | ScaleMeasured
+    | DriftMeasured
+    | DriftUnobservable
+    | SeedFailed
+    | SeedCompared
+    | StagesDisagree
 )
+FACTS = get_args(Fact)

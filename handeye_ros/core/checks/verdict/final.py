@@ -29,7 +29,7 @@ from .codes import (
     Reason,
 )
 from .during import read
-from .findings import Findings
+from .findings import Entry, Findings
 
 if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' math
     from ...batch.refine import BatchSolution
@@ -339,7 +339,7 @@ def assess_model(model: EyeModel, clock: DriftFit | None, cfg: CalibrationConfig
     return Findings.of(*said)
 
 
-def reasons_in(log: tuple[object, ...]) -> set[Code]:
+def reasons_in(log: tuple[Entry, ...]) -> set[Code]:
     """The codes of the reasons the entries of a log (notes, facts, reasons) make."""
     return {r.code for r in (read(e)[0] for e in log if not isinstance(e, str)) if r}
 

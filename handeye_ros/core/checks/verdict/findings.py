@@ -9,7 +9,12 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from .facts import ConventionCorrected
+from .codes import Reason
+from .facts import ConventionCorrected, Fact
+
+#: What a log holds: a note (a sentence that does not lower the verdict), a fact a stage
+#: recorded, or a reason a rule made on the way.
+Entry = str | Fact | Reason
 
 if TYPE_CHECKING:  # the records of the checks, for the fields only
     from ..conventions import Correction
@@ -26,7 +31,7 @@ class Findings:
     that no stage makes a reason). ``warnings`` go to the result as they are."""
 
     warnings: tuple[str, ...] = ()
-    log: tuple[object, ...] = ()
+    log: tuple[Entry, ...] = ()
     corrections: tuple[Correction, ...] = ()
     candidates: tuple[Candidate, ...] = ()
 
@@ -39,7 +44,7 @@ class Findings:
         )
 
     @classmethod
-    def of(cls, *entries: object) -> Findings:
+    def of(cls, *entries: Entry) -> Findings:
         """Notes, facts or reasons for the verdict, in this order."""
         return cls(log=entries)
 

@@ -125,6 +125,15 @@ def _assess_linear(lin: LinearSolution, batch: BatchSolution | None) -> list[Rea
         )
     if lin.unobservable:
         held = batch is not None and batch.held_axis is not None
+        if batch is not None and batch.held_axis is not None:
+            a = batch.held_axis
+            said.append(
+                'held by the batch stage, as the motion cannot tell it: the translation of '
+                f'T_HE along the only rotation axis [{a[0]:+.3f} {a[1]:+.3f} {a[2]:+.3f}] (hand '
+                f'frame) at {float(batch.p_HE @ a):+.3f} m (held_lever_arm)'
+                + (', and the rotation about it' if batch.held_rotation else '')
+                + '; no APE/RPE figure depends on it (the world alignment absorbs it)'
+            )
         said.append(
             Reason(
                 Code.UNOBSERVABLE,

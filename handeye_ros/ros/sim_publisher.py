@@ -1,7 +1,7 @@
 """A simulated MoCap + VIO rig on two topics, to try the calibrator node without hardware, or a
 recorded one replayed from its files.
 
-``ros2 run handeye_ros sim_publisher [--seed 3 --level 3 --duration 40 ...]``
+``ros2 run handeye_ros sim_publisher [--seed 3 --level 3 --duration 60 ...]``
 ``ros2 run handeye_ros sim_publisher --replay HAND.csv EYE.txt [--speed 1]``
 
 Simulates a recording with the paper's protocol (see ``handeye_ros.core.simulate``), waits for

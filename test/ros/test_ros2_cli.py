@@ -226,7 +226,7 @@ def test_ros2_run_status_calibrate_param_set_and_save_as_typed(shell: Shell, ws:
     assert code == 0 and 'Traceback' not in out, out
     truth = yaml.safe_load(out.strip().splitlines()[-1])['truth']
 
-    # 40 s of rich motion: READY, once neither stream is the last one still flowing (the
+    # 60 s of rich motion: READY, once neither stream is the last one still flowing (the
     # device's ends first, and for a moment 'has sent nothing' is true): echoed again until then
     said = []
 
@@ -276,14 +276,16 @@ LAUNCH = pytest.mark.skipif(
 @pytest.mark.ros
 @LAUNCH
 def test_ros2_launch_with_the_simulated_rig_calibrates_and_stops_on_ctrl_c(shell: Shell) -> None:
-    """The node and the simulated rig start, auto mode calibrates once the status is READY,
-    and Ctrl-C on the launch stops both with exit code 0 and no traceback."""
+    """The node and the simulated rig start, auto mode calibrates as the recording grows (for
+    an evaluation its first calibration is the check of READY) until a result is good, and
+    Ctrl-C on the launch stops both with exit code 0 and no traceback."""
     launch = shell.start(LAUNCH_SIM, 'launch')
+    good = r'\[calibrator-1\].*calibrated in [\d.]+ s: good: '
     assert wait_for(
-        lambda: 'calibrated in' in shell.log(launch) or launch.poll() is not None, 120, 0.2
+        lambda: re.search(good, shell.log(launch)) or launch.poll() is not None, 150, 0.2
     ), shell.log(launch)
     log = shell.log(launch)
-    assert re.search(r'\[calibrator-1\].*calibrated in [\d.]+ s: good: ', log), log
+    assert re.search(good, log), log
     assert 'sim_publisher: publishing' in log, log
     assert shell.ctrl_c(launch) == 0, shell.log(launch)
     assert 'Traceback' not in shell.log(launch), shell.log(launch)

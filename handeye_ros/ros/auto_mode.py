@@ -87,16 +87,17 @@ class AutoMode:
         """Converged, stalled or done: it calibrates again only for richer motion."""
         return self.said.startswith(('converged', 'stalled', 'done'))
 
-    def step(self, last: ReadinessDoc | None) -> None:
+    def step(self, last: ReadinessDoc | None, ended: bool = False) -> None:
         """On each tick of the status, with its last readiness: calibrate once READY is
         predicted (its first result is the one that confirms it), again as the buffers grow by
-        GROWTH, and, converged or done, when the motion gets richer."""
+        GROWTH, and once more when the recording has ended (``ended``) on more than the last
+        calibration had; converged or done, when the motion gets richer."""
         # READY starts it; once it has calibrated, the buffers growing do (READY then carries
         # the last result's factors and reasons, which only a new result can settle)
         if not (last and (last['ready'] or last.get('checking') or self._span_calibrated)):
             return
         if self.said in ('waiting for READY', 'calibrating'):
-            self._calibrate(last)
+            self._calibrate(last, final=ended)
         elif self.ended and richer(self._predicted_then, self._predicted(last)):
             self._calibrate(last, grown=True)
 
@@ -121,10 +122,18 @@ class AutoMode:
         seconds_metres_degrees = (ms * 1e-3, mm * 1e-3, deg)
         return precision_ratio(seconds_metres_degrees, self._node.calib_cfg.precision)
 
-    def _calibrate(self, last: ReadinessDoc, grown: bool = False) -> None:
+    def _calibrate(self, last: ReadinessDoc, grown: bool = False, final: bool = False) -> None:
         buffers = [self._node.recorder.buffers[s] for s in STREAMS]
         span = min(b.span_s for b in buffers)
-        if not grown and self._span_calibrated and span < GROWTH * self._span_calibrated:
+        # a recording that ended grows no more: its whole is calibrated once, however little
+        # it grew since the last calibration
+        last_of_it = final and span > self._span_calibrated
+        if (
+            not grown
+            and not last_of_it
+            and self._span_calibrated
+            and span < GROWTH * self._span_calibrated
+        ):
             if any(b.dropped for b in buffers):  # a full buffer's span grows no more
                 self.said = (
                     f'done: the buffers are full ({span:.0f} s; buffer_duration, buffer_size), '

@@ -107,7 +107,7 @@ class ReadinessStatus:
         of the whole buffers when :meth:`_restart_due`, else of the poses new since the last
         one."""
         node = self._node
-        self.auto.step(self.last)
+        self.auto.step(self.last, ended=bool(self.ended()))
         if node.closing:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
@@ -258,8 +258,11 @@ class ReadinessStatus:
     def _check(self, span_s: float) -> None:
         """Calibrate the buffers to confirm a predicted READY (not published), and again only
         once the buffers have grown by GROWTH since (the check failed, or its result was doubtful
-        for another reason than its precision)."""
-        if span_s >= GROWTH * self._checked_span and self._node.calibrate(check=True) is not None:
+        for another reason than its precision), or once the recording has ended on more than the
+        last check had (it grows no more)."""
+        grown = span_s >= GROWTH * self._checked_span
+        last_of_it = bool(self.ended()) and span_s > self._checked_span
+        if (grown or last_of_it) and self._node.calibrate(check=True) is not None:
             self._checked_span = span_s
 
     def stopped(self) -> list[str]:

@@ -10,7 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..core.checks.carry import carried
-from ..core.checks.verdict import assess_evaluation
+from ..core.checks.verdict import Purpose, assess_evaluation
 from ..core.document import ErrorKey, FilesDoc, ResultDoc
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
@@ -102,6 +102,9 @@ def judge_figures(result: CalibrationResult, ev: Evaluation) -> CalibrationResul
             )
         )
     reasons, notes = assess_evaluation(figures, '' if ev.sigmas is not None else ev.sigmas_why)
+    # no error bars because the batch stage did not run is said once (the core said it)
+    said = {r.code for r in result.quality.found if Purpose.EVALUATION in r.purposes}
+    reasons = [r for r in reasons if r.code not in said]
     return replace(result, quality=result.quality.with_evaluation(reasons, notes))
 
 

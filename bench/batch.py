@@ -7,10 +7,10 @@ of the 3-vector error within the 99.73 % quantile of chi2(3) (14.16), the 3-sigm
 3-vector. Every (level, seed) is its own recording (seed 1000 * level + s): the same seed at
 two levels would be the same noise draw scaled, and its coverage the same event counted twice.
 
-``--joint`` adds the joint solve (control poses free) beside the default one; ``--hand-noise``
-gives the MoCap white noise per axis (m and rad; the paper's protocol has none).
+``--hand-noise`` gives the MoCap white noise per axis (m and rad; the paper's protocol has
+none).
 
-Usage: python bench/batch.py [--seeds 20] [--levels 0 1 ... 10] [--joint] [--hand-noise 1e-4]
+Usage: python bench/batch.py [--seeds 20] [--levels 0 1 ... 10] [--hand-noise 1e-4]
 """
 
 from __future__ import annotations
@@ -44,11 +44,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--seeds', type=int, default=20)
     p.add_argument('--levels', type=float, nargs='+', default=list(range(11)))
-    p.add_argument('--joint', action='store_true', help='also run the joint solve')
     p.add_argument('--hand-noise', type=float, default=0.0, help='MoCap noise per axis [m, rad]')
     args = p.parse_args()
-    if args.joint:
-        return joint_vs_default(args)
     rows, cov_rows, curves = [], [], []
     t0 = time.perf_counter()
     all_cov = []
@@ -127,77 +124,6 @@ def main() -> None:
             ax[k].set(xlabel='noise level', ylabel=name)
             ax[k].legend()
         print('plot:', save_plot(fig, 'batch'))
-
-
-def joint_vs_default(args) -> None:
-    """The default solve (spline fixed to the MoCap) against the joint one, same recordings."""
-    rows, cov_rows = [], []
-    t0 = time.perf_counter()
-    for level in args.levels:
-        err, cov, secs, sig = {'d': [], 'j': []}, [], {'d': [], 'j': []}, {'d': [], 'j': []}
-        for seed in range(args.seeds):
-            rec = recording(level, seed, args.hand_noise)
-            for key, cfg in (
-                ('d', CalibrationConfig()),
-                ('j', CalibrationConfig(batch_joint=True)),
-            ):
-                r = calibrate(rec.hand, rec.eye, cfg)
-                e = calibration_error(rec.truth, r.time_offset_s, r.q_HE, r.p_HE)
-                err[key].append((e.time_offset_s * 1e3, e.translation_m * 1e3, e.rotation_deg))
-                if r.batch is not None:
-                    secs[key].append(r.batch.seconds)
-                    sig[key].append(r.batch.std[0] * 1e3)
-                    if key == 'j':
-                        cov.append(covered(r, rec.truth))
-        d, j = np.mean(err['d'], axis=0), np.mean(err['j'], axis=0)
-        rows.append(
-            [
-                f'{level:g}',
-                d[0],
-                j[0],
-                d[1],
-                j[1],
-                d[2],
-                j[2],
-                np.mean(sig['d']),
-                np.mean(sig['j']),
-                np.mean(secs['d']),
-                np.mean(secs['j']),
-                f'{len(secs["j"])}/{args.seeds}',
-            ]
-        )
-        cov_rows.append([f'{level:g}', *(np.mean(cov, axis=0) * 100 if cov else [np.nan] * 3)])
-    emit(
-        'batch_joint',
-        table(
-            f'Default (spline fixed to the MoCap) vs joint solve, mean over {args.seeds} seeds, '
-            f'MoCap noise {args.hand_noise:g} m / rad per axis',
-            [
-                'level',
-                'dt def ms',
-                'dt joint ms',
-                'trans def mm',
-                'trans joint mm',
-                'rot def deg',
-                'rot joint deg',
-                '1-sigma dt def ms',
-                '1-sigma dt joint ms',
-                'def s',
-                'joint s',
-                'joint used',
-            ],
-            rows,
-        ),
-    )
-    emit(
-        'batch_joint_coverage',
-        table(
-            'Joint solve: truth inside the reported 3-sigma [% of seeds]',
-            ['level', 'dt', 'translation', 'rotation'],
-            cov_rows,
-        ),
-    )
-    print(f'({time.perf_counter() - t0:.0f} s)')
 
 
 if __name__ == '__main__':

@@ -55,7 +55,7 @@ from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
 from handeye_ros.core.trajectory import Trajectory
-from handeye_ros.evaluation.error_bars import figures_moved
+from handeye_ros.evaluation.error_bars import figures_at
 from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 from handeye_ros.formats import read_trajectory
 
@@ -417,21 +417,17 @@ def _figures_at(res, truth: Truth) -> float:
     the translation and the rotation (inf without them)."""
     found = evaluation_of(res)
     sigmas = None if found is None else found[0].sigmas
-    if sigmas is None:
-        return float('inf')
-    d = np.zeros(res.batch.covariance.shape[0])
-    d[0] = truth.time_offset_s - res.time_offset_s
-    d[1:4] = truth.p_HE - res.p_HE
-    d[4:7] = (Rotation.from_quat(res.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    at, zero = (figures_moved(res, x, 1.0, 1.0) for x in (d, np.zeros_like(d)))
-    if at is None or zero is None:
+    moved = (
+        None if sigmas is None else figures_at(res, truth.time_offset_s, truth.q_HE, truth.p_HE)
+    )
+    if sigmas is None or moved is None:
         return float('inf')
     worst = 0.0
     for key in ('ape_translation', 'ape_rotation'):
         sigma = sigmas.sigmas[key]['rmse']
         if not sigma:
             return float('inf')
-        worst = max(worst, abs(at[key]['rmse'] - zero[key]['rmse']) / sigma)
+        worst = max(worst, abs(moved[key]['rmse']) / sigma)
     return worst
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from common import emit, protocol_seed, table
 
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import move_to_truth, noise_level, simulate
+from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.evaluation import error_bars
 from handeye_ros.evaluation.metrics import POSE_ERRORS
 
@@ -37,18 +37,10 @@ def case(rec) -> tuple[np.ndarray, float, float]:
     bars, why = error_bars.calibration_sigmas(res, 1.0, 1.0)
     t2 = time.process_time()
     assert bars is not None, why
-    keep, window = error_bars._windows(res.used.eye_stamps_ns, 1.0)
-    eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
-    sample = error_bars._Sample(eye, stamps, window, (None, None, 0), (1.0, 1.0))
-    at = error_bars._figures(res, sample, np.zeros(7))
-    true = error_bars._figures(
-        res,
-        sample,
-        move_to_truth(
-            rec.truth, res.time_offset_s, res.q_HE, res.p_HE, res.batch.covariance.shape[0]
-        ),
-    )
-    z = np.array([(true[n]['rmse'] - at[n]['rmse']) / bars.sigmas[n]['rmse'] for n in POSE_ERRORS])
+    t = rec.truth
+    moved = error_bars.figures_at(res, t.time_offset_s, t.q_HE, t.p_HE)
+    assert moved is not None
+    z = np.array([moved[n]['rmse'] / bars.sigmas[n]['rmse'] for n in POSE_ERRORS])
     return z, t1 - t0, t2 - t1
 
 

@@ -35,7 +35,7 @@ from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.result import CalibrationResult
 from handeye_ros.core.simulate import Truth, noise_level, simulate
-from handeye_ros.evaluation.error_bars import figures_moved
+from handeye_ros.evaluation.error_bars import figures_at
 from handeye_ros.evaluation.outputs import JUDGED, evaluation_of, judge_figures
 
 #: What counts as an accurate answer (the issue's figure).
@@ -107,14 +107,10 @@ def _truth_within(
     if found is None or found[0].sigmas is None or r.batch is None:
         return None
     sigma = found[0].sigmas.sigmas[key]['rmse']
-    d = np.zeros(r.batch.covariance.shape[0])
-    d[0] = truth.time_offset_s - r.time_offset_s
-    d[1:4] = truth.p_HE - r.p_HE
-    d[4:7] = (Rotation.from_quat(r.q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    at, zero = (figures_moved(r, x, 1.0, 1.0) for x in (d, np.zeros_like(d)))
-    if at is None or zero is None or not sigma:
+    moved = figures_at(r, truth.time_offset_s, truth.q_HE, truth.p_HE)
+    if moved is None or not sigma:
         return None
-    return abs(at[key]['rmse'] - zero[key]['rmse']) / sigma
+    return abs(moved[key]['rmse']) / sigma
 
 
 def sim_rows(seeds: int) -> list[list[object]]:

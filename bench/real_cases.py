@@ -8,8 +8,7 @@ drift) are reported apart. "identity" is our rotation result on the unmodified p
 truth is the identity: it shows the estimate's own attitude bias against the ground truth,
 which bounds what any calibration can reach on that pair.
 
-Usage: python bench/real_cases.py [--joint] [--only V1_01 ...]
-(``--joint``: the batch columns from the joint solve, control poses free.)
+Usage: python bench/real_cases.py [--only V1_01 ...]
 """
 
 from __future__ import annotations
@@ -82,11 +81,9 @@ def evaluate_pair(
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
-    p.add_argument('--joint', action='store_true', help='batch stage with the control poses free')
     p.add_argument('--only', nargs='+', help='pair names (default: all)')
     args = p.parse_args()
-    config = CalibrationConfig(batch_joint=args.joint)
-    suffix = '_joint' if args.joint else ''
+    config = CalibrationConfig()
     if not realdata.available():
         print(f'real data not found at {realdata.REAL_DATA}: nothing to do')
         return
@@ -136,7 +133,7 @@ def main() -> None:
             ['mean'] + [float(np.mean([row[k] for row in rows])) for k in range(1, 12)] + ['', '']
         )
         emit(
-            f'real_{"vicon" if room else "machine_hall"}{suffix}',
+            f'real_{"vicon" if room else "machine_hall"}',
             table(
                 f'{title}: offset estimated by us (shifts {", ".join(f"{s:+g}" for s in SHIFTS_S)} s'
                 ' applied); lin = stages 1+2, then the batch stage; OpenCV given the applied shift '

@@ -56,12 +56,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'defaults': ('defaults', [], ['defaults_*'], '15 min'),
     'batch': ('batch', [], ['batch_accuracy', 'batch_coverage'], '20 min'),
-    'batch_joint': (
-        'batch',
-        ['--joint', '--levels', '1', '5', '10', '--seeds', '10', '--hand-noise', '1e-4'],
-        ['batch_joint', 'batch_joint_coverage'],
-        '20 min',
-    ),
     'real_cases': ('real_cases', [], ['real_vicon*', 'real_machine_hall*'], '5 min'),
     'coverage_real': ('coverage_real', [], ['coverage_real'], '10 min'),
     'uncertainty_real': (
@@ -79,15 +73,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'purpose': ('purpose', [], ['purpose_real', 'purpose_one_axis'], '6 min'),
     'wander': ('wander', [], ['wander'], '12 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
-    'readiness_real': ('readiness_real', [], ['readiness_real'], '4 min'),
-    'prefixes': ('prefixes', [], ['prefixes'], '3 min'),
-    'readiness_live_real': ('readiness_live_real', [], ['readiness_live_real'], '15 min'),
-    'readiness_live_real_dense': (
-        'readiness_live_real',
-        ['--check-every', '2'],
-        ['readiness_live_real_dense'],
-        '16 min',
-    ),
+    'live_real': ('live_real', [], ['live_real_evaluation'], '15 min'),
     'defects': (
         'defects',
         [],
@@ -136,8 +122,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['real_world_tumvi', 'real_world_keyframes', 'real_world_sim'],
         '5 min',
     ),
-    'readiness': ('readiness', [], ['readiness', 'readiness_carried'], '2 min'),
-    'readiness_live': ('readiness_live', [], ['readiness_live'], '50 min'),
     'node_ingest': (
         'node_ingest',
         [],

@@ -44,7 +44,6 @@ VOLATILE = ('seconds', 'runtime', 'elapsed', 'wall')
 VARIANTS = {
     'default': {},
     'linear': {'batch': False},
-    'joint': {'batch_joint': True},
     'drift': {'clock_drift': True},
     'scale': {'estimate_scale': True},
     'paper_dq': {'decoupled_refit': False, 'adaptive_inliers': False, 'batch': False},

@@ -440,18 +440,8 @@ MAX_REQUIRED_PARAMETERS = 6
 #: The functions that take more, each with why its parameters do not form a record: the batch
 #: stage's numerical kernels, whose arguments are the independent arrays of one computation.
 MANY_PARAMETERS = {
-    'core/batch/covariance.py:joint_covariance': (
-        "the joint solve's Schur covariance: the problem and its weights, the solution and its "
-        'residuals, the four masks over it, the loss, the steps'
-    ),
-    'core/batch/covariance.py:joint_long_run': (
-        'the long-run term of that covariance: the same problem at the same solution'
-    ),
     'core/batch/long_run.py:influence_two_step': (
         "each step's residuals and Jacobians and how the steps share their rows and parameters"
-    ),
-    'core/batch/levenberg_marquardt.py:levenberg_marquardt_sparse': (
-        "the solver's arguments as scipy's least_squares takes them"
     ),
     'core/batch/residuals.py:__init__': (
         'BatchProblem: the whole problem of eq. 15 (streams, start, spline, drift and scale)'

@@ -61,9 +61,10 @@ class NodeConfig(Options):
     status_period: float = option(
         1.0,
         'float',
-        'period of the readiness status while recording [s]: excitation per axis of the device, '
-        'predicted 1-sigmas against the precision_* targets, what is missing; on ~/status, '
-        '/diagnostics and one log line; 0 disables',
+        'period of the readiness status while recording [s]: READY (the latest calibration of '
+        'the buffers is good), how far the device turned, what is missing; on ~/status, '
+        '/diagnostics and one log line; 0 disables (and with it the calibrations that check '
+        'READY and auto_calibrate)',
         low=0.0,
         high=3600.0,
         expert=True,
@@ -71,9 +72,9 @@ class NodeConfig(Options):
     auto_calibrate: bool = option(
         False,
         'bool',
-        'calibrate as soon as the status is ready, then again as the buffers grow until the '
-        'reported sigmas stop improving or the buffers are full (said in the status); '
-        '~/calibrate works at any time',
+        "publish the status's calibrations that are good for the purpose (READY), as the "
+        'buffers grow, until the reported sigmas stop improving or the buffers are full (said '
+        'in the status); ~/calibrate works at any time',
     )
     diagnostics_period: float = option(
         1.0,

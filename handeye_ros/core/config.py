@@ -103,7 +103,7 @@ class CalibrationConfig(Options):
         'correlation peak: quadratic (sub-sample fit, the paper) or none '
         '(integer peak, the baseline)',
         choices=PEAK_FITS,
-        expert=True,
+        ablation=True,
     )
     relative_poses: str = option(
         'rotation',
@@ -111,7 +111,7 @@ class CalibrationConfig(Options):
         'relative motions: rotation (keyframes at least eta apart, the '
         'paper), global or interframe',
         choices=RELATIVE_POSES,
-        expert=True,
+        ablation=True,
     )
     eta: float = option(
         5.0,
@@ -125,7 +125,7 @@ class CalibrationConfig(Options):
         True,
         'bool',
         'weight motions by the screw-congruence kernel (eq. 10-12)',
-        expert=True,
+        ablation=True,
     )
     mu: float = option(
         5.0, 'float', 'robust kernel sharpness mu (eq. 11)', low=0.0, high=1000.0, expert=True
@@ -162,7 +162,7 @@ class CalibrationConfig(Options):
         'bool',
         'widen the final consensus thresholds to the noise measured from the '
         'best model (never narrower than the configured ones)',
-        expert=True,
+        ablation=True,
     )
     decoupled_refit: bool = option(
         True,
@@ -170,7 +170,7 @@ class CalibrationConfig(Options):
         're-estimate rotation (rotation-vector alignment) and translation '
         '(drift-weighted least squares) apart on the final consensus; false keeps the '
         'dual-quaternion solution',
-        expert=True,
+        ablation=True,
     )
     batch: bool = option(
         True,
@@ -196,14 +196,7 @@ class CalibrationConfig(Options):
         'bool',
         'batch stage: the rotation of T_HE from the rotation residuals alone, then '
         'dt and the translation from all residuals (false: all together)',
-        expert=True,
-    )
-    batch_joint: bool = option(
-        False,
-        'bool',
-        'also free the spline control poses in the batch solve (the full joint '
-        'problem; slower, the same result while the MoCap is much less noisy than the VIO)',
-        expert=True,
+        ablation=True,
     )
     hand_noise_rotation: float | None = option(
         None,

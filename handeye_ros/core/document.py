@@ -136,29 +136,26 @@ class CoverageDoc(TypedDict):
     fraction: float
 
 
-class ReadinessDoc(TypedDict):
-    """The status's figures: ``predicted`` (the 1-sigmas the consecutive eye pairs predict),
-    ``sigma`` (those times a result's factors, :mod:`.checks.carry`: the ones READY judges) and
-    ``target`` by the keys time_offset_ms, translation_mm and rotation_deg."""
+class StatusDoc(TypedDict):
+    """The node's status while recording (:class:`.checks.readiness.Readiness`): READY, the
+    latest calibration of the buffers (its verdict, the span it calibrated and its age [s],
+    its 1-sigmas by the keys time_offset_ms, translation_mm and rotation_deg) and the motion so
+    far."""
 
     ready: bool
+    purpose: str
+    verdict: str | None
+    calibrated_span_s: float | None
+    age_s: float | None
+    checking: bool
     sigma: dict[str, float | None]
-    predicted: dict[str, float | None]
-    target: dict[str, float]
     rotation_deg: dict[str, float]
-    hand_rotation_deg: dict[str, float]
     axis_spread_deg: float
     angular_speed_dps: float
     travel_m: float
-    motions: int
     span_s: float
-    time_offset_s: float | None
-    peak_correlation: float | None
-    second_peak_ratio: float | None
     dropout: dict[str, float]
     missing: list[str]
-    #: said by the node's status while a calibration confirms a predicted READY
-    checking: NotRequired[bool]
 
 
 class Extrinsic(TypedDict):
@@ -233,7 +230,6 @@ class BatchDoc(TypedDict):
     used: bool
     knot_spacing: NotRequired[float]
     spline_order: NotRequired[int]
-    joint: NotRequired[bool]
     decoupled: NotRequired[bool]
     control_points: NotRequired[int]
     residuals: NotRequired[dict[str, int]]
@@ -387,7 +383,6 @@ class ResultDoc(TypedDict):
     self_check: list[SelfCheckDoc]
     association: dict[str, int]
     coverage: CoverageDoc | None
-    readiness: ReadinessDoc | None
     linear: LinearDoc
     std: StdDoc | None
     covariance: CovarianceDoc | None

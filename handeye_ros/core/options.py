@@ -27,8 +27,11 @@ class Spec:
 
     kind: 'float', 'int', 'bool' or 'str'; optional: None (or NaN) is allowed and means
     'automatic'; low/high: inclusive bounds, except low when open_low; choices: allowed strings;
-    alias: a second, shorter command-line flag; expert: an option few users need (an ablation
-    switch of the paper, fine tuning of a stage): the command line lists it under --help-all.
+    alias: a second, shorter command-line flag; expert: an option few users need (fine tuning
+    of a stage): the command line lists it under --help-all. ablation: a switch that undoes one
+    of the method's steps to measure what it brings (the paper's ablations): no user option at
+    all (not on the command line, not a node parameter, not in a params or --config file); only
+    the benchmarks and the tests set it, by constructing the option set.
     """
 
     kind: str
@@ -40,6 +43,7 @@ class Spec:
     choices: tuple[str, ...] = ()
     alias: str = ''  # a shorter command-line flag, e.g. 'scale' for --estimate-scale
     expert: bool = False
+    ablation: bool = False
 
     def range_text(self) -> str:
         """Human form of the bounds, e.g. '(0, 90]'."""
@@ -66,6 +70,7 @@ class SpecFields(TypedDict, total=False):
     choices: tuple[str, ...]
     alias: str
     expert: bool
+    ablation: bool
 
 
 _T = TypeVar('_T')
@@ -85,12 +90,16 @@ class Options:
 
     @classmethod
     def specs(cls) -> dict[str, Spec]:
-        """Option name -> Spec, in declaration order."""
+        """The user's options: name -> Spec, in declaration order (no ablation switch)."""
+        return {n: s for n, s in cls._every_spec().items() if not s.ablation}
+
+    @classmethod
+    def _every_spec(cls) -> dict[str, Spec]:
         return {f.name: f.metadata['spec'] for f in fields(cls)}  # type: ignore[arg-type]
 
     def validate(self) -> None:
         """Raise ConfigError naming the first option whose value is out of its range."""
-        for name, spec in self.specs().items():
+        for name, spec in self._every_spec().items():
             _check(name, getattr(self, name), spec)
 
     @classmethod
@@ -112,9 +121,16 @@ class Options:
             raise ConfigError(f'{source}: {err}') from None
 
     def to_dict(self) -> dict[str, Json]:
-        """Plain values, the inverse of :meth:`from_mapping`."""
+        """The user's options' plain values, the inverse of :meth:`from_mapping`."""
         values: dict[str, Json] = asdict(self)  # type: ignore[call-overload]
-        return values
+        return {k: v for k, v in values.items() if k in self.specs()}
+
+    def ablations(self) -> dict[str, Json]:
+        """The ablation switches set away from their defaults (a benchmark's), by name."""
+        values: dict[str, Json] = asdict(self)  # type: ignore[call-overload]
+        default = asdict(type(self)())  # type: ignore[call-overload]
+        every = self._every_spec()
+        return {k: v for k, v in values.items() if every[k].ablation and v != default[k]}
 
 
 def _refuse_unknown(values: Mapping[str, object], known: list[str], source: str) -> None:

@@ -39,10 +39,8 @@ import numpy as np
 
 from .arrays import Floats
 from .association import PosePairs, associate
-from .batch.pieces import check_joint_size
 from .batch.refine import BatchSolution
 from .checks.coverage import mocap_coverage
-from .checks.readiness import Known, Readiness, readiness
 from .checks.selfcheck import motion_consistency
 from .checks.verdict import (
     Code,
@@ -58,7 +56,6 @@ from .checks.verdict import (
 )
 from .config import CalibrationConfig
 from .errors import ConfigError, HandeyeError
-from .geometry import matrix_from_quat
 from .result import CalibrationResult, UsedStreams
 from .stages.batch import Refined, batch_stage
 from .stages.linear import LinearStage, linear_stage, seed_check
@@ -100,8 +97,6 @@ def calibrate(
             'time_offset fixes one constant offset and clock_drift estimates one '
             'that changes along the recording: give one of them'
         )
-    if cfg.batch and cfg.batch_joint:
-        check_joint_size(hand)
     result = _calibrate(hand, eye, cfg, progress)
     if cfg.auto_drift and not cfg.clock_drift:
         if Code.CLOCK_DRIFT in result.quality.codes:
@@ -254,7 +249,6 @@ def _finish(
         clock=linear.clock,
         used=UsedStreams(hand, eye, refined.model.own_clock_ns(eye.t_ns, offset.eye.t_ns), dt),
         coverage=covered,
-        readiness=_readiness(offset, linear, eye, (dt, q_HE, p_HE), time_offset_s, cfg),
     )
 
 
@@ -279,26 +273,3 @@ def metrics_at(
         motion_length_m=m_len,
         n_motions=n_mot,
     )
-
-
-def _readiness(
-    offset: Offset,
-    linear: LinearStage,
-    eye: Trajectory,
-    solved: tuple[float, Floats, Floats],
-    time_offset_s: float,
-    cfg: CalibrationConfig,
-) -> Readiness:
-    """What the whole recording supports, from the calibration just made (:mod:`.checks.readiness`):
-    the same figures the node shows while recording."""
-    dt, q_HE, p_HE = solved
-    ta = offset.alignment
-    known = Known(
-        dt,
-        matrix_from_quat(q_HE),
-        p_HE,
-        linear.solution.n_motions,
-        getattr(ta, 'peak_correlation', float('nan')),
-        getattr(ta, 'second_peak_ratio', float('nan')),
-    )
-    return replace(readiness(offset.hand, eye, cfg, known), time_offset_s=time_offset_s)

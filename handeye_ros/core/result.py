@@ -15,10 +15,8 @@ import numpy as np
 
 from .arrays import Floats, Stamps
 from .batch.refine import BatchSolution
-from .checks.carry import carried
 from .checks.conventions import Correction
 from .checks.coverage import Coverage
-from .checks.readiness import Readiness
 from .checks.screening import Screening
 from .checks.selfcheck import Candidate
 from .checks.verdict import Quality, Verdict
@@ -46,7 +44,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
@@ -106,7 +104,6 @@ class CalibrationResult:
     clock: DriftFit | None = None
     used: UsedStreams | None = field(default=None, repr=False, compare=False)
     coverage: Coverage | None = None
-    readiness: Readiness | None = None
 
     @property
     def clock_drift(self) -> float | None:
@@ -224,7 +221,6 @@ class CalibrationResult:
             'self_check': [self_check_entry(c) for c in self.candidates],
             'association': {'pairs': int(self.n_pairs)},
             'coverage': None if self.coverage is None else self.coverage.to_dict(),
-            'readiness': None if self.readiness is None else self.readiness.to_dict(),
             'linear': linear_section(self.linear, self.config, self.seed_check),
             'std': std_section(self.batch, self.eye_model),
             'covariance': covariance_section(self.batch),
@@ -233,7 +229,7 @@ class CalibrationResult:
             ),
             'metrics': metrics_section(self.metrics),
             'inputs': {'hand': trajectory_section(self.hand), 'eye': trajectory_section(self.eye)},
-            'config': self.config.to_dict(),
+            'config': {**self.config.to_dict(), **self.config.ablations()},
             'warnings': list(self.warnings),
         }
-        return {**doc, 'readiness': carried(doc)}
+        return doc

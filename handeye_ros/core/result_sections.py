@@ -54,7 +54,6 @@ def batch_section(
         {
             'knot_spacing': c.knot_spacing,
             'spline_order': c.spline_order,
-            'joint': c.batch_joint,
             'decoupled': c.batch_decoupled,
             'control_points': b.n_control_points,
             'residuals': {'hand': b.n_hand_residuals, 'eye': b.n_eye_residuals},

@@ -82,19 +82,6 @@ class CalibrationError:
     rotation_deg: float
 
 
-def move_to_truth(
-    truth: Truth, time_offset_s: float, q_HE: Floats, p_HE: Floats, size: int = 7
-) -> Floats:
-    """(size,) the move from an estimated (dt, T_HE) to the truth's in the order of a batch
-    covariance: dt [s], translation [m], rotation [rad] in the tangent on the right; zeros
-    beyond (a drift, a scale)."""
-    d = np.zeros(size)
-    d[0] = truth.time_offset_s - time_offset_s
-    d[1:4] = truth.p_HE - p_HE
-    d[4:7] = (Rotation.from_quat(q_HE).inv() * Rotation.from_quat(truth.q_HE)).as_rotvec()
-    return d
-
-
 def calibration_error(
     truth: Truth, time_offset_s: float, q_HE: Floats, p_HE: Floats
 ) -> CalibrationError:

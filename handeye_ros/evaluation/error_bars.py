@@ -119,6 +119,31 @@ def figures_moved(
     return _figures(result, sample, d)
 
 
+def figures_at(
+    result: CalibrationResult,
+    time_offset_s: float,
+    q_HE: Floats,
+    p_HE: Floats,
+    delta_s: float = 1.0,
+    delta_m: float = 1.0,
+) -> dict[str, dict[str, float]] | None:
+    """The APE/RPE figures (m, deg) at another calibration (dt [s], T_HE as x y z w and m), on
+    the same poses as :func:`figures_moved`, less those at the reported one: how far the
+    figures the user reads would move were that calibration the true one. None when they cannot
+    be computed."""
+    d = np.zeros(7)
+    d[0] = time_offset_s - result.time_offset_s
+    d[1:4] = np.asarray(p_HE, float) - result.p_HE
+    d[4:7] = (Rotation.from_quat(result.q_HE).inv() * Rotation.from_quat(q_HE)).as_rotvec()
+    n = 7 if result.batch is None else result.batch.covariance.shape[0]
+    d = np.r_[d, np.zeros(n - 7)]
+    at = figures_moved(result, d, delta_s, delta_m)
+    here = figures_moved(result, np.zeros_like(d), delta_s, delta_m)
+    if at is None or here is None:
+        return None
+    return {k: {s: at[k][s] - here[k][s] for s in at[k]} for k in at}
+
+
 def _rms_change(at: float, moved: list[float]) -> float | None:
     """The root-mean-square of the draws' changes from ``at``; None for a figure that has no
     value (an RPE step longer than the recording)."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..core.checks.verdict import Verdict
 from ..core.document import ErrorKey, EvaluationDoc, ResultDoc, TransformDoc
-from .terminal import other_purpose, purpose_words, sigma_figures
+from .terminal import other_purpose, purpose_words
 
 VERDICT_COLOUR: dict[str, str] = {
     Verdict.GOOD: '#1a7f37',
@@ -105,7 +105,7 @@ def _numbers(d: ResultDoc) -> str:
 
 
 def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
-    """The numbers table's rows on the recording: the MoCap's coverage and the readiness."""
+    """The numbers table's rows on the recording: the MoCap's coverage."""
     rows = []
     cov = d.get('coverage')
     if cov:
@@ -117,17 +117,6 @@ def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
                     f'{cov["hand_gaps"]} gap(s), {cov["hand_gap_s"]:.1f} s '
                     f'(longest {cov["longest_hand_gap_s"]:.2f} s)'
                 ),
-            )
-        )
-    ready = d.get('readiness')
-    if ready:
-        sig, pred = ready['sigma'], ready['predicted']
-        rows.append(
-            (
-                'readiness (what the recording supports)',
-                ('ready' if ready['ready'] else 'not ready: ' + _e('; '.join(ready['missing']))),
-                f'1-sigma {sigma_figures(sig)} ms / mm / deg'
-                + ('' if sig == pred else f' (consecutive poses predicted {sigma_figures(pred)})'),
             )
         )
     return rows

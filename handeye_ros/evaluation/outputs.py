@@ -9,7 +9,6 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..core.checks.carry import carried
 from ..core.checks.verdict import Purpose, assess_evaluation
 from ..core.document import ErrorKey, FilesDoc, ResultDoc
 from ..core.errors import InputError
@@ -57,8 +56,6 @@ def evaluate_and_write(
     ev, cal, base = evaluated
     result = judge_figures(result, ev)
     out['quality'] = result.quality.to_dict()
-    if result.readiness is not None:  # READY beside the verdict just judged
-        out['readiness'] = carried({**out, 'readiness': result.readiness.to_dict()})
     if 'summary' in out:
         out['summary'] = result.summary()
     out['evaluation'] = ev.to_dict()

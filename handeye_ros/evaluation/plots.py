@@ -205,11 +205,7 @@ def excitation(result: CalibrationResult, path: Path) -> str:
         for col, (axis, color) in enumerate(zip('xyz', ('tab:red', 'tab:green', 'tab:blue'))):
             a.plot(t[k], turned[k, col], color=color, label=f'about its {axis} axis')
         a.legend(fontsize='small')
-    ready = result.to_dict()['readiness']  # READY as the result carries it (good only)
-    title = 'rotation of the device about its axes'
-    if ready is not None:
-        title += ' (ready)' if ready['ready'] else ' (not ready)'
-    a.set_title(title)
+    a.set_title('rotation of the device about its axes')
     a.set_xlabel('eye time [s]')
     a.set_ylabel('turned so far [deg]')
     save(fig, path)

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..core.checks.carry import SIGMA_KEYS
-from ..core.document import ErrorStatsDoc, QualityDoc, ReadinessDoc, ResultDoc, TransformDoc
+from ..core.document import ErrorStatsDoc, QualityDoc, ResultDoc, StatusDoc, TransformDoc
 
 
 def format_report(d: ResultDoc) -> str:
@@ -43,7 +42,6 @@ def format_report(d: ResultDoc) -> str:
         ),
         *_evaluation_lines(d),
         *_screening_lines(d),
-        *readiness_lines(d.get('readiness')),
     ]
     files = d.get('files') or {}
     export = files.get('export')
@@ -190,63 +188,36 @@ def _deg(st: ErrorStatsDoc) -> str:
     return f'{st["rmse"]:.2f}' + ('' if bar is None else f' (+-{bar:.2g})')
 
 
-def sigma_figures(sigma: dict[str, float | None]) -> str:
-    """A readiness's 1-sigmas as ``ms / mm / deg`` figures (``?`` where none), in the order of
-    :data:`~handeye_ros.core.checks.carry.SIGMA_KEYS`."""
-    return ' / '.join('?' if sigma[k] is None else format(sigma[k], '.2g') for k in SIGMA_KEYS)
-
-
-def readiness_lines(r: ReadinessDoc | None) -> list[str]:
-    """What the recording supports (the ``readiness`` section; the node's status says the same
-    while recording): its 1-sigmas, and the consecutive pairs' predictions where a result's
-    factors made them others (:mod:`handeye_ros.core.checks.carry`)."""
-    if not r:
-        return []
-    s, p, t = r['sigma'], r['predicted'], r['target']
-    turned = ' '.join(f'{k} {v:.0f}' for k, v in r['rotation_deg'].items())
-    which = 'predicted 1-sigma' if s == p else '1-sigma'
-    pairs = '' if s == p else f', the consecutive poses predicted {sigma_figures(p)}'
-    head = (
-        f'readiness: {"READY" if r["ready"] else "NOT READY"}, {which} {sigma_figures(s)} ms / mm / '
-        f'deg (targets {t["time_offset_ms"]:g} / {t["translation_mm"]:g} / '
-        f'{t["rotation_deg"]:g}{pairs}); the device turned {turned} deg about its x y z axes, '
-        f'{r["motions"]} keyframe motions'
-    )
-    return [head, *(f'  to do: {m}' for m in r['missing'])]
-
-
 #: The bar of the turns' axes is full when they spread this far (deg: two axes or more turned
 #: about alike); display only.
 BAR_FULL_DEG = 90.0
-#: A predicted sigma beyond this many times its target is shown as a bound (an unobserved
-#: direction gives figures like 2.5e+10 mm, which mean nothing to the person moving the rig).
-SHOWN_TIMES_TARGET = 100.0
 
 
-def status_line(r: ReadinessDoc, width: int = 8) -> str:
-    """One line in the spirit of the camera calibrator's bars: how far the device turned and
-    how far apart the axes it turned about are (what the data observe of T_HE: one axis leaves
-    part of it out, whichever device axes that one fills), keyframe motions, the predicted
-    1-sigmas against their targets, READY."""
-
-    def bar(v: float) -> str:
-        n = round(width * min(1.0, v / BAR_FULL_DEG))
-        return '#' * n + '.' * (width - n)
-
-    s, t = r['sigma'], r['target']
-
-    def fig(key: str) -> str:
-        v, bound = s[key], SHOWN_TIMES_TARGET * t[key]
-        return '?' if v is None else f'>{bound:g}' if v > bound else f'{v:.2g}'
-
-    total = sum(r['rotation_deg'].values())
-    spread = r['axis_spread_deg']
-    head = 'READY' if r['ready'] else 'not ready'
+def status_line(r: StatusDoc, width: int = 8) -> str:
+    """One line in the spirit of the camera calibrator's bars: READY, how far the device turned
+    and how far apart the axes it turned about are (what the data observe of T_HE: one axis
+    leaves part of it out, whichever device axes that one fills), the latest calibration's
+    verdict and 1-sigmas, and the first thing to do."""
+    n = round(width * min(1.0, r['axis_spread_deg'] / BAR_FULL_DEG))
+    total, spread = sum(r['rotation_deg'].values()), r['axis_spread_deg']
     line = (
-        f'{head} | turned {total:.0f} deg, axes apart [{bar(spread)}] {spread:.0f} deg | '
-        f'{r["motions"]} motions | 1-sigma '
-        f'{fig("time_offset_ms")} ms {fig("translation_mm")} mm '
-        f'{fig("rotation_deg")} deg (need {t["time_offset_ms"]:g} {t["translation_mm"]:g} '
-        f'{t["rotation_deg"]:g})'
+        f'{"READY" if r["ready"] else "not ready"} | turned {total:.0f} deg, axes apart '
+        f'[{"#" * n}{"." * (width - n)}] {spread:.0f} deg | '
     )
+    if r['verdict'] is None:
+        line += 'no calibration yet'
+    else:
+        s = r['sigma']
+        figures = ' '.join(
+            f'{"?" if s[k] is None else format(s[k], ".2g")} {unit}'
+            for k, unit in (
+                ('time_offset_ms', 'ms'),
+                ('translation_mm', 'mm'),
+                ('rotation_deg', 'deg'),
+            )
+        )
+        line += (
+            f'{r["verdict"]} for {r["purpose"]} ({r["calibrated_span_s"]:.0f} s, '
+            f'{r["age_s"]:.0f} s ago), 1-sigma {figures}'
+        )
     return line + (f' | {r["missing"][0]}' if r['missing'] else '')

@@ -5,18 +5,20 @@ from __future__ import annotations
 
 from rclpy.task import Future
 
+from .host import Job
+
 #: The answer to a call whose calibration the node's stop abandoned.
 ABORTED = 'aborted: shutting down'
 #: The answer to a call while a calibration runs (other than a check of READY).
 BUSY = 'a calibration is already running; call again when it has finished'
 
 
-def waiting(running: tuple[str, Future | None], executor: object) -> Future | None:
+def waiting(running: tuple[Job, Future | None], executor: object) -> Future | None:
     """A call's future that waits for the running calibration (``running``: its kind and the
     call already waiting, if one) to end, when that is a check of READY that no call waits for
     yet; else None (the call is refused)."""
     kind, queued = running
-    if kind != 'check' or queued is not None:
+    if kind is not Job.CHECK or queued is not None:
         return None
     queued = Future(executor=executor)
     queued.add_done_callback(lambda _: None)  # its completion wakes the executor

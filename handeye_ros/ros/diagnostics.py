@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from ..core.checks.verdict import Verdict
-from ..core.document import ReadinessDoc, RigPartDoc
+from ..core.document import RigPartDoc, StatusDoc
 from ..formats import messages
 from ..stream.buffer import BufferStats
 from .jobs import Calibrated
@@ -148,12 +148,11 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def readiness_status(
-    name: str, ready: ReadinessDoc | None, why_not: str | None
-) -> DiagnosticStatus:
+def readiness_status(name: str, ready: StatusDoc | None, why_not: str | None) -> DiagnosticStatus:
     """The readiness while recording (``~/status`` and /diagnostics): OK when ready, WARN with
-    the first thing to do otherwise; the values are the result's ``readiness`` section
-    flattened (``sigma.translation_mm``, ``rotation_deg.z``, ``missing.1``, ...)."""
+    the first thing to do otherwise; the values are the status's
+    (:class:`~handeye_ros.core.checks.readiness.Readiness`) flattened (``sigma.translation_mm``,
+    ``rotation_deg.z``, ``missing.1``, ...)."""
     st = DiagnosticStatus(name=f'{name}: readiness', hardware_id=name)
     if ready is None:
         st.level, st.message = DiagnosticStatus.WARN, why_not or 'waiting for data'

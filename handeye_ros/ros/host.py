@@ -1,11 +1,11 @@
-"""What the readiness status and auto mode read of the node that holds them
-(:class:`StatusHost`): a Protocol the node meets, so that neither imports the node."""
+"""What the readiness status reads of the node that holds it (:class:`StatusHost`): a
+Protocol the node meets, so that the status does not import the node; and the kinds of
+calibration the node runs (:class:`Job`)."""
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-from collections.abc import Callable, Mapping
-from typing import Protocol, TypeVar
+from enum import Enum
+from typing import Protocol
 
 from rclpy.clock import Clock
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -14,7 +14,13 @@ from rclpy.task import Future
 from ..core.config import CalibrationConfig
 from ..stream import Recorder
 
-_R = TypeVar('_R')
+
+class Job(Enum):
+    """A calibration of the buffers: asked for (``~/calibrate``, ``calibrate_period``: always
+    published) or the status's own check of READY (published when auto mode says so)."""
+
+    CALL = 'call'
+    CHECK = 'check'
 
 
 class Waiting(Protocol):
@@ -27,8 +33,8 @@ class Waiting(Protocol):
 
 
 class StatusHost(Protocol):
-    """The node, as its status and auto mode use it: its options and buffers, when each stream
-    was last seen, received and taken, its worker and executor, and a calibration."""
+    """The node, as its status uses it: its options and buffers, when each stream was last
+    seen, received and taken, and a calibration."""
 
     calib_cfg: CalibrationConfig
     recorder: Recorder
@@ -43,13 +49,10 @@ class StatusHost(Protocol):
     @property
     def poses(self) -> Waiting: ...
 
-    def options(self) -> Mapping[str, object]: ...
+    @property
+    def busy(self) -> bool: ...
 
-    def submit(self, fn: Callable[..., _R], *args: object) -> cf.Future[_R]: ...
-
-    def on_executor(self, fn: Callable[..., object], *args: object) -> None: ...
-
-    def calibrate(self, auto: bool = False, check: bool = False) -> Future | None: ...
+    def calibrate(self, job: Job = Job.CALL) -> Future | None: ...
 
     def get_clock(self) -> Clock: ...
 

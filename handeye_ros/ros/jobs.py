@@ -1,8 +1,7 @@
 """The calibrator's worker jobs (run in :mod:`.worker`'s processes, so no rclpy here): a
-calibration of a snapshot of the buffers, with its outputs, and the readiness status's two
-jobs: one reads the whole buffers, the other only the poses that came since.
+calibration of a snapshot of the buffers, with its outputs.
 
-Both call the application (:mod:`handeye_ros.app.request`) as the offline tool does; what comes
+It calls the application (:mod:`handeye_ros.app.request`) as the offline tool does; what comes
 back to the node is small: the result without its poses and the paths drawn in RViz.
 """
 
@@ -17,11 +16,8 @@ from ..app.request import Request, run, write_outputs
 
 if TYPE_CHECKING:  # imported where used: a worker starts without the core's modules
     from ..core.arrays import Floats, Stamps
-    from ..core.checks.progress import Cursor, Measured, Progress
-    from ..core.config import CalibrationConfig
     from ..core.document import ResultDoc
     from ..core.result import CalibrationResult
-    from ..core.trajectory import Trajectory
     from ..stream.recorder import Snapshot
 
 #: A path to draw: stamps [int64 ns, eye clock], positions (N, 3) [m], x y z w quaternions (N, 4).
@@ -122,38 +118,3 @@ def _paths(result: CalibrationResult) -> dict[str, Path3D]:
         'eye': (al.t_ns[k], al.p_est[k], quat_from_matrix(al.R_est[k])),
         'ground_truth': (al.t_ns[k], al.p_ref[k], quat_from_matrix(al.R_ref[k])),
     }
-
-
-def readiness_start(snapshot: Snapshot, options: Mapping[str, object]) -> tuple[Progress, float]:
-    """The node's status job on the whole buffers
-    (:func:`~handeye_ros.core.checks.progress.start`: stages 1 and 2, then every piece), and
-    the CPU time it took in its process (all threads) [s]."""
-    import time
-
-    t0 = time.process_time()
-    from ..core.checks.progress import start
-
-    return start(snapshot.hand, snapshot.eye, _calibration(options)), time.process_time() - t0
-
-
-def readiness_measure(
-    cursor: Cursor, tails: dict[str, Trajectory], options: Mapping[str, object]
-) -> tuple[Measured, float]:
-    """The node's status job on the poses new since the cursor
-    (:func:`~handeye_ros.core.checks.progress.measure`), and its CPU time [s]."""
-    import time
-
-    t0 = time.process_time()
-    from ..core.checks.progress import measure
-
-    out = measure(cursor, tails['hand'], tails['eye'], _calibration(options))
-    return out, time.process_time() - t0
-
-
-def _calibration(options: Mapping[str, object]) -> CalibrationConfig:
-    from ..core.config import CalibrationConfig
-    from ..core.options import split_options
-    from ..stream.config import StreamConfig
-
-    calib, _ = split_options(options, (CalibrationConfig, StreamConfig), 'parameters')
-    return calib

@@ -54,6 +54,7 @@ from ..stream.shapes import Message, MessageInfo
 from . import diagnostics, parameters, worker
 from .calls import ABORTED, BUSY, answer_with, waiting
 from .files import inside
+from .host import Job
 from .jobs import Calibrated, calibrate_buffers
 from .lifecycle import steady_timer
 from .outputs import Outputs, quiet_publisher, save
@@ -77,8 +78,8 @@ class CalibratorNode(Node):
         parameters.refuse_unknown(self)
         self.recorder = Recorder(self.stream_cfg)
         self._busy = False  # a calibration runs (set and cleared on the executor's thread)
-        #: its kind ('', 'auto', 'check': :meth:`calibrate`), and a call waiting for it to end
-        self._running: tuple[str, Future | None] = ('', None)
+        #: its kind, and a call waiting for it to end
+        self._running: tuple[Job, Future | None] = (Job.CALL, None)
         #: the last successful result, when it came (wall clock), and the last failure's
         #: reason (None after a success): the three things every output is made from
         self._last_result: Calibrated | None = None
@@ -128,6 +129,11 @@ class CalibratorNode(Node):
     def open_calls(self) -> int:
         """``~/calibrate`` calls still waiting for their calibration's answer."""
         return self._open_calls
+
+    @property
+    def busy(self) -> bool:
+        """Whether a calibration runs."""
+        return self._busy
 
     @property
     def closing(self) -> bool:
@@ -189,20 +195,20 @@ class CalibratorNode(Node):
                     f'so far: {", ".join(f"{k} {v}" for k, v in rejected.items() if v)}'
                 )
 
-    def calibrate(self, auto: bool = False, check: bool = False) -> Future | None:
+    def calibrate(self, job: Job = Job.CALL) -> Future | None:
         """Calibrate a snapshot of the buffers in the worker process, unless one runs.
 
         Returns an rclpy Future that completes on the executor with (success, message), or
         None when a calibration is already running (a call during a check waits for it to end).
-        ``auto``: auto mode's, published when it improves (:meth:`.AutoMode.admit`).
-        ``check``: the status's, confirming a predicted READY; never published.
+        A check (the status's) is published when auto mode says so
+        (:meth:`.ReadinessStatus.took`).
         """
         if self._busy:  # a call during a check calibrates the buffers once that ends
-            queued = None if auto or check else waiting(self._running, self.executor)
+            queued = None if job is Job.CHECK else waiting(self._running, self.executor)
             if queued is not None:
                 self._running = (self._running[0], queued)
             return queued
-        self._busy, kind = True, 'auto' if auto else 'check' if check else ''
+        self._busy = True
         future = Future(executor=self.executor)
         # a done callback makes the completion wake the executor (it schedules a task)
         future.add_done_callback(lambda _: None)
@@ -213,10 +219,12 @@ class CalibratorNode(Node):
         self._busy_since = time.monotonic()
         why = self.poses.why_no_data()
         stage = None
+        span = 0.0
         try:
             if why is not None:
                 raise InputError(why)
             snapshot = self.recorder.snapshot()
+            span = min(snapshot.hand.duration_s, snapshot.eye.duration_s)
             t0 = time.perf_counter()
             stage = (
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None
@@ -227,40 +235,49 @@ class CalibratorNode(Node):
                 if rig_file
                 else None
             )
-            job = self.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig)
+            work = self.submit(calibrate_buffers, snapshot, self.calib_cfg.to_dict(), stage, rig)
             self.get_logger().info(
                 f'calibrating {len(snapshot.hand)} MoCap and {len(snapshot.eye)} device poses'
-                + {'auto': ' (auto_calibrate)', 'check': ' (checking READY)', '': ''}[kind]
+                + (' (checking READY)' if job is Job.CHECK else '')
             )
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
-            self._failed(str(err))
+            if job is Job.CALL:
+                self._failed(str(err))
+            self.status.took(None, str(err), job, span, 0.0)
             future.set_result((False, str(err)))
             self._drop_stage(stage)
             self._busy = False
             return future
 
-        self._running = (kind, None)
-        job.add_done_callback(
-            lambda job: self.on_executor(self._calibrated, job, future, stage, t0)
+        self._running = (job, None)
+        work.add_done_callback(
+            lambda work: self.on_executor(self._calibrated, work, future, stage, (t0, span))
         )
         return future
 
     def _calibrated(
-        self, job: cf.Future[Calibrated], future: Future, stage: str | None, t0: float
+        self,
+        work: cf.Future[Calibrated],
+        future: Future,
+        stage: str | None,
+        started: tuple[float, float],
     ) -> None:
-        """The worker's answer to the running calibration, on the executor: the outputs, the
-        log, the answer (ABORTED when the node's stop ended it); a call that waited for a check
-        is calibrated next. A success keeps the report's staging folder."""
-        kind, queued = self._running
-        check = kind == 'check'
+        """The worker's answer to the running calibration (started at ``started``:
+        perf_counter s, of a buffered span [s]), on the executor: the status's, then the
+        outputs, the log, the answer (ABORTED when the node's stop ended it); a call that waited
+        for a check is calibrated next. A success keeps the report's staging folder."""
+        job, queued = self._running
+        t0, span = started
+        took = time.perf_counter() - t0
         kept = False
         try:
-            session = job.result()
+            session = work.result()
         except HandeyeError as err:
-            if check:  # no result was asked for: the status keeps saying it checks
+            if job is Job.CHECK:  # no result was asked for: the status says it failed
                 self.get_logger().info(f'checking READY: the calibration failed ({err})')
             else:
                 self._failed(str(err))
+            self.status.took(None, str(err), job, span, took)
             future.set_result((False, str(err)))
         except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
             if self._closing:  # the node stopped it
@@ -270,23 +287,19 @@ class CalibratorNode(Node):
             if isinstance(err, cf.process.BrokenProcessPool):
                 self._pool = worker.new_pool()
             self._failed(f'internal error: {err!r}')
+            self.status.took(None, f'internal error: {err!r}', job, span, took)
             future.set_result((False, f'internal error: {err!r}'))
         else:
-            took = f'{time.perf_counter() - t0:.2f} s'
             said = session.result.said() + session.rig_said
-            if check:
-                kept_back = self.status.auto.confirm(session)
-            else:
-                kept_back = self.status.auto.admit(session, kind == 'auto')
-            if kept_back:
-                said = f'calibrated in {took}, not published ({kept_back}): {said}'
+            if not self.status.took(session.result, '', job, span, took):
+                said = f'checked READY in {took:.2f} s, not published: {said}'
                 self.get_logger().info(said)
                 future.set_result((True, said))
                 return
             self._drop_stage(self._last_result)
             kept = True
             self._succeeded(session)
-            self.get_logger().info(f'calibrated in {took}: {said}')
+            self.get_logger().info(f'calibrated in {took:.2f} s: {said}')
             for w in session.result.warnings:
                 self.get_logger().warning(w)
             future.set_result((True, said))

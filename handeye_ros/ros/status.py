@@ -1,58 +1,49 @@
 """The calibrator's readiness status while recording (its auto mode is :mod:`.auto_mode`).
 
-Every ``status_period`` (less often when one computation costs more than MAX_DUTY of a core over
-the period) the node hands the poses that came since the last status to its worker pool, which
-adds what they say to what it has gathered (:mod:`handeye_ros.core.checks.progress`: excitation
-about each axis of the device, the information of the eye's consecutive pairs at one estimate);
-the node judges the sum (:mod:`handeye_ros.core.checks.readiness`: the 1-sigmas a calibration
-now would have against the ``precision_*`` targets, what is missing in the user's words). So a
-status costs the same at 10 s and at 30 min of buffers. The whole buffers are read again (a
-snapshot: stages 1 and 2, then every piece) first, while stages 1 and 2 give no estimate, when
-the pairs' optimum has moved beyond its 1-sigma, and as the buffers grow by half; the pieces of
-poses the buffers drop are dropped with them. The answer is published on ``~/status``
-(diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
-changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log lines onto it in
-a terminal and its redraws into one line under ``ros2 launch``. The node's executor only copies
-the poses and adds up the pieces: ingest never waits for the computation.
-
-With ``auto_calibrate``, :mod:`.auto_mode` calibrates by the status.
+READY is the verdict of a real calibration (:mod:`handeye_ros.core.checks.readiness`): the
+status calibrates the buffers in the node's worker as they grow (first once they span
+MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when the recording has
+ended or the buffers are full), never sooner after one calibration than it took (so they take at most half a core and
+never fall behind the streams), and READY means the latest such result is ``good`` for the
+chosen purpose. Between results it shows how far the device has turned and how far apart its
+turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
+the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
+latest result's verdict, 1-sigmas and age, and what to do. The answer is published on
+``~/status`` (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one
+line when it changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log
+lines onto it in a terminal and its redraws into one line under ``ros2 launch``.
 """
 
 from __future__ import annotations
 
-import concurrent.futures as cf
 import time
 from collections.abc import Callable
-from typing import TypeVar
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from ..core.arrays import Stamps
-from ..core.checks.carry import carry_over
-from ..core.checks.progress import Measured, Progress
-from ..core.checks.readiness import readiness_of
-from ..core.checks.verdict import BLOCKS_MARGIN
-from ..core.document import ReadinessDoc
+from ..core.checks.excitation import Motion
+from ..core.checks.readiness import MIN_RECORDING_S, STILL_DPS, Outcome, readiness
+from ..core.document import StatusDoc
 from ..core.errors import HandeyeError
+from ..core.result import CalibrationResult
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .auto_mode import GROWTH, AutoMode
+from .auto_mode import Auto, State, decide, filled, said
 from .clocks import Arrivals, ClockWatch, jump_advice
-from .host import StatusHost
-from .jobs import readiness_measure, readiness_start
+from .host import Job, StatusHost
 
-#: What a status job gives back (with its CPU time).
-_V = TypeVar('_V')
-
-#: Each of the status's two jobs (reading the whole buffers, reading the new poses) takes at
-#: most this share of one core on average: one that cost c seconds of CPU (the node's copy of
-#: the poses, in its thread, and the worker's job, in all its threads) is followed by none of
-#: its kind for c / MAX_DUTY. What is not counted (the transfer to the worker and back, the
-#: sum of the pieces, the publishing) is the rest of the 5 % asked for. Measured
-#: (bench/node_ingest.py, 1 kHz + 200 Hz, default buffers, 10 min): a status every 1.0 s
-#: (status_period 1), 2.5 % of a core in all; each status read everything buffered before,
-#: and came every 34 s once 500 000 + 120 000 poses were.
+#: Calibrate the buffers again once their span has grown by this factor since the last
+#: calibration: the cost of each grows with the span, so all of them together cost a few times
+#: the last one, and each has half as much data again as the one before.
+GROWTH = 1.5
+#: Once the recording has ended or the buffers are full (their span grows no more), the whole
+#: is calibrated once more if it spans this much more than the last calibration did (s): however
+#: little it grew by GROWTH's measure, but not again for the jitter of a full buffer's span.
+LAST_GAIN_S = 1.0
+#: The status's look at the new poses takes at most this share of one core on average: one that
+#: cost c seconds of the executor's CPU is followed by none for c / MAX_DUTY.
 MAX_DUTY = 0.03
 #: A stream with no usable pose for this long (s) has stopped, or lost its poses (messages
 #: still coming).
@@ -62,11 +53,6 @@ STOPPED_S = diagnostics.STOPPED_S
 FLOWING_PERIODS = 10
 #: The node taking a stream's poses this much after DDS received them (s) is said.
 LATE_S = 1.0
-#: What the status says while a calibration checks a predicted READY.
-CHECKING = (
-    'checking READY: a calibration of the data so far is judging them (for purpose extrinsic, '
-    'once they are predicted to meet the targets)'
-)
 #: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
 
@@ -78,36 +64,32 @@ class ReadinessStatus:
         self, node: StatusHost, auto: bool, publish: Callable[[DiagnosticStatus], None]
     ) -> None:
         """``publish``: what ``~/status`` sends with; the node ticks :meth:`tick` each
-        ``status_period``."""
+        ``status_period`` and hands every calibration's answer to :meth:`took`."""
         self._node = node
         self._send = publish
-        #: the last readiness (the result's ``readiness`` section), or None with why_not
-        self.last: ReadinessDoc | None = None
+        self._on = auto
+        #: the last status, or None with why_not
+        self.last: StatusDoc | None = None
         self.why_not = 'waiting for data'
-        self.auto = AutoMode(node, auto)
-        #: what the status has gathered of the buffers
-        self._progress: Progress | None = None
-        #: bumped when the buffers are read whole again or reset: older answers are dropped
-        self._generation = 0
-        #: a job of each kind under way; when the next may start (monotonic s)
-        self._pending = {'start': False, 'measure': False}
-        self._next = {'start': 0.0, 'measure': 0.0}
+        self.auto = Auto.start(auto)
+        self._motion = Motion()
+        #: the latest calibration of these buffers, and whether the status runs one now
+        self.latest: Outcome | None = None
+        self._checking = False
+        #: when the next calibration and the next look at the new poses may start (monotonic s)
+        self._next_check = 0.0
+        self._next_look = 0.0
         self._logged = (0.0, '')
         #: the streams' clocks against their arrivals, snapshot by snapshot
         self._watch = ClockWatch()
-        #: the clocks' advice (:meth:`_clocks`), on the executor with each snapshot
         self._jumped: list[str] = []
-        #: the buffered span (s) when a check of READY was last started
-        self._checked_span = 0.0
         #: the node's simulated clock when it last moved (ns) and when that was (monotonic s)
         self._sim_clock = (0, time.monotonic())
 
     def tick(self) -> None:
-        """On the executor: maybe calibrate (auto mode), then ask the workers for a status:
-        of the whole buffers when :meth:`_restart_due`, else of the poses new since the last
-        one."""
+        """On the executor: look at the poses new since the last tick, maybe calibrate the
+        buffers, and publish what the status says."""
         node = self._node
-        self.auto.step(self.last, ended=bool(self.ended()))
         if node.closing:
             return
         empty = [s for s in STREAMS if len(node.recorder.buffers[s]) < 3]
@@ -122,148 +104,97 @@ class ReadinessStatus:
             self._publish()
             return
         now = time.monotonic()
-        if self._restart_due() and not self._pending['start'] and now >= self._next['start']:
-            self._start()
-        if self._progress and not self._pending['measure'] and now >= self._next['measure']:
-            self._measure()
+        if now >= self._next_look:
+            t0 = time.thread_time()
+            self._look()
+            self._next_look = now + (time.thread_time() - t0) / MAX_DUTY
+        self._maybe_check(now)
+        self._report()
 
-    def _restart_due(self) -> bool:
-        """Whether the status reads the whole buffers again
-        (:meth:`~handeye_ros.core.checks.progress.Progress.due`)."""
-        p = self._progress
-        span = min(self._node.recorder.buffers[s].span_s for s in STREAMS)
-        return p is None or p.due(span) is not None
+    def _span(self) -> float:
+        return min(self._node.recorder.buffers[s].span_s for s in STREAMS)
 
-    def _start(self) -> None:
-        node, t0 = self._node, time.thread_time()
-        try:
-            snapshot = node.recorder.snapshot()
-        except HandeyeError as err:
-            self.last, self.why_not = None, str(err)
-            self._publish()
-            return
-        self._clocks(snapshot.hand.t_ns, snapshot.eye.t_ns)
-        self._ask('start', readiness_start, (snapshot, node.options()), t0, self._started)
-
-    def _measure(self) -> None:
-        node, t0, p = self._node, time.thread_time(), self._progress
-        buffers = node.recorder.buffers
-        hand_ns, eye_ns = (buffers[s].newest_ns for s in STREAMS)
-        if p is None or hand_ns is None or eye_ns is None:
+    def _look(self) -> None:
+        """The motion of the poses new since the last look (and the streams' clocks)."""
+        buffers = self._node.recorder.buffers
+        newest, oldest = (
+            {s: getattr(buffers[s], k) for s in STREAMS} for k in ('newest_ns', 'oldest_ns')
+        )
+        if None in newest.values() or None in oldest.values():
             return
         try:
-            tails = node.recorder.tails(dict(zip(STREAMS, p.wants(hand_ns, eye_ns), strict=True)))
+            tails = self._node.recorder.tails(self._motion.wants(newest))
         except HandeyeError:  # emptied meanwhile: the next tick says so
             return
         self._clocks(tails['hand'].t_ns, tails['eye'].t_ns)
-        self._ask(
-            'measure', readiness_measure, (p.cursor(), tails, node.options()), t0, self._measured
-        )
+        self._motion = self._motion.grown(tails).since(oldest)
 
-    def _ask(
+    def _maybe_check(self, now: float) -> None:
+        """Calibrate the buffers (:data:`GROWTH`, the module docstring) unless one runs."""
+        span, latest = self._span(), self.latest
+        eye = self._motion.turned('eye')
+        if (
+            self._node.busy
+            or now < self._next_check
+            or span < MIN_RECORDING_S
+            or eye is None
+            or eye.rms_dps < STILL_DPS
+        ):
+            return
+        last = 0.0 if latest is None else latest.span_s
+        full = any(self._node.recorder.buffers[s].dropped for s in STREAMS)
+        grown = span >= GROWTH * last
+        if not grown and not ((self.ended() or full) and span >= last + LAST_GAIN_S):
+            if latest is not None and full:
+                self.auto = filled(self.auto)  # a full buffer's span grows no more
+            return
+        self._checking = self._node.calibrate(Job.CHECK) is not None
+
+    def took(
         self,
-        kind: str,
-        fn: Callable[..., tuple[_V, float]],
-        args: tuple[object, ...],
-        t0: float,
-        then: Callable[[_V], None],
-    ) -> None:
-        """Submit one of the status's jobs; its answer goes to ``then`` on the executor, unless
-        the buffers were reset or read whole again meanwhile."""
-        node, generation = self._node, self._generation
-        self._pending[kind] = True
-        try:
-            job = node.submit(fn, *args)
-        except RuntimeError:  # the pool is shut down: the node stops
-            self._pending[kind] = False
-            return
-        node_cpu = time.thread_time() - t0
-        job.add_done_callback(
-            lambda job: node.on_executor(self._done, kind, generation, job, node_cpu, then)
+        result: CalibrationResult | None,
+        why: str,
+        job: Job,
+        span_s: float,
+        took_s: float,
+    ) -> bool:
+        """On the executor, a calibration of the buffers that spanned ``span_s`` [s] ended
+        after ``took_s`` [s] with ``result`` (None: it failed, ``why``): whether it is
+        published (a call's always; a check's when auto mode says so)."""
+        now = time.monotonic()
+        self._next_check = now + took_s
+        latest = (
+            Outcome.failure(why, span_s, now)
+            if result is None
+            else Outcome.of(
+                result.quality, None if result.batch is None else result.batch.std, span_s, now
+            )
         )
-
-    def _done(
-        self,
-        kind: str,
-        generation: int,
-        job: cf.Future[tuple[_V, float]],
-        node_cpu: float,
-        then: Callable[[_V], None],
-    ) -> None:
-        """On the executor: a job's answer; the next job of its kind waits for its cost."""
-        self._pending[kind] = False
-        if self._node.closing:  # the node stopped the worker under this job: nothing to say
-            return
-        try:
-            value, job_cpu = job.result()
-        except Exception as err:  # noqa: BLE001  (a status is not worth a crash)
-            self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
-            self._publish()
-            return
-        self._next[kind] = time.monotonic() + (node_cpu + job_cpu) / MAX_DUTY
-        if generation != self._generation:
-            return
-        try:
-            then(value)
-        except Exception as err:  # noqa: BLE001  (as above)
-            self.last, self.why_not = None, f'no status: {type(err).__name__}: {err}'
-            self._publish()
-
-    def _started(self, progress: Progress) -> None:
-        self._generation += 1  # the measures under way are of the old pieces
-        self._progress = progress
+        self.latest = latest
+        publish = job is Job.CALL
+        if job is Job.CHECK:
+            self._checking = False
+            full = any(self._node.recorder.buffers[s].dropped for s in STREAMS)
+            self.auto = decide(self.auto, latest, latest.score(self._node.calib_cfg), full)
+            publish = self.auto.publish
         self._report()
-
-    def _measured(self, measured: Measured) -> None:
-        if self._progress is not None:  # a measure is asked of started pieces only
-            self._progress.take(measured)
-            self._report()
+        return publish
 
     def _report(self) -> None:
-        """Judge the pieces of the poses still buffered, and publish."""
-        p, buffers = self._progress, self._node.recorder.buffers
-        hand_ns, eye_ns = (buffers[s].oldest_ns for s in STREAMS)
-        if p is None or hand_ns is None or eye_ns is None:
+        """What the status says now, published."""
+        buffers = self._node.recorder.buffers
+        if any(len(buffers[s]) < 3 for s in STREAMS):
             return
-        p.drop_before(hand_ns, eye_ns)
-        durations = (buffers['hand'].span_s, buffers['eye'].span_s)
-        found = readiness_of(p, self._node.calib_cfg, durations).to_dict()
-        auto = self.auto
-        decide = self._node.calib_cfg.purpose == 'extrinsic'
-        last = carry_over(
-            found, auto.factors, auto.held, margin=BLOCKS_MARGIN, sigmas_decide=decide
+        r = readiness(
+            self._motion,
+            self.latest,
+            self._node.calib_cfg,
+            self._span(),
+            time.monotonic(),
+            checking=self._checking,
         )
-        if last['ready'] and not auto.confirmed:
-            # READY is said once a calibration of these buffers agrees: auto mode's first one,
-            # or a check of its own
-            last = {
-                **last,
-                'ready': False,
-                'checking': True,
-                'missing': [CHECKING, *last['missing']],
-            }
-            if auto.said == 'off':
-                self._check(min(durations))
-        elif (
-            auto.held
-            and auto.said == 'off'
-            and carry_over(found, auto.factors, [], margin=BLOCKS_MARGIN, sigmas_decide=decide)[
-                'ready'
-            ]
-        ):
-            self._check(min(durations))  # READY but for the last result's reasons: check again
-        self.last, self.why_not = last, ''
+        self.last, self.why_not = r.to_dict(), ''
         self._publish()
-
-    def _check(self, span_s: float) -> None:
-        """Calibrate the buffers to confirm a predicted READY (not published), and again only
-        once the buffers have grown by GROWTH since (the check failed, or its result was doubtful
-        for another reason than its precision), or once the recording has ended on more than the
-        last check had (it grows no more)."""
-        grown = span_s >= GROWTH * self._checked_span
-        last_of_it = bool(self.ended()) and span_s > self._checked_span
-        if (grown or last_of_it) and self._node.calibrate(check=True) is not None:
-            self._checked_span = span_s
 
     def stopped(self) -> list[str]:
         """A stream that stopped while the other one still flows, said as advice: its
@@ -350,15 +281,15 @@ class ReadinessStatus:
         self._jumped = [] if moved is None else [jump_advice(moved)]
 
     def reset(self) -> None:
-        """The buffers were emptied: the clocks are compared afresh, and auto mode starts over
-        (a new recording: its first result is published whatever the last one reported)."""
+        """The buffers were emptied: the motion, the latest result and the clocks start afresh,
+        and auto mode starts over (a new recording: its first good result is published whatever
+        the last one reported)."""
         self._watch.reset()
         self._jumped = []
-        self._checked_span = 0.0
-        self._progress = None
-        self._generation += 1
-        self._next['start'] = 0.0
-        self.auto.reset()
+        self._motion = Motion()
+        self.latest = None
+        self._next_check = 0.0
+        self.auto = Auto.start(self._on)
 
     def late(self) -> list[str]:
         """A stream the node takes more than LATE_S after DDS received it, said as advice (it
@@ -388,19 +319,21 @@ class ReadinessStatus:
         st = diagnostics.readiness_status(
             self._node.get_fully_qualified_name(), self.last, self.why_not
         )
-        if self.auto.said != 'off':
-            st.values.append(diagnostics.KeyValue(key='auto_calibrate', value=self.auto.said))
+        if self.auto.state is not State.OFF:
+            st.values.append(diagnostics.KeyValue(key='auto_calibrate', value=said(self.auto)))
         return st
 
     def _say(self, line: str) -> None:
-        """One line, logged when it changes (and every LOG_PERIOD_S)."""
-        if self.auto.ended:
-            line += f' | {self.auto.said}'
+        """One line, logged when READY, the latest verdict, the first thing to do or auto
+        mode's state changes (and every LOG_PERIOD_S), not for every new figure."""
+        if self.auto.state is not State.OFF:
+            line += f' | auto_calibrate {said(self.auto)}'
         now = time.monotonic()
         last_t, last_key = self._logged
-        # said again when READY or the first thing to do changes, not for every new figure
-        todo = self.last['missing'] if self.last else [line]
-        key = line.split('|')[0] + (todo[0].split(':')[0][:60] if todo else '')
+        r = self.last
+        todo = r['missing'][0].split(':')[0][:60] if r and r['missing'] else ''
+        key = f'{r["ready"]} {r["verdict"]} {todo}' if r else line
+        key += f' {self.auto.state}'
         if key != last_key or now - last_t >= LOG_PERIOD_S:
             self._logged = (now, key)
             self._node.get_logger().info(f'status: {line}')

@@ -34,7 +34,7 @@ def test_options_and_config_file(sim_files, tmp_path: Path) -> None:
                         'hand_topic': '/mocap',
                         'eta': 8.0,
                         'seed': 3,
-                        'relative_poses': 'rotation',
+                        'mu': 5.0,
                     }
                 }
             }
@@ -50,15 +50,14 @@ def test_options_and_config_file(sim_files, tmp_path: Path) -> None:
         cfg,
         '--eta',
         '6',
-        '--no-robust-kernel',
-        '--peak-fit',
-        'none',
+        '--ransac-iterations',
+        '150',
     )
     cli_ok(res)
     d = json.loads(res.stdout)
     assert d['config']['eta'] == 6.0  # the command line wins over the file
-    assert d['config']['seed'] == 3 and d['config']['robust_kernel'] is False
-    assert d['time_alignment']['method'] == 'none'
+    assert d['config']['seed'] == 3 and d['config']['ransac_iterations'] == 150
+    assert 'robust_kernel' not in d['config']  # an ablation switch, at its default
     fixed = run_main(
         '--hand', hand, '--eye', eye, '--json', '--time-offset', str(rec.truth.time_offset_s)
     )

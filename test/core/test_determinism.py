@@ -74,7 +74,6 @@ def _cases():
     yield 'default', rec.hand, rec.eye, CalibrationConfig()
     yield 'drift', rec.hand, rec.eye, CalibrationConfig(clock_drift=True)
     yield 'scale', rec.hand, rec.eye, CalibrationConfig(estimate_scale=True)
-    yield 'joint', rec.hand, rec.eye, CalibrationConfig(batch_joint=True)
     yield 'dropouts', with_dropouts(rec.hand, rng, 0.2), rec.eye, CalibrationConfig()
     long = simulate(4, duration_s=120, noise_m=nm, noise_deg=nd)
     yield 'keyframes', long.hand, keyframes_only(long.eye, rng), CalibrationConfig()

@@ -16,7 +16,6 @@ from conftest import recording
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import move_to_truth
 from handeye_ros.evaluation import error_bars
 from handeye_ros.evaluation.metrics import POSE_ERRORS, STATS
 from handeye_ros.evaluation.outputs import evaluation_of
@@ -31,20 +30,14 @@ def test_the_true_calibrations_figures_lie_within_the_error_bars() -> None:
         res = calibrate(rec.hand, rec.eye)
         bars, why = error_bars.calibration_sigmas(res, 1.0, 1.0)
         assert bars is not None, why
-        keep, window = error_bars._windows(res.used.eye_stamps_ns, 1.0)
-        eye, stamps = res.used.eye.select(keep), res.used.eye_stamps_ns[keep]
-        sample = error_bars._Sample(eye, stamps, window, (None, None, 0), (1.0, 1.0))
-        figures = [
-            error_bars._figures(res, sample, d)
-            for d in (
-                np.zeros(7),
-                move_to_truth(
-                    rec.truth, res.time_offset_s, res.q_HE, res.p_HE, res.batch.covariance.shape[0]
-                ),
-            )
-        ]
+        t = rec.truth
+        moved = error_bars.figures_at(res, t.time_offset_s, t.q_HE, t.p_HE)
+        assert moved is not None
+        assert error_bars.figures_at(res, res.time_offset_s, res.q_HE, res.p_HE) == {
+            n: {s: 0.0 for s in moved[n]} for n in moved
+        }
         z += [
-            (figures[1][n]['rmse'] - figures[0][n]['rmse']) / bars.sigmas[n]['rmse']
+            moved[n]['rmse'] / bars.sigmas[n]['rmse']
             for n in POSE_ERRORS
             if n != 'rpe_time_rotation'  # the RPE of rotation per 1 s: ~0 sigma, ~0 change
         ]

@@ -11,14 +11,14 @@ pytest.importorskip('rclpy')
 from rclpy.task import Future
 
 from handeye_ros.ros.calls import BUSY, answer_with, waiting
+from handeye_ros.ros.host import Job
 
 
 def test_only_one_call_waits_and_only_for_a_check() -> None:
-    queued = waiting(('check', None), None)
+    queued = waiting((Job.CHECK, None), None)
     assert isinstance(queued, Future) and not queued.done()
-    assert waiting(('check', queued), None) is None  # one waits already: refused
-    assert waiting(('', None), None) is None  # a user's calibration runs: refused
-    assert waiting(('auto', None), None) is None
+    assert waiting((Job.CHECK, queued), None) is None  # one waits already: refused
+    assert waiting((Job.CALL, None), None) is None  # a user's calibration runs: refused
 
 
 def test_a_waiting_call_gets_the_answer_of_the_calibration_started_for_it() -> None:

@@ -1,95 +1,89 @@
-"""auto_calibrate's rules (auto_mode.judge, auto_mode.richer): a later result published only when it
-improves the precision ratio, converged (stalled while doubtful for a reason more recording does
-not remedy) once it improves it too little, calibrated again when the predicted ratio falls well
-below; and how the status tells that a clock jumped. READY carried from a result:
-test/core/checks/test_carry.py."""
+"""auto_calibrate's policy (auto_mode.decide): a good result published, converged once one
+improves the precision ratio too little, stalled while doubtful for a reason more recording
+does not remedy, done once the buffers are full; and how the status tells that a clock jumped.
+READY from a calibration: test/core/checks/test_readiness.py."""
 
 from __future__ import annotations
-
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 pytest.importorskip('diagnostic_msgs')
 
+from handeye_ros.core.checks.readiness import Outcome
 from handeye_ros.core.checks.verdict import precision_ratio
-from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.ros.auto_mode import (
-    GROWTH,
-    IMPROVEMENT,
-    RECALIBRATE,
-    AutoMode,
-    judge,
-    moved_beyond,
-    richer,
-)
+from handeye_ros.ros.auto_mode import IMPROVEMENT, Auto, State, decide, filled, said
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
 
+#: a `good` calibration of 60 s of buffers, and one held back by its precision alone
+GOOD = Outcome(True, 'good', '', (2e-4, 5e-3, 0.2), True, 60.0, 0.0)
+IMPRECISE = Outcome(
+    False, 'doubtful (imprecise)', 'translation 1-sigma 14 mm', (2e-4, 0.014, 0.2), True, 60.0, 0.0
+)
+CORRELATED = Outcome(
+    False, 'doubtful (residuals_not_white)', 'the residuals are correlated', None, False, 60.0, 0.0
+)
+
 
 @pytest.mark.parametrize(
-    ('sigmas', 'published', 'auto', 'targets', 'expected'),
+    ('published', 'score', 'state'),
     [
-        # the first result, or one asked for by ~/calibrate: published, nothing judged
-        ((1.0, 1.0, 1.0), None, True, (1.0, 1.0, 1.0), (True, False)),
-        ((9.0, 9.0, 9.0), (1.0, 1.0, 1.0), False, (1.0, 1.0, 1.0), (True, False)),
-        # auto: the precision ratio smaller by more than IMPROVEMENT: published, keeps going
-        ((0.8, 0.8, 0.8), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, False)),
-        # one sigma larger, the largest one smaller by more than IMPROVEMENT: keeps going
-        ((0.5, 0.5, 0.7), (1.0, 0.6, 0.6), True, (1.0, 1.0, 1.0), (True, False)),
-        # the ratio smaller, not by IMPROVEMENT: published, converged
-        ((0.95, 0.8, 0.99), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (True, True)),
-        # the ratio larger: the published result stays, converged
-        ((0.5, 0.5, 1.01), (1.0, 1.0, 1.0), True, (1.0, 1.0, 1.0), (False, True)),
+        # the first good result: published, improving
+        (float('inf'), 0.8, State.IMPROVING),
+        # smaller by more than IMPROVEMENT (of 1, the targets): published, keeps going
+        (1.0, 0.8, State.IMPROVING),
+        # smaller, not by IMPROVEMENT: published, converged
+        (1.0, 0.95, State.CONVERGED),
+        # larger: still published (more data), converged
+        (0.5, 0.6, State.CONVERGED),
         # far below the targets, 18 % less is under 10 % of the target: converged
-        ((0.41, 0.41, 0.41), (0.5, 0.5, 0.5), True, (1.0, 1.0, 1.0), (True, True)),
-        # above a target (the translation's), 18 % of itself counts: keeps going
-        ((0.41, 0.82, 0.41), (0.5, 1.0, 0.5), True, (1.0, 0.5, 1.0), (True, False)),
+        (0.5, 0.41, State.CONVERGED),
+        # above a target, 18 % of itself counts: keeps going
+        (2.0, 1.64, State.IMPROVING),
     ],
 )
-def test_a_later_auto_result(sigmas, published, auto, targets, expected) -> None:
+def test_a_good_result_is_published(published: float, score: float, state: State) -> None:
     assert IMPROVEMENT == 0.1
-    assert judge(sigmas, published, auto, targets) == expected
+    got = decide(Auto(State.IMPROVING, published), GOOD, score, full=False)
+    assert got.publish and got.state is state and got.published == score
 
 
-@pytest.mark.parametrize(
-    ('then', 'now', 'expected'),
-    [
-        # what a user met: converged at 6.7 mm / 0.32 deg (ratio 0.67), then minutes of
-        # richer motion predicted 0.6 mm / 0.04 deg (0.08)
-        (0.67, 0.08, True),
-        # white noise after converging at half the targets: another 1.5x of span is no reason
-        (0.5, 0.5 / np.sqrt(GROWTH), False),
-        # above the targets, a fifth of itself
-        (3.0, 2.3, True),
-        (3.0, 2.5, False),
-        # no prediction at the last calibration (a sigma unknown): nothing to compare
-        (float('inf'), 0.1, False),
-    ],
-)
-def test_converged_calibrates_again_when_the_prediction_falls_well_below(
-    then, now, expected
-) -> None:
-    assert RECALIBRATE == 2 * IMPROVEMENT
-    assert richer(then, now) is expected
+def test_a_result_that_is_not_good_is_never_published() -> None:
+    """Held back by its precision: more recording is the remedy, auto mode waits; by a reason
+    more of the same recording does not remedy: stalled, said with it. A later good result
+    (richer motion) is published whatever came before."""
+    first = Auto.start(True)
+    waiting = decide(first, IMPRECISE, 1.4, full=False)
+    assert not waiting.publish and waiting.state is State.WAITING
+    stalled = decide(waiting, CORRELATED, float('inf'), full=False)
+    assert not stalled.publish and stalled.state is State.STALLED
+    assert 'the residuals are correlated' in said(stalled)
+    assert decide(stalled, GOOD, 0.5, full=False).publish
+    converged = decide(Auto(State.IMPROVING, 0.5), GOOD, 0.49, full=False)
+    assert decide(converged, IMPRECISE, 1.4, full=False).state is State.WAITING  # not converged
 
 
-def test_the_precision_ratio_is_the_largest_sigma_over_its_target() -> None:
-    assert precision_ratio((0.5e-3, 6.7e-3, 0.32), (1e-3, 0.01, 0.5)) == pytest.approx(0.67)
+def test_auto_mode_is_done_once_the_buffers_are_full() -> None:
+    assert decide(Auto.start(True), IMPRECISE, 1.4, full=True).state is State.DONE
+    assert filled(Auto(State.IMPROVING, 0.8)).state is State.DONE
+    assert filled(Auto(State.CONVERGED, 0.4)).state is State.CONVERGED
+    assert said(Auto(State.DONE)).startswith('done: the buffers are full')
+    off = Auto.start(False)
+    assert decide(off, GOOD, 0.5, full=False) == off and not off.publish
 
 
 def test_white_noise_converges_once_the_sigmas_are_about_half_the_targets() -> None:
-    """White noise shrinks every sigma by 1/sqrt(GROWTH) at each later result, for ever: auto
-    mode stops once more recording no longer matters to the verdict."""
-    targets, sigma = (1e-3, 0.01, 0.0087), np.array([1e-3, 0.01, 0.0087])  # READY: at them
+    """White noise shrinks every sigma by 1/sqrt(1.5) at each growth of the buffers by half,
+    for ever: auto mode stops saying it improves once more recording no longer matters to the
+    verdict."""
+    targets, sigma = (1e-3, 0.01, 0.0087), np.array([1e-3, 0.01, 0.0087])  # at the targets
+    auto = decide(Auto.start(True), GOOD, precision_ratio(tuple(sigma), targets), False)
     for results in range(2, 20):
-        new = sigma / np.sqrt(GROWTH)
-        admitted, converged = judge(tuple(new), tuple(sigma), True, targets)
-        assert admitted
-        sigma = new
-        if converged:
+        sigma = sigma / np.sqrt(1.5)
+        auto = decide(auto, GOOD, precision_ratio(tuple(sigma), targets), False)
+        if auto.state is State.CONVERGED:
             break
-    assert converged and results <= 6, results
+    assert auto.state is State.CONVERGED and results <= 6, results
     assert np.all(sigma / targets < 0.6) and np.all(sigma / targets > 0.3), sigma / targets
 
 
@@ -140,15 +134,6 @@ def test_a_replay_faster_than_real_time_jumps_only_when_its_clocks_do() -> None:
     assert replay_pace(Arrivals(0, 0, 0.0, 0.0), Arrivals(8_000_000_000, 0, 1.0, 1.0)) == 8.0
 
 
-def test_a_result_moved_beyond_the_published_sigma_is_said() -> None:
-    q = np.array([0.0, 0.0, 0.0, 1.0])
-    old = (0.010, np.array([0.1, 0.0, 0.0]), q)
-    sigmas = (0.5e-3, 5e-3, 0.2)
-    assert moved_beyond((0.0103, np.array([0.103, 0.0, 0.0]), q), old, sigmas) is None
-    assert moved_beyond((0.010, np.array([0.1, 0.0, -0.006]), q), old, sigmas) == 'translation'
-    assert moved_beyond(old, None, None) is None
-
-
 def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
     from diagnostic_msgs.msg import DiagnosticStatus
 
@@ -167,65 +152,3 @@ def test_a_stopped_stream_is_a_warning_at_0_hz_until_it_resumes() -> None:
         'stopped: no message for 12 s (100.0 Hz before)',
         '0.00',
     )
-
-
-def _result(mm: float, reasons: list[dict[str, str]], blocks: bool = True) -> SimpleNamespace:
-    """What auto mode reads of a calibration: its document's sigmas (with the blocks' term or
-    without it), estimate and reasons."""
-    t = mm * 1e-3 / np.sqrt(3)
-    factors = {'translation': 1.5} if blocks else None
-    return SimpleNamespace(
-        document={
-            'std': {
-                'time_offset': 2e-4,
-                'translation': [t] * 3,
-                'rotation': [1e-3] * 3,
-                'block_factors': factors,
-            },
-            'quality': {'reasons': reasons},
-            'time_offset': 0.0,
-            'extrinsic': {'translation': [0.0] * 3, 'rotation': [0.0, 0.0, 0.0, 1.0]},
-        }
-    )
-
-
-def test_auto_mode_stalled_not_converged_while_its_result_is_doubtful() -> None:
-    """Doubtful for a reason more of the same recording does not remedy: stalled. Doubtful for
-    its precision alone: one result no better is no floor (EuRoC MH_01 stereo, live: stalled
-    at 40 s on a 14-mm result where the whole recording is `good` at 9 mm), so it goes on."""
-    node = SimpleNamespace(calib_cfg=CalibrationConfig())
-    auto = AutoMode(node, on=True)  # type: ignore[arg-type]
-    correlated = [
-        {'code': 'residuals_not_white', 'message': 'the residuals are correlated'},
-        {'code': 'imprecise', 'message': 'translation 1-sigma 36 mm'},
-    ]
-    assert auto.admit(_result(40.0, correlated), auto=True) == ''
-    assert auto.admit(_result(38.0, correlated), auto=True) == ''  # 5 %: no longer improving
-    assert auto.said.startswith('stalled') and 'correlated' in auto.said and auto.ended
-    imprecise = [{'code': 'imprecise', 'message': 'translation 1-sigma 14 mm'}]
-    going = AutoMode(node, on=True)  # type: ignore[arg-type]
-    assert going.admit(_result(14.0, imprecise), auto=True) == ''
-    assert going.admit(_result(20.0, imprecise), auto=True) != ''  # not published, no floor
-    assert not going.ended
-    assert going.admit(_result(9.0, []), auto=True) == ''
-    assert going.admit(_result(8.9, []), auto=True) == ''
-    assert going.said.startswith('converged') and going.ended
-    good = AutoMode(node, on=True)  # type: ignore[arg-type]
-    good.admit(_result(8.0, []), auto=True)
-    good.admit(_result(7.9, []), auto=True)
-    assert good.said.startswith('converged') and good.ended
-
-
-def test_a_result_with_the_blocks_term_replaces_one_without_it() -> None:
-    """A `good` 8.4-mm result of too few eye poses for the blocks is no bar for a later 11-mm
-    one that has their term (EuRoC MH_01 stereo, live: it kept every later result from being
-    published, and auto mode stalled on it); the next one is judged as before."""
-    node = SimpleNamespace(calib_cfg=CalibrationConfig())
-    auto = AutoMode(node, on=True)  # type: ignore[arg-type]
-    assert auto.admit(_result(8.4, [], blocks=False), auto=True) == ''
-    imprecise = [{'code': 'imprecise', 'message': 'translation 1-sigma 11 mm'}]
-    assert auto.admit(_result(11.0, imprecise), auto=True) == ''
-    assert not auto.ended
-    assert auto.admit(_result(9.0, []), auto=True) == ''
-    assert auto.admit(_result(9.5, []), auto=True) != ''  # no better: converged on the 9-mm one
-    assert auto.said.startswith('converged') and '9' in auto.said

@@ -79,8 +79,8 @@ from ..arrays import Floats, Indices
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
 #: the recording each), and the same cut SHIFTS - 1 times more, each 1 / SHIFTS of a block
 #: later (:func:`cuts`); with fewer than MIN_BLOCK_POSES eye poses in a quarter the term is not
-#: estimated. Four cuttings against two (bench/prefixes.py: six real recordings every 4 s):
-#: the verdict turned 5 times against 9 and the reported sigmas' log changed by 0.17-0.19 rms
+#: estimated. Four cuttings against two (six real recordings' prefixes every 4 s, measured in
+#: session 36, bench/results/accuracy.md): the verdict turned 5 times against 9 and the reported sigmas' log changed by 0.17-0.19 rms
 #: against 0.19-0.23; eight cuttings gained nothing more (their end parts hold an eighth of a
 #: block). They cost the batch stage 0.2 s on 10 minutes of 200 Hz + 30 Hz.
 BLOCKS = 4

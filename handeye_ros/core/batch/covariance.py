@@ -1,28 +1,20 @@
 """The covariance of stage 3's estimate (Section III-C), at the solution of :mod:`.batch.refine`.
 
 White residuals give ``s^2 (J^T J)^-1``; for the decoupled two-step solve the covariance of the
-two-step estimate (:func:`two_step_from_normals`); for the joint solve the 7x7 block by a Schur
-complement over the spline (:func:`marginal_covariance`). The reported covariance is the
+two-step estimate (:func:`two_step_from_normals`). The reported covariance is the
 long-run one of :mod:`.batch.long_run`, from each eye pose pair's influence on the estimate,
 which holds for residuals correlated in time (a VIO's drift).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
-from scipy.sparse import csc_matrix, diags
-from scipy.sparse.linalg import splu
 
-from ..arrays import Floats, Mask
-from .joint_jacobian import central_jacobian, joint_jacobian
+from ..arrays import Floats
 from .long_run import (
     LongRunCovariance,
-    influence,
     influence_from_sums,
     influence_sums,
-    influence_two_step,
     long_run_covariance,
     two_step_from_sums,
 )
@@ -143,57 +135,6 @@ def _long_run_in_y(psi: Floats, layout: ParameterLayout) -> LongRunCovariance:
 #: standard deviation (from the Gauss-Newton normal matrix), or lowers the cost by less than
 
 
-def eye_jacobians(
-    residuals: Callable[..., Floats], y: Floats, layout: ParameterLayout, decoupled: bool
-) -> dict[str, Floats]:
-    """Central-difference Jacobians of the eye residuals at y (the joint solve's, where the
-    spline moves): for the two-step solve 'a' (rotation rows; dt if free, dtheta), 'b' (all
-    rows; dt if free, dp) and 'theta' (all rows; dtheta); otherwise 'all' (all rows; every
-    free parameter)."""
-    h = layout.steps
-    if not decoupled:
-        return {'all': central_jacobian(residuals, y, layout.all, h)}
-    return {
-        'a': central_jacobian(lambda yy: residuals(yy, rotation_only=True), y, layout.a, h),
-        'b': central_jacobian(residuals, y, layout.b, h),
-        'theta': central_jacobian(residuals, y, np.array([1, 2, 3]), h),
-    }
-
-
-def eye_long_run(
-    r: Floats,
-    jac: dict[str, Floats],
-    layout: ParameterLayout,
-    delta: float,
-    decoupled: bool,
-) -> LongRunCovariance:
-    """Long-run covariance (:mod:`.batch.long_run`) of (dt, dtheta_X, dp_X, ...) from the eye
-    residuals at the solution, as matrices in the order of y (zero rows for a fixed dt).
-
-    ``r``: the weighted eye residuals, 6 rows per eye pose pair in time order; ``jac``: their
-    Jacobians as :func:`eye_jacobians` names them.
-    """
-    k = len(layout.time)
-    if decoupled:
-        psi = _two_step_influences(
-            *influence_two_step(
-                r.reshape(-1, 6)[:, :3].ravel(),
-                jac['a'],
-                r,
-                jac['b'],
-                jac['theta'],
-                delta,
-                3,
-                6,
-                np.arange(k, k + 3),
-            ),
-            k,
-        )
-    else:
-        psi, _ = influence(r, jac['all'], delta, 6)
-    return _long_run_in_y(psi, layout)
-
-
 def two_step_from_normals(N_A: Floats, N_B: Floats, N_Bt: Floats, s2: float, k: int) -> Floats:
     """Covariance of the decoupled estimate under white residuals, in the order (dt if free,
     dtheta, dp); k is 1 when dt is free.
@@ -228,88 +169,3 @@ def assemble_two_step(cov_tt: Floats, cov_b: Floats, S: Floats, k: int) -> Float
     out[np.ix_(idx_b, pos_t)] = cross
     out[np.ix_(pos_t, idx_b)] = cross.T
     return out
-
-
-def marginal_covariance(J: csc_matrix | Floats, n_nuisance: int) -> Floats:
-    """(J^T J)^-1 block of the parameters after the first ``n_nuisance`` (the control poses,
-    and dt where it is marginalised too), by the Schur complement over those."""
-    J = csc_matrix(J)
-    Js, Jc = J[:, :n_nuisance], J[:, n_nuisance:].toarray()
-    A = csc_matrix(Js.T @ Js)
-    B = np.asarray(Js.T @ Jc)
-    C = Jc.T @ Jc
-    lu = splu(A)
-    S = C - B.T @ lu.solve(B)
-    return inverse(S)
-
-
-def joint_covariance(
-    prob: BatchProblem,
-    weights: Weights,
-    x: Floats,
-    f: Floats,
-    free: Mask,
-    rot_rows: Mask,
-    theta: Mask,
-    trans: Mask,
-    delta: float,
-    decoupled: bool,
-) -> Floats:
-    """White 7x7 covariance of (dt, dtheta_X, dp_X) of the joint solve at x, the control
-    poses marginalised; ``f``: the weighted residuals at x; ``free``, ``theta``, ``trans``:
-    masks over x (free parameters, rotation of T_HE, translation of T_HE); ``rot_rows``: the
-    rows of step A (MoCap rows and the eye's rotation rows).
-
-    The Gauss-Newton Jacobian of the Huber cost (scipy's convention), each stream's rows
-    scaled by its own reduced chi^2: its noise is estimated apart; the hand rows also pay for
-    the control poses, the eye rows for dt and T_HE."""
-    ns, nh = prob.n_spline, 6 * prob.th.size
-    s2_h = 2.0 * huber_cost(f[:nh], delta) / max(nh - ns, 1)
-    s2_e = 2.0 * huber_cost(f[nh:], delta) / max(f.size - nh - 7, 1)
-    scale = np.where(
-        np.arange(f.size) < nh, 1.0 / np.sqrt(max(s2_h, 1e-12)), 1.0 / np.sqrt(max(s2_e, 1e-12))
-    )
-    scale *= np.sqrt(np.minimum(1.0, delta / np.maximum(np.abs(f), 1e-300)))
-    J = diags(scale) @ joint_jacobian(prob, x, weights)
-    cov = np.zeros((7, 7))
-    glob = np.flatnonzero(free[ns:])  # y's free entries
-    if not decoupled:
-        cov[np.ix_(glob, glob)] = marginal_covariance(J[:, free], ns)
-        return cov
-    # as two_step_from_normals, with the control poses marginalised in each step
-    J_A = J[rot_rows][:, free & ~trans]
-    cov_tt = marginal_covariance(J_A, J_A.shape[1] - 3)
-    J_B = csc_matrix(J[:, free & ~theta])
-    rhs = np.asarray((J_B.T @ J[:, theta]).todense())
-    S = -splu(csc_matrix(J_B.T @ J_B)).solve(rhs)[ns:]
-    k_dt = int(free[ns])
-    cov[np.ix_(glob, glob)] = assemble_two_step(cov_tt, marginal_covariance(J_B, ns), S, k_dt)
-    return cov
-
-
-def joint_long_run(
-    prob: BatchProblem,
-    weights: Weights,
-    x: Floats,
-    cov: Floats,
-    layout: ParameterLayout,
-    delta: float,
-    decoupled: bool,
-) -> LongRunCovariance:
-    """The joint solve's covariance with the eye's long-run correlation added to the Schur
-    covariance ``cov`` (which has the spline's share): the eye rows' long-run minus their white
-    sandwich, at the joint solution x (the spline moved with it)."""
-    spline, y = prob.unpack(x)
-    w_eye = weights.eye
-
-    def eye_rows(yy: Floats, rotation_only: bool = False) -> Floats:
-        r = prob.eye_raw_at(spline, yy) * w_eye
-        return (r[:, :3] if rotation_only else r).ravel()
-
-    lr = eye_long_run(
-        eye_rows(y), eye_jacobians(eye_rows, y, layout, decoupled), layout, delta, decoupled
-    )
-    extra = lr.covariance - lr.white
-    lam, V = np.linalg.eigh(0.5 * (cov + extra + (cov + extra).T))
-    cov_lr = (V * np.clip(lam, 0.0, None)) @ V.T
-    return LongRunCovariance(cov_lr, cov, lr.bandwidth, lr.samples)

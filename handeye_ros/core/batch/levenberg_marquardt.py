@@ -1,11 +1,10 @@
 """The Huber loss and the Levenberg-Marquardt solvers of stage 3 (Section III-C: "Huber loss,
 Levenberg-Marquardt"), apart from the residuals they minimise (:mod:`.batch.residuals`).
 
-Two solvers, one Newton model of the Huber cost: rows within delta as in least squares, rows
-beyond it with their gradient clipped to +-delta and no curvature; the damping follows the gain
-ratio (Nielsen). :func:`levenberg_marquardt_dense` works on normal equations summed over chunks
-of rows (a few parameters, millions of rows); :func:`levenberg_marquardt_sparse` on a sparse
-Jacobian (the joint solve's control poses). Neither is scipy's ``least_squares``: each says why.
+A Newton model of the Huber cost: rows within delta as in least squares, rows beyond it with
+their gradient clipped to +-delta and no curvature; the damping follows the gain ratio
+(Nielsen). :func:`levenberg_marquardt_dense` works on normal equations summed over chunks of
+rows (a few parameters, millions of rows); it is not scipy's ``least_squares``, and says why.
 """
 
 from __future__ import annotations
@@ -14,20 +13,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csc_matrix, csr_matrix, dia_matrix, diags
-from scipy.sparse.linalg import splu
 
-from ..arrays import Floats, Indices, Mask
+from ..arrays import Floats, Indices
 from .loss import huber_cost, huber_psi
 from .rank import pseudo_inverse, solve_determined
 
-#: Levenberg-Marquardt of the joint solve: start, floor and ceiling of the damping (relative to
-#: the normal matrix's diagonal) and the relative cost change that ends it.
+#: Levenberg-Marquardt: start, floor and ceiling of the damping (relative to the normal matrix's
+#: diagonal) and the relative cost change that ends it.
 LM_LAMBDA0 = 1e-4
 LM_LAMBDA_MIN = 1e-9
 LM_LAMBDA_MAX = 1e8
 LM_FTOL = 1e-10
-LM_FTOL_FIRST_PASS = 1e-6
 
 
 @dataclass(frozen=True)
@@ -125,79 +121,6 @@ def levenberg_marquardt_dense(
             break
     report = SolverReport(success, message, nfev=nfev, njev=nfev, iterations=iterations)
     return y, report, cur
-
-
-def levenberg_marquardt_sparse(
-    residuals: Callable[[Floats], Floats],
-    jacobian: Callable[[Floats], csr_matrix],
-    x: Floats,
-    free: Mask,
-    rows: Mask,
-    delta: float,
-    max_iterations: int,
-    ftol: float,
-) -> tuple[Floats, SolverReport]:
-    """Huber-robust Levenberg-Marquardt with a sparse direct solve of the normal equations.
-
-    Why not scipy's least_squares here: its sparse trust-region solver is lsmr, an iterative
-    solver, and the joint problem (stiff MoCap rows, weak VIO rows, a 6-wide band per control
-    pose plus 7 dense columns) is too ill-conditioned for it: on 8 s of data it crept from cost
-    1.98e4 to 1.85e4 in 50 evaluations, and its dense solver is no faster per step and does not
-    scale. A Gauss-Newton step solved exactly by sparse LU (the normal matrix is banded with a
-    7-wide border) converges in 3-5 steps. The Huber loss enters as its own Newton model: rows
-    within delta as in least squares, rows beyond it with their gradient clipped to +-delta and
-    no curvature; the damping follows the gain ratio (Nielsen), so a step the model mispredicts
-    is retried shorter.
-    ``residuals(x)``, ``jacobian(x)``: the weighted residuals and their sparse Jacobian;
-    ``free``: the parameters it moves; ``rows``: the residual rows it minimises. Returns (x,
-    report).
-    """
-    f = residuals(x)[rows]
-    cost = huber_cost(f, delta)
-    lam, nu, nfev, njev = LM_LAMBDA0, 2.0, 1, 0
-    message, success = 'maximum number of iterations reached', False
-    for _ in range(max_iterations):
-        A, g, D = _huber_normal(jacobian(x)[rows][:, free], f, delta)
-        njev += 1
-        while True:
-            # the parameters are in time order with (dt, T_HE) last: the normal matrix is
-            # banded with a 7-wide border, which factors without fill outside them as it is
-            step = splu((A + lam * D).tocsc(), permc_spec='NATURAL', diag_pivot_thresh=0.0).solve(
-                -g
-            )
-            x_new = x.copy()
-            x_new[free] += step
-            f_new = residuals(x_new)[rows]
-            nfev += 1
-            cost_new = huber_cost(f_new, delta)
-            predicted = -(g @ step + 0.5 * step @ (A @ step))
-            if cost_new <= cost or lam > LM_LAMBDA_MAX:
-                break
-            lam *= nu
-            nu *= 2.0
-        if cost_new > cost:  # no step lowers the cost: at the optimum to the Jacobian's accuracy
-            message, success = 'no step lowers the cost any further', True
-            break
-        decrease = cost - cost_new  # Nielsen's damping from the gain ratio
-        rho = decrease / predicted if predicted > 0 else 0.0
-        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), LM_LAMBDA_MIN)
-        nu = 2.0
-        x, f, cost = x_new, f_new, cost_new
-        if decrease <= ftol * cost:
-            message, success = 'relative cost change below tolerance', True
-            break
-    return x, SolverReport(success, message, nfev=nfev, njev=njev, iterations=njev)
-
-
-def _huber_normal(J: csr_matrix, f: Floats, delta: float) -> tuple[csc_matrix, Floats, dia_matrix]:
-    """The Newton model of the Huber cost at residuals f with Jacobian J: (A, g, D), the normal
-    matrix (rows beyond delta add no curvature), the gradient (their residuals clipped to
-    +-delta) and Marquardt's diagonal scaling."""
-    inner = (np.abs(f) <= delta).astype(float)
-    A = (J.T @ diags(inner) @ J).tocsc()
-    g = J.T @ np.clip(f, -delta, delta)
-    D = diags(np.maximum(np.asarray(J.multiply(J).sum(axis=0)).ravel(), 1e-12))
-    return A, g, D
 
 
 class SumsOfChunks:

@@ -1,5 +1,5 @@
 """How stage 3 solves (:class:`BatchOptions`): the options of :func:`.refine.refine` and of
-the two solves (:mod:`.solves`)."""
+its solve (:mod:`.solves`)."""
 
 from __future__ import annotations
 
@@ -13,16 +13,12 @@ class BatchOptions:
     knot_spacing (s) and order: the hand's spline. hand_noise / eye_noise: (rotation rad,
     translation m) per axis of each MoCap pose / of the eye's relative poses between
     consecutive frames; None estimates it from the data's own residuals. huber_delta, in
-    sigmas; max_iterations of the solver. ``joint`` also frees the spline's control poses (the
-    full problem of eq. 15, analytic sparse Jacobian and sparse direct solve; slower, and the
-    same answer while the MoCap is much less noisy than the VIO). fix_time_offset: dt held at
-    its start. decoupled: rotation then translation (:func:`.solves.solve_offset_extrinsic`).
+    sigmas; max_iterations of the solver. fix_time_offset: dt held at its start. decoupled: rotation then translation (:func:`.solves.solve_offset_extrinsic`).
     drift_stamp_ns: also estimate a clock drift, dt(t) = dt + drift (t - drift_stamp_ns) with t
     the eye's stamps (:mod:`.time.clock`); scale: also a factor on the eye's translations. Both
-    are corrections to what the eye already has (0 and 1 to start), and only the default (not
-    the joint) solve estimates them. held_axis: a unit direction (hand frame) along which the
-    translation of T_HE stays at its start: the only rotation axis of the motion, along which
-    no eye motion depends on it (the default solve only); held_rotation: the rotation of T_HE
+    are corrections to what the eye already has (0 and 1 to start). held_axis: a unit direction
+    (hand frame) along which the translation of T_HE stays at its start: the only rotation axis
+    of the motion, along which no eye motion depends on it; held_rotation: the rotation of T_HE
     about it held too (a rig turned in place, where any such rotation has its own translation
     across the axis).
     """
@@ -33,7 +29,6 @@ class BatchOptions:
     eye_noise: tuple[float | None, float | None] = (None, None)
     huber_delta: float = 1.345
     max_iterations: int = 50
-    joint: bool = False
     fix_time_offset: bool = False
     decoupled: bool = True
     drift_stamp_ns: int | None = None

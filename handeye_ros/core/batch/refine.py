@@ -14,15 +14,14 @@ per-pose residuals model exactly; relative ones would be correlated between neig
 leave a rigid motion of the whole spline free. (The VIO's error is a drift, white in its
 increments: there the relative form is the right one.)
 
-By default the spline is fitted to the hand alone and (dt, T_HE) are solved on the eye
+The spline is fitted to the hand alone and held, and (dt, T_HE) are solved on the eye
 residuals with it by a Huber Levenberg-Marquardt with the analytic Jacobian
 (:meth:`.batch.residuals.BatchProblem.eye_chunk`), the eye pairs taken in chunks and their normal
 equations summed (an hour of 200 Hz VIO is 720 000 pairs), in two steps: (dt, rotation of T_HE)
 on the rotation residuals, then (dt, translation) on all of them
-(:func:`.batch.solves.solve_offset_extrinsic` says why). ``joint`` solves the whole problem, control poses
-included (in the same two steps unless ``decoupled`` is off), by Levenberg-Marquardt with an
-analytic sparse Jacobian and a sparse direct solve; it is slower and agrees with the default
-while the MoCap is much less noisy than the VIO.
+(:func:`.batch.solves.solve_offset_extrinsic` says why). Freeing the control poses too (the
+whole problem of eq. 15) agrees with it while the MoCap is much less noisy than the VIO, at a
+far higher cost (docs/method.md).
 
 The noise of each stream is estimated from its own residuals unless given.
 """
@@ -43,9 +42,9 @@ from .levenberg_marquardt import SolverReport
 from .noise import Noise, sigmas
 from .options import BatchOptions
 from .parameters import ParameterLayout
-from .pieces import check_hand_rate, hand_pieces
+from .pieces import hand_pieces
 from .residuals import BatchProblem
-from .solves import Solve, solve_joint, solve_offset_extrinsic
+from .solves import Solve, solve_offset_extrinsic
 from .spline import PoseSpline
 
 __all__ = ['BatchError', 'BatchOptions', 'BatchSolution', 'Noise', 'SolverReport', 'refine']
@@ -152,13 +151,7 @@ def refine(
         # translations tell it, so the rotation cannot be solved for first
         o = replace(o, decoupled=False)
     t_start = time.perf_counter()
-    if o.joint and (o.drift_stamp_ns is not None or o.scale or o.held_axis is not None):
-        raise BatchError(
-            'the joint solve (batch_joint) does not estimate a clock drift or a '
-            'scale, nor hold a direction; leave batch_joint off for them'
-        )
     hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, o.knot_spacing, o.order)
-    check_hand_rate(hand, o.knot_spacing, o.joint)
     prob = BatchProblem(
         hand,
         eye,
@@ -174,33 +167,19 @@ def refine(
         None if o.held_axis is None else np.asarray(o.held_axis, float),
         o.held_rotation,
     )
-    hn = _hand_noise(prob, o.hand_noise, o.joint)
+    hn = _hand_noise(prob, o.hand_noise)
     held = o.held_axis is not None
     layout = ParameterLayout.of(prob, o.fix_time_offset, held, held and o.held_rotation)
-    solved, y = _solve(prob, layout, hn, o)
-    return _solution(prob, solved, y, o, piece_note, time.perf_counter() - t_start)
-
-
-def _solve(
-    prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: BatchOptions
-) -> tuple[Solve, Floats]:
-    """The joint solve or the default one, as ``o`` says: (the solve, y = (dt, dtheta_X, dp_X,
-    ...) at its solution)."""
-    if o.joint:
-        solved = solve_joint(prob, layout, hn, o)
-        return solved, prob.unpack(solved.x)[1]
     solved = solve_offset_extrinsic(prob, layout, hn, o)
-    return solved, solved.x
+    return _solution(prob, solved, solved.x, o, piece_note, time.perf_counter() - t_start)
 
 
-def _hand_noise(
-    prob: BatchProblem, given: tuple[float | None, float | None], joint: bool
-) -> Noise:
-    """The hand's noise (rad, m): as given, else from the spline fit's own residuals (per pose,
-    as in the joint cost)."""
+def _hand_noise(prob: BatchProblem, given: tuple[float | None, float | None]) -> Noise:
+    """The hand's noise (rad, m): as given, else from the spline fit's own residuals (per
+    pose)."""
     if given[0] is not None and given[1] is not None:  # no pass over the MoCap to measure it
         return Noise(given[0], given[1], False)
-    raw = prob.hand_raw(prob.spline0) if joint else prob.hand_noise_residuals()
+    raw = prob.hand_noise_residuals()
     return Noise(*sigmas(raw, given, prob.M, prob.th.size))
 
 

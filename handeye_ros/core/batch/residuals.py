@@ -10,8 +10,7 @@ with ``d = (Log(R_pred R_obs^T), p_pred - p_obs)``, each part divided by its str
 (:class:`Weights`). The loss and the solvers that minimise these are in :mod:`.batch.levenberg_marquardt`, the
 covariance at the solution in :mod:`.batch.covariance`, the orchestration in :mod:`.batch.refine`.
 
-Parameters: the joint solve's x is (per control pose (dphi, dp); then y), and y = (dt,
-dtheta_X, dp_X, [drift], [scale]) are the updates of dt and T_HE (and the optional clock drift
+Parameters: y = (dt, dtheta_X, dp_X, [drift], [scale]) are the updates of dt and T_HE (and the optional clock drift
 and scale) from their start values (:class:`ParameterLayout`).
 """
 
@@ -26,7 +25,6 @@ from ..arrays import Floats, Indices, Mask
 from ..errors import BatchError
 from ..geometry import (
     Pose,
-    exp_so3,
     log_so3,
     matrix_from_quat,
     relative,
@@ -78,19 +76,12 @@ class _ChunkPairs:
 
 @dataclass(frozen=True)
 class Weights:
-    """1/sigma of each residual part (1/rad, 1/m): a MoCap pose's rotation and translation,
-    an eye relative pose's rotation and translation. The solvers are handed them with the
-    residuals they weight; the problem itself holds none."""
+    """1/sigma of each part of an eye relative pose's residual (1/rad, 1/m): its rotation and
+    translation. The solver is handed them with the residuals they weight; the problem itself
+    holds none."""
 
-    hand_rotation: float = 1.0
-    hand_translation: float = 1.0
     eye_rotation: float = 1.0
     eye_translation: float = 1.0
-
-    @property
-    def hand(self) -> Floats:
-        """(6,) per component of a hand residual."""
-        return np.repeat([self.hand_rotation, self.hand_translation], 3)
 
     @property
     def eye(self) -> Floats:
@@ -161,8 +152,7 @@ class BatchProblem:
         self.origin = int(hand.t_ns[0])
         self.th = hand.seconds(self.origin)
         te = eye.seconds(self.origin)
-        # the MoCap's rotations stay quaternions: an hour at 1 kHz as matrices is 260 MB, and
-        # only the joint solve needs them all (:attr:`hand_obs`)
+        # the MoCap's rotations stay quaternions: an hour at 1 kHz as matrices is 260 MB
         qh, ph = hand.q_xyzw, hand.p_xyz
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
         pieces = pieces or [(0, len(hand))]
@@ -187,8 +177,6 @@ class BatchProblem:
         self.eye_obs = relative((Re, pe), self.ei, self.ej)
         self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
         self.translation_basis, self.rotation_basis = self._bases(held_axis, held_rotation)
-        self.n_spline = 6 * self.M
-        self.n = self.n_spline + 7
         # optional entries of y after (dt, dtheta_X, dp_X): the clock drift about the reference
         # stamp t_ref (eye clock) and the eye's scale correction (1 + y_s)
         self.i_drift = 7 if drift_stamp_ns is not None else None
@@ -219,23 +207,6 @@ class BatchProblem:
         out: Mask = (t >= spans[k, 0] + DT_MARGIN_S) & (t <= spans[k, 1] - DT_MARGIN_S)
         return out
 
-    @property
-    def hand_obs(self) -> Pose:
-        """The MoCap poses as (R (N, 3, 3), p (N, 3)): made once, when the joint solve asks."""
-        obs = self.__dict__.get('_hand_obs')
-        if obs is None:
-            obs = self.__dict__['_hand_obs'] = (matrix_from_quat(self.hand_q), self.hand_p)
-        return obs
-
-    @property
-    def hand_basis(self) -> tuple[Indices, Floats]:
-        """Spline basis at every MoCap stamp (the knots never move; the times neither): made
-        once, when the joint solve first asks."""
-        basis = self.__dict__.get('_hand_basis')
-        if basis is None:
-            basis = self.__dict__['_hand_basis'] = self.spline0.basis(self.th)
-        return basis
-
     def hand_noise_residuals(self) -> Floats:
         """Hand residuals of the spline fit (n, 6) at up to HAND_NOISE_SAMPLES MoCap poses evenly
         spread: what the default solve needs of the hand is its noise level, which a robust
@@ -265,19 +236,6 @@ class BatchProblem:
         dt, drift = self.clock(y)
         te = self.te[first:stop]
         return te - dt - drift * (te - self.t_ref)
-
-    # parameters: per control point (dphi, dp); then dt, dtheta_X, dp_X
-    def unpack(self, x: Floats) -> tuple[PoseSpline, Floats]:
-        """(spline, y) of the full parameter vector (joint solve)."""
-        c = x[: self.n_spline].reshape(self.M, 6)
-        s0 = self.spline0
-        R = np.matmul(s0.R, exp_so3(c[:, :3]))
-        spline = PoseSpline(s0.t0, s0.dt, s0.order, R, s0.p + c[:, 3:], s0.pieces)
-        return spline, x[self.n_spline :]
-
-    def hand_raw(self, spline: PoseSpline) -> Floats:
-        """Unweighted hand residuals (Nh, 6): spline against each MoCap pose."""
-        return residual_parts(spline.poses_at(self.th, self.hand_basis), self.hand_obs)
 
     def eye_raw_at(self, spline: PoseSpline, y: Floats) -> Floats:
         """Unweighted eye residuals (Ne, 6): the eye predicted from the spline and y (the clock
@@ -395,17 +353,7 @@ class BatchProblem:
         """Start indices of the eye pair chunks of :meth:`eye_chunk`."""
         return range(0, self.ei.size, EYE_CHUNK_PAIRS)
 
-    def raw(self, x: Floats) -> tuple[Floats, Floats]:
-        """Unweighted hand (Nh, 6) and eye (Ne, 6) residuals."""
-        spline, y = self.unpack(x)
-        return self.hand_raw(spline), self.eye_raw_at(spline, y)
-
     def eye_raw(self, y: Floats) -> Floats:
         """Unweighted eye residuals (Ne, 6) for y = (dt, dtheta_X, dp_X, ...), the spline
         fixed to the hand."""
         return self.eye_raw_at(self.spline0, y)
-
-    def residuals(self, x: Floats, w: Weights) -> Floats:
-        """Weighted hand then eye residuals, flat (joint solve)."""
-        r_h, r_e = self.raw(x)
-        return np.concatenate(((r_h * w.hand).ravel(), (r_e * w.eye).ravel()))

@@ -1,9 +1,9 @@
-"""The two solves of stage 3 (eq. 15-16): (dt, T_HE) on the eye residuals with the spline held to
-the MoCap (the default), or the whole problem with the control poses free (``joint``).
+"""The solve of stage 3 (eq. 15-16): (dt, T_HE) on the eye residuals with the spline held to
+the MoCap.
 
-Each runs in two passes when a noise is estimated (the noise is measured again at the first
+It runs in two passes when a noise is estimated (the noise is measured again at the first
 solution) and, ``decoupled``, in two steps: the rotation first, then the translation.
-:mod:`.batch.refine` chooses between them and turns the answer into a :class:`BatchSolution`.
+:mod:`.batch.refine` turns the answer into a :class:`BatchSolution`.
 """
 
 from __future__ import annotations
@@ -13,17 +13,13 @@ from functools import partial
 
 import numpy as np
 
-from ..arrays import Floats, Indices, Mask
-from .covariance import CovarianceSums, eye_covariance, joint_covariance, joint_long_run
-from .joint_jacobian import joint_jacobian
+from ..arrays import Floats, Indices
+from .covariance import CovarianceSums, eye_covariance
 from .levenberg_marquardt import (
-    LM_FTOL,
-    LM_FTOL_FIRST_PASS,
     NormalSums,
     SolverReport,
     SumsOfChunks,
     levenberg_marquardt_dense,
-    levenberg_marquardt_sparse,
 )
 from .long_run import LongRunCovariance
 from .loss import huber_cost
@@ -39,9 +35,9 @@ FIRST_PASS_CHUNKS = 4
 
 @dataclass(frozen=True)
 class Solve:
-    """What one of the two solves hands back to :func:`.batch.refine.refine`.
+    """What the solve hands back to :func:`.batch.refine.refine`.
 
-    x: the solution, the joint solve's full vector (control poses then y) or y alone;
+    x: the solution y;
     weights: the final 1/sigma of each stream; covariance: white, (n_y, n_y) in the order of
     y (zero rows for entries held fixed); long_run: the reported covariance
     (:mod:`.batch.long_run`); n_residuals, n_free: for the reduced chi^2; report: the last
@@ -71,9 +67,9 @@ def solve_offset_extrinsic(
 
     ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
     all residuals with the rotation fixed. Why: as in the linear stage's decoupled refit, a
-    VIO's relative translations carry errors that are not white (scale, drift), and in a
-    joint solve they pull the extrinsic's rotation; on the real flights of bench/real_cases.py
-    the joint solve left 0.25-0.80 deg of rotation error where this leaves 0.03-0.31 deg, and on
+    VIO's relative translations carry errors that are not white (scale, drift), and in one
+    solve of all together they pull the extrinsic's rotation; on the real flights of
+    bench/real_cases.py that solve left 0.25-0.80 deg of rotation error where this leaves 0.03-0.31 deg, and on
     the paper protocol it is as good for dt and better for the rotation.
 
     Two passes: the eye noise is measured at the linear result, then again at the first
@@ -210,68 +206,3 @@ def _sweep(prob: BatchProblem, y: Floats, plan: _SweepPlan) -> NormalSums:
         else _SameSweep(None if then is None else then.sums(), cov)
     )
     return step.sums(None if raw is None else np.concatenate(raw), extra)
-
-
-def solve_joint(prob: BatchProblem, layout: ParameterLayout, hn: Noise, o: BatchOptions) -> Solve:
-    """Control poses, dt and T_HE together: the whole problem of eq. 15
-    (:func:`.batch.levenberg_marquardt.levenberg_marquardt_sparse`).
-
-    ``decoupled`` as in :func:`solve_offset_extrinsic`, with the control poses free in both
-    steps: (control poses, dt, rotation of T_HE) on the MoCap rows and the eye's rotation rows,
-    then (control poses, dt, translation) on all rows. Two passes when a noise is estimated.
-    ``hn``: the hand's noise to start with; ``o``: the noises given (None: measured), the Huber
-    delta, the iterations, ``fix_time_offset``, ``decoupled``.
-    """
-    hand_noise, eye_noise, delta, decoupled = o.hand_noise, o.eye_noise, o.huber_delta, o.decoupled
-    free, rot_rows, theta, trans = _joint_masks(prob, o.fix_time_offset)
-    all_rows = np.ones(rot_rows.size, bool)
-    steps = (
-        [(free & ~trans, rot_rows), (free & ~theta, all_rows)] if decoupled else [(free, all_rows)]
-    )
-    x = np.zeros(prob.n)
-    en = Noise(*sigmas(prob.eye_raw(np.zeros(prob.n_y)), eye_noise))
-    passes = 2 if (en.estimated or hn.estimated) else 1
-    for k in range(passes):
-        weights = Weights(
-            1.0 / hn.rotation, 1.0 / hn.translation, 1.0 / en.rotation, 1.0 / en.translation
-        )
-        # A first pass only has to get near enough to measure the noise again: plain least
-        # squares does that in 2-3 steps, where Huber's switching between its quadratic and
-        # linear parts over thousands of MoCap rows takes 20-40 steps (measured on 20 s);
-        # the Huber pass then starts where its active set has settled.
-        last = k + 1 == passes
-        for cols, rows in steps:
-            x, report = levenberg_marquardt_sparse(
-                partial(prob.residuals, w=weights),
-                partial(joint_jacobian, prob, weights=weights),
-                x,
-                cols,
-                rows,
-                delta if last else np.inf,
-                o.max_iterations,
-                LM_FTOL if last else LM_FTOL_FIRST_PASS,
-            )
-        if not last:
-            r_h, r_e = prob.raw(x)
-            hn, en = Noise(*sigmas(r_h, hand_noise, prob.M)), Noise(*sigmas(r_e, eye_noise))
-    f = prob.residuals(x, weights)
-    cov = joint_covariance(prob, weights, x, f, free, rot_rows, theta, trans, delta, decoupled)
-    lr = joint_long_run(prob, weights, x, cov, layout, delta, decoupled)
-    cost_before = huber_cost(prob.residuals(np.zeros(prob.n), weights), delta)
-    cost_after, n_free = huber_cost(f, delta), int(free.sum())
-    return Solve(x, cost_before, cost_after, hn, en, weights, cov, lr, f.size, n_free, report)
-
-
-def _joint_masks(prob: BatchProblem, fix_time_offset: bool) -> tuple[Mask, Mask, Mask, Mask]:
-    """The joint solve's masks: the free parameters (control poses, dt unless fixed, T_HE), the
-    rows of its rotation step (the MoCap's and the eye's rotation rows), and which parameters
-    are the rotation and the translation of T_HE."""
-    ns, nh = prob.n_spline, 6 * prob.th.size
-    free = np.ones(prob.n, bool)
-    if fix_time_offset:
-        free[ns] = False
-    theta, trans = np.zeros(prob.n, bool), np.zeros(prob.n, bool)
-    theta[ns + 1 : ns + 4], trans[ns + 4 :] = True, True
-    rot_rows = np.ones(nh + 6 * prob.ei.size, bool)
-    rot_rows[nh:] = np.tile([True] * 3 + [False] * 3, prob.ei.size)
-    return free, rot_rows, theta, trans

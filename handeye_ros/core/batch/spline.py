@@ -28,7 +28,7 @@ from scipy.sparse.linalg import lsqr
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..arrays import Floats, Indices
-from ..geometry import Pose, exp_so3, log_so3, quat_multiply, right_jacobian
+from ..geometry import Pose, exp_so3, log_so3, quat_multiply
 
 if TYPE_CHECKING:  # imported where used (see _cardinal)
     from scipy.interpolate import BSpline
@@ -252,41 +252,6 @@ class PoseSpline:
                 w = _rotate_back(a, w) + dbasis[:, j, None] * omega[i + j - 1]
                 v += dbasis[:, j, None] * dp[i + j - 1]
         return Rotation.from_quat(q).as_matrix(), p, w, v
-
-    def poses_and_jacobian_at(
-        self, basis: tuple[Indices, Floats]
-    ) -> tuple[Floats, Floats, Floats, Floats]:
-        """Poses at the times of ``basis`` (:meth:`basis`) and their derivatives with respect to
-        the k control poses of each time's segment, i + c (c = 0..k-1).
-
-        Returns R (N, 3, 3), p (N, 3), JR (N, k, 3, 3) and b (N, k): a change of control
-        rotation i + c to ``R_{i+c} Exp(phi)`` moves R(t) to ``R(t) Exp(JR[:, c] phi)`` (body
-        frame), a change of control position i + c by dp moves p(t) by ``b[:, c] dp``. From
-        eq. 14 by the chain rule through each factor ``Exp(Bc_j w_j)`` and each increment
-        ``w_j = Log(R_{i+j-1}^T R_{i+j})`` (as in Sommer et al., CVPR 2020).
-        """
-        i, Bc = basis
-        k = self.order
-        omega, _ = self._increments()
-        N = i.size
-        A = {j: exp_so3(Bc[:, j, None] * omega[i + j - 1]) for j in range(1, k)}
-        P = {k - 1: np.broadcast_to(np.eye(3), (N, 3, 3))}  # P_j = A_{j+1} ... A_{k-1}
-        for j in range(k - 1, 0, -1):
-            P[j - 1] = np.matmul(A[j], P[j])
-        R = np.matmul(self.R[i], P[0])
-        JR = np.zeros((N, k, 3, 3))
-        JR[:, 0] = np.swapaxes(P[0], -1, -2)
-        for j in range(1, k):
-            w = omega[i + j - 1]
-            G = np.matmul(
-                np.swapaxes(P[j], -1, -2),
-                Bc[:, j, None, None] * right_jacobian(Bc[:, j, None] * w),
-            )
-            JR[:, j] += np.matmul(G, right_jacobian(w, inverse=True))
-            JR[:, j - 1] -= np.matmul(G, right_jacobian(-w, inverse=True))
-        b = plain_basis(Bc)
-        p = np.einsum('nc,nca->na', b, self.p[i[:, None] + np.arange(k)])
-        return R, p, JR, b
 
 
 def fit_spline(t: Floats, R: Floats, p: Floats, knot_spacing: float, order: int = 4) -> PoseSpline:

@@ -7,9 +7,7 @@ the data contradict), :mod:`.orientations` (quaternion orders and inverted poses
 :mod:`.selfcheck` (stage 2 at each candidate offset, scored alike) on :mod:`.excerpt` (a
 bounded part of the recording), :mod:`.coverage` (how much of the eye's time the MoCap covers),
 :mod:`.consistency` (which of a rig's recordings agree on T_HE), :mod:`.verdict` (good,
-doubtful or failed, with its reasons), and :mod:`.readiness` (what the data so far support,
-and what they lack: the node's status; :mod:`.carry`: READY with a result's own factors and
-reasons), from :mod:`.progress` (what is gathered as a recording grows),
-:mod:`.pair_information` (the consecutive eye pairs' information about dt and T_HE) and
-:mod:`.excitation` (the turns about each axis, the stream health).
+doubtful or failed, with its reasons), and :mod:`.readiness` (READY: the latest calibration of
+the node's buffers is good; what the motion so far lacks, from :mod:`.excitation`: the turns
+about each axis, the stream health).
 """

@@ -1,6 +1,7 @@
 """How far a body has turned about each of its axes, how fast, how far it travelled, and how
 many of its recent poses are missing: the readiness's excitation and stream health, in pieces
-that add up as a recording grows.
+that add up as a recording grows (:class:`Motion`: what the node's status reads of the poses new
+since its last look, so that a look costs the same at 10 s and at 30 min of buffers).
 
 A rotation about an axis a says nothing of T_HE's rotation about a, nor of its translation
 along a (eq. 2); so the turn about each of the device's axes tells which one the user still
@@ -11,7 +12,8 @@ axes that one fills.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -25,6 +27,9 @@ from ..trajectory import Trajectory
 TURN_STEP_S = 0.2
 #: The stream health looks at this much of the latest data (s).
 RECENT_S = 10.0
+#: New steps are merged into the newest piece until it spans this much (s): a buffer drops its
+#: oldest poses piece by piece, and half an hour is 180 pieces.
+PIECE_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -114,3 +119,56 @@ def dropout(traj: Trajectory) -> float:
         return 0.0
     got = int(np.sum(t > -span))
     return float(np.clip(1.0 - got * period / span, 0.0, 1.0))
+
+
+def _grown(pieces: tuple[Turned, ...], new: Turned | None) -> tuple[Turned, ...]:
+    """``new`` added to the last piece while that spans less than PIECE_S, else appended."""
+    if new is None:
+        return pieces
+    if pieces and (pieces[-1].t1_ns - pieces[-1].t0_ns) * 1e-9 < PIECE_S:
+        return (*pieces[:-1], pieces[-1] + new)
+    return (*pieces, new)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """What each stream ('hand', 'eye') did so far: its :class:`Turned` pieces (oldest first),
+    the stamp its next steps start at (ns; None: its first pose), and the fraction of its last
+    RECENT_S it misses."""
+
+    pieces: Mapping[str, tuple[Turned, ...]] = field(
+        default_factory=lambda: {'hand': (), 'eye': ()}
+    )
+    next_ns: Mapping[str, int | None] = field(default_factory=lambda: {'hand': None, 'eye': None})
+    dropout: Mapping[str, float] = field(default_factory=dict)
+
+    def wants(self, newest_ns: Mapping[str, int]) -> dict[str, int]:
+        """From which stamp (ns) :meth:`grown` needs each stream's poses: where its steps go on,
+        and its last RECENT_S."""
+        recent = int(RECENT_S * 1e9)
+        out = {}
+        for s, newest in newest_ns.items():
+            at = self.next_ns[s]
+            out[s] = newest - recent if at is None else min(at, newest - recent)
+        return out
+
+    def grown(self, tails: Mapping[str, Trajectory]) -> Motion:
+        """With the steps of each stream's poses from :meth:`wants` on."""
+        pieces, next_ns = dict(self.pieces), dict(self.next_ns)
+        for s, tail in tails.items():
+            piece, next_ns[s] = turned(tail, self.next_ns[s])
+            pieces[s] = _grown(pieces[s], piece)
+        return Motion(pieces, next_ns, {s: dropout(t) for s, t in tails.items()})
+
+    def since(self, oldest_ns: Mapping[str, int]) -> Motion:
+        """Without the pieces of poses the buffers no longer hold (a piece goes whole once it
+        begins before them)."""
+        kept = {
+            s: tuple(p for p in ps if p.t0_ns >= oldest_ns[s]) for s, ps in self.pieces.items()
+        }
+        return replace(self, pieces=kept)
+
+    def turned(self, stream: str) -> Turned | None:
+        """The stream's pieces added up (None: no whole step yet)."""
+        pieces = self.pieces[stream]
+        return sum(pieces[1:], pieces[0]) if pieces else None

@@ -1,212 +1,198 @@
-"""Readiness: can the data so far calibrate to the required precision, and if not, what do they
-lack, said in the frame of the device the user holds (the eye E).
+"""Readiness: whether a calibration of the data so far is ``good`` for the chosen purpose, and
+what the data lack until one is, said in the frame of the device the user holds (the eye E).
 
-The prediction is the batch stage's white covariance (eq. 15-16) without running the batch
-stage: the eye's relative poses between consecutive frames (the residuals of eq. 16) at stage 1's
-offset and stage 2's T_HE give the noise (robust sigmas of their residuals), and their Jacobians in (dt, T_HE) the information
-(:mod:`.pair_information`); its inverse is the covariance the batch stage would report if the
-residuals were white. The derivative in dt is a central difference over one knot spacing, as
-smooth as the batch stage's spline, so that the MoCap's own noise does not pass for motion.
-:func:`readiness` reads a whole recording; the node's status adds up what the poses new since
-its last status say (:mod:`.progress`) and judges the sum with :func:`readiness_of`.
-
-Which direction is missing follows from the motions' screw axes: a rotation about an axis a
-says nothing of T_HE's rotation about a, nor of its translation along a (eq. 2). So the
-covariance's widest direction, in the device's axes, names the axis the device has mostly turned
-about, and the advice is to turn it about the other two.
-
-The targets are the verdict's own (``precision_time_offset``, ``precision_translation``,
-``precision_rotation``): ready means a calibration now would not be ``imprecise``.
+READY is a real calibration's verdict, never a prediction: the node calibrates its buffers as
+they grow (``ros/status.py``), and READY means that the latest such result (an
+:class:`Outcome`) is ``good`` for the purpose. Between results the status shows what the motion
+so far observes (:class:`~.excitation.Motion`): how far the device has turned, and how far
+apart the axes it turned about are. A rotation about an axis a says nothing of T_HE's rotation
+about a, nor of its translation along a (eq. 2): for the extrinsic, turns about nearly one axis
+are told to turn about another one (the device axis most across it); for an evaluation the
+lever arm along that axis moves no metric (the world alignment absorbs it), and no such advice
+is given to a ground robot that cannot follow it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import TypedDict
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..arrays import Floats
 from ..config import CalibrationConfig
-from ..document import ReadinessDoc
-from ..trajectory import Trajectory
-from . import pair_information as info
-from .excitation import RECENT_S
-from .progress import MIN_RECORDING_S, STILL_DPS, Known, Progress, start
-from .verdict import AMBIGUOUS_PEAK_RATIO, WEAK_CORRELATION, precision_ratio, precision_ratios
+from ..document import StatusDoc
+from ..time.align import MIN_OVERLAP_S
+from .excitation import RECENT_S, Motion
+from .verdict import Code, Purpose, Quality, Verdict, precision_ratio, sigmas_of
 
-__all__ = ['AXES', 'Known', 'Readiness', 'readiness', 'readiness_of']
+__all__ = ['AXES', 'MIN_RECORDING_S', 'STILL_DPS', 'Outcome', 'Readiness', 'readiness']
 
 #: The device's axes, as the advice names them.
 AXES = ('x', 'y', 'z')
-#: Below this RMS angular speed (deg/s), "turn faster" is part of the advice for dt.
-SLOW_DPS = 30.0
+#: Slower than this RMS angular speed (deg/s), the device is held still.
+STILL_DPS = 2.0
+#: Shorter streams cannot be aligned in time: stage 1 wants MIN_OVERLAP_S of overlap at the
+#: offsets it searches, some of which overlap only partly.
+MIN_RECORDING_S = 2.0 * MIN_OVERLAP_S
 #: A stream missing more than this fraction of its recent samples is said to drop out.
 DROPOUT_FRACTION = 0.05
-#: Fewer covered pairs than this predict nothing.
-MIN_PAIRS = 20
+#: Turns whose axes spread less than this (deg, :attr:`.excitation.Turned.axis_spread_deg`) are
+#: about nearly one axis: the spread is 2 atan(sqrt(l2 / l1)) of the axes' scatter, and at
+#: 2 atan(1/3) the direction across the main axis carries a ninth of its information, a 1-sigma
+#: three times as wide.
+ONE_AXIS_DEG = float(np.degrees(2.0 * np.arctan(1.0 / 3.0)))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What the status keeps of a calibration of its buffers.
+
+    good: ``good`` for the purpose judged; label: its verdict and reason codes; held: the first
+    reason's message ('' when good); sigmas: the reported 1-sigmas of dt [s], T_HE's
+    translation [m] and rotation [deg] (None without a batch stage); recording_helps: more of
+    the same recording is the remedy for every reason (precision alone); failed: why the
+    calibration failed ('' when it did not); span_s: the buffered span it calibrated [s];
+    finished: when it ended (monotonic s).
+    """
+
+    good: bool
+    label: str
+    held: str
+    sigmas: tuple[float, float, float] | None
+    recording_helps: bool
+    span_s: float
+    finished: float
+    failed: str = ''
+
+    @classmethod
+    def of(cls, q: Quality, std: Floats | None, span_s: float, finished: float) -> Outcome:
+        """A calibration's verdict (as judged for its purpose) and batch std (dt [s],
+        translation [m] x3, rotation [rad] x3; None without a batch stage)."""
+        return cls(
+            good=q.verdict == Verdict.GOOD,
+            label=q.label(),
+            held=q.reasons[0].message if q.reasons else '',
+            sigmas=None if std is None else sigmas_of(std),
+            recording_helps=all(r.code == Code.IMPRECISE for r in q.reasons),
+            span_s=span_s,
+            finished=finished,
+        )
+
+    @classmethod
+    def failure(cls, why: str, span_s: float, finished: float) -> Outcome:
+        """A calibration that raised ``why``: more recording may remedy it (too few motions)."""
+        return cls(False, 'failed', why, None, True, span_s, finished, failed=why)
+
+    def score(self, cfg: CalibrationConfig) -> float:
+        """The precision ratio of its sigmas (:func:`~.verdict.precision_ratio`; inf without)."""
+        return float('inf') if self.sigmas is None else precision_ratio(self.sigmas, cfg.precision)
 
 
 @dataclass(frozen=True)
 class Readiness:
-    """What the data support.
+    """What the status says while recording.
 
-    ready: the predicted 1-sigmas are within the targets and nothing blocks a calibration.
-    sigma: predicted 1-sigma of dt [s], T_HE's translation [m] (norm of the three) and rotation
-    [deg] (norm), NaN when not predicted; target: the same three required.
-    rotation_deg: (3,) how far the device has turned about its x, y, z axes (sum of |rotation|
-    about each, deg); hand_rotation_deg: the same about the MoCap marker's axes;
-    axis_spread_deg: how far apart the device's turns' axes are (0: one axis, 90: two or more
-    alike; :attr:`.excitation.Turned.axis_spread_deg`).
-    angular_speed_dps: the device's RMS angular speed; travel_m: the marker's path length;
-    motions: keyframe motions (rotating by eta, eq. 6) stage 2 had; span_s: the streams' overlap
-    at the offset; time_offset_s: stage 1's offset (None when it failed); peak_correlation,
-    second_peak_ratio: its correlation peak and runner-up ratio; dropout: the fraction of the
-    last RECENT_S each stream misses; missing: what to do, in the user's words, most important
-    first.
+    ready: the latest calibration of these buffers is ``good`` for the purpose; latest: that
+    calibration (None before the first); age_s: how long ago it ended [s]; checking: one runs
+    now. rotation_deg: (3,) how far the device has turned about its x, y, z axes (sum of
+    |rotation| about each, deg); axis_spread_deg: how far apart the turns' axes are;
+    angular_speed_dps: its RMS angular speed; travel_m: the marker's path length; span_s: the
+    shorter stream's buffered span; dropout: the fraction of the last RECENT_S each stream
+    misses; missing: what to do, in the user's words, most important first.
     """
 
     ready: bool
-    sigma: tuple[float, float, float]
-    target: tuple[float, float, float]
+    purpose: Purpose
+    latest: Outcome | None
+    age_s: float
+    checking: bool
     rotation_deg: Floats
-    hand_rotation_deg: Floats
+    axis_spread_deg: float
     angular_speed_dps: float
     travel_m: float
-    motions: int = 0
-    span_s: float = 0.0
-    time_offset_s: float | None = None
-    peak_correlation: float = float('nan')
-    second_peak_ratio: float = float('nan')
-    dropout: dict[str, float] = field(default_factory=dict)
-    missing: tuple[str, ...] = ()
-    axis_spread_deg: float = 0.0
+    span_s: float
+    dropout: dict[str, float]
+    missing: tuple[str, ...]
 
-    def to_dict(self) -> ReadinessDoc:
-        """The ``readiness`` section of a result, and the node's status values, before a
-        result's factors and reasons are carried over (:mod:`.carry`): ``sigma`` is still
-        ``predicted``."""
-
-        def num(v: float, k: float = 1.0) -> float | None:
-            return float(v) * k if np.isfinite(v) else None
-
-        sigma = {
-            'time_offset_ms': num(self.sigma[0], 1e3),
-            'translation_mm': num(self.sigma[1], 1e3),
-            'rotation_deg': num(self.sigma[2]),
-        }
+    def to_dict(self) -> StatusDoc:
+        """The status's values (``~/status``, /diagnostics) in plain types."""
+        latest = self.latest
+        sigma = (None,) * 3 if latest is None or latest.sigmas is None else latest.sigmas
+        ms, mm, deg = (None if v is None else float(v) * k for v, k in zip(sigma, (1e3, 1e3, 1)))
         return {
-            'ready': bool(self.ready),
-            'sigma': sigma,
-            'predicted': dict(sigma),
-            'target': {
-                'time_offset_ms': self.target[0] * 1e3,
-                'translation_mm': self.target[1] * 1e3,
-                'rotation_deg': self.target[2],
-            },
+            'ready': self.ready,
+            'purpose': str(self.purpose),
+            'verdict': None if latest is None else latest.label,
+            'calibrated_span_s': None if latest is None else round(latest.span_s, 1),
+            'age_s': None if latest is None else round(self.age_s, 1),
+            'checking': self.checking,
+            'sigma': {'time_offset_ms': ms, 'translation_mm': mm, 'rotation_deg': deg},
             'rotation_deg': dict(zip(AXES, np.round(self.rotation_deg, 1).tolist(), strict=True)),
-            'hand_rotation_deg': dict(
-                zip(AXES, np.round(self.hand_rotation_deg, 1).tolist(), strict=True)
-            ),
             'axis_spread_deg': round(float(self.axis_spread_deg), 1),
             'angular_speed_dps': round(float(self.angular_speed_dps), 2),
             'travel_m': round(float(self.travel_m), 3),
-            'motions': int(self.motions),
             'span_s': round(float(self.span_s), 2),
-            'time_offset_s': None if self.time_offset_s is None else float(self.time_offset_s),
-            'peak_correlation': num(self.peak_correlation),
-            'second_peak_ratio': num(self.second_peak_ratio),
             'dropout': {k: round(float(v), 3) for k, v in self.dropout.items()},
             'missing': list(self.missing),
         }
 
 
 def readiness(
-    hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig, known: Known | None = None
+    motion: Motion,
+    latest: Outcome | None,
+    cfg: CalibrationConfig,
+    span_s: float,
+    now: float,
+    checking: bool = False,
 ) -> Readiness:
-    """How far ``hand`` and ``eye`` (both on their own clocks) can calibrate, and what they
-    lack; never raises for data that cannot calibrate (that is what it says)."""
-    if len(hand) < 3 or len(eye) < 3:
-        return _empty(cfg.precision, 'no data yet: both streams need poses')
-    durations = (hand.duration_s, eye.duration_s)
-    return readiness_of(start(hand, eye, cfg, known), cfg, durations)
-
-
-class _Moved(TypedDict):
-    """What a :class:`Readiness` says of the motion so far (its fields of the same names)."""
-
-    rotation_deg: Floats
-    hand_rotation_deg: Floats
-    angular_speed_dps: float
-    travel_m: float
-    dropout: dict[str, float]
-    axis_spread_deg: float
-
-
-def readiness_of(
-    progress: Progress, cfg: CalibrationConfig, durations: tuple[float, float]
-) -> Readiness:
-    """What the pieces gathered so far support; ``durations`` (hand, eye) [s], the spans of
-    the streams they come from."""
-    target = cfg.precision
-    nan3 = (float('nan'),) * 3
-    eye_turn, hand_turn = progress.turned('eye'), progress.turned('hand')
-    if eye_turn is None or hand_turn is None:
-        return _empty(target, 'no data yet: both streams need poses')
-    speed = eye_turn.rms_dps
-    base = _Moved(
-        rotation_deg=eye_turn.deg,
-        hand_rotation_deg=hand_turn.deg,
-        angular_speed_dps=speed,
-        travel_m=hand_turn.travel_m,
-        dropout=dict(progress.dropout),
-        axis_spread_deg=eye_turn.axis_spread_deg,
-    )
-    health = _health(base['dropout'])
+    """What the status says of buffers whose shorter stream spans ``span_s`` [s], with the
+    motion gathered of them, the latest calibration of them (None: none yet), at monotonic
+    time ``now`` [s], while a calibration runs (``checking``)."""
+    purpose = Purpose(cfg.purpose)
+    eye, hand = motion.turned('eye'), motion.turned('hand')
+    speed = 0.0 if eye is None else eye.rms_dps
+    missing: list[str] = []
+    # a device held still has no axis to name
+    extrinsic = purpose == Purpose.EXTRINSIC and not (latest and latest.good)
+    if eye is not None and speed >= STILL_DPS and extrinsic:
+        missing += _turn_advice(eye.scatter, eye.axis_spread_deg)
+    if checking and not (latest and latest.good):
+        missing.append(
+            f'checking READY: a calibration of the {span_s:.0f} s so far is judging them'
+        )
+    if latest is not None and not latest.good:
+        missing.append(_held(latest))
     if speed < STILL_DPS:
-        return Readiness(
-            False, nan3, target, **base, missing=('the device is held still: move it', *health)
+        missing.append('the device is held still: move it')
+    elif span_s < MIN_RECORDING_S:
+        missing.append(
+            f'keep recording: {span_s:.0f} s of both streams so far, {MIN_RECORDING_S:.0f} s '
+            'needed'
         )
-    known = progress.known
-    if known is None:
-        short = min(durations)
-        why = progress.refused or (
-            f'keep recording: {short:.0f} s of both streams so far, {MIN_RECORDING_S:.0f} s needed'
-        )
-        return Readiness(False, nan3, target, **base, missing=(_plain(why), *health))
-    sigma, span, advice = _predict(progress, cfg, speed)
-    blocks = []
-    if known.peak_correlation < WEAK_CORRELATION:
-        blocks.append(
-            f'the two streams turn alike only weakly (correlation {known.peak_correlation:.2f}):'
-            ' check that the MoCap tracks the device itself'
-        )
-    if known.second_peak_ratio > AMBIGUOUS_PEAK_RATIO:
-        blocks.append(
-            'the motion repeats itself, so the time offset is ambiguous: vary the motion'
-        )
-    # for an evaluation no prediction of T_HE's sigmas says whether the figures are settled:
-    # a calibration of the data so far does (the node's check), once stages 1 and 2 stand
-    extrinsic = cfg.purpose == 'extrinsic'
-    ok = precision_ratio(sigma, target) <= 1.0 or not extrinsic
-    advice = advice if extrinsic else []
+    missing += _health(dict(motion.dropout))
     return Readiness(
-        ok and not blocks,
-        sigma,
-        target,
-        **base,
-        motions=known.motions,
-        span_s=span,
-        time_offset_s=known.time_offset_s,
-        peak_correlation=known.peak_correlation,
-        second_peak_ratio=known.second_peak_ratio,
-        missing=(*blocks, *advice, *health),
+        ready=bool(latest and latest.good),
+        purpose=purpose,
+        latest=latest,
+        age_s=0.0 if latest is None else now - latest.finished,
+        checking=checking,
+        rotation_deg=np.zeros(3) if eye is None else eye.deg,
+        axis_spread_deg=0.0 if eye is None else eye.axis_spread_deg,
+        angular_speed_dps=speed,
+        travel_m=0.0 if hand is None else hand.travel_m,
+        span_s=span_s,
+        dropout=dict(motion.dropout),
+        missing=tuple(dict.fromkeys(missing)),
     )
 
 
-def _empty(target: tuple[float, float, float], why: str) -> Readiness:
-    zero = np.zeros(3)
-    return Readiness(False, (float('nan'),) * 3, target, zero, zero, 0.0, 0.0, missing=(why,))
+def _held(latest: Outcome) -> str:
+    """Why the latest calibration holds READY back, with what to do."""
+    of = f'the latest calibration ({latest.span_s:.0f} s of data)'
+    if latest.failed:
+        return f'{of} failed: {_plain(latest.failed)}'
+    remedy = '; keep recording' if latest.recording_helps else ''
+    return f'{of} is {latest.label}: {latest.held}{remedy}'
 
 
 def _health(dropout: dict[str, float]) -> list[str]:
@@ -219,86 +205,36 @@ def _health(dropout: dict[str, float]) -> list[str]:
 
 
 def _plain(text: str) -> str:
-    """A refusal of stage 1 or 2 as advice: its first sentence, and what to do."""
+    """A refusal of stage 1 or 2 as advice: what to do, then the refusal."""
     if 'relative motions' in text or 'keyframe' in text:
-        return 'turn the device more, about all its axes: too few rotations so far (' + text + ')'
+        return f'turn the device more, about all its axes: too few rotations so far ({text})'
     if 'RANSAC found no model' in text:
-        return 'turn the device more, faster and about all its axes: the motions so far do not agree on one T_HE'
+        return (
+            'turn the device more, faster and about all its axes: the motions so far do not '
+            f'agree on one T_HE ({text})'
+        )
     if 'overlap' in text:
-        return 'the streams do not overlap in time: check the clocks (' + text + ')'
+        return f'the streams do not overlap in time: check the clocks ({text})'
     return text
 
 
-def _predict(
-    progress: Progress, cfg: CalibrationConfig, speed_dps: float
-) -> tuple[tuple[float, float, float], float, list[str]]:
-    """The predicted sigmas (dt s, translation m, rotation deg), the time the pairs span (s)
-    and the advice for each sigma over its target: the inverse of the pairs' information, the
-    covariance the batch stage would report if the residuals were white."""
-    total = progress.total()
-    if total is None or total.pairs < MIN_PAIRS:
-        return (float('nan'),) * 3, 0.0, ['the streams overlap too little at the time offset']
-    H, _ = info.normal_equations(total)
-    cov = info.covariance(H)
-    dt, t, r = (v if np.isfinite(v) else float('inf') for v in info.sigmas(cov))
-    sigma = (dt, t, r)
-    assert progress.known is not None, 'pairs are gathered once stages 1 and 2 are known'
-    R_HE = np.asarray(progress.known.R_HE, float)
-    with np.errstate(all='ignore'):  # a direction no motion observes: infinite sigmas
-        cov_p_eye = R_HE.T @ cov[1:4, 1:4] @ R_HE  # the lever arm's covariance in E
-    return sigma, total.span_s, _advice(sigma, cfg, cov[4:7, 4:7], cov_p_eye, speed_dps)
-
-
-def _advice(
-    sigma: tuple[float, float, float],
-    cfg: CalibrationConfig,
-    cov_r: Floats,
-    cov_p: Floats,
-    speed_dps: float,
-) -> list[str]:
-    """What narrows each sigma that is over its target, in the device's axes."""
-    out = []
-    ratio = precision_ratios(sigma, cfg.precision)
-    for cov, over in ((cov_p, ratio[1] > 1.0), (cov_r, ratio[2] > 1.0)):
-        said = _turn_advice(cov, sigma[1]) if over else None
-        if said and said not in out:
-            out.append(said)
-    if ratio[0] > 1.0:
-        fast = f' (now {speed_dps:.0f} deg/s)' if speed_dps < SLOW_DPS else ''
-        out.append(
-            f'turn the device faster and more abruptly{fast}: the time offset is uncertain by '
-            f'{sigma[0] * 1e3:.2g} ms'
-        )
-    return out
-
-
-#: A T_HE covariance (in the device frame) whose widest 1-sigma is this many times its
-#: narrowest says the turns so far were about nearly one axis, the one it leaves unobserved.
-ONE_AXIS_RATIO = 3.0
-
-
-def _turn_advice(cov: Floats, translation_sigma: float) -> str:
-    """Turns about one axis leave T_HE about and along it unobserved (the covariance's widest
-    direction u, in the device frame): say where that axis lies among the device's axes (the
+def _turn_advice(scatter: Floats, spread_deg: float) -> list[str]:
+    """Turns about nearly one axis (u, the scatter's main direction in the device frame) leave
+    T_HE about and along it unobserved: say where that axis lies among the device's axes (the
     bars are the turns' projections on them, so a diagonal axis fills two) and name the device
-    axis most across it to turn about. Without one widest direction: more turns about all."""
-    if np.all(np.isfinite(cov)):
-        vals, vecs = np.linalg.eigh(cov)
-        if vals[-1] < ONE_AXIS_RATIO**2 * max(vals[0], 0.0):
-            return (
-                'keep turning the device about all its axes: its offset from the marker is '
-                f'still uncertain by {translation_sigma * 1e3:.2g} mm'
-            )
-        u = np.abs(vecs[:, -1])
-    else:  # a direction no motion observes at all
-        u = np.abs(np.nan_to_num(np.diag(cov), posinf=1e300))
+    axis most across it to turn about."""
+    if spread_deg >= ONE_AXIS_DEG:
+        return []
+    _, vecs = np.linalg.eigh(0.5 * (scatter + scatter.T))
+    u = np.abs(vecs[:, -1])
     first, second, across = np.argsort(u)[::-1]
     where = (
         f'between its {AXES[min(first, second)]} and {AXES[max(first, second)]} axes'
         if u[second] > 0.5 * u[first]
         else f'near its {AXES[first]} axis'
     )
-    return (
+    said = (
         f'turn the device about its {AXES[across]} axis too (so far it turned mostly about one '
         f"axis, {where}, which leaves the device's offset from the marker along it unobserved)"
     )
+    return [said]

@@ -102,7 +102,7 @@ def well_spread(eligible: Mask, spread: Floats) -> Mask:
     Why: a consensus of motions about nearly one axis (a recording that was planar for a while)
     is degenerate in the translation along that axis, and its sigma7/sigma6 is then no measure
     of quality: it can come out smallest and win over the consensus of the whole recording
-    (bench/readiness_live.py's poor-then-rich recordings)."""
+    (recordings poor in rotation at first, then rich)."""
     for floor in (WARN_AXIS_SPREAD_DEG, MIN_AXIS_SPREAD_DEG):
         tier = eligible & (spread >= floor)
         if tier.any():

@@ -145,7 +145,7 @@ def run_batch(
             drift_stamp_ns=model.stamp_ns if model is not None and model.drift_estimated else None,
             scale=cfg.estimate_scale and model is not None and model.scale_observable,
         )
-        if cfg.estimate_scale or cfg.batch_joint:
+        if cfg.estimate_scale:
             sol = refine(hand, eye, dt, q_HE, p_HE, options)
         else:
             sol = _metric(hand, eye, dt, q_HE, p_HE, options)
@@ -258,11 +258,7 @@ def with_correlated(
         nuisance = (batch.scale, batch.scale_std, scale_shift(white, at, batch.scale))
         cov, lr, white = without(cov, at), without(lr, at), without(white, at)
     elif not scaled and not cfg.estimate_scale:
-        why = (
-            'the joint solve (batch_joint) fits no scale'
-            if cfg.batch_joint
-            else "the eye's scale could not be told from the lever arm (too little translation)"
-        )
+        why = "the eye's scale could not be told from the lever arm (too little translation)"
         missing.append(f'{why}: the uncertainty holds for a metric eye only')
     unc = Uncertainty(
         white=known,
@@ -372,7 +368,6 @@ def _aux(
             batch_options(cfg),
             hand_noise=(of.hand_noise.rotation, of.hand_noise.translation),
             eye_noise=(of.eye_noise.rotation, of.eye_noise.translation),
-            joint=False,
             max_iterations=BLOCK_STEPS,
             held_axis=None if of.held_axis is None else tuple(float(v) for v in of.held_axis),
             held_rotation=of.held_rotation,
@@ -402,7 +397,6 @@ def batch_options(cfg: CalibrationConfig) -> BatchOptions:
         eye_noise=(cfg.eye_noise_rotation, cfg.eye_noise_translation),
         huber_delta=cfg.huber_delta,
         max_iterations=cfg.batch_max_iterations,
-        joint=cfg.batch_joint,
         fix_time_offset=cfg.time_offset is not None,
         decoupled=cfg.batch_decoupled,
     )

@@ -14,7 +14,6 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch.joint_jacobian import joint_jacobian
 from handeye_ros.core.batch.refine import BatchError, refine
 from handeye_ros.core.checks.verdict import judged
 from handeye_ros.core.config import CalibrationConfig
@@ -173,109 +172,6 @@ def test_given_noise_is_used() -> None:
     res = calibrate(rec.hand, rec.eye, cfg)
     assert res.batch is not None and not res.batch.eye_noise.estimated
     assert res.batch.eye_noise.translation == 0.002
-
-
-@pytest.mark.slow
-def test_joint_solve_frees_the_spline_and_agrees_with_the_default() -> None:
-    # MoCap with white noise 0.1 mm / 0.0057 deg per axis, VIO at level 5: the full problem of
-    # eq. 15 (control poses free) converges in a few steps, measures the MoCap noise, and lands
-    # within a fraction of its own sigma of the default solve (fixed spline), in both the
-    # two-step and the all-together form: the MoCap is 25x less noisy than the VIO, so the
-    # spline has little to learn from the eye.
-    rec = recording(
-        seed=3, level=5.0, duration_s=30.0, hand_noise_m=1e-4, hand_noise_deg=np.degrees(1e-4)
-    )
-    for decoupled in (True, False):
-        default = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_decoupled=decoupled))
-        joint = calibrate(
-            rec.hand, rec.eye, CalibrationConfig(batch_joint=True, batch_decoupled=decoupled)
-        )
-        b, d = joint.batch, default.batch
-        assert b is not None and b.success and b.decoupled == decoupled, joint.warnings
-        assert b.iterations <= 15 and b.cost_after <= b.cost_before
-        assert b.n_control_points > 500
-        assert b.hand_noise.translation == pytest.approx(1e-4, rel=0.15)
-        assert b.hand_noise.rotation == pytest.approx(1e-4, rel=0.15)
-        e_dt = joint.time_offset_s - rec.truth.time_offset_s
-        assert abs(e_dt) < 4 * b.std[0]
-        assert np.all(np.abs(rec.truth.p_HE - joint.p_HE) < 4 * b.std[1:4])
-        # same information, same uncertainty, nearly the same estimate, the default's taken at
-        # s = 1 as the joint solve holds it (the default fits the eye's scale beside T_HE)
-        # the two long-run corrections sit on different white forms (the joint one on the
-        # Schur complement, the default on the sandwich): within 15 %
-        unc = d.uncertainty
-        held = np.r_[default.time_offset_s, default.p_HE] - unc.scale[2][:4]
-        assert np.allclose(b.std, np.sqrt(np.diag(unc.covariance - unc.scale_part)), rtol=0.15)
-        assert abs(joint.time_offset_s - held[0]) < 0.2 * b.std[0]
-        assert np.all(np.abs(joint.p_HE - held[1:]) < 0.2 * b.std[1:4])
-    fixed = calibrate(
-        rec.hand, rec.eye, CalibrationConfig(batch_joint=True, time_offset=rec.truth.time_offset_s)
-    )
-    assert fixed.time_offset_s == rec.truth.time_offset_s and fixed.batch.std[0] == 0.0
-    assert fixed.batch.success
-
-
-def test_joint_solve_refuses_a_long_mocap_before_any_stage(monkeypatch) -> None:
-    """A MoCap longer than the joint solve takes is refused at once, naming its size and the
-    way out; the default solve takes it."""
-    from handeye_ros.core.batch import pieces
-
-    rec = recording(seed=4, level=1.0, duration_s=20.0)
-    monkeypatch.setattr(pieces, 'MAX_HAND_POSES_JOINT', len(rec.hand) - 1)
-    steps = []
-    with pytest.raises(BatchError, match=f'at most {len(rec.hand) - 1:,} MoCap poses') as err:
-        calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True), progress=steps.append)
-    assert 'leave batch_joint off' in str(err.value) and f'{len(rec.hand):,}' in str(err.value)
-    assert steps == []  # before any stage
-    assert calibrate(rec.hand, rec.eye, CalibrationConfig()).batch is not None
-
-
-@pytest.mark.slow
-def test_joint_jacobian_is_the_derivative_of_the_residuals() -> None:
-    # the analytic control-pose blocks (spline chain rule) and the differenced (dt, T_HE)
-    # columns against dense central differences, away from the start values
-    from handeye_ros.core.batch.residuals import BatchProblem, Weights
-
-    rec = recording(seed=3, level=5.0, duration_s=4.0, hand_noise_m=1e-4, hand_noise_deg=0.004)
-    t = rec.truth
-    prob = BatchProblem(rec.hand, rec.eye, t.time_offset_s + 3e-4, t.q_HE, t.p_HE + 0.003, 0.05, 4)
-    w = Weights(1e3, 2e3, 500.0, 400.0)
-    x = np.random.default_rng(0).normal(size=prob.n) * 1e-3
-    J = joint_jacobian(prob, x, w).toarray()
-    h = 1e-6
-    J_fd = np.stack(
-        [
-            (prob.residuals(x + h * e, w) - prob.residuals(x - h * e, w)) / (2 * h)
-            for e in np.eye(prob.n)
-        ],
-        axis=1,
-    )
-    # central differences with this step are good to ~1e-8 of the largest entry here
-    assert np.abs(J - J_fd).max() < 1e-7 * np.abs(J_fd).max()
-
-
-def test_joint_solve_refuses_one_mocap_pose_per_knot() -> None:
-    # a 20 Hz MoCap has one pose per 0.05 s knot interval: the control poses outnumber what the
-    # MoCap determines, so the joint solve says so and the linear result is kept; the default
-    # solve (spline held to the MoCap fit) works on the same data
-    rec = recording(
-        seed=9,
-        level=5.0,
-        hand_rate_hz=20.0,
-        duration_s=30.0,
-        hand_noise_m=1e-4,
-        hand_noise_deg=np.degrees(1e-4),
-    )
-    joint = calibrate(rec.hand, rec.eye, CalibrationConfig(batch_joint=True))
-    assert joint.batch is None
-    assert any(
-        'at least 2 MoCap poses per knot interval' in w and 'knot_spacing >= 0.1 s' in w
-        for w in joint.warnings
-    ), joint.warnings
-    default = calibrate(rec.hand, rec.eye)
-    assert default.batch is not None and default.batch.success
-    e_dt = default.time_offset_s - rec.truth.time_offset_s
-    assert abs(e_dt) < 4 * default.batch.std[0]
 
 
 def test_analytic_eye_jacobian_matches_central_differences() -> None:

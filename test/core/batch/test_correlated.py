@@ -225,7 +225,7 @@ def test_white_noise_keeps_its_sigmas_and_covers_the_truth() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize('seed', [0, 4])
 def test_a_planar_start_costs_its_information_not_its_refit(seed: int) -> None:
-    """90 s whose first 30 s turn about one axis only (bench/readiness.py's recordings): the
+    """90 s whose first 30 s turn about one axis only (a recording poor, then rich): the
     first quarter's refit strays far, and the whole recording's sigmas stay near its long-run
     ones and cover the truth (the plain spread of the quarters gave 80 mm and 13 deg at 80 s
     of seed 0, whose errors were 8 mm and 0.09 deg)."""

@@ -173,7 +173,7 @@ def test_a_planar_majority_does_not_outvote_the_rich_motions() -> None:
     with any translation along z, so a hypothesis from two of them gathers a large consensus
     whose axes barely spread, and its sigma7/sigma6 came out the smallest of all: it won, the
     rich motions were rejected, and the result was 36 mm off and 'unobservable' (found by
-    bench/readiness_live.py). A consensus that spreads its axes is now preferred."""
+    recordings poor in rotation at first). A consensus that spreads its axes is now preferred."""
     from handeye_ros.core.simulate import noise_level, simulate
     from handeye_ros.core.time.align import align_time
 

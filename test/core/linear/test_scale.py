@@ -11,8 +11,6 @@ import pytest
 from conftest import REAL_DATA, ROOT, recording
 from scipy.spatial.transform import Rotation
 
-from handeye_ros.core.batch.options import BatchOptions
-from handeye_ros.core.batch.refine import refine
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import compose, dual_quat_from_pose, inverse, quat_from_matrix
 from handeye_ros.core.linear.scale import (
@@ -128,22 +126,6 @@ def test_scale_on_a_hand_that_does_not_translate_is_called_unobservable() -> Non
     res = calibrate(rec.hand, rec.eye, CalibrationConfig(estimate_scale=True))
     reason = next(r.message for r in res.quality.reasons if r.code == 'unobservable')
     assert 'scale cannot be observed' in reason
-
-
-def test_joint_solve_does_not_pretend_to_estimate_a_scale() -> None:
-    rec = recording(seed=2, level=1.0, duration_s=20.0)
-    res = calibrate(rec.hand, rec.eye, CalibrationConfig(estimate_scale=True, batch_joint=True))
-    assert res.batch is None
-    assert any('does not estimate a clock drift or a scale' in w for w in res.warnings)
-    with pytest.raises(Exception, match='joint solve'):
-        refine(
-            rec.hand,
-            rec.eye,
-            0.0,
-            rec.truth.q_HE,
-            rec.truth.p_HE,
-            BatchOptions(joint=True, scale=True),
-        )
 
 
 @pytest.mark.slow

@@ -104,9 +104,7 @@ BATCH_SCORE_FACTOR = 1.5
 #: three axes with BLOCKS - 1 degrees of freedom each, by about 1 / sqrt(2 dof) of itself
 #: (0.24; the blocks' later cuttings make it a little less). Within this share of its
 #: target (0.81) it stays below the target by one such uncertainty; beyond it a `good` result
-#: is noted to be near its target, and READY carried from a result to more data waits for it
-#: (checks/carry.py). Without it, a READY carried from a `good` result at 9.5 mm said so of
-#: data whose own calibration reported 10.4 mm.
+#: is noted to be near its target: a calibration of more data may find it above.
 BLOCKS_MARGIN = 1.0 / (1.0 + 1.0 / math.sqrt(2.0 * 3 * (BLOCKS - 1)))
 #: For purpose evaluation, an APE/RPE figure is settled when the calibration's 1-sigma on it is
 #: at most this share of it: two systems whose figures differ by 15 % (three such sigmas) are

@@ -1,0 +1,262 @@
+"""The node's status and auto mode live on real recordings: six recordings written to EuRoC
+files and replayed through DDS at their own stamps (``sim_publisher --replay``, real time unless
+``--speed``) to a calibrator with ``auto_calibrate`` and the defaults (purpose evaluation, or
+``--purpose``), while a probe in this process takes every ``~/status`` and, after each new
+result, the file ``~/save`` writes.
+
+Counted per recording: the first READY (the buffered span its status had, s of recording); the
+READY statuses, one per CHECK_S seconds of them checked by an offline calibration of what that
+status had read (the recording's first ``span_s`` seconds; READY beside a calibration that is not
+``good`` must not happen); the published results' verdicts (each must be ``good``, as auto mode
+publishes only those); what auto mode said last (``converged`` must not be said of a result that
+is not ``good``).
+
+Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import common  # noqa: F401  (first: puts the project on sys.path)
+import numpy as np
+import realdata
+import yaml
+from common import emit, table
+from node_ingest import start, stop
+
+from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import HandeyeError
+from handeye_ros.core.pipeline import calibrate
+from handeye_ros.formats import read_trajectory, write_euroc
+
+#: READY statuses are checked at most this often (recording seconds).
+CHECK_S = 10.0
+#: After the replay: how long results may still come (a calibration started at its end).
+GRACE_S = 6.0
+TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
+
+
+def recordings() -> list[tuple[str, object, object]]:
+    """Five EuRoC runs (realdata.PAIRS) and TUM-VI room1's ORB-SLAM3 VIO."""
+    out = []
+    for name in ('V1_02 evo', 'V2_01 mono', 'V2_02 stereo', 'MH_01 stereo', 'MH_03 mono'):
+        pair = next(p for p in realdata.PAIRS if p.name == name)
+        out.append((f'EuRoC {name}', *realdata.load(pair)))
+    out.append(
+        (
+            'TUM-VI room1 ORB-SLAM3 VIO',
+            read_trajectory(TUMVI / 'room1_GT.tum'),
+            read_trajectory(TUMVI / 'orbslam-room1-vio.tum'),
+        )
+    )
+    return out
+
+
+class LiveProbe:
+    """An rclpy node in this process: /calibrator's statuses and results, and ~/save."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticStatus
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from std_msgs.msg import Float64
+        from std_srvs.srv import Trigger
+
+        rclpy.init()
+        self.rclpy, self.Trigger = rclpy, Trigger
+        self.node = Node('bench_live_probe')
+        self.lock = threading.Lock()
+        self.statuses: list[tuple[float, dict]] = []
+        self.results: list[float] = []
+        self.node.create_subscription(DiagnosticStatus, '/calibrator/status', self._status, 50)
+        latched = QoSProfile(
+            depth=1,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+        self.node.create_subscription(Float64, '/calibrator/time_offset', self._result, latched)
+        self.save = self.node.create_client(Trigger, '/calibrator/save')
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def _status(self, msg) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        with self.lock:
+            self.statuses.append((time.monotonic(), {'message': msg.message, **values}))
+
+    def _result(self, _) -> None:
+        with self.lock:
+            self.results.append(time.monotonic())
+
+    def clear(self) -> None:
+        with self.lock:
+            self.statuses, self.results = [], []
+
+    def call_save(self) -> tuple[bool, str]:
+        self.save.wait_for_service(timeout_sec=30.0)
+        fut = self.save.call_async(self.Trigger.Request())
+        end = time.monotonic() + 30.0
+        while not fut.done() and time.monotonic() < end:
+            time.sleep(0.005)
+        return (fut.result().success, fut.result().message) if fut.done() else (False, 'timeout')
+
+    def results_until(self, pub: subprocess.Popen, saved: Path, grace_s: float) -> list:
+        """Until ``grace_s`` after the publisher ``pub`` ends: (when, the file ``~/save`` wrote,
+        or why not) of every new result."""
+        docs, seen, grace = [], 0, None
+        while grace is None or time.monotonic() < grace:
+            if grace is None and pub.poll() is not None:
+                grace = time.monotonic() + grace_s
+            with self.lock:
+                n = len(self.results)
+            if n > seen:
+                seen = n
+                ok, msg = self.call_save()
+                docs.append(
+                    (self.results[n - 1], yaml.safe_load(saved.read_text()) if ok else msg)
+                )
+            time.sleep(0.05)
+        return docs
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.thread.join(timeout=5.0)
+        self.node.destroy_node()
+        self.rclpy.try_shutdown()
+
+
+def replay(probe: LiveProbe, name: str, hand, eye, out: Path, speed: float, purpose: str) -> dict:
+    """One recording through the node: the statuses, and each result with its saved file."""
+    probe.clear()
+    tag = name.replace(' ', '_')
+    files = [out / f'{tag}_hand.csv', out / f'{tag}_eye.csv']
+    write_euroc(files[0], hand)
+    write_euroc(files[1], eye)
+    saved = out / f'{tag}.yaml'
+    node = start(
+        'handeye_ros.ros.calibrator',
+        *('--ros-args', '-p', 'auto_calibrate:=true', '-p', f'output_dir:={out}'),
+        *('-p', f'output_file:={saved.name}', '-p', f'purpose:={purpose}'),
+        log=out / f'{tag}.log',
+    )
+    pub = start(
+        'handeye_ros.ros.sim_publisher', '--replay', *map(str, files), '--speed', str(speed)
+    )
+    docs = probe.results_until(pub, saved, GRACE_S)
+    out_text, err = pub.communicate()
+    stop(node)
+    with probe.lock:
+        statuses = list(probe.statuses)
+    return {'statuses': statuses, 'docs': docs, 'sent': out_text, 'log': err}
+
+
+def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:
+    """The offline verdict of both streams up to ``cut_ns``, judged as the node judges it (for
+    an evaluation, with the evaluation's figures)."""
+    from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
+
+    try:
+        res = calibrate(hand.select(hand.t_ns <= cut_ns), eye.select(eye.t_ns <= cut_ns), cfg)
+    except HandeyeError as e:
+        return f'failed ({e})'[:40]
+    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
+    return (res if found is None else judge_figures(res, found[0])).quality.verdict.value
+
+
+def judged(run: dict, hand, eye, cfg: CalibrationConfig) -> dict:
+    """READY statuses (the first, and at most one per CHECK_S seconds checked), the results'
+    verdicts, what auto mode said last."""
+    t0 = max(int(hand.t_ns[0]), int(eye.t_ns[0]))
+    ready, checked, last_s, first = 0, [], -np.inf, None
+    for _, st in run['statuses']:
+        if st['message'] != 'READY':
+            continue
+        ready += 1
+        s = float(st['span_s'])
+        first = s if first is None else first
+        if s - last_s < CHECK_S:
+            continue
+        last_s = s
+        checked.append((s, _verdict_at(hand, eye, t0 + int(s * 1e9), cfg)))
+    results = [
+        doc['quality']['verdict'] if isinstance(doc, dict) else 'no result'
+        for _, doc in run['docs']
+    ]
+    auto = [st.get('auto_calibrate', '') for _, st in run['statuses']]
+    return {
+        'span': (min(hand.t_ns[-1], eye.t_ns[-1]) - t0) * 1e-9,
+        'first': first,
+        'ready': ready,
+        'checked': checked,
+        'results': results,
+        'auto': next((a.split(':')[0] for a in reversed(auto) if a), '-'),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    p.add_argument('--speed', type=float, default=1.0, help='times real time (default 1)')
+    p.add_argument('--only', default='', help='only the recordings whose name contains this')
+    p.add_argument('--purpose', default='evaluation', choices=('evaluation', 'extrinsic'))
+    a = p.parse_args()
+    cfg = CalibrationConfig(purpose=a.purpose)
+    probe = LiveProbe()
+    rows = []
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for name, hand, eye in recordings():
+                if a.only not in name:
+                    continue
+                run = replay(probe, name, hand, eye, Path(tmp), a.speed, a.purpose)
+                if not run['sent'].strip():
+                    print(name, 'the replay did not end:', run['log'][-400:], flush=True)
+                    continue
+                j = judged(run, hand, eye, cfg)
+                bad = [f'{s:.0f} s' for s, v in j['checked'] if v != 'good']
+                rows.append(
+                    [
+                        name,
+                        f'{j["span"]:.0f}',
+                        '-' if j['first'] is None else f'{j["first"]:.0f}',
+                        f'{j["ready"]} ({len(j["checked"])})',
+                        ', '.join(bad) or '0',
+                        ', '.join(j['results']) or '-',
+                        j['auto'],
+                    ]
+                )
+                print(rows[-1], json.dumps(j['checked']), flush=True)
+    finally:
+        probe.close()
+    emit(
+        f'live_real_{a.purpose}',
+        table(
+            f'Real recordings replayed live at {a.speed:g}x their stamps through the node '
+            f'(auto_calibrate, purpose {a.purpose}): the first READY, READY statuses (checked, '
+            f'one per {CHECK_S:g} s) against a calibration of what the node had then; results',
+            [
+                'recording',
+                'seconds',
+                'first READY [s]',
+                'READY statuses (checked)',
+                'READY, calibration not good',
+                'results published (verdicts)',
+                'auto mode said last',
+            ],
+            rows,
+        ),
+    )
+
+
+if __name__ == '__main__':
+    main()

@@ -3,8 +3,8 @@
 READY is the verdict of a real calibration (:mod:`handeye_ros.core.checks.readiness`): the
 status calibrates the buffers in the node's worker as they grow (first once they span
 MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when the recording has
-ended or the buffers are full), never sooner after one calibration than it took (so they take at most half a core and
-never fall behind the streams), and READY means the latest such result is ``good`` for the
+ended or the buffers are full), never sooner after one calibration than it took (so they take
+at most half a core and never fall behind the streams), and READY means the latest such result is ``good`` for the
 chosen purpose. Between results it shows how far the device has turned and how far apart its
 turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
 the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
@@ -114,6 +114,10 @@ class ReadinessStatus:
     def _span(self) -> float:
         return min(self._node.recorder.buffers[s].span_s for s in STREAMS)
 
+    def _full(self) -> bool:
+        """Whether a buffer drops poses: its span grows no more."""
+        return any(self._node.recorder.buffers[s].dropped for s in STREAMS)
+
     def _look(self) -> None:
         """The motion of the poses new since the last look (and the streams' clocks)."""
         buffers = self._node.recorder.buffers
@@ -142,11 +146,11 @@ class ReadinessStatus:
         ):
             return
         last = 0.0 if latest is None else latest.span_s
-        full = any(self._node.recorder.buffers[s].dropped for s in STREAMS)
+        full = self._full()
         grown = span >= GROWTH * last
         if not grown and not ((self.ended() or full) and span >= last + LAST_GAIN_S):
             if latest is not None and full:
-                self.auto = filled(self.auto)  # a full buffer's span grows no more
+                self.auto = filled(self.auto)
             return
         self._checking = self._node.calibrate(Job.CHECK) is not None
 
@@ -174,8 +178,8 @@ class ReadinessStatus:
         publish = job is Job.CALL
         if job is Job.CHECK:
             self._checking = False
-            full = any(self._node.recorder.buffers[s].dropped for s in STREAMS)
-            self.auto = decide(self.auto, latest, latest.score(self._node.calib_cfg), full)
+            score = latest.score(self._node.calib_cfg)
+            self.auto = decide(self.auto, latest, score, self._full())
             publish = self.auto.publish
         self._report()
         return publish

@@ -151,12 +151,12 @@ def readiness(
     purpose = Purpose(cfg.purpose)
     eye, hand = motion.turned('eye'), motion.turned('hand')
     speed = 0.0 if eye is None else eye.rms_dps
+    good = bool(latest and latest.good)
     missing: list[str] = []
     # a device held still has no axis to name
-    extrinsic = purpose == Purpose.EXTRINSIC and not (latest and latest.good)
-    if eye is not None and speed >= STILL_DPS and extrinsic:
+    if eye is not None and speed >= STILL_DPS and purpose == Purpose.EXTRINSIC and not good:
         missing += _turn_advice(eye.scatter, eye.axis_spread_deg)
-    if checking and not (latest and latest.good):
+    if checking and not good:
         missing.append(
             f'checking READY: a calibration of the {span_s:.0f} s so far is judging them'
         )
@@ -171,7 +171,7 @@ def readiness(
         )
     missing += _health(dict(motion.dropout))
     return Readiness(
-        ready=bool(latest and latest.good),
+        ready=good,
         purpose=purpose,
         latest=latest,
         age_s=0.0 if latest is None else now - latest.finished,

@@ -10,6 +10,15 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = 'handeye_ros'
+#: ``ros2 run handeye_ros NAME``: the function each command runs.
+COMMANDS = {
+    'calibrator': 'handeye_ros.ros.calibrator:main',
+    'offline_calibrate': 'handeye_ros.app.offline:main',
+    'sim_publisher': 'handeye_ros.ros.sim_publisher:main',
+    'demo': 'handeye_ros.app.demo:main',
+    'evaluate': 'handeye_ros.app.evaluate:main',
+    'publish_calibration': 'handeye_ros.ros.publish_calibration:main',
+}
 
 setup(
     name=PACKAGE,
@@ -20,6 +29,7 @@ setup(
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml') + glob('config/*.rviz')),
         (f'share/{PACKAGE}/launch', glob('launch/*.launch.py')),
+        (f'lib/{PACKAGE}', [f'ros2_run/{name}' for name in COMMANDS]),
     ],
     python_requires='>=3.11',
     install_requires=[
@@ -46,14 +56,13 @@ setup(
     maintainer_email='maintainers@handeye-ros.invalid',
     description='Time offset and hand-eye extrinsic between MoCap and VO/VIO trajectories',
     license='Apache-2.0',
+    # the commands on a pip install's PATH, and in a colcon install's bin/, carry the package's
+    # name (app/commands.py); ``ros2 run handeye_ros NAME`` starts ros2_run/NAME, installed
+    # into lib/handeye_ros/ above, where ros2 run looks
     entry_points={
         'console_scripts': [
-            'calibrator = handeye_ros.ros.calibrator:main',
-            'offline_calibrate = handeye_ros.app.offline:main',
-            'sim_publisher = handeye_ros.ros.sim_publisher:main',
-            'demo = handeye_ros.app.demo:main',
-            'evaluate = handeye_ros.app.evaluate:main',
-            'publish_calibration = handeye_ros.ros.publish_calibration:main',
+            f'handeye-ros-{name.replace("_", "-")} = {target}'
+            for name, target in COMMANDS.items()
         ],
     },
 )

@@ -88,6 +88,9 @@ def ros_env(install: Path) -> dict[str, str]:
     env.pop('ROS_LOCALHOST_ONLY', None)
     env.update(
         AMENT_PREFIX_PATH=os.pathsep.join([str(prefix), sys.prefix]),
+        # the venv's python3 first, as an activated venv has it: ros2 run's executables start
+        # with /usr/bin/env python3
+        PATH=os.pathsep.join([str(prefix / 'bin'), str(Path(sys.prefix) / 'bin'), env['PATH']]),
         PYTHONPATH=str(site),
         ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
         ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(random.randint(1, 101))),

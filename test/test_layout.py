@@ -15,6 +15,8 @@ import pytest
 import yaml
 from conftest import ROOT
 
+from handeye_ros.app.commands import path_name
+
 # the source and the files, read: the same in every venv (setup.cfg's markers)
 pytestmark = pytest.mark.static
 
@@ -183,7 +185,21 @@ def test_package_xml_and_setup_agree() -> None:
     setup = (ROOT / 'setup.py').read_text()
     assert "version='" + root.findtext('version') + "'" in setup
     assert (ROOT / 'resource' / 'handeye_ros').is_file()
-    assert 'install_scripts=$base/lib/handeye_ros' in (ROOT / 'setup.cfg').read_text()
+    # ros2 run's names in lib/handeye_ros (ros2_run/), the PATH's carrying the package's name
+    commands = ast.literal_eval(
+        next(
+            node.value
+            for node in ast.parse(setup).body
+            if isinstance(node, ast.Assign) and ast.unparse(node.targets[0]) == 'COMMANDS'
+        )
+    )
+    assert sorted(p.name for p in (ROOT / 'ros2_run').iterdir()) == sorted(commands)
+    for name, target in commands.items():
+        script = ROOT / 'ros2_run' / name
+        module = target.split(':')[0]
+        assert os.access(script, os.X_OK), script
+        assert f'from {module} import main' in script.read_text(), script
+        assert path_name(name).startswith('handeye-ros-'), name
 
 
 #: What each system key of package.xml is imported as (the package's own imports decide them).
@@ -307,7 +323,7 @@ def test_the_launch_file_and_rviz_config_match_the_node() -> None:
     ast.parse(launch)
     setup = (ROOT / 'setup.py').read_text()
     for exe in re.findall(r"executable='([a-z_]+)'", launch):
-        assert exe == 'rviz2' or f"'{exe} = " in setup, exe
+        assert exe == 'rviz2' or (ROOT / 'ros2_run' / exe).is_file(), exe
     assert "glob('launch/*.launch.py')" in setup and "glob('config/*.rviz')" in setup
     rviz = yaml.safe_load((ROOT / 'config' / 'calibrator.rviz').read_text())
     manager = rviz['Visualization Manager']

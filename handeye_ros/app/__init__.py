@@ -9,6 +9,7 @@
   :mod:`.results_table` their table.
 - :mod:`.rig`: one rig over many recordings (``--rig``, ``--shared-extrinsic``, the node's
   ``rig_file``); :mod:`.rig_file` the rig's file.
+- :mod:`.commands`: the commands' names, for ``ros2 run`` and on a pip install's PATH.
 - :mod:`.params_file`: the node's own options and the params file, which the offline tool reads
   too (hence here, below :mod:`handeye_ros.ros`).
 """

@@ -24,11 +24,12 @@ from ..core.simulate import Truth, calibration_error, noise_level, simulate
 from ..formats import write_tum
 from ..formats.bag import write_recording
 from . import offline
+from .commands import prog
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the example; returns the exit code."""
-    p = argparse.ArgumentParser(prog='handeye_ros.app.demo', description=__doc__.split('\n')[0])
+    p = argparse.ArgumentParser(prog=prog('demo'), description=__doc__.split('\n')[0])
     p.add_argument('--seed', type=int, default=7, help='simulation seed')
     p.add_argument(
         '--level',

@@ -27,6 +27,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .commands import prog
+
 if TYPE_CHECKING:  # imported where used: --help answers before the core is loaded
     from distributed import Client
 
@@ -50,7 +52,7 @@ WORKER_PRELOAD = (
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog='evaluate',
+        prog=prog('evaluate'),
         description=__doc__.split('\n\n')[0].replace('``', ''),
         epilog='Exit code: the number of failed runs (capped at 100); 101 when the manifest or '
         'the options cannot be used.',

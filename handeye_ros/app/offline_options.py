@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, Literal, Protocol
 
 from ..core.options import Options
+from .commands import prog
 from .request import PROGRESS_DELAY_S
 
 #: Stream options given on the command line (the algorithm ones come from their specs).
@@ -106,7 +107,7 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
         return text if show_all else argparse.SUPPRESS
 
     p = argparse.ArgumentParser(
-        prog='offline_calibrate',
+        prog=prog('offline_calibrate'),
         description='Estimate the time offset dt and the extrinsic T_HE between a MoCap '
         'trajectory (hand, T_GH) and a VO/VIO trajectory (eye, T_WE), with '
         'T_WE(t) = T_WG * T_GH(t - dt) * T_HE.',

@@ -210,8 +210,9 @@ default and description in config/calibrator.yaml):
 """
 
 
-def usage() -> str:
-    """The text of ``calibrator --help``: what the node does and every parameter."""
+def usage(command: str = 'calibrator') -> str:
+    """The text of ``calibrator --help`` (``command``: the one typed): what the node does and
+    every parameter."""
     import textwrap
 
     defaults = {
@@ -219,7 +220,7 @@ def usage() -> str:
         **StreamConfig().to_dict(),
         **NodeConfig().to_dict(),
     }
-    lines = [USAGE.rstrip('\n')]
+    lines = [USAGE.rstrip('\n').replace('usage: calibrator', f'usage: {command}', 1)]
     specs = all_specs()
     for name, spec in specs.items():
         if spec.expert:

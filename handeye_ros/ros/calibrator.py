@@ -28,6 +28,7 @@ if TYPE_CHECKING:  # imported where used, after quiet_start
 
     from .node import CalibratorNode
 
+from ..app.commands import prog
 from .lifecycle import (
     ignore_signals,
     quiet_start,
@@ -69,23 +70,13 @@ def main(args: list[str] | None = None) -> int:
     """Run the node; returns the exit code (0; 1 for refused options; 2 for a bad command
     line)."""
     argv = sys.argv[1:] if args is None else list(args)
-    ours = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
-    if '-h' in ours or '--help' in ours:
-        from ..app.params_file import usage
-
-        print(usage())
-        return 0
-    if ours:
-        print(
-            f'calibrator: error: unknown argument {ours[0]!r}; parameters go after '
-            '--ros-args (-p NAME:=VALUE, --params-file FILE); see calibrator --help',
-            file=sys.stderr,
-        )
-        return 2
+    name = prog('calibrator')
+    if (code := _command_line(argv, name)) is not None:
+        return code
     quiet_start()
     stop_with_parent()
     if missing := _rclpy_missing():
-        print(f'calibrator: error: {missing}', file=sys.stderr)
+        print(f'{name}: error: {missing}', file=sys.stderr)
         return 1
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -111,7 +102,7 @@ def main(args: list[str] | None = None) -> int:
     except ExternalShutdownException:  # a context shut down from elsewhere
         pass
     except ConfigError as err:
-        print(f'calibrator: error: {err}', file=sys.stderr)
+        print(f'{name}: error: {err}', file=sys.stderr)
         return 1
     finally:
         ignore_signals()  # a second Ctrl-C must not break the clean-up
@@ -125,6 +116,25 @@ def main(args: list[str] | None = None) -> int:
             worker.stop(pool)
         rclpy.try_shutdown()
     return 0
+
+
+def _command_line(argv: list[str], name: str) -> int | None:
+    """The exit code when the arguments before ``--ros-args`` answer alone (--help: 0; a stray
+    argument: 2), else None: the node starts."""
+    ours = argv[: argv.index('--ros-args')] if '--ros-args' in argv else argv
+    if '-h' in ours or '--help' in ours:
+        from ..app.params_file import usage
+
+        print(usage(name))
+        return 0
+    if ours:
+        print(
+            f'{name}: error: unknown argument {ours[0]!r}; parameters go after '
+            f'--ros-args (-p NAME:=VALUE, --params-file FILE); see {name} --help',
+            file=sys.stderr,
+        )
+        return 2
+    return None
 
 
 def _rclpy_missing() -> str | None:

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # imported where used, after quiet_start
     from ..formats import messages
 
+from ..app.commands import prog
 from .lifecycle import (
     ignore_signals,
     quiet_start,
@@ -31,7 +32,7 @@ from .lifecycle import (
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog='publish_calibration',
+        prog=prog('publish_calibration'),
         description='A saved calibration back into ROS. Where tf2_msgs is importable (a ROS 2 '
         "install): T_HE latched on /tf_static and the calibrator's latched topics, "
         'until Ctrl-C. Where it is not (the PyPI wheels), or with --bag: the same '

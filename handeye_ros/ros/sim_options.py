@@ -8,13 +8,15 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..app.commands import prog
+
 
 def parser() -> argparse.ArgumentParser:
     """The command line."""
     from handeye_ros.core.simulate import MOTIONS
 
     ap = argparse.ArgumentParser(
-        prog='sim_publisher',
+        prog=prog('sim_publisher'),
         description=__doc__.split('\n\n')[0],
         epilog="Stamps are the recording's (they start at 1.7e9 s, in November 2023), not the "
         "wall clock's. TFMessage hands the hand as /tf:world.marker (world -> rig on the hand "

@@ -277,7 +277,7 @@ def _evaluate_outside(tmp: Path, *args: str) -> subprocess.CompletedProcess:
     """The evaluate command of this venv run from a folder outside the repository, without
     PYTHONPATH: the package must be installed (scripts/setup installs it editable)."""
     env = {k: v for k, v in os.environ.items() if k != 'PYTHONPATH'}
-    cmd = Path(sys.executable).with_name('evaluate')
+    cmd = Path(sys.executable).with_name('handeye-ros-evaluate')
     if not cmd.is_file():
         pytest.skip(f'handeye_ros is not installed in {sys.prefix} (scripts/setup installs it)')
     return subprocess.run(

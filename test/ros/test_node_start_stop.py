@@ -22,6 +22,8 @@ from ros_support import (
     wait_started,
 )
 
+from handeye_ros.app.commands import path_name
+
 pytestmark = [
     pytest.mark.ros,
     pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed'),
@@ -143,7 +145,8 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
 
 
 def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
-    """--help on every executable, without starting anything; a stray argument is named."""
+    """--help on every executable, as ros2 run starts it and by its name on the install's
+    PATH, without starting anything; a stray argument is named."""
     env = ros_env(install)
     for exe in (
         'calibrator',
@@ -153,16 +156,21 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
         'demo',
         'publish_calibration',
     ):
-        proc = subprocess.run(
-            [str(resolve_executable(env, 'handeye_ros', exe)), '--help'],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=60,
-            check=False,
-        )
-        assert proc.returncode == 0, (exe, proc.stderr)
-        assert proc.stdout.startswith('usage:'), (exe, proc.stdout[:200])
+        on_path = install / 'handeye_ros' / 'bin' / path_name(exe)
+        for cmd, name in (
+            (resolve_executable(env, 'handeye_ros', exe), exe),
+            (on_path, on_path.name),
+        ):
+            proc = subprocess.run(
+                [str(cmd), '--help'],
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=60,
+                check=False,
+            )
+            assert proc.returncode == 0, (cmd, proc.stderr)
+            assert proc.stdout.startswith(f'usage: {name} '), (cmd, proc.stdout[:200])
     helped = subprocess.run(
         [str(resolve_executable(env, 'handeye_ros', 'calibrator')), '-h'],
         env=env,

@@ -13,6 +13,7 @@ Usage:
     python bench/same_results.py compare FILE    # this tree against FILE; exit 1 on a difference
     python bench/same_results.py compare FILE --tolerance 1e-6
     python bench/same_results.py verdicts FILE   # only the verdicts and reason codes differ?
+    python bench/same_results.py golden          # the short cases into test/golden/ (the test's)
 
 A field differs when ``|a - b| > tolerance * max(1, |a|, |b|)`` (1e-9 unless given); run times
 and anything measured in seconds of the machine are left out. Across library versions (today's
@@ -39,6 +40,17 @@ from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import noise_level, simulate
 
 TOLERANCE = 1e-9
+#: The records test/test_golden.py holds every tree to (``golden``: the short cases), one per
+#: platform (numpy and scipy versions: the same code sums in another order on another).
+GOLDEN = Path(__file__).resolve().parents[1] / 'test' / 'golden'
+
+
+def golden_file() -> Path:
+    """This platform's golden record."""
+    import numpy as np
+    import scipy
+
+    return GOLDEN / f'same_results-numpy{np.__version__}-scipy{scipy.__version__}.json'
 #: Keys whose values are machine time, not results.
 VOLATILE = ('seconds', 'runtime', 'elapsed', 'wall')
 VARIANTS = {
@@ -53,8 +65,9 @@ DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/app/demo.py's
 LONG_SEED, LONG_DURATION = 300, 600.0
 
 
-def cases():
-    """(name, hand, eye, config) of every case."""
+def cases(short: bool = False):
+    """(name, hand, eye, config) of every case; ``short``: the simulated ones of a minute or
+    less, the golden regression test's (test/test_golden.py)."""
     base = CalibrationConfig()
     nm, nd = noise_level(DEMO_LEVEL)
     rec = simulate(DEMO_SEED, duration_s=DEMO_DURATION, noise_m=nm, noise_deg=nd)
@@ -64,6 +77,8 @@ def cases():
         rec = simulate(100 + level, duration_s=40.0, noise_m=nm, noise_deg=nd)
         for name, change in VARIANTS.items():
             yield f'sim L{level} {name}', rec.hand, rec.eye, replace(base, **change)
+    if short:
+        return
     nm, nd = noise_level(5)
     for name, drift in (('default', 0.0), ('drift', 5e-5)):
         rec = simulate(
@@ -106,9 +121,9 @@ def _portable(text: str) -> str:
     return re.sub(r'\S*/shared/data/real/', '<real>/', text)
 
 
-def record() -> dict:
+def record(short: bool = False) -> dict:
     results = {}
-    for name, hand, eye, cfg in cases():
+    for name, hand, eye, cfg in cases(short):
         try:
             results[name] = flatten(calibrate(hand, eye, cfg).to_dict())
         except HandeyeError as err:
@@ -185,6 +200,12 @@ def largest(before: dict, after: dict) -> tuple[float, str]:
 
 def main() -> int:
     args = sys.argv[1:]
+    if args == ['golden']:  # the golden regression test's record of this platform
+        now = json.loads(json.dumps(record(short=True)))
+        path = golden_file()
+        path.write_text(json.dumps({'provenance': common.provenance(), 'results': now}, indent=1))
+        print(f'{len(now)} cases recorded in {path}')
+        return 0
     tolerance = TOLERANCE
     if len(args) == 4 and args[2] == '--tolerance':
         tolerance = float(args.pop())

@@ -51,6 +51,8 @@ def golden_file() -> Path:
     import scipy
 
     return GOLDEN / f'same_results-numpy{np.__version__}-scipy{scipy.__version__}.json'
+
+
 #: Keys whose values are machine time, not results.
 VOLATILE = ('seconds', 'runtime', 'elapsed', 'wall')
 VARIANTS = {

@@ -302,10 +302,11 @@ def test_results_md_figures_come_from_registered_benchmarks() -> None:
 
 
 def test_the_tests_mirror_the_package() -> None:
-    """Every folder of tests is a folder of the package (test/app: its top-level modules)."""
+    """Every folder of tests is a folder of the package (test/app: its top-level modules), but
+    for the tests' data (message definitions, node scripts, golden records)."""
     for folder in sorted(p for p in (ROOT / 'test').rglob('*') if p.is_dir()):
         rel = folder.relative_to(ROOT / 'test')
-        if rel.parts[0] in ('app', 'interfaces', 'ros_scripts', '__pycache__') or (
+        if rel.parts[0] in ('app', 'interfaces', 'ros_scripts', 'golden', '__pycache__') or (
             '__pycache__' in rel.parts
         ):
             continue

@@ -7,9 +7,11 @@ result, the file ``~/save`` writes.
 Counted per recording: the first READY (the buffered span its status had, s of recording); the
 READY statuses, one per CHECK_S seconds of them checked by an offline calibration of what that
 status had read (the recording's first ``span_s`` seconds; READY beside a calibration that is not
-``good`` must not happen); the published results' verdicts (each must be ``good``, as auto mode
-publishes only those); what auto mode said last (``converged`` must not be said of a result that
-is not ``good``).
+``good`` must not happen), and by one of the span READY's own calibration had
+(``calibrated_span_s``: the node's and the offline tool's verdicts of the same data); the
+published results' verdicts (each must be ``good``, as auto mode publishes only those); what auto
+mode said last (``converged`` must not be said of a result that is not ``good``); how far READY's
+calibration is behind the buffers (span_s less calibrated_span_s).
 
 Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
 """
@@ -178,17 +180,25 @@ def judged(run: dict, hand, eye, cfg: CalibrationConfig) -> dict:
     """READY statuses (the first, and at most one per CHECK_S seconds checked), the results'
     verdicts, what auto mode said last."""
     t0 = max(int(hand.t_ns[0]), int(eye.t_ns[0]))
-    ready, checked, last_s, first = 0, [], -np.inf, None
+    ready, checked, last_s, first, lags = 0, [], -np.inf, None, []
     for _, st in run['statuses']:
         if st['message'] != 'READY':
             continue
         ready += 1
         s = float(st['span_s'])
+        lags.append(s - float(st['calibrated_span_s']))
         first = s if first is None else first
         if s - last_s < CHECK_S:
             continue
         last_s = s
-        checked.append((s, _verdict_at(hand, eye, t0 + int(s * 1e9), cfg)))
+        own = float(st['calibrated_span_s'])
+        checked.append(
+            (
+                s,
+                _verdict_at(hand, eye, t0 + int(s * 1e9), cfg),
+                _verdict_at(hand, eye, t0 + int(own * 1e9), cfg),
+            )
+        )
     results = [
         doc['quality']['verdict'] if isinstance(doc, dict) else 'no result'
         for _, doc in run['docs']
@@ -198,6 +208,7 @@ def judged(run: dict, hand, eye, cfg: CalibrationConfig) -> dict:
         'span': (min(hand.t_ns[-1], eye.t_ns[-1]) - t0) * 1e-9,
         'first': first,
         'ready': ready,
+        'lag': (float(np.median(lags)), max(lags)) if lags else None,
         'checked': checked,
         'results': results,
         'auto': next((a.split(':')[0] for a in reversed(auto) if a), '-'),
@@ -223,7 +234,8 @@ def main() -> None:
                     print(name, 'the replay did not end:', run['log'][-400:], flush=True)
                     continue
                 j = judged(run, hand, eye, cfg)
-                bad = [f'{s:.0f} s' for s, v in j['checked'] if v != 'good']
+                bad = [f'{s:.0f} s' for s, v, _ in j['checked'] if v != 'good']
+                own = [f'{s:.0f} s' for s, _, v in j['checked'] if v != 'good']
                 rows.append(
                     [
                         name,
@@ -231,6 +243,8 @@ def main() -> None:
                         '-' if j['first'] is None else f'{j["first"]:.0f}',
                         f'{j["ready"]} ({len(j["checked"])})',
                         ', '.join(bad) or '0',
+                        ', '.join(own) or '0',
+                        '-' if j['lag'] is None else '{:.1f} / {:.1f}'.format(*j['lag']),
                         ', '.join(j['results']) or '-',
                         j['auto'],
                     ]
@@ -250,6 +264,8 @@ def main() -> None:
                 'first READY [s]',
                 'READY statuses (checked)',
                 'READY, calibration not good',
+                'READY, its own span not good offline',
+                "READY's data behind the buffers [s] (median / max)",
                 'results published (verdicts)',
                 'auto mode said last',
             ],

@@ -1,8 +1,10 @@
 """The calibrator's auto mode (``auto_calibrate``): which of the status's calibrations are
 published, as a pure function of the latest one and the previous decision (:func:`decide`).
 
-The status calibrates the buffers as they grow (:mod:`.status`); with auto mode each such
-result that is ``good`` for the purpose is published. A result is measured by its *precision
+The status calibrates the buffers as they grow (:mod:`.status`); with auto mode a result
+that is ``good`` for the purpose is published when it is the first, improves on the last
+published one, or has GROWTH times its data (the status checks a READY result again as the
+buffers grow, and those checks are not all news). A result is measured by its *precision
 ratio*, its largest reported 1-sigma over that sigma's ``precision_*`` target
 (:func:`~handeye_ros.core.checks.verdict.precision_ratio`). Once a ``good`` result improves on
 the last published one's ratio by no more than IMPROVEMENT of it (or of 1, the targets), more of
@@ -28,6 +30,11 @@ from ..core.checks.readiness import Outcome
 #: 18 % at each growth of the buffers by half for ever (1 - 1/sqrt(1.5)), and this ends it once
 #: they are about half the targets, where more recording no longer matters to the verdict.
 IMPROVEMENT = 0.1
+#: Data worth a new look: the status calibrates a doubtful result's buffers again once their span
+#: has grown by this factor (the cost of each grows with the span, so all of them together cost a
+#: few times the last one), and a good result with this many times the published one's span is
+#: published however little it improved (its figures rest on that much more of the recording).
+GROWTH = 1.5
 
 
 class State(Enum):
@@ -43,14 +50,15 @@ class State(Enum):
 
 @dataclass(frozen=True)
 class Auto:
-    """A decision: the state, the precision ratio of the result auto mode last published (inf:
-    none), whether the result just decided on is published, and the reason a stalled result
-    gave."""
+    """A decision: the state, the precision ratio and the span [s] of the result auto mode
+    last published (inf and 0: none), whether the result just decided on is published, and the
+    reason a stalled result gave."""
 
     state: State
     published: float = math.inf
     publish: bool = False
     why: str = ''
+    published_span_s: float = 0.0
 
     @classmethod
     def start(cls, on: bool) -> Auto:
@@ -63,14 +71,19 @@ def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
     ``score``), ``full``: the buffers' span grows no more."""
     if previous.state == State.OFF:
         return previous
+    kept = previous.published_span_s
     if not latest.good:
         if not latest.recording_helps:
-            return Auto(State.STALLED, previous.published, False, latest.held or latest.label)
-        return Auto(State.DONE if full else State.WAITING, previous.published)
+            why = latest.held or latest.label
+            return Auto(State.STALLED, previous.published, False, why, kept)
+        return Auto(State.DONE if full else State.WAITING, previous.published, False, '', kept)
     old = previous.published
     converged = math.isfinite(old) and old - score <= IMPROVEMENT * max(old, 1.0)
     state = State.CONVERGED if converged else State.DONE if full else State.IMPROVING
-    return Auto(state, score, True)
+    news = not converged or previous.state != State.CONVERGED or latest.span_s >= GROWTH * kept
+    if not news:
+        return Auto(state, old, False, '', kept)
+    return Auto(state, score, True, '', latest.span_s)
 
 
 def filled(previous: Auto) -> Auto:

@@ -3,9 +3,10 @@
 READY is the verdict of a real calibration (:mod:`handeye_ros.core.checks.readiness`): the
 status calibrates the buffers in the node's worker as they grow (first once they span
 MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when the recording has
-ended or the buffers are full), never sooner after one calibration than it took (so they take
-at most half a core and never fall behind the streams), and READY means the latest such result is ``good`` for the
-chosen purpose. Between results it shows how far the device has turned and how far apart its
+ended or the buffers are full; while the latest is ``good``, again as soon as they have grown by
+LAST_GAIN_S), never sooner after one calibration than it took (so they take at most half a
+core and never fall behind the streams), and READY means the latest such result is ``good`` for
+the chosen purpose. Between results it shows how far the device has turned and how far apart its
 turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
 the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
 latest result's verdict, 1-sigmas and age, and what to do. The answer is published on
@@ -30,17 +31,14 @@ from ..core.result import CalibrationResult
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .auto_mode import Auto, State, decide, filled, said
+from .auto_mode import GROWTH, Auto, State, decide, filled, said
 from .clocks import Arrivals, ClockWatch, jump_advice
 from .host import Job, StatusHost
 
-#: Calibrate the buffers again once their span has grown by this factor since the last
-#: calibration: the cost of each grows with the span, so all of them together cost a few times
-#: the last one, and each has half as much data again as the one before.
-GROWTH = 1.5
-#: Once the recording has ended or the buffers are full (their span grows no more), the whole
-#: is calibrated once more if it spans this much more than the last calibration did (s): however
-#: little it grew by GROWTH's measure, but not again for the jitter of a full buffer's span.
+#: Once the recording has ended or the buffers are full (their span grows no more), or while the
+#: latest result is good, the whole is calibrated again if it spans this much more than the last
+#: calibration did (s): however little it grew by GROWTH's measure, but not again for the jitter
+#: of a full buffer's span.
 LAST_GAIN_S = 1.0
 #: The status's look at the new poses takes at most this share of one core on average: one that
 #: cost c seconds of the executor's CPU is followed by none for c / MAX_DUTY.
@@ -147,7 +145,11 @@ class ReadinessStatus:
             return
         last = 0.0 if latest is None else latest.span_s
         full = self._full()
-        grown = span >= GROWTH * last
+        # READY speaks for the buffers as they are: a good result is checked again as soon as
+        # the spacing allows, where a doubtful one waits for the data that may remedy it
+        grown = span >= (
+            last + LAST_GAIN_S if latest is not None and latest.good else GROWTH * last
+        )
         if not grown and not ((self.ended() or full) and span >= last + LAST_GAIN_S):
             if latest is not None and full:
                 self.auto = filled(self.auto)

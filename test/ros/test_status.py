@@ -12,7 +12,7 @@ pytest.importorskip('diagnostic_msgs')
 
 from handeye_ros.core.checks.readiness import Outcome
 from handeye_ros.core.checks.verdict import precision_ratio
-from handeye_ros.ros.auto_mode import IMPROVEMENT, Auto, State, decide, filled, said
+from handeye_ros.ros.auto_mode import GROWTH, IMPROVEMENT, Auto, State, decide, filled, said
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
 
 #: a `good` calibration of 60 s of buffers, and one held back by its precision alone
@@ -46,6 +46,20 @@ def test_a_good_result_is_published(published: float, score: float, state: State
     assert IMPROVEMENT == 0.1
     got = decide(Auto(State.IMPROVING, published), GOOD, score, full=False)
     assert got.publish and got.state is state and got.published == score
+
+
+def test_once_converged_a_good_result_is_published_for_more_data_only() -> None:
+    """The status checks a READY result again as the buffers grow: converged, a good result no
+    better than the published one is published once it has GROWTH times its data."""
+    converged = decide(Auto(State.IMPROVING, 0.5), GOOD, 0.49, full=False)
+    assert converged.publish and converged.state is State.CONVERGED
+    assert converged.published_span_s == GOOD.span_s
+    again = decide(converged, GOOD, 0.48, full=False)
+    assert not again.publish and again.state is State.CONVERGED and again.published == 0.49
+    longer = Outcome(True, 'good', '', (2e-4, 5e-3, 0.2), True, GROWTH * GOOD.span_s, 0.0)
+    grown = decide(again, longer, 0.48, full=False)
+    assert grown.publish and grown.published_span_s == longer.span_s
+    assert decide(grown, GOOD, 0.2, full=False).publish  # better: published at any span
 
 
 def test_a_result_that_is_not_good_is_never_published() -> None:

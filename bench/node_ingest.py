@@ -102,7 +102,7 @@ class Probe:
             self.diag[node.strip('/ '), what] = {kv.key: kv.value for kv in st.values}
 
     def _on_status(self, msg) -> None:
-        if any(kv.key == 'motions' for kv in msg.values):
+        if any(kv.key == 'span_s' for kv in msg.values):
             self.status_t.append(time.monotonic())
 
     def stream(self, name: str, node: str = 'calibrator') -> dict[str, str]:

@@ -31,7 +31,7 @@ import numpy as np
 import realdata
 import yaml
 from common import emit, table
-from node_ingest import start, stop
+from node_ingest import Spun, start, stop
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
@@ -61,21 +61,17 @@ def recordings() -> list[tuple[str, object, object]]:
     return out
 
 
-class LiveProbe:
+class LiveProbe(Spun):
     """An rclpy node in this process: /calibrator's statuses and results, and ~/save."""
 
     def __init__(self) -> None:
-        import rclpy
         from diagnostic_msgs.msg import DiagnosticStatus
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import Float64
         from std_srvs.srv import Trigger
 
-        rclpy.init()
-        self.rclpy, self.Trigger = rclpy, Trigger
-        self.node = Node('bench_live_probe')
+        super().__init__('bench_live_probe')
+        self.Trigger = Trigger
         self.lock = threading.Lock()
         self.statuses: list[tuple[float, dict]] = []
         self.results: list[float] = []
@@ -87,10 +83,7 @@ class LiveProbe:
         )
         self.node.create_subscription(Float64, '/calibrator/time_offset', self._result, latched)
         self.save = self.node.create_client(Trigger, '/calibrator/save')
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin()
 
     def _status(self, msg) -> None:
         values = {kv.key: kv.value for kv in msg.values}
@@ -130,12 +123,6 @@ class LiveProbe:
                 )
             time.sleep(0.05)
         return docs
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5.0)
-        self.node.destroy_node()
-        self.rclpy.try_shutdown()
 
 
 def replay(probe: LiveProbe, name: str, hand, eye, out: Path, speed: float, purpose: str) -> dict:
@@ -185,13 +172,12 @@ def judged(run: dict, hand, eye, cfg: CalibrationConfig) -> dict:
         if st['message'] != 'READY':
             continue
         ready += 1
-        s = float(st['span_s'])
-        lags.append(s - float(st['calibrated_span_s']))
+        s, own = float(st['span_s']), float(st['calibrated_span_s'])
+        lags.append(s - own)
         first = s if first is None else first
         if s - last_s < CHECK_S:
             continue
         last_s = s
-        own = float(st['calibrated_span_s'])
         checked.append(
             (
                 s,

@@ -70,19 +70,42 @@ def rss_mb(pid: int) -> float:
     return float('nan')
 
 
-class Probe:
+class Spun:
+    """An rclpy node of this process, ``name``, spun in a thread from :meth:`spin` on (once its
+    subscriptions are made)."""
+
+    def __init__(self, name: str) -> None:
+        import rclpy
+        from rclpy.node import Node
+
+        rclpy.init()
+        self.rclpy = rclpy
+        self.node = Node(name)
+
+    def spin(self) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.thread.join(timeout=5.0)
+        self.node.destroy_node()
+        self.rclpy.try_shutdown()
+
+
+class Probe(Spun):
     """An rclpy node in this process: latest /diagnostics and Trigger calls."""
 
     def __init__(self) -> None:
-        import rclpy
         from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
         from std_srvs.srv import Trigger
 
-        rclpy.init()
-        self.rclpy, self.Trigger = rclpy, Trigger
-        self.node = Node('bench_probe')
+        super().__init__('bench_probe')
+        self.Trigger = Trigger
         #: the latest status of each (node, 'hand stream' | 'eye stream' | ...), names as
         #: /diagnostics gives them ('calibrator: hand stream' -> ('calibrator', 'hand stream'))
         self.diag: dict[tuple[str, str], dict[str, str]] = {}
@@ -91,10 +114,7 @@ class Probe:
         self.status_t: list[float] = []
         self.node.create_subscription(DiagnosticStatus, '/calibrator/status', self._on_status, 10)
         self.client = self.node.create_client(Trigger, '/calibrator/calibrate')
-        self.executor = SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin()
 
     def _on_diag(self, msg) -> None:
         for st in msg.status:
@@ -116,12 +136,6 @@ class Probe:
         while not fut.done():
             time.sleep(0.001)
         return time.perf_counter() - t0, fut.result().success, fut.result().message
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5.0)
-        self.node.destroy_node()
-        self.rclpy.try_shutdown()
 
 
 def start(module: str, *args: str, log: Path | None = None) -> subprocess.Popen:

@@ -55,6 +55,7 @@ class Summary:
     reason: str
     verdict: str
     follower: bool = False
+    purpose: str = ''
 
 
 def own_calibration(run: RunSpec) -> Own:
@@ -80,16 +81,19 @@ def summary_of(own: Own) -> Summary:
 
     if own.document is None:
         return Summary(own.name, None, own.reason, '')
-    verdict = own.document['quality']['verdict']
+    q = own.document['quality']
+    verdict, purpose = q['verdict'], q['purpose']
     if verdict == 'failed':
-        codes = ', '.join(r['code'] for r in own.document['quality']['reasons'])
+        codes = ', '.join(r['code'] for r in q['reasons'])
         return Summary(own.name, None, f'its own calibration failed ({codes})', verdict)
     if not own.document.get('covariance'):
-        return Summary(own.name, None, 'no covariance of its own T_HE', verdict, follower=True)
+        why = 'no covariance of its own T_HE'
+        return Summary(own.name, None, why, verdict, follower=True, purpose=purpose)
     try:
-        return Summary(own.name, Member.from_document(own.name, own.document), '', verdict)
+        member = Member.from_document(own.name, own.document)
     except ValueError as err:
         return Summary(own.name, None, str(err), verdict)
+    return Summary(own.name, member, '', verdict, purpose=purpose)
 
 
 def at_rig(
@@ -192,12 +196,16 @@ def calibrate_rig(
 
 def solve(summaries: list[Summary]) -> Rig:
     """:func:`~handeye_ros.core.rig_pipeline.solve_rig` on the recordings' summaries."""
+    from ..core.checks.verdict import Purpose
     from ..core.rig_pipeline import solve_rig
 
     members = [s.member for s in summaries if s.member is not None]
     followers = tuple(s.name for s in summaries if s.follower)
     failed = {s.name: s.reason for s in summaries if s.member is None and not s.follower}
-    return solve_rig(members, failed, followers)
+    # the stricter purpose when the recordings ask for both: T_HE itself is then the product
+    asked = {s.purpose for s in summaries}
+    purpose = Purpose.EXTRINSIC if Purpose.EXTRINSIC in asked else Purpose.EVALUATION
+    return solve_rig(members, failed, followers, purpose)
 
 
 def role(rig: Rig, name: str) -> tuple[Member | None, bool]:
@@ -224,6 +232,7 @@ def finish(
                 unfit[name] = said[-1]
     if unfit:
         rig = rig.leaving_out(unfit)
+    rig = judged_on_figures(rig, names, docs)
     document = rig_document(rig)
     offsets = {name: doc['time_offset'] for name, doc in zip(names, docs, strict=True) if doc}
     for rec in document['recordings']:
@@ -236,12 +245,50 @@ def finish(
     return document
 
 
-def join_rig(path: str, session: str, own: Own) -> tuple[ResultDoc, CalibrationResult]:
+def judged_on_figures(rig: Rig, names: list[str], docs: list[ResultDoc | None]) -> Rig:
+    """The rig with purpose evaluation's rule on the figures of the recordings that take its
+    T_HE (:func:`~handeye_ros.core.checks.verdict.judge_rig_figures`), from their results
+    at it (``docs`` by ``names``; None or unevaluated: not at hand). Unchanged when none of
+    them was evaluated."""
+    from dataclasses import replace
+
+    from ..core.checks.verdict import judge_rig_figures
+
+    if rig.joint is None:
+        return rig
+    taking = [n for n in names if n in rig.used or n in rig.followers]
+    at_hand = {
+        n: d
+        for n, d in zip(names, docs, strict=True)
+        if n in taking and d and d['quality']['for_evaluation']['figures_judged']
+    }
+    if not at_hand:
+        return rig
+    unsettled = {}
+    for name, d in at_hand.items():
+        q = d['quality']
+        if Code.IMPRECISE in q['for_evaluation']['codes']:
+            said = [r['message'] for r in q['reasons'] if r['code'] == Code.IMPRECISE]
+            unsettled[name] = (
+                said[0] if q['purpose'] == 'evaluation' and said else 'see its result'
+            )
+    quality = judge_rig_figures(rig.quality, unsettled, len(at_hand), len(taking))
+    return replace(rig, quality=quality)
+
+
+def join_rig(
+    path: str,
+    session: str,
+    own: Own,
+    evaluate: Callable[[ResultDoc, CalibrationResult], CalibrationResult] | None = None,
+) -> tuple[ResultDoc, CalibrationResult]:
     """The node's rig (its ``rig_file`` parameter): this session's own calibration ``own``
     joins the recordings of the rig file at ``path`` (replacing the session's earlier entry;
     the file is made when missing) and the rig is solved again. Returns the session's result
-    dictionary (without the evaluation) and result at the rig's T_HE (its own when it is left
-    out), with a ``rig`` section saying what the rig rests on; writes the file. The file keeps
+    dictionary and result at the rig's T_HE (its own when it is left out), evaluated by
+    ``evaluate`` (which writes the evaluation into the dictionary and returns the result it
+    judged) when given, with a ``rig`` section saying what the rig rests on and its verdict
+    (on this session's figures: the earlier sessions' poses are gone); writes the file. The file keeps
     the recordings with an estimate of their own (followers and failures are said once, in the
     session's answer). Raises ConfigError when ``path`` holds something else than a rig file."""
     file = Path(path)
@@ -249,6 +296,8 @@ def join_rig(path: str, session: str, own: Own) -> tuple[ResultDoc, CalibrationR
     rig = solve([*earlier, summary_of(own)])
     member, take = role(rig, session)
     doc, result = at_rig(own, rig.joint, member, take)
+    if evaluate is not None:
+        result = evaluate(doc, result)
     names = [s.name for s in earlier] + [session]
     docs: list[ResultDoc | None] = [None] * len(earlier) + [doc]
     document = finish(rig, names, docs, None)

@@ -115,6 +115,8 @@ def _member(rig: Rig, k: int) -> RigRecordingDoc:
 
 def rig_summary(doc: RigDoc) -> str:
     """A few lines for the terminal: the verdict with its reasons, T_HE, the recordings."""
+    from ..evaluation.terminal import other_purpose, purpose_words
+
     r = doc['rig']
     q = r['quality']
     lines = [f'rig: {q["verdict"]} ({len(r["used"])} of {len(doc["recordings"])} recordings)']
@@ -128,7 +130,9 @@ def rig_summary(doc: RigDoc) -> str:
             f'mm), rotation [{rot}] x y z w (1-sigma '
             f'{np.degrees(np.linalg.norm(st["rotation"])):.3f} deg)'
         )
+    lines.append(f'  judged for {purpose_words(q)}; {other_purpose(q)}')
     lines += [f'  {reason["code"]}: {reason["message"]}' for reason in q['reasons']]
+    lines += [f'  note: {note}' for note in q['notes']]
     for rec in doc['recordings']:
         shared = rec.get('shared')
         if shared:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .arrays import Floats
-from .batch.rank import pseudo_inverse, solve_determined
+from .batch.rank import ROUNDING_RTOL, pseudo_inverse, solve_determined, undetermined
 from .document import ResultDoc
 from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
 from .rig_document import MemberDoc
@@ -37,6 +37,9 @@ EXTRINSIC = slice(1, 7)
 #: Gauss-Newton rounds of the joint mean; it converges in 2-3 (the estimates differ by mm).
 MAX_ROUNDS = 20
 STEP_TOL = 1e-12
+#: Held directions of two estimates that are parallel to within this (the singular values of
+#: their stacked unit bases) are one direction.
+RANK_SPAN = 1e-6
 
 
 @dataclass(frozen=True)
@@ -73,8 +76,12 @@ class Member:
             raise ValueError('it has no covariance (the batch stage did not run)')
         C = np.asarray(cov['matrix'], dtype=float)
         order = tuple(cov['order'])
-        if not np.all(np.isfinite(C)) or np.any(np.linalg.eigvalsh(C[EXTRINSIC, EXTRINSIC]) <= 0):
-            raise ValueError('its covariance of T_HE is not positive definite')
+        if not np.all(np.isfinite(C)):
+            raise ValueError('its covariance is not finite')
+        lam = np.linalg.eigvalsh(C[EXTRINSIC, EXTRINSIC])
+        # a direction the batch stage held (one rotation axis) has no variance: semi-definite
+        if lam[-1] <= 0.0 or lam[0] < -ROUNDING_RTOL * lam[-1]:
+            raise ValueError('its covariance of T_HE is not positive semi-definite')
         e = doc['extrinsic']
         names = {'time_offset': doc['time_offset'], 'clock_drift': doc.get('clock_drift')}
         names['scale'] = doc.get('scale')
@@ -150,6 +157,12 @@ class Joint:
     def std(self) -> Floats:
         return np.sqrt(np.diag(self.covariance))
 
+    @property
+    def held(self) -> Floats:
+        """The directions (6, k) of T_HE no member determines (each turned about one axis
+        only, the same one): the joint keeps the first member's value along them."""
+        return undetermined(self.covariance)
+
 
 def difference(q_a: Floats, p_a: Floats, q_b: Floats, p_b: Floats) -> Floats:
     """a [-] b: (p_a - p_b, Log(R_b^T R_a)), translation [m] then rotation [rad]."""
@@ -182,12 +195,22 @@ def fuse(members: Sequence[Member]) -> Joint:
     return Joint(quat_from_matrix(R), p, 0.5 * (cov + cov.T))
 
 
-def chi2_against(member: Member, others: Joint) -> tuple[float, Floats]:
-    """Mahalanobis distance squared (6 dof) of a member's T_HE from a joint estimate that
-    does not include it (their errors independent), and the difference (member [-] joint)."""
+def chi2_against(member: Member, others: Joint) -> tuple[float, int, Floats]:
+    """Mahalanobis distance squared of a member's T_HE from a joint estimate that does not
+    include it (their errors independent), its degrees of freedom and the difference (member
+    [-] joint). A direction either holds (a lever arm along one rotation axis) is no test of
+    agreement: the distance is taken on the directions both determine (6 when both do)."""
     d = difference(member.q_HE, member.p_HE, others.q_HE, others.p_HE)
-    S = member.extrinsic_covariance + others.covariance
-    return float(d @ solve_determined(S, d)), d
+    held = np.hstack([undetermined(member.extrinsic_covariance), undetermined(others.covariance)])
+    P = np.eye(6)
+    if held.shape[1]:
+        u, s, _ = np.linalg.svd(held, full_matrices=False)
+        span = u[:, s > RANK_SPAN * s[0]]
+        P = P - span @ span.T
+    S = P @ (member.extrinsic_covariance + others.covariance) @ P
+    dp = P @ d
+    dof = 6 - (0 if not held.shape[1] else span.shape[1])
+    return float(dp @ solve_determined(S, dp)), dof, d
 
 
 @dataclass(frozen=True)

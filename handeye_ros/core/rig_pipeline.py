@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .association import associate
-from .checks.consistency import Split, Test, split
-from .checks.verdict import Quality, assess_rig, motion_inconsistency
+from .checks.consistency import Split, Test, split, threshold
+from .checks.verdict import Purpose, Quality, assess_rig, motion_inconsistency
 from .pipeline import metrics_at
 from .result import CalibrationResult
 from .rig import Conditioned, Joint, Member, conditioned, fuse
@@ -54,13 +54,12 @@ class Rig:
         """The same rig with more recordings left out (followers whose motions the rig's T_HE
         does not explain, found once their poses were at hand)."""
         out = {**self.why_not, **why_not}
-        names = [m.name for m in self.members]
         groups = self.split.groups if self.split else ()
         return replace(
             self,
             followers=tuple(f for f in self.followers if f not in why_not),
             why_not=out,
-            quality=assess_rig(names, groups, out, _precision(self.joint, self.members, groups)),
+            quality=_assess(self.joint, self.members, groups, out, self.quality.purpose),
         )
 
     @property
@@ -76,24 +75,58 @@ class Rig:
 
 
 def solve_rig(
-    members: list[Member], failed: dict[str, str], followers: tuple[str, ...] = ()
+    members: list[Member],
+    failed: dict[str, str],
+    followers: tuple[str, ...] = (),
+    purpose: Purpose = Purpose.EVALUATION,
 ) -> Rig:
     """The rig from its recordings' calibrations (``failed``: those that gave none, by name,
-    with the reason; ``followers``: see :class:`Rig`): the module docstring's recipe."""
+    with the reason; ``followers``: see :class:`Rig`), its verdict judged for ``purpose``:
+    the module docstring's recipe."""
     why_not = dict(failed)
     if not members:
         why_not |= {f: 'no recording gave the T_HE it could take' for f in followers}
-        return Rig(None, (), None, (), (), why_not, assess_rig([], (), why_not))
+        quality = assess_rig([], (), why_not, purpose=purpose)
+        return Rig(None, (), None, (), (), why_not, quality)
     s = split(members)
     main = s.groups[0]
     joint = fuse([members[k] for k in main])
     for k, (m, t) in enumerate(zip(members, s.tests, strict=True)):
         if k not in main:
-            why_not[m.name] = _disagrees(t, s.threshold, len(main))
-    names = [m.name for m in members]
+            why_not[m.name] = _disagrees(t, len(members), len(main))
     shared = tuple(conditioned(m, joint) if k in main else None for k, m in enumerate(members))
-    quality = assess_rig(names, s.groups, why_not, _precision(joint, members, s.groups))
+    quality = _assess(joint, members, s.groups, why_not, purpose)
     return Rig(joint, tuple(members), s, shared, tuple(followers), why_not, quality)
+
+
+def _assess(
+    joint: Joint | None,
+    members: Sequence[Member],
+    groups: tuple[tuple[int, ...], ...],
+    why_not: dict[str, str],
+    purpose: Purpose,
+) -> Quality:
+    names = [m.name for m in members]
+    precision = _precision(joint, members, groups)
+    held = '' if joint is None else _held_words(joint)
+    return assess_rig(names, groups, why_not, precision, held, purpose)
+
+
+def _held_words(joint: Joint) -> str:
+    """The joint T_HE's held directions in words ('' when it determines all six)."""
+    said = []
+    for v in joint.held.T:
+        t, r = v[:3], v[3:]
+        axis = t if np.linalg.norm(t) >= np.linalg.norm(r) else r
+        axis = axis / np.linalg.norm(axis)
+        words = ' '.join(f'{c:+.3f}' for c in axis)
+        if np.linalg.norm(r) < 1e-6:
+            said.append(f'the translation along [{words}] (hand frame)')
+        elif np.linalg.norm(t) < 1e-6:
+            said.append(f'the rotation about [{words}] (eye frame)')
+        else:
+            said.append(f'a direction mixing translation and rotation, mostly [{words}]')
+    return ' and '.join(said)
 
 
 def _precision(
@@ -111,12 +144,14 @@ def _precision(
     return sigmas, (min(n[0] for n in known), min(n[1] for n in known))
 
 
-def _disagrees(test: Test | None, limit: float, n_main: int) -> str:
+def _disagrees(test: Test | None, n: int, n_main: int) -> str:
     if test is None:
         return 'no other recording to compare it with'
+    limit = threshold(n, test.dof)
     return (
         f'its T_HE is {test.translation_mm:.1f} mm and {test.rotation_deg:.2f} deg from the '
-        f'{n_main} that agree (chi-square {test.chi2:.1f} > {limit:.1f}, 6 dof, with both '
+        f'{n_main} that agree (chi-square {test.chi2:.1f} '
+        f'{">" if test.chi2 > limit else "<="} {limit:.1f}, {test.dof} dof, with both '
         'covariances)'
     )
 

@@ -17,6 +17,7 @@ from ..core.rig import EXTRINSIC, difference
 from ..core.rig_document import RigDoc, RigExtrinsicDoc, RigRecordingDoc
 from .figures import canvas, save
 from .html import STYLE, VERDICT_COLOUR, _e
+from .terminal import other_purpose, purpose_words
 
 #: The 2-D ellipse drawn: chi-square with 2 dof at 95 %.
 ELLIPSE_CHI2 = 5.991
@@ -102,6 +103,7 @@ def write_rig_report(doc: RigDoc, directory: Path) -> Path:
 <h1>handeye_ros rig report</h1>
 <p><span class="verdict" style="background:{colour}">{_e(q['verdict'].upper())}</span>
 &nbsp;{len(rig['used'])} of {len(doc['recordings'])} recordings share the T_HE below</p>
+<p>Judged for {_e(purpose_words(q))}; {_e(other_purpose(q))}.</p>
 {f'<ul>{reasons}</ul>' if reasons else ''}
 <h2>The rig's T_HE</h2>{_extrinsic(rig['extrinsic'])}
 <h2>Recordings</h2>{_recordings(doc['recordings'])}

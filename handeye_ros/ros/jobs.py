@@ -95,8 +95,11 @@ def calibrate_buffers(
         from ..app.rig import Own, join_rig
 
         out, result = run(replace(req, evaluation=False, report=None))
-        out, result = join_rig(*rig, Own(rig[1], out, result))
-        result = write_outputs(req, result, out, snapshot.frames)
+        out, result = join_rig(
+            *rig,
+            Own(rig[1], out, result),
+            lambda doc, at: write_outputs(req, at, doc, snapshot.frames),
+        )
     return Calibrated(out, result.detached(), snapshot.frames, _paths(result))
 
 

@@ -133,6 +133,48 @@ def test_evaluate_shared_extrinsic_on_dask_matches_the_sequential_run(rig, tmp_p
     assert [r['tx_m'] for r in seq[:4]] == [seq[0]['tx_m']] * 4
 
 
+def test_a_ground_robots_rig_holds_the_lever_arm_it_cannot_see(tmp_path: Path) -> None:
+    """Three 60-s recordings of one marker on a ground robot (yaw only, level 3), each its own
+    clock and world: every one joins the rig on what it determines, the rig's T_HE is the
+    truth within its 3 sigmas there and holds the lever arm along the axis at 0. Good for
+    the evaluation (the recordings' figures settled at the rig's T_HE); with purpose
+    extrinsic, unobservable."""
+    base = random_truth(np.random.default_rng(21))
+    runs = []
+    for k in range(3):
+        truth = replace(
+            random_truth(np.random.default_rng([21, k])), q_HE=base.q_HE, p_HE=base.p_HE
+        )
+        rec = recording(seed=600 + k, level=3.0, duration_s=60.0, truth=truth, motion='planar')
+        write_tum(tmp_path / f'hand{k}.txt', rec.hand)
+        write_tum(tmp_path / f'eye{k}.txt', rec.eye)
+        runs.append({'name': f'ground{k}', 'hand': f'hand{k}.txt', 'eye': f'eye{k}.txt'})
+    for purpose, said in (('evaluation', 'good'), ('extrinsic', 'doubtful')):
+        manifest = tmp_path / f'{purpose}.yaml'
+        manifest.write_text(yaml.safe_dump({'defaults': {'purpose': purpose}, 'runs': runs}))
+        res = run_main('--rig', manifest, '-o', tmp_path / f'{purpose}-rig.yaml')
+        cli_ok(res)
+        assert res.stdout.startswith(f'rig: {said} (3 of 3 recordings)'), res.stdout
+        assert 'note: held: the translation along [' in res.stdout
+        r = yaml.safe_load((tmp_path / f'{purpose}-rig.yaml').read_text())['rig']
+        assert r['used'] == ['ground0', 'ground1', 'ground2']
+        assert r['quality']['for_evaluation'] == {
+            'verdict': 'good',
+            'codes': [],
+            'figures_judged': True,
+        }
+        assert r['quality']['for_extrinsic']['codes'] == ['unobservable']
+    # the axis is the hand's z here: the lever arm along it held at 0, the rest the truth's
+    sd = np.asarray(r['extrinsic']['std']['translation'])
+    err = np.subtract(r['extrinsic']['translation'], base.p_HE)
+    assert r['extrinsic']['translation'][2] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(np.abs(err[:2]) < 3 * sd[:2]) and sd[2] < 1e-9
+    turn = Rotation.from_quat(r['extrinsic']['rotation']).inv() * Rotation.from_quat(base.q_HE)
+    assert np.degrees(turn.magnitude()) < 3 * np.degrees(
+        np.linalg.norm(r['extrinsic']['std']['rotation'])
+    )
+
+
 def _own(name: str, seed: int, truth) -> object:
     from handeye_ros.app.rig import Own
     from handeye_ros.core.pipeline import calibrate
@@ -149,6 +191,7 @@ def test_the_nodes_rig_file_grows_by_session_and_names_a_moved_marker(tmp_path: 
     a file that is no rig file is refused."""
     from handeye_ros.app.rig import join_rig
     from handeye_ros.core.errors import ConfigError
+    from handeye_ros.evaluation.outputs import evaluate_and_write
 
     base = random_truth(np.random.default_rng(21))
     same = [
@@ -167,6 +210,13 @@ def test_the_nodes_rig_file_grows_by_session_and_names_a_moved_marker(tmp_path: 
     for _ in range(2):  # the second call replaces the session's entry
         doc, result = join_rig(str(path), 'session 2', second)
         assert doc['rig']['part'] == 'used' and doc['rig']['recordings'] == 2
+    # evaluated at the rig's T_HE (as the node's worker does): the rig is judged on this
+    # session's figures, the earlier session's poses being gone
+    doc, result = join_rig(str(path), 'session 2', second, lambda d, r: evaluate_and_write(r, d))
+    assert 'evaluation' in doc and doc['rig']['verdict'] == 'good'
+    q = yaml.safe_load(path.read_text())['rig']['quality']
+    assert q['for_evaluation']['figures_judged'] and q['for_evaluation']['verdict'] == 'good'
+    assert 'judged for 1 of the 2 recordings that take it' in q['notes'][0]
     saved = yaml.safe_load(path.read_text())
     assert [r['name'] for r in saved['recordings']] == ['session 1', 'session 2']
     np.testing.assert_allclose(result.p_HE, saved['rig']['extrinsic']['translation'])

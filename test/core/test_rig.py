@@ -11,7 +11,9 @@ import pytest
 from conftest import recording
 from scipy.spatial.transform import Rotation
 
+from handeye_ros.core.batch.rank import undetermined
 from handeye_ros.core.checks.consistency import split, threshold
+from handeye_ros.core.checks.verdict import Purpose, judge_rig_figures
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.rig import Member, conditioned, difference, fuse
 from handeye_ros.core.rig_pipeline import at_shared, solve_rig
@@ -127,6 +129,65 @@ def test_a_rig_less_precise_than_its_recordings_required_is_imprecise() -> None:
     old = {k: v for k, v in strict[0].to_dict().items() if k != 'precision'}
     assert Member.from_dict('m0', old).precision is None  # type: ignore[arg-type]
     assert solve_rig([replace(m, precision=None) for m in strict], {}).quality.verdict == 'good'
+
+
+def _holding(member: Member, axis: np.ndarray) -> Member:
+    """``member`` as a ground robot's calibration turned about ``axis`` (hand frame) only:
+    the lever arm along it held at 0, its covariance without variance there (the batch stage's
+    projection: rounding of 1e-24 along it)."""
+    P = np.eye(7)
+    P[1:4, 1:4] -= np.outer(axis, axis)
+    p = member.p_HE - (member.p_HE @ axis) * axis
+    return replace(member, p_HE=p, covariance=P @ member.covariance @ P)
+
+
+def test_recordings_that_hold_the_lever_arm_along_their_axis_join_on_what_they_determine() -> None:
+    """Three ground-robot recordings hold the lever arm along z (at 0, 100 mm from the truth):
+    each is tested on the 5 directions both sides determine, none is left out, and one that
+    turned about every axis gives the rig all six. Without it the rig holds z: unobservable
+    for purpose extrinsic, and good for evaluation once its recordings' figures are judged
+    (no figure depends on the held lever arm)."""
+    rng = np.random.default_rng(8)
+    z = np.array([0.0, 0.0, 1.0])
+    ground = [_holding(_member(f'g{k}', rng, _cov(rng)), z) for k in range(3)]
+    (along,) = undetermined(ground[0].extrinsic_covariance).T
+    assert abs(along @ np.r_[z, 0, 0, 0]) == pytest.approx(1.0, abs=1e-9)
+    full = _member('full', rng, _cov(rng))
+    rig = solve_rig([*ground, full], {})
+    assert rig.used == ('g0', 'g1', 'g2', 'full') and rig.quality.verdict == 'good'
+    # each against the others fused: the ground ones hold z, and so do the three the full faces
+    assert [t.dof for t in rig.split.tests] == [5, 5, 5, 5]
+    assert rig.joint.held.shape == (6, 0)
+    e = difference(rig.joint.q_HE, rig.joint.p_HE, Q0, P0)
+    assert e @ np.linalg.solve(rig.joint.covariance, e) < 20.1  # 3 sigma, 6 dof
+
+    held = solve_rig(ground, {}, purpose=Purpose.EXTRINSIC)
+    assert held.used == ('g0', 'g1', 'g2') and held.joint.held.shape == (6, 1)
+    assert abs(held.joint.held[:3, 0] @ z) == pytest.approx(1.0)
+    assert held.quality.codes == ('unobservable',)
+    assert 'does not determine the translation along [' in held.quality.reasons[0].message
+    judged = judge_rig_figures(held.quality.judged_for(Purpose.EVALUATION), {}, 3, 3)
+    assert judged.verdict == 'good' and judged.other.codes == ('unobservable',)
+
+
+def test_for_evaluation_the_rig_is_judged_on_its_recordings_figures() -> None:
+    """The rig's 1-sigma beyond its recordings' targets lowers only purpose extrinsic's
+    verdict; purpose evaluation's reads the figures of the recordings at the rig's T_HE: one
+    whose figures it leaves unsettled is named, and a rig judged on some recordings only says
+    so."""
+    rng = np.random.default_rng(9)
+    cov = _cov(rng, sigma_t=0.008 / np.sqrt(3) / 1.5)
+    strict = [replace(_member(f'm{k}', rng, cov), precision=(0.002, 0.5)) for k in range(3)]
+    q = solve_rig(strict, {}).quality
+    assert q.purpose is Purpose.EVALUATION and q.codes == ('imprecise',)  # unjudged: stand-in
+    settled = judge_rig_figures(q, {}, 3, 3)
+    assert settled.verdict == 'good' and settled.other.codes == ('imprecise',)
+    assert settled.notes == ()
+    said = 'APE translation rmse 40 (+-3) mm: 7.5%'
+    unsettled = judge_rig_figures(q, {'m1': said}, 2, 3)
+    assert unsettled.verdict == 'doubtful' and unsettled.codes == ('imprecise',)
+    assert f'exceeds 5% of a figure of m1: {said}' in unsettled.reasons[0].message
+    assert 'judged for 2 of the 3 recordings that take it' in unsettled.notes[0]
 
 
 def test_nothing_to_fuse_fails_the_rig_with_reasons() -> None:

@@ -2,7 +2,8 @@
 
 A recording's T_HE is tested against the joint T_HE of the *others* (leave one out, so that the
 two errors are independent): ``chi2 = d^T (C_i + C_others)^-1 d`` with d the difference
-(:func:`..rig.chi2_against`), 6 degrees of freedom. The threshold keeps the chance of naming any
+(:func:`..rig.chi2_against`), 6 degrees of freedom (fewer by a direction either holds: a
+ground robot's lever arm along its only rotation axis is no test of agreement). The threshold keeps the chance of naming any
 recording of a consistent rig at FAMILY_FALSE_ALARM, whatever the count (Bonferroni).
 
 :func:`split` finds the groups: the recording that disagrees most leaves the set while any
@@ -26,24 +27,36 @@ FAMILY_FALSE_ALARM = 0.01
 DOF = 6
 
 
-def threshold(n: int) -> float:
-    """The chi-square (6 dof) above which one of ``n`` recordings is said to disagree."""
-    return float(chi2.isf(FAMILY_FALSE_ALARM / max(n, 1), DOF))
+def threshold(n: int, dof: int = DOF) -> float:
+    """The chi-square (``dof`` degrees of freedom) above which one of ``n`` recordings is
+    said to disagree."""
+    return float(chi2.isf(FAMILY_FALSE_ALARM / max(n, 1), dof))
 
 
 @dataclass(frozen=True)
 class Test:
-    """One recording against a joint T_HE without it: chi2 (6 dof) and the difference [mm],
-    [deg]."""
+    """One recording against a joint T_HE without it: chi2 with its degrees of freedom (6,
+    fewer by the directions either holds) and the difference [mm], [deg]."""
 
     chi2: float
     translation_mm: float
     rotation_deg: float
+    dof: int = DOF
 
     @classmethod
     def of(cls, member: Member, others: Joint) -> Test:
-        c, d = chi2_against(member, others)
-        return cls(c, float(np.linalg.norm(d[:3]) * 1e3), float(np.degrees(np.linalg.norm(d[3:]))))
+        c, dof, d = chi2_against(member, others)
+        return cls(
+            c,
+            float(np.linalg.norm(d[:3]) * 1e3),
+            float(np.degrees(np.linalg.norm(d[3:]))),
+            dof,
+        )
+
+    def excess(self, n: int) -> float:
+        """chi2 over the threshold of its degrees of freedom among ``n`` recordings (above 1:
+        it disagrees)."""
+        return self.chi2 / threshold(n, self.dof)
 
 
 @dataclass(frozen=True)
@@ -63,22 +76,22 @@ def _test(members: Sequence[Member], i: int, group: Sequence[int]) -> Test | Non
     return Test.of(members[i], fuse(others)) if others else None
 
 
-def _chi2(members: Sequence[Member], i: int, group: Sequence[int]) -> float:
-    """:func:`_test`'s chi2, for a group with others than i."""
+def _excess(members: Sequence[Member], i: int, group: Sequence[int]) -> float:
+    """:func:`_test`'s :meth:`Test.excess`, for a group with others than i."""
     test = _test(members, i, group)
     assert test is not None, 'the group has others'
-    return test.chi2
+    return test.excess(len(members))
 
 
-def _agreeing(members: Sequence[Member], candidates: list[int], limit: float) -> list[int]:
+def _agreeing(members: Sequence[Member], candidates: list[int]) -> list[int]:
     """The largest set of ``candidates`` that agree: the worst leaves while any disagrees,
     then those left out rejoin when they agree with the rest."""
     kept = list(candidates)
     out: list[int] = []
     while len(kept) > 1:
-        scores = [_chi2(members, i, kept) for i in kept]
+        scores = [_excess(members, i, kept) for i in kept]
         worst = int(np.argmax(scores))
-        if scores[worst] <= limit:
+        if scores[worst] <= 1.0:
             break
         out.append(kept.pop(worst))
     changed = True
@@ -86,7 +99,7 @@ def _agreeing(members: Sequence[Member], candidates: list[int], limit: float) ->
         changed = False
         joint = fuse([members[k] for k in kept])
         for i in list(out):
-            if Test.of(members[i], joint).chi2 <= limit:
+            if Test.of(members[i], joint).excess(len(members)) <= 1.0:
                 out.remove(i)
                 kept.append(i)
                 changed = True
@@ -100,7 +113,7 @@ def split(members: Sequence[Member]) -> Split:
     left = list(range(len(members)))
     groups = []
     while left:
-        group = _agreeing(members, left, limit)
+        group = _agreeing(members, left)
         groups.append(tuple(group))
         left = [k for k in left if k not in group]
     groups.sort(key=lambda g: (-len(g), g))

@@ -31,12 +31,17 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..arrays import Floats
+from ..arrays import Floats, Indices
 from ..association import associate
 from ..errors import InputError, TimeAlignmentError
 from ..geometry import matrix_from_quat, quat_from_matrix, relative
 from ..linear.keyframes import motion_indices
-from ..linear.refits import rotation_from_motions, translation_from_motions
+from ..linear.refits import (
+    WARN_AXIS_SPREAD_DEG,
+    axis_spreads_deg,
+    rotation_from_motions,
+    translation_from_motions,
+)
 from ..trajectory import Trajectory
 from .conventions import Correction
 
@@ -91,6 +96,17 @@ def _reread_poses(
     return matrix_from_quat(q_xyzw[:, PERMUTATIONS[reading]]), p
 
 
+def _axis_spread_deg(R: Floats, i: Indices, j: Indices) -> float:
+    """The spread of the rotation axes of the motions R_i^T R_j (:func:`axis_spreads_deg`).
+    About one axis (a ground robot, a turntable) every reading turns the motions alike and the
+    translation residuals follow the rotation about the axis that the rotations leave free:
+    the check cannot tell the readings apart."""
+    v = Rotation.from_matrix(np.swapaxes(R[i], -1, -2) @ R[j]).as_rotvec()
+    n = np.linalg.norm(v, axis=1)
+    axes = np.where(n[:, None] > 0.0, v / np.maximum(n, 1e-300)[:, None], 0.0)
+    return float(axis_spreads_deg(axes, np.ones((1, len(i)), dtype=bool))[0])
+
+
 @dataclass(frozen=True)
 class ReadingFit:
     """How well AX = XB holds under one reading: median residuals and the lever arm found."""
@@ -122,13 +138,14 @@ def reading_fits(
     hand: Trajectory, eye: Trajectory, time_offset_s: float, eta_rad: float
 ) -> list[ReadingFit]:
     """Scores of every reading (one stream changed at a time); empty when the motion is too
-    poor to tell."""
+    poor to tell (too few motions, or rotation axes that spread less than
+    WARN_AXIS_SPREAD_DEG)."""
     try:
         base = associate(hand, eye, time_offset_s)
     except TimeAlignmentError:
         return []
     i, j = motion_indices(base.R_GH, 'rotation', eta_rad)
-    if i.size < MIN_MOTIONS:
+    if i.size < MIN_MOTIONS or _axis_spread_deg(base.R_GH, i, j) < WARN_AXIS_SPREAD_DEG:
         return []
     fits = []
     # only the poses the motions start or end at are read (an hour of 200 Hz has 720 000

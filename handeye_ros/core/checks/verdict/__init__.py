@@ -79,8 +79,10 @@ end in (:func:`judged`). Each step returns what it found as a frozen :class:`Fin
 (:mod:`.findings`: its warnings, notes, facts and reasons in order), and the verdict reads
 their sum once.
 
-A rig of many recordings (:mod:`..rig_pipeline`) has its own verdict, from its own rules
-(:mod:`.rig`: :func:`assess_rig`; the groups are :mod:`..consistency`'s):
+A rig of many recordings (:mod:`..rig_pipeline`) has its own verdict, judged for the purpose
+of its recordings (extrinsic when any asks for it), from its own rules (:mod:`.rig`:
+:func:`assess_rig`, and :func:`judge_rig_figures` once the recordings are evaluated at the
+rig's T_HE; the groups are :mod:`..consistency`'s):
 
 ==========================  =========  =================================================
 recording_left_out          doubtful   a recording gave no calibration, or its T_HE
@@ -93,7 +95,14 @@ groups                      doubtful   the recordings form groups that agree wit
 no_agreement                failed     fewer than two recordings agree, or the largest
                                        groups are as large as each other (a rig of one
                                        recording and nothing else is not said)
-imprecise                   doubtful   the rig's 1-sigma of T_HE exceeds the precision its
+unobservable                doubtful   purpose extrinsic: a direction of the rig's T_HE
+                                       that no recording determines (each turned about
+                                       the same one axis: the lever arm along it)
+imprecise                   doubtful   purpose evaluation: at the rig's T_HE, the
+                                       calibration's 1-sigma on a figure of a recording
+                                       that takes it exceeds EVALUATION_SHARE of it (the
+                                       recording named); purpose extrinsic: the rig's
+                                       1-sigma of T_HE exceeds the precision its
                                        recordings required (the strictest of theirs)
 ==========================  =========  =================================================
 
@@ -153,9 +162,7 @@ from .final import (
     sigmas_of,
 )
 from .findings import Findings
-from .rig import (
-    assess_rig,
-)
+from .rig import assess_rig, judge_rig_figures
 
 __all__ = [
     'AMBIGUOUS_PEAK_RATIO',
@@ -189,6 +196,7 @@ __all__ = [
     'drift_fitted_note',
     'drift_significant',
     'drift_threshold_sigmas',
+    'judge_rig_figures',
     'judge_tie',
     'judged',
     'motion_inconsistency',

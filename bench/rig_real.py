@@ -12,8 +12,10 @@
   truth I): the rig's T_HE against I.
 
 Per recording: its own T_HE's difference from I (mm, deg), its 1-sigma, its chi-square against
-the others of the largest group, and whether the rig uses it; per rig: T_HE against I, its
-1-sigma, the verdict with its reasons.
+the others of the largest group, whether the rig uses it, and its verdict for purpose
+evaluation alone and at the rig's T_HE (each evaluated, as ``offline_calibrate --rig`` does);
+per rig: T_HE against I, its 1-sigma, the verdict for evaluation (on its recordings' figures)
+and for extrinsic, with their reasons.
 
 Usage: python bench/rig_real.py
 """
@@ -26,10 +28,11 @@ import realdata
 from common import emit, table
 from uncertainty_real import EUROC_GT, VISLAM
 
+from handeye_ros.app.rig import Own, finish, role, shared_outputs, solve, summary_of
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.rig import Member, difference
-from handeye_ros.core.rig_pipeline import solve_rig
+from handeye_ros.core.rig import difference
+from handeye_ros.evaluation.outputs import evaluate_and_write
 from handeye_ros.formats import read_trajectory
 
 TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
@@ -76,14 +79,25 @@ def _mm_deg(v: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(v[:3]) * 1e3), float(np.degrees(np.linalg.norm(v[3:])))
 
 
+def _evaluated_label(res) -> str:
+    """A recording's verdict alone, its figures judged (purpose evaluation)."""
+    return evaluate_and_write(res, res.to_dict()).quality.label(' ')
+
+
 def main() -> None:
     rows, summary = [], []
     for name, runs in rigs().items():
-        members = [Member.from_document(seq, res.to_dict()) for seq, res in runs]
-        rig = solve_rig(members, {})
-        for k, (m, (seq, res)) in enumerate(zip(members, runs, strict=True)):
+        owns = [Own(seq, res.to_dict(), res) for seq, res in runs]
+        rig = solve([summary_of(own) for own in owns])
+        docs = [shared_outputs(own, rig.joint, *role(rig, own.name), None, False) for own in owns]
+        rig_doc = finish(rig, [own.name for own in owns], docs, None)
+        quality = rig_doc['rig']['quality']
+        index = {m.name: k for k, m in enumerate(rig.members)}
+        for (seq, res), doc in zip(runs, docs, strict=True):
+            k = index[seq]  # every real recording here gives a member
+            m, test = rig.members[k], rig.split.tests[k]
             own = difference(m.q_HE, m.p_HE, *IDENTITY)
-            test = rig.split.tests[k]
+            q = doc['quality']
             rows.append(
                 [
                     name,
@@ -94,12 +108,15 @@ def main() -> None:
                     np.degrees(np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[3:]))),
                     '-' if test is None else test.chi2,
                     'yes' if seq in rig.used else 'NO',
-                    res.quality.label(' '),
+                    _evaluated_label(res),
+                    ' '.join([q['verdict'], *q['for_evaluation']['codes']])
+                    if seq in rig.used
+                    else '-',
                 ]
             )
         joint = difference(rig.joint.q_HE, rig.joint.p_HE, *IDENTITY)
         alone = np.median(
-            [np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[:3])) for m in members]
+            [np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[:3])) for m in rig.members]
         )
         summary.append(
             [
@@ -111,7 +128,10 @@ def main() -> None:
                 np.linalg.norm(rig.joint.std[:3]) / alone,
                 rig.split.threshold,
                 ' '.join(rig.used),
-                rig.quality.label(' '),
+                ' '.join([quality['verdict'], *quality['for_evaluation']['codes']]),
+                ' '.join(
+                    [quality['for_extrinsic']['verdict'], *quality['for_extrinsic']['codes']]
+                ),
             ]
         )
     emit(
@@ -128,7 +148,8 @@ def main() -> None:
                 'sigma deg',
                 'chi2',
                 'used',
-                'own verdict',
+                'alone: evaluation',
+                "at the rig's T_HE: evaluation",
             ),
             rows,
         ),
@@ -147,7 +168,8 @@ def main() -> None:
                 'sigma / median alone',
                 'chi2 limit',
                 'used',
-                'verdict',
+                'evaluation',
+                'extrinsic',
             ),
             summary,
         ),

@@ -11,6 +11,17 @@ from dataclasses import dataclass
 
 from .options import Options, option
 
+#: The hand spline's default knot spacing [s]: about 20 knots/s (hand-held and flying motion,
+#: mostly below 5 Hz), chosen not to be commensurate with an eye's frame period. At 0.05 s a
+#: 20 Hz (or 10 Hz) eye samples every knot interval at one phase, where the spline's error from
+#: the MoCap's noise is not stationary: the eye's relative poses (eq. 16) then read a bias into
+#: dt that grows with the square of that noise (0.74 ms mean error, sigma 0.16 ms, at 0.04 deg;
+#: bench/results/accuracy.md). This value is the spacing within 10 % of 0.05 s whose eye stamps
+#: spread most evenly over the knot interval, in 60 and in 600 frames, at the frame rates of
+#: 10-400 Hz cameras and VIOs commonly give (10, 15, 20, 25, 30, 40, 50, 60, 90, 100, 120, 200,
+#: 400 Hz): no phase gap above 2.8 times the even one.
+KNOT_SPACING_S = 0.0527
+
 PEAK_FITS = ('quadratic', 'none')
 #: What the calibration is for (:class:`.checks.verdict.Purpose`'s values, repeated here so
 #: that reading the options imports no numpy): what the verdict's "precise enough" means.
@@ -180,10 +191,12 @@ class CalibrationConfig(Options):
         expert=True,
     )
     knot_spacing: float = option(
-        0.05,
+        KNOT_SPACING_S,
         'float',
-        'knot spacing of the hand B-spline [s]: 20 knots/s follow hand-held and '
-        'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz',
+        'knot spacing of the hand B-spline [s]: about 20 knots/s follow hand-held and '
+        'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz; not a multiple or a '
+        "divisor of the eye's frame period (at 0.05 s, a 20 Hz eye meets the knots at one "
+        "phase, and the MoCap's noise biases dt)",
         low=0.005,
         high=1.0,
         expert=True,

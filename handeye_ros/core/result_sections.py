@@ -52,7 +52,7 @@ def batch_section(
         return out
     out.update(
         {
-            'knot_spacing': c.knot_spacing,
+            'knot_spacing': b.knot_spacing,
             'spline_order': c.spline_order,
             'decoupled': c.batch_decoupled,
             'control_points': b.n_control_points,

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..config import KNOT_SPACING_S
+
 
 @dataclass(frozen=True)
 class BatchOptions:
@@ -23,7 +25,7 @@ class BatchOptions:
     across the axis).
     """
 
-    knot_spacing: float = 0.05
+    knot_spacing: float = KNOT_SPACING_S
     order: int = 4
     hand_noise: tuple[float | None, float | None] = (None, None)
     eye_noise: tuple[float | None, float | None] = (None, None)

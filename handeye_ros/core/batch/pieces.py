@@ -12,7 +12,7 @@ from ..errors import BatchError
 from ..trajectory import Trajectory, lengths_text
 
 #: A gap-free part of the MoCap gets a spline of its own when it spans at least this many knot
-#: intervals (0.3 s at the default 0.05 s): DT_MARGIN_S at each end leaves eye pairs inside.
+#: intervals (0.32 s at the default 0.0527 s): DT_MARGIN_S at each end leaves eye pairs inside.
 MIN_PIECE_KNOTS = 6
 
 

@@ -39,7 +39,7 @@ ROTATION_FIT_ITERATIONS = 12
 #: below a MoCap's orientation noise of 0.01-0.1 deg; each pass costs a second on an hour).
 ROTATION_FIT_TOL = 1e-5
 #: MoCap rotations a segment the rotations' least squares reads at most, on average (a 1 kHz
-#: MoCap has 50 a segment of the default 0.05 s; ten average its noise down by three).
+#: MoCap has 53 a segment of the default 0.0527 s; ten average its noise down by three).
 ROTATION_LSQ_PER_SEGMENT = 10
 
 

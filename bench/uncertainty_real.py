@@ -16,9 +16,7 @@ Five tables:
   (the 12 EuRoC pairs; the five real-time VI-SLAM runs of MH_01-MH_05, whose offset to the
   ground truth is one camera frame, 50 ms; TUM-VI room1 and outdoors4, ORB-SLAM3 and Basalt
   VIO), all in the IMU frame (truth T_HE = I): the verdict, the error and the reported 1-sigma
-  (norms), the groups noted to vary along the recording, per axis the rms of error / sigma,
-  and READY as the consecutive poses predict it against as the result's ``readiness`` carries
-  it (``core/checks/carry.py``: READY only beside ``good``).
+  (norms), the groups noted to vary along the recording, per axis the rms of error / sigma.
 - ``uncertainty_common``: the same runs by the reference they share (SHARED): the error common
   to a set's runs, and the rms of error / sigma against I and against the set's other runs.
 - ``uncertainty_sim``: the paper's protocol (white noise, 20 seeds a level): truth within 3
@@ -116,11 +114,10 @@ def error_rows() -> tuple[list[list], np.ndarray, np.ndarray, list[str]]:
         try:
             r = calibrate(hand, eye)
         except HandeyeError as err:  # Basalt room1: its quaternion columns as published
-            rows.append([name, 'refused', '-', '-', '-', str(err)[:60], '-', '-'])
+            rows.append([name, 'refused', '-', '-', '-', str(err)[:60], '-'])
             continue
-        ready = f'{_yes(r.readiness.ready)} -> {_yes(r.to_dict()["readiness"]["ready"])}'
         if r.batch is None:
-            rows.append([name, r.quality.label(), '-', '-', '-', '-', ready, '-'])
+            rows.append([name, r.quality.label(), '-', '-', '-', '-', '-'])
             continue
         sd = r.batch.std
         err = np.r_[r.p_HE, Rotation.from_quat(r.q_HE).as_rotvec()]
@@ -141,7 +138,6 @@ def error_rows() -> tuple[list[list], np.ndarray, np.ndarray, list[str]]:
                     f'{np.degrees(np.linalg.norm(sd[4:7])):.3f}'
                 ),
                 varies,
-                ready,
                 f'{fit[0]:.4f} / ' + (f'{sim3:.4f}' if sim3 else '-') if fit else '-',
             ]
         )
@@ -192,10 +188,6 @@ def common_rows(errors: np.ndarray, sigmas: np.ndarray, names: list[str]) -> lis
             ]
         )
     return out
-
-
-def _yes(flag: bool) -> str:
-    return 'yes' if flag else 'no'
 
 
 def _z(a, b, cov_a, cov_b) -> np.ndarray:
@@ -361,7 +353,6 @@ def main() -> None:
                     ' '.join(f'{v:.2f}' for v in rms[3:]),
                     '',
                     '',
-                    '',
                 ]
             )
         emit(
@@ -369,8 +360,7 @@ def main() -> None:
             table(
                 'Every real run with the default options against T_HE = I: the verdict, dt '
                 "and its 1-sigma, the translation's and the rotation's error / 1-sigma (norms), "
-                'the groups noted to vary along the recording, READY as the consecutive poses '
-                "predict it -> as the result's readiness carries it, and the eye's scale as the "
+                "the groups noted to vary along the recording, and the eye's scale as the "
                 "batch stage fits it beside T_HE against the VIO's own Sim(3) scale of its "
                 'positions (no calibration in it; - where the MoCap has a gap of minutes)',
                 [
@@ -380,7 +370,6 @@ def main() -> None:
                     'translation mm',
                     'rotation deg',
                     'varies',
-                    'READY',
                     's fit / Sim(3)',
                 ],
                 rows,

@@ -196,7 +196,8 @@ class CalibrationConfig(Options):
         'knot spacing of the hand B-spline [s]: about 20 knots/s follow hand-held and '
         'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz; not a multiple or a '
         "divisor of the eye's frame period (at 0.05 s, a 20 Hz eye meets the knots at one "
-        "phase, and the MoCap's noise biases dt)",
+        "phase, and the MoCap's noise biases dt); a MoCap of fewer than two samples a knot "
+        'interval gets its own sample period',
         low=0.005,
         high=1.0,
         expert=True,

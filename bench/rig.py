@@ -110,9 +110,14 @@ def row(case: str, seed: int, runs: list, base) -> list:
             followers.append(f'r{k}')
             continue
         try:
-            members.append(Member.from_document(f'r{k}', res.to_dict()))
+            member = Member.from_document(f'r{k}', res.to_dict())
         except ValueError as err:
             failed[f'r{k}'] = str(err)
+            continue
+        if member.holds_rotation:  # as the application: turned in place, it follows
+            followers.append(f'r{k}')
+        else:
+            members.append(member)
     t0 = time.perf_counter()
     rig = solve_rig(members, failed, tuple(followers))
     seconds = time.perf_counter() - t0

@@ -93,6 +93,9 @@ def summary_of(own: Own) -> Summary:
         member = Member.from_document(own.name, own.document)
     except ValueError as err:
         return Summary(own.name, None, str(err), verdict)
+    if member.holds_rotation:
+        why = 'its motion turned about one axis only: the rotation about it is held, not measured'
+        return Summary(own.name, None, why, verdict, follower=True, purpose=purpose)
     return Summary(own.name, member, '', verdict, purpose=purpose)
 
 

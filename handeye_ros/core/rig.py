@@ -62,6 +62,15 @@ class Member:
     precision: tuple[float, float] | None = None
 
     @property
+    def holds_rotation(self) -> bool:
+        """Its covariance holds a direction of T_HE's rotation (a rig turned in place about one
+        axis: the rotation about it set, not measured, and the translation across it with
+        it). Such an estimate is no linear measurement of T_HE along the held rotation, so it
+        is not tested nor fused: it follows a rig."""
+        held = undetermined(self.extrinsic_covariance)
+        return bool(np.any(np.linalg.norm(held[3:], axis=0) > RANK_SPAN))
+
+    @property
     def extrinsic_covariance(self) -> Floats:
         """Its T_HE's 6x6 marginal (translation, rotation): the Schur complement of its
         information over its own parameters, inverted."""

@@ -15,11 +15,10 @@ from .options import Options, option
 #: mostly below 5 Hz), chosen not to be commensurate with an eye's frame period. At 0.05 s a
 #: 20 Hz (or 10 Hz) eye samples every knot interval at one phase, where the spline's error from
 #: the MoCap's noise is not stationary: the eye's relative poses (eq. 16) then read a bias into
-#: dt that grows with the square of that noise (0.74 ms mean error, sigma 0.16 ms, at 0.04 deg;
-#: bench/results/accuracy.md). This value is the spacing within 10 % of 0.05 s whose eye stamps
-#: spread most evenly over the knot interval, in 60 and in 600 frames, at the frame rates of
-#: 10-400 Hz cameras and VIOs commonly give (10, 15, 20, 25, 30, 40, 50, 60, 90, 100, 120, 200,
-#: 400 Hz): no phase gap above 2.8 times the even one.
+#: dt that grows with the square of that noise (bench/results/accuracy.md). This value is the
+#: spacing within 10 % of 0.05 s whose eye stamps spread most evenly over the knot interval, in
+#: 60 and in 600 frames, at the frame rates cameras and VIOs commonly give (10, 15, 20, 25, 30,
+#: 40, 50, 60, 90, 100, 120, 200, 400 Hz): no phase gap above 2.8 times the even one.
 KNOT_SPACING_S = 0.0527
 
 PEAK_FITS = ('quadratic', 'none')

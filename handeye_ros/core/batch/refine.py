@@ -188,8 +188,8 @@ def supported_spacing(hand: Trajectory, spacing: float) -> float:
     """The knot spacing the hand's samples support [s]: ``spacing``, or the MoCap's median
     sample period where it gives fewer than MIN_SAMPLES_PER_KNOT samples a knot interval. A
     least-squares fit with about as many control poses as samples is not determined where one
-    is missing (a 20 Hz ground truth at 0.0527 s put T_HE 45 mm off, where a spline through the
-    samples puts it 10 mm off); at the sample period the spline passes through them."""
+    is missing; at the sample period the spline passes through them (bench/results/accuracy.md,
+    "The MoCap's own noise")."""
     period = 1.0 / hand.rate_hz
     return spacing if spacing >= MIN_SAMPLES_PER_KNOT * period else period
 

@@ -310,8 +310,8 @@ def _rotations_least_squares(spline: PoseSpline, t: Floats, R: Floats) -> PoseSp
     rotations at times t (s) at up to ROTATION_LSQ_PER_SEGMENT samples a segment on average
     (every k-th). The fit through the centres carries a sample's whole noise into each control
     rotation, and more into the spline's angular acceleration, from which the eye's relative
-    poses read dt (eq. 16): on 60-s simulations with a MoCap noise of 0.02 deg, half the eye's,
-    it doubled the offset's error. Gauss-Newton on the body-frame residuals, each control
+    poses read dt (eq. 16; bench/results/accuracy.md, "The MoCap's own noise"). Gauss-Newton
+    on the body-frame residuals, each control
     rotation's correction spread over its support by the plain basis (the frames of one support
     differ little): the banded normal equations of the positions."""
     per = ROTATION_LSQ_PER_SEGMENT * (spline.R.shape[0] - spline.order + 1)

@@ -85,3 +85,26 @@ def test_the_fit_averages_the_mocaps_rotation_noise() -> None:
     err = Rotation.from_matrix(np.swapaxes(R_true, -1, -2) @ R_fit).as_rotvec()
     # ten samples to a segment, four segments to a control pose: about a third of the noise
     assert np.sqrt(np.mean(err**2)) < 0.5 * sigma
+
+
+def test_the_default_knot_spacing_is_the_one_its_rule_picks() -> None:
+    """KNOT_SPACING_S's rule (core/config.py): within 10 % of 0.05 s, in steps of 0.1 ms, the
+    spacing whose eye stamps leave the smallest phase gap on the knot interval, relative to an
+    even spread, in 60 and in 600 frames, at the worst of 13 common frame rates."""
+    from handeye_ros.core.config import KNOT_SPACING_S
+
+    rates = (10, 15, 20, 25, 30, 40, 50, 60, 90, 100, 120, 200, 400)
+
+    def worst(h: float) -> float:
+        out = 0.0
+        for rate in rates:
+            for n in (60, 600):
+                phase = np.sort(np.mod(np.arange(n) / (rate * h), 1.0))
+                gap = np.diff(np.concatenate([phase, [phase[0] + 1.0]])).max()
+                out = max(out, gap * n)
+        return out
+
+    candidates = np.round(np.arange(0.0450, 0.05501, 0.0001), 4)
+    scores = [worst(h) for h in candidates]
+    assert candidates[int(np.argmin(scores))] == KNOT_SPACING_S
+    assert min(scores) < 2.9 < worst(0.05)

@@ -291,9 +291,9 @@ def join_rig(
     dictionary and result at the rig's T_HE (its own when it is left out), evaluated by
     ``evaluate`` (which writes the evaluation into the dictionary and returns the result it
     judged) when given, with a ``rig`` section saying what the rig rests on and its verdict
-    (on this session's figures: the earlier sessions' poses are gone); writes the file. The file keeps
-    the recordings with an estimate of their own (followers and failures are said once, in the
-    session's answer). Raises ConfigError when ``path`` holds something else than a rig file."""
+    (on this session's figures: the earlier sessions' poses are gone); writes the file. The
+    file keeps the recordings with an estimate of their own (followers and failures are said
+    once, in the session's answer). Raises ConfigError when ``path`` holds something else than a rig file."""
     file = Path(path)
     earlier = [Summary(m.name, m, '', '') for m in read_members(file, path) if m.name != session]
     rig = solve([*earlier, summary_of(own)])

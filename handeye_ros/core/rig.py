@@ -40,6 +40,9 @@ STEP_TOL = 1e-12
 #: Held directions of two estimates that are parallel to within this (the singular values of
 #: their stacked unit bases) are one direction.
 RANK_SPAN = 1e-6
+#: A held unit direction of T_HE whose translation or rotation part is below this has none of
+#: that part (a lever arm held alone, or a rotation).
+HELD_PART = 1e-6
 
 
 @dataclass(frozen=True)
@@ -68,7 +71,7 @@ class Member:
         it). Such an estimate is no linear measurement of T_HE along the held rotation, so it
         is not tested nor fused: it follows a rig."""
         held = undetermined(self.extrinsic_covariance)
-        return bool(np.any(np.linalg.norm(held[3:], axis=0) > RANK_SPAN))
+        return bool(np.any(np.linalg.norm(held[3:], axis=0) > HELD_PART))
 
     @property
     def extrinsic_covariance(self) -> Floats:

@@ -26,7 +26,7 @@ from .checks.consistency import Split, Test, split, threshold
 from .checks.verdict import Purpose, Quality, assess_rig, motion_inconsistency
 from .pipeline import metrics_at
 from .result import CalibrationResult
-from .rig import Conditioned, Joint, Member, conditioned, fuse
+from .rig import HELD_PART, Conditioned, Joint, Member, conditioned, fuse
 from .world import align_worlds
 
 
@@ -120,9 +120,9 @@ def _held_words(joint: Joint) -> str:
         axis = t if np.linalg.norm(t) >= np.linalg.norm(r) else r
         axis = axis / np.linalg.norm(axis)
         words = ' '.join(f'{c:+.3f}' for c in axis)
-        if np.linalg.norm(r) < 1e-6:
+        if np.linalg.norm(r) < HELD_PART:
             said.append(f'the translation along [{words}] (hand frame)')
-        elif np.linalg.norm(t) < 1e-6:
+        elif np.linalg.norm(t) < HELD_PART:
             said.append(f'the rotation about [{words}] (eye frame)')
         else:
             said.append(f'a direction mixing translation and rotation, mostly [{words}]')

@@ -311,9 +311,9 @@ def _rotations_least_squares(spline: PoseSpline, t: Floats, R: Floats) -> PoseSp
     (every k-th). The fit through the centres carries a sample's whole noise into each control
     rotation, and more into the spline's angular acceleration, from which the eye's relative
     poses read dt (eq. 16; bench/results/accuracy.md, "The MoCap's own noise"). Gauss-Newton
-    on the body-frame residuals, each control
-    rotation's correction spread over its support by the plain basis (the frames of one support
-    differ little): the banded normal equations of the positions."""
+    on the body-frame residuals, each control rotation's correction spread over its support by
+    the plain basis (the frames of one support differ little): the banded normal equations of
+    the positions."""
     per = ROTATION_LSQ_PER_SEGMENT * (spline.R.shape[0] - spline.order + 1)
     pick = np.arange(0, t.size, max(1, -(-t.size // per)))
     obs = Rotation.from_quat(R[pick]).as_matrix() if R.shape[-1] == 4 else R[pick]

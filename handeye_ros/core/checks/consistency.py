@@ -3,8 +3,9 @@
 A recording's T_HE is tested against the joint T_HE of the *others* (leave one out, so that the
 two errors are independent): ``chi2 = d^T (C_i + C_others)^-1 d`` with d the difference
 (:func:`..rig.chi2_against`), 6 degrees of freedom (fewer by a direction either holds: a
-ground robot's lever arm along its only rotation axis is no test of agreement). The threshold keeps the chance of naming any
-recording of a consistent rig at FAMILY_FALSE_ALARM, whatever the count (Bonferroni).
+ground robot's lever arm along its only rotation axis is no test of agreement). The threshold
+keeps the chance of naming any recording of a consistent rig at FAMILY_FALSE_ALARM, whatever
+the count (Bonferroni).
 
 :func:`split` finds the groups: the recording that disagrees most leaves the set while any
 disagrees, then each one left out rejoins if it agrees with what remains; what is left out is

@@ -30,8 +30,8 @@ from uncertainty_real import EUROC_GT, VISLAM
 
 from handeye_ros.app.rig import Own, finish, role, shared_outputs, solve, summary_of
 from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.geometry import difference
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.rig import difference
 from handeye_ros.evaluation.outputs import evaluate_and_write
 from handeye_ros.formats import read_trajectory
 

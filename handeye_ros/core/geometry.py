@@ -319,3 +319,10 @@ def _slerp_weights_series(c2: Floats, f: Floats) -> tuple[Floats, Floats]:
     den = sin_over(np.ones_like(W2))
     g = 1.0 - f
     return g * sin_over(g) / den, f * sin_over(f) / den
+
+
+def difference(q_a: Floats, p_a: Floats, q_b: Floats, p_b: Floats) -> Floats:
+    """a [-] b of two poses (x y z w, m): (p_a - p_b, Log(R_b^T R_a)), translation [m] then
+    rotation [rad] in the tangent on the right (the batch stage's order for T_HE)."""
+    R_a, R_b = matrix_from_quat(q_a), matrix_from_quat(q_b)
+    return np.concatenate([np.asarray(p_a) - np.asarray(p_b), log_so3((R_b.T @ R_a)[None])[0]])

@@ -62,7 +62,7 @@ from .stages.linear import LinearStage, linear_stage, seed_check
 from .stages.prepare import Inputs, prepare
 from .stages.time import Offset, absolute, align_stage
 from .trajectory import Trajectory
-from .world import Metrics, WorldAlignment, align_worlds, metrics_of
+from .world import MIN_PLANAR_SPREAD_M, Metrics, WorldAlignment, align_worlds, metrics_of
 
 LOG = logging.getLogger(__name__)
 
@@ -189,12 +189,12 @@ def _calibrate(
 
 
 def _world_warning(world: WorldAlignment) -> Findings:
-    """A warning when the world alignment could not come from the positions."""
+    """A warning when the positions were too small to fix the world alignment's rotation."""
     if world.method == 'positions':
         return Findings()
     return Findings.warned(
-        'the positions do not span a plane; the world alignment T_WG was taken from the '
-        'orientations'
+        f'the positions span less than {2 * MIN_PLANAR_SPREAD_M * 100:.0f} cm in a plane; the '
+        "world alignment T_WG's rotation comes from the orientations, alone or with them"
     )
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from .arrays import Floats
 from .batch.rank import ROUNDING_RTOL, pseudo_inverse, solve_determined, undetermined
 from .document import ResultDoc
-from .geometry import exp_so3, log_so3, matrix_from_quat, quat_from_matrix
+from .geometry import difference, exp_so3, matrix_from_quat, quat_from_matrix
 from .rig_document import MemberDoc
 
 #: Index of T_HE (translation, rotation) in a batch covariance (dt first).
@@ -174,12 +174,6 @@ class Joint:
         """The directions (6, k) of T_HE no member determines (each turned about one axis
         only, the same one): the joint keeps the first member's value along them."""
         return undetermined(self.covariance)
-
-
-def difference(q_a: Floats, p_a: Floats, q_b: Floats, p_b: Floats) -> Floats:
-    """a [-] b: (p_a - p_b, Log(R_b^T R_a)), translation [m] then rotation [rad]."""
-    R_a, R_b = matrix_from_quat(q_a), matrix_from_quat(q_b)
-    return np.concatenate([np.asarray(p_a) - np.asarray(p_b), log_so3((R_b.T @ R_a)[None])[0]])
 
 
 def fuse(members: Sequence[Member]) -> Joint:

@@ -3,9 +3,13 @@
 Once T_HE and dt are known, the eye origin predicted from the MoCap is ``c_G = T_GH T_HE`` (in
 G) and the VIO gives the same point in W. T_WG is the rigid transform that best maps the one
 onto the other in the least-squares sense (Kabsch/Umeyama without scale, solved by
-``scipy.spatial.transform.Rotation.align_vectors``). When the positions do not span a plane
-(a rig turned in place), the positions cannot fix the rotation and it is taken from the
-orientations instead (the chordal mean of ``R_WE (R_GH R_HE)^T``).
+``scipy.spatial.transform.Rotation.align_vectors``) when the positions span at least twice
+MIN_PLANAR_SPREAD_M in a plane (their second principal spread, RMS), as evo's ``--align`` does.
+Positions that span less than MIN_PLANAR_SPREAD_M (a rig turned in place, a turntable's circle of
+a few centimetres beside a VIO's drift of as many) cannot fix the rotation, and it is taken from
+the orientations (the chordal mean of ``R_WE (R_GH R_HE)^T``). Between the two spreads the
+rotation moves from the one to the other along the geodesic, in proportion: T_WG so moves
+continuously with the calibration, as the figures' error bars (draws of the calibration) need.
 
 APE and ARE are the RMS of the translation (m) and rotation angle (deg) of
 ``(T_WG T_GH T_HE)^-1 T_WE`` over all pairs: how well the calibrated MoCap explains the VIO,
@@ -26,13 +30,19 @@ from .arrays import Floats, Indices
 from .association import PosePairs
 from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle, row_norms
 
-#: Positions whose second principal spread is below this (metres RMS) do not fix a rotation.
+#: T_HE as (x y z w, m).
+Extrinsic = tuple[Floats, Floats]
+
+#: Positions whose second principal spread is below this (metres RMS) do not fix a rotation;
+#: from twice it they fix it alone (module docstring).
 MIN_PLANAR_SPREAD_M = 0.05
 
 
 @dataclass(frozen=True)
 class WorldAlignment:
-    """T_WG: the MoCap world G expressed in the VIO world W, and how it was found."""
+    """T_WG: the MoCap world G expressed in the VIO world W, and what fixed its rotation
+    (``method``: 'positions' when they span at least twice MIN_PLANAR_SPREAD_M in a plane,
+    else 'orientations', alone or with the positions)."""
 
     R_WG: Floats
     p_WG: Floats
@@ -68,35 +78,51 @@ def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
     return compose((pairs.R_GH, pairs.p_GH), X)
 
 
-def align_worlds(pairs: PosePairs, q_HE: Floats, p_HE: Floats) -> WorldAlignment:
+def _predicted(pairs: PosePairs, sel: Indices, extrinsic: Extrinsic) -> Pose:
+    """:func:`predicted_eye` of the pairs ``sel`` at T_HE = ``extrinsic`` (x y z w, m)."""
+    q_HE, p_HE = extrinsic
+    R_GE, c_G = predicted_eye(pairs, (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float)))
+    return R_GE[sel], c_G[sel]
+
+
+def align_worlds(
+    pairs: PosePairs, q_HE: Floats, p_HE: Floats, spread_at: Extrinsic | None = None
+) -> WorldAlignment:
     """Least-squares T_WG from the calibrated pairs of the longest eye segment (see module
-    docstring)."""
+    docstring). ``spread_at``: the T_HE (x y z w, m) whose predicted positions' spread weighs
+    the positions against the orientations, when not T_HE itself (the reported calibration,
+    for draws about it: the weighing is then the same in every draw)."""
     labels, counts = np.unique(pairs.segment, return_counts=True)
     longest = int(labels[np.argmax(counts)])
-    out = _align_segment(pairs, pairs.segment == longest, q_HE, p_HE)
+    out = _align_segment(pairs, pairs.segment == longest, (q_HE, p_HE), spread_at)
     return WorldAlignment(out.R_WG, out.p_WG, out.method, longest, int(labels.size))
 
 
-def _align_segment(pairs: PosePairs, sel: Indices, q_HE: Floats, p_HE: Floats) -> WorldAlignment:
-    X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
-    R_GE, c_G = predicted_eye(pairs, X)
-    R_GE, c_G = R_GE[sel], c_G[sel]
-    c_W = pairs.p_WE[sel]
+def _align_segment(
+    pairs: PosePairs, sel: Indices, extrinsic: Extrinsic, spread_at: Extrinsic | None
+) -> WorldAlignment:
+    R_GE, c_G = _predicted(pairs, sel, extrinsic)
+    c_W, R_WE = pairs.p_WE[sel], pairs.R_WE[sel]
     mean_G, mean_W = c_G.mean(axis=0), c_W.mean(axis=0)
-    # a segment of one or two pairs (a short piece between two eye breaks) spans no plane:
-    # np.cov of one sample is NaN, so the spread is taken as the mean square directly
-    d = c_G - mean_G
+    d = (c_G if spread_at is None else _predicted(pairs, sel, spread_at)[1]) - mean_G
+    # one or two pairs (a short piece between two eye breaks) span no plane: the spread is the
+    # mean square directly (np.cov of one sample is NaN)
     spread = np.sqrt(
         np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0, None)
     )
-    if d.shape[0] >= 3 and spread[1] >= MIN_PLANAR_SPREAD_M:
+    # 0: the orientations' rotation, 1: the positions'
+    share = float(np.clip(spread[1] / MIN_PLANAR_SPREAD_M - 1.0, 0.0, 1.0))
+    if d.shape[0] < 3:
+        share = 0.0
+    if share == 1.0:
         R_WG, p_WG = rigid_fit(c_G, c_W)
         return WorldAlignment(R_WG, p_WG, 'positions')
-    R_WG = (
-        Rotation.from_matrix(np.matmul(pairs.R_WE[sel], np.swapaxes(R_GE, -1, -2)))
-        .mean()
-        .as_matrix()
-    )
+    by_orientations = Rotation.from_matrix(np.matmul(R_WE, np.swapaxes(R_GE, -1, -2))).mean()
+    if share > 0.0:
+        by_positions = Rotation.from_matrix(rigid_fit(c_G, c_W)[0])
+        step = (by_orientations.inv() * by_positions).as_rotvec()
+        by_orientations = by_orientations * Rotation.from_rotvec(share * step)
+    R_WG = by_orientations.as_matrix()
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
 
 
@@ -127,13 +153,24 @@ def metrics_of(pairs: PosePairs, q_HE: Floats, p_HE: Floats, world: WorldAlignme
     )
 
 
-def worlds_per_pair(pairs: PosePairs, q_HE: Floats, p_HE: Floats, world: WorldAlignment) -> Pose:
+def worlds_per_pair(
+    pairs: PosePairs,
+    q_HE: Floats,
+    p_HE: Floats,
+    world: WorldAlignment,
+    spread_at: Extrinsic | None = None,
+) -> Pose:
     """T_WG for every pair: ``world`` on its own segment, each other eye segment aligned on its
-    own pairs (a VIO reset starts a new world W). Shapes (N, 3, 3), (N, 3)."""
+    own pairs (a VIO reset starts a new world W; ``spread_at`` as :func:`align_worlds` has
+    it). Shapes (N, 3, 3), (N, 3)."""
     R_WG = np.empty((pairs.segment.size, 3, 3))
     p_WG = np.empty((pairs.segment.size, 3))
     for label in np.unique(pairs.segment):
         sel = pairs.segment == label
-        w = world if label == world.segment else _align_segment(pairs, sel, q_HE, p_HE)
+        w = (
+            world
+            if label == world.segment
+            else _align_segment(pairs, sel, (q_HE, p_HE), spread_at)
+        )
         R_WG[sel], p_WG[sel] = w.R_WG, w.p_WG
     return R_WG, p_WG

@@ -208,10 +208,13 @@ def _figures(
     pairs, ok = pairs_at_eye(used.hand, eye, used.time_offset_s + float(d[0]))
     if pairs.segment.size < MIN_PAIRS:
         return None
-    world = align_worlds(pairs, q, p)
+    # the positions weighed against the orientations as at the reported calibration in every
+    # draw (core/world.py): the draws move T_WG with the calibration, not with the weighing
+    reported = (result.q_HE, result.p_HE)
+    world = align_worlds(pairs, q, p, reported)
     X = (matrix_from_quat(q), p)
     R_ref, p_ref = compose(
-        worlds_per_pair(pairs, q, p, world), compose((pairs.R_GH, pairs.p_GH), X)
+        worlds_per_pair(pairs, q, p, world, reported), compose((pairs.R_GH, pairs.p_GH), X)
     )
     runs = pairs.segment * (int(window.max()) + 1) + window[ok]
     al = AlignedTrajectories(stamps[ok], R_ref, p_ref, pairs.R_WE, pairs.p_WE, runs, '')

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.arrays import Floats
-from ..core.rig import EXTRINSIC, difference
+from ..core.geometry import difference
+from ..core.rig import EXTRINSIC
 from ..core.rig_document import RigDoc, RigExtrinsicDoc, RigRecordingDoc
 from .figures import canvas, save
 from .html import STYLE, VERDICT_COLOUR, _e

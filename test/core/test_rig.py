@@ -14,8 +14,9 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.batch.rank import undetermined
 from handeye_ros.core.checks.consistency import split, threshold
 from handeye_ros.core.checks.verdict import Purpose, judge_rig_figures
+from handeye_ros.core.geometry import difference
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.rig import Member, conditioned, difference, fuse
+from handeye_ros.core.rig import Member, conditioned, fuse
 from handeye_ros.core.rig_pipeline import at_shared, solve_rig
 from handeye_ros.core.simulate import random_truth
 

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..association import PosePairs
+from ..batch.rank import undetermined
 from ..checks.breaks import find_eye_breaks
 from ..checks.excerpt import excerpt, spread_sample
 from ..checks.screening import Screening
@@ -36,7 +37,7 @@ from ..checks.verdict import (
 from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
-from ..geometry import matrix_from_quat, quat_angle
+from ..geometry import difference, matrix_from_quat
 from ..linear.robust import LinearSolution
 from ..linear.solve import solve_linear
 from ..time.align import TimeAlignment, align_time_vector
@@ -351,8 +352,8 @@ def seed_check(
     cfg: CalibrationConfig,
     pairs: PosePairs | None = None,
 ) -> tuple[LinearSolution | None, Findings]:
-    """Stage 2 again with the next RANSAC seed: the answer must not hinge on it beyond its own
-    uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact.
+    """Stage 2 again with the next RANSAC seed: the answer must not hinge on it, on the
+    directions of T_HE the batch stage determines, beyond its own uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact.
     ``pairs``: the streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
         return None, Findings()
@@ -360,7 +361,12 @@ def seed_check(
         other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
         return None, Findings.of(SeedFailed(cfg.seed + 1, str(err)))
-    d_rot = float(np.degrees(quat_angle(other.q_HE, lin.q_HE)))
-    d_t = float(np.linalg.norm(other.p_HE - lin.p_HE))
+    d = difference(other.q_HE, other.p_HE, lin.q_HE, lin.p_HE)
+    if batch is not None and np.all(np.isfinite(batch.covariance)):
+        # a direction the batch stage held (one rotation axis: the lever arm along it, the
+        # rotation about it) is one the motions leave open by design: no seed singles it out
+        held = undetermined(batch.covariance[1:7, 1:7])
+        d = d - held @ (held.T @ d)
+    d_rot, d_t = float(np.degrees(np.linalg.norm(d[3:]))), float(np.linalg.norm(d[:3]))
     std = None if batch is None else batch.std
     return other, Findings.of(SeedCompared(cfg.seed + 1, d_rot, d_t, std))

@@ -70,8 +70,9 @@ class SeedFailed:
 
 @dataclass(frozen=True)
 class SeedCompared:
-    """Stage 2 with the next RANSAC seed landed this far (deg, m) from the answer; the batch
-    stage's sigmas (dt, p, theta) when it ran."""
+    """Stage 2 with the next RANSAC seed landed this far (deg, m) from the answer, on the
+    directions the batch stage determines; the batch stage's sigmas (dt, p, theta) when it
+    ran."""
 
     seed: int
     rotation_deg: float

@@ -104,26 +104,28 @@ def _align_segment(
     R_GE, c_G = _predicted(pairs, sel, extrinsic)
     c_W, R_WE = pairs.p_WE[sel], pairs.R_WE[sel]
     mean_G, mean_W = c_G.mean(axis=0), c_W.mean(axis=0)
-    d = (c_G if spread_at is None else _predicted(pairs, sel, spread_at)[1]) - mean_G
-    # one or two pairs (a short piece between two eye breaks) span no plane: the spread is the
-    # mean square directly (np.cov of one sample is NaN)
-    spread = np.sqrt(
-        np.clip(np.linalg.eigvalsh(d.T @ d / max(d.shape[0] - 1, 1))[::-1], 0.0, None)
-    )
+    spread = _second_spread(c_G if spread_at is None else _predicted(pairs, sel, spread_at)[1])
     # 0: the orientations' rotation, 1: the positions'
-    share = float(np.clip(spread[1] / MIN_PLANAR_SPREAD_M - 1.0, 0.0, 1.0))
-    if d.shape[0] < 3:
-        share = 0.0
-    if share == 1.0:
+    toward_positions = float(np.clip(spread / MIN_PLANAR_SPREAD_M - 1.0, 0.0, 1.0))
+    if toward_positions == 1.0:
         R_WG, p_WG = rigid_fit(c_G, c_W)
         return WorldAlignment(R_WG, p_WG, 'positions')
     by_orientations = Rotation.from_matrix(np.matmul(R_WE, np.swapaxes(R_GE, -1, -2))).mean()
-    if share > 0.0:
+    if toward_positions > 0.0:
         by_positions = Rotation.from_matrix(rigid_fit(c_G, c_W)[0])
         step = (by_orientations.inv() * by_positions).as_rotvec()
-        by_orientations = by_orientations * Rotation.from_rotvec(share * step)
+        by_orientations = by_orientations * Rotation.from_rotvec(toward_positions * step)
     R_WG = by_orientations.as_matrix()
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
+
+
+def _second_spread(points: Floats) -> float:
+    """The second principal spread (m RMS) of ``points`` (N, 3): how far they span a plane;
+    zero for fewer than three (a short piece between two eye breaks spans none)."""
+    if points.shape[0] < 3:
+        return 0.0
+    d = points - points.mean(axis=0)
+    return float(np.sqrt(max(np.linalg.eigvalsh(d.T @ d / (d.shape[0] - 1))[1], 0.0)))
 
 
 def rigid_fit(points_a: Floats, points_b: Floats) -> Pose:

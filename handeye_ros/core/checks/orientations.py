@@ -41,6 +41,7 @@ from ..linear.refits import (
     axis_spreads_deg,
     rotation_from_motions,
     translation_from_motions,
+    unit_axes,
 )
 from ..trajectory import Trajectory
 from .conventions import Correction
@@ -101,9 +102,7 @@ def _axis_spread_deg(R: Floats, i: Indices, j: Indices) -> float:
     About one axis (a ground robot, a turntable) every reading turns the motions alike and the
     translation residuals follow the rotation about the axis that the rotations leave free:
     the check cannot tell the readings apart."""
-    v = Rotation.from_matrix(np.swapaxes(R[i], -1, -2) @ R[j]).as_rotvec()
-    n = np.linalg.norm(v, axis=1)
-    axes = np.where(n[:, None] > 0.0, v / np.maximum(n, 1e-300)[:, None], 0.0)
+    axes = unit_axes(Rotation.from_matrix(np.swapaxes(R[i], -1, -2) @ R[j]).as_rotvec())
     return float(axis_spreads_deg(axes, np.ones((1, len(i)), dtype=bool))[0])
 
 

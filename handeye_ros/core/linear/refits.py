@@ -106,9 +106,15 @@ def axis_spread_deg(m: Motions, mask: Mask) -> float:
 
 def rotation_axes(m: Motions) -> Floats:
     """(n, 3) unit hand rotation axes of the motions (zero rows for no rotation)."""
-    v = m.qa[:, :3]
+    return unit_axes(m.qa[:, :3])
+
+
+def unit_axes(v: Floats) -> Floats:
+    """(n, 3) vectors along the rotation axes (a quaternion's vector part, a rotation vector)
+    scaled to unit length; zero rows for no rotation."""
     norms = np.linalg.norm(v, axis=1)
-    return np.where(norms[:, None] > 1e-12, v / np.maximum(norms, 1e-300)[:, None], 0.0)
+    out: Floats = np.where(norms[:, None] > 1e-12, v / np.maximum(norms, 1e-300)[:, None], 0.0)
+    return out
 
 
 def axis_spreads_deg(axes: Floats, masks: Mask) -> Floats:

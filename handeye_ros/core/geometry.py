@@ -18,6 +18,8 @@ from .arrays import Floats, Indices
 from .chunked import chunked
 
 Pose = tuple[Floats, Floats]
+#: T_HE (or any pose kept as a quaternion): (x y z w, m).
+Extrinsic = tuple[Floats, Floats]
 
 
 def matrix_from_quat(q_xyzw: Floats) -> Floats:

@@ -28,10 +28,16 @@ from scipy.spatial.transform import Rotation
 
 from .arrays import Floats, Indices
 from .association import PosePairs
-from .geometry import Pose, apply, compose, inverse, matrix_from_quat, rotation_angle, row_norms
-
-#: T_HE as (x y z w, m).
-Extrinsic = tuple[Floats, Floats]
+from .geometry import (
+    Extrinsic,
+    Pose,
+    apply,
+    compose,
+    inverse,
+    matrix_from_quat,
+    rotation_angle,
+    row_norms,
+)
 
 #: Positions whose second principal spread is below this (metres RMS) do not fix a rotation;
 #: from twice it they fix it alone (module docstring).

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..arrays import Floats, Mask
+from ..geometry import Extrinsic
 from .axxb import Motions
 
 #: With one rotation axis, the rotation about it is taken as determined when its standard
@@ -214,3 +215,27 @@ def degenerate_refit(
     q = R_X.as_quat()
     q = q * (1.0 if q[3] >= 0.0 else -1.0)
     return q, basis[:, :2] @ t2, tuple(unobservable), a, len(unobservable) > 1
+
+
+def held_alike(
+    m: Motions, mask: Mask, axis: Floats, extrinsic: Extrinsic, like: Extrinsic
+) -> Extrinsic:
+    """``extrinsic`` (T_HE as x y z w, m) moved along what a turntable's motions leave open, to
+    where it is nearest ``like``: screwed about the hand's rotation axis line (direction
+    ``axis`` through the point the hand motions ``mask`` all turn about; every ``Z T_HE``
+    with Z such a screw fits AX = XB alike, since Z commutes with every A) by the twist of
+    ``like``'s rotation over its own about the axis, and along the axis to ``like``'s
+    translation. Two answers that hold the rotation about the axis by a rule (the smallest
+    one that aligns the axes, :func:`degenerate_refit`) may land far apart on that screw
+    when the axes of the two frames are near opposite; moved alike they differ by what the
+    motions determine."""
+    R_A, t_A = m.A[0][mask], m.A[1][mask]
+    # the point of the axis line nearest H's origin: (R_A - I) c = -t_A for every motion
+    c = np.linalg.lstsq((R_A - np.eye(3)).reshape(-1, 3), -t_A.reshape(-1), rcond=None)[0]
+    q, p = extrinsic
+    q_like, p_like = like
+    between = (Rotation.from_quat(q_like) * Rotation.from_quat(q).inv()).as_quat()
+    twist = Rotation.from_rotvec(2.0 * np.arctan2(between[:3] @ axis, between[3]) * axis)
+    moved = twist.apply(np.asarray(p, dtype=float) - c) + c
+    moved = moved + float((np.asarray(p_like) - moved) @ axis) * axis
+    return (twist * Rotation.from_quat(q)).as_quat(), moved

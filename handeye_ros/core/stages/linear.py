@@ -38,6 +38,7 @@ from ..config import CalibrationConfig
 from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
 from ..eye_model import EyeModel
 from ..geometry import difference, matrix_from_quat
+from ..linear.refits import held_alike
 from ..linear.robust import LinearSolution
 from ..linear.solve import solve_linear
 from ..time.align import TimeAlignment, align_time_vector
@@ -361,7 +362,12 @@ def seed_check(
         other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
     except HandeyeError as err:
         return None, Findings.of(SeedFailed(cfg.seed + 1, str(err)))
-    d = difference(other.q_HE, other.p_HE, lin.q_HE, lin.p_HE)
+    there = (other.q_HE, other.p_HE)
+    if lin.held_rotation and lin.motions is not None and lin.held_axis is not None:
+        # both hold the rotation about the axis by a rule: compared where the screw the
+        # motions leave open brings them together (exact, however far apart the rule put them)
+        there = held_alike(lin.motions, lin.inliers, lin.held_axis, there, (lin.q_HE, lin.p_HE))
+    d = difference(*there, lin.q_HE, lin.p_HE)
     if batch is not None and np.all(np.isfinite(batch.covariance)):
         # a direction the batch stage held (one rotation axis: the lever arm along it, the
         # rotation about it) is one the motions leave open by design: no seed singles it out

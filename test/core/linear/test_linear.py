@@ -16,7 +16,8 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.association import associate
 from handeye_ros.core.errors import DegenerateMotionError
 from handeye_ros.core.geometry import compose
-from handeye_ros.core.linear.axxb import build_motions
+from handeye_ros.core.linear.axxb import Motions, build_motions
+from handeye_ros.core.linear.refits import held_alike
 from handeye_ros.core.linear.robust import calibrate_linear
 from handeye_ros.core.simulate import calibration_error, random_truth
 from handeye_ros.core.trajectory import Trajectory
@@ -198,3 +199,27 @@ def test_a_planar_majority_does_not_outvote_the_rich_motions() -> None:
     err = calibration_error(rec.truth, rec.truth.time_offset_s, lin.q_HE, lin.p_HE)
     # level-5 eye noise over 43 s: the linear stage lands within about 1 cm (36 mm before)
     assert err.translation_m < 0.015 and err.rotation_deg < 1.0
+
+
+def test_a_screw_about_the_turntables_axis_line_is_brought_back_exactly() -> None:
+    """Every Z T_HE, Z a screw about the line the hand turns about, fits a turntable's motions
+    alike: held_alike takes one such answer, however far along the screw (170 deg, 0.3 m),
+    back to the one it is compared with."""
+    rng = np.random.default_rng(3)
+    axis = np.array([0.2, -0.5, 0.8]) / np.linalg.norm([0.2, -0.5, 0.8])
+    c = np.array([0.1, 0.05, -0.2])  # a point of the axis line, in H
+    n = 40
+    turns = Rotation.from_rotvec(rng.uniform(0.2, 1.0, n)[:, None] * axis)
+    R_A = turns.as_matrix()
+    t_A = c - turns.apply(c)  # rotations about the line through c
+    X = (Rotation.from_rotvec([0.3, 1.0, -0.4]), np.array([0.02, -0.07, 0.11]))
+    Z = Rotation.from_rotvec(np.radians(170.0) * axis)
+    moved = ((Z * X[0]).as_quat(), Z.apply(X[1] - c) + c + 0.3 * axis)
+    ones = np.ones(n, dtype=bool)
+    m = Motions(
+        np.arange(n), np.arange(n) + 1, (R_A, t_A), (R_A, t_A),
+        *(np.zeros((n, 4)),) * 4, np.ones(n),
+    )  # fmt: skip
+    q, p = held_alike(m, ones, axis, moved, (X[0].as_quat(), X[1]))
+    assert np.degrees((Rotation.from_quat(q).inv() * X[0]).magnitude()) < 1e-9
+    np.testing.assert_allclose(p, X[1], atol=1e-12)

@@ -175,7 +175,8 @@ class BatchProblem:
             )
         self.te = te
         self.eye_obs = relative((Re, pe), self.ei, self.ej)
-        self.dt0, self.RX0, self.pX0 = dt0, matrix_from_quat(q0), np.asarray(p0, float)
+        self.dt0, self.RX0 = dt0, matrix_from_quat(q0)
+        self.pX0: Floats = np.asarray(p0, dtype=np.float64)
         self.translation_basis, self.rotation_basis = self._bases(held_axis, held_rotation)
         # optional entries of y after (dt, dtheta_X, dp_X): the clock drift about the reference
         # stamp t_ref (eye clock) and the eye's scale correction (1 + y_s)

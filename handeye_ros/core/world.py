@@ -117,11 +117,12 @@ def _align_segment(
         R_WG, p_WG = rigid_fit(c_G, c_W)
         return WorldAlignment(R_WG, p_WG, 'positions')
     by_orientations = Rotation.from_matrix(np.matmul(R_WE, np.swapaxes(R_GE, -1, -2))).mean()
+    blend = by_orientations
     if toward_positions > 0.0:
         by_positions = Rotation.from_matrix(rigid_fit(c_G, c_W)[0])
         step = (by_orientations.inv() * by_positions).as_rotvec()
-        by_orientations = by_orientations * Rotation.from_rotvec(toward_positions * step)
-    R_WG = by_orientations.as_matrix()
+        blend = by_orientations * Rotation.from_rotvec(toward_positions * step)
+    R_WG = blend.as_matrix()
     return WorldAlignment(R_WG, mean_W - R_WG @ mean_G, 'orientations')
 
 

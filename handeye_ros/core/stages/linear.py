@@ -354,8 +354,9 @@ def seed_check(
     pairs: PosePairs | None = None,
 ) -> tuple[LinearSolution | None, Findings]:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it, on the
-    directions of T_HE the batch stage determines, beyond its own uncertainty (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact.
-    ``pairs``: the streams associated at dt, when already made."""
+    directions of T_HE the batch stage determines, beyond its own uncertainty
+    (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact. ``pairs``: the
+    streams associated at dt, when already made."""
     if cfg.ransac_iterations == 0:
         return None, Findings()
     try:

@@ -87,8 +87,10 @@ def predicted_eye(pairs: PosePairs, X: Pose) -> Pose:
 def _predicted(pairs: PosePairs, sel: Indices, extrinsic: Extrinsic) -> Pose:
     """:func:`predicted_eye` of the pairs ``sel`` at T_HE = ``extrinsic`` (x y z w, m)."""
     q_HE, p_HE = extrinsic
-    R_GE, c_G = predicted_eye(pairs, (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float)))
-    return R_GE[sel], c_G[sel]
+    X = (matrix_from_quat(q_HE), np.asarray(p_HE, dtype=float))
+    # the segment's pairs alone: worlds_per_pair asks once a segment, and a VI-SLAM run has
+    # dozens of segments
+    return compose((pairs.R_GH[sel], pairs.p_GH[sel]), X)
 
 
 def align_worlds(

@@ -10,7 +10,7 @@
 
 Every configuration is spelled out here (LINEAR, the keyword arguments of calibrate_linear),
 so a change of a default does not silently change what a row measures. Every (level, k) is its
-own recording (common.protocol_seed).
+own recording (cases.protocol_seed).
 
 Usage: python bench/ablation.py [--seeds 20] [--levels 0 1 ... 10]
 """
@@ -20,9 +20,11 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401  (puts the package on sys.path)
 import numpy as np
-from common import PROTOCOL_SEEDS, emit, protocol_seed, pyplot, save_plot, table
+from cases import PROTOCOL_SEEDS
+from common import emit, pyplot, save_plot, table
 
 from handeye_ros.core.association import associate
 from handeye_ros.core.config import CalibrationConfig
@@ -30,7 +32,7 @@ from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.linear.axxb import build_motions
 from handeye_ros.core.linear.robust import calibrate_linear
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import calibration_error, noise_level, simulate
+from handeye_ros.core.simulate import calibration_error, noise_level
 from handeye_ros.core.time.align import align_time
 
 #: The whole linear pipeline: stages 1 and 2 with the defaults otherwise.
@@ -84,9 +86,8 @@ def main() -> None:
     full = np.zeros((len(levels), len(seeds), 3))
     t0 = time.perf_counter()
     for a, level in enumerate(levels):
-        noise_m, noise_deg = noise_level(level)
         for b, seed in enumerate(seeds):
-            rec = simulate(protocol_seed(level, seed), noise_m=noise_m, noise_deg=noise_deg)
+            rec = cases.protocol(level, seed)
             truth = rec.truth
             for fit, err in dt_err.items():
                 ta = align_time(rec.hand, rec.eye, peak_fit=fit)

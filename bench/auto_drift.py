@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import argparse
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
 from common import emit, table
 
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
 
 #: (duration s, noise level, drift s/s): constant clocks on the paper's protocol and longer,
 #: then clocks drifting by a crystal's typical tens of ppm.
@@ -33,12 +33,9 @@ CASES = (
 
 
 def run_case(duration_s: float, level: float, drift: float, seeds: int) -> list:
-    nm, nd = noise_level(level)
     fitted, errors, refused = 0, [], 0
     for k in range(seeds):
-        rec = simulate(
-            5000 + k, duration_s=duration_s, noise_m=nm, noise_deg=nd, clock_drift=drift
-        )
+        rec = cases.recording(5000 + k, level, duration_s=duration_s, clock_drift=drift)
         try:
             res = calibrate(rec.hand, rec.eye)
         except HandeyeError:

@@ -18,23 +18,22 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401
 import numpy as np
 from common import covered, emit, pyplot, save_plot, table
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import calibration_error, noise_level, simulate
+from handeye_ros.core.simulate import calibration_error
 
 
 def recording(level: float, seed: int, hand_noise: float):
     """The paper protocol at ``level``, its own draw per (level, seed), MoCap noise per axis
     ``hand_noise`` (m and rad)."""
-    nm, nd = noise_level(level)
-    return simulate(
-        int(1000 * level) + seed,
-        noise_m=nm,
-        noise_deg=nd,
+    return cases.protocol(
+        level,
+        seed,
         hand_noise_m=hand_noise,
         hand_noise_deg=float(np.degrees(hand_noise)),
     )

@@ -21,7 +21,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import emit, protocol_seed, table
+from cases import protocol_seed
+from common import emit, table
 
 from handeye_ros.core.checks.excerpt import excerpt, excerpt_share
 from handeye_ros.core.checks.selfcheck import (

@@ -52,16 +52,6 @@ def provenance(seeds: object = None) -> str:
     return line + (f'; seeds {seeds}' if seeds is not None else '')
 
 
-def protocol_seed(level: float, k: int) -> int:
-    """Seed of the k-th recording at a noise level of the paper protocol: every (level, k) is
-    its own draw (the same seed at every level would make the levels' errors correlated)."""
-    return int(1000 * level) + k
-
-
-#: How the seeds were chosen, for :func:`emit`'s provenance line.
-PROTOCOL_SEEDS = 'simulator seed 1000 x level + k, k = 0..seeds-1'
-
-
 def emit(name: str, text: str, seeds: object = None) -> None:
     """Print a table with its provenance line and keep a copy in bench/out/."""
     text = f'{text}\n({provenance(seeds)})'

@@ -1,6 +1,6 @@
 """Coverage of the reported uncertainty on real VIO errors, with an exact truth.
 
-The semi-synthetic pairs of bench/realdata.py keep each flight's real noise, but their truth
+The semi-synthetic pairs of bench/cases.py keep each flight's real noise, but their truth
 is not exact: the estimates differ from EuRoC's ground truth by their own sub-millisecond
 offset and a lever arm of 1-2 cm (mono and stereo runs of one flight agree with each other on
 it), which no calibration can tell from the shift it is asked to find. Here the truth is exact
@@ -26,9 +26,9 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401
 import numpy as np
-import realdata
 from common import covered, emit, table
 from scipy.spatial.transform import Rotation
 
@@ -77,11 +77,11 @@ def main() -> None:
     p.add_argument('--per-motion', type=int, default=3, help='error sources per motion')
     p.add_argument('--seed', type=int, default=0)
     args = p.parse_args()
-    if not realdata.available():
-        print(f'real data not found at {realdata.REAL_DATA}: nothing to do')
+    if not cases.available():
+        print(f'real data not found at {cases.REAL_DATA}: nothing to do')
         return
-    pairs = list(realdata.PAIRS)
-    loaded = {pr.name: realdata.load(pr) for pr in pairs}
+    pairs = list(cases.PAIRS)
+    loaded = {pr.name: cases.load(pr) for pr in pairs}
     errors = {pr.name: world_error(*loaded[pr.name]) for pr in pairs}
     # motions: every flight with a 200 Hz ground truth (V1_01's is the 20 Hz re-generated one)
     motions = [pr for pr in pairs if loaded[pr.name][0].rate_hz > 100]

@@ -13,7 +13,7 @@ seeds TUNING_SEED0 + 1000 x level + k, disjoint from the protocol seeds every ot
 with a white MoCap noise of 0.1 mm / 0.0057 deg so that the spline has something to smooth) and
 the real pairs of the easy and medium flights V1_01, V2_01, MH_01, MH_03 (7 pairs). Held out
 (reported, never chosen on): V1_02, V2_02 and MH_05 (5 pairs). Each real pair is calibrated
-with its hand clock shifted by +87.3 ms (bench/realdata.py).
+with its hand clock shifted by +87.3 ms (bench/cases.py).
 
 Every value is run with the rest of the defaults (the consensus also on the linear result,
 where it is chosen: UNDER); the score is the mean rotation error of the default pipeline on the
@@ -30,9 +30,9 @@ import argparse
 import time
 from dataclasses import replace
 
+import cases
 import common  # noqa: F401  (puts the package on sys.path)
 import numpy as np
-import realdata
 from common import emit, table
 
 from handeye_ros.core.config import CalibrationConfig
@@ -69,7 +69,7 @@ MARGIN = 0.05
 DEFAULTS = {'consensus_fraction': linear.CONSENSUS_FRACTION, 'knot_spacing': 0.05}
 
 
-def cases(seeds: int):
+def tuning_and_held_out(seeds: int):
     """(set, name, hand, eye, truth) of every case: 'tuning' or 'held out'."""
     for level in LEVELS:
         nm, nd = noise_level(level)
@@ -82,16 +82,16 @@ def cases(seeds: int):
                 hand_noise_deg=HAND_NOISE[1],
             )
             yield 'sim', f'sim L{level:g} #{k}', rec.hand, rec.eye, rec.truth
-    if not realdata.available():
+    if not cases.available():
         return
-    q, p = realdata.true_extrinsic()
-    for pair in realdata.PAIRS:
-        gt, est = realdata.load(pair)
+    q, p = cases.true_extrinsic()
+    for pair in cases.PAIRS:
+        gt, est = cases.load(pair)
         which = 'real tuning' if pair.name.split()[0] in TUNING_FLIGHTS else 'real held out'
         yield (
             which,
             pair.name,
-            realdata.to_marker_frame(gt, SHIFT_S),
+            cases.to_marker_frame(gt, SHIFT_S),
             est,
             Truth(SHIFT_S, q, p, q, p),
         )
@@ -122,7 +122,7 @@ def main() -> None:
     p.add_argument('--seeds', type=int, default=6, help='simulator recordings per level')
     args = p.parse_args()
     t0 = time.perf_counter()
-    all_cases = list(cases(args.seeds))
+    all_cases = list(tuning_and_held_out(args.seeds))
     sets = ('sim', 'real tuning', 'real held out')
     for setting, values in SETTINGS.items():
         rows, chosen = [], ''

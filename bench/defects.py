@@ -19,14 +19,14 @@ the *same recording without the defect*, calibrated the same way:
 
 Before the verdict existed every returned result counted as ``good``.
 
-Base recordings: the semi-synthetic real pairs of bench/realdata.py (real VIO noise and drift;
+Base recordings: the semi-synthetic real pairs of bench/cases.py (real VIO noise and drift;
 hand moved to the Vicon marker frame with EuRoC's T_BS, clock shifted by +87.3 ms) and
 simulated ones (noise level 3, 200 Hz hand, 20 Hz eye). The motion-shape cases (planar, one
 axis, repetitive, slow) exist only in the simulator and are judged against its truth.
 
 A second table takes the real published VIO estimates *as they are* (placeholder rows and
 repeated stamps included) against the raw EuRoC ground truth, and compares with the same pair
-cleaned by hand (bench/realdata.py) and with the identity / zero offset (both streams are in
+cleaned by hand (bench/cases.py) and with the identity / zero offset (both streams are in
 the IMU frame on one clock).
 
 Usage: python bench/defects.py [--quick] [--only DEFECT ...] [--pairs NAME ...] [--no-published]
@@ -43,9 +43,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cases
 import common  # noqa: F401
 import numpy as np
-import realdata
 from common import emit, table
 from scipy.spatial.transform import Rotation
 
@@ -350,14 +350,14 @@ class Outcome:
 
 
 def real_bases(names: tuple[str, ...] | None) -> list[Base]:
-    q, p = realdata.true_extrinsic()
+    q, p = cases.true_extrinsic()
     out = []
-    for pair in realdata.PAIRS:
+    for pair in cases.PAIRS:
         if names and pair.name not in names:
             continue
-        gt, est = realdata.load(pair)
+        gt, est = cases.load(pair)
         out.append(
-            Base(pair.name, realdata.to_marker_frame(gt, SHIFT_S), est, Truth(SHIFT_S, q, p, q, p))
+            Base(pair.name, cases.to_marker_frame(gt, SHIFT_S), est, Truth(SHIFT_S, q, p, q, p))
         )
     return out
 
@@ -554,11 +554,11 @@ def motion_table(config: CalibrationConfig, details: list[list]) -> list[list]:
 def published_table(config: CalibrationConfig, names: tuple[str, ...] | None) -> list[list]:
     """The real estimates as published, against the raw ground truth."""
     rows = []
-    for pair in realdata.PAIRS:
+    for pair in cases.PAIRS:
         if names and pair.name not in names:
             continue
-        root = realdata.REAL_DATA
-        gt, est_clean = realdata.load(pair)
+        root = cases.REAL_DATA
+        gt, est_clean = cases.load(pair)
         ref = calibrate(gt, est_clean, config)
         t0 = time.perf_counter()
         try:
@@ -599,7 +599,7 @@ def main() -> None:
     header = ['defect', *KINDS, 'WRONG ext', 'worst dt ms', 'worst mm', 'worst deg', 'mean s']
     details: list[list] = []
     seeds = f'injection rng 1000+case index; simulator {SIM_SEEDS}'
-    if realdata.available():
+    if cases.available():
         bases = real_bases(names)
         print(f'real pairs: {", ".join(b.name for b in bases)}', flush=True)
         rows = defect_table(bases, defects, config, details)
@@ -616,7 +616,7 @@ def main() -> None:
             seeds,
         )
     else:
-        print(f'real data not found at {realdata.REAL_DATA}: real cases skipped')
+        print(f'real data not found at {cases.REAL_DATA}: real cases skipped')
     if not args.no_sim:
         sims = sim_bases()[: 1 if args.quick else None]
         rows = defect_table(sims, defects, config, details)
@@ -641,7 +641,7 @@ def main() -> None:
         ),
         seeds,
     )
-    if realdata.available() and not args.no_published:
+    if cases.available() and not args.no_published:
         emit(
             'defects_published',
             table(

@@ -26,7 +26,6 @@ from dataclasses import replace
 
 import common  # noqa: F401 (puts the project on the path)
 import numpy as np
-import realdata
 from common import emit, table
 
 from handeye_ros.core.config import CalibrationConfig
@@ -236,18 +235,18 @@ def main() -> None:
             ),
             seeds,
         )
-    if args.no_real or not realdata.available():
+    if args.no_real or not cases.available():
         if not args.no_real:
-            print(f'real data not found at {realdata.REAL_DATA}: real cases skipped')
+            print(f'real data not found at {cases.REAL_DATA}: real cases skipped')
         return
-    names = args.pairs or (QUICK_PAIRS if args.quick else [q.name for q in realdata.PAIRS])
-    q, pp = realdata.true_extrinsic()
+    names = args.pairs or (QUICK_PAIRS if args.quick else [q.name for q in cases.PAIRS])
+    q, pp = cases.true_extrinsic()
     d_cases, s_cases = [], []
-    for pair in realdata.PAIRS:
+    for pair in cases.PAIRS:
         if pair.name not in names:
             continue
-        gt, est = realdata.load(pair)
-        hand = realdata.to_marker_frame(gt, SHIFT_S)
+        gt, est = cases.load(pair)
+        hand = cases.to_marker_frame(gt, SHIFT_S)
         for ppm in DRIFTS_PPM:
             eye, k, mid = drifted(est, ppm)
             truth = Truth(SHIFT_S, q, pp, q, pp, clock_drift=k, time_offset_stamp_ns=mid)

@@ -17,12 +17,12 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-from common import emit, protocol_seed, table
+from common import emit, table
 
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.evaluation import error_bars
 from handeye_ros.evaluation.metrics import POSE_ERRORS
 
@@ -50,10 +50,9 @@ def main() -> None:
     a = p.parse_args()
     rows = []
     for level in LEVELS:
-        nm, nd = noise_level(level)
         zs, costs = [], []
         for k in range(a.seeds):
-            z, c_cal, c_bars = case(simulate(protocol_seed(level, k), noise_m=nm, noise_deg=nd))
+            z, c_cal, c_bars = case(cases.protocol(level, k))
             zs.append(z)
             costs.append((c_cal, c_bars))
         zs, costs = np.array(zs), np.array(costs)
@@ -67,10 +66,7 @@ def main() -> None:
             ]
         )
         print(rows[-1], flush=True)
-    nm, nd = noise_level(5)
-    rec = simulate(
-        1, duration_s=600.0, hand_rate_hz=200.0, eye_rate_hz=30.0, noise_m=nm, noise_deg=nd
-    )
+    rec = cases.recording(1, 5, duration_s=600.0, hand_rate_hz=200.0, eye_rate_hz=30.0)
     z, c_cal, c_bars = case(rec)
     rows.append(
         [

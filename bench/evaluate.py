@@ -19,7 +19,7 @@
    no traceback, the verdict, evo_ape on the exports against our APE, the report written, and
    what the baseline without the calibration says.
 3. evo_ape on that recording's exports against our APE, and on the 12 real pairs of
-   ../shared/data/real (bench/realdata.py: EuRoC ground truth moved to the Vicon marker frame
+   ../shared/data/real (bench/cases.py: EuRoC ground truth moved to the Vicon marker frame
    and 0.1 s onto another clock, real VIO estimates), with our APE with and without the
    calibration.
 
@@ -283,19 +283,19 @@ def evo_ape(export: Path, home: Path) -> dict:
 
 
 def real(tmp: Path) -> None:
-    import realdata
+    import cases
 
     from handeye_ros.core.pipeline import calibrate
     from handeye_ros.evaluation.outputs import evaluate_and_write
 
-    if not realdata.available():
+    if not cases.available():
         print('real data not present: skipped')
         return
     shift = 0.1
     rows = []
-    for k, pair in enumerate(realdata.PAIRS):
-        gt, est = realdata.load(pair)
-        result = calibrate(realdata.to_marker_frame(gt, shift), est)
+    for k, pair in enumerate(cases.PAIRS):
+        gt, est = cases.load(pair)
+        result = calibrate(cases.to_marker_frame(gt, shift), est)
         out = result.to_dict()
         export = tmp / f'real{k}'
         evaluate_and_write(result, out, export_dir=export)
@@ -352,10 +352,10 @@ DEFECT_SEED0 = 1000
 
 
 def defects(tmp: Path) -> None:
+    import cases
     import defects as dfx
-    import realdata
 
-    if not realdata.available():
+    if not cases.available():
         print('real data not present: skipped')
         return
     rows = []

@@ -26,9 +26,9 @@ import threading
 import time
 from pathlib import Path
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-import realdata
 import yaml
 from common import emit, table
 from node_ingest import Spun, start, stop
@@ -36,28 +36,19 @@ from node_ingest import Spun, start, stop
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.formats import read_trajectory, write_euroc
+from handeye_ros.formats import write_euroc
 
 #: READY statuses are checked at most this often (recording seconds).
 CHECK_S = 10.0
 #: After the replay: how long results may still come (a calibration started at its end).
 GRACE_S = 6.0
-TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 
 
 def recordings() -> list[tuple[str, object, object]]:
-    """Five EuRoC runs (realdata.PAIRS) and TUM-VI room1's ORB-SLAM3 VIO."""
-    out = []
-    for name in ('V1_02 evo', 'V2_01 mono', 'V2_02 stereo', 'MH_01 stereo', 'MH_03 mono'):
-        pair = next(p for p in realdata.PAIRS if p.name == name)
-        out.append((f'EuRoC {name}', *realdata.load(pair)))
-    out.append(
-        (
-            'TUM-VI room1 ORB-SLAM3 VIO',
-            read_trajectory(TUMVI / 'room1_GT.tum'),
-            read_trajectory(TUMVI / 'orbslam-room1-vio.tum'),
-        )
-    )
+    """Five EuRoC runs and TUM-VI room1's ORB-SLAM3 VIO (cases.RUNS)."""
+    names = ('V1_02 evo', 'V2_01 mono', 'V2_02 stereo', 'MH_01 stereo', 'MH_03 mono')
+    out = [(f'EuRoC {name}', *cases.run(f'EuRoC {name}').load()) for name in names]
+    out.append(('TUM-VI room1 ORB-SLAM3 VIO', *cases.run('TUM-VI room1 orbslam').load()))
     return out
 
 

@@ -14,16 +14,18 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401
 import numpy as np
-from common import PROTOCOL_SEEDS, emit, protocol_seed, table
+from cases import PROTOCOL_SEEDS
+from common import emit, table
 
 from handeye_ros.core.association import PosePairs, associate
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import inverse, quat_from_matrix
 from handeye_ros.core.linear.keyframes import rotation_keyframes
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
+from handeye_ros.core.simulate import Truth, calibration_error
 
 try:
     import cv2
@@ -72,10 +74,9 @@ OURS = {
 
 def run(seeds: range, level: float) -> dict[str, np.ndarray]:
     """Per method and input: errors (seeds, 3) = |dt| s, translation m, rotation deg."""
-    noise_m, noise_deg = noise_level(level)
     out: dict[str, list] = {}
     for seed in seeds:
-        rec = simulate(protocol_seed(level, seed), noise_m=noise_m, noise_deg=noise_deg)
+        rec = cases.protocol(level, seed)
         t: Truth = rec.truth
         for name, cfg in OURS.items():
             res = calibrate(rec.hand, rec.eye, cfg)

@@ -3,7 +3,7 @@ data, and recordings turning about one axis only.
 
 Two tables:
 
-- ``purpose_real``: every real run with the default options (uncertainty_real.real_runs: the
+- ``purpose_real``: every real run with the default options (cases.RUNS: the
   EuRoC pairs, the real-time VI-SLAM runs, TUM-VI), the truth T_HE = I and dt = 0 (-50 ms for
   the VI-SLAM runs, one camera frame): the verdict for purpose evaluation (the figures judged,
   as every front end does) and for extrinsic, the largest share of an APE/RPE figure that the
@@ -23,18 +23,17 @@ from __future__ import annotations
 
 import argparse
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-import realdata
 from common import emit, table
 from scipy.spatial.transform import Rotation
-from uncertainty_real import real_runs
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.result import CalibrationResult
-from handeye_ros.core.simulate import Truth, noise_level, simulate
+from handeye_ros.core.simulate import Truth
 from handeye_ros.evaluation.error_bars import figures_at
 from handeye_ros.evaluation.outputs import JUDGED, evaluation_of, judge_figures
 
@@ -65,14 +64,14 @@ def judged(r: CalibrationResult) -> tuple[CalibrationResult, str]:
 
 def real_rows() -> list[list[object]]:
     rows: list[list[object]] = []
-    for name, hand, eye in real_runs():
+    for run in cases.RUNS:
+        name, (hand, eye) = run.name, run.load()
         try:
             r = calibrate(hand, eye)
         except HandeyeError as err:
             rows.append([name, 'refused', '-', '-', '-', '-', '-', str(err)[:50]])
             continue
-        # the VI-SLAM runs' eye clock runs one camera frame (50 ms) ahead of the ground truth's
-        ref = 0.05 if name.startswith('VI-SLAM') else 0.0
+        ref = run.reference_s
         truth = Truth(ref, np.r_[0, 0, 0, 1.0], np.zeros(3), np.r_[0, 0, 0, 1.0], np.zeros(3))
         within = [_truth_within(r, truth, key) for key in ('ape_translation', 'ape_rotation')]
         r, share = judged(r)
@@ -120,12 +119,10 @@ def sim_rows(seeds: int) -> list[list[object]]:
             for level in LEVELS:
                 counts = np.zeros(4)
                 for seed in range(seeds):
-                    nm, nd = noise_level(level)
-                    rec = simulate(
+                    rec = cases.recording(
                         seed,
+                        level,
                         duration_s=duration,
-                        noise_m=nm,
-                        noise_deg=nd,
                         hand_noise_m=2e-4,
                         hand_noise_deg=0.02,
                         motion=motion,
@@ -152,7 +149,7 @@ def main() -> None:
     ap.add_argument('--real-only', action='store_true')
     ap.add_argument('--sim-only', action='store_true')
     a = ap.parse_args()
-    if not a.sim_only and realdata.available():
+    if not a.sim_only and cases.available():
         emit(
             'purpose_real',
             table(

@@ -1,4 +1,4 @@
-"""Semi-synthetic real cases (bench/realdata.py): real VIO noise and drift, known truth.
+"""Semi-synthetic real cases (bench/cases.py): real VIO noise and drift, known truth.
 
 For every pair in ../shared/data/real the ground truth is moved to the Vicon marker frame with
 EuRoC's T_BS and its clock shifted by each of SHIFTS_S; ours estimates the offset itself,
@@ -16,9 +16,9 @@ from __future__ import annotations
 import argparse
 import time
 
+import cases
 import common  # noqa: F401
 import numpy as np
-import realdata
 from common import emit, table
 from opencv_compare import METHODS, cv2, input_sets, opencv_hand_eye
 
@@ -31,16 +31,16 @@ SHIFTS_S = (0.0873, -0.2315)
 
 
 def evaluate_pair(
-    pair: realdata.RealPair, config: CalibrationConfig | None = None
+    pair: cases.RealPair, config: CalibrationConfig | None = None
 ) -> dict[str, float]:
-    gt, est = realdata.load(pair)
-    q, p = realdata.true_extrinsic()
+    gt, est = cases.load(pair)
+    q, p = cases.true_extrinsic()
     identity = calibrate(gt, est, CalibrationConfig(batch=False))
     dt_err, ours, best_cv, lin, lin_dt, std = [], [], [], [], [], []
     elapsed = 0.0
     for shift in SHIFTS_S:
         truth = Truth(shift, q, p, q, p)
-        hand = realdata.to_marker_frame(gt, shift)
+        hand = cases.to_marker_frame(gt, shift)
         t0 = time.perf_counter()
         res = calibrate(hand, est, config)
         elapsed = max(elapsed, time.perf_counter() - t0)
@@ -84,8 +84,8 @@ def main() -> None:
     p.add_argument('--only', nargs='+', help='pair names (default: all)')
     args = p.parse_args()
     config = CalibrationConfig()
-    if not realdata.available():
-        print(f'real data not found at {realdata.REAL_DATA}: nothing to do')
+    if not cases.available():
+        print(f'real data not found at {cases.REAL_DATA}: nothing to do')
         return
     header = [
         'pair',
@@ -105,7 +105,7 @@ def main() -> None:
     ]
     for title, room in (('Vicon room (V1_*, V2_*)', True), ('Machine Hall (MH_*)', False)):
         rows = []
-        for pair in (p for p in realdata.PAIRS if p.vicon_room == room):
+        for pair in (p for p in cases.PAIRS if p.vicon_room == room):
             if args.only and pair.name not in args.only:
                 continue
             r = evaluate_pair(pair, config)

@@ -9,7 +9,7 @@ Three tables:
   dt ~ 0 up to the drift); DSO and the VO runs in the camera frame (T_HE is the camera-IMU
   transform, not I; a row gives the answer or the refusal).
 - ``real_world_keyframes``: keyframe-only versions of the 12 EuRoC estimates of
-  bench/realdata.py (each next pose 1/3 to 1/0.3 s later, seed 0), against the dense run.
+  bench/cases.py (each next pose 1/3 to 1/0.3 s later, seed 0), against the dense run.
 - ``real_world_sim``: 10-minute simulated recordings (level 5, 100 Hz hand, 20 Hz eye): the
   continuous recording; MoCap dropouts of 0.2-5 s covering 5 % and 30 %; the two-window layout
   (60 s at each end, 50 ppm drift, clock_drift on); keyframe-only eyes at 0.3-3 Hz. Errors
@@ -23,10 +23,11 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-import realdata
 from common import CHI2_3_9973, emit, table
 from scipy.spatial.transform import Rotation
 
@@ -41,9 +42,7 @@ from handeye_ros.core.simulate import (
     two_windows,
     with_dropouts,
 )
-from handeye_ros.formats import read_trajectory
 
-TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 LEVEL = 5.0
 DURATION_S = 600.0
 
@@ -66,16 +65,15 @@ def _sigmas(res) -> tuple[float, float, float]:
 
 def tumvi_rows() -> list[list]:
     rows = []
-    for path in sorted(TUMVI.glob('*-*-*.*')):
-        seq = 'room1' if '-room1-' in path.name else 'outdoors4'
-        hand = read_trajectory(TUMVI / f'{seq}_GT.tum')
+    for run in cases.tumvi_estimates():
+        path, (hand, eye) = Path(run.eye), run.load()
         for label, cfg in (
             ('default', CalibrationConfig()),
             ('drift', CalibrationConfig(clock_drift=True)),
         ):
             t0 = time.perf_counter()
             try:
-                res = calibrate(hand, read_trajectory(path), cfg)
+                res = calibrate(hand, eye, cfg)
             except HandeyeError as err:
                 rows.append(
                     [
@@ -110,8 +108,8 @@ def tumvi_rows() -> list[list]:
 
 def keyframe_rows() -> list[list]:
     rows = []
-    for pair in realdata.PAIRS:
-        hand, eye = realdata.load(pair)
+    for pair in cases.PAIRS:
+        hand, eye = cases.load(pair)
         dense = calibrate(hand, eye)
         kf = keyframes_only(eye, np.random.default_rng(0))
         t0 = time.perf_counter()
@@ -257,7 +255,7 @@ def main() -> None:
         default=('tumvi', 'keyframes', 'sim'),
     )
     args = ap.parse_args()
-    if 'tumvi' in args.only and TUMVI.is_dir():
+    if 'tumvi' in args.only and cases.TUMVI.is_dir():
         emit(
             'real_world_tumvi',
             table(
@@ -278,7 +276,7 @@ def main() -> None:
                 tumvi_rows(),
             ),
         )
-    if 'keyframes' in args.only and realdata.available():
+    if 'keyframes' in args.only and cases.available():
         emit(
             'real_world_keyframes',
             table(

@@ -26,6 +26,7 @@ import argparse
 import time
 from dataclasses import replace
 
+import cases
 import common  # noqa: F401 (puts the project on the path)
 import numpy as np
 from common import CHI2_3_9973, emit, table
@@ -36,7 +37,7 @@ from handeye_ros.core.checks.consistency import threshold
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.rig import Member, fuse
 from handeye_ros.core.rig_pipeline import solve_rig
-from handeye_ros.core.simulate import noise_level, random_truth, simulate
+from handeye_ros.core.simulate import random_truth
 
 N = 10
 LEVEL = 5.0
@@ -48,14 +49,8 @@ ODD_TRUE: dict[str, np.ndarray] = {}
 
 
 def _calibrated(seed: int, k: int, truth, motion: str = 'random'):
-    nm, nd = noise_level(LEVEL)
-    rec = simulate(
-        10_000 * seed + k,
-        duration_s=DURATION_S,
-        noise_m=nm,
-        noise_deg=nd,
-        truth=truth,
-        motion=motion,
+    rec = cases.recording(
+        10_000 * seed + k, LEVEL, duration_s=DURATION_S, truth=truth, motion=motion
     )
     res = calibrate(rec.hand, rec.eye)
     return res, rec.truth
@@ -75,7 +70,7 @@ def _errors(q, p, truth):
     return e_t, e_r
 
 
-def cases(seed: int) -> dict[str, list]:
+def rigs(seed: int) -> dict[str, list]:
     """Every case's ten (result, truth) pairs for one seed."""
     rng, base, other, shared = _truths(seed)
     clean = [_calibrated(seed, k, t) for k, t in enumerate(shared)]
@@ -179,7 +174,7 @@ def main() -> None:
     seeds = list(range(1, args.seeds + 1))
     rows = []
     for seed in seeds:
-        runs, base = cases(seed)
+        runs, base = rigs(seed)
         rows += [row(case, seed, r, base) for case, r in runs.items()]
     order = list(dict.fromkeys(r[0] for r in rows))
     rows.sort(key=lambda r: (order.index(r[0]), r[1]))

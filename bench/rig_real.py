@@ -22,57 +22,39 @@ Usage: python bench/rig_real.py
 
 from __future__ import annotations
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-import realdata
 from common import emit, table
-from uncertainty_real import EUROC_GT, VISLAM
 
 from handeye_ros.app.rig import Own, finish, role, shared_outputs, solve, summary_of
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import difference
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.evaluation.outputs import evaluate_and_write
-from handeye_ros.formats import read_trajectory
 
-TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
 EUROC = ('MH_01', 'MH_03', 'MH_05', 'V2_01', 'V2_02')
 IDENTITY = (np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3))
 
 
 def rigs() -> dict[str, list[tuple[str, object]]]:
     """Per rig, its recordings' (name, own result)."""
-    out = {}
-    for kind in ('mono', 'stereo'):
-        runs = []
-        for seq in EUROC:
-            pair = next(p for p in realdata.PAIRS if p.name == f'{seq} {kind}')
-            runs.append((seq, calibrate(*realdata.load(pair))))
-        out[f'EuRoC vio_{kind}'] = runs
-    gt = realdata.REAL_DATA / 'open_vins/ov_data/euroc_mav'
-    out['EuRoC VI-SLAM'] = [
-        (
-            seq,
-            calibrate(
-                read_trajectory(gt / f'{name}.txt'),
-                read_trajectory(VISLAM / f'laptop_vislam_rp_{seq}' / 'stamped_traj_estimate0.txt'),
-            ),
-        )
-        for seq, name in EUROC_GT.items()
-    ]
     drift = CalibrationConfig(clock_drift=True)
-    out['TUM-VI ORB-SLAM3'] = [
-        (
-            seq,
-            calibrate(
-                read_trajectory(TUMVI / f'{seq}_GT.tum'),
-                read_trajectory(TUMVI / f'orbslam-{seq}-vio.tum'),
-                drift,
-            ),
-        )
-        for seq in ('room1', 'outdoors4')
-    ]
-    return out
+    return {
+        **{
+            f'EuRoC vio_{kind}': [
+                (seq, calibrate(*cases.run(f'EuRoC {seq} {kind}').load())) for seq in EUROC
+            ]
+            for kind in ('mono', 'stereo')
+        },
+        'EuRoC VI-SLAM': [
+            (seq, calibrate(*cases.run(f'VI-SLAM {seq}').load())) for seq in cases.EUROC_GT
+        ],
+        'TUM-VI ORB-SLAM3': [
+            (seq, calibrate(*cases.run(f'TUM-VI {seq} orbslam').load(), drift))
+            for seq in ('room1', 'outdoors4')
+        ],
+    }
 
 
 def _mm_deg(v: np.ndarray) -> tuple[float, float]:

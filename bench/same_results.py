@@ -6,7 +6,7 @@ and 10 with the default configuration and with each stage switch that takes anot
 (linear only, the joint batch solve, clock drift, scale, the paper's dual-quaternion solution,
 no RANSAC), 10 minutes of 1 kHz MoCap and 200 Hz VIO (the paths only long recordings take: eye
 pairs in several chunks, the caps on what the checks read), with and without a clock drift, and
-the semi-synthetic real pairs of bench/realdata.py (skipped without the data).
+the semi-synthetic real pairs of bench/cases.py (skipped without the data).
 
 Usage:
     python bench/same_results.py record FILE     # numbers of this tree, as JSON
@@ -31,13 +31,12 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import cases
 import common  # first: puts the project on sys.path
-import realdata
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
 
 TOLERANCE = 1e-9
 #: The records test/test_golden.py holds every tree to (``golden``: the short cases), one per
@@ -67,36 +66,32 @@ DEMO_SEED, DEMO_LEVEL, DEMO_DURATION = 7, 5.0, 60.0  # handeye_ros/app/demo.py's
 LONG_SEED, LONG_DURATION = 300, 600.0
 
 
-def cases(short: bool = False):
+def every_case(short: bool = False):
     """(name, hand, eye, config) of every case; ``short``: the simulated ones of a minute or
     less, the golden regression test's (test/test_golden.py)."""
     base = CalibrationConfig()
-    nm, nd = noise_level(DEMO_LEVEL)
-    rec = simulate(DEMO_SEED, duration_s=DEMO_DURATION, noise_m=nm, noise_deg=nd)
+    rec = cases.recording(DEMO_SEED, DEMO_LEVEL, duration_s=DEMO_DURATION)
     yield 'demo', rec.hand, rec.eye, base
     for level in (0, 5, 10):
-        nm, nd = noise_level(level)
-        rec = simulate(100 + level, duration_s=40.0, noise_m=nm, noise_deg=nd)
+        rec = cases.recording(100 + level, level, duration_s=40.0)
         for name, change in VARIANTS.items():
             yield f'sim L{level} {name}', rec.hand, rec.eye, replace(base, **change)
     if short:
         return
-    nm, nd = noise_level(5)
     for name, drift in (('default', 0.0), ('drift', 5e-5)):
-        rec = simulate(
+        rec = cases.recording(
             LONG_SEED,
+            5,
             duration_s=LONG_DURATION,
             hand_rate_hz=1000.0,
             eye_rate_hz=200.0,
-            noise_m=nm,
-            noise_deg=nd,
             clock_drift=drift,
         )
         yield f'sim 1 kHz 10 min {name}', rec.hand, rec.eye, replace(base, **VARIANTS[name])
-    if realdata.available():
-        for pair in realdata.PAIRS:
-            gt, est = realdata.load(pair)
-            hand = realdata.to_marker_frame(gt, 0.0873)
+    if cases.available():
+        for pair in cases.PAIRS:
+            gt, est = cases.load(pair)
+            hand = cases.to_marker_frame(gt, 0.0873)
             for name in ('default', 'linear'):
                 yield f'{pair.name} {name}', hand, est, replace(base, **VARIANTS[name])
 
@@ -125,7 +120,7 @@ def _portable(text: str) -> str:
 
 def record(short: bool = False) -> dict:
     results = {}
-    for name, hand, eye, cfg in cases(short):
+    for name, hand, eye, cfg in every_case(short):
         try:
             results[name] = flatten(calibrate(hand, eye, cfg).to_dict())
         except HandeyeError as err:

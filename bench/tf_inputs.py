@@ -1,7 +1,7 @@
 """Issue 12, item 4: real recordings delivered as /tf and as mocap4r2 rigid bodies, with the
 defects such inputs have, through ``offline_calibrate --bag`` as a user runs it.
 
-For each real pair of ../shared/data/real (bench/realdata.py: EuRoC ground truth moved to the
+For each real pair of ../shared/data/real (bench/cases.py: EuRoC ground truth moved to the
 Vicon marker frame and 0.1 s onto another clock, a real VIO estimate) the very same poses are
 written as bags in the layouts of handeye_ros.formats.bag, and each is calibrated:
 
@@ -33,9 +33,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import cases
 import common  # noqa: F401  (puts the repository on sys.path)
 import numpy as np
-import realdata
 from common import ROOT, emit, table
 from defects import SHIFT_S
 
@@ -177,16 +177,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--pairs', nargs='*', default=list(DEFAULT_PAIRS))
     args = ap.parse_args()
-    if not realdata.available():
+    if not cases.available():
         print('real data absent (../shared/data/real): nothing to measure', file=sys.stderr)
         return
     rows, rates = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for pair in realdata.PAIRS:
+        for pair in cases.PAIRS:
             if pair.name not in args.pairs:
                 continue
-            gt, est = realdata.load(pair)
-            hand = realdata.to_marker_frame(gt, SHIFT_S)
+            gt, est = cases.load(pair)
+            hand = cases.to_marker_frame(gt, SHIFT_S)
             ref = None
             for case, make in CASES.items():
                 bag = Path(tmp) / f'{pair.name}_{case}'.replace(' ', '_').replace('/', '')

@@ -31,78 +31,41 @@ from __future__ import annotations
 import argparse
 import itertools
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-import realdata
-from common import covered, emit, protocol_seed, table
+from common import covered, emit, table
 from drift_scale import sim3_scale
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
-from handeye_ros.formats import read_trajectory
 
-TUMVI = realdata.REAL_DATA / 'VSLAM-comparison' / 'Trajectory-files' / 'tum-vi'
-OUTDOORS4 = ('basalt-outdoors4-vio.txt', 'orbslam-outdoors4-vio.tum', 'basalt-outdoors4-vo.txt')
+#: TUM-VI outdoors4's estimates by the names the tables give them.
+OUTDOORS4 = {
+    'basalt vio': 'basalt-outdoors4-vio.txt',
+    'orbslam vio': 'orbslam-outdoors4-vio.tum',
+    'basalt vo': 'basalt-outdoors4-vo.txt',
+}
 EUROC = ('MH_01', 'MH_03', 'MH_05', 'V2_01', 'V2_02')
 LEVELS = (2, 5, 8, 10)
 
 
 def estimates() -> dict[str, list[tuple[str, object]]]:
     """Per recording, its estimates' (name, result)."""
-    out: dict[str, list[tuple[str, object]]] = {}
-    hand = read_trajectory(TUMVI / 'outdoors4_GT.tum')
     drift = CalibrationConfig(clock_drift=True)
-    out['TUM-VI outdoors4'] = [
-        (
-            name.split('-outdoors4-')[0] + ' ' + name.split('-')[-1].split('.')[0],
-            calibrate(hand, read_trajectory(TUMVI / name), drift),
-        )
-        for name in OUTDOORS4
-    ]
+    out: dict[str, list[tuple[str, object]]] = {
+        'TUM-VI outdoors4': [
+            (label, calibrate(*cases.tumvi('outdoors4', f).load(), drift))
+            for label, f in OUTDOORS4.items()
+        ]
+    }
     for seq in EUROC:
-        runs = []
-        for kind in ('mono', 'stereo'):
-            pair = next(p for p in realdata.PAIRS if p.name == f'{seq} {kind}')
-            gt, est = realdata.load(pair)
-            runs.append((f'vio_{kind}', calibrate(gt, est)))
-        out[f'EuRoC {seq}'] = runs
-    return out
-
-
-VISLAM = (
-    realdata.REAL_DATA / 'rpg_trajectory_evaluation/results/euroc_vislam_mono/laptop/vislam_rp'
-)
-EUROC_GT = {
-    'MH_01': 'MH_01_easy',
-    'MH_02': 'MH_02_easy',
-    'MH_03': 'MH_03_medium',
-    'MH_04': 'MH_04_difficult',
-    'MH_05': 'MH_05_difficult',
-}
-
-
-def real_runs() -> list[tuple[str, object, object]]:
-    """(name, hand, eye) of every real run of the development data in the IMU frame."""
-    out = [(f'EuRoC {p.name}', *realdata.load(p)) for p in realdata.PAIRS]
-    gt = realdata.REAL_DATA / 'open_vins/ov_data/euroc_mav'
-    for seq, name in EUROC_GT.items():
-        est = VISLAM / f'laptop_vislam_rp_{seq}' / 'stamped_traj_estimate0.txt'
-        out.append((f'VI-SLAM {seq}', read_trajectory(gt / f'{name}.txt'), read_trajectory(est)))
-    for seq, files in (
-        ('room1', ('basalt-room1-vio.tum', 'orbslam-room1-vio.tum')),
-        ('outdoors4', ('basalt-outdoors4-vio.txt', 'orbslam-outdoors4-vio.tum')),
-    ):
-        for f in files:
-            out.append(
-                (
-                    f'TUM-VI {seq} {f.split("-")[0]}',
-                    read_trajectory(TUMVI / f'{seq}_GT.tum'),
-                    read_trajectory(TUMVI / f),
-                )
-            )
+        out[f'EuRoC {seq}'] = [
+            (f'vio_{kind}', calibrate(*cases.run(f'EuRoC {seq} {kind}').load()))
+            for kind in ('mono', 'stereo')
+        ]
     return out
 
 
@@ -110,7 +73,8 @@ def error_rows() -> tuple[list[list], np.ndarray, np.ndarray, list[str]]:
     """A row per real run (default options), the (runs, 6) errors of T_HE (m, rotation vector
     rad) and their reported 1-sigmas, and each such run's name."""
     rows, errors, sigmas, names = [], [], [], []
-    for name, hand, eye in real_runs():
+    for run in cases.RUNS:
+        name, (hand, eye) = run.name, run.load()
         try:
             r = calibrate(hand, eye)
         except HandeyeError as err:  # Basalt room1: its quaternion columns as published
@@ -257,10 +221,9 @@ def term_rows(runs: dict) -> list[list]:
 def sim_rows(seeds: int) -> list[list]:
     rows = []
     for level in LEVELS:
-        nm, nd = noise_level(level)
         cov_now, cov_before, ratios = [], [], []
         for k in range(seeds):
-            rec = simulate(protocol_seed(level, k), noise_m=nm, noise_deg=nd)
+            rec = cases.protocol(level, k)
             r = calibrate(rec.hand, rec.eye)
             u = r.batch.uncertainty
             cov_now.append(covered(r, rec.truth))
@@ -297,7 +260,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     p.add_argument('--seeds', type=int, default=20, help='simulations a level (default 20)')
     a = p.parse_args()
-    if realdata.available():
+    if cases.available():
         runs = estimates()
         emit(
             'uncertainty_pairs',

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import argparse
 
+import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-from common import covered, emit, protocol_seed, table
+from common import covered, emit, table
 
 from handeye_ros.core.batch import correlated
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.core.stages import batch as batch_stage
 
 LEVELS = (2, 5)
@@ -65,17 +65,10 @@ def rows(seeds: int) -> list[list]:
     batch_stage.varies = _spy
     out = []
     for level in LEVELS:
-        nm, nd = noise_level(level)
         for wander in WANDERS_MS:
             now, before, z_now, z_before, sd, noted = [], [], [], [], [], 0
             for k in range(seeds):
-                rec = simulate(
-                    protocol_seed(level, k),
-                    duration_s=DURATION_S,
-                    noise_m=nm,
-                    noise_deg=nd,
-                    wander_s=wander * 1e-3,
-                )
+                rec = cases.protocol(level, k, duration_s=DURATION_S, wander_s=wander * 1e-3)
                 _blocks.clear()
                 r = calibrate(rec.hand, rec.eye)
                 u = r.batch.uncertainty

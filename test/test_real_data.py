@@ -1,6 +1,6 @@
 """Real VIO against real ground truth (../shared/data/real; skipped when absent).
 
-Semi-synthetic as in bench/realdata.py: the hand is the EuRoC ground truth moved to the Vicon
+Semi-synthetic as in bench/cases.py: the hand is the EuRoC ground truth moved to the Vicon
 marker frame with the published T_BS and its clock shifted by a known amount; the eye is a real
 VIO estimate with its real noise and drift. The streams already differ by ~0.2-3 ms before the
 shift, and the estimates carry their own attitude bias against the ground truth (up to ~1.4 deg,
@@ -20,7 +20,7 @@ from handeye_ros.core.simulate import Truth, calibration_error
 from handeye_ros.formats import read_trajectory
 
 sys.path.insert(0, str(ROOT / 'bench'))
-import realdata
+import cases
 
 pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: seconds each
 
@@ -29,10 +29,10 @@ SHIFT_S = 0.1234
 
 @pytest.mark.parametrize('name', ['V2_01 stereo', 'V2_02 mono', 'MH_01 stereo'])
 def test_semi_synthetic_pair(real_data, name: str) -> None:
-    pair = next(p for p in realdata.PAIRS if p.name == name)
-    gt, est = realdata.load(pair, real_data)
-    res = calibrate(realdata.to_marker_frame(gt, SHIFT_S), est)
-    q, p = realdata.true_extrinsic()
+    pair = cases.pair(name)
+    gt, est = cases.load(pair, real_data)
+    res = calibrate(cases.to_marker_frame(gt, SHIFT_S), est)
+    q, p = cases.true_extrinsic()
     err = calibration_error(Truth(SHIFT_S, q, p, q, p), res.time_offset_s, res.q_HE, res.p_HE)
     assert err.time_offset_s < 5e-3
     assert err.translation_m < 0.04 and err.rotation_deg < 2.0

@@ -136,11 +136,11 @@ def test_real_pair_with_drift_and_scale() -> None:
     its positions halved give s = 2 within 0.5 % of the unmodified pair's s, which is within
     2 % of 1 (a metric VIO, to its own scale error)."""
     sys.path.insert(0, str(ROOT / 'bench'))
-    import realdata
+    import cases
 
-    pair = next(p for p in realdata.PAIRS if p.name == 'V2_01 stereo')
-    gt, est = realdata.load(pair)
-    hand = realdata.to_marker_frame(gt, 0.0873)
+    pair = cases.pair('V2_01 stereo')
+    gt, est = cases.load(pair)
+    hand = cases.to_marker_frame(gt, 0.0873)
     t = est.t_ns
     mid = int(t[t.size // 2])
     eye = replace(est, t_ns=t + np.rint((t - mid) * 200e-6).astype(np.int64))

@@ -108,7 +108,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['runtime_keyframes_200_0.5'],
         '2 min',
     ),
-    'candidates': ('candidates', ['--seeds', '20'], ['candidates'], '6 min'),
     'evaluate': (
         'evaluate',
         [],
@@ -135,9 +134,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '12 min',
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
-    'qos_stall': ('qos_stall', [], ['qos_stall'], '1 min'),
-    'node_load': ('node_load', [], ['node_load'], '7 min'),
-    'sim_time_stop': ('sim_time_stop', [], ['sim_time_stop'], '2 min'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),
     'rig_scale': ('rig_scale', [], ['rig_scale'], '2 min'),

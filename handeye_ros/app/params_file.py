@@ -94,7 +94,7 @@ class NodeConfig(Options):
     )
     # 5 s of a 1 kHz stream: DDS keeps at most this many messages for a reader that does not
     # take them, so a stall of the executor loses about stall x rate - depth (a second or two
-    # under load loses nothing: bench/qos_stall.py); an idle queue costs nothing
+    # under load loses nothing: bench/results/node.md); an idle queue costs nothing
     qos_depth: int = option(
         5000,
         'int',

@@ -49,7 +49,7 @@ LIKELY_TYPES = {'hand': 'geometry_msgs/msg/PoseStamped', 'eye': 'nav_msgs/msg/Od
 #: Messages a pose callback takes from its queue beyond the one the executor handed it: rclpy's
 #: executor rebuilds its wait set of the node's ~25 entities for each message (~0.3 ms of
 #: Python), a direct take costs ~0.07 ms, so a node that fell behind catches up
-#: (bench/node_load.py); the executor is back to timers and services within ~10 ms.
+#: (bench/results/node.md); the executor is back to timers and services within ~10 ms.
 DRAIN_MAX = 100
 
 

@@ -20,7 +20,7 @@ from ..arrays import Indices, Mask, Stamps
 from ..trajectory import Trajectory
 
 #: Windows of the eye in an excerpt, and the eye's keyframe motions (eq. 6) they hold in all:
-#: at 30 deg/s some 160 s of a recording (bench/candidates.py: the truth kept and a lap away
+#: at 30 deg/s some 160 s of a recording (bench/results/runtime.md: the truth kept and a lap away
 #: rejected there on every motion and noise level of the simulations).
 WINDOWS = 8
 EXCERPT_MOTIONS = 800

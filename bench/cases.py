@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from handeye_ros.core.geometry import compose, inverse, matrix_from_quat, quat_from_matrix
-from handeye_ros.core.simulate import Recording, noise_level, simulate
+from handeye_ros.core.simulate import Recording, Truth, noise_level, simulate
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.formats import read_trajectory
 
@@ -244,6 +244,18 @@ def to_marker_frame(gt: Trajectory, clock_shift_s: float) -> Trajectory:
     return Trajectory.from_arrays(
         gt.t_ns - shift_ns, p, quat_from_matrix(R), gt.name + ' (marker)'
     )
+
+
+#: The clock shift (s) of the marker-frame cases (:func:`marker_case`).
+SHIFT_S = 0.0873
+
+
+def marker_case(pair: RealPair, shift_s: float = SHIFT_S) -> tuple[Trajectory, Trajectory, Truth]:
+    """A EuRoC pair as a MoCap would give it: (the hand in the marker frame on a clock
+    ``shift_s`` behind, the estimate, the truth: dt = shift_s, T_HE = T_BS^-1)."""
+    gt, est = load(pair)
+    q, p = true_extrinsic()
+    return to_marker_frame(gt, shift_s), est, Truth(shift_s, q, p, q, p)
 
 
 def true_extrinsic() -> tuple[np.ndarray, np.ndarray]:

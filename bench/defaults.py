@@ -39,11 +39,10 @@ from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.linear import ransac as linear
 from handeye_ros.core.pipeline import calibrate
-from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
+from handeye_ros.core.simulate import calibration_error, noise_level, simulate
 
 TUNING_SEED0 = 500_000
 LEVELS = (2.0, 5.0, 10.0)
-SHIFT_S = 0.0873
 #: Flights the defaults may be chosen on; the others are held out.
 TUNING_FLIGHTS = ('V1_01', 'V2_01', 'MH_01', 'MH_03')
 HAND_NOISE = (1e-4, 0.0057)  # m, deg per axis
@@ -84,17 +83,9 @@ def tuning_and_held_out(seeds: int):
             yield 'sim', f'sim L{level:g} #{k}', rec.hand, rec.eye, rec.truth
     if not cases.available():
         return
-    q, p = cases.true_extrinsic()
     for pair in cases.PAIRS:
-        gt, est = cases.load(pair)
         which = 'real tuning' if pair.name.split()[0] in TUNING_FLIGHTS else 'real held out'
-        yield (
-            which,
-            pair.name,
-            cases.to_marker_frame(gt, SHIFT_S),
-            est,
-            Truth(SHIFT_S, q, p, q, p),
-        )
+        yield (which, pair.name, *cases.marker_case(pair))
 
 
 def run_one(
@@ -161,7 +152,7 @@ def main() -> None:
             f'defaults_{setting}',
             text + '\n' + chosen + f'\n({time.perf_counter() - t0:.0f} s so far)',
             f'simulator {TUNING_SEED0} + 1000 x level + k, k = 0..{args.seeds - 1}; '
-            f'real pairs shifted {SHIFT_S:+g} s; RANSAC seed: the default',
+            f'real pairs shifted {cases.SHIFT_S:+g} s; RANSAC seed: the default',
         )
 
 

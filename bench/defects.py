@@ -59,8 +59,6 @@ from handeye_ros.evaluation.error_bars import figures_at
 from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 from handeye_ros.formats import read_trajectory
 
-#: Clock shift applied to the real pairs' hand (s): the true offset before any defect.
-SHIFT_S = 0.0873
 #: Tolerances of "accurate" (issue 10): against the same recording without the defect.
 TOL_DT_S, TOL_T_M, TOL_R_DEG = 2e-3, 0.01, 0.5
 SIM_SEEDS = (101, 102, 103)
@@ -350,16 +348,11 @@ class Outcome:
 
 
 def real_bases(names: tuple[str, ...] | None) -> list[Base]:
-    q, p = cases.true_extrinsic()
-    out = []
-    for pair in cases.PAIRS:
-        if names and pair.name not in names:
-            continue
-        gt, est = cases.load(pair)
-        out.append(
-            Base(pair.name, cases.to_marker_frame(gt, SHIFT_S), est, Truth(SHIFT_S, q, p, q, p))
-        )
-    return out
+    return [
+        Base(pair.name, *cases.marker_case(pair))
+        for pair in cases.PAIRS
+        if not names or pair.name in names
+    ]
 
 
 def sim_bases(motion: str = 'random') -> list[Base]:
@@ -607,7 +600,7 @@ def main() -> None:
             'defects_real',
             table(
                 f'Defects injected into {len(bases)} real pairs (hand: EuRoC CSV in the Vicon marker '
-                f'frame, clock +{SHIFT_S * 1e3:.1f} ms; eye: the published VIO as TUM); accurate = '
+                f'frame, clock +{cases.SHIFT_S * 1e3:.1f} ms; eye: the published VIO as TUM); accurate = '
                 f'within {TOL_DT_S * 1e3:g} ms, {TOL_T_M * 1e3:g} mm, {TOL_R_DEG} deg of the same '
                 'recording without the defect',
                 header,

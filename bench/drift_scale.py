@@ -36,7 +36,6 @@ from handeye_ros.core.trajectory import Trajectory
 DRIFTS_PPM = (0.0, 50.0, 200.0, 1000.0)
 SCALES = (0.3, 0.5, 2.0, 5.0)
 SIM_SEEDS = (11, 12, 13)
-SHIFT_S = 0.0873
 QUICK_PAIRS = ('V2_01 stereo', 'MH_01 mono', 'V1_02 evo')
 
 
@@ -246,12 +245,12 @@ def main() -> None:
         if pair.name not in names:
             continue
         gt, est = cases.load(pair)
-        hand = cases.to_marker_frame(gt, SHIFT_S)
+        hand = cases.to_marker_frame(gt, cases.SHIFT_S)
         for ppm in DRIFTS_PPM:
             eye, k, mid = drifted(est, ppm)
-            truth = Truth(SHIFT_S, q, pp, q, pp, clock_drift=k, time_offset_stamp_ns=mid)
+            truth = Truth(cases.SHIFT_S, q, pp, q, pp, clock_drift=k, time_offset_stamp_ns=mid)
             d_cases.append((f'{pair.name} {ppm:g} ppm', hand, eye, truth))
-        truth = Truth(SHIFT_S, q, pp, q, pp)
+        truth = Truth(cases.SHIFT_S, q, pp, q, pp)
         ref = calibrate(hand, est, CalibrationConfig(estimate_scale=True)).scale
         s_cases.append((f'{pair.name} metric', hand, est, truth, 1.0, None, sim3_scale(gt, est)))
         for s in SCALES:

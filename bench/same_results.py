@@ -91,7 +91,7 @@ def every_case(short: bool = False):
     if cases.available():
         for pair in cases.PAIRS:
             gt, est = cases.load(pair)
-            hand = cases.to_marker_frame(gt, 0.0873)
+            hand = cases.to_marker_frame(gt, cases.SHIFT_S)
             for name in ('default', 'linear'):
                 yield f'{pair.name} {name}', hand, est, replace(base, **VARIANTS[name])
 

@@ -37,7 +37,6 @@ import cases
 import common  # noqa: F401  (puts the repository on sys.path)
 import numpy as np
 from common import ROOT, emit, table
-from defects import SHIFT_S
 
 from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
 
@@ -186,7 +185,7 @@ def main() -> None:
             if pair.name not in args.pairs:
                 continue
             gt, est = cases.load(pair)
-            hand = cases.to_marker_frame(gt, SHIFT_S)
+            hand = cases.to_marker_frame(gt, cases.SHIFT_S)
             ref = None
             for case, make in CASES.items():
                 bag = Path(tmp) / f'{pair.name}_{case}'.replace(' ', '_').replace('/', '')
@@ -245,7 +244,7 @@ def main() -> None:
         ['pair', 'case', 'replay msg/s', 'offline_calibrate s'],
         rates,
     )
-    emit('tf_inputs', text, seeds={'clock_shift_s': SHIFT_S, 'pairs': args.pairs})
+    emit('tf_inputs', text, seeds={'clock_shift_s': cases.SHIFT_S, 'pairs': args.pairs})
 
 
 if __name__ == '__main__':

@@ -106,3 +106,19 @@ def covered(res, truth, white: bool = False) -> tuple[bool, bool, bool]:
     m_t = float(e_t @ np.linalg.solve(cov[1:4, 1:4], e_t))
     m_r = float(e_r @ np.linalg.solve(cov[4:7, 4:7], e_r))
     return abs(e_dt) <= 3 * np.sqrt(cov[0, 0]), m_t <= CHI2_3_9973, m_r <= CHI2_3_9973
+
+
+def sim3_scale(gt, est) -> float:
+    """The VIO's own scale error on a real pair: s with s * eye positions closest to the
+    ground truth's (both in the IMU frame, same clock) after the best rotation and translation
+    (least squares over the matched positions; Umeyama 1991)."""
+    from handeye_ros.core.association import associate
+
+    pairs = associate(gt, est, 0.0)
+    a = pairs.p_GH - pairs.p_GH.mean(axis=0)
+    b = pairs.p_WE - pairs.p_WE.mean(axis=0)
+    U, S, Vt = np.linalg.svd(b.T @ a)
+    d = np.ones(3)
+    d[2] = np.sign(np.linalg.det(U @ Vt))
+    # a ~ s R b: the least-squares s of the rotated, centred positions
+    return float(np.sum(S * d) / np.sum(b * b))

@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import common  # noqa: F401 (puts the project on the path)
 import numpy as np
-from common import emit, table
+from common import emit, sim3_scale, table
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
@@ -111,22 +111,6 @@ DRIFT_HEADER = [
     'verdict with --clock-drift',
     's',
 ]
-
-
-def sim3_scale(gt: Trajectory, est: Trajectory) -> float:
-    """The VIO's own scale error on a real pair: s with s * eye positions closest to the
-    ground truth's (both in the IMU frame, same clock) after the best rotation and translation
-    (least squares over the matched positions; Umeyama 1991)."""
-    from handeye_ros.core.association import associate
-
-    pairs = associate(gt, est, 0.0)
-    a = pairs.p_GH - pairs.p_GH.mean(axis=0)
-    b = pairs.p_WE - pairs.p_WE.mean(axis=0)
-    U, S, Vt = np.linalg.svd(b.T @ a)
-    d = np.ones(3)
-    d[2] = np.sign(np.linalg.det(U @ Vt))
-    # a ~ s R b: the least-squares s of the rotated, centred positions
-    return float(np.sum(S * d) / np.sum(b * b))
 
 
 def scale_rows(cases, calibrate) -> list[list]:

@@ -31,7 +31,7 @@ import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
 import yaml
 from common import emit, table
-from node_ingest import Spun, start, stop
+from live import Spun, start, stop
 
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError

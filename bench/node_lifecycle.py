@@ -34,7 +34,7 @@ import time
 
 import common  # noqa: F401  (puts the repository on sys.path)
 from common import emit, table
-from node_ingest import Probe, start
+from live import Probe, start
 
 MOMENTS = ('starting', 'receiving', 'calibrating', 'idle')
 

@@ -34,8 +34,7 @@ import itertools
 import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-from common import covered, emit, table
-from drift_scale import sim3_scale
+from common import covered, emit, sim3_scale, table
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig

@@ -134,6 +134,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '12 min',
     ),
     'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
+    'code_path': ('code_path', [], ['code_path'], '5 s'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),
     'rig_scale': ('rig_scale', [], ['rig_scale'], '2 min'),

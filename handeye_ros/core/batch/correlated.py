@@ -41,8 +41,7 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
    covered poses (``1 / B`` for equal blocks).
 
    A spread of four values is a noisy figure, and where the quarters' edges fall decides part
-   of it: prefixes of one recording 2 s apart (EuRoC V2_01 mono, 54-110 s) moved the
-   translation's 1-sigma between 6.6 and 11.3 mm. So the recording is cut SHIFTS times
+   of it. So the recording is cut SHIFTS times
    (:func:`cuts`): at its quarters, and again a quarter, a half and three quarters of a block
    later (three whole blocks between two parts of one at the ends), and ``v_g`` is the mean of
    the cuttings' (overlapping batch means, which average over every start, here four). Where
@@ -51,13 +50,10 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
    C_b^-1 d_b / (p_g (B - 1))`` far above 1 (:func:`varies`) means that the group's value
    moves along the recording by more than the blocks' own noise: the result says so, with the
    blocks' spread. (Multiplying ``C`` by that ratio would count the long-run correlation twice
-   where a block's covariance is not B times the whole one's: on TUM-VI outdoors4, its MoCap at
-   the two ends only, the offset's 1-sigma would be 35 ms, where the blocks' mean is uncertain
-   by 3.7 ms.)
-2. **Scale.** A metric VIO's translations are a little off in scale (TUM-VI outdoors4: Basalt's
-   1.3-1.5 % long; EuRoC MH_03's real-time VI-SLAM 2.5 % short), and holding s = 1 moves T_HE
-   by the lever arm's share of that error (61 mm from the ground truth's there, 17 mm with s
-   free). So the batch stage fits a factor on the eye's translations beside (dt, T_HE) as a
+   where a block's covariance is not B times the whole one's.)
+2. **Scale.** A metric VIO's translations are a little off in scale (1-3 % on the real runs of
+   bench/results/accuracy.md), and holding s = 1 moves T_HE by the lever arm's share of that
+   error. So the batch stage fits a factor on the eye's translations beside (dt, T_HE) as a
    nuisance parameter, and the reported covariance is the marginal one: T_HE carries what not
    knowing s adds (:func:`scale_share`, ``C_xs C_ss^-1 C_sx``), and the user's eye stays metric
    for every metric. (With ``estimate_scale`` s is a parameter of the result instead.)
@@ -79,10 +75,9 @@ from ..arrays import Floats, Indices
 #: The correlated term refits this many contiguous blocks of the covered eye poses (a quarter of
 #: the recording each), and the same cut SHIFTS - 1 times more, each 1 / SHIFTS of a block
 #: later (:func:`cuts`); with fewer than MIN_BLOCK_POSES eye poses in a quarter the term is not
-#: estimated. Four cuttings against two (six real recordings' prefixes every 4 s, measured in
-#: session 36, bench/results/accuracy.md): the verdict turned 5 times against 9 and the reported sigmas' log changed by 0.17-0.19 rms
-#: against 0.19-0.23; eight cuttings gained nothing more (their end parts hold an eighth of a
-#: block). They cost the batch stage 0.2 s on 10 minutes of 200 Hz + 30 Hz.
+#: estimated. Four cuttings steady the verdict and the sigmas against where the quarters fall
+#: better than two, and eight gain nothing more (their end parts hold an eighth of a block;
+#: bench/results/accuracy.md); they cost the batch stage 0.2 s on 10 minutes of 200 + 30 Hz.
 BLOCKS = 4
 SHIFTS = 4
 MIN_BLOCK_POSES = 100

@@ -55,9 +55,8 @@ MAX_AUX_POSES = 20_000
 #: A block is refitted by this many Levenberg-Marquardt steps from the solution: one, its
 #: linearised influence, as the blocks' cluster-robust covariance reads it. An iterated refit
 #: of a block that hardly determines the rotation wanders into another minimum, where its
-#: covariance says nothing of it: on prefixes of six real recordings 40 of 1881 lay 30-180 deg
-#: from the solution at up to 22 of their sigmas (none within 10 deg beyond 2.9); with one step
-#: 4 lie beyond 30 deg, each within 2.4 of its sigma (so it counts as little as it determines).
+#: covariance says nothing of it; one step keeps it within its own sigma, so that it counts as
+#: little as it determines (measured on real recordings: bench/results/accuracy.md).
 BLOCK_STEPS = 1
 #: A nuisance scale uncertain by more than this is not fitted: the eye's translations are too
 #: short to tell a scale from the lever arm, and s = 1 is held (the result says so).

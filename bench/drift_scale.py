@@ -24,6 +24,7 @@ import argparse
 import time
 from dataclasses import replace
 
+import cases
 import common  # noqa: F401 (puts the project on the path)
 import numpy as np
 from common import emit, sim3_scale, table
@@ -173,7 +174,7 @@ def main() -> None:
     seeds = SIM_SEEDS[:1] if args.quick else SIM_SEEDS
     if not args.no_sim:
         nm, nd = noise_level(5)
-        cases = []
+        sims = []
         for seed in seeds:
             for ppm in DRIFTS_PPM:
                 rec = simulate(
@@ -185,7 +186,7 @@ def main() -> None:
                     noise_deg=nd,
                     clock_drift=ppm * 1e-6,
                 )
-                cases.append((f'sim {seed} {ppm:g} ppm', rec.hand, rec.eye, rec.truth))
+                sims.append((f'sim {seed} {ppm:g} ppm', rec.hand, rec.eye, rec.truth))
         emit(
             'drift_sim',
             table(
@@ -193,19 +194,17 @@ def main() -> None:
                 'targets drift within 5 ppm, dt at the ends within 2 ms, T_HE no worse than '
                 'without drift',
                 DRIFT_HEADER,
-                drift_rows(cases, calibrate),
+                drift_rows(sims, calibrate),
             ),
             seeds,
         )
-        cases = []
+        sims = []
         for seed in seeds:
             base = simulate(seed, duration_s=120.0, noise_m=nm, noise_deg=nd)
-            cases.append(
-                (f'sim {seed} unscaled', base.hand, base.eye, base.truth, 1.0, None, None)
-            )
+            sims.append((f'sim {seed} unscaled', base.hand, base.eye, base.truth, 1.0, None, None))
             for s in SCALES:
                 rec = simulate(seed, duration_s=120.0, noise_m=nm, noise_deg=nd, scale=s)
-                cases.append(
+                sims.append(
                     (f'sim {seed} scale {s:g}', rec.hand, rec.eye, rec.truth, s, None, None)
                 )
         emit(
@@ -214,7 +213,7 @@ def main() -> None:
                 'Monocular scale, simulated 2 min (100 Hz hand, 20 Hz eye, noise level 5) with '
                 "--scale: targets s within 0.5 %, T_HE within the unscaled case's error + 20 %",
                 SCALE_HEADER,
-                scale_rows(cases, calibrate),
+                scale_rows(sims, calibrate),
             ),
             seeds,
         )

@@ -178,7 +178,7 @@ def sim_rows(seeds: int) -> list[list]:
             seed, duration_s=DURATION_S, noise_m=noise_m, noise_deg=noise_deg, clock_drift=50e-6
         )
         rng = np.random.default_rng(seed)
-        cases = {
+        variants = {
             'continuous': (rec.hand, rec.eye, rec.truth, CalibrationConfig()),
             'dropouts 5 %': (
                 with_dropouts(rec.hand, rng, 0.05),
@@ -205,7 +205,7 @@ def sim_rows(seeds: int) -> list[list]:
                 CalibrationConfig(),
             ),
         }
-        for name, (hand, eye, truth, cfg) in cases.items():
+        for name, (hand, eye, truth, cfg) in variants.items():
             t0 = time.perf_counter()
             try:
                 res = calibrate(hand, eye, cfg)

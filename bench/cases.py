@@ -150,18 +150,24 @@ EUROC_GT = {
 @dataclass(frozen=True)
 class RealRun:
     """One real run: a reference (hand) and an estimate (eye), paths under REAL_DATA, both in
-    the IMU frame (truth T_HE = I); the truth's dt is ``reference_s``."""
+    the IMU frame (truth T_HE = I); the truth's dt is ``reference_s``. ``quirks``: the estimate
+    is read by :func:`load_estimate` (a placeholder row, repeated stamps)."""
 
     name: str
     hand: str
     eye: str
     reference_s: float = 0.0
+    quirks: bool = False
 
     def load(self, root: Path = REAL_DATA) -> tuple[Trajectory, Trajectory]:
         """(hand, eye)."""
-        if self.name.startswith('EuRoC '):
-            return read_trajectory(root / self.hand), load_estimate(root / self.eye)
-        return read_trajectory(root / self.hand), read_trajectory(root / self.eye)
+        read_eye = load_estimate if self.quirks else read_trajectory
+        return read_trajectory(root / self.hand), read_eye(root / self.eye)
+
+
+def euroc(pair: RealPair) -> RealRun:
+    """A EuRoC pair as a real run, both in the IMU frame."""
+    return RealRun(f'EuRoC {pair.name}', pair.ground_truth, pair.estimate, quirks=True)
 
 
 def tumvi(seq: str, estimate: str) -> RealRun:
@@ -173,7 +179,7 @@ def tumvi(seq: str, estimate: str) -> RealRun:
 
 #: Every real run with its own reference, in the order the tables list them.
 RUNS = (
-    *(RealRun(f'EuRoC {p.name}', p.ground_truth, p.estimate) for p in PAIRS),
+    *(euroc(p) for p in PAIRS),
     *(
         RealRun(
             f'VI-SLAM {seq}',
@@ -225,12 +231,16 @@ def load_estimate(path: Path) -> Trajectory:
 
 def load(pair: RealPair, root: Path = REAL_DATA) -> tuple[Trajectory, Trajectory]:
     """(ground truth, estimate) of a EuRoC pair, both in the IMU frame."""
-    return read_trajectory(root / pair.ground_truth), load_estimate(root / pair.estimate)
+    return euroc(pair).load(root)
 
 
 def pair(name: str) -> RealPair:
-    """The EuRoC pair of that name (``'V2_01 mono'``)."""
-    return next(p for p in PAIRS if p.name == name)
+    """The EuRoC pair of that name (``'V2_01 mono'``; a KeyError naming those there are
+    otherwise)."""
+    for p in PAIRS:
+        if p.name == name:
+            return p
+    raise KeyError(f'no EuRoC pair {name!r}; there are {[p.name for p in PAIRS]}')
 
 
 def to_marker_frame(gt: Trajectory, clock_shift_s: float) -> Trajectory:

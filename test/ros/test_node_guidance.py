@@ -74,8 +74,8 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
     """With 20-s buffers, the status's span stops growing once they are full: it calibrates the
     full buffers once more, and auto mode says so (`done`) instead of waiting in silence. The
     publisher runs at twice its real rate. When a `good` result improves on the one before by
-    less than 10 % of the targets, auto mode converges first, which it says as explicitly and
-    keeps: the status is read until either is said (36 s at most), and a little longer to see
+    less than 10 % of the targets, auto mode converges first (on buffers not yet full), which it
+    says as explicitly and keeps: the status is read until either is said (36 s at most), and a little longer to see
     it kept. A result is published only when `good`, with READY."""
     node = start_node(
         ros,
@@ -90,11 +90,12 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
     got = call(ros, '36', '^(done|converged)', mode='status')
     auto = [s['values'].get('auto_calibrate', '') for s in got['status']]
     assert auto[-1].startswith(('done', 'converged')), sorted(set(auto))  # kept
-    spans = {s['values'].get('calibrated_span_s') for s in got['status']} - {None, 'None'}
-    assert spans and max(float(v) for v in spans) >= 19.0, spans  # the full buffers calibrated
     if not any(a.startswith('converged') for a in auto):
         done = [a for a in auto if a.startswith('done')]
         assert done and 'buffers are full' in done[0], sorted(set(auto))
+        # done only once the full buffers were calibrated; converged may come before that
+        spans = {s['values'].get('calibrated_span_s') for s in got['status']} - {None, 'None'}
+        assert spans and max(float(v) for v in spans) >= 19.0, spans
     ready = [s['t'] for s in got['status'] if s['message'] == 'READY']
     for t in got['extrinsic']:
         assert ready and min(abs(t - r) for r in ready) < 2.0, (t, ready[:3])

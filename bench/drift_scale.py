@@ -6,7 +6,7 @@ drifts put into the eye's stamps (about its middle stamp; the hand in the Vicon 
 clock +87.3 ms, as bench/real_cases.py). Each is calibrated with one constant offset
 (``auto_drift`` off) and with ``clock_drift``: the drift error, dt at the first and the last eye
 pose against the truth, T_HE against the truth, and whether the constant run named the drift
-(which the default run then fits: bench/auto_drift.py).
+(which the default run then fits: bench/results/drift_scale.md).
 
 Scale: the eye's positions divided by 0.3, 0.5, 2 and 5 (a monocular eye; the scale to find is
 that factor), simulated (2 minutes) and real, calibrated with ``estimate_scale``: the scale

@@ -54,7 +54,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['opencv_level0', 'opencv_level5', 'opencv_level10'],
         '10 min',
     ),
-    'defaults': ('defaults', [], ['defaults_*'], '15 min'),
     'batch': ('batch', [], ['batch_accuracy', 'batch_coverage'], '20 min'),
     'real_cases': ('real_cases', [], ['real_vicon*', 'real_machine_hall*'], '5 min'),
     'coverage_real': ('coverage_real', [], ['coverage_real'], '10 min'),
@@ -71,7 +70,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         '1 min',
     ),
     'purpose': ('purpose', [], ['purpose_real', 'purpose_one_axis'], '6 min'),
-    'wander': ('wander', [], ['wander'], '12 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'live_real': ('live_real', [], ['live_real_evaluation'], '15 min'),
     'defects': (
@@ -86,7 +84,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['drift_sim', 'scale_sim', 'drift_real', 'scale_real'],
         '20 min',
     ),
-    'auto_drift': ('auto_drift', [], ['auto_drift'], '15 min'),
     'runtime': ('runtime', [], ['runtime'], '30 min'),
     'runtime_motions': (
         'runtime',
@@ -114,7 +111,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['evaluate_many', 'evaluate_report', 'evaluate_real', 'evaluate_defects'],
         '20 min',
     ),
-    'tf_inputs': ('tf_inputs', [], ['tf_inputs'], '5 min'),
     'real_world': (
         'real_world',
         [],
@@ -137,7 +133,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'code_path': ('code_path', [], ['code_path'], '5 s'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),
-    'rig_scale': ('rig_scale', [], ['rig_scale'], '2 min'),
 }
 
 BLOCK = re.compile(

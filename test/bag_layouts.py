@@ -1,4 +1,4 @@
-"""Bag layouts the tests and bench/tf_inputs.py write (not shipped: no front end writes them):
+"""Bag layouts the tests write (not shipped: no front end writes them):
 both streams on /tf, the hand among mocap4r2 rigid bodies; and the offset read back from a
 TimeReference."""
 

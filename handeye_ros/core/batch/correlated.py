@@ -32,7 +32,7 @@ reported 0.4-1.2 mm). Two terms in the long-run covariance ``C``:
      keeps one block that hardly determines the offset (a planar start), whose refit strays
      beyond its own sigma, from passing its error off as the mean's. (On simulations whose
      offset wanders by 3 ms the error of the blocks' mean would be 4 times the errors;
-     bench/wander.py.)
+     bench/results/accuracy.md.)
 
    ``t`` is the Student-t 1-sigma factor of B_eff - 1 degrees of freedom (1.20 for four
    blocks of equal information: a spread measured on four values is itself uncertain), B_eff =

@@ -146,7 +146,7 @@ def test_a_group_held_fixed_has_no_factor() -> None:
 def test_a_wandering_offset_is_covered_said_and_not_overstated() -> None:
     """A latency that wanders by 3 ms rms along 60 s (the truth: its mean): the reported dt
     covers the truth, is well under the 1.27 ms the error of the blocks' mean gives
-    (bench/wander.py), and the result says that the offset varies."""
+    (bench/results/accuracy.md), and the result says that the offset varies."""
     nm, nd = noise_level(3)
     sigmas = []
     for seed in (1, 2, 3):

@@ -13,7 +13,15 @@ published results' verdicts (each must be ``good``, as auto mode publishes only 
 mode said last (``converged`` must not be said of a result that is not ``good``); how far READY's
 calibration is behind the buffers (span_s less calibrated_span_s).
 
+``--prefixes STEP`` replays nothing: it calibrates each recording's first s seconds for s every
+STEP seconds, as the status does while the buffers grow, and counts, for READY from a ``good``
+result and for READY from a settled one (``good`` and not near its line, what READY says), the
+spans at which READY would be said while a calibration of up to AHEAD_S more seconds is not
+``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
+each would first be said.
+
 Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
+       python bench/live_real.py --prefixes 2 [--only NAME] [--purpose ...]
 """
 
 from __future__ import annotations
@@ -42,6 +50,10 @@ from handeye_ros.formats import write_euroc
 CHECK_S = 10.0
 #: After the replay: how long results may still come (a calibration started at its end).
 GRACE_S = 6.0
+#: --prefixes: how far ahead of a READY span a calibration that is not good counts against it
+#: (s): READY's data behind the buffers (at most 11 s live, bench/results/readiness.md) or a
+#: user's stop.
+AHEAD_S = 10.0
 
 
 def recordings() -> list[tuple[str, object, object]]:
@@ -154,6 +166,80 @@ def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:
     return (res if found is None else judge_figures(res, found[0])).quality.verdict.value
 
 
+def _outcome_at(args: tuple) -> tuple[float, bool, float]:
+    """(span s, good, ratio to the line: :class:`Outcome`) of a calibration of both streams'
+    first ``s`` seconds from their common start ``t0`` [ns], judged as the node judges it."""
+    from handeye_ros.core.checks.readiness import Outcome
+    from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
+
+    hand, eye, t0, s, cfg = args
+    cut = t0 + int(s * 1e9)
+    try:
+        res = calibrate(hand.select(hand.t_ns <= cut), eye.select(eye.t_ns <= cut), cfg)
+    except HandeyeError:
+        return s, False, float('inf')
+    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
+    res = res if found is None else judge_figures(res, found[0])
+    std = None if res.batch is None else res.batch.std
+    o = Outcome.of(res.quality, std, s, 0.0, cfg.precision)
+    return s, o.good, o.ratio
+
+
+def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
+    """The ``--prefixes`` table (module docstring), two processes."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from handeye_ros.core.checks.readiness import MIN_RECORDING_S
+    from handeye_ros.core.checks.verdict import settled
+
+    rows = []
+    with ProcessPoolExecutor(2) as pool:
+        for name, hand, eye in recordings():
+            if only not in name:
+                continue
+            t0 = max(int(hand.t_ns[0]), int(eye.t_ns[0]))
+            end = (min(int(hand.t_ns[-1]), int(eye.t_ns[-1])) - t0) * 1e-9
+            spans = np.arange(MIN_RECORDING_S, end + 1e-9, step_s)
+            got = list(pool.map(_outcome_at, [(hand, eye, t0, float(s), cfg) for s in spans]))
+            row = [name, f'{end:.0f}', str(len(got))]
+            for rule in (lambda g, r: g, settled):
+                ready = [rule(g, r) for _, g, r in got]
+                early = [
+                    f'{s:.0f}'
+                    for k, (s, _, _) in enumerate(got)
+                    if ready[k] and not all(g for t, g, _ in got[k:] if t <= s + AHEAD_S)
+                ]
+                first = next((f'{s:.0f}' for k, (s, _, _) in enumerate(got) if ready[k]), '-')
+                row += [f'{sum(ready)}', ', '.join(early) or '0', first]
+            near = [f'{s:.0f}' for s, g, r in got if g and not settled(g, r)]
+            row.append(f'{len(near)}')
+            rows.append(row)
+            print(row, flush=True)
+    emit(
+        f'live_real_prefixes_{cfg.purpose}',
+        table(
+            f"Each recording's first s seconds calibrated, s every {step_s:g} s from "
+            f'{MIN_RECORDING_S:g} s (purpose {cfg.purpose}): READY from a good result, and from a '
+            f'settled one (good, not near its line); "followed by not good": READY spans with a '
+            f'calibration that is not good within {AHEAD_S:g} s more',
+            [
+                'recording',
+                'seconds',
+                'spans',
+                'good',
+                'good, followed by not good',
+                'first good [s]',
+                'settled',
+                'settled, followed by not good',
+                'first settled [s]',
+                'good near the line',
+            ],
+            rows,
+        ),
+        seeds={'step_s': step_s, 'ahead_s': AHEAD_S},
+    )
+
+
 def judged(run: dict, hand, eye, cfg: CalibrationConfig) -> dict:
     """READY statuses (the first, and at most one per CHECK_S seconds checked), the results'
     verdicts, what auto mode said last."""
@@ -197,8 +283,12 @@ def main() -> None:
     p.add_argument('--speed', type=float, default=1.0, help='times real time (default 1)')
     p.add_argument('--only', default='', help='only the recordings whose name contains this')
     p.add_argument('--purpose', default='evaluation', choices=('evaluation', 'extrinsic'))
+    p.add_argument('--prefixes', type=float, default=0.0, help='STEP s: prefixes, no replay')
     a = p.parse_args()
     cfg = CalibrationConfig(purpose=a.purpose)
+    if a.prefixes > 0.0:
+        prefixes(a.prefixes, a.only, cfg)
+        return
     probe = LiveProbe()
     rows = []
     try:

@@ -72,6 +72,12 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'purpose': ('purpose', [], ['purpose_real', 'purpose_one_axis'], '6 min'),
     'error_bars': ('error_bars', [], ['error_bars'], '3 min'),
     'live_real': ('live_real', [], ['live_real_evaluation'], '15 min'),
+    'live_real_prefixes': (
+        'live_real',
+        ['--prefixes', '2'],
+        ['live_real_prefixes_evaluation'],
+        '10 min',
+    ),
     'defects': (
         'defects',
         [],

@@ -7,8 +7,10 @@ published one, or has GROWTH times its data (the status checks a READY result ag
 buffers grow, and those checks are not all news). A result is measured by its *precision
 ratio*, its largest reported 1-sigma over that sigma's ``precision_*`` target
 (:func:`~handeye_ros.core.checks.verdict.precision_ratio`). Once a ``good`` result improves on
-the last published one's ratio by no more than IMPROVEMENT of it (or of 1, the targets), more of
-the same motion no longer matters: auto mode has *converged*. A result that is not ``good`` is
+the last published one's ratio by no more than IMPROVEMENT of it (or of 1, the targets), and is
+settled (not near the line of its purpose's rule on precision, as READY asks:
+:attr:`~handeye_ros.core.checks.readiness.Outcome.settled`), more of the same motion no longer
+matters: auto mode has *converged*. A result that is not ``good`` is
 not published: while more recording is its remedy (its precision alone) auto mode goes on;
 otherwise it has *stalled* (the motion, or the recording, must change). Once the buffers are
 full their span grows no more, and no later result would see more data: *done*. Converged,
@@ -78,7 +80,10 @@ def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
             return Auto(State.STALLED, previous.published, False, why, kept)
         return Auto(State.DONE if full else State.WAITING, previous.published, False, '', kept)
     old = previous.published
-    converged = math.isfinite(old) and old - score <= IMPROVEMENT * max(old, 1.0)
+    # near its line (not settled) a good result is no place to stop: the next may be beyond it
+    converged = (
+        latest.settled and math.isfinite(old) and old - score <= IMPROVEMENT * max(old, 1.0)
+    )
     state = State.CONVERGED if converged else State.DONE if full else State.IMPROVING
     news = not converged or previous.state != State.CONVERGED or latest.span_s >= GROWTH * kept
     if not news:

@@ -173,7 +173,11 @@ class ReadinessStatus:
             Outcome.failure(why, span_s, now)
             if result is None
             else Outcome.of(
-                result.quality, None if result.batch is None else result.batch.std, span_s, now
+                result.quality,
+                None if result.batch is None else result.batch.std,
+                span_s,
+                now,
+                self._node.calib_cfg.precision,
             )
         )
         self.latest = latest

@@ -5,6 +5,8 @@ READY from a calibration: test/core/checks/test_readiness.py."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -15,8 +17,10 @@ from handeye_ros.core.checks.verdict import precision_ratio
 from handeye_ros.ros.auto_mode import GROWTH, IMPROVEMENT, Auto, State, decide, filled, said
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
 
-#: a `good` calibration of 60 s of buffers, and one held back by its precision alone
-GOOD = Outcome(True, 'good', '', (2e-4, 5e-3, 0.2), True, 60.0, 0.0)
+#: a `good` calibration of 60 s of buffers, one near the line of its precision, and one held
+#: back by its precision alone
+GOOD = Outcome(True, 'good', '', (2e-4, 5e-3, 0.2), True, 60.0, 0.0, ratio=0.5)
+NEAR = Outcome(True, 'good', '', (2e-4, 9e-3, 0.2), True, 60.0, 0.0, ratio=0.9)
 IMPRECISE = Outcome(
     False, 'doubtful (imprecise)', 'translation 1-sigma 14 mm', (2e-4, 0.014, 0.2), True, 60.0, 0.0
 )
@@ -56,10 +60,18 @@ def test_once_converged_a_good_result_is_published_for_more_data_only() -> None:
     assert converged.published_span_s == GOOD.span_s
     again = decide(converged, GOOD, 0.48, full=False)
     assert not again.publish and again.state is State.CONVERGED and again.published == 0.49
-    longer = Outcome(True, 'good', '', (2e-4, 5e-3, 0.2), True, GROWTH * GOOD.span_s, 0.0)
+    longer = replace(GOOD, span_s=GROWTH * GOOD.span_s)
     grown = decide(again, longer, 0.48, full=False)
     assert grown.publish and grown.published_span_s == longer.span_s
     assert decide(grown, GOOD, 0.2, full=False).publish  # better: published at any span
+
+
+def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
+    """Good by a hair (beyond BLOCKS_MARGIN of its line), a result is published, and auto mode
+    goes on: the next calibration may find it beyond the line, so it is no place to stop."""
+    near = decide(Auto(State.IMPROVING, 0.9), NEAR, 0.9, full=False)
+    assert near.publish and near.state is State.IMPROVING
+    assert decide(near, GOOD, 0.89, full=False).state is State.CONVERGED
 
 
 def test_a_result_that_is_not_good_is_never_published() -> None:

@@ -3,7 +3,9 @@ what the data lack until one is, said in the frame of the device the user holds 
 
 READY is a real calibration's verdict, never a prediction: the node calibrates its buffers as
 they grow (``ros/status.py``), and READY means that the latest such result (an
-:class:`Outcome`) is ``good`` for the purpose. Between results the status shows what the motion
+:class:`Outcome`) is ``good`` for the purpose, and not near the line of its rule on precision
+(:func:`~.verdict.settled`): a result good by a hair is as likely to be doubtful a second of
+recording later, when the user stops and calibrates. Between results the status shows what the motion
 so far observes (:class:`~.excitation.Motion`): how far the device has turned, and how far
 apart the axes it turned about are. A rotation about an axis a says nothing of T_HE's rotation
 about a, nor of its translation along a (eq. 2): for the extrinsic, turns about nearly one axis
@@ -23,7 +25,17 @@ from ..config import CalibrationConfig
 from ..document import StatusDoc
 from ..time.align import MIN_OVERLAP_S
 from .excitation import RECENT_S, Motion
-from .verdict import Code, Purpose, Quality, Verdict, precision_ratio, sigmas_of
+from .verdict import (
+    BLOCKS_MARGIN,
+    Code,
+    Purpose,
+    Quality,
+    Verdict,
+    judged_ratio,
+    precision_ratio,
+    settled,
+    sigmas_of,
+)
 
 __all__ = ['AXES', 'MIN_RECORDING_S', 'STILL_DPS', 'Outcome', 'Readiness', 'readiness']
 
@@ -52,7 +64,9 @@ class Outcome:
     translation [m] and rotation [deg] (None without a batch stage); recording_helps: more of
     the same recording is the remedy for every reason (precision alone); failed: why the
     calibration failed ('' when it did not); span_s: the buffered span it calibrated [s];
-    finished: when it ended (monotonic s).
+    finished: when it ended (monotonic s); ratio: how far its purpose's rule on precision is
+    from its line (:func:`~.verdict.judged_ratio`, above 1 imprecise); READY says
+    :attr:`settled`.
     """
 
     good: bool
@@ -63,19 +77,36 @@ class Outcome:
     span_s: float
     finished: float
     failed: str = ''
+    ratio: float = float('inf')
+
+    @property
+    def settled(self) -> bool:
+        """``good`` and within BLOCKS_MARGIN of its line (:func:`~.verdict.settled`)."""
+        return settled(self.good, self.ratio)
 
     @classmethod
-    def of(cls, q: Quality, std: Floats | None, span_s: float, finished: float) -> Outcome:
-        """A calibration's verdict (as judged for its purpose) and batch std (dt [s],
-        translation [m] x3, rotation [rad] x3; None without a batch stage)."""
+    def of(
+        cls,
+        q: Quality,
+        std: Floats | None,
+        span_s: float,
+        finished: float,
+        precision: tuple[float, float, float],
+    ) -> Outcome:
+        """A calibration's verdict (as judged for its purpose), batch std (dt [s], translation
+        [m] x3, rotation [rad] x3; None without a batch stage) and the precision targets
+        (``CalibrationConfig.precision``)."""
+        sigmas = None if std is None else sigmas_of(std)
+        ratio = judged_ratio(q, sigmas, precision)
         return cls(
             good=q.verdict == Verdict.GOOD,
             label=q.label(),
             held=q.reasons[0].message if q.reasons else '',
-            sigmas=None if std is None else sigmas_of(std),
+            sigmas=sigmas,
             recording_helps=all(r.code == Code.IMPRECISE for r in q.reasons),
             span_s=span_s,
             finished=finished,
+            ratio=ratio,
         )
 
     @classmethod
@@ -92,7 +123,8 @@ class Outcome:
 class Readiness:
     """What the status says while recording.
 
-    ready: the latest calibration of these buffers is ``good`` for the purpose; latest: that
+    ready: the latest calibration of these buffers is ``good`` for the purpose and settled
+    (:attr:`Outcome.settled`); latest: that
     calibration (None before the first); age_s: how long ago it ended [s]; checking: one runs
     now. rotation_deg: (3,) how far the device has turned about its x, y, z axes (sum of
     |rotation| about each, deg); axis_spread_deg: how far apart the turns' axes are;
@@ -152,15 +184,16 @@ def readiness(
     eye, hand = motion.turned('eye'), motion.turned('hand')
     speed = 0.0 if eye is None else eye.rms_dps
     good = bool(latest and latest.good)
+    ready = bool(latest and latest.settled)
     missing: list[str] = []
     # a device held still has no axis to name
     if eye is not None and speed >= STILL_DPS and purpose == Purpose.EXTRINSIC and not good:
         missing += _turn_advice(eye.scatter, eye.axis_spread_deg)
-    if checking and not good:
+    if checking and not ready:
         missing.append(
             f'checking READY: a calibration of the {span_s:.0f} s so far is judging them'
         )
-    if latest is not None and not latest.good:
+    if latest is not None and not latest.settled:
         missing.append(_held(latest))
     if speed < STILL_DPS:
         missing.append('the device is held still: move it')
@@ -171,7 +204,7 @@ def readiness(
         )
     missing += _health(dict(motion.dropout))
     return Readiness(
-        ready=good,
+        ready=ready,
         purpose=purpose,
         latest=latest,
         age_s=0.0 if latest is None else now - latest.finished,
@@ -191,6 +224,12 @@ def _held(latest: Outcome) -> str:
     of = f'the latest calibration ({latest.span_s:.0f} s of data)'
     if latest.failed:
         return f'{of} failed: {_plain(latest.failed)}'
+    if latest.good:
+        return (
+            f'{of} is good, near the line of its precision ({latest.ratio:.0%} of what it '
+            f'allows; READY within {BLOCKS_MARGIN:.0%}, as a 1-sigma is itself uncertain by '
+            'about a quarter); keep recording'
+        )
     remedy = '; keep recording' if latest.recording_helps else ''
     return f'{of} is {latest.label}: {latest.held}{remedy}'
 

@@ -104,7 +104,9 @@ BATCH_SCORE_FACTOR = 1.5
 #: three axes with BLOCKS - 1 degrees of freedom each, by about 1 / sqrt(2 dof) of itself
 #: (0.24; the blocks' later cuttings make it a little less). Within this share of its
 #: target (0.81) it stays below the target by one such uncertainty; beyond it a `good` result
-#: is noted to be near its target: a calibration of more data may find it above.
+#: is noted to be near its target (a calibration of more data may find it above), and READY
+#: waits (:func:`.final.settled`). The same for an evaluation's figures, whose 1-sigmas are
+#: the covariance's drawn through them.
 BLOCKS_MARGIN = 1.0 / (1.0 + 1.0 / math.sqrt(2.0 * 3 * (BLOCKS - 1)))
 #: For purpose evaluation, an APE/RPE figure is settled when the calibration's 1-sigma on it is
 #: at most this share of it: two systems whose figures differ by 15 % (three such sigmas) are
@@ -139,7 +141,10 @@ class Quality:
     it; ``found``: every purpose's reasons, from which :meth:`judged_for` gives the other's.
     ``evaluated``: the evaluation's own figures were judged (their calibration 1-sigmas,
     which the evaluation layer computes: :func:`.final.assess_evaluation`); until then the
-    extrinsic's rules stand in for the evaluation's, which are never looser unjudged."""
+    extrinsic's rules stand in for the evaluation's, which are never looser unjudged.
+    ``share_ratio``: then the largest of the figures' calibration 1-sigmas over
+    EVALUATION_SHARE of the figure (above 1 ``imprecise``; NaN until judged or without
+    one)."""
 
     verdict: Verdict
     reasons: tuple[Reason, ...] = ()
@@ -147,6 +152,7 @@ class Quality:
     purpose: Purpose = Purpose.EVALUATION
     found: tuple[Reason, ...] = ()
     evaluated: bool = False
+    share_ratio: float = math.nan
 
     @classmethod
     def from_reasons(
@@ -155,21 +161,27 @@ class Quality:
         notes: list[str],
         purpose: Purpose = Purpose.EVALUATION,
         evaluated: bool = False,
+        share_ratio: float = math.nan,
     ) -> Quality:
         found = _worst_first(tuple(reasons))
         judge = Purpose.EXTRINSIC if purpose == Purpose.EVALUATION and not evaluated else purpose
         mine = tuple(r for r in found if judge in r.purposes)
         verdict = mine[0].severity if mine else Verdict.GOOD
-        return cls(verdict, mine, tuple(notes), purpose, found, evaluated)
+        return cls(verdict, mine, tuple(notes), purpose, found, evaluated, share_ratio)
 
     def judged_for(self, purpose: Purpose) -> Quality:
         """The same findings judged for ``purpose``."""
-        return Quality.from_reasons(list(self.found), list(self.notes), purpose, self.evaluated)
-
-    def with_evaluation(self, reasons: list[Reason], notes: list[str]) -> Quality:
-        """With the rules on the evaluation's figures (:func:`.final.assess_evaluation`)."""
         return Quality.from_reasons(
-            [*self.found, *reasons], [*self.notes, *notes], self.purpose, evaluated=True
+            list(self.found), list(self.notes), purpose, self.evaluated, self.share_ratio
+        )
+
+    def with_evaluation(
+        self, reasons: list[Reason], notes: list[str], share_ratio: float = math.nan
+    ) -> Quality:
+        """With the rules on the evaluation's figures (:func:`.final.assess_evaluation`) and
+        their largest ratio to their line."""
+        return Quality.from_reasons(
+            [*self.found, *reasons], [*self.notes, *notes], self.purpose, True, share_ratio
         )
 
     @property

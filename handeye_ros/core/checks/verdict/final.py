@@ -1,10 +1,12 @@
 """The rules judged once a run is finished (:func:`assess_streams`, :func:`assess_answer`,
 :func:`assess_model`), the verdict they end in (:func:`judged`: every fact the stages recorded
-read, with these rules' reasons), and the one "precise enough" rule (:func:`precision_ratio`)
-the verdict, the readiness and the node's auto mode share."""
+read, with these rules' reasons), the one "precise enough" rule (:func:`precision_ratio`)
+the verdict, the readiness and the node's auto mode share, and how far a result is from it
+(:func:`judged_ratio`, :func:`settled`: READY's margin)."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -353,24 +355,70 @@ def reasons_in(log: tuple[Entry, ...]) -> set[Code]:
     return {r.code for r in (read(e)[0] for e in log if not isinstance(e, str)) if r}
 
 
-def assess_evaluation(
-    figures: list[tuple[str, float, float | None, str]], why_none: str
-) -> tuple[list[Reason], list[str]]:
-    """Purpose evaluation's rule on the evaluation's own figures: each (label, value, its
-    calibration 1-sigma, unit: 'mm' or 'deg'; value in that unit, NaN when it has none) is
-    settled when the 1-sigma is at most EVALUATION_SHARE of it. A figure with no value (an
-    RPE step longer than the recording) is noted and left out; no 1-sigmas at all
-    (``why_none``) is ``no_uncertainty``. Returns (reasons, notes)."""
+#: An evaluation's figure: its label, its value and its calibration 1-sigma in the unit said
+#: ('mm' or 'deg'; the value NaN, or the 1-sigma None, when it has none).
+Figure = tuple[str, float, float | None, str]
+
+
+def share_ratio(figures: list[Figure]) -> float:
+    """The largest of the figures' calibration 1-sigmas over EVALUATION_SHARE of the figure
+    (above 1 ``imprecise``), of those that have both; NaN when none has."""
+    ratios = [
+        sigma / (EVALUATION_SHARE * value)
+        for _, value, sigma, _ in figures
+        if np.isfinite(value) and sigma is not None and value > 0.0
+    ]
+    return max(ratios) if ratios else math.nan
+
+
+def judged_ratio(
+    quality: Quality, sigmas: tuple[float, float, float] | None, precision: tuple[float, ...]
+) -> float:
+    """How far the judged purpose's rule on precision is from its line: the largest ratio of a
+    1-sigma to what the rule allows (above 1 ``imprecise``). Purpose evaluation: its figures'
+    (``Quality.share_ratio``) once judged; purpose extrinsic, and the evaluation's stand-in
+    until then: dt's and T_HE's 1-sigmas (``sigmas``, :func:`sigmas_of`; None: inf) against
+    ``precision`` (``CalibrationConfig.precision``)."""
+    if quality.purpose == Purpose.EVALUATION and quality.evaluated:
+        return quality.share_ratio
+    return math.inf if sigmas is None else precision_ratio(sigmas, precision)
+
+
+def settled(good: bool, ratio: float) -> bool:
+    """A ``good`` result whose rule on precision is at ``ratio`` (:func:`judged_ratio`) within
+    BLOCKS_MARGIN of its line: a calibration of a little more of the recording stays on this
+    side of it, where near the line the 1-sigma's own uncertainty (about a quarter, measured on
+    four blocks) may put the next one beyond. No ratio (no figure to judge) sets no margin."""
+    return good and not ratio > BLOCKS_MARGIN
+
+
+def assess_evaluation(figures: list[Figure], why_none: str) -> tuple[list[Reason], list[str]]:
+    """Purpose evaluation's rule on the evaluation's own figures (:data:`Figure`): each is
+    settled when its calibration 1-sigma is at most EVALUATION_SHARE of it, and noted when
+    beyond BLOCKS_MARGIN of that. A figure with no value (an RPE step longer than the
+    recording) is noted and left out; no 1-sigmas at all (``why_none``) is
+    ``no_uncertainty``. Returns (reasons, notes)."""
     only = frozenset({Purpose.EVALUATION})
     if why_none:
         text = f'the APE/RPE figures have no error bars from the calibration: {why_none}'
         return [Reason(Code.NO_UNCERTAINTY, text, only)], []
-    over, notes = [], []
+    over, near, notes = [], [], []
     for label, value, sigma, unit in figures:
         if not np.isfinite(value) or sigma is None or value <= 0.0:
             notes.append(f'{label} could not be computed and is not judged')
-        elif sigma > EVALUATION_SHARE * value:
-            over.append(f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}')
+            continue
+        said = f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}'
+        if sigma > EVALUATION_SHARE * value:
+            over.append(said)
+        elif sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:
+            near.append(said)
+    if near and not over:
+        notes.append(
+            f'near the {EVALUATION_SHARE:.0%} line (beyond {BLOCKS_MARGIN:.0%} of it): '
+            + '; '.join(near)
+            + '. A 1-sigma measured on four blocks is itself uncertain by about a quarter: a '
+            'calibration of more of this recording may find it above'
+        )
     if not over:
         return [], notes
     text = (

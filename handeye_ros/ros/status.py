@@ -6,7 +6,8 @@ MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when th
 ended or the buffers are full; while the latest is ``good``, again as soon as they have grown by
 LAST_GAIN_S), never sooner after one calibration than it took (so they take at most half a
 core and never fall behind the streams), and READY means the latest such result is ``good`` for
-the chosen purpose. Between results it shows how far the device has turned and how far apart its
+the chosen purpose and settled (not near the line of its precision, unless the recording has
+ended and it holds the whole). Between results it shows how far the device has turned and how far apart its
 turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
 the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
 latest result's verdict, 1-sigmas and age, and what to do. The answer is published on
@@ -195,13 +196,15 @@ class ReadinessStatus:
         buffers = self._node.recorder.buffers
         if any(len(buffers[s]) < 3 for s in STREAMS):
             return
+        span, latest = self._span(), self.latest
         r = readiness(
             self._motion,
-            self.latest,
+            latest,
             self._node.calib_cfg,
-            self._span(),
+            span,
             time.monotonic(),
             checking=self._checking,
+            final=bool(self.ended()) and latest is not None and latest.span_s > span - LAST_GAIN_S,
         )
         self.last, self.why_not = r.to_dict(), ''
         self._publish()

@@ -5,8 +5,8 @@ READY is a real calibration's verdict, never a prediction: the node calibrates i
 they grow (``ros/status.py``), and READY means that the latest such result (an
 :class:`Outcome`) is ``good`` for the purpose, and not near the line of its rule on precision
 (:func:`~.verdict.settled`): a result good by a hair is as likely to be doubtful a second of
-recording later, when the user stops and calibrates. Between results the status shows what the motion
-so far observes (:class:`~.excitation.Motion`): how far the device has turned, and how far
+recording later, when the user stops and calibrates. Between results the status shows what the
+motion so far observes (:class:`~.excitation.Motion`): how far the device has turned, and how far
 apart the axes it turned about are. A rotation about an axis a says nothing of T_HE's rotation
 about a, nor of its translation along a (eq. 2): for the extrinsic, turns about nearly one axis
 are told to turn about another one (the device axis most across it); for an evaluation the
@@ -176,15 +176,18 @@ def readiness(
     span_s: float,
     now: float,
     checking: bool = False,
+    final: bool = False,
 ) -> Readiness:
     """What the status says of buffers whose shorter stream spans ``span_s`` [s], with the
     motion gathered of them, the latest calibration of them (None: none yet), at monotonic
-    time ``now`` [s], while a calibration runs (``checking``)."""
+    time ``now`` [s], while a calibration runs (``checking``). ``final``: the recording has
+    ended and the latest calibration holds the whole of it, so a calibration now gives the
+    same result, near its line or not: READY is then its being ``good``."""
     purpose = Purpose(cfg.purpose)
     eye, hand = motion.turned('eye'), motion.turned('hand')
     speed = 0.0 if eye is None else eye.rms_dps
     good = bool(latest and latest.good)
-    ready = bool(latest and latest.settled)
+    ready = bool(latest and (latest.settled or (final and latest.good)))
     missing: list[str] = []
     # a device held still has no axis to name
     if eye is not None and speed >= STILL_DPS and purpose == Purpose.EXTRINSIC and not good:
@@ -193,7 +196,7 @@ def readiness(
         missing.append(
             f'checking READY: a calibration of the {span_s:.0f} s so far is judging them'
         )
-    if latest is not None and not latest.settled:
+    if latest is not None and not ready:
         missing.append(_held(latest))
     if speed < STILL_DPS:
         missing.append('the device is held still: move it')

@@ -66,7 +66,9 @@ def test_ready_is_the_latest_calibrations_verdict() -> None:
 def test_a_good_result_near_its_line_is_not_ready() -> None:
     """A minute at noise level 5 is `good` for the extrinsic with its translation's 1-sigma at
     0.89 of the target: a calibration of a little more may find it beyond (the 1-sigma is itself
-    uncertain by a quarter), so READY waits, saying how near; two minutes settle it."""
+    uncertain by a quarter), so READY waits, saying how near; two minutes settle it. Once the
+    recording has ended and that calibration holds the whole of it, a call gives the same
+    result: READY."""
     said = []
     for seconds in (60.0, 120.0):
         rec = recording(1, 5, duration_s=seconds, **RATES, **MOCAP)
@@ -83,6 +85,9 @@ def test_a_good_result_near_its_line_is_not_ready() -> None:
         '1-sigma is itself uncertain by about a quarter); keep recording'
     )
     assert settled.good and settled.ratio <= BLOCKS_MARGIN and r_settled.ready
+    rec = recording(1, 5, duration_s=60.0, **RATES, **MOCAP)
+    ended = readiness(_motion(rec.hand, rec.eye), near, EXTRINSIC, near.span_s, 1.0, final=True)
+    assert ended.ready and ended.missing == ()
 
 
 @pytest.mark.parametrize('motion', ['planar', 'one_axis'])

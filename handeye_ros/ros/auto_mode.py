@@ -3,8 +3,9 @@ published, as a pure function of the latest one and the previous decision (:func
 
 The status calibrates the buffers as they grow (:mod:`.status`); with auto mode a result
 that is ``good`` for the purpose is published when it is the first, improves on the last
-published one, or has GROWTH times its data (the status checks a READY result again as the
-buffers grow, and those checks are not all news). A result is measured by its *precision
+published one (by more than IMPROVEMENT, below), has GROWTH times its data, or is the first
+converged one (the status checks a good result again as the buffers grow, and those checks are
+not all news). A result is measured by its *precision
 ratio*, its largest reported 1-sigma over that sigma's ``precision_*`` target
 (:func:`~handeye_ros.core.checks.verdict.precision_ratio`). Once a ``good`` result improves on
 the last published one's ratio by no more than IMPROVEMENT of it (or of 1, the targets), and is
@@ -80,12 +81,12 @@ def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
             return Auto(State.STALLED, previous.published, False, why, kept)
         return Auto(State.DONE if full else State.WAITING, previous.published, False, '', kept)
     old = previous.published
+    improved = not math.isfinite(old) or old - score > IMPROVEMENT * max(old, 1.0)
     # near its line (not settled) a good result is no place to stop: the next may be beyond it
-    converged = (
-        latest.settled and math.isfinite(old) and old - score <= IMPROVEMENT * max(old, 1.0)
-    )
+    converged = latest.settled and not improved
     state = State.CONVERGED if converged else State.DONE if full else State.IMPROVING
-    news = not converged or previous.state != State.CONVERGED or latest.span_s >= GROWTH * kept
+    first = converged and previous.state != State.CONVERGED
+    news = improved or first or latest.span_s >= GROWTH * kept
     if not news:
         return Auto(state, old, False, '', kept)
     return Auto(state, score, True, '', latest.span_s)

@@ -68,9 +68,13 @@ def test_once_converged_a_good_result_is_published_for_more_data_only() -> None:
 
 def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
     """Good by a hair (beyond BLOCKS_MARGIN of its line), a result is published, and auto mode
-    goes on: the next calibration may find it beyond the line, so it is no place to stop."""
+    goes on: the next calibration may find it beyond the line, so it is no place to stop. As
+    before convergence, it publishes again what improves or has GROWTH times the data."""
     near = decide(Auto(State.IMPROVING, 0.9), NEAR, 0.9, full=False)
     assert near.publish and near.state is State.IMPROVING
+    again = decide(near, NEAR, 0.88, full=False)  # no better, no more data: not news
+    assert not again.publish and again.state is State.IMPROVING and again.published == 0.9
+    assert decide(near, replace(NEAR, span_s=GROWTH * NEAR.span_s), 0.88, full=False).publish
     assert decide(near, GOOD, 0.89, full=False).state is State.CONVERGED
 
 

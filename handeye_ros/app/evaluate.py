@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from ..core.errors import HandeyeError
     from ..evaluation.outputs import check_directory
-    from .runs import read_manifest
+    from .runs import Status, read_manifest
 
     try:
         if args.workers is not None and not 1 <= args.workers <= 256:
@@ -155,9 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:  # a scheduler that cannot be reached, a full disk
         print(f'evaluate: error: {err}', file=sys.stderr)
         return EXIT_UNUSABLE
-    failed = [r for r in rows if r['status'] != 'ok']
+    failed = [r for r in rows if r['status'] != Status.OK]
     for r in failed:
-        print(f'evaluate: {r["name"]}: failed: {r["reason"]}', file=sys.stderr)
+        print(f'evaluate: {r["name"]}: {r["status"]}: {r["reason"]}', file=sys.stderr)
     cached = sum(bool(r.get('cached')) for r in rows)
     print(
         f'{len(rows)} runs, {len(rows) - len(failed)} ok, {len(failed)} failed'
@@ -171,7 +171,14 @@ def evaluate_runs(runs: list[RunSpec], output: Path, args: argparse.Namespace) -
     """Every run's row, in manifest order (cached rows reused); writes the tables and plots."""
     from tqdm import tqdm
 
-    from .runs import cache_key, calibrate_run, code_fingerprint, read_cached, write_cached
+    from .runs import (
+        Status,
+        cache_key,
+        calibrate_run,
+        code_fingerprint,
+        read_cached,
+        write_cached,
+    )
 
     cache = output / 'cache'
     code = code_fingerprint()
@@ -195,7 +202,7 @@ def evaluate_runs(runs: list[RunSpec], output: Path, args: argparse.Namespace) -
 
     def done(run: RunSpec, row: Row) -> None:
         row['cached'] = False
-        if row['status'] == 'ok' or not str(row['reason']).startswith('internal error'):
+        if row['status'] != Status.ERROR:
             write_cached(cache, keys[run.name], row)
         rows[run.name] = row
         bar.update(1)
@@ -320,7 +327,7 @@ def _on_dask(
     """
     from distributed import as_completed
 
-    from .runs import calibrate_run
+    from .runs import Status, calibrate_run
 
     with _client(args) as client:
         t0 = time.perf_counter()
@@ -340,7 +347,7 @@ def _on_dask(
                     'algorithm': run.algorithm,
                     'sequence': run.sequence,
                     'trial': run.trial,
-                    'status': 'failed',
+                    'status': Status.ERROR,
                     'reason': f'internal error: {type(err).__name__}: {err}',
                 }
             done(run, row)

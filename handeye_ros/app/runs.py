@@ -17,8 +17,8 @@ or a directory laid out as ``ALGORITHM/SEQUENCE/TRIAL/`` holding ``hand.*`` and 
 (or one bag). Relative paths are taken from the manifest's folder.
 
 Every run is keyed by the content hash of its inputs and options (and this package's version):
-its row is cached under ``OUTPUT/cache/`` when it ends, so an interrupted evaluation resumes
-where it stopped and a changed file is calibrated again.
+its row is cached under ``OUTPUT/cache/`` when it ends (unless :class:`Status` ``error``), so an
+interrupted evaluation resumes where it stopped and a changed file is calibrated again.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, TypedDict, Unpack
 
@@ -40,10 +41,22 @@ if TYPE_CHECKING:  # imported where used: a manifest is read without the core
     from ..core.rig_document import RigDoc
     from .request import Request
 
+
+class Status(StrEnum):
+    """How a run ended (its row's ``status``; a ``str``, as the tables write it): ``ok``;
+    ``failed`` by its inputs, which the reason names, as it would again (cached); ``error`` by
+    this machine or this package (out of memory, a worker lost, a bug), not cached: the next
+    evaluation runs it again."""
+
+    OK = 'ok'
+    FAILED = 'failed'
+    ERROR = 'error'
+
+
 #: Keys of a manifest run that are not calibration options.
 RUN_KEYS = ('name', 'algorithm', 'sequence', 'trial', 'hand', 'eye', 'bag', 'options', 'report')
 #: Bumped when a row's meaning changes, so that old cache entries are not reused.
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 HASH_CHUNK = 1 << 20
 BAG_SUFFIXES = ('.mcap', '.db3', '.bag')
 
@@ -223,7 +236,7 @@ def cache_key(run: RunSpec, code: str) -> str:
 def calibrate_run(run: RunSpec, output: str) -> Row:
     """Calibrate, export and evaluate one run into ``output/runs/<slug>/``; its table row.
 
-    Never raises for bad input: the row says ``status: failed`` and why.
+    Never raises: the row says ``status: failed`` (bad input) or ``error`` and why.
     """
     from ..core.errors import HandeyeError
     from ..formats.result_file import write_result
@@ -246,13 +259,13 @@ def calibrate_run(run: RunSpec, output: str) -> Row:
         out, _ = run_request(request)
         write_result(folder / 'result.yaml', out)
         row.update(row_of(out))
-        row['status'], row['reason'] = 'ok', ''
+        row['status'], row['reason'] = Status.OK, ''
     except HandeyeError as err:
-        row['status'], row['reason'] = 'failed', str(err)
+        row['status'], row['reason'] = Status.FAILED, str(err)
     except MemoryError:
-        row['status'], row['reason'] = 'failed', 'out of memory'
+        row['status'], row['reason'] = Status.ERROR, 'out of memory'
     except Exception as err:  # noqa: BLE001  (a bug: the table says so, the evaluation goes on)
-        row['status'] = 'failed'
+        row['status'] = Status.ERROR
         row['reason'] = f'internal error: {type(err).__name__}: {err}'
     row['seconds'] = round(time.perf_counter() - t0, 3)
     row['pid'] = os.getpid()
@@ -272,9 +285,9 @@ def rig_row(run: RunSpec, doc: ResultDoc | None, rig: RigDoc) -> Row:
     left_out = rig['rig']['left_out']
     if doc:
         row.update(row_of(doc))
-        row['status'], row['reason'] = 'ok', ''
+        row['status'], row['reason'] = Status.OK, ''
     else:
-        row['status'], row['reason'] = 'failed', left_out.get(run.name, '')
+        row['status'], row['reason'] = Status.FAILED, left_out.get(run.name, '')
     from .rig_file import part_of
 
     row['rig'] = {

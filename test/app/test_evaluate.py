@@ -140,6 +140,32 @@ def test_directory_layout_and_an_unusable_manifest(tmp_path: Path) -> None:
         assert res.stderr.startswith('evaluate: error: '), res.stderr
 
 
+def test_an_internal_error_is_no_failure_of_the_run_and_is_not_cached(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bug (here: the application raising RuntimeError) is the row's ``error``, not ``failed``
+    (the inputs): it is counted, said, and not cached, so the next evaluation runs it again."""
+    from handeye_ros.app import evaluate, request
+
+    runs = _write_runs(tmp_path, 1, seed0=400)
+    manifest = tmp_path / 'runs.yaml'
+    manifest.write_text(yaml.safe_dump({'runs': runs}))
+    out = tmp_path / 'out'
+
+    def broken(*args: object, **kw: object) -> None:
+        raise RuntimeError('a bug')
+
+    monkeypatch.setattr(request, 'run', broken)
+    assert evaluate.main([str(manifest), '-o', str(out), '--sequential']) == 1
+    (row,) = _rows(out)
+    assert row['status'] == 'error' and row['reason'] == 'internal error: RuntimeError: a bug'
+    assert 'alg0/seq0/0: error: internal error' in capsys.readouterr().err
+    monkeypatch.undo()
+    assert evaluate.main([str(manifest), '-o', str(out), '--sequential']) == 0
+    assert [r['status'] for r in _rows(out)] == ['ok']
+    assert 'from the cache' not in capsys.readouterr().out
+
+
 def test_a_worker_killed_mid_run_costs_only_a_retry(tmp_path: Path, monkeypatch) -> None:
     from distributed import Client, LocalCluster
 

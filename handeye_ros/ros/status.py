@@ -2,18 +2,18 @@
 
 READY is the verdict of a real calibration (:mod:`handeye_ros.core.checks.readiness`): the
 status calibrates the buffers in the node's worker as they grow (first once they span
-MIN_RECORDING_S, then as :func:`recheck_span` says, and once more when the recording has ended
-or the buffers are full), never sooner after one calibration than it took (so they take at most
-half a core and never fall behind the streams), and READY means the latest such result is
-``good`` for the chosen purpose and settled (not near the line of its precision, unless the
-recording has ended and it holds the whole). Between results it shows how far the device has
-turned and how far apart its turns' axes are
-(:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from the poses new
-since its last look: a look costs the same at 10 s and at 30 min of buffers), the latest
-result's verdict, 1-sigmas and age, and what to do. The answer is published on ``~/status``
-(diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
-changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log lines onto it in
-a terminal and its redraws into one line under ``ros2 launch``.
+MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when the recording has
+ended or the buffers are full; while the latest is ``good``, again as soon as they have grown by
+LAST_GAIN_S), never sooner after one calibration than it took (so they take at most half a
+core and never fall behind the streams), and READY means the latest such result is ``good`` for
+the chosen purpose and settled (not near the line of its precision, unless the recording has
+ended and it holds the whole). Between results it shows how far the device has turned and how far apart its
+turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
+the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
+latest result's verdict, 1-sigmas and age, and what to do. The answer is published on
+``~/status`` (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one
+line when it changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log
+lines onto it in a terminal and its redraws into one line under ``ros2 launch``.
 """
 
 from __future__ import annotations
@@ -54,25 +54,6 @@ FLOWING_PERIODS = 10
 LATE_S = 1.0
 #: The status line is logged when it changes, and at least this often (s).
 LOG_PERIOD_S = 10.0
-
-
-def recheck_span(latest: Outcome | None) -> float:
-    """The buffered span [s] from which the status calibrates again after ``latest``. READY
-    speaks for the buffers as they are: a good result is checked again once they have grown by
-    LAST_GAIN_S. A doubtful one waits for the data that may remedy it: GROWTH times its span, or,
-    held back by its precision alone (its ratio to the line above 1), the span at which white
-    noise, narrowing a 1-sigma as one over the square root of the span, would bring that ratio
-    to 1, if sooner (never sooner than LAST_GAIN_S more). Only when to look: what the look
-    finds is a real calibration."""
-    if latest is None:
-        return 0.0
-    last = latest.span_s
-    if latest.good:
-        return last + LAST_GAIN_S
-    ratio = latest.ratio
-    if latest.recording_helps and 1.0 < ratio < float('inf'):
-        return max(last + LAST_GAIN_S, min(GROWTH, ratio**2) * last)
-    return GROWTH * last
 
 
 class ReadinessStatus:
@@ -165,7 +146,11 @@ class ReadinessStatus:
             return
         last = 0.0 if latest is None else latest.span_s
         full = self._full()
-        grown = span >= recheck_span(latest)
+        # READY speaks for the buffers as they are: a good result is checked again as soon as
+        # the spacing allows, where a doubtful one waits for the data that may remedy it
+        grown = span >= (
+            last + LAST_GAIN_S if latest is not None and latest.good else GROWTH * last
+        )
         if not grown and not ((self.ended() or full) and span >= last + LAST_GAIN_S):
             if latest is not None and full:
                 self.auto = filled(self.auto)

@@ -16,7 +16,6 @@ from handeye_ros.core.checks.readiness import Outcome
 from handeye_ros.core.checks.verdict import precision_ratio
 from handeye_ros.ros.auto_mode import GROWTH, IMPROVEMENT, Auto, State, decide, filled, said
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
-from handeye_ros.ros.status import LAST_GAIN_S, recheck_span
 
 #: a `good` calibration of 60 s of buffers, one near the line of its precision, and one held
 #: back by its precision alone
@@ -77,19 +76,6 @@ def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
     assert not again.publish and again.state is State.IMPROVING and again.published == 0.9
     assert decide(near, replace(NEAR, span_s=GROWTH * NEAR.span_s), 0.88, full=False).publish
     assert decide(near, GOOD, 0.89, full=False).state is State.CONVERGED
-
-
-def test_the_next_calibration_waits_for_the_data_that_may_remedy_the_last() -> None:
-    """A good result is checked again after LAST_GAIN_S more; one held back by its precision at
-    1.1 of its line when white noise would bring it to 1 (1.21 times the span), at 2 of it at
-    GROWTH times; a failure or another reason at GROWTH times."""
-    assert recheck_span(None) == 0.0
-    assert recheck_span(GOOD) == GOOD.span_s + LAST_GAIN_S
-    assert recheck_span(replace(IMPRECISE, ratio=1.1)) == pytest.approx(1.21 * 60.0)
-    assert recheck_span(replace(IMPRECISE, ratio=2.0)) == GROWTH * 60.0
-    assert recheck_span(replace(IMPRECISE, ratio=1.001)) == 60.0 + LAST_GAIN_S
-    assert recheck_span(replace(CORRELATED, ratio=1.1)) == GROWTH * 60.0
-    assert recheck_span(Outcome.failure('too few motions', 60.0, 0.0)) == GROWTH * 60.0
 
 
 def test_a_result_that_is_not_good_is_never_published() -> None:

@@ -153,33 +153,34 @@ def replay(probe: LiveProbe, name: str, hand, eye, out: Path, speed: float, purp
     return {'statuses': statuses, 'docs': docs, 'sent': out_text, 'log': err}
 
 
-def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:
-    """The offline verdict of both streams up to ``cut_ns``, judged as the node judges it (for
-    an evaluation, with the evaluation's figures)."""
+def _judged_at(hand, eye, cut_ns: int, cfg: CalibrationConfig):
+    """The offline calibration of both streams up to ``cut_ns``, judged as the node judges it
+    (for an evaluation, with the evaluation's figures); HandeyeError as calibrate raises it."""
     from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 
+    res = calibrate(hand.select(hand.t_ns <= cut_ns), eye.select(eye.t_ns <= cut_ns), cfg)
+    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
+    return res if found is None else judge_figures(res, found[0])
+
+
+def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:
+    """The offline verdict of both streams up to ``cut_ns`` (:func:`_judged_at`)."""
     try:
-        res = calibrate(hand.select(hand.t_ns <= cut_ns), eye.select(eye.t_ns <= cut_ns), cfg)
+        return _judged_at(hand, eye, cut_ns, cfg).quality.verdict.value
     except HandeyeError as e:
         return f'failed ({e})'[:40]
-    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
-    return (res if found is None else judge_figures(res, found[0])).quality.verdict.value
 
 
 def _outcome_at(args: tuple) -> tuple[float, bool, float]:
     """(span s, good, ratio to the line: :class:`Outcome`) of a calibration of both streams'
     first ``s`` seconds from their common start ``t0`` [ns], judged as the node judges it."""
     from handeye_ros.core.checks.readiness import Outcome
-    from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
 
     hand, eye, t0, s, cfg = args
-    cut = t0 + int(s * 1e9)
     try:
-        res = calibrate(hand.select(hand.t_ns <= cut), eye.select(eye.t_ns <= cut), cfg)
+        res = _judged_at(hand, eye, t0 + int(s * 1e9), cfg)
     except HandeyeError:
         return s, False, float('inf')
-    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
-    res = res if found is None else judge_figures(res, found[0])
     std = None if res.batch is None else res.batch.std
     o = Outcome.of(res.quality, std, s, 0.0, cfg.precision)
     return s, o.good, o.ratio

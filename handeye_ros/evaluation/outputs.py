@@ -9,7 +9,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..core.checks.verdict import Purpose, assess_evaluation, share_ratio
+from ..core.checks.verdict import Purpose, assess_evaluation
 from ..core.document import ErrorKey, FilesDoc, ResultDoc
 from ..core.errors import InputError
 from ..core.result import CalibrationResult
@@ -98,12 +98,12 @@ def judge_figures(result: CalibrationResult, ev: Evaluation) -> CalibrationResul
                 unit,
             )
         )
-    reasons, notes = assess_evaluation(figures, '' if ev.sigmas is not None else ev.sigmas_why)
+    why = '' if ev.sigmas is not None else ev.sigmas_why
+    reasons, notes, ratio = assess_evaluation(figures, why)
     # no error bars because the batch stage did not run is said once (the core said it)
     said = {r.code for r in result.quality.found if Purpose.EVALUATION in r.purposes}
     reasons = [r for r in reasons if r.code not in said]
-    quality = result.quality.with_evaluation(reasons, notes, share_ratio(figures))
-    return replace(result, quality=quality)
+    return replace(result, quality=result.quality.with_evaluation(reasons, notes, ratio))
 
 
 def evaluation_of(

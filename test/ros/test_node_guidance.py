@@ -77,8 +77,8 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
     full buffers once more, and auto mode says so (`done`) instead of waiting in silence. The
     publisher runs at twice its real rate. When a `good` result improves on the one before by
     less than 10 % of the targets, auto mode converges first (on buffers not yet full), which it
-    says as explicitly and keeps: the status is read until either is said (36 s at most), and a little longer to see
-    it kept. A result is published only when `good`."""
+    says as explicitly and keeps: the status is read until either is said (36 s at most), and a
+    little longer to see it kept. A result is published only when `good`."""
     node = start_node(
         ros,
         install,

@@ -161,7 +161,6 @@ from .final import (
     precision_ratio,
     precision_ratios,
     settled,
-    share_ratio,
     sigmas_of,
 )
 from .findings import Findings
@@ -211,7 +210,6 @@ __all__ = [
     'scale_uncertainty_note',
     'seed_reason',
     'settled',
-    'share_ratio',
     'sigmas_of',
     'stages_disagree',
     'varies_note',

@@ -360,17 +360,6 @@ def reasons_in(log: tuple[Entry, ...]) -> set[Code]:
 Figure = tuple[str, float, float | None, str]
 
 
-def share_ratio(figures: list[Figure]) -> float:
-    """The largest of the figures' calibration 1-sigmas over EVALUATION_SHARE of the figure
-    (above 1 ``imprecise``), of those that have both; NaN when none has."""
-    ratios = [
-        sigma / (EVALUATION_SHARE * value)
-        for _, value, sigma, _ in figures
-        if np.isfinite(value) and sigma is not None and value > 0.0
-    ]
-    return max(ratios) if ratios else math.nan
-
-
 def judged_ratio(
     quality: Quality, sigmas: tuple[float, float, float] | None, precision: tuple[float, ...]
 ) -> float:
@@ -392,21 +381,25 @@ def settled(good: bool, ratio: float) -> bool:
     return good and not ratio > BLOCKS_MARGIN
 
 
-def assess_evaluation(figures: list[Figure], why_none: str) -> tuple[list[Reason], list[str]]:
+def assess_evaluation(
+    figures: list[Figure], why_none: str
+) -> tuple[list[Reason], list[str], float]:
     """Purpose evaluation's rule on the evaluation's own figures (:data:`Figure`): each is
     settled when its calibration 1-sigma is at most EVALUATION_SHARE of it, and noted when
     beyond BLOCKS_MARGIN of that. A figure with no value (an RPE step longer than the
     recording) is noted and left out; no 1-sigmas at all (``why_none``) is
-    ``no_uncertainty``. Returns (reasons, notes)."""
+    ``no_uncertainty``. Returns (reasons, notes, the largest of the judged figures'
+    1-sigmas over EVALUATION_SHARE of the figure: ``Quality.share_ratio``, NaN without one)."""
     only = frozenset({Purpose.EVALUATION})
     if why_none:
         text = f'the APE/RPE figures have no error bars from the calibration: {why_none}'
-        return [Reason(Code.NO_UNCERTAINTY, text, only)], []
-    over, near, notes = [], [], []
+        return [Reason(Code.NO_UNCERTAINTY, text, only)], [], math.nan
+    over, near, notes, ratios = [], [], [], []
     for label, value, sigma, unit in figures:
         if not np.isfinite(value) or sigma is None or value <= 0.0:
             notes.append(f'{label} could not be computed and is not judged')
             continue
+        ratios.append(sigma / (EVALUATION_SHARE * value))
         said = f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}'
         if sigma > EVALUATION_SHARE * value:
             over.append(said)
@@ -419,15 +412,16 @@ def assess_evaluation(figures: list[Figure], why_none: str) -> tuple[list[Reason
             + '. A 1-sigma measured on four blocks is itself uncertain by about a quarter: a '
             'calibration of more of this recording may find it above'
         )
+    ratio = max(ratios) if ratios else math.nan
     if not over:
-        return [], notes
+        return [], notes, ratio
     text = (
         "the calibration's 1-sigma exceeds "
         f'{EVALUATION_SHARE:.0%} of the figures it would change: '
         + '; '.join(over)
         + ' (with purpose extrinsic its own targets judge it instead)'
     )
-    return [Reason(Code.IMPRECISE, text, only)], notes
+    return [Reason(Code.IMPRECISE, text, only)], notes, ratio
 
 
 def judged(found: Findings, purpose: Purpose = Purpose.EVALUATION) -> Quality:

@@ -6,7 +6,7 @@
     without the screw-congruence kernel, each with the paper's dual-quaternion solution and
     with our decoupled refit of rotation and translation on the same consensus.
 (3) The whole linear pipeline (offset estimated, then stages 1-2 with every check, no batch
-    stage: ``CalibrationConfig(batch=False)``); bench/batch.py measures the batch stage.
+    stage: ``CalibrationConfig(batch=False)``); bench/simulated.py measures the batch stage.
 
 Every configuration is spelled out here (LINEAR, the keyword arguments of calibrate_linear),
 so a change of a default does not silently change what a row measures. Every (level, k) is its

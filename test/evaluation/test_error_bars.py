@@ -5,7 +5,7 @@ covariance says why it has none.
 Tolerance: with right sigmas a figure of the true calibration lies within 3 of them of the
 reported one in about 99 % of cases (the difference is one-sided, so its rms over its sigma is
 near 1); 24 figures (6 seeds, APE and RPE of translation and rotation) all within 4 sigmas fail
-by chance well under 1 % of the time, and the bench (bench/error_bars.py) counts the 3-sigma
+by chance well under 1 % of the time, and the bench (bench/simulated.py) counts the 3-sigma
 share over 60 seeds."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Stage 3: continuous-time batch refinement with covariance (paper Section III-C).
 
 Tolerances: on the paper protocol the batch stage's own reported 1-sigma is ~0.4 ms / 6 mm /
-0.2 deg at level 5 (bench/batch.py; the truth falls inside 3 sigma on every seed there); the
+0.2 deg at level 5 (bench/simulated.py; the truth falls inside 3 sigma on every seed there); the
 tests allow 4 sigma per seed and compare means over a few seeds with the linear stage.
 """
 

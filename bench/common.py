@@ -8,6 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+try:
+    import cv2
+except ImportError:  # benchmark-only extra (pip install .[bench])
+    cv2 = None
+
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / 'bench' / 'out'
 if str(ROOT) not in sys.path:  # run as `python bench/x.py` from anywhere
@@ -122,3 +127,41 @@ def sim3_scale(gt, est) -> float:
     d[2] = np.sign(np.linalg.det(U @ Vt))
     # a ~ s R b: the least-squares s of the rotated, centred positions
     return float(np.sum(S * d) / np.sum(b * b))
+
+
+#: OpenCV's calibrateHandEye methods, the baselines.
+OPENCV_METHODS = ('TSAI', 'PARK', 'HORAUD', 'ANDREFF', 'DANIILIDIS')
+
+
+def opencv_inputs(pairs) -> dict[str, np.ndarray]:
+    """The pose pairs OpenCV is fed, two ways: the rotation-constrained keyframe poses (>= 5 deg
+    apart) that our linear stage uses, and the poses every 0.5 s."""
+    from handeye_ros.core.linear.keyframes import rotation_keyframes
+
+    i, j = rotation_keyframes(pairs.R_GH, np.deg2rad(5.0))
+    step = max(1, round(0.5 / np.median(np.diff(pairs.t_eye_s))))
+    return {
+        'keyframes': np.unique(np.concatenate((i, j))),
+        'every 0.5 s': np.arange(0, pairs.t_eye_s.size, step),
+    }
+
+
+def opencv_hand_eye(pairs, idx: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """T_HE by cv2.calibrateHandEye from the pairs at ``idx``.
+
+    OpenCV's eye-in-hand names: gripper = H in base = G (our hand pose T_GH); target = W seen
+    from cam = E (T_EW = T_WE^-1); the result cam2gripper is T_HE.
+    """
+    from handeye_ros.core.geometry import inverse, quat_from_matrix
+
+    R_EW, p_EW = inverse((pairs.R_WE[idx], pairs.p_WE[idx]))
+    R, t = cv2.calibrateHandEye(
+        list(pairs.R_GH[idx]),
+        list(pairs.p_GH[idx]),
+        list(R_EW),
+        list(p_EW),
+        method=getattr(cv2, f'CALIB_HAND_EYE_{method}'),
+    )
+    if not (np.isfinite(R).all() and np.isfinite(t).all()):  # a failed method: NaN result
+        return np.array([0.0, 0.0, 0.0, 1.0]), np.full(3, np.inf)
+    return quat_from_matrix(R), t.ravel()

@@ -19,8 +19,7 @@ import time
 import cases
 import common  # noqa: F401
 import numpy as np
-from common import emit, table
-from opencv_compare import METHODS, cv2, input_sets, opencv_hand_eye
+from common import OPENCV_METHODS, cv2, emit, opencv_hand_eye, opencv_inputs, table
 
 from handeye_ros.core.association import associate
 from handeye_ros.core.config import CalibrationConfig
@@ -56,8 +55,8 @@ def evaluate_pair(
             pairs = associate(hand, est, shift)
             cv = [
                 calibration_error(truth, shift, *opencv_hand_eye(pairs, idx, method))
-                for idx in input_sets(pairs).values()
-                for method in METHODS
+                for idx in opencv_inputs(pairs).values()
+                for method in OPENCV_METHODS
             ]
             best_cv.append((min(c.translation_m for c in cv), min(c.rotation_deg for c in cv)))
     ours_a, cv_a = np.asarray(ours), np.asarray(best_cv) if best_cv else np.full((1, 2), np.nan)

@@ -19,7 +19,7 @@ must be re-read after a refill: the script lists the blocks whose figures change
 Usage:
     python bench/results.py                    # refill RESULTS.md from bench/out
     python bench/results.py --run              # run every registered benchmark, then refill
-    python bench/results.py --run --only ablation opencv_compare
+    python bench/results.py --run --only simulated real
     python bench/results.py --check            # exit 1 when RESULTS.md differs from bench/out
     python bench/results.py --list             # benchmarks, their outputs and their run time
 """
@@ -42,29 +42,23 @@ DOCUMENTS = [RESULTS, *sorted((BENCH / 'results').glob('*.md'))]
 #: Name -> (benchmark script, its arguments for the figures in RESULTS.md, the outputs it
 #: writes, roughly how long it runs on the 2-core reference machine).
 BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
-    'ablation': (
-        'ablation',
-        [],
-        ['ablation_time_alignment', 'ablation_linear_*', 'ablation_pipeline'],
-        '5 min',
-    ),
-    'opencv_compare': (
-        'opencv_compare',
-        [],
-        ['opencv_level0', 'opencv_level5', 'opencv_level10'],
-        '10 min',
-    ),
     'simulated': (
         'simulated',
         [],
         [
+            'ablation_time_alignment',
+            'ablation_linear_*',
+            'ablation_pipeline',
+            'opencv_level0',
+            'opencv_level5',
+            'opencv_level10',
             'batch_accuracy',
             'batch_coverage',
             'uncertainty_sim',
             'error_bars',
             'purpose_one_axis',
         ],
-        '25 min',
+        '30 min',
     ),
     'real_cases': ('real_cases', [], ['real_vicon*', 'real_machine_hall*'], '5 min'),
     'coverage_real': ('coverage_real', [], ['coverage_real'], '10 min'),

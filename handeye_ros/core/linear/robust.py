@@ -13,7 +13,7 @@ Why: in the dual-quaternion system the rotation also has to satisfy the dual row
 the eye's translation error; a VIO's relative translations are far noisier than its relative
 rotations, so that error leaks into the rotation. On the real flights of bench/real_cases.py
 the rotation error drops from 0.4-1.7 deg to 0.03-0.5 deg, and on the paper's protocol at
-level 10 from 0.82 to 0.47 deg (bench/ablation.py). The dual-quaternion solution is kept in the
+level 10 from 0.82 to 0.47 deg (bench/simulated.py). The dual-quaternion solution is kept in the
 result. The kernel and the inlier test are the paper's; two more departures are disclosed in
 docs/method.md: the singular values come from the eigendecomposition of ``M^T M`` (batched 8x8
 Gram matrices, never M itself), and a RANSAC refinement is eligible for the sigma7/sigma6

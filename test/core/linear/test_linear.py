@@ -45,7 +45,7 @@ def test_noise_free_is_exact() -> None:
 
 def test_rotation_keyframes_beat_the_global_strategy() -> None:
     """Level 5, seed 2 (measured: rotation 9.4 mm / 0.21 deg, inter-frame 8.7 mm / 0.17 deg,
-    global 86 mm / 5.1 deg; bench/ablation.py's level-5 means are alike). Tolerances: 1.5x the
+    global 86 mm / 5.1 deg; bench/simulated.py's level-5 ablation means are alike). Tolerances: 1.5x the
     measured errors for the two short-motion strategies; global motions carry the eye's whole
     drift, so the paper's claim is checked as a ratio."""
     rec = recording(seed=2, level=5.0)

@@ -3,7 +3,7 @@
 Tolerances: the correlation grid runs at the faster stream's rate (100-200 Hz, 5-10 ms steps);
 the quadratic peak fit brings the error to a small fraction of a step. On the paper's protocol
 the error over 20 seeds averages about 1 ms at the highest noise level, with single seeds up to
-~3 ms there (bench/ablation.py; bench/RESULTS.md, Accuracy); tests on one seed allow 5 ms at
+~3 ms there (bench/simulated.py; bench/RESULTS.md, Accuracy); tests on one seed allow 5 ms at
 noise level 5 and 1 ms without noise.
 """
 

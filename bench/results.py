@@ -138,7 +138,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
         ['node_ingest_buffers1800s', 'node_memory_buffers1800s', 'node_status_cost_buffers1800s'],
         '12 min',
     ),
-    'node_lifecycle': ('node_lifecycle', [], ['node_lifecycle'], '20 min'),
     'code_path': ('code_path', [], ['code_path'], '5 s'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
     'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),

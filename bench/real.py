@@ -3,7 +3,7 @@ options, all in the IMU frame (truth T_HE = I, dt = 0; +50 ms for the real-time 
 whose eye clock is one camera frame ahead): what the verdict says for each purpose (issue 66)
 and whether the reported 1-sigma holds on real VIO (issue 34).
 
-Five tables:
+Seven tables:
 
 - ``purpose_real``: the verdict for purpose evaluation (the figures judged, as every front end
   does) and for extrinsic, the largest share of an APE/RPE figure that the calibration's 1-sigma
@@ -23,6 +23,15 @@ Five tables:
 - ``uncertainty_terms``: each of those estimates' reported 1-sigma per group, the term that
   dominates it (white, correlated, scale: core/batch/correlated.py), the blocks' factors and the
   eye's scale, and the verdict.
+- ``rig_real_recordings``, ``rig_real``: one rig, many recordings (issue 36), read, not tuned:
+  the EuRoC estimates vio_mono and vio_stereo on MH_01, MH_03, MH_05, V2_01, V2_02 (one rig per
+  estimator; each sequence's ground truth is its own estimate, centimetres apart, so the figures
+  are about consistency), the VI-SLAM runs of MH_01-MH_05 (their consistency test rests on the
+  correlated term's sigmas), and TUM-VI room1 + outdoors4, ORB-SLAM3 VIO with ``clock_drift``.
+  Per recording: its own T_HE's difference from I, its 1-sigma, its chi-square against the others
+  of the largest group, whether the rig uses it, its verdict for evaluation alone and at the
+  rig's T_HE (as ``offline_calibrate --rig`` evaluates it); per rig: T_HE against I, its
+  1-sigma, the verdict for evaluation (on its recordings' figures) and for extrinsic.
 
 Usage: python bench/real.py
 """
@@ -38,13 +47,20 @@ import numpy as np
 from common import emit, sim3_scale, table
 from scipy.spatial.transform import Rotation
 
+from handeye_ros.app.rig import Own, finish, role, shared_outputs, solve, summary_of
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
+from handeye_ros.core.geometry import difference
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.result import CalibrationResult
 from handeye_ros.core.trajectory import Trajectory
 from handeye_ros.evaluation.error_bars import figures_at
-from handeye_ros.evaluation.outputs import JUDGED, evaluation_of, judge_figures
+from handeye_ros.evaluation.outputs import (
+    JUDGED,
+    evaluate_and_write,
+    evaluation_of,
+    judge_figures,
+)
 
 #: What counts as an accurate answer (issue 66's figure): dt [s], T_HE [m], [deg].
 ACCURATE = (5e-3, 0.020, 1.0)
@@ -65,6 +81,7 @@ SHARED = {
     'TUM-VI': ('TUM-VI',),
 }
 _IDENTITY = np.r_[0, 0, 0, 1.0]
+IDENTITY = (_IDENTITY, np.zeros(3))
 
 
 @dataclass(frozen=True)
@@ -336,6 +353,85 @@ def term_rows(ests: dict) -> list[list]:
     return rows
 
 
+# --- rig_real_recordings, rig_real -----------------------------------------------------------
+
+
+def rigs(
+    runs: list[Calibrated], ests: dict[str, list[tuple[str, CalibrationResult]]]
+) -> dict[str, list[tuple[str, CalibrationResult]]]:
+    """Per rig, its recordings' (name, own result): the runs as calibrated above, TUM-VI's
+    with ``clock_drift`` (outdoors4's from the pairs' estimates)."""
+    by_name = {c.run.name: c.result for c in runs if c.result is not None}
+    room1 = calibrate(
+        *cases.run('TUM-VI room1 orbslam').load(), CalibrationConfig(clock_drift=True)
+    )
+    outdoors4 = dict(ests['TUM-VI outdoors4'])['orbslam vio']
+    return {
+        **{
+            f'EuRoC vio_{kind}': [(seq, by_name[f'EuRoC {seq} {kind}']) for seq in EUROC]
+            for kind in ('mono', 'stereo')
+        },
+        'EuRoC VI-SLAM': [(seq, by_name[f'VI-SLAM {seq}']) for seq in cases.EUROC_GT],
+        'TUM-VI ORB-SLAM3': [('room1', room1), ('outdoors4', outdoors4)],
+    }
+
+
+def _mm_deg(v: np.ndarray) -> tuple[float, float]:
+    return float(np.linalg.norm(v[:3]) * 1e3), float(np.degrees(np.linalg.norm(v[3:])))
+
+
+def rig_rows(rigs: dict[str, list[tuple[str, CalibrationResult]]]) -> tuple[list, list]:
+    """A row per recording of each rig, and a row per rig."""
+    rows, summary = [], []
+    for name, named in rigs.items():
+        owns = [Own(seq, res.to_dict(), res) for seq, res in named]
+        rig = solve([summary_of(own) for own in owns])
+        docs = [shared_outputs(own, rig.joint, *role(rig, own.name), None, False) for own in owns]
+        quality = finish(rig, [own.name for own in owns], docs, None)['rig']['quality']
+        index = {m.name: k for k, m in enumerate(rig.members)}
+        for (seq, res), doc in zip(named, docs, strict=True):
+            k = index[seq]  # every real recording here gives a member
+            m, test = rig.members[k], rig.split.tests[k]
+            sd = np.sqrt(m.extrinsic_covariance.diagonal())
+            q = doc['quality']
+            rows.append(
+                [
+                    name,
+                    seq,
+                    ' '.join(f'{v * 1e3:+.1f}' for v in m.p_HE),
+                    *_mm_deg(difference(m.q_HE, m.p_HE, *IDENTITY)),
+                    np.linalg.norm(sd[:3]) * 1e3,
+                    np.degrees(np.linalg.norm(sd[3:])),
+                    '-' if test is None else test.chi2,
+                    'yes' if seq in rig.used else 'NO',
+                    evaluate_and_write(res, res.to_dict()).quality.label(' '),
+                    ' '.join([q['verdict'], *q['for_evaluation']['codes']])
+                    if seq in rig.used
+                    else '-',
+                ]
+            )
+        alone = np.median(
+            [np.linalg.norm(np.sqrt(m.extrinsic_covariance.diagonal()[:3])) for m in rig.members]
+        )
+        summary.append(
+            [
+                name,
+                ' '.join(f'{v * 1e3:+.1f}' for v in rig.joint.p_HE),
+                *_mm_deg(difference(rig.joint.q_HE, rig.joint.p_HE, *IDENTITY)),
+                np.linalg.norm(rig.joint.std[:3]) * 1e3,
+                np.degrees(np.linalg.norm(rig.joint.std[3:])),
+                np.linalg.norm(rig.joint.std[:3]) / alone,
+                rig.split.threshold,
+                ' '.join(rig.used),
+                ' '.join([quality['verdict'], *quality['for_evaluation']['codes']]),
+                ' '.join(
+                    [quality['for_extrinsic']['verdict'], *quality['for_extrinsic']['codes']]
+                ),
+            ]
+        )
+    return rows, summary
+
+
 def main() -> None:
     if not cases.available():
         print(f'no real data at {cases.REAL_DATA}: nothing to measure')
@@ -441,6 +537,47 @@ def main() -> None:
                 'verdict',
             ],
             term_rows(ests),
+        ),
+    )
+    rows, summary = rig_rows(rigs(runs, ests))
+    emit(
+        'rig_real_recordings',
+        table(
+            'Real rigs: each recording alone (T_HE against the truth I)',
+            (
+                'rig',
+                'recording',
+                'own t mm',
+                'own err mm',
+                'own err deg',
+                'sigma mm',
+                'sigma deg',
+                'chi2',
+                'used',
+                'alone: evaluation',
+                "at the rig's T_HE: evaluation",
+            ),
+            rows,
+        ),
+    )
+    emit(
+        'rig_real',
+        table(
+            'Real rigs: the joint T_HE (against the truth I)',
+            (
+                'rig',
+                't mm',
+                'err mm',
+                'err deg',
+                'sigma mm',
+                'sigma deg',
+                'sigma / median alone',
+                'chi2 limit',
+                'used',
+                'evaluation',
+                'extrinsic',
+            ),
+            summary,
         ),
     )
 

@@ -71,6 +71,8 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
             'uncertainty_common',
             'uncertainty_pairs',
             'uncertainty_terms',
+            'rig_real',
+            'rig_real_recordings',
         ],
         '5 min',
     ),
@@ -140,7 +142,6 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     ),
     'code_path': ('code_path', [], ['code_path'], '5 s'),
     'rig': ('rig', [], ['rig', 'rig_summary'], '2 min'),
-    'rig_real': ('rig_real', [], ['rig_real', 'rig_real_recordings'], '10 s'),
 }
 
 BLOCK = re.compile(

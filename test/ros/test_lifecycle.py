@@ -70,10 +70,10 @@ TARGETS = {'init': "rclpy, 'init'", 'node': "node.CalibratorNode, '__init__'"}
 
 @pytest.mark.parametrize('where', sorted(TARGETS))
 def test_a_signal_during_the_start_exits_quietly_and_stops_the_worker(where: str) -> None:
-    """A Ctrl-C just after rclpy.init (the node not made yet: main stops the worker) or just
-    after the node is made (not spun: its close() stops the worker). Before the worker's stop ran in every path, the node hung on the worker's
-    resource tracker in 1 of 100 stops of bench/node_lifecycle.py. Run in a fresh interpreter:
-    rclpy's state is per process."""
+    """A Ctrl-C just after rclpy.init (the node not made yet: main stops the worker) or just after
+    the node is made (not spun: its close() stops the worker). Before the worker's stop ran in
+    every path, the node hung on the worker's resource tracker in 1 of 100 stops of a start/stop
+    benchmark (bench/results/node.md). Run in a fresh interpreter: rclpy's state is per process."""
     proc = _run(TARGETS[where], 'lifecycle.stop_requested() and rclpy.ok()', CALIBRATOR)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ['0', '0'], proc.stdout + proc.stderr

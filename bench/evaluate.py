@@ -14,10 +14,6 @@
    ``--workers``, and no scheduler can beat it).
 2. The report of a ``--report-minutes`` recording at 1 kHz + 200 Hz: the time of the evaluation,
    exports and report beyond the calibration itself.
-4. (``--defects``) the defects of real recordings (bench/defects.py's injectors) on real pairs,
-   through the offline tool with ``--export`` and ``--report`` as a user runs it: exit code,
-   no traceback, the verdict, evo_ape on the exports against our APE, the report written, and
-   what the baseline without the calibration says.
 3. evo_ape on that recording's exports against our APE, and on the 12 real pairs of
    ../shared/data/real (bench/cases.py: EuRoC ground truth moved to the Vicon marker frame
    and 0.1 s onto another clock, real VIO estimates), with our APE with and without the
@@ -335,118 +331,6 @@ def real(tmp: Path) -> None:
     emit('evaluate_real', text, seeds='none (real data)')
 
 
-DEFECT_CASES = (
-    'clean (files)',
-    'placeholder pose',
-    'mocap swaps 1%',
-    'vio glitches 5%',
-    'vio reset',
-    'offset -30 s',
-    'eye boot clock',
-    'eye stamps ms',
-    'eye quat wxyz',
-    'hand stamps us',
-)
-DEFECT_PAIRS = ('V1_01 openvins', 'MH_03 stereo')
-DEFECT_SEED0 = 1000
-
-
-def defects(tmp: Path) -> None:
-    import cases
-    import defects as dfx
-
-    if not cases.available():
-        print('real data not present: skipped')
-        return
-    rows = []
-    for base in dfx.real_bases(DEFECT_PAIRS):
-        for k, name in enumerate(DEFECT_CASES):
-            rng = np.random.default_rng(DEFECT_SEED0 + k)  # as bench/defects.py seeds its cases
-            inj = dfx.DEFECTS[name](dfx.hand_stream(base.hand), dfx.eye_stream(base.eye), rng)
-            work = tmp / f'defect_{len(rows)}'
-            work.mkdir()
-            hp = work / ('hand.csv' if inj.hand.fmt == 'euroc' else 'hand.txt')
-            ep = work / ('eye.csv' if inj.eye.fmt == 'euroc' else 'eye.txt')
-            inj.hand.write(hp)
-            inj.eye.write(ep)
-            proc = subprocess.run(
-                [
-                    sys.executable,
-                    '-m',
-                    'handeye_ros.offline',
-                    '--hand',
-                    str(hp),
-                    '--eye',
-                    str(ep),
-                    '--json',
-                    '--export',
-                    str(work / 'ex'),
-                    '--report',
-                    str(work / 'rep'),
-                ],
-                env=_env(),
-                cwd=ROOT,
-                capture_output=True,
-                text=True,
-                check=False,
-            )
-            tb = 'Traceback' in proc.stderr
-            if proc.returncode != 0:
-                rows.append(
-                    (
-                        base.name,
-                        name,
-                        proc.returncode,
-                        tb,
-                        '',
-                        '',
-                        '',
-                        '',
-                        '',
-                        proc.stderr.strip().splitlines()[-1][:70] if proc.stderr else '',
-                    )
-                )
-                continue
-            d = json.loads(proc.stdout)
-            ev = d['evaluation']
-            ours = ev['calibrated']['ape_translation']['rmse']
-            evo = evo_ape(work / 'ex', tmp / 'home')['rmse']
-            base_ape = ev['uncalibrated']
-            rows.append(
-                (
-                    base.name,
-                    name,
-                    proc.returncode,
-                    tb,
-                    d['quality']['verdict'],
-                    f'{ours * 1e3:.1f}',
-                    f'{abs(evo - ours) * 1e3:.1e}',
-                    (work / 'rep' / 'report.html').is_file(),
-                    'n/a'
-                    if base_ape is None
-                    else f'{base_ape["ape_translation"]["rmse"] * 1e3:.0f}',
-                    (ev['uncalibrated_why'] or '')[:70],
-                )
-            )
-    text = table(
-        'defects of real recordings through offline_calibrate --export --report',
-        (
-            'pair',
-            'defect',
-            'exit',
-            'traceback',
-            'verdict',
-            'APE mm',
-            '|evo - ours| mm',
-            'report',
-            'without: APE mm',
-            'without: why not / error',
-        ),
-        rows,
-    )
-    emit('evaluate_defects', text, seeds=f'{DEFECT_SEED0} + case index')
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     p.add_argument('--runs', type=int, default=100)
@@ -455,12 +339,8 @@ def main() -> None:
     p.add_argument('--report-minutes', type=float, default=10.0)
     p.add_argument('--skip-many', action='store_true')
     p.add_argument('--only-real', action='store_true')
-    p.add_argument('--defects', action='store_true', help='only the defects of real recordings')
     args = p.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        if args.defects:
-            defects(Path(tmp))
-            return
         if not args.only_real:
             if not args.skip_many:
                 many(args, Path(tmp))

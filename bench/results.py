@@ -119,7 +119,7 @@ BENCHMARKS: dict[str, tuple[str, list[str], list[str], str]] = {
     'evaluate': (
         'evaluate',
         [],
-        ['evaluate_many', 'evaluate_report', 'evaluate_real', 'evaluate_defects'],
+        ['evaluate_many', 'evaluate_report', 'evaluate_real'],
         '20 min',
     ),
     'real_world': (

@@ -49,7 +49,18 @@ def provenance(seeds: object = None) -> str:
             return ''
 
     commit = git('rev-parse', '--short=12', 'HEAD') or 'unknown'
-    dirty = ' +uncommitted changes' if git('status', '--porcelain', '--untracked-files=no') else ''
+    # the tables' own documents, which bench/results.py refills while a run goes on, are no
+    # change of what printed them
+    changed = git(
+        'status',
+        '--porcelain',
+        '--untracked-files=no',
+        '--',
+        '.',
+        ':!bench/results',
+        ':!bench/RESULTS.md',
+    )
+    dirty = ' +uncommitted changes' if changed else ''
     line = (
         f'commit {commit}{dirty}; python {platform.python_version()}, numpy '
         f'{np.__version__}, scipy {scipy.__version__}'

@@ -176,3 +176,31 @@ def opencv_hand_eye(pairs, idx: np.ndarray, method: str) -> tuple[np.ndarray, np
     if not (np.isfinite(R).all() and np.isfinite(t).all()):  # a failed method: NaN result
         return np.array([0.0, 0.0, 0.0, 1.0]), np.full(3, np.inf)
     return quat_from_matrix(R), t.ravel()
+
+
+#: The APE figures whose value at another calibration :func:`truth_within` measures.
+APE_KEYS = ('ape_translation', 'ape_rotation')
+
+
+def judged(res):
+    """(the result with its figures judged, as every front end judges it for purpose
+    evaluation; its Evaluation, None when none could be made)."""
+    from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
+
+    found = evaluation_of(res)
+    return (res, None) if found is None else (judge_figures(res, found[0]), found[0])
+
+
+def truth_within(res, ev, dt_s: float, q_HE: np.ndarray, p_HE: np.ndarray) -> list[float | None]:
+    """For each of APE_KEYS, |its rmse at the calibration (dt_s, q_HE, p_HE) - the reported one|
+    over its calibration 1-sigma (``ev``: the result's Evaluation); None without error bars."""
+    from handeye_ros.evaluation.error_bars import figures_at
+
+    if ev is None or ev.sigmas is None or res.batch is None:
+        return [None] * len(APE_KEYS)
+    moved = figures_at(res, dt_s, q_HE, p_HE)
+    sigmas = [ev.sigmas.sigmas[key]['rmse'] for key in APE_KEYS]
+    return [
+        None if moved is None or not sigma else abs(moved[key]['rmse']) / sigma
+        for key, sigma in zip(APE_KEYS, sigmas, strict=True)
+    ]

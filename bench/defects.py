@@ -46,7 +46,7 @@ from pathlib import Path
 import cases
 import common  # noqa: F401
 import numpy as np
-from common import emit, table
+from common import emit, judged, table, truth_within
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.checks.verdict import Purpose
@@ -55,8 +55,7 @@ from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import Truth, calibration_error, noise_level, simulate
 from handeye_ros.core.trajectory import Trajectory
-from handeye_ros.evaluation.error_bars import figures_at
-from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
+from handeye_ros.evaluation.outputs import evaluation_of
 from handeye_ros.formats import read_trajectory
 
 #: Tolerances of "accurate" (issue 10): against the same recording without the defect.
@@ -381,8 +380,7 @@ def run_files(hand: Stream, eye: Stream, workdir: Path, config: CalibrationConfi
     res = calibrate(read_trajectory(hp), read_trajectory(ep), config)
     # the verdict a user reads: for purpose evaluation with its figures judged, as the front
     # ends judge them
-    found = evaluation_of(res) if config.purpose == 'evaluation' else None
-    return res if found is None else judge_figures(res, found[0])
+    return judged(res)[0] if config.purpose == 'evaluation' else res
 
 
 def judge(res, ref_dt: float, ref_q: np.ndarray, ref_p: np.ndarray) -> tuple[bool, tuple]:
@@ -409,19 +407,10 @@ def _figures_at(res, truth: Truth) -> float:
     """The larger of |APE at ``truth`` - the reported APE| over its calibration sigma, for
     the translation and the rotation (inf without them)."""
     found = evaluation_of(res)
-    sigmas = None if found is None else found[0].sigmas
-    moved = (
-        None if sigmas is None else figures_at(res, truth.time_offset_s, truth.q_HE, truth.p_HE)
+    within = truth_within(
+        res, None if found is None else found[0], truth.time_offset_s, truth.q_HE, truth.p_HE
     )
-    if sigmas is None or moved is None:
-        return float('inf')
-    worst = 0.0
-    for key in ('ape_translation', 'ape_rotation'):
-        sigma = sigmas.sigmas[key]['rmse']
-        if not sigma:
-            return float('inf')
-        worst = max(worst, abs(moved[key]['rmse']) / sigma)
-    return worst
+    return float('inf') if None in within else max(within)
 
 
 def evaluate(

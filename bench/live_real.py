@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 import cases
-import common  # noqa: F401  (first: puts the project on sys.path)
+import common
 import numpy as np
 import yaml
 from common import emit, table
@@ -156,11 +156,8 @@ def replay(probe: LiveProbe, name: str, hand, eye, out: Path, speed: float, purp
 def _judged_at(hand, eye, cut_ns: int, cfg: CalibrationConfig):
     """The offline calibration of both streams up to ``cut_ns``, judged as the node judges it
     (for an evaluation, with the evaluation's figures); HandeyeError as calibrate raises it."""
-    from handeye_ros.evaluation.outputs import evaluation_of, judge_figures
-
     res = calibrate(hand.select(hand.t_ns <= cut_ns), eye.select(eye.t_ns <= cut_ns), cfg)
-    found = evaluation_of(res) if cfg.purpose == 'evaluation' else None
-    return res if found is None else judge_figures(res, found[0])
+    return common.judged(res)[0] if cfg.purpose == 'evaluation' else res
 
 
 def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:

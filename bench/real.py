@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import cases
 import common  # noqa: F401  (first: puts the project on sys.path)
 import numpy as np
-from common import emit, sim3_scale, table
+from common import emit, judged, sim3_scale, table, truth_within
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.app.rig import Own, finish, role, shared_outputs, solve, summary_of
@@ -54,13 +54,7 @@ from handeye_ros.core.geometry import difference
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.result import CalibrationResult
 from handeye_ros.core.trajectory import Trajectory
-from handeye_ros.evaluation.error_bars import figures_at
-from handeye_ros.evaluation.outputs import (
-    JUDGED,
-    evaluate_and_write,
-    evaluation_of,
-    judge_figures,
-)
+from handeye_ros.evaluation.outputs import JUDGED, evaluate_and_write
 
 #: What counts as an accurate answer (issue 66's figure): dt [s], T_HE [m], [deg].
 ACCURATE = (5e-3, 0.020, 1.0)
@@ -109,13 +103,9 @@ def calibrated_runs() -> list[Calibrated]:
 # --- purpose_real ---------------------------------------------------------------------------
 
 
-def judged(r: CalibrationResult) -> tuple[CalibrationResult, str]:
-    """The result with its figures judged, and the largest share of a figure its calibration
-    1-sigma is, with the figure ('-' without error bars)."""
-    found = evaluation_of(r)
-    if found is None:
-        return r, '-'
-    ev = found[0]
+def largest_share(ev) -> str:
+    """The largest share of a figure its calibration 1-sigma is, with the figure ('-' without
+    error bars)."""
     shares = [
         (ev.sigmas.sigmas[key]['rmse'] / getattr(ev.calibrated, key).rmse, key)
         for key, *_ in JUDGED
@@ -124,22 +114,7 @@ def judged(r: CalibrationResult) -> tuple[CalibrationResult, str]:
         and getattr(ev.calibrated, key).rmse > 0
     ]
     top = max(shares) if shares else None
-    return judge_figures(r, ev), '-' if top is None else f'{top[0]:.1%} {top[1]}'
-
-
-def truth_within(
-    r: CalibrationResult, dt_s: float, q_HE: np.ndarray, p_HE: np.ndarray, key: str
-) -> float | None:
-    """|the figure ``key``'s rmse at the calibration (dt_s, q_HE, p_HE) - the reported one| over
-    its calibration 1-sigma (None without error bars)."""
-    found = evaluation_of(r)
-    if found is None or found[0].sigmas is None or r.batch is None:
-        return None
-    sigma = found[0].sigmas.sigmas[key]['rmse']
-    moved = figures_at(r, dt_s, q_HE, p_HE)
-    if moved is None or not sigma:
-        return None
-    return abs(moved[key]['rmse']) / sigma
+    return '-' if top is None else f'{top[0]:.1%} {top[1]}'
 
 
 def purpose_rows(runs: list[Calibrated]) -> list[list[object]]:
@@ -149,11 +124,9 @@ def purpose_rows(runs: list[Calibrated]) -> list[list[object]]:
             rows.append([c.run.name, 'refused', '-', '-', '-', '-', '-', c.why[:50]])
             continue
         dt_ref = c.run.reference_s
-        within = [
-            truth_within(c.result, dt_ref, _IDENTITY, np.zeros(3), key)
-            for key in ('ape_translation', 'ape_rotation')
-        ]
-        r, share = judged(c.result)
+        r, ev = judged(c.result)
+        within = truth_within(c.result, ev, dt_ref, _IDENTITY, np.zeros(3))
+        share = '-' if ev is None else largest_share(ev)
         errors = (
             abs(r.time_offset_s - dt_ref),
             float(np.linalg.norm(r.p_HE)),
@@ -271,9 +244,11 @@ def common_rows(errors: np.ndarray, sigmas: np.ndarray, names: list[str]) -> lis
 # --- uncertainty_pairs, uncertainty_terms ---------------------------------------------------
 
 
-def estimates(runs: list[Calibrated]) -> dict[str, list[tuple[str, CalibrationResult]]]:
+def estimates(
+    by_name: dict[str, CalibrationResult],
+) -> dict[str, list[tuple[str, CalibrationResult]]]:
     """Per recording with two or three estimates, its estimates' (name, result): the EuRoC
-    runs as calibrated above, outdoors4's with ``clock_drift``."""
+    runs as calibrated above (``by_name``), outdoors4's with ``clock_drift``."""
     drift = CalibrationConfig(clock_drift=True)
     out: dict[str, list[tuple[str, CalibrationResult]]] = {
         'TUM-VI outdoors4': [
@@ -281,7 +256,6 @@ def estimates(runs: list[Calibrated]) -> dict[str, list[tuple[str, CalibrationRe
             for label, f in OUTDOORS4.items()
         ]
     }
-    by_name = {c.run.name: c.result for c in runs if c.result is not None}
     for seq in EUROC:
         out[f'EuRoC {seq}'] = [
             (f'vio_{kind}', by_name[f'EuRoC {seq} {kind}']) for kind in ('mono', 'stereo')
@@ -357,11 +331,10 @@ def term_rows(ests: dict) -> list[list]:
 
 
 def rigs(
-    runs: list[Calibrated], ests: dict[str, list[tuple[str, CalibrationResult]]]
+    by_name: dict[str, CalibrationResult], ests: dict[str, list[tuple[str, CalibrationResult]]]
 ) -> dict[str, list[tuple[str, CalibrationResult]]]:
-    """Per rig, its recordings' (name, own result): the runs as calibrated above, TUM-VI's
-    with ``clock_drift`` (outdoors4's from the pairs' estimates)."""
-    by_name = {c.run.name: c.result for c in runs if c.result is not None}
+    """Per rig, its recordings' (name, own result): the runs as calibrated above
+    (``by_name``), TUM-VI's with ``clock_drift`` (outdoors4's from the pairs' estimates)."""
     room1 = calibrate(
         *cases.run('TUM-VI room1 orbslam').load(), CalibrationConfig(clock_drift=True)
     )
@@ -497,7 +470,8 @@ def main() -> None:
             common_rows(errors, sigmas, names),
         ),
     )
-    ests = estimates(runs)
+    by_name = {c.run.name: c.result for c in runs if c.result is not None}
+    ests = estimates(by_name)
     emit(
         'uncertainty_pairs',
         table(
@@ -539,7 +513,7 @@ def main() -> None:
             term_rows(ests),
         ),
     )
-    rows, summary = rig_rows(rigs(runs, ests))
+    rows, summary = rig_rows(rigs(by_name, ests))
     emit(
         'rig_real_recordings',
         table(

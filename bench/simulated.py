@@ -60,13 +60,14 @@ from common import (
     covered,
     cv2,
     emit,
+    judged,
     opencv_hand_eye,
     opencv_inputs,
     pyplot,
     save_plot,
     table,
+    truth_within,
 )
-from real import judged, truth_within
 
 from handeye_ros.core.association import associate
 from handeye_ros.core.config import CalibrationConfig
@@ -576,8 +577,9 @@ def one_axis(seeds: int) -> None:
                     held = r.batch is not None and r.batch.held_axis is not None
                     named = held and any('rotation axis' in u for u in r.linear.unobservable)
                     t = rec.truth
-                    within = truth_within(r, t.time_offset_s, t.q_HE, t.p_HE, 'ape_translation')
-                    r, _ = judged(r)
+                    judged_r, ev = judged(r)
+                    within = truth_within(r, ev, t.time_offset_s, t.q_HE, t.p_HE)[0]
+                    r = judged_r
                     counts += [
                         named,
                         within is not None,

@@ -51,8 +51,9 @@ def format_report(d: ResultDoc) -> str:
         )
     if files.get('report'):
         lines.append(f'report: {files["report"]}')
-    for w in d['warnings']:
-        lines.append(f'WARNING: {w}')
+    # a warning the verdict already says (a note of it) is said once, up there
+    said = {*d['quality']['notes'], *(r['message'] for r in d['quality']['reasons'])}
+    lines += [f'WARNING: {w}' for w in d['warnings'] if w not in said]
     return '\n'.join(lines)
 
 

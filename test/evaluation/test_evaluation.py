@@ -177,6 +177,24 @@ def test_clocks_apart_have_no_baseline_and_say_why(tmp_path: Path, sim_files) ->
     assert (tmp_path / 'r' / 'report.html').is_file()
 
 
+def test_a_warning_the_verdict_notes_is_said_once_in_the_report(sim_files) -> None:
+    """Clocks on different epochs are a warning and a note of the verdict: the terminal report
+    says it once, among the notes; a warning the verdict does not say stays at the end."""
+    from handeye_ros.core.pipeline import calibrate
+    from handeye_ros.evaluation.terminal import format_report
+
+    _, _, rec = sim_files
+    e = rec.eye
+    boot = e.t_ns - rec.hand.t_ns[0] + 10**11  # the eye on time since boot, the hand on Unix
+    d = calibrate(rec.hand, Trajectory.from_arrays(boot, e.p_xyz, e.q_xyzw)).to_dict()
+    (epochs,) = [w for w in d['warnings'] if 'epoch' in w]
+    assert epochs in d['quality']['notes']
+    d['warnings'].append('a warning of its own')
+    text = format_report(d)
+    assert text.count(epochs) == 1 and f'note: {epochs}' in text
+    assert 'WARNING: a warning of its own' in text and f'WARNING: {epochs}' not in text
+
+
 def test_unwritable_output_directory_fails_before_calibrating(sim_files, tmp_path: Path) -> None:
     hand, eye, _ = sim_files
     blocker = tmp_path / 'file'

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..core.checks.verdict import Verdict
 from ..core.document import ErrorKey, EvaluationDoc, ResultDoc, TransformDoc
-from .terminal import other_purpose, purpose_words
+from .terminal import other_purpose, purpose_words, unsaid_warnings
 
 VERDICT_COLOUR: dict[str, str] = {
     Verdict.GOOD: '#1a7f37',
@@ -192,7 +192,7 @@ def render(d: ResultDoc, figures: list[tuple[Path, str]]) -> str:
     colour = VERDICT_COLOUR.get(q['verdict'], '#555')
     reasons = ''.join(f'<li><b>{_e(r["code"])}</b>: {_e(r["message"])}</li>' for r in q['reasons'])
     notes = ''.join(f'<li>{_e(n)}</li>' for n in q['notes'])
-    warnings = ''.join(f'<li>{_e(w)}</li>' for w in d['warnings'])
+    warnings = ''.join(f'<li>{_e(w)}</li>' for w in unsaid_warnings(d))
     figs = ''.join(
         f'<figure><img alt="{_e(p.stem)}" src="data:image/png;base64,'
         f'{base64.b64encode(p.read_bytes()).decode("ascii")}" data-file="{_e(p.name)}">'

@@ -51,10 +51,15 @@ def format_report(d: ResultDoc) -> str:
         )
     if files.get('report'):
         lines.append(f'report: {files["report"]}')
-    # a warning the verdict already says (a note of it) is said once, up there
-    said = {*d['quality']['notes'], *(r['message'] for r in d['quality']['reasons'])}
-    lines += [f'WARNING: {w}' for w in d['warnings'] if w not in said]
+    lines += [f'WARNING: {w}' for w in unsaid_warnings(d)]
     return '\n'.join(lines)
+
+
+def unsaid_warnings(d: ResultDoc) -> list[str]:
+    """The warnings the verdict does not already say: one that is also a note of it (the
+    eye's breaks, clocks on different epochs) is said once, with the verdict."""
+    said = {*d['quality']['notes'], *(r['message'] for r in d['quality']['reasons'])}
+    return [w for w in d['warnings'] if w not in said]
 
 
 def purpose_words(q: QualityDoc) -> str:

@@ -6,6 +6,7 @@ in a real headless browser (Debian's chromium) where one is installed.
 from __future__ import annotations
 
 import base64
+import html
 import json
 import os
 import re
@@ -178,9 +179,10 @@ def test_clocks_apart_have_no_baseline_and_say_why(tmp_path: Path, sim_files) ->
 
 
 def test_a_warning_the_verdict_notes_is_said_once_in_the_report(sim_files) -> None:
-    """Clocks on different epochs are a warning and a note of the verdict: the terminal report
-    says it once, among the notes; a warning the verdict does not say stays at the end."""
+    """Clocks on different epochs are a warning and a note of the verdict: the terminal and
+    HTML reports say it once, among the notes; a warning the verdict does not say stays."""
     from handeye_ros.core.pipeline import calibrate
+    from handeye_ros.evaluation.html import render
     from handeye_ros.evaluation.terminal import format_report
 
     _, _, rec = sim_files
@@ -193,6 +195,8 @@ def test_a_warning_the_verdict_notes_is_said_once_in_the_report(sim_files) -> No
     text = format_report(d)
     assert text.count(epochs) == 1 and f'note: {epochs}' in text
     assert 'WARNING: a warning of its own' in text and f'WARNING: {epochs}' not in text
+    page = render(d, [])
+    assert page.count(html.escape(epochs)) == 1 and 'a warning of its own' in page
 
 
 def test_unwritable_output_directory_fails_before_calibrating(sim_files, tmp_path: Path) -> None:

@@ -1,5 +1,7 @@
 """Same results before and after a refactor (issue 14): record every number a calibration
-returns on a fixed set of cases, then compare another commit's numbers with them to 1e-9.
+returns on a fixed set of cases, as the front ends return it (the evaluation's APE/RPE figures
+with their error bars from the calibration, and the verdict judged with them for the purpose),
+then compare another commit's numbers with them to 1e-9.
 
 Cases: the built-in example (handeye_ros.app.demo's recording), the simulator at noise levels 0, 5
 and 10 with the default configuration and with each stage switch that takes another code path
@@ -37,6 +39,7 @@ import common  # first: puts the project on sys.path
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.pipeline import calibrate
+from handeye_ros.evaluation.outputs import evaluate_and_write
 
 TOLERANCE = 1e-9
 #: The records test/test_golden.py holds every tree to (``golden``: the short cases), one per
@@ -118,11 +121,20 @@ def _portable(text: str) -> str:
     return re.sub(r'\S*/shared/data/real/', '<real>/', text)
 
 
+def document(hand, eye, cfg: CalibrationConfig) -> dict:
+    """The result document the front ends give (offline, the node, evaluate): the calibration,
+    its evaluation with the figures' error bars, and the verdict judged with them."""
+    res = calibrate(hand, eye, cfg)
+    out = res.to_dict()
+    evaluate_and_write(res, out)
+    return dict(out)
+
+
 def record(short: bool = False) -> dict:
     results = {}
     for name, hand, eye, cfg in every_case(short):
         try:
-            results[name] = flatten(calibrate(hand, eye, cfg).to_dict())
+            results[name] = flatten(document(hand, eye, cfg))
         except HandeyeError as err:
             results[name] = {'/error': str(err)}
         print(name, file=sys.stderr, flush=True)

@@ -1,7 +1,9 @@
 """The golden regression test: every number and verdict of bench/same_results.py's short cases
 (the built-in example; the simulator at noise levels 0, 5 and 10 with the default options and
-each stage switch that takes another path) against their records in test/golden/, one per
-platform (``python bench/same_results.py golden`` writes this platform's).
+each stage switch that takes another path), as the front ends return them (the evaluation's
+figures with their error bars from the calibration, and the verdict judged with them), against
+their records in test/golden/, one per platform (``python bench/same_results.py golden`` writes
+this platform's).
 
 - The verdicts, the purposes judged and the reasons' codes (and a refusal) are the same as every
   platform's record.

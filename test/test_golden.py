@@ -9,8 +9,8 @@ this platform's).
   platform's record.
 - Every field of the record of this platform is the same, numbers within NUMBERS_TOLERANCE:
   on one platform a calibration sums in one order whatever the CPU, but for the last bits of
-  libm and OpenBLAS's kernels (3.4e-9 at most between OpenBLAS's SkylakeX, Haswell and
-  Sandybridge kernels, the largest on a rotation median of the noise-free case;
+  libm and OpenBLAS's kernels (9.1e-9 at most between OpenBLAS's SkylakeX, Haswell and
+  Sandybridge kernels over same_results' 45 cases, on an RPE figure of the evaluation;
   docs/benchmarks.md). Between platforms the numbers are not compared: numpy 1.26 / scipy 1.11
   against today's pins move the linear stage's singular values of a noisy scale case by up to
   9e-4 of themselves, with the same verdicts.

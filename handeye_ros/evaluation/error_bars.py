@@ -171,9 +171,19 @@ def _windows(t_ns: Stamps, delta_s: float) -> tuple[Indices, Indices]:
 
 
 def _factor(cov: Floats) -> Floats:
-    """L with L L^T = cov, for a covariance that may be only semi-definite."""
-    w, V = np.linalg.eigh(0.5 * (cov + cov.T))
-    return V * np.sqrt(np.clip(w, 0.0, None))
+    """L with L L^T = cov, for a covariance that may be only semi-definite (a held direction):
+    ``L = D R^(1/2)``, D the standard deviations and ``R^(1/2)`` the principal square root of
+    the correlations ``R = D^-1 cov D^-1``. It is continuous in cov and the same in any units of
+    the parameters and whatever signs and order the eigen-solver gives its vectors (an
+    eigenvector factor is none of these), so that the same standard normal numbers (SEED) draw
+    nearly the same calibrations, and give nearly the same error bars, for nearly the same
+    covariance: two calibrations of a growing recording a second apart."""
+    c = 0.5 * (cov + cov.T)
+    d = np.sqrt(np.clip(np.diag(c), 0.0, None))
+    s = np.where(d > 0.0, d, 1.0)  # a held parameter's row and column are zero
+    w, V = np.linalg.eigh(c / np.outer(s, s))
+    root: Floats = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
+    return s[:, None] * root
 
 
 @dataclass(frozen=True)

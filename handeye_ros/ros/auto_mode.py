@@ -5,13 +5,14 @@ The status calibrates the buffers as they grow (:mod:`.status`); with auto mode 
 that is ``good`` for the purpose is published when it is the first, improves on the last
 published one (by more than IMPROVEMENT, below), has GROWTH times its data, or is the first
 converged one (the status checks a good result again as the buffers grow, and those checks are
-not all news). A result is measured by its *precision
-ratio*, its largest reported 1-sigma over that sigma's ``precision_*`` target
-(:func:`~handeye_ros.core.checks.verdict.precision_ratio`). Once a ``good`` result improves on
-the last published one's ratio by no more than IMPROVEMENT of it (or of 1, the targets), and is
-settled (not near the line of its purpose's rule on precision, as READY asks:
+not all news). A result is measured by its purpose's rule on precision: its *ratio* to that
+rule's line (:attr:`~handeye_ros.core.checks.readiness.Outcome.ratio`; for an evaluation the
+largest share of a figure that is the calibration's 1-sigma over the 5 % allowed, for the
+extrinsic the largest 1-sigma over its ``precision_*`` target; at most 1 for a ``good`` result).
+Once a ``good`` result improves on the last published one's ratio by no more than IMPROVEMENT,
+and is settled (not near its line, as READY asks:
 :attr:`~handeye_ros.core.checks.readiness.Outcome.settled`), more of the same motion no longer
-matters: auto mode has *converged*. A result that is not ``good`` is
+matters to the purpose: auto mode has *converged*. A result that is not ``good`` is
 not published: while more recording is its remedy (its precision alone) auto mode goes on;
 otherwise it has *stalled* (the motion, or the recording, must change). Once the buffers are
 full their span grows no more, and no later result would see more data: *done*. Converged,
@@ -27,11 +28,11 @@ from enum import Enum
 
 from ..core.checks.readiness import Outcome
 
-#: Converged when the precision ratio shrinks by no more than this fraction of itself or of 1
-#: (the targets), whichever is larger. Of itself: for sigmas that stop at a floor, as errors that
-#: are not white (drift, a MoCap bias) make them do. Of the targets: white noise shrinks them by
-#: 18 % at each growth of the buffers by half for ever (1 - 1/sqrt(1.5)), and this ends it once
-#: they are about half the targets, where more recording no longer matters to the verdict.
+#: Converged when a good result's ratio to its line shrinks by no more than this (of the line):
+#: white noise shrinks the ratio by 18 % at each growth of the buffers by half for ever
+#: (1 - 1/sqrt(1.5)), and this ends it once the ratio is about half the line, where more
+#: recording no longer matters to the verdict; sigmas that stop at a floor, as errors that are
+#: not white make them do, end it sooner.
 IMPROVEMENT = 0.1
 #: Data worth a new look: the status calibrates a doubtful result's buffers again once their span
 #: has grown by this factor (the cost of each grows with the span, so all of them together cost a
@@ -53,7 +54,7 @@ class State(Enum):
 
 @dataclass(frozen=True)
 class Auto:
-    """A decision: the state, the precision ratio and the span [s] of the result auto mode
+    """A decision: the state, the ratio to its line and the span [s] of the result auto mode
     last published (inf and 0: none), whether the result just decided on is published, and the
     reason a stalled result gave."""
 
@@ -69,9 +70,9 @@ class Auto:
         return cls(State.WAITING if on else State.OFF)
 
 
-def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
-    """What auto mode does with ``latest`` (a calibration of the buffers, precision ratio
-    ``score``), ``full``: the buffers' span grows no more."""
+def decide(previous: Auto, latest: Outcome, full: bool) -> Auto:
+    """What auto mode does with ``latest`` (a calibration of the buffers), ``full``: the
+    buffers' span grows no more."""
     if previous.state == State.OFF:
         return previous
     kept = previous.published_span_s
@@ -80,8 +81,10 @@ def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
             why = latest.held or latest.label
             return Auto(State.STALLED, previous.published, False, why, kept)
         return Auto(State.DONE if full else State.WAITING, previous.published, False, '', kept)
-    old = previous.published
-    improved = not math.isfinite(old) or old - score > IMPROVEMENT * max(old, 1.0)
+    old, ratio = previous.published, latest.ratio
+    if not math.isfinite(ratio):  # no figure to judge: no measure of improvement
+        ratio = math.inf
+    improved = not math.isfinite(old) or old - ratio > IMPROVEMENT
     # near its line (not settled) a good result is no place to stop: the next may be beyond it
     converged = latest.settled and not improved
     state = State.CONVERGED if converged else State.DONE if full else State.IMPROVING
@@ -89,7 +92,7 @@ def decide(previous: Auto, latest: Outcome, score: float, full: bool) -> Auto:
     news = improved or first or latest.span_s >= GROWTH * kept
     if not news:
         return Auto(state, old, False, '', kept)
-    return Auto(state, score, True, '', latest.span_s)
+    return Auto(state, ratio, True, '', latest.span_s)
 
 
 def filled(previous: Auto) -> Auto:
@@ -109,7 +112,8 @@ def said(auto: Auto) -> str:
         ),
         State.CONVERGED: (
             f'converged: more of the same motion no longer improves the result by '
-            f'{IMPROVEMENT:.0%} of the targets; a later good result is still published'
+            f'{IMPROVEMENT:.0%} of what its purpose allows; a later good result is still '
+            'published'
         ),
         State.STALLED: (
             f'stalled: the latest result is doubtful ({auto.why}), which more of the same '

@@ -185,8 +185,7 @@ class ReadinessStatus:
         publish = job is Job.CALL
         if job is Job.CHECK:
             self._checking = False
-            score = latest.score(self._node.calib_cfg)
-            self.auto = decide(self.auto, latest, score, self._full())
+            self.auto = decide(self.auto, latest, self._full())
             publish = self.auto.publish
         self._report()
         return publish

@@ -76,7 +76,7 @@ def test_auto_calibrate_says_done_once_the_buffers_are_full(ros: Processes, inst
     """With 20-s buffers, the status's span stops growing once they are full: it calibrates the
     full buffers once more, and auto mode says so (`done`) instead of waiting in silence. The
     publisher runs at twice its real rate. When a `good` result improves on the one before by
-    less than 10 % of the targets, auto mode converges first (on buffers not yet full), which it
+    less than 10 % of its line, auto mode converges first (on buffers not yet full), which it
     says as explicitly and keeps: the status is read until either is said (36 s at most), and a
     little longer to see it kept. A result is published only when `good`."""
     node = start_node(

@@ -32,7 +32,6 @@ from .verdict import (
     Quality,
     Verdict,
     judged_ratio,
-    precision_ratio,
     settled,
     sigmas_of,
 )
@@ -113,10 +112,6 @@ class Outcome:
     def failure(cls, why: str, span_s: float, finished: float) -> Outcome:
         """A calibration that raised ``why``: more recording may remedy it (too few motions)."""
         return cls(False, 'failed', why, None, True, span_s, finished, failed=why)
-
-    def score(self, cfg: CalibrationConfig) -> float:
-        """The precision ratio of its sigmas (:func:`~.verdict.precision_ratio`; inf without)."""
-        return float('inf') if self.sigmas is None else precision_ratio(self.sigmas, cfg.precision)
 
 
 @dataclass(frozen=True)

@@ -178,7 +178,7 @@ def precision_ratios(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> l
 
 def precision_ratio(sigmas: tuple[float, ...], targets: tuple[float, ...]) -> float:
     """The largest of :func:`precision_ratios`, inf while a sigma is unknown: at most 1 is
-    precise enough, for the verdict, the readiness and the node's auto mode alike."""
+    precise enough for the extrinsic (:func:`judged_ratio` for either purpose)."""
     ratios = precision_ratios(sigmas, targets)
     return float('inf') if not all(np.isfinite(ratios)) else max(ratios)
 

@@ -18,7 +18,10 @@ STEP seconds, as the status does while the buffers grow, and counts, for READY f
 result and for READY from a settled one (``good`` and not near its line, what READY says), the
 spans at which READY would be said while a calibration of up to AHEAD_S more seconds is not
 ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
-each would first be said.
+each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
+status would calibrate (the next one LAST_GAIN_S on after a good result, GROWTH times the span
+after another, on the STEP grid): the spans it publishes, where it first says ``converged``,
+and the converged spans followed within AHEAD_S by a calibration that is not ``good``.
 
 Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
        python bench/live_real.py --prefixes 2 [--only NAME] [--purpose ...]
@@ -168,19 +171,44 @@ def _verdict_at(hand, eye, cut_ns: int, cfg: CalibrationConfig) -> str:
         return f'failed ({e})'[:40]
 
 
-def _outcome_at(args: tuple) -> tuple[float, bool, float]:
-    """(span s, good, ratio to the line: :class:`Outcome`) of a calibration of both streams'
-    first ``s`` seconds from their common start ``t0`` [ns], judged as the node judges it."""
+def _outcome_at(args: tuple):
+    """The status's :class:`Outcome` of a calibration of both streams' first ``s`` seconds
+    from their common start ``t0`` [ns], judged as the node judges it."""
     from handeye_ros.core.checks.readiness import Outcome
 
     hand, eye, t0, s, cfg = args
     try:
         res = _judged_at(hand, eye, t0 + int(s * 1e9), cfg)
-    except HandeyeError:
-        return s, False, float('inf')
+    except HandeyeError as e:
+        return Outcome.failure(str(e), s, 0.0)
     std = None if res.batch is None else res.batch.std
-    o = Outcome.of(res.quality, std, s, 0.0, cfg.precision)
-    return s, o.good, o.ratio
+    return Outcome.of(res.quality, std, s, 0.0, cfg.precision)
+
+
+def _auto_mode(got: list) -> list[str]:
+    """Auto mode on the prefixes the status would calibrate (module docstring): the spans
+    published, the first converged, the converged spans followed by one that is not good."""
+    from handeye_ros.ros.auto_mode import GROWTH, Auto, State, decide
+    from handeye_ros.ros.status import LAST_GAIN_S
+
+    auto, published, converged = Auto.start(True), [], []
+    k = 0
+    while k < len(got):
+        o = got[k]
+        auto = decide(auto, o, full=False)
+        if auto.publish:
+            published.append(f'{o.span_s:.0f}')
+        if auto.state is State.CONVERGED:
+            converged.append(k)
+        after = o.span_s + LAST_GAIN_S if o.good else GROWTH * o.span_s
+        k = next((j for j in range(k + 1, len(got)) if got[j].span_s >= after - 1e-9), len(got))
+    early = [
+        f'{got[k].span_s:.0f}'
+        for k in converged
+        if not all(o.good for o in got[k:] if o.span_s <= got[k].span_s + AHEAD_S)
+    ]
+    first = f'{got[converged[0]].span_s:.0f}' if converged else '-'
+    return [', '.join(published) or '-', first, ', '.join(early) or '0']
 
 
 def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
@@ -201,16 +229,18 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
             got = list(pool.map(_outcome_at, [(hand, eye, t0, float(s), cfg) for s in spans]))
             row = [name, f'{end:.0f}', str(len(got))]
             for rule in (lambda g, r: g, settled):
-                ready = [rule(g, r) for _, g, r in got]
+                ready = [rule(o.good, o.ratio) for o in got]
                 early = [
-                    f'{s:.0f}'
-                    for k, (s, _, _) in enumerate(got)
-                    if ready[k] and not all(g for t, g, _ in got[k:] if t <= s + AHEAD_S)
+                    f'{o.span_s:.0f}'
+                    for k, o in enumerate(got)
+                    if ready[k]
+                    and not all(q.good for q in got[k:] if q.span_s <= o.span_s + AHEAD_S)
                 ]
-                first = next((f'{s:.0f}' for k, (s, _, _) in enumerate(got) if ready[k]), '-')
+                first = next((f'{o.span_s:.0f}' for k, o in enumerate(got) if ready[k]), '-')
                 row += [f'{sum(ready)}', ', '.join(early) or '0', first]
-            near = [f'{s:.0f}' for s, g, r in got if g and not settled(g, r)]
+            near = [o for o in got if o.good and not o.settled]
             row.append(f'{len(near)}')
+            row += _auto_mode(got)
             rows.append(row)
             print(row, flush=True)
     emit(
@@ -219,7 +249,8 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
             f"Each recording's first s seconds calibrated, s every {step_s:g} s from "
             f'{MIN_RECORDING_S:g} s (purpose {cfg.purpose}): READY from a good result, and from a '
             f'settled one (good, not near its line); "followed by not good": READY spans with a '
-            f'calibration that is not good within {AHEAD_S:g} s more',
+            f'calibration that is not good within {AHEAD_S:g} s more; auto mode on the spans '
+            'the status would calibrate',
             [
                 'recording',
                 'seconds',
@@ -231,6 +262,9 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
                 'settled, followed by not good',
                 'first settled [s]',
                 'good near the line',
+                'auto mode published [s]',
+                'first converged [s]',
+                'converged, followed by not good',
             ],
             rows,
         ),

@@ -180,10 +180,12 @@ def _factor(cov: Floats) -> Floats:
     covariance: two calibrations of a growing recording a second apart."""
     c = 0.5 * (cov + cov.T)
     d = np.sqrt(np.clip(np.diag(c), 0.0, None))
-    s = np.where(d > 0.0, d, 1.0)  # a held parameter's row and column are zero
-    w, V = np.linalg.eigh(c / np.outer(s, s))
-    root: Floats = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
-    return s[:, None] * root
+    free = np.flatnonzero(d > 0.0)  # a held parameter's row and column are zero: it is not drawn
+    w, V = np.linalg.eigh(c[np.ix_(free, free)] / np.outer(d[free], d[free]))
+    root = np.zeros_like(c)
+    root[np.ix_(free, free)] = (V * np.sqrt(np.clip(w, 0.0, None))) @ V.T
+    out: Floats = d[:, None] * root
+    return out
 
 
 @dataclass(frozen=True)

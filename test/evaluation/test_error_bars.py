@@ -101,3 +101,28 @@ def test_a_figure_without_a_value_has_no_error_bar_and_the_others_keep_theirs() 
     assert cal['rpe_time_translation']['rmse'] is None
     assert set(cal['rpe_time_translation']['calibration_sigma'].values()) == {None}
     assert cal['ape_translation']['calibration_sigma']['rmse'] > 0.0
+
+
+def test_the_draws_factor_is_continuous_and_the_same_in_any_units() -> None:
+    """The draws go through L = D R^(1/2): L L^T is the covariance (a held parameter's zero row
+    too); a parameter in other units scales its row of L alone; and a covariance a little
+    different gives a factor a little different, where eigenvectors may flip their signs or
+    order and give other draws from the same numbers."""
+    rng = np.random.default_rng(3)
+    units = np.array([1e-4, 1e-2, 1e-2, 1e-2, 1e-3, 1e-3, 1e-3])  # s, m, rad
+    A = rng.standard_normal((7, 7)) * units[:, None]
+    cov = A @ A.T
+    L = error_bars._factor(cov)
+    assert np.allclose(L @ L.T, cov, rtol=0.0, atol=1e-12 * np.abs(cov).max())
+    held = cov.copy()
+    held[3, :] = held[:, 3] = 0.0
+    Lh = error_bars._factor(held)
+    assert np.allclose(Lh @ Lh.T, held, rtol=0.0, atol=1e-12 * np.abs(cov).max())
+    assert not np.any(Lh[3])
+    ms = np.diag([1e3, 1, 1, 1, 1, 1, 1])  # dt in ms
+    assert np.allclose(error_bars._factor(ms @ cov @ ms), ms @ L, rtol=1e-9, atol=0.0)
+    # two nearly equal eigenvalues, slightly perturbed: the eigenvectors turn, the factor not
+    V = np.linalg.qr(rng.standard_normal((7, 7)))[0]
+    near = V @ np.diag([1.0, 1.0 + 1e-9, 2, 3, 4, 5, 6]) @ V.T
+    moved = V @ np.diag([1.0 + 2e-9, 1.0, 2, 3, 4, 5, 6]) @ V.T
+    assert np.abs(error_bars._factor(near) - error_bars._factor(moved)).max() < 1e-8

@@ -20,7 +20,7 @@ spans at which READY would be said while a calibration of up to AHEAD_S more sec
 ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
 each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
 status would calibrate (the next one LAST_GAIN_S on after a good result, GROWTH times the span
-after another, on the STEP grid): the spans it publishes, where it first says ``converged``,
+after another, on the STEP grid, and the whole recording once it has ended): the spans it publishes, where it first says ``converged``,
 and the converged spans followed within AHEAD_S by a calibration that is not ``good``.
 
 Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
@@ -201,7 +201,9 @@ def _auto_mode(got: list) -> list[str]:
         if auto.state is State.CONVERGED:
             converged.append(k)
         after = o.span_s + LAST_GAIN_S if o.good else GROWTH * o.span_s
-        k = next((j for j in range(k + 1, len(got)) if got[j].span_s >= after - 1e-9), len(got))
+        # once the recording has ended the status calibrates all of it (the last prefix)
+        last = len(got) - 1 if k < len(got) - 1 else len(got)
+        k = next((j for j in range(k + 1, len(got)) if got[j].span_s >= after - 1e-9), last)
     early = [
         f'{got[k].span_s:.0f}'
         for k in converged

@@ -54,21 +54,13 @@ def calibration_sigmas(
     if batch is None or not np.all(np.isfinite(batch.covariance)):
         return None, 'the calibration has no covariance (its batch stage was not used)'
     cov = batch.covariance
+    sample = _sample(result, delta_s, delta_m)
+    drift_at, scale_at, _ = sample.model
     names = ['dt', 'T_HE']
-    drift_at = scale_at = None
-    k = 7
-    if batch.clock_drift is not None:
-        drift_at, k = k, k + 1
+    if drift_at is not None:
         names.append('clock drift')
-    if batch.scale is not None:
-        scale_at = k
+    if scale_at is not None:
         names.append('eye scale')
-    keep, window = _windows(used.eye_stamps_ns, delta_s)
-    eye = used.eye.select(keep)
-    stamps = used.eye_stamps_ns[keep]
-    stamp_ns = result.eye_model.stamp_ns if result.eye_model is not None else 0
-
-    sample = _Sample(eye, stamps, window, (drift_at, scale_at, stamp_ns), (delta_s, delta_m))
 
     def figures(d: Floats) -> dict[str, dict[str, float]] | None:
         return _figures(result, sample, d)
@@ -88,7 +80,7 @@ def calibration_sigmas(
         }
         for name in POSE_ERRORS
     }
-    return CalibrationSigmas(sigmas, len(moved), int(keep.size), tuple(names)), ''
+    return CalibrationSigmas(sigmas, len(moved), len(sample.stamps), tuple(names)), ''
 
 
 def figures_moved(
@@ -98,9 +90,15 @@ def figures_moved(
     (:func:`calibration_sigmas`' order: dt, translation, rotation in the tangent on the right,
     [drift], [scale]): the figures a calibration other than the reported one would give, T_WG
     fitted again; None when too few eye poses fall inside the hand recording."""
-    used = result.used
+    return _figures(result, _sample(result, delta_s, delta_m), d)
+
+
+def _sample(result: CalibrationResult, delta_s: float, delta_m: float) -> _Sample:
+    """What each draw of ``result`` evaluates (:class:`_Sample`), for RPE steps ``delta_s`` [s]
+    and ``delta_m`` [m]: the drift's and the scale's places follow dt and T_HE's 7 in the
+    covariance, when the batch stage estimated them."""
+    used, batch = result.used, result.batch
     assert used is not None, 'a result with its poses'
-    batch = result.batch
     k = 7
     drift_at = scale_at = None
     if batch is not None and batch.clock_drift is not None:
@@ -109,14 +107,13 @@ def figures_moved(
         scale_at = k
     keep, window = _windows(used.eye_stamps_ns, delta_s)
     stamp_ns = result.eye_model.stamp_ns if result.eye_model is not None else 0
-    sample = _Sample(
+    return _Sample(
         used.eye.select(keep),
         used.eye_stamps_ns[keep],
         window,
         (drift_at, scale_at, stamp_ns),
         (delta_s, delta_m),
     )
-    return _figures(result, sample, d)
 
 
 def figures_at(

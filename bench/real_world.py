@@ -1,7 +1,8 @@
 """Real recordings as they come (issue 26): MoCap dropouts, MoCap at both ends only, keyframe-only
 estimates, damaged files.
 
-Three tables:
+Three tables, each verdict as the front ends give it (judged for purpose evaluation with the
+evaluation's own figures, common.judged):
 
 - ``real_world_tumvi``: every TUM-VI estimate of ../shared/data/real/VSLAM-comparison (ORB-SLAM3,
   Basalt, DSO; VIO and monocular VO) against its MoCap, files as published, with the defaults
@@ -26,7 +27,7 @@ import time
 from pathlib import Path
 
 import cases
-import common  # noqa: F401  (first: puts the project on sys.path)
+import common  # first: puts the project on sys.path
 import numpy as np
 from common import CHI2_3_9973, emit, table
 from scipy.spatial.transform import Rotation
@@ -73,7 +74,7 @@ def tumvi_rows() -> list[list]:
         ):
             t0 = time.perf_counter()
             try:
-                res = calibrate(hand, eye, cfg)
+                res = common.judged(calibrate(hand, eye, cfg))[0]
             except HandeyeError as err:
                 rows.append(
                     [
@@ -114,7 +115,7 @@ def keyframe_rows() -> list[list]:
         kf = keyframes_only(eye, np.random.default_rng(0))
         t0 = time.perf_counter()
         try:
-            res = calibrate(hand, kf)
+            res = common.judged(calibrate(hand, kf))[0]
         except HandeyeError as err:
             rows.append([pair.name, len(kf), 'refused', str(err)[:80], '', '', '', '', ''])
             continue
@@ -208,7 +209,7 @@ def sim_rows(seeds: int) -> list[list]:
         for name, (hand, eye, truth, cfg) in variants.items():
             t0 = time.perf_counter()
             try:
-                res = calibrate(hand, eye, cfg)
+                res = common.judged(calibrate(hand, eye, cfg))[0]
                 out[name].append(
                     (*_errors(res, truth), res.quality.verdict, time.perf_counter() - t0)
                 )

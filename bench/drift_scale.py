@@ -13,7 +13,8 @@ that factor), simulated (2 minutes) and real, calibrated with ``estimate_scale``
 error, and T_HE against the unscaled case calibrated by default. On the unmodified real pairs
 (metric VIO) ``estimate_scale`` should return 1 within its sigma; the table gives s, its sigma
 and |s - 1| / sigma. The error of s on a real pair is also given against s of the unmodified
-pair (the VIO's own scale error is part of the truth there).
+pair (the VIO's own scale error is part of the truth there). Verdicts as the front ends give
+them (judged for evaluation with the evaluation's figures, common.judged).
 
 Usage: python bench/drift_scale.py [--quick] [--no-sim] [--no-real] [--pairs NAME ...]
 """
@@ -25,7 +26,7 @@ import time
 from dataclasses import replace
 
 import cases
-import common  # noqa: F401 (puts the project on the path)
+import common  # puts the project on the path
 import numpy as np
 from common import emit, sim3_scale, table
 
@@ -50,9 +51,10 @@ def drifted(eye: Trajectory, ppm: float) -> tuple[Trajectory, float, int]:
 
 
 def _run(calibrate, hand, eye, cfg):
+    """(the result judged as the front ends judge it, or the error it raised; seconds)."""
     t0 = time.perf_counter()
     try:
-        return calibrate(hand, eye, cfg), time.perf_counter() - t0
+        return common.judged(calibrate(hand, eye, cfg))[0], time.perf_counter() - t0
     except HandeyeError as err:
         return err, time.perf_counter() - t0
 

@@ -20,8 +20,9 @@ spans at which READY would be said while a calibration of up to AHEAD_S more sec
 ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
 each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
 status would calibrate (the next one LAST_GAIN_S on after a good result, GROWTH times the span
-after another, on the STEP grid, and the whole recording once it has ended): the spans it publishes, where it first says ``converged``,
-and the converged spans followed within AHEAD_S by a calibration that is not ``good``.
+after another, on the STEP grid, and the whole recording once it has ended): the spans it
+publishes, where it first says ``converged``, and the converged spans followed within AHEAD_S by
+a calibration that is not ``good``.
 
 Usage: python bench/live_real.py [--speed 1] [--only NAME] [--purpose evaluation|extrinsic]
        python bench/live_real.py --prefixes 2 [--only NAME] [--purpose ...]

@@ -115,8 +115,11 @@ def cli_fails(res: CliResult, *fragments: str) -> None:
 
 @pytest.fixture(scope='session')
 def sim_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Recording]:
-    """A 60 s recording at noise level 3 written as TUM files (hand, eye, recording)."""
-    rec = recording(seed=3, level=3.0)
+    """A 60 s recording at noise level 3 written as TUM files (hand, eye, recording). Tests read
+    it as a `good` result: its largest share of an APE/RPE figure that is the calibration's
+    (3.1 %) is settled, below 81 % of the 5 % line, where seed 3 sat at the line (4.6-5.3 %,
+    flipped by a new draw of its error bars)."""
+    rec = recording(seed=1, level=3.0)
     out = tmp_path_factory.mktemp('sim')
     hand, eye = out / 'hand.txt', out / 'eye.txt'
     write_tum(hand, rec.hand)

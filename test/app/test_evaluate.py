@@ -28,7 +28,7 @@ pytestmark = pytest.mark.slow  # subprocesses, bags, evo, Dask or real data: sec
 def _write_runs(folder: Path, n: int, seed0: int = 200) -> list[dict]:
     runs = []
     for k in range(n):
-        rec = recording(seed=seed0 + k, level=2.0, duration_s=40.0)
+        rec = recording(seed=seed0 + k, level=2.0, duration_s=60.0)
         h, e = folder / f'hand{k}.txt', folder / f'eye{k}.txt'
         write_tum(h, rec.hand)
         write_tum(e, rec.eye)
@@ -93,7 +93,8 @@ def test_table_marks_failures_and_the_exit_code_counts_them(manifest, tmp_path: 
     ]
     ok = rows[:4]
     assert all(r['status'] == 'ok' and r['verdict'] == 'good' for r in ok)
-    # level 2 noise, 40 s: the same bounds as the pipeline tests (a few mm and ms)
+    # level 2 noise, 60 s (at 40 s seed 202's result sat at the 5 % line of its figures, 5.4 %;
+    # at 60 s the four are at 1.4-3.0 %): the same bounds as the pipeline tests (a few mm and ms)
     assert all(float(r['ape_mm']) < float(r['ape_uncalibrated_mm']) for r in ok)
     assert rows[4]['status'] == 'failed' and 'no such file' in rows[4]['reason']
     assert rows[5]['status'] == 'failed' and rows[5]['reason']

@@ -1,6 +1,7 @@
 """auto_calibrate's policy (auto_mode.decide): a good result published, converged once one
-improves its purpose's ratio to the line too little, stalled while doubtful for a reason more recording
-does not remedy, done once the buffers are full; and how the status tells that a clock jumped.
+improves its purpose's ratio to the line too little, stalled while doubtful for a reason more
+recording does not remedy, done once the buffers are full; and how the status tells that a clock
+jumped.
 READY from a calibration: test/core/checks/test_readiness.py."""
 
 from __future__ import annotations
@@ -74,9 +75,8 @@ def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
     before convergence, it publishes again what improves or has GROWTH times the data."""
     near = decide(Auto(State.IMPROVING, 0.9), NEAR, full=False)
     assert near.publish and near.state is State.IMPROVING
-    again = decide(
-        near, replace(NEAR, ratio=0.88), full=False
-    )  # no better, no more data: not news
+    # no better, no more data: not news
+    again = decide(near, replace(NEAR, ratio=0.88), full=False)
     assert not again.publish and again.state is State.IMPROVING and again.published == 0.9
     grown = replace(NEAR, span_s=GROWTH * NEAR.span_s, ratio=0.88)
     assert decide(near, grown, full=False).publish

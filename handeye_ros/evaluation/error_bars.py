@@ -134,8 +134,8 @@ def figures_at(
     d[4:7] = (Rotation.from_quat(result.q_HE).inv() * Rotation.from_quat(q_HE)).as_rotvec()
     n = 7 if result.batch is None else result.batch.covariance.shape[0]
     d = np.r_[d, np.zeros(n - 7)]
-    at = figures_moved(result, d, delta_s, delta_m)
-    here = figures_moved(result, np.zeros_like(d), delta_s, delta_m)
+    sample = _sample(result, delta_s, delta_m)
+    at, here = _figures(result, sample, d), _figures(result, sample, np.zeros_like(d))
     if at is None or here is None:
         return None
     return {k: {s: at[k][s] - here[k][s] for s in at[k]} for k in at}

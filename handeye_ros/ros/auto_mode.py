@@ -72,7 +72,7 @@ class Auto:
 
 def decide(previous: Auto, latest: Outcome, full: bool) -> Auto:
     """What auto mode does with ``latest`` (a calibration of the buffers), ``full``: the
-    buffers' span grows no more."""
+    buffers it calibrated were full (their span grows no more)."""
     if previous.state == State.OFF:
         return previous
     kept = previous.published_span_s

@@ -72,9 +72,11 @@ class ReadinessStatus:
         self.why_not = 'waiting for data'
         self.auto = Auto.start(auto)
         self._motion = Motion()
-        #: the latest calibration of these buffers, and whether the status runs one now
+        #: the latest calibration of these buffers, whether the status runs one now, and
+        #: whether that one's snapshot holds full buffers (auto mode's ``done`` speaks of them)
         self.latest: Outcome | None = None
         self._checking = False
+        self._check_full = False
         #: when the next calibration and the next look at the new poses may start (monotonic s)
         self._next_check = 0.0
         self._next_look = 0.0
@@ -155,7 +157,10 @@ class ReadinessStatus:
             if latest is not None and full:
                 self.auto = filled(self.auto)
             return
-        self._checking = self._node.calibrate(Job.CHECK) is not None
+        # set first: a calibration that fails at once reports (took) before calibrate returns
+        self._checking, self._check_full = True, full
+        if self._node.calibrate(Job.CHECK) is None:
+            self._checking = False
 
     def took(
         self,
@@ -185,7 +190,8 @@ class ReadinessStatus:
         publish = job is Job.CALL
         if job is Job.CHECK:
             self._checking = False
-            self.auto = decide(self.auto, latest, self._full())
+            # full when the snapshot was taken: buffers that filled while it ran hold more
+            self.auto = decide(self.auto, latest, self._check_full)
             publish = self.auto.publish
         self._report()
         return publish

@@ -9,6 +9,8 @@ from .host import Job
 
 #: The answer to a call whose calibration the node's stop abandoned.
 ABORTED = 'aborted: shutting down'
+#: Logged when a call waits for the status's check of READY, which runs, to end.
+QUEUED = '~/calibrate: calibrating the buffers once the running check of READY ends'
 #: The answer to a call while a calibration runs (other than a check of READY).
 BUSY = 'a calibration is already running; call again when it has finished'
 

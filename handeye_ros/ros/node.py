@@ -52,7 +52,7 @@ from ..core.errors import HandeyeError, InputError
 from ..stream import STREAMS, Recorder
 from ..stream.shapes import Message, MessageInfo
 from . import diagnostics, parameters, worker
-from .calls import ABORTED, BUSY, answer_with, waiting
+from .calls import ABORTED, BUSY, QUEUED, answer_with, waiting
 from .files import inside
 from .host import Job
 from .jobs import Calibrated, calibrate_buffers
@@ -207,6 +207,7 @@ class CalibratorNode(Node):
             queued = None if job is Job.CHECK else waiting(self._running, self.executor)
             if queued is not None:
                 self._running = (self._running[0], queued)
+                self.get_logger().info(QUEUED)
             return queued
         self._busy = True
         future = Future(executor=self.executor)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -23,6 +24,12 @@ from ros_support import (
 )
 
 from handeye_ros.app.commands import path_name
+
+#: The node took a ~/calibrate call: its calibration started, or it waits for the running check
+#: of READY (handeye_ros.ros.calls.QUEUED)
+TAKEN = re.compile(
+    r'calibrating \d+ MoCap and \d+ device poses$|once the running check of', re.MULTILINE
+)
 
 pytestmark = [
     pytest.mark.ros,
@@ -127,7 +134,11 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
         ros.script('ros_client.py', 'call', '/calibrator/save', '/calibrator/calibrate'), 'client'
     )
     says(client, 'sent /calibrator/calibrate')
-    says(node, 'calibrating ')
+    # the node took the call: its calibration started, or it waits for the status's check of
+    # READY that runs (whose own "calibrating ... (checking READY)" is no sign of the call)
+    assert wait_for(lambda: TAKEN.search(ros.output(node)[1]) is not None, 60.0, 0.05), ros.output(
+        node
+    )
     stop(node)
     runs.append(('calibrating', node, left(node)))
     assert "1 ~/calibrate caller(s) answered 'aborted: shutting down'" in ros.output(node)[1]

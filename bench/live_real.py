@@ -19,8 +19,8 @@ result and for READY from a settled one (``good`` and not near its line, what RE
 spans at which READY would be said while a calibration of up to AHEAD_S more seconds is not
 ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
 each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
-status would calibrate (the next one LAST_GAIN_S on after a good result, GROWTH times the span
-after another, on the STEP grid, and the whole recording once it has ended): the spans it
+status would calibrate (each LAST_GAIN_S on from the last, on the STEP grid, and the whole
+recording once it has ended; live, a calibration's own time spaces them more): the spans it
 publishes, where it first says ``converged``, and the converged spans followed within AHEAD_S by
 a calibration that is not ``good``.
 
@@ -189,7 +189,7 @@ def _outcome_at(args: tuple):
 def _auto_mode(got: list) -> list[str]:
     """Auto mode on the prefixes the status would calibrate (module docstring): the spans
     published, the first converged, the converged spans followed by one that is not good."""
-    from handeye_ros.ros.auto_mode import GROWTH, Auto, State, decide
+    from handeye_ros.ros.auto_mode import Auto, State, decide
     from handeye_ros.ros.status import LAST_GAIN_S
 
     auto, published, converged = Auto.start(True), [], []
@@ -201,7 +201,7 @@ def _auto_mode(got: list) -> list[str]:
             published.append(f'{o.span_s:.0f}')
         if auto.state is State.CONVERGED:
             converged.append(k)
-        after = o.span_s + LAST_GAIN_S if o.good else GROWTH * o.span_s
+        after = o.span_s + LAST_GAIN_S
         # once the recording has ended the status calibrates all of it (the last prefix)
         last = len(got) - 1 if k < len(got) - 1 else len(got)
         k = next((j for j in range(k + 1, len(got)) if got[j].span_s >= after - 1e-9), last)

@@ -9,10 +9,11 @@ not all news). A result is measured by its purpose's rule on precision: its *rat
 rule's line (:attr:`~handeye_ros.core.checks.readiness.Outcome.ratio`; for an evaluation the
 largest share of a figure that is the calibration's 1-sigma over the 5 % allowed, for the
 extrinsic the largest 1-sigma over its ``precision_*`` target; at most 1 for a ``good`` result).
-Once a ``good`` result improves on the last published one's ratio by no more than IMPROVEMENT,
-and is settled (not near its line, as READY asks:
+Once a ``good`` result with GROWTH times the last published one's data improves on its ratio by
+no more than IMPROVEMENT, and is settled (not near its line, as READY asks:
 :attr:`~handeye_ros.core.checks.readiness.Outcome.settled`), more of the same motion no longer
-matters to the purpose: auto mode has *converged*. A result that is not ``good`` is
+matters to the purpose: auto mode has *converged* (and stays so while the results that follow
+improve no more). A result that is not ``good`` is
 not published: while more recording is its remedy (its precision alone) auto mode goes on;
 otherwise it has *stalled* (the motion, or the recording, must change). Once the buffers are
 full their span grows no more, and no later result would see more data: *done*. Converged,
@@ -34,10 +35,10 @@ from ..core.checks.readiness import Outcome
 #: recording no longer matters to the verdict; sigmas that stop at a floor, as errors that are
 #: not white make them do, end it sooner.
 IMPROVEMENT = 0.1
-#: Data worth a new look: the status calibrates a doubtful result's buffers again once their span
-#: has grown by this factor (the cost of each grows with the span, so all of them together cost a
-#: few times the last one), and a good result with this many times the published one's span is
-#: published however little it improved (its figures rest on that much more of the recording).
+#: Data worth a new look: a good result with this many times the published one's span is
+#: published however little it improved (its figures rest on that much more of the recording),
+#: and convergence is judged over such a growth (IMPROVEMENT's measure): the status calibrates
+#: the buffers every second or so, over which no result improves by much.
 GROWTH = 1.5
 
 
@@ -85,11 +86,12 @@ def decide(previous: Auto, latest: Outcome, full: bool) -> Auto:
     if not math.isfinite(ratio):  # no figure to judge: no measure of improvement
         ratio = math.inf
     improved = not math.isfinite(old) or old - ratio > IMPROVEMENT
+    grown = latest.span_s >= GROWTH * kept
     # near its line (not settled) a good result is no place to stop: the next may be beyond it
-    converged = latest.settled and not improved
+    converged = latest.settled and not improved and (grown or previous.state == State.CONVERGED)
     state = State.CONVERGED if converged else State.DONE if full else State.IMPROVING
     first = converged and previous.state != State.CONVERGED
-    news = improved or first or latest.span_s >= GROWTH * kept
+    news = improved or first or grown
     if not news:
         return Auto(state, old, False, '', kept)
     return Auto(state, ratio, True, '', latest.span_s)
@@ -108,7 +110,8 @@ def said(auto: Auto) -> str:
         State.OFF: 'off',
         State.WAITING: 'waiting for a good result: calibrating as the buffers grow',
         State.IMPROVING: (
-            'published a good result; calibrating again as the buffers grow by half'
+            'published a good result; one that improves on it, or has half as much data '
+            'again, is published too'
         ),
         State.CONVERGED: (
             f'converged: more of the same motion no longer improves the result by '

@@ -2,10 +2,9 @@
 
 READY is the verdict of a real calibration (:mod:`handeye_ros.core.checks.readiness`): the
 status calibrates the buffers in the node's worker as they grow (first once they span
-MIN_RECORDING_S, then each time they have grown by GROWTH, and once more when the recording has
-ended or the buffers are full; while the latest is ``good``, again as soon as they have grown by
-LAST_GAIN_S), never sooner after one calibration than it took (so they take at most half a core
-and never fall behind the streams), and READY means the latest such result is ``good`` for the
+MIN_RECORDING_S, then each time they have grown by LAST_GAIN_S), never sooner after one
+calibration than it took (so they take at most half a core and never fall behind the streams,
+and READY follows the data within about one calibration's time), and READY means the latest such result is ``good`` for the
 chosen purpose and settled (not near the line of its precision, unless the recording has ended
 and it holds the whole). Between results it shows how far the device has turned and how far
 apart its turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the
@@ -32,14 +31,12 @@ from ..core.result import CalibrationResult
 from ..evaluation.terminal import status_line
 from ..stream import STREAMS
 from . import diagnostics
-from .auto_mode import GROWTH, Auto, State, decide, filled, said
+from .auto_mode import Auto, State, decide, filled, said
 from .clocks import Arrivals, ClockWatch, jump_advice
 from .host import Job, StatusHost
 
-#: Once the recording has ended or the buffers are full (their span grows no more), or while the
-#: latest result is good, the whole is calibrated again if it spans this much more than the last
-#: calibration did (s): however little it grew by GROWTH's measure, but not again for the jitter
-#: of a full buffer's span.
+#: The buffers are calibrated again once they span this much more than the last calibration
+#: did (s): not again for the jitter of a full buffer's span.
 LAST_GAIN_S = 1.0
 #: The status's look at the new poses takes at most this share of one core on average: one that
 #: cost c seconds of the executor's CPU is followed by none for c / MAX_DUTY.
@@ -135,7 +132,7 @@ class ReadinessStatus:
         self._motion = self._motion.grown(tails).since(oldest)
 
     def _maybe_check(self, now: float) -> None:
-        """Calibrate the buffers (:data:`GROWTH`, the module docstring) unless one runs."""
+        """Calibrate the buffers (:data:`LAST_GAIN_S`, the module docstring) unless one runs."""
         span, latest = self._span(), self.latest
         eye = self._motion.turned('eye')
         if (
@@ -148,12 +145,7 @@ class ReadinessStatus:
             return
         last = 0.0 if latest is None else latest.span_s
         full = self._full()
-        # READY speaks for the buffers as they are: a good result is checked again as soon as
-        # the spacing allows, where a doubtful one waits for the data that may remedy it
-        grown = span >= (
-            last + LAST_GAIN_S if latest is not None and latest.good else GROWTH * last
-        )
-        if not grown and not ((self.ended() or full) and span >= last + LAST_GAIN_S):
+        if span < last + LAST_GAIN_S:
             if latest is not None and full:
                 self.auto = filled(self.auto)
             return

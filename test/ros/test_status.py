@@ -69,6 +69,22 @@ def test_once_converged_a_good_result_is_published_for_more_data_only() -> None:
     assert decide(grown, better, full=False).publish  # published at any span
 
 
+def test_convergence_is_judged_over_half_as_much_data_again() -> None:
+    """The status calibrates the buffers every second or so: a settled result a second after
+    the published one hardly improves on it, which says nothing of convergence (white noise
+    shrinks the ratio by 18 % over GROWTH). Converged once one with GROWTH times the published
+    span improves too little, and so while the results that follow improve no more."""
+    published = decide(Auto.start(True), replace(GOOD, ratio=0.7), full=False)
+    second = decide(published, replace(GOOD, ratio=0.69, span_s=GOOD.span_s + 1), full=False)
+    assert second.state is State.IMPROVING and not second.publish
+    grown = replace(GOOD, ratio=0.65, span_s=GROWTH * GOOD.span_s)
+    converged = decide(second, grown, full=False)
+    assert converged.state is State.CONVERGED and converged.publish
+    later = replace(grown, ratio=0.64, span_s=grown.span_s + 1)
+    kept = decide(converged, later, full=False)
+    assert kept.state is State.CONVERGED and not kept.publish
+
+
 def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
     """Good by a hair (beyond BLOCKS_MARGIN of its line), a result is published, and auto mode
     goes on: the next calibration may find it beyond the line, so it is no place to stop. As
@@ -80,7 +96,8 @@ def test_a_good_result_near_its_line_is_published_but_never_converged() -> None:
     assert not again.publish and again.state is State.IMPROVING and again.published == 0.9
     grown = replace(NEAR, span_s=GROWTH * NEAR.span_s, ratio=0.88)
     assert decide(near, grown, full=False).publish
-    assert decide(near, replace(GOOD, ratio=0.8), full=False).state is State.CONVERGED
+    settled = replace(GOOD, ratio=0.8, span_s=GROWTH * NEAR.span_s)
+    assert decide(near, settled, full=False).state is State.CONVERGED
 
 
 def test_a_result_that_is_not_good_is_never_published() -> None:
@@ -111,11 +128,11 @@ def test_white_noise_converges_once_the_sigmas_are_about_half_the_line() -> None
     """White noise shrinks every sigma, and so the ratio to the line, by 1/sqrt(1.5) at each
     growth of the buffers by half, for ever: auto mode stops saying it improves once more
     recording no longer matters to the verdict."""
-    ratio = 1.0  # at the line
+    ratio, span = 1.0, GOOD.span_s  # at the line
     auto = decide(Auto.start(True), replace(GOOD, ratio=ratio), False)
     for results in range(2, 20):
-        ratio = ratio / np.sqrt(1.5)
-        auto = decide(auto, replace(GOOD, ratio=ratio), False)
+        ratio, span = ratio / np.sqrt(1.5), span * 1.5
+        auto = decide(auto, replace(GOOD, ratio=ratio, span_s=span), False)
         if auto.state is State.CONVERGED:
             break
     assert auto.state is State.CONVERGED and results <= 6, results

@@ -63,8 +63,9 @@ class NodeConfig(Options):
         'float',
         'period of the readiness status while recording [s]: READY (the latest calibration of '
         'the buffers is good), how far the device turned, what is missing; on ~/status, '
-        '/diagnostics and one log line; 0 disables (and with it the calibrations that check '
-        'READY and auto_calibrate)',
+        '/diagnostics and one log line. Its calibrations (each second of growth) take up to '
+        'half a core in the worker; 0 disables (and with it the calibrations that check READY '
+        'and auto_calibrate)',
         low=0.0,
         high=3600.0,
         expert=True,

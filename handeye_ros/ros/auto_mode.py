@@ -1,23 +1,23 @@
 """The calibrator's auto mode (``auto_calibrate``): which of the status's calibrations are
 published, as a pure function of the latest one and the previous decision (:func:`decide`).
 
-The status calibrates the buffers as they grow (:mod:`.status`); with auto mode a result
-that is ``good`` for the purpose is published when it is the first, improves on the last
-published one (by more than IMPROVEMENT, below), has GROWTH times its data, or is the first
-converged one (the status checks a good result again as the buffers grow, and those checks are
-not all news). A result is measured by its purpose's rule on precision: its *ratio* to that
-rule's line (:attr:`~handeye_ros.core.checks.readiness.Outcome.ratio`; for an evaluation the
-largest share of a figure that is the calibration's 1-sigma over the 5 % allowed, for the
-extrinsic the largest 1-sigma over its ``precision_*`` target; at most 1 for a ``good`` result).
-Once a ``good`` result with GROWTH times the last published one's data improves on its ratio by
-no more than IMPROVEMENT, and is settled (not near its line, as READY asks:
+The status calibrates the buffers as they grow (:mod:`.status`); with auto mode a result that is
+``good`` for the purpose is published when it is the first, improves on the last published one (by
+more than IMPROVEMENT, below), has GROWTH times its data, or is the first converged one (the status
+checks a good result again as the buffers grow, and those checks are not all news). A result is
+measured by its purpose's rule on precision: its *ratio* to that rule's line
+(:attr:`~handeye_ros.core.checks.readiness.Outcome.ratio`; for an evaluation the largest share of a
+figure that is the calibration's 1-sigma over the 5 % allowed, for the extrinsic the largest
+1-sigma over its ``precision_*`` target; at most 1 for a ``good`` result). Once a ``good`` result
+with GROWTH times the last published one's data improves on its ratio by no more than IMPROVEMENT,
+and is settled (not near its line, as READY asks:
 :attr:`~handeye_ros.core.checks.readiness.Outcome.settled`), more of the same motion no longer
 matters to the purpose: auto mode has *converged* (and stays so while the results that follow
-improve no more). A result that is not ``good`` is
-not published: while more recording is its remedy (its precision alone) auto mode goes on;
-otherwise it has *stalled* (the motion, or the recording, must change). Once the buffers are
-full their span grows no more, and no later result would see more data: *done*. Converged,
-stalled or done, a later ``good`` result (richer motion) is still published.
+improve no more). A result that is not ``good`` is not published: while more recording is its
+remedy (its precision alone) auto mode goes on; otherwise it has *stalled* (the motion, or the
+recording, must change). Once the buffers are full their span grows no more, and no later result
+would see more data: *done*. Converged, stalled or done, a later ``good`` result (richer motion) is
+still published.
 ``~/calibrate`` works at any time, and its result is always published.
 """
 

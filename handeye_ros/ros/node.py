@@ -225,7 +225,7 @@ class CalibratorNode(Node):
             if why is not None:
                 raise InputError(why)
             snapshot = self.recorder.snapshot()
-            span = min(snapshot.hand.duration_s, snapshot.eye.duration_s)
+            span = snapshot.span_s
             t0 = time.perf_counter()
             stage = (
                 tempfile.mkdtemp(prefix='handeye_report_') if self.node_cfg.report_dir else None

@@ -44,6 +44,11 @@ class Snapshot:
     streams: dict[str, StreamDoc]
     warnings: tuple[str, ...]
 
+    @property
+    def span_s(self) -> float:
+        """The span both streams cover [s]: the shorter of their durations."""
+        return min(self.hand.duration_s, self.eye.duration_s)
+
     def result(
         self, config: CalibrationConfig, progress: Callable[[str], None] | None = None
     ) -> CalibrationResult:

@@ -25,12 +25,6 @@ from ros_support import (
 
 from handeye_ros.app.commands import path_name
 
-#: The node took a ~/calibrate call: its calibration started, or it waits for the running check
-#: of READY (handeye_ros.ros.calls.QUEUED)
-TAKEN = re.compile(
-    r'calibrating \d+ MoCap and \d+ device poses$|once the running check of', re.MULTILINE
-)
-
 pytestmark = [
     pytest.mark.ros,
     pytest.mark.skipif(not ros_available(), reason='rclpy / colcon not installed'),
@@ -136,7 +130,12 @@ def test_signals_stop_the_node_cleanly(ros: Processes, install: Path, how: str) 
     says(client, 'sent /calibrator/calibrate')
     # the node took the call: its calibration started, or it waits for the status's check of
     # READY that runs (whose own "calibrating ... (checking READY)" is no sign of the call)
-    assert wait_for(lambda: TAKEN.search(ros.output(node)[1]) is not None, 60.0, 0.05), ros.output(
+    from handeye_ros.ros.calls import QUEUED  # rclpy's: imported where the test runs
+
+    taken = re.compile(
+        rf'calibrating \d+ MoCap and \d+ device poses$|{re.escape(QUEUED)}', re.MULTILINE
+    )
+    assert wait_for(lambda: taken.search(ros.output(node)[1]) is not None, 60.0, 0.05), ros.output(
         node
     )
     stop(node)

@@ -1,4 +1,4 @@
-"""The readiness status's own schedule, on real buffers and calibrate()'s results without a node: a
+"""The readiness status's own schedule, on real buffers and their snapshots' calibrations without a node: a
 check decided on as `done` only when its own snapshot held full buffers. (Live, the same runs in
 test_node_guidance.py; auto mode's policy alone in test_status.py.)"""
 
@@ -17,13 +17,13 @@ from rclpy.logging import get_logger
 from rclpy.task import Future
 
 from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import noise_level, simulate
 from handeye_ros.ros.auto_mode import State
 from handeye_ros.ros.host import Job
 from handeye_ros.ros.status import ReadinessStatus
 from handeye_ros.stream import Recorder
 from handeye_ros.stream.config import StreamConfig
+from handeye_ros.stream.recorder import Snapshot
 
 
 class Host:
@@ -37,7 +37,7 @@ class Host:
         self.last_ticked: dict[str, float] = {}
         self.last_received: dict[str, float] = {}
         self.taken_late: dict[str, float] = {}
-        self.checks: list[tuple] = []  # the snapshots the status asked to calibrate
+        self.checks: list[Snapshot] = []  # the snapshots the status asked to calibrate
         self.closing = False
         self.busy = False
         self.poses = self
@@ -83,10 +83,9 @@ def test_done_only_for_a_check_of_full_buffers() -> None:
 
     def run_check() -> None:
         snap = host.checks[-1]
-        span = min(snap.hand.duration_s, snap.eye.duration_s)
-        result = calibrate(snap.hand, snap.eye, host.calib_cfg)
+        result = snap.result(host.calib_cfg)
         host.busy = False
-        status.took(result, '', Job.CHECK, span, 0.0)
+        status.took(result, '', Job.CHECK, snap.span_s, 0.0)
 
     feed(17.0)
     status.tick()

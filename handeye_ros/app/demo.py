@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..core.arrays import Floats
+from ..core.errors import InputError
 from ..core.simulate import Truth, calibration_error, noise_level, simulate
 from ..formats import write_tum
 from ..formats.bag import write_recording
@@ -41,9 +42,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--keep', metavar='DIR', help='write the files into DIR and keep them')
     p.add_argument('--text', action='store_true', help='TUM text files instead of a bag')
     args = p.parse_args(argv)
-
-    noise_m, noise_deg = noise_level(args.level)
-    rec = simulate(args.seed, duration_s=args.duration, noise_m=noise_m, noise_deg=noise_deg)
+    try:
+        noise_m, noise_deg = noise_level(args.level)
+        rec = simulate(args.seed, duration_s=args.duration, noise_m=noise_m, noise_deg=noise_deg)
+    except InputError as err:
+        p.error(str(err))
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.keep or tmp)
         out.mkdir(parents=True, exist_ok=True)

@@ -42,6 +42,12 @@ from .trajectory import Trajectory
 #: Hand clock origin of simulated stamps: a realistic epoch, so that the int64 ns handling
 #: of stamps is exercised as with real recordings.
 EPOCH_NS = 1_700_000_000_000_000_000
+#: The most poses, hand and eye together, one simulated recording holds: an hour at 1 kHz +
+#: 200 Hz, the longest recording bench/runtime.py calibrates (within 2 GB). A longer one is
+#: refused before any array is made, where it would run out of memory.
+MAX_POSES = 4_320_000
+#: The paper's noise levels (:func:`noise_level`).
+MAX_LEVEL = 10.0
 
 
 @dataclass(frozen=True)
@@ -95,7 +101,10 @@ def calibration_error(
 
 
 def noise_level(level: float) -> tuple[float, float]:
-    """Per-frame eye noise (metres, degrees) of the paper's level 0..10."""
+    """Per-frame eye noise (metres, degrees) of the paper's level 0..10 (InputError for any
+    other)."""
+    if not 0.0 <= level <= MAX_LEVEL:
+        raise InputError(f"the noise level is one of the paper's, 0-{MAX_LEVEL:g}, not {level}")
     return 0.0005 * level, 0.02 * level
 
 
@@ -222,6 +231,33 @@ def _with_white_noise(
     return R, p + rng.normal(0.0, noise_m, (n, 3))
 
 
+def _check(
+    seed: int, duration_s: float, rates_hz: tuple[float, float], noise: tuple[float, ...]
+) -> None:
+    """InputError, saying which, for a simulation :func:`simulate` cannot make: a seed below 0,
+    a rate that is not a positive number, a noise below 0, a duration too short for three eye
+    poses or so long that the recording would hold more than MAX_POSES."""
+    hand_hz, eye_hz = rates_hz
+    if not (isinstance(seed, (int, np.integer)) and seed >= 0):
+        raise InputError(f'the seed is an integer >= 0, not {seed}')
+    if not all(np.isfinite(r) and r > 0.0 for r in rates_hz):
+        raise InputError(f'the pose rates are positive numbers of Hz, not {hand_hz} and {eye_hz}')
+    if not all(np.isfinite(n) and n >= 0.0 for n in noise):
+        raise InputError(f'the noise amounts are numbers >= 0, not {", ".join(map(str, noise))}')
+    if not (np.isfinite(duration_s) and (duration_s - 2.0) * eye_hz >= 2.0):
+        raise InputError(
+            f'a simulated recording of {duration_s} s holds no eye poses: the eye covers the '
+            'span less 1 s at each end, so it needs at least 2 s plus two eye periods (three '
+            'eye poses)'
+        )
+    if duration_s * (hand_hz + eye_hz) > MAX_POSES:
+        raise InputError(
+            f'a simulated recording of {duration_s:g} s at {hand_hz:g} + {eye_hz:g} Hz would '
+            f'hold {duration_s * (hand_hz + eye_hz):.3g} poses, more than the {MAX_POSES:,} of '
+            'an hour at 1 kHz + 200 Hz that a calibration is measured on: simulate less'
+        )
+
+
 def _eye_stamps(seed: int, duration_s: float, eye_rate_hz: float, dt_ns: int) -> Stamps:
     """The eye's stamps (int64 ns, its clock): the hand's span less 1 s at each end, shifted by
     dt, its first frame at an arbitrary phase of its period, as two free-running sensors are
@@ -264,11 +300,8 @@ def simulate(
     ``scale``: the eye's positions are metric / scale (a monocular VO; what a calibration should
     find). ``wander_s`` [s]: the offset wanders about ``time_offset`` by this rms (:func:`_wander`).
     """
-    if not (np.isfinite(duration_s) and (duration_s - 2.0) * eye_rate_hz >= 2.0):
-        raise InputError(
-            f'a simulated recording of {duration_s} s holds no eye poses: the eye covers the '
-            'span less 1 s at each end, so it needs at least 2 s plus two eye periods (three eye poses)'
-        )
+    noise = (noise_m, noise_deg, hand_noise_m, hand_noise_deg)
+    _check(seed, duration_s, (hand_rate_hz, eye_rate_hz), noise)
     rng = np.random.default_rng(seed)
     truth = truth if truth is not None else random_truth(rng)
     pos, rot = smooth_motion(rng, duration_s + 2.0, motion=motion)

@@ -203,7 +203,9 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
     for bad, said in (
         (['--rate', '-5'], '--rate must be a positive number'),
         (['--duration', '1'], 'holds no eye poses'),
-        (['--mocap-noise', '-1', '0'], '--mocap-noise takes two amounts >= 0'),
+        (['--mocap-noise', '-1', '0'], 'the noise amounts are numbers >= 0'),
+        (['--seed', '-1'], 'the seed is an integer >= 0'),
+        (['--level', '11'], "the noise level is one of the paper's"),
         (['--mocap-dropout', 'nan', '2'], '--mocap-dropout takes two times >= 0'),
         (['--speed', '0'], '--speed must be a positive number, not 0'),
         (['--replay', 'nowhere.csv', 'nowhere.txt'], 'nowhere.csv'),

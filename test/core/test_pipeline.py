@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.core.errors import DegenerateMotionError, TimeAlignmentError
+from handeye_ros.core.errors import DegenerateMotionError, InputError, TimeAlignmentError
 from handeye_ros.core.geometry import compose
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
@@ -30,6 +31,24 @@ def test_noise_free_recovers_the_truth() -> None:
     assert np.degrees(R.magnitude()) < 0.05
     assert res.metrics.ape_rmse_m < 1e-3 and res.metrics.are_rmse_deg < 0.05
     assert res.warnings == ()
+
+
+def test_the_same_poses_as_both_streams_are_refused() -> None:
+    """One file handed over as the hand and the eye: nothing to calibrate, said plainly."""
+    rec = recording(seed=0)
+    with pytest.raises(InputError, match='hold the same 6001 poses'):
+        calibrate(rec.hand, rec.hand)
+
+
+def test_an_eye_that_fits_the_hand_exactly_is_calibrated() -> None:
+    """The MoCap again as the eye, but for 1e-12 m on one pose: exact data, whose first noise
+    pass of the batch stage starts at its solution and takes no step."""
+    rec = recording(seed=0, hand_rate_hz=20.0)
+    p = rec.hand.p_xyz.copy()
+    p[5, 0] += 1e-12
+    res = calibrate(rec.hand, replace(rec.hand, p_xyz=p))
+    assert res.batch is not None and abs(res.time_offset_s) < 1e-6
+    assert np.linalg.norm(res.p_HE) < 1e-6 and abs(abs(res.q_HE[3]) - 1.0) < 1e-9
 
 
 @pytest.mark.slow

@@ -66,11 +66,9 @@ def solve_offset_extrinsic(
     from the start values.
 
     ``decoupled``: first (dt, dtheta_X) on the rotation residuals alone, then (dt, dp_X) on
-    all residuals with the rotation fixed. Why: as in the linear stage's decoupled refit, a
-    VIO's relative translations carry errors that are not white (scale, drift), and in one
-    solve of all together they pull the extrinsic's rotation; on the real flights of
-    bench/real_cases.py that solve left 0.25-0.80 deg of rotation error where this leaves 0.03-0.31 deg, and on
-    the paper protocol it is as good for dt and better for the rotation.
+    all residuals with the rotation fixed: a VIO's relative translations carry errors that are
+    not white (scale, drift), and in one solve of all together they pull the extrinsic's
+    rotation (docs/method.md, "Decoupled batch solve").
 
     Two passes: the eye noise is measured at the linear result, then again at the first
     solution (the linear result's residuals include its own error). ``o``: the eye's noise
@@ -102,9 +100,11 @@ def solve_offset_extrinsic(
             ),
             o.max_iterations if last_pass else 1,
         )
-        if not last_pass:  # the last step's residuals (all rows) are those at y
-            assert last.raw is not None, 'a first pass keeps its residuals'
-            en = Noise(*sigmas(last.raw, eye_noise))
+        if not last_pass:
+            # the last step's sweep kept the residuals at y, unless it took no step from the
+            # sums the step before handed it (its start already solved: exact data)
+            raw = last.raw if last.raw is not None else prob.eye_raw(y)
+            en = Noise(*sigmas(raw, eye_noise))
     cost_before = huber_cost((r_start * weights.eye).ravel(), delta)
     del r_start
     # the covariance as the last sweep gathered it at y, or (when the last step took no step

@@ -50,7 +50,18 @@ def prepare(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> Inputs
 def prepare_streams(
     hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig
 ) -> tuple[Trajectory, Trajectory, Findings]:
-    """Explicit inversions, stamp units, epochs, and what was found on the way."""
+    """Explicit inversions, stamp units, epochs, and what was found on the way. The same
+    poses handed over as both streams (one file given twice) are refused: there is nothing to
+    calibrate, and every figure would be zero."""
+    if len(hand) == len(eye) and all(
+        np.array_equal(a, b)
+        for a, b in ((hand.t_ns, eye.t_ns), (hand.p_xyz, eye.p_xyz), (hand.q_xyzw, eye.q_xyzw))
+    ):
+        msg = (
+            f'{hand.name} and {eye.name} hold the same {len(hand)} poses: the hand is the MoCap '
+            "stream and the eye the device's own VO/VIO estimate of the same recording"
+        )
+        raise InputError(msg)
     if cfg.invert_hand:
         hand = reread(hand, 'inverse')
     if cfg.invert_eye:

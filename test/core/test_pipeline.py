@@ -33,6 +33,22 @@ def test_noise_free_recovers_the_truth() -> None:
     assert res.warnings == ()
 
 
+@pytest.mark.parametrize('stream', ['hand', 'eye'])
+def test_positions_in_millimetres_are_named_when_stage_2_fails(stream: str) -> None:
+    """A MoCap export in mm (or an eye in mm): stage 2's thresholds in metres find no
+    consensus, and the error says which stream's positions look like millimetres."""
+    rec = recording(seed=0, level=5, duration_s=30.0)
+    hand, eye = rec.hand, rec.eye
+    if stream == 'hand':
+        hand = replace(hand, p_xyz=hand.p_xyz * 1e3)
+    else:
+        eye = replace(eye, p_xyz=eye.p_xyz * 1e3)
+    other = 'eye' if stream == 'hand' else 'hand'
+    said = f"The {stream}'s translations are [0-9]+ times the {other}'s: its positions look like millimetres"
+    with pytest.raises(DegenerateMotionError, match=said):
+        calibrate(hand, eye)
+
+
 def test_the_same_poses_as_both_streams_are_refused() -> None:
     """One file handed over as the hand and the eye: nothing to calibrate, said plainly."""
     rec = recording(seed=0)

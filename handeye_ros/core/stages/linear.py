@@ -40,13 +40,14 @@ from ..eye_model import EyeModel
 from ..geometry import difference, matrix_from_quat
 from ..linear.refits import held_alike
 from ..linear.robust import LinearSolution
+from ..linear.scale import ScaleFit
 from ..linear.solve import solve_linear
 from ..time.align import TimeAlignment, align_time_vector
 from ..time.clock import DriftFit, covered_span
 from ..trajectory import Trajectory
 from .drift import clock_along, drift_from_windows
 from .prepare import Inputs, check_fraction
-from .scale import fold_linear_scale, scale_check, scale_from_rotations
+from .scale import fold_linear_scale, rotations_scale, scale_check, scale_from_rotations
 from .time import Offset
 
 if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed check
@@ -57,6 +58,10 @@ if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed
 #: few milliseconds apart on a slow motion anyway.
 SAME_OFFSET_S = 2e-3
 DISTINCT_STEPS = 3
+#: A failed stage 2 names positions in millimetres when the eye's translations fit the hand's
+#: at a scale within this factor of 1000 or 1/1000 (:func:`units_said`): halfway, in log, to
+#: the 100 of centimetres, and far beyond what a metric VIO is off by.
+MM_FACTOR = 10**0.5
 #: Stage 2 is run again when the vector refinement moved dt by more than this (s).
 LINEAR_REDO_S = 5e-3
 #: The vector refinement searches this far (s) on each side of the current offset.
@@ -145,6 +150,9 @@ def _first_solve(
     try:
         return solve_at(hand, eye, 0.0, cfg)
     except DegenerateMotionError as err:
+        units = '' if cfg.estimate_scale else units_said(rotations_scale(hand, eye, cfg))
+        if units:
+            raise DegenerateMotionError(f'{err}. {units}') from None
         if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
         lo, hi = offset.alignment.window_s
@@ -154,6 +162,27 @@ def _first_solve(
             'or move time_offset_guess (or leave both unset to search every lag)'
         )
         raise DegenerateMotionError(msg) from None
+
+
+def units_said(fit: ScaleFit | None) -> str:
+    """What a failed stage 2 says of positions in millimetres: the eye's translations fitted to
+    the hand's by the rotations alone (:func:`.scale.rotations_scale`) a factor of 1000 apart,
+    within MM_FACTOR and beyond 3 sigmas of doubt, where a metric VIO is off by per cents.
+    Empty otherwise."""
+    if fit is None or not np.isfinite(fit.scale_std):
+        return ''
+    bounds = fit.scale + np.array([-3.0, 3.0]) * fit.scale_std
+    if not bounds[0] > 0.0:
+        return ''
+    apart = float(np.log10(fit.scale))
+    if np.any(np.abs(np.abs(np.log10(bounds)) - 3.0) > np.log10(MM_FACTOR)):
+        return ''
+    which, other = ('hand', 'eye') if apart > 0 else ('eye', 'hand')
+    return (
+        f"The {which}'s translations are {10 ** abs(apart):.0f} times the {other}'s: its "
+        'positions look like millimetres. Write them in metres'
+        + (' (or, for a monocular eye of unknown scale, estimate_scale)' if apart < 0 else '')
+    )
 
 
 @dataclass(frozen=True)

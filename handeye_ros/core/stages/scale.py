@@ -24,9 +24,21 @@ from ..trajectory import Trajectory
 def scale_from_rotations(
     hand: Trajectory, eye: Trajectory, model: EyeModel, cfg: CalibrationConfig
 ) -> tuple[Trajectory, EyeModel]:
-    """With estimate_scale, before stage 2: a first scale (:func:`.linear.scale.scale_prior`) from the
-    rotation of T_HE that the rotations alone give (RANSAC with no translation threshold), so
-    that stage 2's thresholds in metres mean metres."""
+    """With estimate_scale, before stage 2: a first scale (:func:`rotations_scale`), so that
+    stage 2's thresholds in metres mean metres."""
+    fit = rotations_scale(hand, eye, cfg)
+    if fit is None:
+        return eye, model
+    if not fit.observable:  # the eye stays as it is; the verdict will say why
+        return eye, replace(model, scale_std=fit.scale_std, scale_estimated=True)
+    return model.add_scale(eye, fit.scale, fit.scale_std)
+
+
+def rotations_scale(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> ScaleFit | None:
+    """The eye's scale (:func:`.linear.scale.scale_prior`) at the rotation of T_HE that the
+    rotations alone give (RANSAC with no translation threshold): it needs no threshold in
+    metres, so it holds whatever units the positions are in. None when the rotations leave
+    T_HE's rotation unobservable."""
     pairs = associate(hand, eye, 0.0)
     m = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
     rot = calibrate_linear(
@@ -41,12 +53,9 @@ def scale_from_rotations(
         rng=np.random.default_rng(cfg.seed),
     )
     if rot.unobservable:
-        return eye, model
+        return None
     k = rot.inliers
-    fit = scale_prior(m.A[0][k], m.A[1][k], m.B[1][k], rot.q_HE, drift_weights(m, k))
-    if not fit.observable:  # the eye stays as it is; the verdict will say why
-        return eye, replace(model, scale_std=fit.scale_std, scale_estimated=True)
-    return model.add_scale(eye, fit.scale, fit.scale_std)
+    return scale_prior(m.A[0][k], m.A[1][k], m.B[1][k], rot.q_HE, drift_weights(m, k))
 
 
 def fold_linear_scale(

@@ -181,7 +181,7 @@ def _outcome_at(args: tuple):
     try:
         res = _judged_at(hand, eye, t0 + int(s * 1e9), cfg)
     except HandeyeError as e:
-        return Outcome.failure(str(e), s, 0.0)
+        return Outcome.failure(e, s, 0.0)
     std = None if res.batch is None else res.batch.std
     return Outcome.of(res.quality, std, s, 0.0, cfg.precision)
 

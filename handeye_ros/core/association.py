@@ -14,7 +14,7 @@ import numpy as np
 
 from .arrays import Floats, Indices, Mask, Stamps
 from .chunked import chunked
-from .errors import TimeAlignmentError
+from .errors import NoOverlapError
 from .geometry import (
     Pose,
     compose,
@@ -130,7 +130,7 @@ def _check_overlap(n: int, hand: Trajectory, eye: Trajectory, time_offset_s: flo
             f'instants of {eye.name} fall inside {hand.name} (need {MIN_PAIRS}): the streams '
             'overlap too little in time'
         )
-        raise TimeAlignmentError(msg)
+        raise NoOverlapError(msg)
 
 
 def eye_motion_residuals(

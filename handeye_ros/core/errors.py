@@ -24,6 +24,24 @@ class DegenerateMotionError(HandeyeError):
     """The motion does not constrain the extrinsic: too little rotation, a single rotation axis."""
 
 
+class TooFewMotionsError(DegenerateMotionError):
+    """Too few relative motions (rotation-constrained keyframes) could be built: the recording
+    has turned too little so far."""
+
+
+class NoConsensusError(DegenerateMotionError):
+    """No T_HE that two or more relative motions agree on (RANSAC found no model)."""
+
+
+class NoOverlapError(TimeAlignmentError):
+    """The two streams do not overlap in time by enough at any offset searched."""
+
+
+class TooFewKeyframesError(TimeAlignmentError):
+    """A keyframe-only eye has too few keyframe pairs, or pairs that hardly rotate, for its
+    time offset."""
+
+
 class ConfigError(HandeyeError):
     """An option is unknown or outside its valid range."""
 

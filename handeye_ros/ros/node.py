@@ -244,7 +244,7 @@ class CalibratorNode(Node):
         except (HandeyeError, RuntimeError) as err:  # RuntimeError: pool shut down
             if job is Job.CALL:
                 self._failed(str(err))
-            self.status.took(None, str(err), job, span, 0.0)
+            self.status.took(None, err, job, span, 0.0)
             future.set_result((False, str(err)))
             self._drop_stage(stage)
             self._busy = False
@@ -278,7 +278,7 @@ class CalibratorNode(Node):
                 self.get_logger().info(f'checking READY: the calibration failed ({err})')
             else:
                 self._failed(str(err))
-            self.status.took(None, str(err), job, span, took)
+            self.status.took(None, err, job, span, took)
             future.set_result((False, str(err)))
         except Exception as err:  # noqa: BLE001  (a crashed worker: reported, pool renewed)
             if self._closing:  # the node stopped it
@@ -288,11 +288,11 @@ class CalibratorNode(Node):
             if isinstance(err, cf.process.BrokenProcessPool):
                 self._pool = worker.new_pool()
             self._failed(f'internal error: {err!r}')
-            self.status.took(None, f'internal error: {err!r}', job, span, took)
+            self.status.took(None, RuntimeError(f'internal error: {err!r}'), job, span, took)
             future.set_result((False, f'internal error: {err!r}'))
         else:
             said = session.result.said() + session.rig_said
-            if not self.status.took(session.result, '', job, span, took):
+            if not self.status.took(session.result, None, job, span, took):
                 said = f'checked READY in {took:.2f} s, not published: {said}'
                 self.get_logger().info(said)
                 future.set_result((True, said))

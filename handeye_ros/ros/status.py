@@ -157,18 +157,18 @@ class ReadinessStatus:
     def took(
         self,
         result: CalibrationResult | None,
-        why: str,
+        error: Exception | None,
         job: Job,
         span_s: float,
         took_s: float,
     ) -> bool:
         """On the executor, a calibration of the buffers that spanned ``span_s`` [s] ended
-        after ``took_s`` [s] with ``result`` (None: it failed, ``why``): whether it is
-        published (a call's always; a check's when auto mode says so)."""
+        after ``took_s`` [s] with ``result`` (None: it failed, raising ``error``): whether it
+        is published (a call's always; a check's when auto mode says so)."""
         now = time.monotonic()
         self._next_check = now + took_s
         latest = (
-            Outcome.failure(why, span_s, now)
+            Outcome.failure(error or RuntimeError('no result'), span_s, now)
             if result is None
             else Outcome.of(
                 result.quality,

@@ -85,7 +85,7 @@ def test_done_only_for_a_check_of_full_buffers() -> None:
         snap = host.checks[-1]
         result = snap.result(host.calib_cfg)
         host.busy = False
-        status.took(result, '', Job.CHECK, snap.span_s, 0.0)
+        status.took(result, None, Job.CHECK, snap.span_s, 0.0)
 
     feed(17.0)
     status.tick()

@@ -23,6 +23,7 @@ import numpy as np
 from ..arrays import Floats
 from ..config import CalibrationConfig
 from ..document import StatusDoc
+from ..errors import NoConsensusError, NoOverlapError, TooFewKeyframesError, TooFewMotionsError
 from ..time.align import MIN_OVERLAP_S
 from .excitation import RECENT_S, Motion
 from .verdict import (
@@ -61,8 +62,9 @@ class Outcome:
     good: ``good`` for the purpose judged; label: its verdict and reason codes; held: the first
     reason's message ('' when good); sigmas: the reported 1-sigmas of dt [s], T_HE's
     translation [m] and rotation [deg] (None without a batch stage); recording_helps: more of
-    the same recording is the remedy for every reason (precision alone); failed: why the
-    calibration failed ('' when it did not); span_s: the buffered span it calibrated [s];
+    the same recording is the remedy for every reason (precision alone); failed: what to do
+    about the refusal that ended the calibration, and the refusal ('' when it did not fail);
+    span_s: the buffered span it calibrated [s];
     finished: when it ended (monotonic s); ratio: how far its purpose's rule on precision is
     from its line (:func:`~.verdict.judged_ratio`, above 1 imprecise); READY says
     :attr:`settled`.
@@ -109,9 +111,11 @@ class Outcome:
         )
 
     @classmethod
-    def failure(cls, why: str, span_s: float, finished: float) -> Outcome:
-        """A calibration that raised ``why``: more recording may remedy it (too few motions)."""
-        return cls(False, 'failed', why, None, True, span_s, finished, failed=why)
+    def failure(cls, err: Exception, span_s: float, finished: float) -> Outcome:
+        """A calibration that raised ``err``: more recording may remedy it (too few motions);
+        ``failed`` is what to do, by the error's kind (:func:`_plain`)."""
+        why = str(err)
+        return cls(False, 'failed', why, None, True, span_s, finished, failed=_plain(err))
 
 
 @dataclass(frozen=True)
@@ -221,7 +225,7 @@ def _held(latest: Outcome) -> str:
     """Why the latest calibration holds READY back, with what to do."""
     of = f'the latest calibration ({latest.span_s:.0f} s of data)'
     if latest.failed:
-        return f'{of} failed: {_plain(latest.failed)}'
+        return f'{of} failed: {latest.failed}'
     if latest.good:
         return (
             f'{of} is good, near the line of its precision ({latest.ratio:.0%} of what it '
@@ -241,16 +245,17 @@ def _health(dropout: dict[str, float]) -> list[str]:
     ]
 
 
-def _plain(text: str) -> str:
-    """A refusal of stage 1 or 2 as advice: what to do, then the refusal."""
-    if 'relative motions' in text or 'keyframe' in text:
+def _plain(err: Exception) -> str:
+    """A refusal of stage 1 or 2 as advice, by its kind: what to do, then the refusal."""
+    text = str(err)
+    if isinstance(err, (TooFewMotionsError, TooFewKeyframesError)):
         return f'turn the device more, about all its axes: too few rotations so far ({text})'
-    if 'RANSAC found no model' in text:
+    if isinstance(err, NoConsensusError):
         return (
             'turn the device more, faster and about all its axes: the motions so far do not '
             f'agree on one T_HE ({text})'
         )
-    if 'overlap' in text:
+    if isinstance(err, NoOverlapError):
         return f'the streams do not overlap in time: check the clocks ({text})'
     return text
 

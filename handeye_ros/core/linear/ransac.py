@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arrays import Floats, Mask
-from ..errors import DegenerateMotionError
+from ..errors import NoConsensusError
 from ..geometry import pose_from_dual_quat
 from .axxb import Motions, motion_errors, sigma_ratio, solve_gram
 from .refits import MIN_AXIS_SPREAD_DEG, WARN_AXIS_SPREAD_DEG, axis_spreads_deg, rotation_axes
@@ -138,7 +138,7 @@ def consensus(
             f'{np.degrees(inlier_rotation_rad):.2f} deg / {inlier_translation_m:.3f} m: the '
             'eye poses are too noisy for these thresholds, or the time offset is wrong'
         )
-        raise DegenerateMotionError(msg)
+        raise NoConsensusError(msg)
     best = int(np.argmin(np.where(well_spread(eligible, spread), ratio, np.inf)))
     q_HE, p_HE = pose_from_dual_quat(q1[best], qd1[best])
     if ransac_iterations > 0:

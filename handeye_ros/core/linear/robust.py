@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..arrays import Floats, Mask
-from ..errors import DegenerateMotionError
+from ..errors import TooFewMotionsError
 from ..geometry import matrix_from_quat
 from .axxb import (
     Motions,
@@ -121,7 +121,7 @@ class LinearSolution:
 def _check_enough(n: int, min_motions: int) -> None:
     """DegenerateMotionError unless there are ``min_motions`` (at least 2) motions."""
     if n < max(min_motions, 2):
-        raise DegenerateMotionError(
+        raise TooFewMotionsError(
             f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
             'recording rotates too little for the keyframe rule. Rotate the rig more (about '
             'several axes), or lower eta'

@@ -35,7 +35,7 @@ from ..checks.verdict import (
     scale_keeps_whole,
 )
 from ..config import CalibrationConfig
-from ..errors import DegenerateMotionError, HandeyeError, TimeAlignmentError
+from ..errors import DegenerateMotionError, HandeyeError, InputError, TimeAlignmentError
 from ..eye_model import EyeModel
 from ..geometry import difference, matrix_from_quat
 from ..linear.refits import held_alike
@@ -151,8 +151,8 @@ def _first_solve(
         return solve_at(hand, eye, 0.0, cfg)
     except DegenerateMotionError as err:
         units = '' if cfg.estimate_scale else units_said(rotations_scale(hand, eye, cfg))
-        if units:
-            raise DegenerateMotionError(f'{err}. {units}') from None
+        if units:  # the input's, not the motion's
+            raise InputError(f'{units} (stage 2: {err})') from None
         if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
         lo, hi = offset.alignment.window_s
@@ -161,7 +161,7 @@ def _first_solve(
             'lies outside, the correlation found a false peak there; widen max_time_offset '
             'or move time_offset_guess (or leave both unset to search every lag)'
         )
-        raise DegenerateMotionError(msg) from None
+        raise type(err)(msg) from None
 
 
 def units_said(fit: ScaleFit | None) -> str:

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..arrays import Floats, Indices, Mask
-from ..errors import TimeAlignmentError
+from ..errors import NoOverlapError, TimeAlignmentError
 from ..trajectory import Trajectory, gap_free_parts, lengths_text
 from .correlation import (
     lobe,
@@ -156,7 +156,7 @@ def _correlate(
 
 def _no_overlap(
     hand: Trajectory, eye: Trajectory, need_s: float, window: tuple[float, float] | None
-) -> TimeAlignmentError:
+) -> NoOverlapError:
     where = (
         'at any offset'
         if window is None
@@ -174,7 +174,7 @@ def _no_overlap(
             'time_offset_guess, or leave both unset to search every lag'
         )
     )
-    return TimeAlignmentError(msg)
+    return NoOverlapError(msg)
 
 
 def _parts(traj: Trajectory) -> str:

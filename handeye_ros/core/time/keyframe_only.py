@@ -41,7 +41,7 @@ from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..arrays import Floats, Indices, Mask
-from ..errors import TimeAlignmentError
+from ..errors import TooFewKeyframesError
 from ..trajectory import Trajectory
 from .align import (
     MIN_OVERLAP_FRACTION,
@@ -261,13 +261,13 @@ def _eye_angles(eye: Trajectory) -> _Pairs:
     too few, or when the keyframes hardly rotate."""
     a, b = keyframe_pairs(eye)
     if a.size < MIN_PAIRS:
-        raise TimeAlignmentError(
+        raise TooFewKeyframesError(
             f'{eye.name}: {len(eye)} keyframes give {a.size} keyframe pairs; the time offset '
             f'of a keyframe-only eye needs at least {MIN_PAIRS}'
         )
     angle_e = rotation_angles(eye.q_xyzw[a], eye.q_xyzw[b])
     if float(np.percentile(angle_e, 90)) < np.deg2rad(1.0):
-        raise TimeAlignmentError(
+        raise TooFewKeyframesError(
             f'{eye.name}: the keyframes hardly rotate (90 % of the keyframe pairs turn by less '
             'than 1 deg); the time offset cannot be observed. Record a motion with rotation'
         )

@@ -15,6 +15,7 @@ from handeye_ros.core.checks.excitation import PIECE_S, Motion
 from handeye_ros.core.checks.readiness import AXES, ONE_AXIS_DEG, Outcome, readiness
 from handeye_ros.core.checks.verdict import BLOCKS_MARGIN
 from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import HandeyeError
 from handeye_ros.core.geometry import consecutive_rotvecs
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import with_dropouts
@@ -169,14 +170,27 @@ def test_mocap_dropouts_in_the_last_seconds_are_said() -> None:
     assert _motion(spread, rec.eye).dropout['hand'] < 0.2
 
 
-def test_a_failed_calibration_is_said_with_what_to_do() -> None:
-    rec = recording(0, 0, duration_s=30.0)
-    failed = Outcome.failure('the streams overlap by 0.0 s at the offset', 30.0, 0.0)
+@pytest.mark.parametrize(
+    ('defect', 'advice'),
+    [
+        ('3 s of eye', 'the streams do not overlap in time: check the clocks (simulated hand'),
+        ('the hand in mm', "The hand's translations are"),
+    ],
+)
+def test_a_failed_calibration_is_said_with_what_to_do(defect: str, advice: str) -> None:
+    """The advice follows the kind of the refusal the core raised, not its words."""
+    rec = recording(0, 5, duration_s=30.0)
+    hand, eye = rec.hand, rec.eye
+    if defect == '3 s of eye':
+        eye = eye.select(eye.t_ns < eye.t_ns[0] + 3_000_000_000)
+    else:
+        hand = replace(hand, p_xyz=hand.p_xyz * 1e3)
+    with pytest.raises(HandeyeError) as refused:
+        calibrate(hand, eye, EVALUATION)
+    failed = Outcome.failure(refused.value, 30.0, 0.0)
     r = readiness(_motion(rec.hand, rec.eye), failed, EVALUATION, 30.0, 0.0)
     assert not r.ready
-    assert r.missing[0].startswith(
-        'the latest calibration (30 s of data) failed: the streams do not overlap in time'
-    )
+    assert r.missing[0].startswith(f'the latest calibration (30 s of data) failed: {advice}')
 
 
 def test_the_status_line_says_it_in_one_place() -> None:

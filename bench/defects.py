@@ -280,6 +280,17 @@ def quaternion_order(stream: str) -> Inject:
     return f
 
 
+def millimetres(stream: str) -> Inject:
+    """One stream's positions written in millimetres, as MoCap exports often are."""
+
+    def f(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
+        s = h if stream == 'hand' else e
+        out = Stream(s.t_ns, s.p * 1e3, s.q, s.fmt, s.unit, s.order)
+        return Injected(out, e) if stream == 'hand' else Injected(h, out)
+
+    return f
+
+
 def inverted_eye(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """The eye written as T_EW (world in body) instead of T_WE."""
     R = Rotation.from_quat(e.q).inv()
@@ -317,6 +328,7 @@ DEFECTS: dict[str, Inject] = {
     'hand stamps us': stamp_unit('hand', 'us'),
     'eye quat wxyz': quaternion_order('eye'),
     'hand quat xyzw': quaternion_order('hand'),
+    'hand positions mm': millimetres('hand'),
     'eye inverted': inverted_eye,
     'rounded values': rounded,
 }

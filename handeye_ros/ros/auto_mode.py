@@ -119,8 +119,8 @@ def said(auto: Auto) -> str:
             'published'
         ),
         State.STALLED: (
-            f'stalled: the latest result is doubtful ({auto.why}), which more of the same '
-            'motion does not remedy; change the motion'
+            f'stalled: more of the same recording does not remedy the latest result '
+            f'({auto.why}); change what it says'
         ),
         State.DONE: (
             'done: the buffers are full (buffer_duration, buffer_size), so later results '

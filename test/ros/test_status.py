@@ -14,6 +14,7 @@ import pytest
 pytest.importorskip('diagnostic_msgs')
 
 from handeye_ros.core.checks.readiness import Outcome
+from handeye_ros.core.errors import InputError, TooFewMotionsError
 from handeye_ros.ros.auto_mode import GROWTH, IMPROVEMENT, Auto, State, decide, filled, said
 from handeye_ros.ros.clocks import Arrivals, ClockWatch, clocks_apart, replay_pace
 
@@ -113,6 +114,18 @@ def test_a_result_that_is_not_good_is_never_published() -> None:
     assert decide(stalled, GOOD, full=False).publish
     converged = decide(Auto(State.IMPROVING, 0.5), replace(GOOD, ratio=0.49), full=False)
     assert decide(converged, IMPRECISE, full=False).state is State.WAITING  # not converged
+
+
+def test_a_refused_input_stalls_auto_mode_where_too_few_motions_wait() -> None:
+    """Turning more remedies too few motions; it does not remedy positions in millimetres."""
+    first = Auto.start(True)
+    few = Outcome.failure(TooFewMotionsError('only 9 relative motions'), 12.0, 0.0)
+    assert decide(first, few, full=False).state is State.WAITING
+    mm = Outcome.failure(InputError("The hand's translations are 1000 times the eye's"), 12.0, 0.0)
+    stalled = decide(first, mm, full=False)
+    assert stalled.state is State.STALLED and not stalled.publish
+    assert said(stalled).startswith('stalled: more of the same recording does not remedy')
+    assert "The hand's translations are 1000 times" in said(stalled)
 
 
 def test_auto_mode_is_done_once_the_buffers_are_full() -> None:

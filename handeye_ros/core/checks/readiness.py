@@ -23,7 +23,13 @@ import numpy as np
 from ..arrays import Floats
 from ..config import CalibrationConfig
 from ..document import StatusDoc
-from ..errors import NoConsensusError, NoOverlapError, TooFewKeyframesError, TooFewMotionsError
+from ..errors import (
+    InputError,
+    NoConsensusError,
+    NoOverlapError,
+    TooFewKeyframesError,
+    TooFewMotionsError,
+)
 from ..time.align import MIN_OVERLAP_S
 from .excitation import RECENT_S, Motion
 from .verdict import (
@@ -112,10 +118,11 @@ class Outcome:
 
     @classmethod
     def failure(cls, err: Exception, span_s: float, finished: float) -> Outcome:
-        """A calibration that raised ``err``: more recording may remedy it (too few motions);
+        """A calibration that raised ``err``: more recording may remedy it (too few motions),
+        but not a refusal of the input itself (positions in millimetres: InputError);
         ``failed`` is what to do, by the error's kind (:func:`_plain`)."""
-        why = str(err)
-        return cls(False, 'failed', why, None, True, span_s, finished, failed=_plain(err))
+        helps = not isinstance(err, InputError)
+        return cls(False, 'failed', str(err), None, helps, span_s, finished, failed=_plain(err))
 
 
 @dataclass(frozen=True)

@@ -119,7 +119,7 @@ class LinearSolution:
 
 
 def _check_enough(n: int, min_motions: int) -> None:
-    """DegenerateMotionError unless there are ``min_motions`` (at least 2) motions."""
+    """TooFewMotionsError unless there are ``min_motions`` (at least 2) motions."""
     if n < max(min_motions, 2):
         raise TooFewMotionsError(
             f'only {n} relative motions could be built (need {max(min_motions, 2)}): the '
@@ -163,8 +163,8 @@ def calibrate_linear(
 
     Raises
     ------
-    DegenerateMotionError
-        With fewer than ``min_motions`` motions, or when no hypothesis gathers a consensus.
+    TooFewMotionsError, NoConsensusError (DegenerateMotionError)
+        With fewer than ``min_motions`` motions; when no hypothesis gathers a consensus.
     """
     n = len(m)
     _check_enough(n, min_motions)

@@ -220,6 +220,18 @@ def _let_leave(pubs: dict[str, Publisher], reliable: bool) -> None:
     time.sleep(0.5)
 
 
+def _check_types(args: argparse.Namespace) -> None:
+    """A message type that carries no pose, or whose package this Python cannot import, is a
+    usage error (exit 2), before anything is simulated or published."""
+    from handeye_ros.core.errors import HandeyeError
+
+    for flag, name in (('--hand-type', args.hand_type), ('--eye-type', args.eye_type)):
+        try:
+            message_class(name)
+        except HandeyeError as err:
+            parser().error(f'{flag} {name}: {err}')
+
+
 def _recording(args: argparse.Namespace) -> Outgoing:
     """The recording: the ``--replay`` files' (no truth), or a simulated one
     (:func:`handeye_ros.core.simulate.simulate`); written into the ``--bag`` files asked for.
@@ -329,6 +341,7 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.utilities import remove_ros_args
 
     args = parse(remove_ros_args(argv)[1:])
+    _check_types(args)
     rec = _recording(args)
     wire = _wire(args, rec)
     if stop_requested():

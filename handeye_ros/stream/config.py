@@ -129,10 +129,20 @@ class StreamConfig(Options):
                     normalise_type(value)
                 except UnsupportedTypeError as err:
                     raise ConfigError(f'option {name}: {err}') from None
+        selectors = []
         for name in ('hand_topic', 'eye_topic'):
             if not getattr(self, name).strip():
                 raise ConfigError(f'option {name} must not be empty')
             try:
-                parse_selector(getattr(self, name))
+                selectors.append(parse_selector(getattr(self, name)))
             except ConfigError as err:
                 raise ConfigError(f'option {name}: {err}') from None
+        hand, eye = selectors
+        # one topic carries both streams only as two items of a many-pose message (a selector
+        # without its item is said against what the topic holds, where its type is known)
+        if hand.topic == eye.topic and (hand.item == eye.item):
+            raise ConfigError(
+                f'options hand_topic and eye_topic both read {hand.text}: the hand is the '
+                "MoCap's topic and the eye the device's (one topic carries both only as two "
+                'frame pairs of tf, TOPIC:PARENT.CHILD, or two bodies of RigidBodies, TOPIC:BODY)'
+            )

@@ -69,6 +69,15 @@ def test_stream_and_node_options() -> None:
         StreamConfig.from_mapping({'buffer_size': 1})
     with pytest.raises(ConfigError, match='qos_reliability must be one of'):
         NodeConfig(qos_reliability='sometimes')
+    # one topic for both streams: only as two items of tf or RigidBodies (the node, subscribing
+    # it twice with two likely types, ended in rcl's traceback)
+    both = 'options hand_topic and eye_topic both read /vio/odom'
+    with pytest.raises(ConfigError, match=both):
+        StreamConfig(hand_topic='/vio/odom', eye_topic='/vio/odom')
+    with pytest.raises(ConfigError, match='both read /bodies'):
+        StreamConfig(hand_topic='/bodies:rig', eye_topic=' /bodies:rig')
+    assert StreamConfig(hand_topic='/bodies:wand', eye_topic='/bodies:rig').eye_topic
+    assert StreamConfig(hand_topic='/tf:world.marker', eye_topic='/tf:odom.imu').hand_topic
 
 
 @pytest.mark.parametrize(

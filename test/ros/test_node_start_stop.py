@@ -208,6 +208,7 @@ def test_help_and_command_line(install: Path, tmp_path: Path) -> None:
         (['--level', '11'], "the noise level is one of the paper's"),
         (['--mocap-dropout', 'nan', '2'], '--mocap-dropout takes two times >= 0'),
         (['--speed', '0'], '--speed must be a positive number, not 0'),
+        (['--hand-type', 'Bogus'], "--hand-type Bogus: message type 'Bogus' carries no pose"),
         (['--replay', 'nowhere.csv', 'nowhere.txt'], 'nowhere.csv'),
     ):
         proc = subprocess.run(

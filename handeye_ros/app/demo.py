@@ -49,7 +49,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.keep or tmp)
-        out.mkdir(parents=True, exist_ok=True)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            p.error(f'--keep {out}: cannot make the folder there ({err.strerror})')
         res = out / 'result.json'
         what = (
             f'hand {len(rec.hand)} poses at 100 Hz, eye {len(rec.eye)} poses at 20 Hz with '

@@ -193,7 +193,10 @@ class BagWriter:
     writer: Writer1 | Writer2
 
     def __enter__(self) -> Self:
-        self.writer.open()
+        try:
+            self.writer.open()
+        except OSError as err:  # a folder that cannot be made there, a full disk
+            raise InputError(f'{self.path}: cannot write the bag ({err.strerror})') from None
         return self
 
     def __exit__(self, *exc: object) -> None:

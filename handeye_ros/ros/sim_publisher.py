@@ -235,24 +235,25 @@ def _check_types(args: argparse.Namespace) -> None:
 def _recording(args: argparse.Namespace) -> Outgoing:
     """The recording: the ``--replay`` files' (no truth), or a simulated one
     (:func:`handeye_ros.core.simulate.simulate`); written into the ``--bag`` files asked for.
-    A file that cannot be read, or a bad simulation option, is a usage error."""
+    A file that cannot be read, a bad simulation option or a bag that cannot be written is a
+    usage error."""
     from handeye_ros.core.errors import InputError
     from handeye_ros.formats.bag import write_recording
 
     try:
         rec = _replayed(args.replay) if args.replay else _simulated(args)
+        for spec in args.bag:
+            path, _, storage = spec.partition(':')
+            write_recording(
+                path,
+                [
+                    (args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
+                    (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu'),
+                ],
+                storage or 'mcap',
+            )
     except InputError as err:
         parser().error(str(err))
-    for spec in args.bag:
-        path, _, storage = spec.partition(':')
-        write_recording(
-            path,
-            [
-                (args.hand_topic, args.hand_type, rec.hand, 'mocap', 'marker'),
-                (args.eye_topic, args.eye_type, rec.eye, 'odom', 'imu'),
-            ],
-            storage or 'mcap',
-        )
     return rec
 
 

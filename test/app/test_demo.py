@@ -23,6 +23,7 @@ def test_demo_runs() -> None:
         (['--level', 'nan'], "the noise level is one of the paper's"),
         (['--level', '11'], "the noise level is one of the paper's"),
         (['--seed', '-1'], 'the seed is an integer >= 0'),
+        (['--keep', '/proc/demo'], '--keep /proc/demo: cannot make the folder there'),
     ],
 )
 def test_absurd_values_are_usage_errors(

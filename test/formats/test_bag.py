@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from conftest import recording, run_main
 
+from handeye_ros.core.errors import InputError
 from handeye_ros.formats.bag import BagWriter, pose_messages, write_recording
 from handeye_ros.stream import PoseBuffer
 
@@ -309,3 +310,15 @@ def test_unset_stamps_are_named_and_arrival_time_is_the_way_out(tmp_path: Path, 
     assert any('stamped on arrival' in w for w in d['warnings'])
     # the recorder's clock is the true one here: the offset as from the stamps
     assert abs(d['time_offset'] - rec.truth.time_offset_s) < 3e-3
+
+
+def test_a_bag_that_cannot_be_written_is_said(tmp_path: Path) -> None:
+    """A folder that cannot be made there (a file in the way, a path under /proc) is an
+    InputError naming the path, as a bag that exists already is."""
+    (tmp_path / 'file').write_text('')
+    for where in (tmp_path / 'file' / 'bag', Path('/proc/handeye_bag')):
+        with pytest.raises(InputError, match='cannot write the bag'), BagWriter(where):
+            pass
+    (tmp_path / 'bag').mkdir()
+    with pytest.raises(InputError, match='exists already'):
+        BagWriter(tmp_path / 'bag')

@@ -80,7 +80,9 @@ def declare_and_read(node: Node) -> tuple[CalibrationConfig, StreamConfig, NodeC
             InvalidParameterTypeException,
             ParameterException,
         ) as err:
-            hint = ' (write a float with its point: 5.0, not 5)' if spec.kind == 'float' else ''
+            # an integer given for a float: rclpy's types are strict where YAML's are not
+            typed = isinstance(err, InvalidParameterTypeException) and spec.kind == 'float'
+            hint = ' (write a float with its point: 5.0, not 5)' if typed else ''
             raise ConfigError(f'parameter {name}: {err}{hint}') from None
         values[name] = p.value
     calib, streams, node_cfg = split_options(

@@ -39,6 +39,7 @@ pytestmark = [
         ('qos_reliability:=sometimes', 'qos_reliability'),
         ('hand_type:=Imu', 'hand_type'),
         ('buffer_size:=1', 'buffer_size'),
+        ('status_period:=1e9', 'status_period out of range'),
         ('hand_topic:=/tf:world', 'PARENT.CHILD'),
         (
             'hand_topic:=/mocap pose',
@@ -46,6 +47,7 @@ pytestmark = [
         ),
         ('eye_topic:=/vio/1odom', 'must not start with a number'),
         ('eta:=5', 'write a float with its point: 5.0, not 5'),
+        ('hand_topic:=/vio/odom|eye_topic:=/vio/odom', 'eye_topic both read /vio/odom'),
         ('output_file:=../evil.yaml', 'output_file ../evil.yaml: ".." is not allowed'),
         ('auto_calibrate:=true|status_period:=0.0', 'which status_period 0 turns off'),
         pytest.param(
@@ -70,6 +72,8 @@ def test_invalid_parameters_are_refused_at_start(
     out, err = ros.output(node)
     assert node.returncode == 1, (out, err)
     assert fragment in err and 'Traceback' not in err, err
+    # the hint on how to write a float is said for a float given as another type alone
+    assert ('with its point' in err) == (param in ('eta:=5', 'eta:=five')), err
 
 
 @pytest.mark.parametrize('how', ['ctrl-c', 'sigterm'])

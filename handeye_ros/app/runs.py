@@ -99,7 +99,11 @@ class RunSpec:
         from .request import Request
 
         if not (self.bag or (self.hand and self.eye)):
-            raise ConfigError('a run needs hand and eye files, or a bag')
+            given = [f'{k} {v}' for k, v in (('hand', self.hand), ('eye', self.eye)) if v]
+            raise ConfigError(
+                f'a run needs hand and eye files, or a bag (given: {", ".join(given) or "none"}'
+                '); a folder layout finds them by their names, hand.* and eye.*'
+            )
         return Request(
             hand=None if self.bag else self.hand,
             eye=None if self.bag else self.eye,

@@ -149,7 +149,7 @@ def test_wrong_topic_empty_bag_unsupported_type(tmp_path: Path, rec) -> None:
             )
             w.write('/imu', 'sensor_msgs/msg/Imu', k * 10**9, msg)
     _fails(
-        run_main('--bag', imu, '--hand-topic', '/imu', '--eye-topic', '/imu'),
+        run_main('--bag', imu, '--hand-topic', '/imu', '--eye-topic', '/vio/odom'),
         'sensor_msgs/msg/Imu',
         'carries no pose',
     )

@@ -11,7 +11,12 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from handeye_ros.core.config import CalibrationConfig
-from handeye_ros.core.errors import DegenerateMotionError, InputError, TimeAlignmentError
+from handeye_ros.core.errors import (
+    DegenerateMotionError,
+    InputError,
+    NoOverlapError,
+    TimeAlignmentError,
+)
 from handeye_ros.core.geometry import compose
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
@@ -139,7 +144,7 @@ def test_offset_outside_window_is_an_error_not_a_wrong_number() -> None:
         calibrate(rec.hand, rec.eye, cfg)
 
 
-@pytest.mark.parametrize('error_s', [0.03, 0.2])
+@pytest.mark.parametrize('error_s', [0.03, 0.2, 0.5])
 def test_wrong_fixed_offset_is_reported(error_s: float) -> None:
     """A fixed offset off by tens of ms still lets most motions pass RANSAC; the result must
     say the data disagree (a warning), or refuse (an error), never pass silently."""
@@ -147,11 +152,23 @@ def test_wrong_fixed_offset_is_reported(error_s: float) -> None:
     cfg = CalibrationConfig(time_offset=rec.truth.time_offset_s + error_s)
     try:
         res = calibrate(rec.hand, rec.eye, cfg)
-    except DegenerateMotionError as err:  # 0.2 s: no motion agrees; the error names the offset
-        assert 'the time offset is wrong' in str(err)
+    except DegenerateMotionError as err:  # 0.2, 0.5 s: no motion agrees; the error names it
+        # stage 2's own refusal, not that of the look for positions in millimetres behind it
+        assert 'the time offset is wrong' in str(err) and '0.020 m' in str(err)
         return
     assert any('disagrees with the angular-speed correlation' in w for w in res.warnings)
     assert res.quality.verdict != 'good'
+
+
+def test_a_fixed_offset_that_leaves_no_overlap_names_itself() -> None:
+    """Stage 2 sees the eye already moved by the fixed offset: its count of instants would
+    name an offset of +0.0000 s; the refusal names the one the user gave."""
+    rec = recording(seed=5, level=1.0)
+    cfg = CalibrationConfig(time_offset=100.0)
+    with pytest.raises(
+        NoOverlapError, match=r'with the time offset fixed at \+100\.0000 s, 0 poses'
+    ):
+        calibrate(rec.hand, rec.eye, cfg)
 
 
 def test_right_fixed_offset_gives_no_warning() -> None:

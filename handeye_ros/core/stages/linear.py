@@ -150,7 +150,7 @@ def _first_solve(
     try:
         return solve_at(hand, eye, 0.0, cfg)
     except DegenerateMotionError as err:
-        units = '' if cfg.estimate_scale else units_said(rotations_scale(hand, eye, cfg))
+        units = '' if cfg.estimate_scale else _units(hand, eye, cfg)
         if units:  # the input's, not the motion's
             raise InputError(f'{units} (stage 2: {err})') from None
         if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
@@ -162,6 +162,15 @@ def _first_solve(
             'or move time_offset_guess (or leave both unset to search every lag)'
         )
         raise type(err)(msg) from None
+
+
+def _units(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> str:
+    """:func:`units_said` of the scale the rotations alone give; '' when they give none (the
+    refusal being explained stands as it is)."""
+    try:
+        return units_said(rotations_scale(hand, eye, cfg))
+    except DegenerateMotionError:
+        return ''
 
 
 def units_said(fit: ScaleFit | None) -> str:

@@ -9,10 +9,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..association import MIN_PAIRS
 from ..checks.orientations import check_orientations
 from ..checks.verdict import WEAK_CORRELATION, Findings, FixedOffsetDisagrees
 from ..config import CalibrationConfig
-from ..errors import TimeAlignmentError
+from ..errors import NoOverlapError, TimeAlignmentError
 from ..time.align import TimeAlignment, align_time
 from ..time.keyframe_only import align_time_keyframes
 from ..trajectory import Trajectory
@@ -50,6 +51,7 @@ def align_stage(inputs: Inputs, cfg: CalibrationConfig) -> Offset:
     guess, half = search_window(cfg)
     found = Findings()
     if cfg.time_offset is not None:
+        _check_fixed_overlap(hand, eye, cfg.time_offset)
         ta = TimeAlignment(
             time_offset_s=cfg.time_offset,
             method='fixed',
@@ -83,6 +85,21 @@ def search_window(cfg: CalibrationConfig) -> tuple[float | None, float | None]:
         cfg.time_offset_guess or 0.0,
         cfg.max_time_offset if cfg.max_time_offset is not None else DEFAULT_HALF_WINDOW_S,
     )
+
+
+def _check_fixed_overlap(hand: Trajectory, eye: Trajectory, fixed_s: float) -> None:
+    """NoOverlapError, naming the offset the user fixed, when fewer than MIN_PAIRS eye poses
+    fall inside the hand's span at it (later stages see the eye already moved by it)."""
+    at_hand = eye.t_ns - round(fixed_s * 1e9)
+    inside = int(np.count_nonzero((at_hand >= hand.t_ns[0]) & (at_hand <= hand.t_ns[-1])))
+    if inside < MIN_PAIRS:
+        gap = (eye.t_ns[0] - hand.t_ns[0]) * 1e-9
+        raise NoOverlapError(
+            f'with the time offset fixed at {fixed_s:+.4f} s, {inside} poses of {eye.name} fall '
+            f'inside {hand.name} (need {MIN_PAIRS}; the eye starts {gap:+.3f} s after the hand '
+            'on their own clocks, and an offset dt moves it by -dt): check time_offset, or '
+            'leave it unset to find it'
+        )
 
 
 def check_fixed_offset(

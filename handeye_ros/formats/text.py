@@ -300,6 +300,14 @@ def _check_columns(
             raise InputError(msg)
 
 
+def _number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
 def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None, fmt: str) -> None:
     """Find the first malformed line and raise an InputError naming it."""
     _check_columns(path, numbers, rows, sep, fmt)
@@ -316,5 +324,8 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None, 
             try:
                 float(token)
             except ValueError:
-                msg = f'{path}, line {number}: {token!r} is not a number'
+                # words on the first data line are a header row without its comment mark
+                header = number == numbers[0] and not any(_number(t) for t in tokens)
+                hint = ' (a header row? start it with #, as comments are)' if header else ''
+                msg = f'{path}, line {number}: {token!r} is not a number{hint}'
                 raise InputError(msg) from None

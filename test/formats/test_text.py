@@ -118,7 +118,9 @@ def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> N
         ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
         ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
         ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 1\n', 'line 2: 7 columns'),
-        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number"),
+        ('1.0 0 0 0 0 0 0 1\n2.0 0 0 x 0 0 0 1\n', "'x' is not a number$"),
+        # a header row without its comment mark: said as one
+        ('t x y z qx qy qz qw\n1.0 0 0 0 0 0 0 1\n', r'a header row\? start it with #'),
         ('hello world\n', 'unknown trajectory format'),
         ('1,2,3\n', 'unknown trajectory format'),
         ('1e300 0 0 0 0 0 0 1\n2e300 0 0 0 0 0 0 1\n', 'beyond what int64 nanoseconds'),

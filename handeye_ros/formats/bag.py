@@ -178,6 +178,14 @@ class BagWriter:
         self.path, self.storage, self.store = Path(path), storage, _typestore()
         if self.path.exists():
             raise InputError(f'{self.path}: exists already; choose a new path for the bag')
+        # readers (rosbags' AnyReader, this package's) tell the two by the name alone
+        if (self.path.suffix == '.bag') != (storage == 'ros1'):
+            kind = (
+                'a ROS 1 bag is one file named *.bag'
+                if storage == 'ros1'
+                else f'a ROS 2 bag ({storage}) is a folder whose name does not end in .bag'
+            )
+            raise InputError(f'{self.path}: {kind}, as the readers tell them apart by the name')
         if storage == 'ros1':
             from rosbags.rosbag1 import Writer as Writer1
 

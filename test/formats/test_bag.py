@@ -322,3 +322,8 @@ def test_a_bag_that_cannot_be_written_is_said(tmp_path: Path) -> None:
     (tmp_path / 'bag').mkdir()
     with pytest.raises(InputError, match='exists already'):
         BagWriter(tmp_path / 'bag')
+    # the readers tell ROS 1 from ROS 2 by the name alone: a bag they could not read is refused
+    with pytest.raises(InputError, match=r'a ROS 1 bag is one file named \*\.bag'):
+        BagWriter(tmp_path / 'one', 'ros1')
+    with pytest.raises(InputError, match='a ROS 2 bag .mcap. is a folder whose name does not'):
+        BagWriter(tmp_path / 'two.bag')

@@ -67,6 +67,10 @@ def _typestore() -> Typestore:
     return store
 
 
+#: The first bytes of a ROS 1 bag file.
+ROS1_MAGIC = b'#ROSBAG V2.0'
+
+
 class BagReader:
     """An open bag (context manager) with errors turned into InputError naming the path."""
 
@@ -82,8 +86,13 @@ class BagReader:
             self.reader = AnyReader([self.path], default_typestore=_typestore())
             self.reader.open()
         except (AnyReaderError, OSError, ValueError) as err:
+            hint = ''
+            if self.path.is_file() and self.path.suffix != '.bag':
+                with self.path.open('rb') as f:
+                    if f.read(len(ROS1_MAGIC)) == ROS1_MAGIC:
+                        hint = '; it is a ROS 1 bag, which the readers know by the name *.bag'
             raise InputError(
-                f'{self.path}: cannot be read as a ROS 1 or ROS 2 bag ({err})'
+                f'{self.path}: cannot be read as a ROS 1 or ROS 2 bag ({err}){hint}'
             ) from None
         return self
 

@@ -327,3 +327,8 @@ def test_a_bag_that_cannot_be_written_is_said(tmp_path: Path) -> None:
         BagWriter(tmp_path / 'one', 'ros1')
     with pytest.raises(InputError, match='a ROS 2 bag .mcap. is a folder whose name does not'):
         BagWriter(tmp_path / 'two.bag')
+    ros1 = tmp_path / 'rec.bag'
+    with BagWriter(ros1, 'ros1'):
+        pass
+    ros1.rename(tmp_path / 'renamed')
+    _fails(run_main('--bag', tmp_path / 'renamed'), 'it is a ROS 1 bag, which the readers know')

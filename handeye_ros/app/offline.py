@@ -74,8 +74,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.rig:
         return _rig_main(args)
     try:
+        from ..formats.result_file import check_result_path
         from .request import run
 
+        if args.output:
+            check_result_path(args.output)
         document, result = run(request_of(args))
         if args.output:
             write_result(args.output, document)

@@ -180,7 +180,8 @@ def write_outputs(
 
 
 def _check_outputs(req: Request) -> None:
-    """Refuse absurd RPE steps and unwritable output directories before the calibration."""
+    """Refuse absurd RPE steps, unwritable output directories and an output bag that cannot go
+    where it is asked to, before the calibration."""
     from ..core.errors import ConfigError
     from ..evaluation.outputs import check_directory
 
@@ -190,6 +191,10 @@ def _check_outputs(req: Request) -> None:
     for flag, path in (('--export', req.export), ('--report', req.report)):
         if path:
             check_directory(path, flag)
+    if req.output_bag:
+        from ..formats.bag import check_bag_path
+
+        check_bag_path(Path(req.output_bag), req.output_bag_storage)
 
 
 def load_options(path: str | None) -> dict[str, object]:

@@ -178,6 +178,21 @@ def _latched_qos() -> Qos:
 LATCHED_QOS = _latched_qos()
 
 
+def check_bag_path(path: Path, storage: str) -> None:
+    """InputError unless a new bag of ``storage`` can go to ``path``: nothing there yet, and a
+    name its readers take for that storage (rosbags' AnyReader, and this package's, tell ROS 1
+    from ROS 2 by the name alone)."""
+    if path.exists():
+        raise InputError(f'{path}: exists already; choose a new path for the bag')
+    if (path.suffix == '.bag') != (storage == 'ros1'):
+        kind = (
+            'a ROS 1 bag is one file named *.bag'
+            if storage == 'ros1'
+            else f'a ROS 2 bag ({storage}) is a folder whose name does not end in .bag'
+        )
+        raise InputError(f'{path}: {kind}, as the readers tell them apart by the name')
+
+
 class BagWriter:
     """Write messages to a new bag: storage 'mcap' or 'sqlite3' (ROS 2), or 'ros1'."""
 
@@ -185,16 +200,7 @@ class BagWriter:
         if storage not in STORAGES:
             raise InputError(f'unknown bag storage {storage!r}; use one of {", ".join(STORAGES)}')
         self.path, self.storage, self.store = Path(path), storage, _typestore()
-        if self.path.exists():
-            raise InputError(f'{self.path}: exists already; choose a new path for the bag')
-        # readers (rosbags' AnyReader, this package's) tell the two by the name alone
-        if (self.path.suffix == '.bag') != (storage == 'ros1'):
-            kind = (
-                'a ROS 1 bag is one file named *.bag'
-                if storage == 'ros1'
-                else f'a ROS 2 bag ({storage}) is a folder whose name does not end in .bag'
-            )
-            raise InputError(f'{self.path}: {kind}, as the readers tell them apart by the name')
+        check_bag_path(self.path, storage)
         if storage == 'ros1':
             from rosbags.rosbag1 import Writer as Writer1
 

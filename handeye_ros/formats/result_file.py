@@ -28,6 +28,16 @@ def write_result(path: str | Path, data: Mapping[str, object]) -> None:
         raise InputError(f'{path}: cannot write the result ({err.strerror})') from None
 
 
+def check_result_path(path: str | Path) -> None:
+    """InputError unless a result can be written to ``path`` (not a folder, in a folder that
+    exists): said before a calibration, not after it."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f'{path}: cannot write the result (it is a folder)')
+    if not path.parent.is_dir():
+        raise InputError(f'{path}: cannot write the result (no folder {path.parent})')
+
+
 def read_result(path: str | Path) -> ResultDoc:
     """A result file written by :func:`write_result` (``~/save``, ``offline_calibrate -o``).
 

@@ -166,10 +166,14 @@ def test_missing_file_and_bad_config(sim_files, tmp_path: Path) -> None:
     cfg.write_text('eta: [1, 2\n')
     cli_fails(run_main('--hand', hand, '--eye', eye, '--config', cfg), 'c.yaml', 'not valid YAML')
     cli_fails(run_main('--hand', hand, '--eye', eye, '--eta', '-1'), 'eta must lie in')
+    # outputs that cannot go where they are asked to are said before the calibration runs
     cli_fails(
         run_main('--hand', hand, '--eye', eye, '-o', tmp_path / 'no' / 'dir' / 'r.yaml'),
-        'cannot write the result',
+        'cannot write the result (no folder',
     )
+    cli_fails(run_main('--hand', hand, '--eye', eye, '-o', tmp_path), 'it is a folder')
+    bag = ['--output-bag', tmp_path / 'out', '--output-bag-storage', 'ros1']
+    cli_fails(run_main('--hand', hand, '--eye', eye, *bag), 'a ROS 1 bag is one file named')
 
 
 def test_overlap_too_short(sim_files, tmp_path: Path) -> None:

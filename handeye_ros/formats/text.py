@@ -25,6 +25,7 @@ is refused, naming the first; an unsorted file is refused.
 
 from __future__ import annotations
 
+import codecs
 import io
 from pathlib import Path
 
@@ -224,8 +225,9 @@ def write_euroc(path: str | Path, traj: Trajectory) -> None:
 
 
 def _read_bytes(path: Path) -> bytes:
+    """The file's bytes, less the byte-order mark some Windows tools start UTF-8 text with."""
     try:
-        return path.read_bytes()
+        return path.read_bytes().removeprefix(codecs.BOM_UTF8)
     except FileNotFoundError:
         raise InputError(f'{path}: no such file') from None
     except IsADirectoryError:

@@ -237,3 +237,16 @@ def test_a_few_rows_no_stream_can_hold_are_dropped(tmp_path: Path) -> None:
     path.write_text('\n'.join([scaled] * 5 + rows) + '\n')
     with pytest.raises(InputError, match='line 1'):
         read_trajectory(path)
+
+
+@pytest.mark.parametrize(
+    'content', ['1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n', '1,0,0,0,1,0,0,0\n2,1,0,0,1,0,0,0\n']
+)
+def test_a_byte_order_mark_is_read_past(tmp_path: Path, content: str) -> None:
+    """Some Windows tools start UTF-8 text with a byte-order mark: the poses are the same."""
+    plain, marked = tmp_path / 'plain.txt', tmp_path / 'marked.txt'
+    plain.write_text(content)
+    marked.write_bytes(b'\xef\xbb\xbf' + content.encode())
+    a, b = read_trajectory(plain), read_trajectory(marked)
+    np.testing.assert_array_equal(a.t_ns, b.t_ns)
+    np.testing.assert_array_equal(a.p_xyz, b.p_xyz)

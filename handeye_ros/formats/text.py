@@ -279,11 +279,34 @@ def _detect(path: Path, rows: list[str]) -> str:
         return 'euroc'
     if ',' not in first and len(first.split()) == 8:
         return 'tum'
+    packed = _compressed(path)
+    if packed:
+        raise InputError(f'{path}: a {packed} archive, not a trajectory file: unpack it first')
     msg = (
         f'{path}: unknown trajectory format (first data line: {first[:80]!r}); expected TUM '
         '"t x y z qx qy qz qw" separated by spaces or EuRoC CSV "t[ns],x,y,z,qw,qx,qy,qz,..."'
     )
     raise InputError(msg)
+
+
+#: The first bytes of the archives a trajectory file is shipped in.
+ARCHIVES = {
+    b'\x1f\x8b': 'gzip',
+    b'PK\x03\x04': 'zip',
+    b'BZh': 'bzip2',
+    b'\xfd7zXZ': 'xz',
+    b'\x28\xb5\x2f\xfd': 'zstd',
+}
+
+
+def _compressed(path: Path) -> str:
+    """The archive format ``path`` starts like ('' for none, or a file that cannot be read)."""
+    try:
+        with path.open('rb') as f:
+            head = f.read(8)
+    except OSError:
+        return ''
+    return next((name for magic, name in ARCHIVES.items() if head.startswith(magic)), '')
 
 
 def _check_columns(

@@ -250,3 +250,13 @@ def test_a_byte_order_mark_is_read_past(tmp_path: Path, content: str) -> None:
     a, b = read_trajectory(plain), read_trajectory(marked)
     np.testing.assert_array_equal(a.t_ns, b.t_ns)
     np.testing.assert_array_equal(a.p_xyz, b.p_xyz)
+
+
+def test_an_archive_is_said_as_one(tmp_path: Path) -> None:
+    """A trajectory file shipped compressed (hand.txt.gz) is named as the archive it is."""
+    import gzip
+
+    path = tmp_path / 'eye.txt.gz'
+    path.write_bytes(gzip.compress(b'1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n'))
+    with pytest.raises(InputError, match='a gzip archive, not a trajectory file: unpack it'):
+        read_trajectory(path)

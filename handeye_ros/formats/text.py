@@ -345,12 +345,9 @@ def _diagnose(path: Path, numbers: list[int], rows: list[str], sep: str | None, 
                 f'has {first}'
             )
             raise InputError(msg)
-        for token in tokens[:8]:
-            try:
-                float(token)
-            except ValueError:
-                # words on the first data line are a header row without its comment mark
-                header = number == numbers[0] and not any(_number(t) for t in tokens)
-                hint = ' (a header row? start it with #, as comments are)' if header else ''
-                msg = f'{path}, line {number}: {token!r} is not a number{hint}'
-                raise InputError(msg) from None
+        bad = next((t for t in tokens[:8] if not _number(t)), None)
+        if bad is not None:
+            # words on the first data line are a header row without its comment mark
+            header = number == numbers[0] and not any(_number(t) for t in tokens)
+            hint = ' (a header row? start it with #, as comments are)' if header else ''
+            raise InputError(f'{path}, line {number}: {bad!r} is not a number{hint}')

@@ -126,3 +126,18 @@ def test_the_draws_factor_is_continuous_and_the_same_in_any_units() -> None:
     near = V @ np.diag([1.0, 1.0 + 1e-9, 2, 3, 4, 5, 6]) @ V.T
     moved = V @ np.diag([1.0 + 2e-9, 1.0, 2, 3, 4, 5, 6]) @ V.T
     assert np.abs(error_bars._factor(near) - error_bars._factor(moved)).max() < 1e-8
+
+
+@pytest.mark.parametrize('n', [1, 7, 9, 16, 20])
+def test_the_draws_hold_the_exact_mean_square_of_a_linear_change(n: int) -> None:
+    """The draws come in opposite pairs with the identity as their second moment: a change
+    linear in the calibration has its exact mean square whatever the draws' numbers (no
+    Monte-Carlo error in a figure's calibration 1-sigma from its linear part), and a change
+    quadratic in it cancels its cross term with the linear one pair by pair."""
+    z = error_bars._normal_draws(n, error_bars.DRAWS)
+    assert z.shape == (max(error_bars.DRAWS, 2 * n), n)
+    half = len(z) // 2
+    assert np.array_equal(z[:half], -z[half:])
+    g = np.random.default_rng(n).standard_normal(n)
+    assert np.mean((z @ g) ** 2) == pytest.approx(g @ g, rel=1e-12)
+    assert np.allclose(z.T @ z / len(z), np.eye(n), rtol=0.0, atol=1e-12)

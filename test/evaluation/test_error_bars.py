@@ -140,4 +140,7 @@ def test_the_draws_hold_the_exact_mean_square_of_a_linear_change(n: int) -> None
     assert np.array_equal(z[:half], -z[half:])
     g = np.random.default_rng(n).standard_normal(n)
     assert np.mean((z @ g) ** 2) == pytest.approx(g @ g, rel=1e-12)
+    A = np.random.default_rng(n + 1).standard_normal((n, n))
+    cross = (z @ g) * np.einsum('ki,ij,kj->k', z, A + A.T, z)
+    assert abs(cross.mean()) <= 1e-12 * np.abs(cross).max()
     assert np.allclose(z.T @ z / len(z), np.eye(n), rtol=0.0, atol=1e-12)

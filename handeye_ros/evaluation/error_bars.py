@@ -87,16 +87,6 @@ def calibration_sigmas(
     return CalibrationSigmas(sigmas, len(moved), len(sample.stamps), tuple(names)), ''
 
 
-def figures_moved(
-    result: CalibrationResult, d: Floats, delta_s: float, delta_m: float
-) -> dict[str, dict[str, float]] | None:
-    """The APE/RPE figures (m, deg) on the draws' poses with the calibration moved by ``d``
-    (:func:`calibration_sigmas`' order: dt, translation, rotation in the tangent on the right,
-    [drift], [scale]): the figures a calibration other than the reported one would give, T_WG
-    fitted again; None when too few eye poses fall inside the hand recording."""
-    return _figures(result, _sample(result, delta_s, delta_m), d)
-
-
 def _sample(result: CalibrationResult, delta_s: float, delta_m: float) -> _Sample:
     """What each draw of ``result`` evaluates (:class:`_Sample`), for RPE steps ``delta_s`` [s]
     and ``delta_m`` [m]: the drift's and the scale's places follow dt and T_HE's 7 in the
@@ -129,7 +119,7 @@ def figures_at(
     delta_m: float = 1.0,
 ) -> dict[str, dict[str, float]] | None:
     """The APE/RPE figures (m, deg) at another calibration (dt [s], T_HE as x y z w and m), on
-    the same poses as :func:`figures_moved`, less those at the reported one: how far the
+    the same poses as the error bars' draws, less those at the reported one: how far the
     figures the user reads would move were that calibration the true one. None when they cannot
     be computed."""
     d = np.zeros(7)

@@ -167,8 +167,9 @@ class CalibrationSigmas:
             'poses': self.poses,
             'parameters': list(self.parameters),
             'method': (
-                'each figure again at draws of the parameters from their reported covariance, '
-                'T_WG refitted; its 1-sigma the root-mean-square of the changes'
+                'each figure again at draws of the parameters in opposite pairs whose second '
+                'moment is their reported covariance, T_WG refitted; its 1-sigma the '
+                'root-mean-square of the changes'
             ),
         }
         if not exclude_sigmas:

@@ -173,7 +173,7 @@ def _evaluation_lines(d: ResultDoc) -> list[str]:
     if 'draws' in bars and 'parameters' in bars:
         out.append(
             "  (+- x: the 1-sigma of that figure from the calibration's own uncertainty, "
-            f'{bars["draws"]} draws of {", ".join(bars["parameters"])})'
+            f'{bars["draws"]} draws of {", ".join(bars["parameters"])} in opposite pairs)'
         )
     elif bars.get('why_not'):
         out.append(f'  no error bars from the calibration: {bars["why_not"]}')

@@ -15,9 +15,9 @@ calibration is behind the buffers (span_s less calibrated_span_s).
 
 ``--prefixes STEP`` replays nothing: it calibrates each recording's first s seconds for s every
 STEP seconds, as the status does while the buffers grow, and counts, for READY from a ``good``
-result and for READY from a settled one (``good`` and not near its line, what READY says), the
-spans at which READY would be said while a calibration of up to AHEAD_S more seconds is not
-``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
+result and for READY from a settled one (``good``, not near its line and its 1-sigmas complete,
+what READY says), the spans at which READY would be said while a calibration of up to AHEAD_S
+more seconds is not ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
 each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
 status would calibrate (each LAST_GAIN_S on from the last, on the STEP grid, and the whole
 recording once it has ended; live, a calibration's own time spaces them more): the spans it
@@ -182,8 +182,7 @@ def _outcome_at(args: tuple):
         res = _judged_at(hand, eye, t0 + int(s * 1e9), cfg)
     except HandeyeError as e:
         return Outcome.failure(e, s, 0.0)
-    std = None if res.batch is None else res.batch.std
-    return Outcome.of(res.quality, std, s, 0.0, cfg.precision)
+    return Outcome.of(res.quality, res.batch, s, 0.0, cfg.precision)
 
 
 def _auto_mode(got: list) -> list[str]:
@@ -219,7 +218,6 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
     from concurrent.futures import ProcessPoolExecutor
 
     from handeye_ros.core.checks.readiness import MIN_RECORDING_S
-    from handeye_ros.core.checks.verdict import settled
 
     rows = []
     with ProcessPoolExecutor(2) as pool:
@@ -231,8 +229,8 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
             spans = np.arange(MIN_RECORDING_S, end + 1e-9, step_s)
             got = list(pool.map(_outcome_at, [(hand, eye, t0, float(s), cfg) for s in spans]))
             row = [name, f'{end:.0f}', str(len(got))]
-            for rule in (lambda g, r: g, settled):
-                ready = [rule(o.good, o.ratio) for o in got]
+            for rule in (lambda o: o.good, lambda o: o.settled):
+                ready = [rule(o) for o in got]
                 early = [
                     f'{o.span_s:.0f}'
                     for k, o in enumerate(got)
@@ -251,9 +249,9 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
         table(
             f"Each recording's first s seconds calibrated, s every {step_s:g} s from "
             f'{MIN_RECORDING_S:g} s (purpose {cfg.purpose}): READY from a good result, and from a '
-            f'settled one (good, not near its line); "followed by not good": READY spans with a '
-            f'calibration that is not good within {AHEAD_S:g} s more; auto mode on the spans '
-            'the status would calibrate',
+            'settled one (good, not near its line, its 1-sigmas complete); "followed by not '
+            f'good": READY spans with a calibration that is not good within {AHEAD_S:g} s more; '
+            'auto mode on the spans the status would calibrate',
             [
                 'recording',
                 'seconds',
@@ -264,7 +262,7 @@ def prefixes(step_s: float, only: str, cfg: CalibrationConfig) -> None:
                 'settled',
                 'settled, followed by not good',
                 'first settled [s]',
-                'good near the line',
+                'good, not settled',
                 'auto mode published [s]',
                 'first converged [s]',
                 'converged, followed by not good',

@@ -5,8 +5,8 @@ calibrates the buffers in the node's worker as they grow (first once they span M
 then each time they have grown by LAST_GAIN_S), never sooner after one calibration than it took (so
 they take at most half a core and never fall behind the streams, and READY follows the data within
 about one calibration's time), and READY means the latest such result is ``good`` for the chosen
-purpose and settled (not near the line of its precision, unless the recording has ended and it
-holds the whole). Between results it shows how far the device has turned and how far apart its
+purpose and settled (not near the line of its precision, with 1-sigmas that hold the errors
+correlated over the recording, unless the recording has ended and it holds the whole). Between results it shows how far the device has turned and how far apart its
 turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
 the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
 latest result's verdict, 1-sigmas and age, and what to do. The answer is published on ``~/status``
@@ -171,11 +171,7 @@ class ReadinessStatus:
             Outcome.failure(error or RuntimeError('no result'), span_s, now)
             if result is None
             else Outcome.of(
-                result.quality,
-                None if result.batch is None else result.batch.std,
-                span_s,
-                now,
-                self._node.calib_cfg.precision,
+                result.quality, result.batch, span_s, now, self._node.calib_cfg.precision
             )
         )
         self.latest = latest

@@ -4,8 +4,9 @@ what the data lack until one is, said in the frame of the device the user holds 
 READY is a real calibration's verdict, never a prediction: the node calibrates its buffers as
 they grow (``ros/status.py``), and READY means that the latest such result (an
 :class:`Outcome`) is ``good`` for the purpose, and not near the line of its rule on precision
-(:func:`~.verdict.settled`): a result good by a hair is as likely to be doubtful a second of
-recording later, when the user stops and calibrates. Between results the status shows what the
+and with 1-sigmas that hold the errors correlated over the recording (:func:`~.verdict.settled`):
+a result good by a hair, or by error bars that miss a term, is as likely to be doubtful a second
+of recording later, when the user stops and calibrates. Between results the status shows what the
 motion so far observes (:class:`~.excitation.Motion`): how far the device has turned, and how far
 apart the axes it turned about are. A rotation about an axis a says nothing of T_HE's rotation
 about a, nor of its translation along a (eq. 2): for the extrinsic, turns about nearly one axis
@@ -21,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arrays import Floats
+from ..batch.correlated import BLOCKS, MIN_BLOCK_POSES
+from ..batch.refine import BatchSolution
 from ..config import CalibrationConfig
 from ..document import StatusDoc
 from ..errors import (
@@ -72,8 +75,9 @@ class Outcome:
     about the refusal that ended the calibration, and the refusal ('' when it did not fail);
     span_s: the buffered span it calibrated [s];
     finished: when it ended (monotonic s); ratio: how far its purpose's rule on precision is
-    from its line (:func:`~.verdict.judged_ratio`, above 1 imprecise); READY says
-    :attr:`settled`.
+    from its line (:func:`~.verdict.judged_ratio`, above 1 imprecise); complete: its 1-sigmas
+    hold the errors correlated over the recording (the batch stage measured the blocks' term,
+    :mod:`~handeye_ros.core.batch.correlated`); READY says :attr:`settled`.
     """
 
     good: bool
@@ -85,26 +89,27 @@ class Outcome:
     finished: float
     failed: str = ''
     ratio: float = float('inf')
+    complete: bool = True
 
     @property
     def settled(self) -> bool:
-        """``good`` and within BLOCKS_MARGIN of its line (:func:`~.verdict.settled`)."""
-        return settled(self.good, self.ratio)
+        """``good``, within BLOCKS_MARGIN of its line and complete (:func:`~.verdict.settled`)."""
+        return settled(self.good, self.ratio, self.complete)
 
     @classmethod
     def of(
         cls,
         q: Quality,
-        std: Floats | None,
+        batch: BatchSolution | None,
         span_s: float,
         finished: float,
         precision: tuple[float, float, float],
     ) -> Outcome:
-        """A calibration's verdict (as judged for its purpose), batch std (dt [s], translation
-        [m] x3, rotation [rad] x3; None without a batch stage) and the precision targets
-        (``CalibrationConfig.precision``)."""
-        sigmas = None if std is None else sigmas_of(std)
+        """A calibration's verdict (as judged for its purpose), batch solution (None without a
+        batch stage) and the precision targets (``CalibrationConfig.precision``)."""
+        sigmas = None if batch is None else sigmas_of(batch.std)
         ratio = judged_ratio(q, sigmas, precision)
+        unc = None if batch is None else batch.uncertainty
         return cls(
             good=q.verdict == Verdict.GOOD,
             label=q.label(),
@@ -114,6 +119,7 @@ class Outcome:
             span_s=span_s,
             finished=finished,
             ratio=ratio,
+            complete=unc is not None and unc.factors is not None,
         )
 
     @classmethod
@@ -233,6 +239,12 @@ def _held(latest: Outcome) -> str:
     of = f'the latest calibration ({latest.span_s:.0f} s of data)'
     if latest.failed:
         return f'{of} failed: {latest.failed}'
+    if latest.good and not latest.complete:
+        return (
+            f'{of} is good, but its 1-sigmas do not hold the errors correlated over the '
+            f'recording yet (they are measured on {BLOCKS} blocks of at least {MIN_BLOCK_POSES} '
+            'eye poses each, and may widen the 1-sigmas); keep recording'
+        )
     if latest.good:
         return (
             f'{of} is good, near the line of its precision ({latest.ratio:.0%} of what it '

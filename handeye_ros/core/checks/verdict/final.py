@@ -373,12 +373,15 @@ def judged_ratio(
     return math.inf if sigmas is None else precision_ratio(sigmas, precision)
 
 
-def settled(good: bool, ratio: float) -> bool:
+def settled(good: bool, ratio: float, complete: bool) -> bool:
     """A ``good`` result whose rule on precision is at ``ratio`` (:func:`judged_ratio`) within
-    BLOCKS_MARGIN of its line: a calibration of a little more of the recording stays on this
-    side of it, where near the line the 1-sigma's own uncertainty (about a quarter, measured on
-    four blocks) may put the next one beyond. No ratio (no figure to judge) sets no margin."""
-    return good and not ratio > BLOCKS_MARGIN
+    BLOCKS_MARGIN of its line, with 1-sigmas that hold the errors correlated over the recording
+    (``complete``: the blocks' term of :mod:`~handeye_ros.core.batch.correlated` measured): a
+    calibration of a little more of the recording stays on this side of the line, where near it
+    the 1-sigma's own uncertainty (about a quarter, measured on four blocks) may put the next
+    one beyond, and without the blocks the next one may add their term (on a real VIO it widens
+    T_HE's 1-sigmas up to twice and more). No ratio (no figure to judge) sets no margin."""
+    return good and complete and not ratio > BLOCKS_MARGIN
 
 
 def assess_evaluation(

@@ -53,6 +53,10 @@ def test_a_good_result_is_published(published: float, ratio: float, state: State
     assert IMPROVEMENT == 0.1
     got = decide(Auto(State.IMPROVING, published), replace(GOOD, ratio=ratio), full=False)
     assert got.publish and got.state is state and got.published == ratio
+    # its 1-sigmas without the blocks' term (too few eye poses): published, never converged
+    partial = replace(GOOD, ratio=ratio, complete=False)
+    got = decide(Auto(State.IMPROVING, published), partial, full=False)
+    assert got.publish and got.state is State.IMPROVING
 
 
 def test_once_converged_a_good_result_is_published_for_more_data_only() -> None:

@@ -61,8 +61,7 @@ setup(
     # into lib/handeye_ros/ above, where ros2 run looks
     entry_points={
         'console_scripts': [
-            f'handeye-ros-{name.replace("_", "-")} = {target}'
-            for name, target in COMMANDS.items()
+            f'handeye-ros-{name.replace("_", "-")} = {target}' for name, target in COMMANDS.items()
         ],
     },
 )

@@ -17,8 +17,8 @@ calibration is behind the buffers (span_s less calibrated_span_s).
 STEP seconds, as the status does while the buffers grow, and counts, for READY from a ``good``
 result and for READY from a settled one (``good``, not near its line and its 1-sigmas complete,
 what READY says), the spans at which READY would be said while a calibration of up to AHEAD_S
-more seconds is not ``good`` (a user who stops at READY and calibrates, READY's data behind the buffers), and where
-each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
+more seconds is not ``good`` (a user who stops at READY and calibrates, READY's data behind the
+buffers), and where each would first be said; and auto mode's decisions (``auto_mode.decide``) on the prefixes the
 status would calibrate (each LAST_GAIN_S on from the last, on the STEP grid, and the whole
 recording once it has ended; live, a calibration's own time spaces them more): the spans it
 publishes, where it first says ``converged``, and the converged spans followed within AHEAD_S by

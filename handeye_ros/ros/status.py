@@ -6,10 +6,11 @@ then each time they have grown by LAST_GAIN_S), never sooner after one calibrati
 they take at most half a core and never fall behind the streams, and READY follows the data within
 about one calibration's time), and READY means the latest such result is ``good`` for the chosen
 purpose and settled (not near the line of its precision, with 1-sigmas that hold the errors
-correlated over the recording, unless the recording has ended and it holds the whole). Between results it shows how far the device has turned and how far apart its
-turns' axes are (:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from
-the poses new since its last look: a look costs the same at 10 s and at 30 min of buffers), the
-latest result's verdict, 1-sigmas and age, and what to do. The answer is published on ``~/status``
+correlated over the recording, unless the recording has ended and it holds the whole). Between
+results it shows how far the device has turned and how far apart its turns' axes are
+(:class:`~handeye_ros.core.checks.excitation.Motion`, grown on the executor from the poses new
+since its last look: a look costs the same at 10 s and at 30 min of buffers), the latest
+result's verdict, 1-sigmas and age, and what to do. The answer is published on ``~/status``
 (diagnostic_msgs/DiagnosticStatus), goes into /diagnostics, and is logged as one line when it
 changes (and every LOG_PERIOD_S): never redrawn in place, which would glue log lines onto it in a
 terminal and its redraws into one line under ``ros2 launch``.

@@ -379,8 +379,9 @@ def settled(good: bool, ratio: float, complete: bool) -> bool:
     (``complete``: the blocks' term of :mod:`~handeye_ros.core.batch.correlated` measured): a
     calibration of a little more of the recording stays on this side of the line, where near it
     the 1-sigma's own uncertainty (about a quarter, measured on four blocks) may put the next
-    one beyond, and without the blocks the next one may add their term (on a real VIO it widens
-    T_HE's 1-sigmas up to twice and more). No ratio (no figure to judge) sets no margin."""
+    one beyond, and without the blocks the next one may add their term, which widens the
+    1-sigmas of a VIO whose errors persist over parts of the recording. No ratio (no figure to
+    judge) sets no margin."""
     return good and complete and not ratio > BLOCKS_MARGIN
 
 

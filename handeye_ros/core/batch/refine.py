@@ -121,6 +121,12 @@ class BatchSolution:
         return None if self.scale is None else float(self.std[7 + (self.clock_drift is not None)])
 
     @property
+    def blocks_measured(self) -> bool:
+        """Its covariance holds the errors correlated over the recording: the blocks' term of
+        :mod:`.correlated` was measured (enough covered eye poses for its blocks)."""
+        return self.uncertainty is not None and self.uncertainty.factors is not None
+
+    @property
     def inflation(self) -> Floats:
         """(7,) long-run over white standard deviation (1: the residuals look white)."""
         lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run

@@ -76,8 +76,8 @@ class Outcome:
     span_s: the buffered span it calibrated [s];
     finished: when it ended (monotonic s); ratio: how far its purpose's rule on precision is
     from its line (:func:`~.verdict.judged_ratio`, above 1 imprecise); complete: its 1-sigmas
-    hold the errors correlated over the recording (the batch stage measured the blocks' term,
-    :mod:`~handeye_ros.core.batch.correlated`); READY says :attr:`settled`.
+    hold the errors correlated over the recording (``BatchSolution.blocks_measured``); READY
+    says :attr:`settled`.
     """
 
     good: bool
@@ -109,7 +109,6 @@ class Outcome:
         batch stage) and the precision targets (``CalibrationConfig.precision``)."""
         sigmas = None if batch is None else sigmas_of(batch.std)
         ratio = judged_ratio(q, sigmas, precision)
-        unc = None if batch is None else batch.uncertainty
         return cls(
             good=q.verdict == Verdict.GOOD,
             label=q.label(),
@@ -119,7 +118,7 @@ class Outcome:
             span_s=span_s,
             finished=finished,
             ratio=ratio,
-            complete=unc is not None and unc.factors is not None,
+            complete=batch is not None and batch.blocks_measured,
         )
 
     @classmethod

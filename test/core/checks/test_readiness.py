@@ -12,7 +12,7 @@ import pytest
 from conftest import recording
 
 from handeye_ros.core.checks.excitation import PIECE_S, Motion
-from handeye_ros.core.checks.readiness import AXES, ONE_AXIS_DEG, Outcome, readiness
+from handeye_ros.core.checks.readiness import AXES, ONE_AXIS_DEG, Outcome, Readiness, readiness
 from handeye_ros.core.checks.verdict import BLOCKS_MARGIN
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.errors import HandeyeError
@@ -64,21 +64,26 @@ def test_ready_is_the_latest_calibrations_verdict() -> None:
     assert r.axis_spread_deg > ONE_AXIS_DEG
 
 
+def _calibrated(
+    seconds: float, level: float, cfg: CalibrationConfig
+) -> tuple[Outcome, Readiness, Motion]:
+    """Seed 1's recording of ``seconds`` at noise ``level`` calibrated for ``cfg``: the status's
+    outcome of it and what the status says, with the calibration a second old."""
+    rec = recording(1, level, duration_s=seconds, **RATES, **MOCAP)
+    motion, span = _motion(rec.hand, rec.eye), _span(rec.hand, rec.eye)
+    result = calibrate(rec.hand, rec.eye, cfg)
+    latest = Outcome.of(result.quality, result.batch, span, 0.0, cfg.precision)
+    return latest, readiness(motion, latest, cfg, span, 1.0), motion
+
+
 def test_a_good_result_near_its_line_is_not_ready() -> None:
     """A minute at noise level 5 is `good` for the extrinsic with its translation's 1-sigma at
     0.89 of the target: a calibration of a little more may find it beyond (the 1-sigma is itself
     uncertain by a quarter), so READY waits, saying how near; two minutes settle it. Once the
     recording has ended and that calibration holds the whole of it, a call gives the same
     result: READY."""
-    said = []
-    for seconds in (60.0, 120.0):
-        rec = recording(1, 5, duration_s=seconds, **RATES, **MOCAP)
-        motion, span = _motion(rec.hand, rec.eye), _span(rec.hand, rec.eye)
-        result = calibrate(rec.hand, rec.eye, EXTRINSIC)
-        latest = Outcome.of(result.quality, result.batch, span, 0.0, EXTRINSIC.precision)
-        r = readiness(motion, latest, EXTRINSIC, span, 1.0)
-        said.append((latest, r, motion))
-    (near, r_near, moved), (settled, r_settled, _) = said
+    near, r_near, moved = _calibrated(60.0, 5, EXTRINSIC)
+    settled, r_settled, _ = _calibrated(120.0, 5, EXTRINSIC)
     assert near.good and BLOCKS_MARGIN < near.ratio <= 1.0 and not r_near.ready
     assert r_near.missing[0] == (
         f'the latest calibration ({near.span_s:.0f} s of data) is good, near the line of its '
@@ -95,14 +100,8 @@ def test_a_good_result_without_the_blocks_term_is_not_ready_until_it_has_it() ->
     the recording (batch/correlated.py); with too few eye poses for them, a `good` result's
     1-sigmas lack that term, and the next calibration may find them twice as wide. READY waits
     for it, saying why; with the blocks the same motion is READY."""
-    said = []
-    for seconds in (10.0, 30.0):
-        rec = recording(1, 2, duration_s=seconds, **RATES, **MOCAP)
-        motion, span = _motion(rec.hand, rec.eye), _span(rec.hand, rec.eye)
-        result = calibrate(rec.hand, rec.eye, EVALUATION)
-        latest = Outcome.of(result.quality, result.batch, span, 0.0, EVALUATION.precision)
-        said.append((latest, readiness(motion, latest, EVALUATION, span, 1.0)))
-    (short, r_short), (longer, r_longer) = said
+    short, r_short, _ = _calibrated(10.0, 2, EVALUATION)
+    longer, r_longer, _ = _calibrated(30.0, 2, EVALUATION)
     assert short.good and short.ratio <= BLOCKS_MARGIN and not short.complete
     assert not r_short.ready
     assert r_short.missing[0].startswith(

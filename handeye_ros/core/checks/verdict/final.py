@@ -245,7 +245,7 @@ def _assess_uncertainty(
                 )
             )
         near = _near(sd, need)
-        if near and not over and unc is not None and unc.factors is not None:
+        if near and not over and batch.blocks_measured:
             said.append(near)
     if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         said.append(

@@ -13,7 +13,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import get_args
 
 import numpy as np
@@ -153,13 +153,16 @@ class CalibrationSigmas:
     """Per figure of :class:`~.metrics.PoseErrors` (``'ape_translation'``, ...), the 1-sigma of
     its rmse, mean and median that the calibration's uncertainty gives (m or deg, as the
     figure; None where the figure has no value), from ``draws`` draws over ``poses`` eye poses;
-    ``parameters`` names what was drawn.
+    ``parameters`` names what was drawn; ``through``: per figure, the group of parameters that
+    moves its rmse most (:func:`~.error_bars.moved_most_by`; '' or absent when none can be
+    named).
     """
 
     sigmas: dict[ErrorKey, dict[str, float | None]]
     draws: int
     poses: int
     parameters: tuple[str, ...]
+    through: dict[ErrorKey, str] = field(default_factory=dict)
 
     def to_dict(self, exclude_sigmas: bool = False) -> SigmasMethodDoc:
         out: SigmasMethodDoc = {

@@ -96,10 +96,14 @@ def judge_figures(result: CalibrationResult, ev: Evaluation) -> CalibrationResul
                 stats.rmse * k,
                 None if sigma is None else sigma * k,
                 unit,
+                '' if ev.sigmas is None else ev.sigmas.through.get(key, ''),
             )
         )
     why = '' if ev.sigmas is not None else ev.sigmas_why
-    reasons, notes, ratio = assess_evaluation(figures, why)
+    batch = result.batch
+    dominant = {} if batch is None or batch.uncertainty is None else batch.uncertainty.dominant()
+    one_axis = batch is not None and batch.held_axis is not None
+    reasons, notes, ratio = assess_evaluation(figures, why, dominant, one_axis)
     # no error bars because the batch stage did not run is said once (the core said it)
     said = {r.code for r in result.quality.found if Purpose.EVALUATION in r.purposes}
     reasons = [r for r in reasons if r.code not in said]

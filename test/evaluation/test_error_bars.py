@@ -164,3 +164,30 @@ def test_the_error_bars_hardly_depend_on_the_draws_seed(monkeypatch: pytest.Monk
             bars.append([found.sigmas[name]['rmse'] for name in POSE_ERRORS])
         spread = np.std(bars, axis=0) / np.mean(bars, axis=0)
         assert np.all(spread < 0.08), dict(zip(POSE_ERRORS, spread, strict=True))
+
+
+def test_a_figure_is_put_down_to_the_group_of_parameters_that_moves_it() -> None:
+    """``moved_most_by``: a change linear in one group's parameters is put down to that group
+    though the groups are correlated and one direction is held (a zero row and column); a
+    change that is all curvature (a figure at its minimum) is put down to none."""
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((8, 8))
+    cov = A @ A.T / 8 + 0.1 * np.eye(8)
+    cov[3, :] = cov[:, 3] = 0.0  # the lever arm along a ground robot's axis, held
+    groups = {
+        'time_offset': np.r_[0],
+        'translation': np.r_[1:4],
+        'rotation': np.r_[4:7],
+        'clock_drift': np.r_[7],
+    }
+    L = error_bars._factor(cov)
+    z = error_bars._normal_draws(8, error_bars.DRAWS)
+    d = z @ L.T  # the draws of the parameters
+    for name, idx in groups.items():
+        a = np.zeros(8)
+        a[idx] = rng.standard_normal(idx.size)
+        a[3] = 0.0
+        if not a.any():
+            continue
+        assert error_bars.moved_most_by(cov, L, z, d @ a, groups) == name
+    assert error_bars.moved_most_by(cov, L, z, np.sum(d**2, axis=1), groups) == ''

@@ -20,7 +20,15 @@ from handeye_ros.core.checks.selfcheck import (
     screw_disagreement,
     screw_rejects,
 )
-from handeye_ros.core.checks.verdict import SEVERITY, Code, Quality, Reason, Verdict
+from handeye_ros.core.checks.verdict import (
+    SEVERITY,
+    Code,
+    Quality,
+    Reason,
+    Verdict,
+    assess_evaluation,
+)
+from handeye_ros.core.checks.verdict.final import NARROWS
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import quat_angle
 from handeye_ros.core.pipeline import calibrate
@@ -171,6 +179,27 @@ def test_a_turntables_held_rotation_is_no_seed_dependence() -> None:
     assert res.seed_check is not None and res.batch is not None and res.batch.held_rotation
     assert np.degrees(quat_angle(res.seed_check.q_HE, res.linear.q_HE)) > 0.5
     assert 'seed_dependent' not in res.quality.codes + res.quality.other.codes
+
+
+def test_a_figure_beyond_the_line_names_what_moves_it_and_what_narrows_that() -> None:
+    """Purpose evaluation's ``imprecise`` names, per figure beyond the line, the group of
+    parameters that moves it most and what narrows that group's 1-sigma, by the term that
+    dominates it; a motion about one axis is not told to turn about the others, and a figure
+    no group can be named for (its change not linear in the calibration) is said alone."""
+    ape = ('APE rotation rmse', 4.33, 0.32, 'deg', 'translation')
+    rpe = ('RPE translation rmse per 1 s', 20.0, 0.1, 'mm', 'rotation')
+    (reason,), _, ratio = assess_evaluation([ape, rpe], '', {'translation': 'correlated'})
+    assert reason.code == Code.IMPRECISE and ratio == pytest.approx(0.32 / 4.33 / 0.05)
+    said = reason.message
+    assert (
+        f"7.4%, moved most by T_HE's translation: {NARROWS['translation', 'correlated']}" in said
+    )
+    assert 'RPE' not in said  # within the line: not named
+    (reason,), _, _ = assess_evaluation([ape], '', {}, one_axis=True)
+    assert "by T_HE's translation: more turning or a longer recording narrows it" in reason.message
+    assert 'all axes' not in reason.message
+    (reason,), _, _ = assess_evaluation([(*ape[:4], '')], '', {})
+    assert '7.4% (with purpose extrinsic' in reason.message and 'moved' not in reason.message
 
 
 def test_planar_motion_returns_the_observable_part() -> None:

@@ -43,7 +43,8 @@ seed_dependent              doubtful   the linear stage's answer moves with the 
                                        (beyond SEED_*)
 no_uncertainty              doubtful   the batch stage could not run: no sigmas
 imprecise                   doubtful   purpose evaluation: the calibration's 1-sigma on an
-                                       APE/RPE figure exceeds EVALUATION_SHARE of it;
+                                       APE/RPE figure exceeds EVALUATION_SHARE of it (named
+                                       with the parameters that move it most, THROUGH);
                                        purpose extrinsic: a 1-sigma of dt or T_HE exceeds
                                        the required precision (options
                                        precision_time_offset, _translation, _rotation;

@@ -7,6 +7,7 @@ the verdict, the readiness and the node's auto mode share, and how far a result 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -356,8 +357,32 @@ def reasons_in(log: tuple[Entry, ...]) -> set[Code]:
 
 
 #: An evaluation's figure: its label, its value and its calibration 1-sigma in the unit said
-#: ('mm' or 'deg'; the value NaN, or the 1-sigma None, when it has none).
-Figure = tuple[str, float, float | None, str]
+#: ('mm' or 'deg'; the value NaN, or the 1-sigma None, when it has none), and the group of
+#: parameters that moves it most (a key of THROUGH; '' when none can be named).
+Figure = tuple[str, float, float | None, str, str]
+
+#: The groups of parameters that move a figure, as ``imprecise`` names them.
+THROUGH = {
+    'time_offset': 'the time offset',
+    'translation': "T_HE's translation",
+    'rotation': "T_HE's rotation",
+    'clock_drift': 'the clock drift',
+    'scale': "the eye's scale",
+}
+
+
+def _narrows(group: str, dominant: Mapping[str, str], one_axis: bool) -> str:
+    """What narrows a group's 1-sigma: by the term that dominates it (``dominant``:
+    ``Uncertainty.dominant``) for dt and T_HE, as for the extrinsic's ``imprecise``; a motion
+    about ``one_axis`` (a ground robot, a turntable) is not told to turn about the others."""
+    if group == 'clock_drift':
+        return 'a longer recording narrows it'
+    if group == 'scale':
+        return _SCALE
+    term = dominant.get(group, 'white')
+    if one_axis and term == 'white':
+        return 'more turning or a longer recording narrows it'
+    return NARROWS[group, term]
 
 
 def judged_ratio(
@@ -386,26 +411,35 @@ def settled(good: bool, ratio: float, complete: bool) -> bool:
 
 
 def assess_evaluation(
-    figures: list[Figure], why_none: str
+    figures: list[Figure],
+    why_none: str,
+    dominant: Mapping[str, str] | None = None,
+    one_axis: bool = False,
 ) -> tuple[list[Reason], list[str], float]:
     """Purpose evaluation's rule on the evaluation's own figures (:data:`Figure`): each is
     settled when its calibration 1-sigma is at most EVALUATION_SHARE of it, and noted when
     beyond BLOCKS_MARGIN of that. A figure with no value (an RPE step longer than the
     recording) is noted and left out; no 1-sigmas at all (``why_none``) is
-    ``no_uncertainty``. Returns (reasons, notes, the largest of the judged figures'
-    1-sigmas over EVALUATION_SHARE of the figure: ``Quality.share_ratio``, NaN without one)."""
+    ``no_uncertainty``. A figure beyond the line names the group of parameters that moves it
+    most and what narrows that (``dominant``: the batch stage's ``Uncertainty.dominant``;
+    ``one_axis``: the motion turned about one axis only, its lever arm along it held).
+    Returns (reasons, notes, the largest of the judged figures' 1-sigmas over
+    EVALUATION_SHARE of the figure: ``Quality.share_ratio``, NaN without one)."""
     only = frozenset({Purpose.EVALUATION})
     if why_none:
         text = f'the APE/RPE figures have no error bars from the calibration: {why_none}'
         return [Reason(Code.NO_UNCERTAINTY, text, only)], [], math.nan
     over, near, notes, ratios = [], [], [], []
-    for label, value, sigma, unit in figures:
+    for label, value, sigma, unit, through in figures:
         if not np.isfinite(value) or sigma is None or value <= 0.0:
             notes.append(f'{label} could not be computed and is not judged')
             continue
         ratios.append(sigma / (EVALUATION_SHARE * value))
         said = f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}'
         if sigma > EVALUATION_SHARE * value:
+            if through:
+                narrows = _narrows(through, dominant or {}, one_axis)
+                said += f', moved most by {THROUGH[through]}: {narrows}'
             over.append(said)
         elif sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:
             near.append(said)

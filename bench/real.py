@@ -104,8 +104,9 @@ def calibrated_runs() -> list[Calibrated]:
 
 
 def largest_share(ev) -> str:
-    """The largest share of a figure its calibration 1-sigma is, with the figure ('-' without
-    error bars)."""
+    """The largest share of a figure its calibration 1-sigma is, with the figure and the part
+    of the calibration that moves it most (``CalibrationSigmas.through``; '-' none named, or
+    without error bars)."""
     shares = [
         (ev.sigmas.sigmas[key]['rmse'] / getattr(ev.calibrated, key).rmse, key)
         for key, *_ in JUDGED
@@ -113,8 +114,10 @@ def largest_share(ev) -> str:
         and ev.sigmas.sigmas[key]['rmse'] is not None
         and getattr(ev.calibrated, key).rmse > 0
     ]
-    top = max(shares) if shares else None
-    return '-' if top is None else f'{top[0]:.1%} {top[1]}'
+    if not shares:
+        return '-'
+    share, key = max(shares)
+    return f'{share:.1%} {key} ({ev.sigmas.through.get(key) or "-"})'
 
 
 def purpose_rows(runs: list[Calibrated]) -> list[list[object]]:
@@ -415,7 +418,7 @@ def main() -> None:
         table(
             'Every real run, default options: the verdict for each purpose (evaluation '
             'with its figures judged), the largest share of a figure that is the '
-            "calibration's 1-sigma, the errors (dt ms / T_HE mm / deg) and whether the run "
+            "calibration's 1-sigma (the part that moves it most), the errors (dt ms / T_HE mm / deg) and whether the run "
             'is accurate (5 ms / 20 mm / 1 deg)',
             [
                 'run',

@@ -200,6 +200,10 @@ def test_a_figure_beyond_the_line_names_what_moves_it_and_what_narrows_that() ->
     assert 'all axes' not in reason.message
     (reason,), _, _ = assess_evaluation([(*ape[:4], '')], '', {})
     assert '7.4% (with purpose extrinsic' in reason.message and 'moved' not in reason.message
+    near = ('APE rotation rmse', 4.33, 0.19, 'deg', 'rotation')  # 88 % of the line
+    reasons, (note,), _ = assess_evaluation([near], '', {})
+    assert not reasons and note.startswith('near the 5% line')
+    assert f"4.4%, moved most by T_HE's rotation: {NARROWS['rotation', 'white']}" in note
 
 
 def test_planar_motion_returns_the_observable_part() -> None:

@@ -420,8 +420,8 @@ def assess_evaluation(
     settled when its calibration 1-sigma is at most EVALUATION_SHARE of it, and noted when
     beyond BLOCKS_MARGIN of that. A figure with no value (an RPE step longer than the
     recording) is noted and left out; no 1-sigmas at all (``why_none``) is
-    ``no_uncertainty``. A figure beyond the line names the group of parameters that moves it
-    most and what narrows that (``dominant``: the batch stage's ``Uncertainty.dominant``;
+    ``no_uncertainty``. A figure beyond or near the line names the group of parameters that
+    moves it most and what narrows that (``dominant``: the batch stage's ``Uncertainty.dominant``;
     ``one_axis``: the motion turned about one axis only, its lever arm along it held).
     Returns (reasons, notes, the largest of the judged figures' 1-sigmas over
     EVALUATION_SHARE of the figure: ``Quality.share_ratio``, NaN without one)."""
@@ -436,10 +436,10 @@ def assess_evaluation(
             continue
         ratios.append(sigma / (EVALUATION_SHARE * value))
         said = f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}'
+        if through:
+            narrows = _narrows(through, dominant or {}, one_axis)
+            said += f', moved most by {THROUGH[through]}: {narrows}'
         if sigma > EVALUATION_SHARE * value:
-            if through:
-                narrows = _narrows(through, dominant or {}, one_axis)
-                said += f', moved most by {THROUGH[through]}: {narrows}'
             over.append(said)
         elif sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:
             near.append(said)

@@ -98,13 +98,16 @@ def constraint_gram(m: Motions) -> Floats:
     return out
 
 
-def screw_log_weights(m: Motions, mu: float) -> Floats:
+def screw_log_weights(m: Motions, mu: float, dual: bool = True) -> Floats:
     """``log W_i = mu (1 - E_i^2)`` of the screw-congruence kernel (eq. 10-11).
 
     E_i (eq. 10) compares the scalar parts of the hand and eye dual quaternions, which are equal
     without noise (eq. 9; eq. 8 gives their forms): ``w = cos(theta/2)`` (rotation angle) and
     ``w' = -d/2 sin(theta/2)`` (d: translation along the screw axis). E_i = 1 when they agree.
     Logs are returned so that large E cannot underflow the weights to zero before normalising.
+    Without ``dual`` E_i compares the rotation angles alone: motions about one axis that move
+    only across it (a ground robot, a turntable) have d = 0, and the ratio of their two w' is
+    one of noise over noise, which no congruence is measured by.
     """
 
     def ratio(a: Floats, b: Floats) -> Floats:
@@ -112,7 +115,8 @@ def screw_log_weights(m: Motions, mu: float) -> Floats:
         out: Floats = np.maximum(a, b) / np.maximum(np.minimum(a, b), 1e-15)
         return out
 
-    e = 0.5 * (ratio(m.qa[:, 3], m.qb[:, 3]) + ratio(m.qad[:, 3], m.qbd[:, 3]))
+    rotation = ratio(m.qa[:, 3], m.qb[:, 3])
+    e = 0.5 * (rotation + ratio(m.qad[:, 3], m.qbd[:, 3])) if dual else rotation
     return mu * (1.0 - e * e)
 
 

@@ -128,10 +128,11 @@ def _check_enough(n: int, min_motions: int) -> None:
         )
 
 
-def _squared_weights(m: Motions, mu: float) -> Floats:
+def _squared_weights(m: Motions, mu: float, dual: bool) -> Floats:
     """The robust kernel's weights (eq. 11) squared, scaled to a largest of 1 (the rows of
-    eq. 12 carry W, their Gram matrices W^2)."""
-    log_w = screw_log_weights(m, mu)
+    eq. 12 carry W, their Gram matrices W^2); ``dual``: E compares the screws' translations
+    too (:func:`.axxb.screw_log_weights`)."""
+    log_w = screw_log_weights(m, mu, dual)
     out: Floats = np.exp(2.0 * (log_w - log_w.max()))
     return out
 
@@ -169,7 +170,10 @@ def calibrate_linear(
     n = len(m)
     _check_enough(n, min_motions)
     rng = rng if rng is not None else np.random.default_rng(0)
-    w2 = _squared_weights(m, mu) if robust_kernel else np.ones(n)
+    # about one axis (its hand axes spread less than MIN_AXIS_SPREAD_DEG) the screws have no
+    # translation along it to compare
+    dual = axis_spread_deg(m, np.ones(n, dtype=bool)) >= MIN_AXIS_SPREAD_DEG
+    w2 = _squared_weights(m, mu, dual) if robust_kernel else np.ones(n)
     system = System(m, constraint_gram(m).reshape(n, 64), w2)
     thresholds = (inlier_rotation_rad, inlier_translation_m)
     won = consensus(system, ransac_iterations, thresholds, rng)

@@ -27,6 +27,7 @@ from handeye_ros.core.checks.verdict import (
     Reason,
     Verdict,
     assess_evaluation,
+    final,
 )
 from handeye_ros.core.checks.verdict.final import NARROWS
 from handeye_ros.core.config import CalibrationConfig
@@ -166,18 +167,51 @@ def test_one_rotation_axis_is_calibrated_for_an_evaluation(motion: str) -> None:
     assert 'unobservable' not in judged.codes and 'no_uncertainty' not in judged.codes
 
 
+def test_a_ground_robot_is_told_what_narrows_its_figures_without_turning_about_other_axes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The front ends' judgement of a planar recording's figures, with the line moved so that
+    every figure is beyond it: each names what moves it, and none tells the robot to turn about
+    all axes (the held lever arm reaches the rule)."""
+    rec = recording(seed=6, level=3.0, hand_rate_hz=200.0, motion='planar')
+    res = calibrate(rec.hand, rec.eye)
+    ev = evaluation_of(res)
+    assert ev is not None and ev[0].sigmas is not None
+    monkeypatch.setattr(final, 'EVALUATION_SHARE', 1e-9)
+    said = judge_figures(res, ev[0]).quality.reasons[0].message
+    assert said.count('moved most by') >= 3 and 'all axes' not in said, said
+
+
+@pytest.mark.parametrize(('seed', 'level'), [(6, 3.0), (13, 5.0)])
+def test_a_ground_robots_motions_keep_their_weight_in_the_robust_kernel(
+    seed: int, level: float
+) -> None:
+    """A ground robot's motions have no translation along their one axis, so the dual part of
+    eq. 10 compares noise with noise: it weighed nearly every motion to 0, and RANSAC found a
+    consensus by luck (seed 6 at level 3: not with the seed check's RANSAC seed, so
+    ``seed_dependent``; seed 13 at level 5: not at all, a refusal). About one axis E compares
+    the rotation angles alone."""
+    rec = recording(seed=seed, level=level, hand_rate_hz=200.0, motion='planar')
+    res = calibrate(rec.hand, rec.eye)
+    assert 'seed_dependent' not in res.quality.codes + res.quality.other.codes
+    e = calibration_error(rec.truth, res.time_offset_s, res.q_HE, res.p_HE)
+    assert e.time_offset_s < 1e-3 and e.rotation_deg < 0.5
+
+
 def test_a_turntables_held_rotation_is_no_seed_dependence() -> None:
-    """The next RANSAC seed lands 0.9 deg away on this turntable, all of it in the rotation
-    about the axis that both answers hold by rule (the smallest one that aligns the axes):
-    the seed check compares the directions the batch stage determines."""
+    """On a turntable both RANSAC seeds' answers hold the rotation about the axis by rule (the
+    smallest one that aligns the axes, brought together by ``held_alike``: test_linear.py):
+    the seed check compares the directions the batch stage determines. Of 40 such recordings
+    this one's two answers lie farthest apart, 0.33 deg (0.9 deg on seed 14 while the robust
+    kernel still compared the screws' translations, which a turntable does not have)."""
     nm, nd = noise_level(5)
     rec = simulate(
-        14, duration_s=120.0, noise_m=nm, noise_deg=nd, hand_noise_m=2e-4,
+        6, duration_s=120.0, noise_m=nm, noise_deg=nd, hand_noise_m=2e-4,
         hand_noise_deg=0.02, motion='one_axis',
     )  # fmt: skip
     res = calibrate(rec.hand, rec.eye)
     assert res.seed_check is not None and res.batch is not None and res.batch.held_rotation
-    assert np.degrees(quat_angle(res.seed_check.q_HE, res.linear.q_HE)) > 0.5
+    assert np.degrees(quat_angle(res.seed_check.q_HE, res.linear.q_HE)) > 0.2
     assert 'seed_dependent' not in res.quality.codes + res.quality.other.codes
 
 

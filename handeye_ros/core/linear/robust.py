@@ -170,8 +170,8 @@ def calibrate_linear(
     n = len(m)
     _check_enough(n, min_motions)
     rng = rng if rng is not None else np.random.default_rng(0)
-    # about one axis (its hand axes spread less than MIN_AXIS_SPREAD_DEG) the screws have no
-    # translation along it to compare
+    # about one axis (its hand axes spread less than MIN_AXIS_SPREAD_DEG: a ground robot, a
+    # turntable) the screws' translations along it are 0, their ratio noise over noise
     dual = axis_spread_deg(m, np.ones(n, dtype=bool)) >= MIN_AXIS_SPREAD_DEG
     w2 = _squared_weights(m, mu, dual) if robust_kernel else np.ones(n)
     system = System(m, constraint_gram(m).reshape(n, 64), w2)

@@ -16,7 +16,9 @@ upward. The draws run on the eye poses thinned to no
 fewer than THINNED_PER_STEP per RPE time step (so that every RPE pair still finds its pose
 within RPE_TOLERANCE of its step), and on a long recording on WINDOWS runs of consecutive
 poses spread over it, MAX_POSES in all: the sigma of a root-mean-square over an hour at 200 Hz
-needs no 720 000 poses. The figure's own value is taken on the same poses.
+needs no 720 000 poses. The figure's own value is taken on the same poses. The same draws
+name the group of parameters that moves each figure most (:func:`moved_most_by`), which the
+verdict's ``imprecise`` says with what narrows it.
 """
 
 from __future__ import annotations

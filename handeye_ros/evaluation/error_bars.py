@@ -96,10 +96,11 @@ def calibration_sigmas(
     }
     through: dict[ErrorKey, str] = {}
     if len(moved) == len(tried):  # the draws' second moment is the identity only all together
-        for name in POSE_ERRORS:
-            changes = np.array([m[name]['rmse'] for m in moved]) - zero[name]['rmse']
-            if np.all(np.isfinite(changes)):
-                through[name] = moved_most_by(cov, L, z, changes, _groups(sample.model))
+        changes = np.array([[m[k]['rmse'] - zero[k]['rmse'] for k in POSE_ERRORS] for m in moved])
+        valued = np.isfinite(changes).all(axis=0)  # a figure with no value names nothing
+        keys = [k for k, ok in zip(POSE_ERRORS, valued, strict=True) if ok]
+        picked = moved_most_by(cov, L, z, changes[:, valued], _groups(sample.model))
+        through = dict(zip(keys, picked, strict=True))
     return (
         CalibrationSigmas(sigmas, len(moved), len(sample.stamps), tuple(names), through),
         '',
@@ -120,24 +121,29 @@ def _groups(model: tuple[int | None, int | None, int]) -> dict[str, Indices]:
 
 def moved_most_by(
     cov: Floats, L: Floats, z: Floats, changes: Floats, groups: dict[str, Indices]
-) -> str:
-    """The group of parameters that moves a figure most: the one whose exact knowledge would
-    remove the most of the variance of the figure's change that is linear in the calibration
-    (parameters ``L z`` drawn with covariance ``cov = L L^T``, ``z`` the draws of
-    :func:`_normal_draws`, ``changes`` the figure's changes at them). With ``f = a . d`` the
-    draws give ``g = L^T a`` exactly as the mean of ``changes * z``, so ``cov a = L g`` and
-    a group G's share of ``a^T cov a`` is ``(L g)_G^T cov_GG^+ (L g)_G``, correlations between
-    the groups included. '' when the linear part is less than LINEAR_SHARE of the changes'
-    mean square (a figure at a minimum in the calibration moves one way, by its curvature)."""
+) -> list[str]:
+    """Per figure, the group of parameters that moves it most: the one whose exact knowledge
+    would remove the most of the variance of the figure's change that is linear in the
+    calibration (parameters ``L z`` drawn with covariance ``cov = L L^T``, ``z`` the draws of
+    :func:`_normal_draws`, ``changes`` (draws, figures) the figures' changes at them). With
+    ``f = a . d`` the draws give ``g = L^T a`` exactly as the mean of ``changes * z``, so
+    ``cov a = L g`` and a group G's share of ``a^T cov a`` is ``(L g)_G^T cov_GG^+ (L g)_G``,
+    correlations between the groups included. '' for a figure whose linear part is less than
+    LINEAR_SHARE of its changes' mean square (a figure at a minimum in the calibration moves
+    one way, by its curvature)."""
     g = z.T @ changes / len(z)
-    if not g @ g >= LINEAR_SHARE * np.mean(changes**2):
-        return ''
+    linear = np.sum(g * g, axis=0) >= LINEAR_SHARE * np.mean(changes**2, axis=0)
     b = L @ g
-    removed = {
-        name: float(b[i] @ np.linalg.pinv(cov[np.ix_(i, i)], rcond=RCOND, hermitian=True) @ b[i])
-        for name, i in groups.items()
-    }
-    return max(removed, key=lambda name: removed[name])
+    removed = np.array(
+        [
+            np.sum(
+                b[i] * (np.linalg.pinv(cov[np.ix_(i, i)], rcond=RCOND, hermitian=True) @ b[i]), 0
+            )
+            for i in groups.values()
+        ]
+    )
+    names = list(groups)
+    return [names[k] if ok else '' for k, ok in zip(removed.argmax(axis=0), linear, strict=True)]
 
 
 def _sample(result: CalibrationResult, delta_s: float, delta_m: float) -> _Sample:

@@ -189,5 +189,5 @@ def test_a_figure_is_put_down_to_the_group_of_parameters_that_moves_it() -> None
         a[3] = 0.0
         if not a.any():
             continue
-        assert error_bars.moved_most_by(cov, L, z, d @ a, groups) == name
-    assert error_bars.moved_most_by(cov, L, z, np.sum(d**2, axis=1), groups) == ''
+        assert error_bars.moved_most_by(cov, L, z, (d @ a)[:, None], groups) == [name]
+    assert error_bars.moved_most_by(cov, L, z, np.sum(d**2, axis=1)[:, None], groups) == ['']

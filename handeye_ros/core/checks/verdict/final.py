@@ -429,20 +429,21 @@ def assess_evaluation(
     if why_none:
         text = f'the APE/RPE figures have no error bars from the calibration: {why_none}'
         return [Reason(Code.NO_UNCERTAINTY, text, only)], [], math.nan
-    over, near, notes, ratios = [], [], [], []
+    over: list[str] = []
+    near: list[str] = []
+    notes, ratios = [], []
     for label, value, sigma, unit, through in figures:
         if not np.isfinite(value) or sigma is None or value <= 0.0:
             notes.append(f'{label} could not be computed and is not judged')
             continue
         ratios.append(sigma / (EVALUATION_SHARE * value))
+        if not sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:
+            continue
         said = f'{label} {value:.3g} (+-{sigma:.2g}) {unit}: {sigma / value:.1%}'
         if through:
             narrows = _narrows(through, dominant or {}, one_axis)
             said += f', moved most by {THROUGH[through]}: {narrows}'
-        if sigma > EVALUATION_SHARE * value:
-            over.append(said)
-        elif sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:
-            near.append(said)
+        (over if sigma > EVALUATION_SHARE * value else near).append(said)
     if near and not over:
         notes.append(
             f'near the {EVALUATION_SHARE:.0%} line (beyond {BLOCKS_MARGIN:.0%} of it): '

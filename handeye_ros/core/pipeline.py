@@ -212,7 +212,7 @@ def _finish(
     pairs = associate(hand, eye, dt)
     world = align_worlds(pairs, q_HE, p_HE)
     metrics = metrics_at(hand, eye, pairs, world, (dt, q_HE, p_HE), cfg.eta)
-    seed_lin, seeded = seed_check(hand, eye, dt, linear.solution, refined.batch, cfg, pairs)
+    seed_lin, seeded = seed_check(hand, linear.eye, linear.dt, linear.solution, refined.batch, cfg)
     found = inputs.found + offset.found + linear.found + refined.found
     found = found + _world_warning(world) + seeded
     ta, tv = offset.alignment, linear.vector

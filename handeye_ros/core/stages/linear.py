@@ -389,16 +389,16 @@ def seed_check(
     lin: LinearSolution,
     batch: BatchSolution | None,
     cfg: CalibrationConfig,
-    pairs: PosePairs | None = None,
 ) -> tuple[LinearSolution | None, Findings]:
     """Stage 2 again with the next RANSAC seed: the answer must not hinge on it, on the
     directions of T_HE the batch stage determines, beyond its own uncertainty
-    (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact. ``pairs``: the
-    streams associated at dt, when already made."""
+    (:func:`~handeye_ros.core.checks.verdict.seed_reason`), recorded as a fact. ``eye`` and
+    ``dt`` are those stage 2 ran at (``lin``'s): what the batch stage changed since is no
+    seed's doing."""
     if cfg.ransac_iterations == 0:
         return None, Findings()
     try:
-        other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31, pairs=pairs)
+        other, _ = solve_linear(hand, eye, dt, cfg, seed=(cfg.seed + 1) % 2**31)
     except HandeyeError as err:
         return None, Findings.of(SeedFailed(cfg.seed + 1, str(err)))
     there = (other.q_HE, other.p_HE)

@@ -124,6 +124,9 @@ RUNTIME_KEYS = frozenset(CalibrationConfig.specs()) | RUNTIME_NODE_KEYS
 REMOVED = {
     'type_probes': 'the type probes were removed: they changed nothing measurable '
     '(bench/RESULTS.md); remove it from the params file',
+    'vector_refinement': 'the vector refinement of the time offset was removed: the batch '
+    'stage refines the offset, and the final results are the same without it '
+    '(bench/results/trust.md); remove it from the params file',
 }
 #: Parameters the offline tool ignores in a node params file (ROS's own use_sim_time too).
 NODE_ONLY_KEYS = frozenset(NodeConfig.specs()) | {'use_sim_time'} | frozenset(REMOVED)

@@ -313,13 +313,6 @@ class CalibrationConfig(Options):
         'the eye poses are T_EW (VIO world in body), not T_WE',
         expert=True,
     )
-    vector_refinement: bool = option(
-        True,
-        'bool',
-        're-estimate dt from the body angular velocities once stage 2 gives '
-        'the rotation of T_HE (w_E = R_EH w_H(t - dt)), iterating with stage 2',
-        expert=True,
-    )
     purpose: str = option(
         'evaluation',
         'str',

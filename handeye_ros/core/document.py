@@ -73,12 +73,6 @@ class WorldDoc(TransformDoc):
     segments: int
 
 
-class VectorAlignmentDoc(TypedDict):
-    time_offset: float
-    peak_correlation: float | None
-    window: list[float | None]
-
-
 class OffsetCandidate(TypedDict):
     time_offset: float
     correlation: float
@@ -91,7 +85,6 @@ class TimeAlignmentDoc(TypedDict):
     step: float | None
     window: list[float | None]
     candidates: list[OffsetCandidate]
-    vector: VectorAlignmentDoc | None
 
 
 class Thresholds(TypedDict):

@@ -12,9 +12,8 @@ next one reads, with what it found (its warnings, notes and facts: a
    then the orientation conventions at that offset (the correlation is blind to a swapped
    quaternion order or inverted poses; AX = XB is not).
 3. **Stage 2** (Section III-B, :func:`.stages.linear.linear_stage`) on the eye moved onto the
-   hand's clock, with what attaches to it: the eye's breaks (VIO resets), the vector refinement
-   of the offset, the self-check over the candidate offsets, the offset along the recording
-   (drift), the scale.
+   hand's clock, with what attaches to it: the eye's breaks (VIO resets), the self-check over
+   the candidate offsets, the offset along the recording (drift), the scale.
 4. **Stage 3** (Section III-C, :func:`.stages.batch.batch_stage`) from stage 2's answer, with a
    covariance that holds for residuals correlated in time; the self-check decides when it moves
    the answer beyond its own sigmas.
@@ -60,7 +59,7 @@ from .result import CalibrationResult, UsedStreams
 from .stages.batch import Refined, batch_stage
 from .stages.linear import LinearStage, linear_stage, seed_check
 from .stages.prepare import Inputs, prepare
-from .stages.time import Offset, absolute, align_stage
+from .stages.time import Offset, align_stage
 from .trajectory import Trajectory
 from .world import MIN_PLANAR_SPREAD_M, Metrics, WorldAlignment, align_worlds, metrics_of
 
@@ -215,8 +214,7 @@ def _finish(
     seed_lin, seeded = seed_check(hand, linear.eye, linear.dt, linear.solution, refined.batch, cfg)
     found = inputs.found + offset.found + linear.found + refined.found
     found = found + _world_warning(world) + seeded
-    ta, tv = offset.alignment, linear.vector
-    found = found + assess_streams(ta, tv, linear.screening, found)
+    found = found + assess_streams(offset.alignment, linear.screening, found)
     found = found + assess_answer(linear.solution, refined.batch, metrics, cfg, found)
     covered = mocap_coverage(hand, eye, dt)
     found = found + assess_model(refined.model, linear.clock, cfg)
@@ -237,7 +235,6 @@ def _finish(
         warnings=found.warnings,
         batch=refined.batch,
         time_offset_ns=shift_ns + round(dt * 1e9),
-        vector_alignment=absolute(linear.vector, shift_ns),
         screening=linear.screening,
         corrections=found.corrections,
         candidates=tuple(

@@ -44,7 +44,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 8
+SCHEMA_VERSION = 9
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '
@@ -94,7 +94,6 @@ class CalibrationResult:
     warnings: tuple[str, ...] = field(default=())
     batch: BatchSolution | None = None
     time_offset_ns: int = 0
-    vector_alignment: TimeAlignment | None = None
     screening: tuple[Screening, Screening] | None = None
     corrections: tuple[Correction, ...] = ()
     candidates: tuple[Candidate, ...] = ()
@@ -215,7 +214,7 @@ class CalibrationResult:
                 'method': self.world.method,
                 'segments': self.world.segments,
             },
-            'time_alignment': time_alignment_section(self.time_alignment, self.vector_alignment),
+            'time_alignment': time_alignment_section(self.time_alignment),
             'screening': screening_section(self.screening),
             'conventions': [conventions_entry(c) for c in self.corrections],
             'self_check': [self_check_entry(c) for c in self.candidates],

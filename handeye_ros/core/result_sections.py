@@ -205,8 +205,8 @@ def metrics_section(m: Metrics) -> MetricsDoc:
     }
 
 
-def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> TimeAlignmentDoc:
-    """Stage 1: its method, peak, window and candidates, and the vector refinement."""
+def time_alignment_section(ta: TimeAlignment) -> TimeAlignmentDoc:
+    """Stage 1: its method, peak, window and candidates."""
     return {
         'method': ta.method,
         'peak_correlation': num(ta.peak_correlation),
@@ -216,13 +216,6 @@ def time_alignment_section(ta: TimeAlignment, vec: TimeAlignment | None) -> Time
         'candidates': [
             {'time_offset': float(c), 'correlation': float(r)} for c, r in ta.candidates
         ],
-        'vector': None
-        if vec is None
-        else {
-            'time_offset': float(vec.time_offset_s),
-            'peak_correlation': num(vec.peak_correlation),
-            'window': [num(vec.window_s[0]), num(vec.window_s[1])],
-        },
     }
 
 

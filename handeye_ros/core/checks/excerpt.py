@@ -2,7 +2,7 @@
 examining a candidate costs the same on a minute and on an hour.
 
 A wrong offset minutes away is ruled out by a few hundred motions as surely as by all of them.
-At a candidate offset, stage 2 and its vector refinement therefore run on :data:`WINDOWS`
+At a candidate offset, stage 2 therefore runs on :data:`WINDOWS`
 windows of the eye, spread evenly over the poses the hand covers at that offset and together
 long enough for some :data:`EXCERPT_MOTIONS` of its keyframe motions (:func:`excerpt_share`; a
 slow motion needs longer windows than a fast one), with the hand around each window. The windows are laid end to end, each moved by a shift of its own (the
@@ -26,8 +26,8 @@ WINDOWS = 8
 EXCERPT_MOTIONS = 800
 #: An excerpt of more than this share of a recording is the whole recording.
 WHOLE_SHARE = 2 / 3
-#: The hand reaches this far (s) beyond each eye window: the vector refinement's search
-#: (0.15 s each way) and the interpolation's neighbours fit within it.
+#: The hand reaches this far (s) beyond each eye window: the interpolation's neighbours fit
+#: within it.
 MARGIN_S = 1.0
 #: Time between two windows of an excerpt (s), and at least this many times either stream's
 #: gap limit: the interpolation and the angular speeds do not reach across it.

@@ -19,10 +19,9 @@ def solve_linear(
     dt: float,
     cfg: CalibrationConfig,
     seed: int | None = None,
-    pairs: PosePairs | None = None,
 ) -> tuple[LinearSolution, PosePairs]:
-    """Stage 2 at offset dt (``pairs``: the streams associated at dt, when already made)."""
-    pairs = associate(hand, eye, dt) if pairs is None else pairs
+    """Stage 2 at offset dt: its solution and the streams associated there."""
+    pairs = associate(hand, eye, dt)
     motions = build_motions(pairs, cfg.relative_poses, np.deg2rad(cfg.eta))
     lin = calibrate_linear(
         motions,

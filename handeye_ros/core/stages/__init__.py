@@ -7,8 +7,8 @@ recordings need around it (:mod:`..checks`), in :func:`..pipeline.calibrate`'s o
 - :mod:`.time`: stage 1 and the orientation conventions at its offset;
 - :mod:`.drift`: the offset along the recording (drift) around stage 2;
 - :mod:`.scale`: the eye's scale around stage 2;
-- :mod:`.linear`: stage 2 with the eye's breaks, the vector refinement of the offset, the
-  self-check over the candidate offsets and the seed check;
+- :mod:`.linear`: stage 2 with the eye's breaks, the self-check over the candidate offsets and
+  the seed check;
 - :mod:`.batch`: stage 3 from stage 2's answer, checked against it, with its uncertainty.
 
 Each returns a frozen record of what it computed, with what it found on the way (its warnings,

@@ -2,8 +2,8 @@
 points: the eye moved onto the hand's clock by stage 1's offset (and, with ``clock_drift``,
 the drift from the windows; with ``estimate_scale``, a first scale); stage 2 (:mod:`.robust`);
 the scale check; the eye's breaks (VIO resets) found against the hand and stage 2 again
-without them; the vector refinement of the offset, iterated with stage 2; the self-check over
-the candidate offsets; the offset along the recording; stage 2's scale. The seed check runs
+without them; the self-check over the candidate offsets; the offset along the recording; stage
+2's scale. The seed check runs
 once the answer is final (:func:`seed_check`)."""
 
 from __future__ import annotations
@@ -35,14 +35,14 @@ from ..checks.verdict import (
     scale_keeps_whole,
 )
 from ..config import CalibrationConfig
-from ..errors import DegenerateMotionError, HandeyeError, InputError, TimeAlignmentError
+from ..errors import DegenerateMotionError, HandeyeError, InputError
 from ..eye_model import EyeModel
 from ..geometry import difference, matrix_from_quat
 from ..linear.refits import held_alike
 from ..linear.robust import LinearSolution
 from ..linear.scale import ScaleFit
 from ..linear.solve import solve_linear
-from ..time.align import TimeAlignment, align_time_vector
+from ..time.align import TimeAlignment
 from ..time.clock import DriftFit, covered_span
 from ..trajectory import Trajectory
 from .drift import clock_along, drift_from_windows
@@ -62,11 +62,6 @@ DISTINCT_STEPS = 3
 #: at a scale within this factor of 1000 or 1/1000 (:func:`units_said`): halfway, in log, to
 #: the 100 of centimetres, and far beyond what a metric VIO is off by.
 MM_FACTOR = 10**0.5
-#: Stage 2 is run again when the vector refinement moved dt by more than this (s).
-LINEAR_REDO_S = 5e-3
-#: The vector refinement searches this far (s) on each side of the current offset.
-VECTOR_HALF_WINDOW_S = 0.15
-MAX_VECTOR_ITERATIONS = 3
 
 
 @dataclass(frozen=True)
@@ -88,8 +83,8 @@ def solve_at(hand: Trajectory, eye: Trajectory, dt: float, cfg: CalibrationConfi
 class LinearStage:
     """eye: T_WE on the hand's clock up to ``dt`` (stage 1's offset, any drift and scale taken
     out), split at its breaks; model: what was applied to it; dt: the offset left [s];
-    solution: stage 2's answer; vector: the vector refinement's alignment (None when it did not
-    run); clock: the offset measured along the recording (None when not measured);
+    solution: stage 2's answer; clock: the offset measured along the recording (None when not
+    measured);
     screening: what was removed from each stream, the eye's breaks and outliers included;
     found: what stage 2 and its checks found; scale_named: the scale check named the eye's
     scale (a reason or a note), so that the batch stage does not again."""
@@ -98,7 +93,6 @@ class LinearStage:
     model: EyeModel
     dt: float
     solution: LinearSolution
-    vector: TimeAlignment | None
     clock: DriftFit | None
     screening: tuple[Screening, Screening]
     found: Findings
@@ -125,21 +119,20 @@ def linear_stage(inputs: Inputs, offset: Offset, cfg: CalibrationConfig) -> Line
         split = split_eye(hand, eye, solved, cfg, screening, shift_ns)
         eye, solved, screening = split.eye, split.solved, split.screening
         found = found + split.found
-    tv = clock = None
+    clock = None
     if not offset.fixed:
-        solved, tv, refined = refine_vector(hand, eye, solved, cfg)
         solved, checked = self_check(hand, eye, offset.alignment, shift_ns, solved, cfg)
         # the offset along the recording, with stage 2's rotation
         along = clock_along(hand, eye, model, solved.dt, solved.solution, cfg)
         eye, model, clock = along.eye, along.model, along.clock
-        found = found + refined + checked + along.found
+        found = found + checked + along.found
         if along.moved is not None:
             solved = solve_at(hand, eye, along.moved, cfg)
     if cfg.estimate_scale:
         eye, model, folded = fold_linear_scale(eye, model, solved.solution)
         found = found + folded
     named = scaled is not None and scaled.clear
-    return LinearStage(eye, model, solved.dt, solved.solution, tv, clock, screening, found, named)
+    return LinearStage(eye, model, solved.dt, solved.solution, clock, screening, found, named)
 
 
 def _first_solve(
@@ -237,40 +230,6 @@ def split_eye(
     return Split(breaks.eye, solve_at(hand, breaks.eye, 0.0, cfg), (sh, se), said)
 
 
-def refine_vector(
-    hand: Trajectory, eye: Trajectory, solved: Solved, cfg: CalibrationConfig
-) -> tuple[Solved, TimeAlignment | None, Findings]:
-    """dt from the body angular velocities with stage 2's rotation, iterated with stage 2 from
-    ``solved``; the vector refinement's alignment (None when it did not run), and a warning
-    when it failed."""
-    lin = solved.solution
-    if not cfg.vector_refinement or lin.unobservable or eye.keyframes:
-        return solved, None, Findings()
-    tv = None
-    for _ in range(MAX_VECTOR_ITERATIONS):
-        try:
-            tv = align_time_vector(
-                hand,
-                eye,
-                matrix_from_quat(solved.solution.q_HE),
-                around_s=solved.dt,
-                half_window_s=VECTOR_HALF_WINDOW_S,
-                resample_rate_hz=cfg.resample_rate_hz,
-            )
-        except TimeAlignmentError as err:
-            return (
-                solved,
-                tv,
-                Findings.warned(f'vector refinement of the time offset not used: {err}'),
-            )
-        moved = tv.time_offset_s - solved.dt
-        solved = replace(solved, dt=tv.time_offset_s)
-        if abs(moved) <= LINEAR_REDO_S:
-            break
-        solved = solve_at(hand, eye, solved.dt, cfg)
-    return solved, tv, Findings()
-
-
 def self_check(
     hand: Trajectory,
     eye: Trajectory,
@@ -285,7 +244,7 @@ def self_check(
     or tie, the candidates."""
     dt, lin = solved.dt, solved.solution
     same = max(SAME_OFFSET_S, DISTINCT_STEPS * ta.step_s)
-    tried = [_Tried(dt, 'vector refinement' if dt != 0.0 else 'correlation peak', lin)]
+    tried = [_Tried(dt, 'correlation peak', lin)]
     proposals = [_Proposal(0.0, 'correlation peak')] + [
         _Proposal(c - shift_ns * 1e-9, f'correlation runner-up ({r:.2f})')
         for c, r in ta.candidates
@@ -327,9 +286,8 @@ def self_check(
     )
     if best == 0:
         return solved, found
-    # the winner was judged on the excerpt: stage 2 and its refinement on the whole recording
-    won, _, _ = refine_vector(hand, eye, solve_at(hand, eye, tried[best].offset_s, cfg), cfg)
-    return won, found
+    # the winner was judged on the excerpt: stage 2 on the whole recording
+    return solve_at(hand, eye, tried[best].offset_s, cfg), found
 
 
 @dataclass(frozen=True)
@@ -364,14 +322,10 @@ class _Proposal:
 def _stage2_at(
     hand: Trajectory, eye: Trajectory, proposal: _Proposal, n_motions: int, cfg: CalibrationConfig
 ) -> _Tried:
-    """Stage 2 at a candidate offset with its vector refinement, on the recording's excerpt at
-    that offset (the eye has ``n_motions`` keyframe motions); raises a HandeyeError when stage 2
-    fails there."""
+    """Stage 2 at a candidate offset, on the recording's excerpt at that offset (the eye has
+    ``n_motions`` keyframe motions); raises a HandeyeError when stage 2 fails there."""
     offset = proposal.offset_s
-    part_hand, part_eye = excerpt(hand, eye, offset, n_motions)
-    there = solve_at(part_hand, part_eye, offset, cfg)
-    if offset != 0.0 and cfg.vector_refinement and not there.solution.unobservable:
-        there, _, _ = refine_vector(part_hand, part_eye, there, cfg)
+    there = solve_at(*excerpt(hand, eye, offset, n_motions), offset, cfg)
     return _Tried(there.dt, proposal.source, there.solution)
 
 

@@ -80,7 +80,7 @@ def prepare_streams(
             f'{eye.name} holds keyframes only ({len(eye)} poses, {np.median(step):.2f} s apart '
             f'at the median, up to {step.max():.2f} s): the time offset comes from the '
             'rotation angles over keyframe pairs (screw congruence), not from the angular-speed '
-            'correlation; no vector refinement and no drift windows'
+            'correlation; no drift windows'
         )
         found = found + Findings.warned(note, noted=True)
     return hand, eye, found

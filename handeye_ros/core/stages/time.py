@@ -5,7 +5,7 @@ need an offset to be checked (AX = XB holds under one reading only)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -134,17 +134,3 @@ def check_fixed_offset(
         fact = FixedOffsetDisagrees(fixed_s, est.time_offset_s, est.peak_correlation)
         return Findings(warnings=(text,), log=(fact,))
     return Findings()
-
-
-def absolute(tv: TimeAlignment | None, shift_ns: int) -> TimeAlignment | None:
-    """The vector refinement's result on the original clocks."""
-    if tv is None:
-        return None
-    return replace(
-        tv,
-        time_offset_s=shift_ns * 1e-9 + tv.time_offset_s,
-        time_offset_ns=shift_ns + tv.time_offset_ns,
-        window_s=(shift_ns * 1e-9 + tv.window_s[0], shift_ns * 1e-9 + tv.window_s[1]),
-        lags_s=None if tv.lags_s is None else shift_ns * 1e-9 + tv.lags_s,
-        candidates=tuple((shift_ns * 1e-9 + c, r) for c, r in tv.candidates),
-    )

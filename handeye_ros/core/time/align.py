@@ -23,10 +23,11 @@ Beyond the paper, three things make the offset hard to fool:
   shorter one (and 5 s) is searched, so offsets of seconds or minutes and clocks on different
   epochs are found; ``max_time_offset`` / ``time_offset_guess`` narrow the search. The other
   local maxima of the curve are kept as *candidates* for the self-check of the pipeline.
-- **A vector refinement** (:func:`align_time_vector`), once stage 2 knows the rotation of T_HE:
+- **A vector form** (:func:`align_time_vector`), once stage 2 knows the rotation of T_HE:
   the eye's body angular velocity is matched with the hand's rotated into the eye frame,
-  ``w_E(t) = R_EH w_H(t - dt)``: three signed components instead of one magnitude, so a
-  repetitive speed profile or a noisy magnitude no longer ties two lags.
+  ``w_E(t) = R_EH w_H(t - dt)``: three signed components instead of one magnitude, so the
+  short windows along the recording that measure a drift (:mod:`.clock`) are not tied by a
+  repetitive speed profile or a noisy magnitude.
 """
 
 from __future__ import annotations

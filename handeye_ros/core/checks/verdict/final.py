@@ -47,13 +47,12 @@ if TYPE_CHECKING:  # for the rules' signatures only: the records of the stages' 
 
 def assess_streams(
     ta: TimeAlignment,
-    tv: TimeAlignment | None,
     screening: tuple[Screening, Screening],
     so_far: Findings,
 ) -> Findings:
     """The reasons and notes judged on the streams of the finished run (after what the stages
     found, ``so_far``): the screening's share, a peak no self-check settled (stage 1's
-    alignment ``ta``), weak correlation (of ``ta`` and the vector refinement's ``tv``)."""
+    alignment ``ta``), weak correlation (of ``ta``)."""
     said: list[Reason | str] = []
     for rep in screening:
         if rep.fraction > OUTLIER_FRACTION_DOUBTFUL:
@@ -84,13 +83,12 @@ def assess_streams(
                 'other candidate offset could be checked',
             )
         )
-    peaks = [ta.peak_correlation] + ([tv.peak_correlation] if tv is not None else [])
-    if ta.method != 'fixed' and max(peaks) < WEAK_CORRELATION:
+    if ta.method != 'fixed' and ta.peak_correlation < WEAK_CORRELATION:
         said.append(
             Reason(
                 Code.WEAK_CORRELATION,
                 f'the angular velocities of the two streams hardly agree '
-                f'(correlation {max(peaks):.2f}): check that both show the same motion',
+                f'(correlation {ta.peak_correlation:.2f}): check that both show the same motion',
             )
         )
     return Findings.of(*said)

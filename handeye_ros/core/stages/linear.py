@@ -62,6 +62,17 @@ DISTINCT_STEPS = 3
 #: at a scale within this factor of 1000 or 1/1000 (:func:`units_said`): halfway, in log, to
 #: the 100 of centimetres, and far beyond what a metric VIO is off by.
 MM_FACTOR = 10**0.5
+#: ... and names a scale when the rotations alone fit one beyond this factor of 1, by 3 sigmas
+#: (:func:`scale_said`): the eye's relative translations then differ from the hand's by at
+#: least their own length, far beyond RANSAC's 2 cm on motions of decimetres.
+FAR_SCALE = 2.0
+#: ... and names a stream whose positions hardly move: their extent (5-95 %, widest axis)
+#: below this share of the other stream's (:func:`still_said`), where they carry under a
+#: hundredth of the motion the other stream's positions show, while the other's extent is
+#: at least STILL_OTHER_M: a recording under way, not the still start of a live one, whose
+#: refusal would stop auto mode (an input error is no recording's to remedy).
+STILL_SHARE = 0.01
+STILL_OTHER_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -143,9 +154,9 @@ def _first_solve(
     try:
         return solve_at(hand, eye, 0.0, cfg)
     except DegenerateMotionError as err:
-        units = '' if cfg.estimate_scale else _units(hand, eye, cfg)
-        if units:  # the input's, not the motion's
-            raise InputError(f'{units} (stage 2: {err})') from None
+        said = _input_said(hand, eye, cfg)
+        if said:  # the input's, not the motion's
+            raise InputError(f'{said} (stage 2: {err})') from None
         if offset.fixed or (cfg.max_time_offset is None and cfg.time_offset_guess is None):
             raise
         lo, hi = offset.alignment.window_s
@@ -157,13 +168,56 @@ def _first_solve(
         raise type(err)(msg) from None
 
 
-def _units(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> str:
-    """:func:`units_said` of the scale the rotations alone give; '' when they give none (the
+def _input_said(hand: Trajectory, eye: Trajectory, cfg: CalibrationConfig) -> str:
+    """Why a failed stage 2 lies in the input: positions in millimetres (:func:`units_said`) or
+    at a scale (:func:`scale_said`) by the scale the rotations alone give (without
+    ``estimate_scale``), or positions that hardly move (:func:`still_said`); '' when none (the
     refusal being explained stands as it is)."""
-    try:
-        return units_said(rotations_scale(hand, eye, cfg))
-    except DegenerateMotionError:
+    fit = None
+    if not cfg.estimate_scale:
+        try:
+            fit = rotations_scale(hand, eye, cfg)
+        except DegenerateMotionError:
+            pass
+    return units_said(fit) or scale_said(fit) or still_said(hand, eye)
+
+
+def scale_said(fit: ScaleFit | None) -> str:
+    """What a failed stage 2 says of an eye at a scale: the rotations alone fit the eye's
+    translations to the hand's at s beyond FAR_SCALE (or below its inverse) by 3 sigmas.
+    Empty otherwise."""
+    if fit is None or not np.isfinite(fit.scale_std):
         return ''
+    lo, hi = fit.scale + np.array([-3.0, 3.0]) * fit.scale_std
+    if not (lo > FAR_SCALE or 0.0 < hi < 1.0 / FAR_SCALE):
+        return ''
+    return (
+        f"The eye's translations fit the hand's at a scale s = {fit.scale:.4g} +- "
+        f'{fit.scale_std:.2g} (s * eye positions metric; from the rotations alone): a '
+        'monocular VO, or positions in other units. Estimate it with --scale (node parameter '
+        'estimate_scale)'
+    )
+
+
+def still_said(hand: Trajectory, eye: Trajectory) -> str:
+    """What a failed stage 2 says of a stream whose positions hardly move: their extent below
+    STILL_SHARE of the other stream's, itself at least STILL_OTHER_M. Empty otherwise."""
+    extents = {'hand': _extent(hand), 'eye': _extent(eye)}
+    (still, small), (other, large) = sorted(extents.items(), key=lambda kv: kv[1])
+    if not (small < STILL_SHARE * large and large >= STILL_OTHER_M):
+        return ''
+    return (
+        f"The {still}'s positions stay within {small * 1e3:.2g} mm while the {other}'s span "
+        f"{large:.2f} m: the translation of T_HE needs positions that follow the device's "
+        'motion (a stream of orientations only, or of positions left constant, cannot give it'
+        + ('; a monocular VO at such a scale needs --scale)' if still == 'eye' else ')')
+    )
+
+
+def _extent(t: Trajectory) -> float:
+    """How far a stream's positions spread [m]: 5-95 % along the widest axis of the world."""
+    lo, hi = np.percentile(t.p_xyz, [5.0, 95.0], axis=0)
+    return float(np.max(hi - lo))
 
 
 def units_said(fit: ScaleFit | None) -> str:

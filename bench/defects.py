@@ -297,6 +297,15 @@ def inverted_eye(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     return Injected(h, Stream(e.t_ns, -R.apply(e.p), R.as_quat(), e.fmt, e.unit, e.order))
 
 
+def left_handed_eye(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
+    """The eye written in a left-handed frame, as Unity's: its y axis flipped in the positions
+    and the quaternions converted alike (S R S for the reflection S)."""
+    S = np.array([1.0, -1.0, 1.0])
+    q = e.q.copy()
+    q[:, :3] *= -S
+    return Injected(h, Stream(e.t_ns, e.p * S, q, e.fmt, e.unit, e.order))
+
+
 def rounded(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """Both files written as some tools do: stamps to the millisecond, positions to the
     millimetre, quaternions to 4 decimals."""
@@ -330,6 +339,7 @@ DEFECTS: dict[str, Inject] = {
     'hand quat xyzw': quaternion_order('hand'),
     'hand positions mm': millimetres('hand'),
     'eye inverted': inverted_eye,
+    'eye left-handed': left_handed_eye,
     'rounded values': rounded,
 }
 #: Motion shapes (simulator only), judged against the simulator's truth.

@@ -21,6 +21,14 @@ Inverting the hand explains an inverted eye exactly (the roles of T_HE and T_WG 
 both fit, the one whose extrinsic is the shorter lever arm is taken if it is at most a third
 of the other and at most 1 m; otherwise the data cannot tell, and the mistake is refused with
 both fixes named.
+
+One more reading is tried and never applied: a stream's positions negated, refused when it
+fits best. A stream written in a left-handed frame (as Unity's), or with one axis flipped in
+its positions and its quaternions converted alike (``p -> S p``, ``R -> S R S``, S a
+reflection), is its true trajectory with the positions negated in frames turned by the
+rotation ``-S``: its rotations fit and its translations do not. Negating either stream's
+positions then explains the data exactly (t_X changes sign), so which stream is mirrored the
+data cannot tell, and it is refused, named.
 """
 
 from __future__ import annotations
@@ -61,6 +69,7 @@ READINGS = {
     'wxyz': ('quaternion_order', 'its quaternion numbers were w x y z where x y z w was read'),
     'xyzw': ('quaternion_order', 'its quaternion numbers were x y z w where w x y z was read'),
     'inverse': ('inverse', 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'),
+    'mirrored': ('mirrored', 'its positions are mirrored against its orientations'),
 }
 #: The permutations that undo each quaternion misreading (rows of the read x y z w).
 PERMUTATIONS = {'wxyz': [1, 2, 3, 0], 'xyzw': [3, 0, 1, 2]}
@@ -91,6 +100,8 @@ def _reread_poses(
     """Poses (R (N, 3, 3), p (N, 3); q_xyzw: R's quaternions) under another reading than as
     given, as :func:`reread` does to a stream."""
     R, p = pose
+    if reading == 'mirrored':
+        return R, -p
     if reading == 'inverse':
         Rt = np.swapaxes(R, -1, -2)
         return Rt, -np.einsum('nij,nj->ni', Rt, p)
@@ -209,6 +220,11 @@ def check_orientations(
     fitting = [f for f in fits if f.score <= FIT_FACTOR * best]
     if any(f.reading == 'as given' for f in fitting):
         return hand, eye, []
+    as_given = next(f for f in fits if f.reading == 'as given')
+    closest = min(fits, key=lambda f: f.score)
+    if closest.reading == 'mirrored':
+        raise InputError(_mirrored(as_given, closest))
+    fitting = [f for f in fitting if f.reading != 'mirrored']
     if len(fitting) == 2 and {(f.stream, f.reading) for f in fitting} == {
         ('hand', 'inverse'),
         ('eye', 'inverse'),
@@ -219,7 +235,6 @@ def check_orientations(
             and short.lever_arm_m * LEVER_ARM_RATIO <= long.lever_arm_m
         ):
             fitting = [short]
-    as_given = next(f for f in fits if f.reading == 'as given')
     if len(fitting) > 1:
         named = '; or '.join(f'the {f.stream} stream: {READINGS[f.reading][1]}' for f in fitting)
         msg = (
@@ -245,3 +260,17 @@ def check_orientations(
     if f.stream == 'hand':
         return fixed, eye, [correction]
     return hand, fixed, [correction]
+
+
+def _mirrored(as_given: ReadingFit, mirrored: ReadingFit) -> str:
+    """The refusal of a stream whose positions are mirrored against its orientations."""
+    return (
+        'the positions of one stream are mirrored against its orientations (a left-handed frame, '
+        "as Unity's, or one axis flipped in the positions and the quaternions alike): AX = XB "
+        "holds with either stream's positions negated (median residuals "
+        f'{np.degrees(mirrored.rotation_rad):.2f} deg, {mirrored.translation_m * 1e3:.1f} mm) and '
+        f'not as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
+        f'{as_given.translation_m * 1e3:.0f} mm). Write the mirrored stream (usually the '
+        "device's own, the eye) in a right-handed frame: convert its positions and quaternions "
+        'together, or negate its positions'
+    )

@@ -1,4 +1,5 @@
-"""Conventions checked, not assumed: stamp units, quaternion order, inverted poses, epochs.
+"""Conventions checked, not assumed: stamp units, quaternion order, inverted poses, mirrored
+positions, epochs.
 
 Every mistake is either read the way the data support (with a correction that names it and a
 verdict that is not good, since the files still hold the mistake), or refused naming the
@@ -16,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from handeye_ros.core.checks.conventions import check_stamp_units, epoch_note
 from handeye_ros.core.checks.orientations import PERMUTATIONS, reading_fits, reread
 from handeye_ros.core.config import CalibrationConfig
+from handeye_ros.core.errors import InputError
 from handeye_ros.core.pipeline import calibrate
 from handeye_ros.core.simulate import calibration_error
 from handeye_ros.core.trajectory import Trajectory
@@ -101,6 +103,23 @@ def test_orientation_mistakes_are_found_and_read_right(stream: str, reading: str
     e0 = calibration_error(rec.truth, right.time_offset_s, right.q_HE, right.p_HE)
     assert abs(e.translation_m - e0.translation_m) < 1e-4
     assert abs(e.rotation_deg - e0.rotation_deg) < 1e-3
+
+
+@pytest.mark.parametrize(('stream', 'axis'), [('eye', 0), ('eye', 1), ('hand', 2)])
+def test_a_stream_in_a_left_handed_frame_is_refused_named(stream: str, axis: int) -> None:
+    """One axis flipped in a stream's positions and its quaternions converted alike (a
+    left-handed frame, as Unity's): the rotations fit, the translations do not, and negating
+    either stream's positions fits exactly; refused, naming the mirror and the fix."""
+    rec = recording(seed=5, level=2.0)
+    S = np.ones(3)
+    S[axis] = -1.0
+    traj = rec.hand if stream == 'hand' else rec.eye
+    q = traj.q_xyzw.copy()
+    q[:, :3] *= -S  # S R S for the reflection S: its axis -S u, the same angle
+    mirrored = Trajectory.from_arrays(traj.t_ns, traj.p_xyz * S, q, traj.name)
+    hand, eye = (mirrored, rec.eye) if stream == 'hand' else (rec.hand, mirrored)
+    with pytest.raises(InputError, match='mirrored against its orientations.*negate its'):
+        calibrate(hand, eye)
 
 
 @pytest.mark.parametrize('seed', range(3))

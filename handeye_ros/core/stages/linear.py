@@ -58,10 +58,13 @@ if TYPE_CHECKING:  # stage 3 sits above stage 2: its answer only bounds the seed
 #: few milliseconds apart on a slow motion anyway.
 SAME_OFFSET_S = 2e-3
 DISTINCT_STEPS = 3
-#: A failed stage 2 names positions in millimetres when the eye's translations fit the hand's
-#: at a scale within this factor of 1000 or 1/1000 (:func:`units_said`): halfway, in log, to
-#: the 100 of centimetres, and far beyond what a metric VIO is off by.
+#: A failed stage 2 names positions in millimetres (centimetres) when the eye's translations
+#: fit the hand's at a scale within this factor of 1000 (100) or its inverse
+#: (:func:`units_said`): halfway, in log, to the next unit, and far beyond what a metric VIO is
+#: off by.
 MM_FACTOR = 10**0.5
+#: The units a failed stage 2 names, by the decades between the streams' translations.
+UNITS = {3: 'millimetres', 2: 'centimetres'}
 #: ... and names a scale when the rotations alone fit one beyond this factor of 1, by 3 sigmas
 #: (:func:`scale_said`): the eye's relative translations then differ from the hand's by at
 #: least their own length, far beyond RANSAC's 2 cm on motions of decimetres.
@@ -221,23 +224,26 @@ def _extent(t: Trajectory) -> float:
 
 
 def units_said(fit: ScaleFit | None) -> str:
-    """What a failed stage 2 says of positions in millimetres: the eye's translations fitted to
-    the hand's by the rotations alone (:func:`.scale.rotations_scale`) a factor of 1000 apart,
-    within MM_FACTOR and beyond 3 sigmas of doubt, where a metric VIO is off by per cents.
-    Empty otherwise."""
+    """What a failed stage 2 says of positions in millimetres or centimetres: the eye's
+    translations fitted to the hand's by the rotations alone (:func:`.scale.rotations_scale`) a
+    factor of 1000 or 100 apart (:data:`UNITS`), within MM_FACTOR and beyond 3 sigmas of doubt,
+    where a metric VIO is off by per cents. Empty otherwise."""
     if fit is None or not np.isfinite(fit.scale_std):
         return ''
     bounds = fit.scale + np.array([-3.0, 3.0]) * fit.scale_std
     if not bounds[0] > 0.0:
         return ''
     apart = float(np.log10(fit.scale))
-    if np.any(np.abs(np.abs(np.log10(bounds)) - 3.0) > np.log10(MM_FACTOR)):
+    decades = round(abs(apart))
+    if decades not in UNITS or np.any(
+        np.abs(np.abs(np.log10(bounds)) - decades) > np.log10(MM_FACTOR)
+    ):
         return ''
     which, other = ('hand', 'eye') if apart > 0 else ('eye', 'hand')
     return (
         f"The {which}'s translations are {10 ** abs(apart):.0f} times the {other}'s: its "
-        'positions look like millimetres. Write them in metres'
-        + (' (or, for a monocular eye of unknown scale, estimate_scale)' if apart < 0 else '')
+        f'positions look like {UNITS[decades]}. Write them in metres (or, for a monocular eye '
+        'of unknown scale, estimate_scale)'
     )
 
 

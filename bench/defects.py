@@ -219,6 +219,17 @@ def wild_poses(
     return f
 
 
+def mocap_held(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
+    """The MoCap loses the body for 3 s at 40 % of the recording and repeats its last pose
+    meanwhile, bit for bit, as a driver may."""
+    t = h.t_ns
+    start = t[0] + int(0.4 * (t[-1] - t[0]))
+    held = np.flatnonzero((t >= start) & (t < start + 3_000_000_000))
+    p, q = h.p.copy(), h.q.copy()
+    p[held], q[held] = p[held[0]], q[held[0]]
+    return Injected(Stream(t, p, q, h.fmt, h.unit, h.order), e)
+
+
 def vio_reset(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """The VIO loses tracking for 1 s at 55 % of the recording and restarts in a new world
     frame: a gravity-aligned jump (yaw 20-90 deg, 0.5-2 m)."""
@@ -324,6 +335,7 @@ DEFECTS: dict[str, Inject] = {
     'mocap swaps 1%': wild_poses('hand', 0.01, (30, 180), 0.05),
     'mocap swaps 5%': wild_poses('hand', 0.05, (30, 180), 0.05),
     'mocap zeros 1%': wild_poses('hand', 0.01, (0, 0), 0.0, zero=True),
+    'mocap held 3 s': mocap_held,
     'vio glitches 1%': wild_poses('eye', 0.01, (3, 20), 0.3),
     'vio glitches 5%': wild_poses('eye', 0.05, (3, 20), 0.3),
     'vio reset': vio_reset,

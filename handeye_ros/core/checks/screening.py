@@ -33,7 +33,9 @@ rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a strea
 that is elsewhere are removed as placeholders, runs of any length: the convention of
 evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses
 repeated bit for bit are *not* removed: a slow rig written to the millimetre repeats its poses
-legitimately.
+legitimately. Where the other stream's motion then disagrees with such a run
+(:func:`repeated_runs`, after stage 2), a MoCap that held its last pose while it lost the body
+is named.
 
 Resets (a jump of the eye's world frame that persists) are not outliers and are not removed
 here; they are found after stage 2 against the hand (:mod:`.breaks`), where the
@@ -55,6 +57,9 @@ from .running_median import running_median
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
 SCALE_WINDOW_S = 2.0
 SCALE_WINDOW_MIN = 31
+#: Fewest consecutive poses repeated bit for bit that make a held run (:func:`repeated_runs`):
+#: two in a row happen on any rig at rest written to the millimetre.
+REPEATED_MIN = 3
 #: Residuals below these never make an outlier (m, rad): 1 mm, 0.1 deg.
 FLOOR_TRANSLATION_M = 1e-3
 FLOOR_ROTATION_RAD = np.deg2rad(0.1)
@@ -317,6 +322,18 @@ def placeholders(traj: Trajectory, floors: tuple[float, float]) -> Mask:
         )
         out[k[far]] = True
     return out
+
+
+def repeated_runs(traj: Trajectory) -> tuple[Stamps, Stamps]:
+    """The first and last stamps [ns] of each run of REPEATED_MIN or more consecutive poses
+    repeated bit for bit."""
+    same = np.all(traj.p_xyz[1:] == traj.p_xyz[:-1], axis=1) & np.all(
+        traj.q_xyzw[1:] == traj.q_xyzw[:-1], axis=1
+    )
+    edges = np.diff(np.concatenate(([0], same.astype(np.int8), [0])))
+    first, after = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    long = after - first + 1 >= REPEATED_MIN
+    return traj.t_ns[first[long]], traj.t_ns[after[long]]
 
 
 def damaged(traj: Trajectory) -> Mask:

@@ -31,11 +31,11 @@ Before it, *damaged* rows are removed: rows whose position is physically absurd 
 blocks of rows hold x ~ 1e9 m); :func:`describe_damage` says how many, where and what. Then
 rows written exactly as the identity pose (``0 0 0`` and ``0 0 0 1``) in a stream
 that is elsewhere are removed as placeholders, runs of any length: the convention of
-evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". Poses
-repeated bit for bit are *not* removed: a slow rig written to the millimetre repeats its poses
-legitimately. Where the other stream's motion then disagrees with such a run
-(:func:`repeated_runs`, after stage 2), a MoCap that held its last pose while it lost the body
-is named.
+evaluation toolboxes for "no estimate yet" and of MoCap drivers for "body lost". So are the
+copies in a run of poses repeated bit for bit that ends in a jump (:func:`held_poses`): a
+driver that repeats its last pose while it has lost the body, the body found again elsewhere.
+A run at rest is kept: a slow rig written to the millimetre repeats its poses legitimately,
+and leaves its rest by steps like the ones that follow.
 
 Resets (a jump of the eye's world frame that persists) are not outliers and are not removed
 here; they are found after stage 2 against the hand (:mod:`.breaks`), where the
@@ -57,9 +57,13 @@ from .running_median import running_median
 #: Span of the running median and MAD of the residuals, seconds, and its fewest poses.
 SCALE_WINDOW_S = 2.0
 SCALE_WINDOW_MIN = 31
-#: Fewest consecutive poses repeated bit for bit that make a held run (:func:`repeated_runs`):
-#: two in a row happen on any rig at rest written to the millimetre.
+#: A run of poses repeated bit for bit (at least REPEATED_MIN of them) is held by a driver
+#: that lost the body when its step out is HELD_JUMP times the median of the AFTER_STEPS steps
+#: that follow (:func:`held_poses`): n copies while moving end in a jump of about n steps, so
+#: the shortest held run jumps by 3; a rig leaving its rest accelerates over steps like these.
 REPEATED_MIN = 3
+HELD_JUMP = 3.0
+AFTER_STEPS = 5
 #: Residuals below these never make an outlier (m, rad): 1 mm, 0.1 deg.
 FLOOR_TRANSLATION_M = 1e-3
 FLOOR_ROTATION_RAD = np.deg2rad(0.1)
@@ -324,16 +328,29 @@ def placeholders(traj: Trajectory, floors: tuple[float, float]) -> Mask:
     return out
 
 
-def repeated_runs(traj: Trajectory) -> tuple[Stamps, Stamps]:
-    """The first and last stamps [ns] of each run of REPEATED_MIN or more consecutive poses
-    repeated bit for bit."""
-    same = np.all(traj.p_xyz[1:] == traj.p_xyz[:-1], axis=1) & np.all(
-        traj.q_xyzw[1:] == traj.q_xyzw[:-1], axis=1
-    )
+def held_poses(traj: Trajectory, floors: tuple[float, float]) -> Mask:
+    """(N,) bool: the copies (all but the first) in each run of REPEATED_MIN or more
+    consecutive poses repeated bit for bit whose step out, to the next pose, is a jump: beyond
+    the floors (m, rad) and HELD_JUMP times the median of the AFTER_STEPS steps that follow,
+    in position or in rotation. A run at rest leaves it by steps like the next ones."""
+    p, q = traj.p_xyz, traj.q_xyzw
+    same = np.all(p[1:] == p[:-1], axis=1) & np.all(q[1:] == q[:-1], axis=1)
     edges = np.diff(np.concatenate(([0], same.astype(np.int8), [0])))
-    first, after = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    long = after - first + 1 >= REPEATED_MIN
-    return traj.t_ns[first[long]], traj.t_ns[after[long]]
+    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    out = np.zeros(len(traj), dtype=bool)
+    for f, k in zip(first, last, strict=True):
+        if k - f + 1 < REPEATED_MIN or k + 2 >= len(traj):
+            continue
+        nxt = slice(k + 1, min(len(traj), k + 2 + AFTER_STEPS))
+        step_p = row_norms(np.diff(p[nxt], axis=0))
+        step_r = quat_angle(q[nxt][:-1], q[nxt][1:])
+        jump_p = float(np.linalg.norm(p[k + 1] - p[k]))
+        jump_r = float(quat_angle(q[k], q[k + 1]))
+        if (jump_p > floors[0] and jump_p > HELD_JUMP * float(np.median(step_p))) or (
+            jump_r > floors[1] and jump_r > HELD_JUMP * float(np.median(step_r))
+        ):
+            out[f + 1 : k + 1] = True
+    return out
 
 
 def damaged(traj: Trajectory) -> Mask:
@@ -383,7 +400,7 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     t = traj.seconds(int(traj.t_ns[0]))
     wrecked = damaged(traj)
     kinds[wrecked] = 1 + KINDS.index('damaged')
-    held = placeholders(traj, floors) & ~wrecked
+    held = (placeholders(traj, floors) | held_poses(traj, floors)) & ~wrecked
     kinds[held] = 1 + KINDS.index('placeholder')
     idx = idx[~(held | wrecked)]
     # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so

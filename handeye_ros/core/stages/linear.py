@@ -15,9 +15,9 @@ import numpy as np
 
 from ..association import PosePairs
 from ..batch.rank import undetermined
-from ..checks.breaks import EyeBreaks, find_eye_breaks
+from ..checks.breaks import find_eye_breaks
 from ..checks.excerpt import excerpt, spread_sample
-from ..checks.screening import Screening, repeated_runs
+from ..checks.screening import Screening
 from ..checks.selfcheck import (
     Candidate,
     Hypothesis,
@@ -280,10 +280,7 @@ def split_eye(
     )
     check_fraction(se, eye, cfg)
     said = Findings()
-    held = _held_by_hand(hand, breaks)
-    if held:
-        said = Findings.warned(held, noted=True)
-    elif breaks.breaks_ns.size:
+    if breaks.breaks_ns.size:
         said = Findings.warned(
             f'the eye stream was split at {breaks.breaks_ns.size} break(s) (a VIO reset or '
             "jump of its world frame: its motion there disagrees with the hand's); no "
@@ -291,26 +288,6 @@ def split_eye(
             noted=True,
         )
     return Split(breaks.eye, solve_at(hand, breaks.eye, 0.0, cfg), (sh, se), said)
-
-
-def _held_by_hand(hand: Trajectory, breaks: EyeBreaks) -> str:
-    """The note when the eye's poses left out (outliers, breaks, short parts; on the hand's
-    clock) lie where the hand repeats its poses bit for bit (:func:`.screening.repeated_runs`):
-    a MoCap holding its last pose while it lost the body, not the eye, disagrees there. '' when
-    none do."""
-    first, last = repeated_runs(hand)
-    dropped = np.concatenate((breaks.outliers_ns, breaks.short_ns, breaks.breaks_ns))
-    inside = (dropped[:, None] >= first[None, :]) & (dropped[:, None] <= last[None, :])
-    runs = inside.any(axis=0)
-    if not runs.any():
-        return ''
-    span = float(np.sum(last[runs] - first[runs])) * 1e-9
-    return (
-        f'the hand repeats its poses bit for bit over {span:.2f} s in {int(runs.sum())} run(s) '
-        f"where the eye's motion disagrees with it ({int(inside.any(axis=1).sum())} eye poses "
-        'left out or split there): a MoCap that held its last pose while it lost the body, '
-        'not the eye, is the likely cause'
-    )
 
 
 def self_check(

@@ -288,7 +288,8 @@ class CalibrationConfig(Options):
     max_outlier_fraction: float = option(
         0.15,
         'float',
-        'refuse a stream of which screening would remove more than this fraction',
+        'refuse a stream of which screening would remove more than this fraction as wrong '
+        '(damaged rows, outliers; not placeholders or short segments: missing, not wrong)',
         low=0.0,
         high=1.0,
         open_low=True,

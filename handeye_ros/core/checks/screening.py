@@ -130,14 +130,21 @@ class Screening:
         return self.counts['short_segment']
 
     @property
+    def n_placeholders(self) -> int:
+        """Poses that say "no pose here" (the identity of a toolbox, zeros or the last pose held
+        for a lost body): missing, not wrong."""
+        return self.counts['placeholder']
+
+    @property
     def n_outliers(self) -> int:
-        """Poses removed as wrong (damaged, placeholders, outliers)."""
-        return self.n_removed - self.n_short
+        """Poses removed as wrong (damaged rows, outliers)."""
+        return self.n_removed - self.n_short - self.n_placeholders
 
     @property
     def fraction(self) -> float:
         """Poses removed as wrong over input poses (what ``max_outlier_fraction`` bounds);
-        poses in short segments between breaks are not counted (:attr:`short_fraction`)."""
+        poses in short segments between breaks and placeholders are missing, not wrong, and
+        are not counted."""
         return self.n_outliers / max(self.n_input, 1)
 
     @property

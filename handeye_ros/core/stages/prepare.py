@@ -123,10 +123,10 @@ def check_fraction(
     rep: Screening, traj: Trajectory, cfg: CalibrationConfig, damage: str = ''
 ) -> None:
     """Refuse a stream screening finds too much of wrong; damaged rows are named first. Poses
-    in segments too short to use between breaks (a VI-SLAM's loop closures) are not wrong and
-    do not count."""
+    in segments too short to use between breaks (a VI-SLAM's loop closures) and placeholders
+    (no pose written) are missing, not wrong, and do not count."""
     if rep.fraction > cfg.max_outlier_fraction:
-        wrong = {k: v for k, v in rep.counts.items() if v and k != 'short_segment'}
+        wrong = {k: v for k, v in rep.counts.items() if v and k in ('damaged', 'outlier')}
         counts = ', '.join(f'{v} {k.replace("_", " ")}' for k, v in wrong.items())
         msg = (
             (

@@ -173,6 +173,22 @@ def test_too_many_outliers_are_refused_naming_the_stream() -> None:
     assert 'outliers_removed' in res.quality.codes
 
 
+def test_a_mocap_that_loses_the_body_for_long_is_missing_not_wrong() -> None:
+    """The MoCap writes zeros for 12 s of 60 while it has lost the body (a fifth of the hand,
+    beyond max_outlier_fraction's 15 %): missing poses, said as such, not outliers; the rest
+    is calibrated to the truth (level 2 errors are ~2 mm / 0.1 deg)."""
+    rec = recording(seed=6, level=2.0)
+    t = rec.hand.seconds(int(rec.hand.t_ns[0]))
+    lost = np.flatnonzero((t > 20.0) & (t < 32.0))
+    hand = _with(rec.hand, lost, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    res = calibrate(hand, rec.eye)
+    assert res.screening[0].n_placeholders == lost.size and res.screening[0].fraction == 0.0
+    assert any('left out as missing' in n for n in res.quality.notes), res.quality.notes
+    assert 'outliers_removed' not in res.quality.codes
+    err = calibration_error(rec.truth, res.time_offset_s, res.q_HE, res.p_HE)
+    assert err.time_offset_s < 2e-3 and err.translation_m < 0.01 and err.rotation_deg < 0.3
+
+
 def test_damaged_blocks_are_named_and_screened_or_refused() -> None:
     """Blocks of rows whose x column holds ~1e9 m (a corrupted column, as in the published DSO
     outdoors4 files): a small fraction is screened as damaged, named in the warnings, and the

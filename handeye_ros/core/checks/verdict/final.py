@@ -67,6 +67,12 @@ def assess_streams(
             said.append(
                 f'screening removed {rep.n_outliers} of {rep.n_input} {rep.stream} poses as wrong'
             )
+        if rep.n_placeholders:
+            said.append(
+                f'{rep.n_placeholders} of {rep.n_input} {rep.stream} poses say that there is no '
+                'pose (the identity of a toolbox, zeros or the last pose held while the body was '
+                'lost) and are left out as missing (not outliers)'
+            )
         if rep.n_short:
             said.append(
                 f'{rep.n_short} {rep.stream} poses ({rep.short_fraction:.1%}) lie in segments '

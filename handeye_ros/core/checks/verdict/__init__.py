@@ -41,7 +41,8 @@ unobservable                doubtful   a component of T_HE, the clock drift or t
                                        only rotation axis, held (no figure depends on it)
 seed_dependent              doubtful   the linear stage's answer moves with the RANSAC seed
                                        (beyond SEED_*)
-no_uncertainty              doubtful   the batch stage could not run: no sigmas
+no_uncertainty              doubtful   the batch stage could not run or was switched off:
+                                       no sigmas, so no precision is judged
 imprecise                   doubtful   purpose evaluation: the calibration's 1-sigma on an
                                        APE/RPE figure exceeds EVALUATION_SHARE of it (named
                                        with the parameters that move it most, THROUGH);

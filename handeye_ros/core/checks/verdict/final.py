@@ -220,13 +220,16 @@ def _assess_uncertainty(
     batch: BatchSolution | None, cfg: CalibrationConfig, unobservable: bool
 ) -> list[Reason | str]:
     """Stage 3's uncertainty: none (said unless a part of the answer is ``unobservable``, which
-    says why), larger than required or near it, or shaped by something unmodelled."""
+    says why; switched off too: no precision is judged without sigmas), larger than required or
+    near it, or shaped by something unmodelled."""
     said: list[Reason | str] = []
-    if cfg.batch and batch is None and not unobservable:
+    if batch is None and not unobservable:
+        why = 'did not run (see the warnings)' if cfg.batch else 'was switched off (batch: false)'
         said.append(
             Reason(
                 Code.NO_UNCERTAINTY,
-                'the batch stage did not run, so the result has no uncertainty (see the warnings)',
+                f'the batch stage {why}, so the result has no uncertainty and its precision '
+                'cannot be judged',
             )
         )
     if batch is not None:

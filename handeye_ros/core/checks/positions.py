@@ -32,13 +32,21 @@ STILL_SHARE = 0.01
 STILL_OTHER_M = 0.1
 
 
+def _three_sigmas(fit: ScaleFit | None) -> tuple[float, float] | None:
+    """The scale's bounds at 3 sigmas; None without a finite sigma."""
+    if fit is None or not np.isfinite(fit.scale_std):
+        return None
+    return fit.scale - 3.0 * fit.scale_std, fit.scale + 3.0 * fit.scale_std
+
+
 def scale_said(fit: ScaleFit | None) -> str:
     """What a failed stage 2 says of an eye at a scale: the rotations alone fit the eye's
     translations to the hand's at s beyond FAR_SCALE (or below its inverse) by 3 sigmas.
     Empty otherwise."""
-    if fit is None or not np.isfinite(fit.scale_std):
+    bounds = _three_sigmas(fit)
+    if fit is None or bounds is None:
         return ''
-    lo, hi = fit.scale + np.array([-3.0, 3.0]) * fit.scale_std
+    lo, hi = bounds
     if not (lo > FAR_SCALE or 0.0 < hi < 1.0 / FAR_SCALE):
         return ''
     return (
@@ -75,10 +83,8 @@ def units_said(fit: ScaleFit | None) -> str:
     translations fitted to the hand's by the rotations alone (:func:`.scale.rotations_scale`) a
     factor of 1000 or 100 apart (:data:`UNITS`), within MM_FACTOR and beyond 3 sigmas of doubt,
     where a metric VIO is off by per cents. Empty otherwise."""
-    if fit is None or not np.isfinite(fit.scale_std):
-        return ''
-    bounds = fit.scale + np.array([-3.0, 3.0]) * fit.scale_std
-    if not bounds[0] > 0.0:
+    bounds = _three_sigmas(fit)
+    if fit is None or bounds is None or not bounds[0] > 0.0:
         return ''
     apart = float(np.log10(fit.scale))
     decades = round(abs(apart))

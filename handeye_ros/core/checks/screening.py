@@ -407,9 +407,9 @@ def screen(traj: Trajectory, stream: str, n_sigma: float = 6.0) -> tuple[Traject
     t = traj.seconds(int(traj.t_ns[0]))
     wrecked = damaged(traj)
     kinds[wrecked] = 1 + KINDS.index('damaged')
-    held = (placeholders(traj, floors) | held_poses(traj, floors)) & ~wrecked
-    kinds[held] = 1 + KINDS.index('placeholder')
-    idx = idx[~(held | wrecked)]
+    missing = (placeholders(traj, floors) | held_poses(traj, floors)) & ~wrecked
+    kinds[missing] = 1 + KINDS.index('placeholder')
+    idx = idx[~(missing | wrecked)]
     # scale 1 until nothing more is found (isolated poses), then the larger scales (runs), so
     # that isolated wild poses no longer spoil the wider extrapolations of good ones; keyframes
     # seconds apart are no smooth motion to interpolate (find_eye_breaks judges them)

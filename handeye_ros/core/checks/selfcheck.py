@@ -51,9 +51,10 @@ class Candidate:
     """One offset the self-check scored.
 
     time_offset_s: dt of the candidate (s, on the clocks as the pipeline sees them); source:
-    where it came from ('correlation peak', 'correlation runner-up', 'batch stage', ...); score: lower is better (NaN: could not be scored); residuals: median
-    rotation (deg) and translation (m) error of the scored motions; q_HE, p_HE: the extrinsic
-    it was scored with; chosen: whether it won.
+    where it came from ('correlation peak', 'correlation runner-up', 'batch stage', ...);
+    score: lower is better (NaN: could not be scored); residuals: median rotation (deg) and
+    translation (m) error of the scored motions; q_HE, p_HE: the extrinsic it was scored with;
+    chosen: whether it won.
     """
 
     time_offset_s: float

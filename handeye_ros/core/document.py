@@ -124,7 +124,7 @@ class CoverageDoc(TypedDict):
     hand_gaps: int
     hand_gap_s: float
     longest_hand_gap_s: float
-    eye_span_s: float
+    eye_s: float
     covered_s: float
     fraction: float
 

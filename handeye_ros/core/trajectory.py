@@ -32,11 +32,13 @@ from .geometry import row_norms
 #: differenced across it. 3.5 tolerates two consecutive dropped samples, which still give a fair
 #: average.
 GAP_FACTOR = 3.5
-#: A stream whose median period is longer than this (s), or whose gap-free intervals cover
-#: less than KEYFRAME_COVERAGE of its span, holds keyframes only: no angular speed can be
-#: resampled from it (hand-held motion has content up to a few Hz).
+#: A stream whose median period is longer than this (s), or whose poses lie mostly in gap-free
+#: parts shorter than KEYFRAME_PART_S, holds keyframes only: no angular speed can be resampled
+#: from it. A part of 2 s holds a back-and-forth of hand-held motion (content from ~0.5 Hz up to
+#: a few Hz); a stream of such parts with long gaps between them (recorded in two takes, paused)
+#: is continuous however short a share of its span the parts cover.
 KEYFRAME_PERIOD_S = 0.2
-KEYFRAME_COVERAGE = 0.5
+KEYFRAME_PART_S = 2.0
 #: A quaternion whose norm differs from 1 by more than this is refused rather than normalised:
 #: text files round to ~6 decimals (deviation ~1e-6); a larger deviation means a wrong column
 #: order or corrupted data, and silently normalising it would hide that.
@@ -239,13 +241,16 @@ class Trajectory:
 
 def is_keyframe_only(traj: Trajectory) -> bool:
     """Whether a stream holds keyframes only (:data:`KEYFRAME_PERIOD_S`,
-    :data:`KEYFRAME_COVERAGE`), from its stamps."""
+    :data:`KEYFRAME_PART_S`), from its stamps."""
     step = np.diff(traj.t_ns) * 1e-9
     if step.size < 2:
         return False
     median = float(np.median(step))
-    dense = float(step[step <= GAP_FACTOR * median].sum()) / max(float(step.sum()), 1e-300)
-    return median > KEYFRAME_PERIOD_S or dense < KEYFRAME_COVERAGE
+    dense = step <= GAP_FACTOR * median
+    part = np.cumsum(~dense)[dense]
+    span = np.bincount(part, weights=step[dense])
+    poses = np.bincount(part)
+    return median > KEYFRAME_PERIOD_S or poses[span >= KEYFRAME_PART_S].sum() < 0.5 * poses.sum()
 
 
 def gap_free_parts(traj: Trajectory) -> list[tuple[int, int]]:

@@ -111,8 +111,8 @@ def _recording_rows(d: ResultDoc) -> list[tuple[str, str, str]]:
     if cov:
         rows.append(
             (
-                "MoCap coverage of the eye's span",
-                f'{cov["fraction"]:.0%} of {cov["eye_span_s"]:.1f} s',
+                "MoCap coverage of the eye's time",
+                f'{cov["fraction"]:.0%} of {cov["eye_s"]:.1f} s',
                 (
                     f'{cov["hand_gaps"]} gap(s), {cov["hand_gap_s"]:.1f} s '
                     f'(longest {cov["longest_hand_gap_s"]:.2f} s)'

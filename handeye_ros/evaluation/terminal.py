@@ -102,7 +102,7 @@ def _heading_lines(d: ResultDoc) -> list[str]:
     cov = d.get('coverage')
     if cov:
         lines.append(
-            f"  MoCap coverage: {cov['fraction']:.0%} of the eye's {cov['eye_span_s']:.1f} s, "
+            f"  MoCap coverage: {cov['fraction']:.0%} of the eye's {cov['eye_s']:.1f} s, "
             f'{cov["hand_gaps"]} gap(s) inside it ({cov["hand_gap_s"]:.1f} s, the longest '
             f'{cov["longest_hand_gap_s"]:.2f} s)'
         )

@@ -17,7 +17,8 @@ trajectory's notes say so; the pipeline then checks the rates (see
 file's four quaternion columns are (default: the format's).
 
 A stamp written twice keeps its *last* row (estimators that correct a pose, e.g. after a loop
-closure, write the corrected one after the first), counted in the notes. Up to 1 % of rows no
+closure, write the corrected one after the first), counted in the notes; a file in which a tenth
+of the rows repeat a stamp is refused (stamps with too few digits). Up to 1 % of rows no
 pose stream can hold (a stamp that does not fit or is out of order with both neighbours, a
 non-finite value, a non-unit quaternion) are dropped and named in the notes; a file with more
 is refused, naming the first; an unsorted file is refused.
@@ -44,6 +45,10 @@ QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
 #: written with every value scaled): they are dropped, and the notes name them; more, and the
 #: file is refused, naming the first.
 MAX_BAD_ROW_FRACTION = 0.01
+#: A file in which more than this fraction of rows repeat the stamp of the row before is refused:
+#: a correction rewrites a few poses, while stamps that cannot tell a tenth of the poses apart
+#: were written with too few digits (``1.7e+09`` from a 6-digit default, float32 seconds).
+MAX_REPEATED_FRACTION = 0.1
 
 
 def detect_format(path: str | Path) -> str:
@@ -95,6 +100,7 @@ def read_trajectory(
     (t_ns, values, q_xyzw), dropped = _drop_bad_rows(path, numbers, (t_ns, values, q_xyzw), fits)
     notes += [dropped] if dropped else []
     keep = _last_of_repeated(t_ns)
+    _check_repeated(path, keep, t_ns)
     if not keep.all():  # (no copies of millions of rows when every stamp is once)
         notes.append(
             f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of each was kept'
@@ -194,6 +200,21 @@ def _bad_rows(t_ns: Stamps, values: Floats, q_xyzw: Floats, fits: Mask) -> Mask:
         out[-1] = t[-1] < t[-2] and prev2[-1] < t[-2]
         bad[good[out]] = True
     return bad
+
+
+def _check_repeated(path: Path, keep: Mask, t_ns: Stamps) -> None:
+    """Refuse a file whose rows repeat their stamps beyond MAX_REPEATED_FRACTION."""
+    repeated = int(keep.size - keep.sum())
+    if repeated > MAX_REPEATED_FRACTION * keep.size:
+        first = int(t_ns[0])
+        msg = (
+            f'{path}: {repeated} of {keep.size} rows repeat the stamp of the row before '
+            f'({keep.sum()} distinct, the first {first // 10**9}.{first % 10**9:09d} s): the stamps '
+            'were written with too few digits (a default 6-digit format prints 1.7e+09; float32 '
+            'seconds keep 128 s at 1.7e9), or the file holds more than one pose an instant. '
+            'Write them to the microsecond or finer'
+        )
+        raise InputError(msg)
 
 
 def _last_of_repeated(t_ns: Stamps) -> Mask:

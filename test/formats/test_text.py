@@ -112,8 +112,8 @@ def test_tum_stamps_are_parsed_exactly(tmp_path: Path, token: str, ns: int) -> N
         ('# only a comment\n', 'holds no poses'),
         ('1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
         ('1.0 0 0 0 0 0 0 1\n0.5 0 0 0 0 0 0 1\n', 'unsorted'),
-        # a stamp written twice keeps its last row: here one pose is left
-        ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'holds 1 pose'),
+        # half the rows repeat a stamp: stamps with too few digits
+        ('1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n', 'repeat the stamp of the row before'),
         ('1.0 0 0 0 0 0 0 1\n2.0 nan 0 0 0 0 0 1\n', 'NaN or inf'),
         ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0 0\n', 'zero quaternion'),
         ('1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0.5 0 0 0.5\n', 'non-unit'),
@@ -149,10 +149,20 @@ def test_repeated_stamps_keep_the_last_row_with_a_note(tmp_path: Path) -> None:
     """Estimators that correct a pose write it again under the same stamp: the later row
     wins and the notes count the repeats."""
     path = tmp_path / 'est.txt'
-    path.write_text('1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n2.0 2 0 0 0 0 0 1\n3.0 3 0 0 0 0 0 1\n')
+    rows = [f'{k}.0 {k} 0 0 0 0 0 1\n' for k in range(1, 11)]
+    path.write_text(''.join(rows[:2]) + '2.0 -2 0 0 0 0 0 1\n' + ''.join(rows[2:]))
     traj = read_trajectory(path)
-    np.testing.assert_array_equal(traj.p_xyz[:, 0], [0.0, 2.0, 3.0])
+    np.testing.assert_array_equal(traj.p_xyz[:, 0], [1.0, -2.0, *range(3, 11)])
     assert any('1 stamp(s) written twice' in n for n in traj.notes)
+
+
+def test_stamps_with_too_few_digits_are_refused(tmp_path: Path) -> None:
+    """A writer's 6-digit default prints every stamp of a recording as 1.7e+09: the poses
+    cannot be told apart, and the message says why, not that one pose is left."""
+    path = tmp_path / 'est.txt'
+    path.write_text(''.join(f'1.7e+09 {k} 0 0 0 0 0 1\n' for k in range(100)))
+    with pytest.raises(InputError, match='99 of 100 rows repeat .* too few digits'):
+        read_trajectory(path)
 
 
 @pytest.mark.parametrize(

@@ -7,6 +7,7 @@ of the paper's protocol gives ~2 mm / 0.1 deg and well under a millisecond.
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -265,6 +266,12 @@ def test_a_figure_beyond_the_line_names_what_moves_it_and_what_narrows_that() ->
     reasons, (note,), _ = assess_evaluation([near], '', {})
     assert not reasons and note.startswith('near the 5% line')
     assert f"4.4%, moved most by T_HE's rotation: {NARROWS['rotation', 'white']}" in note
+    # an RPE step no two poses lie apart: no value, left out of the judgement with why
+    none = ('RPE translation rmse per 1000 s', math.nan, None, 'mm', '')
+    reasons, (note,), ratio = assess_evaluation([none], '', {})
+    assert not reasons and math.isnan(ratio)
+    assert note.startswith('RPE translation rmse per 1000 s could not be computed and is not')
+    assert 'a step longer than the recording, or shorter than its pose spacing' in note
 
 
 def test_planar_motion_returns_the_observable_part() -> None:

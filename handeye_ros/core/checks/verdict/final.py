@@ -441,7 +441,13 @@ def assess_evaluation(
     notes, ratios = [], []
     for label, value, sigma, unit, through in figures:
         if not np.isfinite(value) or sigma is None or value <= 0.0:
-            notes.append(f'{label} could not be computed and is not judged')
+            why = (
+                ' (no two eye poses lie that step apart: a step longer than the recording, or '
+                'shorter than its pose spacing)'
+                if label.startswith('RPE') and not np.isfinite(value)
+                else ''
+            )
+            notes.append(f'{label} could not be computed and is not judged{why}')
             continue
         ratios.append(sigma / (EVALUATION_SHARE * value))
         if not sigma > BLOCKS_MARGIN * EVALUATION_SHARE * value:

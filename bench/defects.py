@@ -317,6 +317,12 @@ def left_handed_eye(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     return Injected(h, Stream(e.t_ns, e.p * S, q, e.fmt, e.unit, e.order))
 
 
+def jpl_eye(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
+    """The eye's quaternions in JPL's convention (the conjugates of Hamilton's), its positions
+    as they are."""
+    return Injected(h, Stream(e.t_ns, e.p, e.q * [-1.0, -1.0, -1.0, 1.0], e.fmt, e.unit, e.order))
+
+
 def rounded(h: Stream, e: Stream, rng: np.random.Generator) -> Injected:
     """Both files written as some tools do: stamps to the millisecond, positions to the
     millimetre, quaternions to 4 decimals."""
@@ -352,6 +358,7 @@ DEFECTS: dict[str, Inject] = {
     'hand positions mm': millimetres('hand'),
     'eye inverted': inverted_eye,
     'eye left-handed': left_handed_eye,
+    'eye JPL quaternions': jpl_eye,
     'rounded values': rounded,
 }
 #: Motion shapes (simulator only), judged against the simulator's truth.

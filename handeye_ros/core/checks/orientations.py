@@ -22,8 +22,14 @@ both fit, the one whose extrinsic is the shorter lever arm is taken if it is at 
 of the other and at most 1 m; otherwise the data cannot tell, and the mistake is refused with
 both fixes named.
 
-One more reading is tried and never applied: a stream's positions negated, refused when it
-fits best. A stream written in a left-handed frame (as Unity's), or with one axis flipped in
+Two more readings are tried and never applied, each refused, named, when it fits best. A
+stream's quaternions conjugated, its positions kept: JPL's quaternion convention (OpenVINS keeps
+its state in it; Hamilton's conjugate for one rotation) or the world's rotation in the body
+written beside the body's position in the world. Its rotations are inverted and fit AX = XB only
+in the wrong frame, and only the conjugate explains both rotations and translations, so the
+stream is named; its file must be fixed for any other tool too (evo reads Hamilton's).
+
+And a stream's positions negated. A stream written in a left-handed frame (as Unity's), or with one axis flipped in
 its positions and its quaternions converted alike (``p -> S p``, ``R -> S R S``, S a
 reflection), is its true trajectory with the positions negated in frames turned by the
 rotation ``-S``: its rotations fit and its translations do not. Negating either stream's
@@ -70,7 +76,14 @@ READINGS = {
     'xyzw': ('quaternion_order', 'its quaternion numbers were x y z w where w x y z was read'),
     'inverse': ('inverse', 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'),
     'mirrored': ('mirrored', 'its positions are mirrored against its orientations'),
+    'conjugate': (
+        'conjugate',
+        'its quaternions are the conjugates of Hamilton body-in-world ones',
+    ),
 }
+#: Readings that are named and refused when they fit best, never applied (see the module
+#: docstring).
+UNAPPLIED = ('mirrored', 'conjugate')
 #: The permutations that undo each quaternion misreading (rows of the read x y z w).
 PERMUTATIONS = {'wxyz': [1, 2, 3, 0], 'xyzw': [3, 0, 1, 2]}
 
@@ -102,6 +115,8 @@ def _reread_poses(
     R, p = pose
     if reading == 'mirrored':
         return R, -p
+    if reading == 'conjugate':
+        return np.swapaxes(R, -1, -2), p
     if reading == 'inverse':
         Rt = np.swapaxes(R, -1, -2)
         return Rt, -np.einsum('nij,nj->ni', Rt, p)
@@ -222,9 +237,8 @@ def check_orientations(
         return hand, eye, []
     as_given = next(f for f in fits if f.reading == 'as given')
     closest = min(fits, key=lambda f: f.score)
-    if closest.reading == 'mirrored':
-        raise InputError(_mirrored(as_given, closest))
-    fitting = [f for f in fitting if f.reading != 'mirrored']
+    _refuse_unapplied(closest, as_given, hand, eye)
+    fitting = [f for f in fitting if f.reading not in UNAPPLIED]
     if len(fitting) == 2 and {(f.stream, f.reading) for f in fitting} == {
         ('hand', 'inverse'),
         ('eye', 'inverse'),
@@ -262,6 +276,17 @@ def check_orientations(
     return hand, fixed, [correction]
 
 
+def _refuse_unapplied(
+    closest: ReadingFit, as_given: ReadingFit, hand: Trajectory, eye: Trajectory
+) -> None:
+    """Refuse the streams when a reading that is never applied (:data:`UNAPPLIED`) fits best."""
+    if closest.reading == 'mirrored':
+        raise InputError(_mirrored(as_given, closest))
+    if closest.reading == 'conjugate':
+        name = hand.name if closest.stream == 'hand' else eye.name
+        raise InputError(_conjugated(as_given, closest, name))
+
+
 def _mirrored(as_given: ReadingFit, mirrored: ReadingFit) -> str:
     """The refusal of a stream whose positions are mirrored against its orientations."""
     return (
@@ -273,4 +298,18 @@ def _mirrored(as_given: ReadingFit, mirrored: ReadingFit) -> str:
         f'{as_given.translation_m * 1e3:.0f} mm). Write the mirrored stream (usually the '
         "device's own, the eye) in a right-handed frame: convert its positions and quaternions "
         'together, or negate its positions'
+    )
+
+
+def _conjugated(as_given: ReadingFit, conjugate: ReadingFit, name: str) -> str:
+    """The refusal of a stream (file ``name``) whose quaternions are the conjugates of
+    Hamilton's."""
+    return (
+        f"{name}: the {conjugate.stream} stream's quaternions are the conjugates of Hamilton "
+        "body-in-world quaternions (JPL's convention, as OpenVINS keeps its state, or the "
+        "world's rotation in the body beside the body's position in the world): AX = XB holds "
+        f'with them conjugated (median residuals {np.degrees(conjugate.rotation_rad):.2f} deg, '
+        f'{conjugate.translation_m * 1e3:.1f} mm) and not as given '
+        f'({np.degrees(as_given.rotation_rad):.1f} deg, {as_given.translation_m * 1e3:.0f} mm). '
+        f'Write the {conjugate.stream} stream with Hamilton quaternions: negate qx qy qz'
     )

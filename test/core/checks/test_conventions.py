@@ -1,5 +1,5 @@
 """Conventions checked, not assumed: stamp units, quaternion order, inverted poses, mirrored
-positions, epochs.
+positions, JPL quaternions, epochs.
 
 Every mistake is either read the way the data support (with a correction that names it and a
 verdict that is not good, since the files still hold the mistake), or refused naming the
@@ -119,6 +119,20 @@ def test_a_stream_in_a_left_handed_frame_is_refused_named(stream: str, axis: int
     mirrored = Trajectory.from_arrays(traj.t_ns, traj.p_xyz * S, q, traj.name)
     hand, eye = (mirrored, rec.eye) if stream == 'hand' else (rec.hand, mirrored)
     with pytest.raises(InputError, match='mirrored against its orientations.*negate its'):
+        calibrate(hand, eye)
+
+
+@pytest.mark.parametrize(('stream', 'seed'), [('eye', 5), ('hand', 6)])
+def test_jpl_quaternions_are_refused_naming_the_stream(stream: str, seed: int) -> None:
+    """A stream whose quaternions are the conjugates of Hamilton's (JPL's convention), its
+    positions as they are: only the conjugate explains both rotations and translations, so
+    the stream is named with the fix; the other stream's readings do not fit."""
+    rec = recording(seed=seed, level=2.0)
+    traj = rec.hand if stream == 'hand' else rec.eye
+    q = traj.q_xyzw * [-1.0, -1.0, -1.0, 1.0]
+    jpl = Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, 'jpl.txt')
+    hand, eye = (jpl, rec.eye) if stream == 'hand' else (rec.hand, jpl)
+    with pytest.raises(InputError, match=f"^jpl.txt: the {stream} stream's quaternions are the"):
         calibrate(hand, eye)
 
 

@@ -91,9 +91,9 @@ def choose_topics(
             continue
         matches = [t for t in poses if any(w in t.name.lower() for w in words)]
         if len(matches) != 1:
-            why = 'no pose topic' if not matches else f'{len(matches)} pose topics'
+            why = 'no pose topic looks' if not matches else f'{len(matches)} pose topics look'
             raise InputError(
-                f'{bag.path}: {why} looks like the {stream} stream; pass --{stream}-topic{listing}'
+                f'{bag.path}: {why} like the {stream} stream; pass --{stream}-topic{listing}'
             )
         chosen[stream] = matches[0]
     texts = [selector_text(config, s, chosen[s]) for s in STREAMS]

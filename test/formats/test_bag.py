@@ -119,7 +119,11 @@ def test_topics_picked_by_name_or_listed(tmp_path: Path, rec) -> None:
         tmp_path, rec, hand=('/a', 'PoseStamped'), eye=('/b', 'Odometry'), name='unclear'
     )
     _fails(
-        run_main('--bag', unclear), 'looks like the hand stream', '--hand-topic', '/a (', '/b ('
+        run_main('--bag', unclear),
+        'no pose topic looks like the hand stream',
+        '--hand-topic',
+        '/a (',
+        '/b (',
     )
     d = _ok(run_main('--bag', unclear, '--hand-topic', '/a', '--eye-topic', '/b', '--json'))
     assert d['streams']['eye']['topic'] == '/b'

@@ -135,10 +135,11 @@ def consecutive_rotvecs(q_xyzw: Floats) -> Floats:
     quaternions (N, 4), the shorter way, from ``q_k* (x) q_k+1`` with the angle by atan2 (exact
     at small angles; no rotation matrices for a stream of millions of poses)."""
     q = np.asarray(q_xyzw, dtype=float)
-    return chunked(lambda s: _rotvecs_between(q[:-1][s], q[1:][s]), q.shape[0] - 1)
+    return chunked(lambda s: rotvecs_between(q[:-1][s], q[1:][s]), q.shape[0] - 1)
 
 
-def _rotvecs_between(a: Floats, b: Floats) -> Floats:
+def rotvecs_between(a: Floats, b: Floats) -> Floats:
+    """Rotation vectors (N, 3) of ``R_a^T R_b`` for x y z w quaternions (N, 4) each."""
     d = quat_multiply(quat_conjugate(a), b)
     d *= np.where(d[:, 3:] < 0.0, -1.0, 1.0)
     s = row_norms(d[:, :3])

@@ -15,7 +15,7 @@ import numpy as np
 from ..core.arrays import Floats
 from ..core.document import Row
 from ..core.result import CalibrationResult
-from ..core.time.signals import angular_speed
+from ..core.time.signals import angular_speed, spans
 from .aligned import AlignedTrajectories
 from .figures import DPI, canvas, save, say_empty, thinned
 
@@ -27,7 +27,8 @@ HAND, EYE, REF = '#1f77b4', '#d62728', '#2ca02c'
 def time_alignment(result: CalibrationResult, path: Path) -> str:
     """Angular speed of both streams before and after the alignment, and the correlation."""
     used, ta = result.streams(), result.time_alignment
-    w_h, w_e = angular_speed(used.hand), angular_speed(used.eye)
+    n_h, n_e = spans(used.hand, used.eye)
+    w_h, w_e = angular_speed(used.hand, span=n_h), angular_speed(used.eye, span=n_e)
     fig, ax = canvas(3)
     sh, se = thinned(w_h.t_s.size), thinned(w_e.t_s.size)
     ax[0, 0].plot(w_h.t_s[sh], np.degrees(w_h.speed[sh]), color=HAND, lw=0.7, label='hand')

@@ -127,6 +127,16 @@ class BatchSolution:
         return self.uncertainty is not None and self.uncertainty.factors is not None
 
     @property
+    def spline_share(self) -> float:
+        """The hand spline's own error over the eye's noise, the larger of rotation and
+        translation: the hand's noise a pose (``hand_noise``) over the square root of its poses
+        a control pose, against the eye's a relative pose (``eye_noise``). The solve holds the
+        spline as exact, which it is not when this is not small."""
+        per = float(np.sqrt(max(self.n_hand_residuals / max(self.n_control_points, 1), 1.0)))
+        h, e = self.hand_noise, self.eye_noise
+        return max(h.rotation / e.rotation, h.translation / e.translation) / per
+
+    @property
     def inflation(self) -> Floats:
         """(7,) long-run over white standard deviation (1: the residuals look white)."""
         lr = self.covariance if self.uncertainty is None else self.uncertainty.long_run

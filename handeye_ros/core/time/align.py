@@ -52,6 +52,7 @@ from .signals import (
     grid,
     grid_step,
     resample,
+    spans,
     standardise,
 )
 
@@ -259,7 +260,8 @@ def align_time(
         msg = f"peak_fit must be 'quadratic' or 'none', got {peak_fit!r}"
         raise ValueError(msg)
     step = grid_step(hand, eye, resample_rate_hz)
-    signals = signals or (angular_speed(hand), angular_speed(eye))
+    n_h, n_e = spans(hand, eye)
+    signals = signals or (angular_speed(hand, span=n_h), angular_speed(eye, span=n_e))
     return _align(
         hand, eye, signals, _Search(step, max_time_offset, time_offset_guess), peak_fit, peak_fit
     )
@@ -287,8 +289,12 @@ def align_time_vector(
         As :func:`align_time`.
     """
     step = grid_step(hand, eye, resample_rate_hz)
-    w_h, w_e = signals or (angular_speed(hand, vector=True), angular_speed(eye, vector=True))
-    w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid)  # rows: R_HE^T w_H
+    n_h, n_e = spans(hand, eye)
+    w_h, w_e = signals or (
+        angular_speed(hand, vector=True, span=n_h),
+        angular_speed(eye, vector=True, span=n_e),
+    )
+    w_h = AngularSpeed(w_h.t_s, w_h.speed @ R_HE, w_h.valid, w_h.span)  # rows: R_HE^T w_H
     search = _Search(step, half_window_s, around_s)
     return _align(hand, eye, (w_h, w_e), search, 'quadratic', 'vector')
 

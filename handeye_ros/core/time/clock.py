@@ -31,7 +31,7 @@ from ..arrays import Floats, Mask, Stamps
 from ..errors import TimeAlignmentError
 from ..trajectory import Trajectory
 from .align import align_time, align_time_vector
-from .signals import AngularSpeed, angular_speed
+from .signals import AngularSpeed, angular_speed, spans
 
 #: Shortest window (s): stage 1 needs a few seconds of varied angular speed per window.
 MIN_WINDOW_S = 10.0
@@ -193,8 +193,10 @@ def stream_signals(
 ) -> tuple[AngularSpeed, AngularSpeed]:
     """The angular signals of the whole streams that :func:`window_offsets` cuts into windows:
     body angular velocities with ``R_HE``, angular speeds without."""
-    vector = R_HE is not None
-    return angular_speed(hand, vector=vector), angular_speed(eye, vector=vector)
+    vector, (n_h, n_e) = R_HE is not None, spans(hand, eye)
+    return angular_speed(hand, vector=vector, span=n_h), angular_speed(
+        eye, vector=vector, span=n_e
+    )
 
 
 def fit_drift(

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arrays import Floats, Mask
+from ..chunked import chunked
 from ..errors import TimeAlignmentError
-from ..geometry import consecutive_rotvecs, row_norms
+from ..geometry import rotvecs_between, row_norms
 from ..trajectory import Trajectory
 
 #: The resampling rate is the faster stream's rate, capped here: 200 Hz resolves the shape of
@@ -65,39 +66,57 @@ class AngularSpeed:
         the body frame).
     valid : ndarray, shape (M,), bool
         False for intervals that span a gap or a break.
+    span : int
+        How many of the stream's intervals each sample spans (:func:`angular_speed`).
     """
 
     t_s: Floats
     speed: Floats
     valid: Mask
+    span: int = 1
 
     def part(self, traj: Trajectory, first: int, stop: int) -> AngularSpeed:
         """The signal of the poses ``first..stop-1`` of the stream ``traj`` it was computed
         from, with times from the first of them: what :func:`angular_speed` gives for that part
         (a stream measured in windows is differenced once, not once per window)."""
         shift = (int(traj.t_ns[first]) - int(traj.t_ns[0])) * 1e-9
-        k = slice(first, max(stop - 1, first))
-        return AngularSpeed(self.t_s[k] - shift, self.speed[k], self.valid[k])
+        k = slice(first, max(stop - self.span, first))
+        return AngularSpeed(self.t_s[k] - shift, self.speed[k], self.valid[k], self.span)
 
 
-def angular_speed(traj: Trajectory, vector: bool = False) -> AngularSpeed:
-    """Angular speed (or body angular velocity, ``vector``) from consecutive orientations, at
-    interval midpoints in seconds from the stream's first stamp (see :class:`AngularSpeed`)."""
+def angular_speed(traj: Trajectory, vector: bool = False, span: int = 1) -> AngularSpeed:
+    """Angular speed (or body angular velocity, ``vector``) over ``span`` consecutive intervals
+    (poses k and k + span), at their midpoints in seconds from the stream's first stamp (see
+    :class:`AngularSpeed`); valid where none of the intervals is a gap or a break."""
     # kept with the trajectory: stages 1 and 2 and the clock windows ask for the same stream's
     # (an hour of 1 kHz MoCap is a second to difference)
-    cached = traj.__dict__.get('_angular_velocity')
+    key = f'_angular_velocity_{span}'
+    cached = traj.__dict__.get(key)
     if cached is None:
         t = traj.seconds(int(traj.t_ns[0]))
-        dt = np.diff(t)
+        span = min(span, max(len(traj) - 1, 1))
+        bad = np.concatenate(([0], np.cumsum(~traj.interval_ok())))
+        q = traj.q_xyzw
+        rotvecs = chunked(lambda s: rotvecs_between(q[:-span][s], q[span:][s]), len(q) - span)
         cached = AngularSpeed(
-            0.5 * (t[1:] + t[:-1]),
-            consecutive_rotvecs(traj.q_xyzw) / dt[:, None],
-            traj.interval_ok(),
+            0.5 * (t[span:] + t[:-span]),
+            rotvecs / (t[span:] - t[:-span])[:, None],
+            bad[span:] == bad[:-span],
+            span,
         )
-        object.__setattr__(traj, '_angular_velocity', cached)  # frozen: a cache, not state
+        object.__setattr__(traj, key, cached)  # frozen: a cache, not state
     if vector:
         return cached
-    return AngularSpeed(cached.t_s, row_norms(cached.speed), cached.valid)
+    return AngularSpeed(cached.t_s, row_norms(cached.speed), cached.valid, cached.span)
+
+
+def spans(hand: Trajectory, eye: Trajectory) -> tuple[int, int]:
+    """How many of its intervals each stream's angular speed spans (:func:`angular_speed`): the
+    slower stream's period, so that both are averages over one interval. The faster stream's
+    white noise, which differencing over its own short interval amplifies (1 kHz MoCap with
+    0.1 deg of jitter: 140 deg/s), is then averaged down to the slower one's."""
+    period = max(1.0 / hand.rate_hz, 1.0 / eye.rate_hz)
+    return max(1, round(period * hand.rate_hz)), max(1, round(period * eye.rate_hz))
 
 
 def resample(sig: AngularSpeed, grid_s: Floats, shift_s: float = 0.0) -> tuple[Floats, Mask]:

@@ -32,6 +32,7 @@ from handeye_ros.core.checks.verdict import (
     assess_evaluation,
     final,
 )
+from handeye_ros.core.checks.verdict.codes import SPLINE_SHARE_DOUBTFUL
 from handeye_ros.core.checks.verdict.final import NARROWS
 from handeye_ros.core.config import CalibrationConfig
 from handeye_ros.core.geometry import quat_angle
@@ -230,11 +231,11 @@ def test_a_turntables_held_rotation_is_no_seed_dependence() -> None:
     """On a turntable both RANSAC seeds' answers hold the rotation about the axis by rule (the
     smallest one that aligns the axes, brought together by ``held_alike``: test_linear.py):
     the seed check compares the directions the batch stage determines. Of 40 such recordings
-    this one's two answers lie farthest apart, 0.33 deg (0.9 deg on seed 14 while the robust
+    this one's two answers lie farthest apart, 0.36 deg (0.9 deg on seed 14 while the robust
     kernel still compared the screws' translations, which a turntable does not have)."""
     nm, nd = noise_level(5)
     rec = simulate(
-        6, duration_s=120.0, noise_m=nm, noise_deg=nd, hand_noise_m=2e-4,
+        4, duration_s=120.0, noise_m=nm, noise_deg=nd, hand_noise_m=2e-4,
         hand_noise_deg=0.02, motion='one_axis',
     )  # fmt: skip
     res = calibrate(rec.hand, rec.eye)
@@ -359,3 +360,19 @@ def test_a_good_result_near_its_target_says_so() -> None:
     )
     assert inside.quality.verdict == 'good'
     assert not any(n.startswith('near the required') for n in inside.quality.notes)
+
+
+def test_a_mocap_noisy_for_its_eye_is_named_not_good() -> None:
+    """The batch stage holds the spline through the MoCap as exact. A 100 Hz MoCap with 0.5 deg
+    and 2 mm of jitter a pose against a VIO of 0.1 deg and 0.5 mm (noise level 5): over 20 seeds
+    the truth lies inside 3 sigmas for dt and T_HE's translation in 74 % and 68 %, so none may
+    be `good`. A 1 kHz MoCap of 0.1 deg is averaged down by its spline and is `good` (the truth
+    inside 3 sigmas in 95-100 %)."""
+    noisy = recording(seed=0, level=5.0, hand_noise_deg=0.5, hand_noise_m=2e-3)
+    res = calibrate(noisy.hand, noisy.eye)
+    assert res.batch is not None and res.batch.spline_share > SPLINE_SHARE_DOUBTFUL
+    assert 'noisy_mocap' in res.quality.codes and 'noisy_mocap' in res.quality.other.codes
+    fast = recording(seed=0, level=5.0, hand_rate_hz=1000.0, hand_noise_deg=0.1, hand_noise_m=5e-4)
+    res = calibrate(fast.hand, fast.eye)
+    assert res.batch is not None and res.batch.spline_share < 0.25
+    assert res.quality.verdict == 'good'

@@ -60,6 +60,10 @@ scale                       doubtful   without estimate_scale: a scale explains 
 residuals_not_white         doubtful   the long-run covariance is more than
                                        INFLATION_DOUBTFUL times the white one (an
                                        unmodelled effect: clock drift, scale, ...)
+noisy_mocap                 doubtful   the MoCap's spline errs by more than
+                                       SPLINE_SHARE_DOUBTFUL of the eye's noise: the
+                                       batch stage holds it as exact, so its sigmas are
+                                       too small
 inconsistent                failed     AX = XB does not hold: over the keyframe motions
                                        (eq. 6), the median rotation error exceeds
                                        FAILED_MOTION_ROTATION_DEG, or the median translation

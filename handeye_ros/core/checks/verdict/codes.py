@@ -50,6 +50,7 @@ class Code(StrEnum):
     CLOCK_DRIFT = 'clock_drift'
     SCALE = 'scale'
     RESIDUALS_NOT_WHITE = 'residuals_not_white'
+    NOISY_MOCAP = 'noisy_mocap'
     INCONSISTENT = 'inconsistent'
     RECORDING_LEFT_OUT = 'recording_left_out'
     GROUPS = 'groups'
@@ -77,6 +78,11 @@ LOW_INLIER_FRACTION = 0.2
 WEAK_EXCITATION_DEG = 10.0
 #: Long-run over white sigma of any parameter above this.
 INFLATION_DOUBTFUL = 5.0
+#: The batch stage holds the spline fitted to the MoCap as exact (docs/method.md), which holds
+#: while the MoCap is much less noisy than the VIO: its spline's error (the MoCap's noise a pose
+#: over the square root of its poses a control pose) above this share of the eye's noise (a
+#: relative pose, rotation or translation) makes the sigmas too small.
+SPLINE_SHARE_DOUBTFUL = 0.5
 #: AX = XB fails over the keyframe motions beyond these (median errors): on the real flights
 #: of ../shared/data/real they are 0.05-0.14 deg and 3-26 mm (4-9 % of the motion).
 FAILED_MOTION_ROTATION_DEG = 2.0

@@ -24,6 +24,7 @@ from .codes import (
     INFLATION_DOUBTFUL,
     LOW_INLIER_FRACTION,
     OUTLIER_FRACTION_DOUBTFUL,
+    SPLINE_SHARE_DOUBTFUL,
     WEAK_CORRELATION,
     WEAK_EXCITATION_DEG,
     Code,
@@ -221,7 +222,7 @@ def _assess_uncertainty(
 ) -> list[Reason | str]:
     """Stage 3's uncertainty: none (said unless a part of the answer is ``unobservable``, which
     says why; switched off too: no precision is judged without sigmas), larger than required or
-    near it, or shaped by something unmodelled."""
+    near it, or shaped by something unmodelled (:func:`_unmodelled`)."""
     said: list[Reason | str] = []
     if batch is None and not unobservable:
         why = 'did not run (see the warnings)' if cfg.batch else 'was switched off (batch: false)'
@@ -255,13 +256,34 @@ def _assess_uncertainty(
         near = _near(sd, need)
         if near and not over and batch.blocks_measured:
             said.append(near)
-    if batch is not None and float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
+    if batch is not None:
+        said += _unmodelled(batch)
+    return said
+
+
+def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
+    """Stage 3's sigmas shaped by what its model lacks: residuals correlated far beyond white
+    ones, or a MoCap whose spline is not exact against the eye (see the codes)."""
+    said: list[Reason | str] = []
+    if float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         said.append(
             Reason(
                 Code.RESIDUALS_NOT_WHITE,
                 f'the residuals are strongly correlated in time (the '
                 f'long-run sigmas are up to {np.max(batch.inflation):.1f}x the white ones): '
                 'something the model lacks (clock drift, a scale error) shapes them',
+            )
+        )
+    if batch.spline_share > SPLINE_SHARE_DOUBTFUL:
+        h = batch.hand_noise
+        said.append(
+            Reason(
+                Code.NOISY_MOCAP,
+                f'the MoCap is noisy for the eye it calibrates ({np.degrees(h.rotation):.2g} deg '
+                f'and {h.translation * 1e3:.2g} mm a pose): the spline through it errs by '
+                f"{batch.spline_share:.0%} of the eye's own noise, and the sigmas count it as "
+                'exact, so they are too small. A MoCap body with more markers spread wider, or a '
+                'faster MoCap, narrows it',
             )
         )
     return said

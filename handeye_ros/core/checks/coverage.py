@@ -103,7 +103,14 @@ def _inside(parts: Floats) -> Callable[[Floats], Floats]:
     def below(x: Floats) -> Floats:
         k = np.searchsorted(parts[:, 0], x, side='right')
         last = np.maximum(k - 1, 0)
-        part: Floats = np.clip(x - parts[last, 0], 0.0, length[last]) * (k > 0)
-        return before[last] + part
+        part = np.clip(x - parts[last, 0], 0.0, length[last]) * (k > 0)
+        out: Floats = before[last] + part
+        return out
 
-    return lambda iv: below(iv[:, 1]) - below(iv[:, 0]) if len(parts) else np.zeros(len(iv))
+    def inside(iv: Floats) -> Floats:
+        if not len(parts):
+            return np.zeros(len(iv))
+        out: Floats = below(iv[:, 1]) - below(iv[:, 0])
+        return out
+
+    return inside

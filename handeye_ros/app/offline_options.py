@@ -11,6 +11,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, Literal, Protocol
 
 from ..core.options import Options
+from ..formats.text import QUATERNION_ORDERS
 from .commands import prog
 from .request import PROGRESS_DELAY_S
 
@@ -140,11 +141,12 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
         )
         io.add_argument(
             f'--{stream}-quaternion-order',
-            choices=('auto', 'xyzw', 'wxyz'),
+            choices=QUATERNION_ORDERS,
             default='auto',
             help=expert(
                 f"order of the {stream} file's quaternion "
-                "columns (default: the format's, x y z w for TUM, w x y z for EuRoC)"
+                "columns (default: the format's, x y z w for TUM, w x y z for EuRoC; yzwx: "
+                "Eigen's Quaterniond(x, y, z, w) written through coeffs())"
             ),
         )
     io.add_argument('--bag', metavar='PATH', help='a ROS 2 (sqlite3, mcap) or ROS 1 bag')

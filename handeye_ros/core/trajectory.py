@@ -80,6 +80,10 @@ class Trajectory:
         assumed, ...), for the result's warnings.
     keyframes : bool
         The stream holds keyframes only: no interval is a gap (see the module docstring).
+    quaternion_order : str
+        The order of the four quaternion numbers in its source, as they were read into
+        ``q_xyzw`` ('wxyz' for a EuRoC file; 'xyzw' for TUM files and messages), for messages
+        that name the source's order.
     """
 
     t_ns: Stamps
@@ -89,6 +93,7 @@ class Trajectory:
     breaks: Indices = field(default_factory=lambda: np.zeros(0, dtype=int))
     notes: tuple[str, ...] = ()
     keyframes: bool = False
+    quaternion_order: str = 'xyzw'
 
     @classmethod
     def from_arrays(
@@ -189,14 +194,12 @@ class Trajectory:
         if self.breaks.size and idx.size:
             # kept pose m closes a break if some break lies between the previous kept pose and it
             breaks = np.flatnonzero(np.diff(self.segment_ids()[idx]) > 0)
-        return Trajectory(
-            self.t_ns[idx],
-            self.p_xyz[idx],
-            self.q_xyzw[idx],
-            self.name,
-            breaks,
-            self.notes,
-            self.keyframes,
+        return replace(
+            self,
+            t_ns=self.t_ns[idx],
+            p_xyz=self.p_xyz[idx],
+            q_xyzw=self.q_xyzw[idx],
+            breaks=breaks,
         )
 
     def with_breaks(self, breaks: Indices) -> Trajectory:
@@ -251,6 +254,11 @@ def is_keyframe_only(traj: Trajectory) -> bool:
     span = np.bincount(part, weights=step[dense])
     poses = np.bincount(part)
     return median > KEYFRAME_PERIOD_S or poses[span >= KEYFRAME_PART_S].sum() < 0.5 * poses.sum()
+
+
+def quaternion_columns(order: str) -> list[int]:
+    """Where, in a source's quaternion ``order`` (such as 'wxyz'), x, y, z and w stand."""
+    return [order.index(c) for c in 'xyzw']
 
 
 def gap_free_parts(traj: Trajectory) -> list[tuple[int, int]]:

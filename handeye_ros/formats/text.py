@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import codecs
 import io
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,12 +36,15 @@ import numpy as np
 from ..core.arrays import Floats, Indices, Mask, Stamps
 from ..core.errors import InputError
 from ..core.geometry import row_norms
-from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory
+from ..core.trajectory import QUATERNION_NORM_TOLERANCE, Trajectory, quaternion_columns
 from .bulk import SplitStamps, read_bulk
 from .stamps import STAMP_UNITS, parse_stamps, split_decimal, too_large
 
 FORMATS = ('auto', 'tum', 'euroc')
-QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz')
+#: The orders of a file's four quaternion numbers read: TUM's, EuRoC's, and the two others of
+#: the same cycle (``yzwx``: what Eigen's ``Quaterniond(x, y, z, w)``, whose constructor takes w
+#: first, writes through ``coeffs()``).
+QUATERNION_ORDERS = ('auto', 'xyzw', 'wxyz', 'yzwx', 'zwxy')
 #: A file may hold up to this fraction of rows no pose stream can hold (a corrupt row, one
 #: written with every value scaled): they are dropped, and the notes name them; more, and the
 #: file is refused, naming the first.
@@ -96,7 +100,7 @@ def read_trajectory(
     order = _quaternion_order(path, fmt, stamp_unit, quaternion_order, split, notes)
     # the file's four quaternion columns, in file order, to x y z w (a view when they are;
     # from_arrays makes the normalised copy)
-    q_xyzw = values[:, 3:7][:, [1, 2, 3, 0]] if order == 'wxyz' else values[:, 3:7]
+    q_xyzw = values[:, 3:7] if order == 'xyzw' else values[:, 3:7][:, quaternion_columns(order)]
     (t_ns, values, q_xyzw), dropped = _drop_bad_rows(path, numbers, (t_ns, values, q_xyzw), fits)
     notes += [dropped] if dropped else []
     keep = _last_of_repeated(t_ns)
@@ -106,9 +110,10 @@ def read_trajectory(
             f'{path}: {int((~keep).sum())} stamp(s) written twice; the last row of each was kept'
         )
         t_ns, values, q_xyzw = t_ns[keep], values[keep], q_xyzw[keep]
-    return Trajectory.from_arrays(
+    traj = Trajectory.from_arrays(
         t_ns, np.ascontiguousarray(values[:, :3]), q_xyzw, name=str(path), notes=tuple(notes)
     )
+    return replace(traj, quaternion_order=order)
 
 
 def _drop_bad_rows(

@@ -23,7 +23,7 @@ How orientations were read is checked after stage 1 (:mod:`.orientations`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
 import numpy as np
@@ -87,7 +87,7 @@ def _scaled(traj: Trajectory, factor: float) -> Trajectory:
         t_ns = traj.t_ns // np.int64(k)
     if np.any(np.diff(t_ns) <= 0):  # a scale that merges stamps is no reading
         raise OverflowError
-    return Trajectory(t_ns, traj.p_xyz, traj.q_xyzw, traj.name, traj.breaks, traj.notes)
+    return replace(traj, t_ns=t_ns)
 
 
 def _plausible_rate(traj: Trajectory, factor: float) -> bool:

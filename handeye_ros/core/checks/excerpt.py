@@ -14,6 +14,8 @@ are a sample of at most :data:`SAMPLE_MOTIONS` of the eye's keyframe motions, ev
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..arrays import Indices, Mask, Stamps
@@ -97,10 +99,7 @@ def _covers(hand: Trajectory, t_ns: Stamps) -> Mask:
 
 def _rows(traj: Trajectory, rows: Mask | Indices, t_ns: Stamps) -> Trajectory:
     """The poses ``rows`` of a stream (its breaks among them kept) at new stamps."""
-    part = traj.select(rows)
-    return Trajectory(
-        t_ns, part.p_xyz, part.q_xyzw, part.name, part.breaks, part.notes, part.keyframes
-    )
+    return replace(traj.select(rows), t_ns=t_ns)
 
 
 def spread_sample(i: Indices, j: Indices) -> tuple[Indices, Indices]:

@@ -5,17 +5,21 @@ for the other conventions, :mod:`.conventions`).
 
 The angular-speed magnitude that stage 1 correlates is blind to the usual mistakes: for a unit
 quaternion ``|w| = 2 |dq/dt|``, which any fixed permutation of the quaternion's four numbers
-preserves, as does inverting the pose. A permutation such as reading ``w x y z`` as ``x y z w`` is an improper orthogonal map of R^4,
-``q -> a q* b`` for fixed unit quaternions a, b: the stream's rotations become *inverted* up to
-fixed frames, so its relative rotations live in the wrong frame and AX = XB (eq. 2) has no
-solution. So each reading is scored by how well AX = XB holds on the keyframe motions (eq. 6):
-the rotation by aligning the motions' rotation vectors (``log R_A = R_X log R_B``), the
-translation by least squares on ``(R_A - I) t_X = R_X t_B - t_A``; the score adds the median
-residual of each, divided by the best reading's median. Readings tried: each stream as given,
-with its quaternion's numbers rotated either way (``w x y z`` read as ``x y z w``, or the
-reverse), and inverted (T_EW given for T_WE). A reading fits when its score is within a factor
-3 of the best; wrong readings miss by a factor 10 to 1000 (their translations are rotated by the
-wrong, time-varying rotation).
+preserves, as does inverting the pose. A permutation such as reading ``w x y z`` as ``x y z w``
+is an improper orthogonal map of R^4, ``q -> a q* b`` for fixed unit quaternions a, b: the
+stream's rotations become *inverted* up to fixed frames, so its relative rotations live in the
+wrong frame and AX = XB (eq. 2) has no solution. So each reading is scored by how well AX = XB
+holds on the keyframe motions (eq. 6): the rotation by aligning the motions' rotation vectors
+(``log R_A = R_X log R_B``), the translation by least squares on
+``(R_A - I) t_X = s R_X t_B - t_A`` with the eye's scale s free (a monocular VO's is unknown
+here; a wrong reading is not rescued by it, since its translations are turned by a wrong
+rotation); the score adds the median residual of each, divided by the best reading's median.
+Readings tried: each stream as given, with its quaternion's numbers rotated by one place either
+way (a TUM file written ``w x y z``, a EuRoC one ``x y z w``, or one written ``y z w x`` through
+Eigen's ``Quaterniond(x, y, z, w)``, which takes w first: each named in the order the stream was
+read, :attr:`Trajectory.quaternion_order`), and inverted (T_EW given for T_WE). A reading fits when
+its score is within a factor 3 of the best; wrong readings miss by a factor 10 to 1000 (their
+translations are rotated by the wrong, time-varying rotation).
 
 Inverting the hand explains an inverted eye exactly (the roles of T_HE and T_WG swap), so when
 both fit, the one whose extrinsic is the shorter lever arm is taken if it is at most a third
@@ -29,18 +33,18 @@ written beside the body's position in the world. Its rotations are inverted and 
 in the wrong frame, and only the conjugate explains both rotations and translations, so the
 stream is named; its file must be fixed for any other tool too (evo reads Hamilton's).
 
-And a stream's positions negated. A stream written in a left-handed frame (as Unity's), or with one axis flipped in
-its positions and its quaternions converted alike (``p -> S p``, ``R -> S R S``, S a
-reflection), is its true trajectory with the positions negated in frames turned by the
-rotation ``-S``: its rotations fit and its translations do not. Negating either stream's
-positions then explains the data exactly (t_X changes sign), so which stream is mirrored the
-data cannot tell, and it is refused, named.
+And a stream's positions negated. A stream written in a left-handed frame (as Unity's), or with
+one axis flipped in its positions and its quaternions converted alike (``p -> S p``,
+``R -> S R S``, S a reflection), is its true trajectory with the positions negated in frames
+turned by the rotation ``-S``: its rotations fit and its translations do not. Negating either
+stream's positions then explains the data exactly (t_X changes sign), so which stream is
+mirrored the data cannot tell, and it is refused, named.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -54,10 +58,10 @@ from ..linear.refits import (
     WARN_AXIS_SPREAD_DEG,
     axis_spreads_deg,
     rotation_from_motions,
-    translation_from_motions,
     unit_axes,
 )
-from ..trajectory import Trajectory
+from ..linear.scale import translation_and_scale
+from ..trajectory import Trajectory, quaternion_columns
 from .conventions import Correction
 
 #: A reading fits when its score is within this factor of the best one's.
@@ -72,8 +76,8 @@ LEVER_ARM_RATIO = 3.0
 #: Readings of one stream's orientations: name -> (what, how the user would say it).
 READINGS = {
     'as given': ('as given', 'its orientations were read as given'),
-    'wxyz': ('quaternion_order', 'its quaternion numbers were w x y z where x y z w was read'),
-    'xyzw': ('quaternion_order', 'its quaternion numbers were x y z w where w x y z was read'),
+    'wxyz': ('quaternion_order', 'its quaternion numbers were one place later than read'),
+    'xyzw': ('quaternion_order', 'its quaternion numbers were one place earlier than read'),
     'inverse': ('inverse', 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'),
     'mirrored': ('mirrored', 'its positions are mirrored against its orientations'),
     'conjugate': (
@@ -100,11 +104,33 @@ def reread(traj: Trajectory, reading: str) -> Trajectory:
             .with_notes(*traj.notes)
         )
     q = traj.q_xyzw[:, PERMUTATIONS[reading]]
-    return (
-        Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, traj.name)
-        .with_breaks(traj.breaks)
-        .with_notes(*traj.notes)
+    fixed = Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, traj.name)
+    order = source_order(traj.quaternion_order, reading)
+    return replace(fixed.with_breaks(traj.breaks).with_notes(*traj.notes), quaternion_order=order)
+
+
+def source_order(read: str, reading: str) -> str:
+    """The order of a source's quaternion numbers (such as 'wxyz') that a permutation
+    ``reading`` says, for a source read in the order ``read``."""
+    where = quaternion_columns(read)  # the source's column of the x, y, z, w read
+    order = [''] * 4
+    for k, c in enumerate('xyzw'):
+        order[where[PERMUTATIONS[reading][k]]] = c
+    return ''.join(order)
+
+
+def said(reading: str, traj: Trajectory) -> str:
+    """A reading in the user's words: for a permutation, the source's order it says and the
+    order it was read in (the option's values)."""
+    if reading not in PERMUTATIONS:
+        return READINGS[reading][1]
+    was, read = source_order(traj.quaternion_order, reading), traj.quaternion_order
+    eigen = (
+        " (as Eigen's Quaterniond(x, y, z, w), whose constructor takes w first, writes them)"
+        if was == 'yzwx'
+        else ''
     )
+    return f'its quaternion numbers were {" ".join(was)} where {" ".join(read)} was read{eigen}'
 
 
 def _reread_poses(
@@ -145,17 +171,22 @@ class ReadingFit:
 
 
 def _fit(R_A: Floats, t_A: Floats, R_B: Floats, t_B: Floats) -> tuple[float, float, float]:
-    """Median rotation (rad) and translation (m) residuals of AX = XB, solved apart as the
-    linear stage's refit does (unweighted here), and |t_X|."""
+    """Median rotation (rad) and translation residuals of AX = XB, solved apart as the linear
+    stage's refit does (unweighted here), and |t_X| (m). The translations are fitted with the
+    eye's scale free where it comes out positive (a monocular VO's is unknown until stage 2),
+    else at 1: the residuals are in the eye's units either way, alike for every reading, which
+    keeps the eye's positions or negates them."""
     with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should
         warnings.simplefilter('ignore', UserWarning)
         rot, a, b = rotation_from_motions(R_A, R_B)
     res_r = np.linalg.norm(a - rot.apply(b), axis=1)
-    t_X, res_t = translation_from_motions(R_A, t_A, t_B, rot.as_matrix())
+    fit = translation_and_scale(R_A, t_A, t_B, rot.as_matrix())
+    scaled = bool(np.isfinite(fit.scale) and fit.scale > 0.0)
+    lever = fit.p_HE if scaled else fit.p_HE_unscaled
     return (
         float(np.median(res_r)),
-        float(np.median(np.linalg.norm(res_t, axis=1))),
-        float(np.linalg.norm(t_X)),
+        fit.rms_with if scaled else fit.rms_without,
+        float(np.linalg.norm(lever)) if lever is not None else float('nan'),
     )
 
 
@@ -250,7 +281,10 @@ def check_orientations(
         ):
             fitting = [short]
     if len(fitting) > 1:
-        named = '; or '.join(f'the {f.stream} stream: {READINGS[f.reading][1]}' for f in fitting)
+        named = '; or '.join(
+            f'the {f.stream} stream: {said(f.reading, hand if f.stream == "hand" else eye)}'
+            for f in fitting
+        )
         msg = (
             f'the orientations do not fit AX = XB as given (median residuals '
             f'{np.degrees(as_given.rotation_rad):.1f} deg, {as_given.translation_m * 1e3:.0f} '
@@ -259,21 +293,30 @@ def check_orientations(
         )
         raise InputError(msg)
     f = fitting[0]
-    what, words = READINGS[f.reading]
-    option = ('invert_' + f.stream) if what == 'inverse' else f'{f.stream}_quaternion_order'
     traj = hand if f.stream == 'hand' else eye
-    fixed = reread(traj, f.reading)
-    message = (
-        f'{traj.name}: {words}: AX = XB holds with that reading (median residuals '
-        f'{np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and not '
-        f'as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
-        f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '
-        f'say so with {option} (the file still holds the mistake for other tools)'
-    )
-    correction = Correction(f.stream, what, f.reading, option, message)
+    fixed, correction = _applied(f, as_given, traj)
     if f.stream == 'hand':
         return fixed, eye, [correction]
     return hand, fixed, [correction]
+
+
+def _applied(
+    f: ReadingFit, as_given: ReadingFit, traj: Trajectory
+) -> tuple[Trajectory, Correction]:
+    """The stream ``traj`` under the reading ``f`` that alone fits, and the correction that
+    names it with the option's setting that states it."""
+    what = READINGS[f.reading][0]
+    fixed = reread(traj, f.reading)
+    option = f'invert_{f.stream}' if what == 'inverse' else f'{f.stream}_quaternion_order'
+    setting = option if what == 'inverse' else f'{option} {fixed.quaternion_order}'
+    message = (
+        f'{traj.name}: {said(f.reading, traj)}: AX = XB holds with that reading (median '
+        f'residuals {np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and '
+        f'not as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
+        f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '
+        f'say so with {setting} (the file still holds the mistake for other tools)'
+    )
+    return fixed, Correction(f.stream, what, f.reading, option, message)
 
 
 def _refuse_unapplied(

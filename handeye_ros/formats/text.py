@@ -211,13 +211,13 @@ def _check_repeated(path: Path, keep: Mask, t_ns: Stamps) -> None:
     """Refuse a file whose rows repeat their stamps beyond MAX_REPEATED_FRACTION."""
     repeated = int(keep.size - keep.sum())
     if repeated > MAX_REPEATED_FRACTION * keep.size:
-        first = int(t_ns[0])
+        sec, ns = divmod(int(t_ns[0]), 10**9)
         msg = (
             f'{path}: {repeated} of {keep.size} rows repeat the stamp of the row before '
-            f'({keep.sum()} distinct, the first {first // 10**9}.{first % 10**9:09d} s): the stamps '
-            'were written with too few digits (a default 6-digit format prints 1.7e+09; float32 '
-            'seconds keep 128 s at 1.7e9), or the file holds more than one pose an instant. '
-            'Write them to the microsecond or finer'
+            f'({keep.sum()} distinct, the first {sec}.{ns:09d} s): the stamps were written '
+            'with too few digits (a default 6-digit format prints 1.7e+09; float32 seconds keep '
+            '128 s at 1.7e9), or the file holds more than one pose an instant. Write them to '
+            'the microsecond or finer'
         )
         raise InputError(msg)
 

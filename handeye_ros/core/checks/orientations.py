@@ -17,9 +17,9 @@ rotation); the score adds the median residual of each, divided by the best readi
 Readings tried: each stream as given, with its quaternion's numbers rotated by one place either
 way (a TUM file written ``w x y z``, a EuRoC one ``x y z w``, or one written ``y z w x`` through
 Eigen's ``Quaterniond(x, y, z, w)``, which takes w first: each named in the order the stream was
-read, :attr:`Trajectory.quaternion_order`), and inverted (T_EW given for T_WE). A reading fits when
-its score is within a factor 3 of the best; wrong readings miss by a factor 10 to 1000 (their
-translations are rotated by the wrong, time-varying rotation).
+read, :attr:`Trajectory.quaternion_order`), and inverted (T_EW given for T_WE). A reading fits
+when its score is within a factor 3 of the best; wrong readings miss by a factor 10 to 1000
+(their translations are rotated by the wrong, time-varying rotation).
 
 Inverting the hand explains an inverted eye exactly (the roles of T_HE and T_WG swap), so when
 both fit, the one whose extrinsic is the shorter lever arm is taken if it is at most a third
@@ -119,7 +119,7 @@ def source_order(read: str, reading: str) -> str:
     return ''.join(order)
 
 
-def said(reading: str, traj: Trajectory) -> str:
+def in_words(reading: str, traj: Trajectory) -> str:
     """A reading in the user's words: for a permutation, the source's order it says and the
     order it was read in (the option's values)."""
     if reading not in PERMUTATIONS:
@@ -160,22 +160,30 @@ def _axis_spread_deg(R: Floats, i: Indices, j: Indices) -> float:
 
 @dataclass(frozen=True)
 class ReadingFit:
-    """How well AX = XB holds under one reading: median residuals and the lever arm found."""
+    """How well AX = XB holds under one reading: median residuals (the translation's in the
+    eye's units), the eye's scale they were fitted with (1 when none came out positive) and the
+    lever arm found (m)."""
 
     stream: str
     reading: str
     rotation_rad: float
-    translation_m: float
+    translation: float
+    scale: float
     lever_arm_m: float
     score: float = float('nan')
 
+    @property
+    def translation_m(self) -> float:
+        """The median translation residual in metres."""
+        return self.translation * self.scale
 
-def _fit(R_A: Floats, t_A: Floats, R_B: Floats, t_B: Floats) -> tuple[float, float, float]:
+
+def _fit(R_A: Floats, t_A: Floats, R_B: Floats, t_B: Floats) -> tuple[float, float, float, float]:
     """Median rotation (rad) and translation residuals of AX = XB, solved apart as the linear
-    stage's refit does (unweighted here), and |t_X| (m). The translations are fitted with the
-    eye's scale free where it comes out positive (a monocular VO's is unknown until stage 2),
-    else at 1: the residuals are in the eye's units either way, alike for every reading, which
-    keeps the eye's positions or negates them."""
+    stage's refit does (unweighted here), the eye's scale and |t_X| (m). The translations are
+    fitted with the eye's scale free where it comes out positive (a monocular VO's is unknown
+    until stage 2), else at 1: the residuals are in the eye's units either way, alike for every
+    reading, which keeps the eye's positions or negates them."""
     with warnings.catch_warnings():  # one rotation axis: any fit scores alike, as it should
         warnings.simplefilter('ignore', UserWarning)
         rot, a, b = rotation_from_motions(R_A, R_B)
@@ -186,6 +194,7 @@ def _fit(R_A: Floats, t_A: Floats, R_B: Floats, t_B: Floats) -> tuple[float, flo
     return (
         float(np.median(res_r)),
         fit.rms_with if scaled else fit.rms_without,
+        fit.scale if scaled else 1.0,
         float(np.linalg.norm(lever)) if lever is not None else float('nan'),
     )
 
@@ -234,18 +243,8 @@ def reading_fits(
                 )
             )
     best_r = max(min(f.rotation_rad for f in fits), 1e-12)
-    best_t = max(min(f.translation_m for f in fits), 1e-12)
-    return [
-        ReadingFit(
-            f.stream,
-            f.reading,
-            f.rotation_rad,
-            f.translation_m,
-            f.lever_arm_m,
-            f.rotation_rad / best_r + f.translation_m / best_t,
-        )
-        for f in fits
-    ]
+    best_t = max(min(f.translation for f in fits), 1e-12)
+    return [replace(f, score=f.rotation_rad / best_r + f.translation / best_t) for f in fits]
 
 
 def check_orientations(
@@ -282,7 +281,7 @@ def check_orientations(
             fitting = [short]
     if len(fitting) > 1:
         named = '; or '.join(
-            f'the {f.stream} stream: {said(f.reading, hand if f.stream == "hand" else eye)}'
+            f'the {f.stream} stream: {in_words(f.reading, hand if f.stream == "hand" else eye)}'
             for f in fitting
         )
         msg = (
@@ -310,7 +309,7 @@ def _applied(
     option = f'invert_{f.stream}' if what == 'inverse' else f'{f.stream}_quaternion_order'
     setting = option if what == 'inverse' else f'{option} {fixed.quaternion_order}'
     message = (
-        f'{traj.name}: {said(f.reading, traj)}: AX = XB holds with that reading (median '
+        f'{traj.name}: {in_words(f.reading, traj)}: AX = XB holds with that reading (median '
         f'residuals {np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and '
         f'not as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
         f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '

@@ -78,6 +78,13 @@ def run(req: Request) -> tuple[ResultDoc, CalibrationResult]:
     sources = sum((bool(req.bag), bool(files), req.snapshot is not None))
     if sources != 1 or (files and not (req.hand and req.eye)):
         raise ConfigError('give either --hand FILE and --eye FILE, or --bag PATH')
+    readings = _file_readings(req)
+    if req.bag and readings:
+        raise ConfigError(
+            f'{", ".join(readings)}: these read trajectory files, not a bag, whose messages '
+            "hold their stamps in nanoseconds and their quaternions x y z w by ROS's "
+            'definition (a publisher that writes another order is to be fixed): remove them'
+        )
     _check_outputs(req)
     calib, streams = split_options(req.options, (CalibrationConfig, StreamConfig), req.source)
     frames = streams.frames()  # files name no frames: the options or the fallbacks
@@ -106,6 +113,18 @@ def run(req: Request) -> tuple[ResultDoc, CalibrationResult]:
             out['inputs']['bag'] = str(req.bag)
     result = write_outputs(req, result, out, frames)
     return out, result
+
+
+def _file_readings(req: Request) -> list[str]:
+    """The options of how the files are read that the request sets (not 'auto')."""
+    given = {
+        '--format': req.file_format,
+        '--hand-stamp-unit': req.hand_stamp_unit,
+        '--eye-stamp-unit': req.eye_stamp_unit,
+        '--hand-quaternion-order': req.hand_quaternion_order,
+        '--eye-quaternion-order': req.eye_quaternion_order,
+    }
+    return [f'{flag} {value}' for flag, value in given.items() if value != 'auto']
 
 
 def _calibrate_files(req: Request, calib: CalibrationConfig) -> CalibrationResult:

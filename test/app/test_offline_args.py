@@ -157,6 +157,15 @@ def test_bad_file(sim_files, tmp_path: Path, case: str, which: str) -> None:
     cli_fails(run_main('--hand', args['hand'], '--eye', args['eye']), str(bad), message)
 
 
+def test_how_files_are_read_is_refused_with_a_bag(tmp_path: Path) -> None:
+    """Options that say how trajectory files are read do nothing to a bag's messages (stamps in
+    ns, quaternions x y z w by ROS's definition): refused, not silently dropped, before the bag
+    is opened."""
+    bag = tmp_path / 'any.mcap'
+    res = run_main('--bag', bag, '--eye-quaternion-order', 'wxyz', '--hand-stamp-unit', 'us')
+    cli_fails(res, '--hand-stamp-unit us, --eye-quaternion-order wxyz', 'not a bag')
+
+
 def test_missing_file_and_bad_config(sim_files, tmp_path: Path) -> None:
     hand, eye, _ = sim_files
     cli_fails(run_main('--hand', tmp_path / 'nope.txt', '--eye', eye), 'nope.txt', 'no such file')

@@ -130,16 +130,15 @@ def quat_multiply(a: Floats, b: Floats) -> Floats:
     return out
 
 
-def consecutive_rotvecs(q_xyzw: Floats) -> Floats:
-    """Rotation vectors (N-1, 3) of ``R_k^T R_k+1`` (body frame) for consecutive x y z w
-    quaternions (N, 4), the shorter way, from ``q_k* (x) q_k+1`` with the angle by atan2 (exact
-    at small angles; no rotation matrices for a stream of millions of poses)."""
+def consecutive_rotvecs(q_xyzw: Floats, span: int = 1) -> Floats:
+    """Rotation vectors (N-span, 3) of ``R_k^T R_k+span`` (body frame) for x y z w quaternions
+    (N, 4), the shorter way, from ``q_k* (x) q_k+span`` with the angle by atan2 (exact at small
+    angles; no rotation matrices for a stream of millions of poses)."""
     q = np.asarray(q_xyzw, dtype=float)
-    return chunked(lambda s: rotvecs_between(q[:-1][s], q[1:][s]), q.shape[0] - 1)
+    return chunked(lambda s: _rotvecs_between(q[:-span][s], q[span:][s]), q.shape[0] - span)
 
 
-def rotvecs_between(a: Floats, b: Floats) -> Floats:
-    """Rotation vectors (N, 3) of ``R_a^T R_b`` for x y z w quaternions (N, 4) each."""
+def _rotvecs_between(a: Floats, b: Floats) -> Floats:
     d = quat_multiply(quat_conjugate(a), b)
     d *= np.where(d[:, 3:] < 0.0, -1.0, 1.0)
     s = row_norms(d[:, :3])

@@ -76,9 +76,10 @@ def mocap_coverage(hand: Trajectory, eye: Trajectory, time_offset_s: float) -> C
     te = eye.seconds(origin) - time_offset_s
     eye_parts = _spans(te, gap_free_parts(eye))
     inside = _inside(eye_parts)
-    covered = inside(_spans(th, gap_free_parts(hand)))
-    gap = np.flatnonzero(~hand.interval_ok())
-    lengths = inside(np.column_stack((th[gap], th[gap + 1])))
+    hand_parts = _spans(th, gap_free_parts(hand))
+    covered = inside(hand_parts)
+    # between two consecutive gap-free parts lies one gap (or break) of the hand
+    lengths = inside(np.column_stack((hand_parts[:-1, 1], hand_parts[1:, 0])))
     lengths = lengths[lengths > 0]
     return Coverage(
         int(lengths.size),

@@ -73,17 +73,16 @@ LEVER_ARM_MAX_M = 1.0
 LEVER_ARM_RATIO = 3.0
 
 
-#: Readings of one stream's orientations: name -> (what, how the user would say it).
+#: Readings of one stream's orientations: name -> what a correction by it is (the permutations
+#: and the inverse are applied and said by :func:`in_words`; the others are refused, each by
+#: its own message).
 READINGS = {
-    'as given': ('as given', 'its orientations were read as given'),
-    'wxyz': ('quaternion_order', 'its quaternion numbers were one place later than read'),
-    'xyzw': ('quaternion_order', 'its quaternion numbers were one place earlier than read'),
-    'inverse': ('inverse', 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'),
-    'mirrored': ('mirrored', 'its positions are mirrored against its orientations'),
-    'conjugate': (
-        'conjugate',
-        'its quaternions are the conjugates of Hamilton body-in-world ones',
-    ),
+    'as given': 'as given',
+    'wxyz': 'quaternion_order',
+    'xyzw': 'quaternion_order',
+    'inverse': 'inverse',
+    'mirrored': 'mirrored',
+    'conjugate': 'conjugate',
 }
 #: Readings that are named and refused when they fit best, never applied (see the module
 #: docstring).
@@ -120,10 +119,11 @@ def source_order(read: str, reading: str) -> str:
 
 
 def in_words(reading: str, traj: Trajectory) -> str:
-    """A reading in the user's words: for a permutation, the source's order it says and the
-    order it was read in (the option's values)."""
+    """A reading that may be applied (a permutation, the inverse) in the user's words: for a
+    permutation, the source's order it says and the order it was read in (the option's
+    values)."""
     if reading not in PERMUTATIONS:
-        return READINGS[reading][1]
+        return 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'
     was, read = source_order(traj.quaternion_order, reading), traj.quaternion_order
     eigen = (
         " (as Eigen's Quaterniond(x, y, z, w), whose constructor takes w first, writes them)"
@@ -304,7 +304,7 @@ def _applied(
 ) -> tuple[Trajectory, Correction]:
     """The stream ``traj`` under the reading ``f`` that alone fits, and the correction that
     names it with the option's setting that states it."""
-    what = READINGS[f.reading][0]
+    what = READINGS[f.reading]
     fixed = reread(traj, f.reading)
     option = f'invert_{f.stream}' if what == 'inverse' else f'{f.stream}_quaternion_order'
     setting = option if what == 'inverse' else f'{option} {fixed.quaternion_order}'

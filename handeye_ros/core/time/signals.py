@@ -15,9 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arrays import Floats, Mask
-from ..chunked import chunked
 from ..errors import TimeAlignmentError
-from ..geometry import rotvecs_between, row_norms
+from ..geometry import consecutive_rotvecs, row_norms
 from ..trajectory import Trajectory
 
 #: The resampling rate is the faster stream's rate, capped here: 200 Hz resolves the shape of
@@ -96,11 +95,9 @@ def angular_speed(traj: Trajectory, vector: bool = False, span: int = 1) -> Angu
         t = traj.seconds(int(traj.t_ns[0]))
         span = min(span, max(len(traj) - 1, 1))
         bad = np.concatenate(([0], np.cumsum(~traj.interval_ok())))
-        q = traj.q_xyzw
-        rotvecs = chunked(lambda s: rotvecs_between(q[:-span][s], q[span:][s]), len(q) - span)
         cached = AngularSpeed(
             0.5 * (t[span:] + t[:-span]),
-            rotvecs / (t[span:] - t[:-span])[:, None],
+            consecutive_rotvecs(traj.q_xyzw, span) / (t[span:] - t[:-span])[:, None],
             bad[span:] == bad[:-span],
             span,
         )

@@ -81,7 +81,10 @@ INFLATION_DOUBTFUL = 5.0
 #: The batch stage holds the spline fitted to the MoCap as exact (docs/method.md), which holds
 #: while the MoCap is much less noisy than the VIO: its spline's error (the MoCap's noise a pose
 #: over the square root of its poses a control pose) above this share of the eye's noise (a
-#: relative pose, rotation or translation) makes the sigmas too small.
+#: relative pose, rotation or translation) makes the sigmas too small and the answer biased:
+#: the spline's rotation noise is noise in the regressor of T_HE's translation (eq. 16), which
+#: draws the lever arm toward zero by about the square of that noise over the square of the
+#: rotation between eye frames (docs/method.md).
 SPLINE_SHARE_DOUBTFUL = 0.5
 #: AX = XB fails over the keyframe motions beyond these (median errors): on the real flights
 #: of ../shared/data/real they are 0.05-0.14 deg and 3-26 mm (4-9 % of the motion).

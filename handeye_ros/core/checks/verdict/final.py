@@ -281,9 +281,10 @@ def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
                 Code.NOISY_MOCAP,
                 f'the MoCap is noisy for the eye it calibrates ({np.degrees(h.rotation):.2g} deg '
                 f'and {h.translation * 1e3:.2g} mm a pose): the spline through it errs by '
-                f"{batch.spline_share:.0%} of the eye's own noise, and the sigmas count it as "
-                'exact, so they are too small. A MoCap body with more markers spread wider, or a '
-                'faster MoCap, narrows it',
+                f"{batch.spline_share:.0%} of the eye's own noise. The solve holds it as exact, "
+                'which draws the lever arm toward zero and the offset toward the linear '
+                "stage's, by more than the sigmas say. A MoCap body with more markers spread "
+                'wider, or a faster MoCap, narrows it',
             )
         )
     return said

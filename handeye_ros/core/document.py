@@ -236,6 +236,7 @@ class BatchDoc(TypedDict):
     converged: NotRequired[bool]
     seconds: NotRequired[float]
     time_offset_change: NotRequired[float]
+    mocap_noise_move: NotRequired[float | None]
 
 
 class MetricsDoc(TypedDict):

@@ -44,7 +44,7 @@ from .time.clock import DriftFit, linear_clock
 from .trajectory import Trajectory, TrajectoryInfo
 from .world import Metrics, WorldAlignment
 
-SCHEMA_VERSION = 10
+SCHEMA_VERSION = 11
 CONVENTION = (
     'T_WE(t) = T_WG * T_GH(t - dt(t)) * T_HE; dt(t) = time_offset + clock_drift * '
     '(t - time_offset_stamp) = eye clock minus hand clock (s; clock_drift 0 unless '

@@ -67,6 +67,7 @@ def batch_section(
             'converged': b.success,
             'seconds': b.seconds,
             'time_offset_change': float(offset_change_s),
+            'mocap_noise_move': b.mocap_noise_move,
         }
     )
     return out

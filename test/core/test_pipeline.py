@@ -129,7 +129,7 @@ def test_result_dict_is_plain_data_in_the_conventions() -> None:
     rec = recording(seed=2, level=1.0)
     d = calibrate(rec.hand, rec.eye).to_dict()
     json.dumps(d, allow_nan=False)
-    assert d['schema_version'] == 10
+    assert d['schema_version'] == 11
     assert d['quality']['verdict'] == 'good' and d['quality']['reasons'] == []
     q = np.asarray(d['extrinsic']['rotation'])
     assert q.shape == (4,) and abs(np.linalg.norm(q) - 1.0) < 1e-9

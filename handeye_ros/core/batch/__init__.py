@@ -12,6 +12,7 @@ minutes, its scale); :mod:`.refine` the problem: what is solved and the answer i
 :mod:`.solves` the solve in its steps and passes, as
 :mod:`.options` says;
 :mod:`.noise` each stream's noise from its residuals; :mod:`.parameters` its parameters and how the solvers walk the residuals; :mod:`.pieces`
-the hand's gap-free parts, one spline each. The stage as the pipeline runs it is
+the hand's gap-free parts, one spline each; :mod:`.spacing` the spline's spacing where the
+MoCap is noisy for its eye, and how far its noise moves the answer. The stage as the pipeline runs it is
 :mod:`handeye_ros.core.stages.batch`.
 """

@@ -32,6 +32,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..arrays import Floats
 from ..errors import BatchError
@@ -45,7 +46,8 @@ from .parameters import ParameterLayout
 from .pieces import hand_pieces
 from .residuals import BatchProblem
 from .solves import Solve, solve_offset_extrinsic
-from .spline import PoseSpline
+from .spacing import EXACT_ROTATION, WIDER, WIDER_FROM_SHARE, noisier_hand, wider_spacing
+from .spline import PoseSpline, fit_pieces
 
 #: Fewest MoCap samples a knot interval for the spline to be fitted rather than pass through
 #: them (:func:`supported_spacing`).
@@ -108,6 +110,11 @@ class BatchSolution:
     #: the hand's spline the solution was found on, for refits of the same hand (dropped once
     #: the stage is done with it: an hour at 1 kHz has 72 000 control poses)
     spline: PoseSpline | None = field(default=None, repr=False, compare=False)
+    #: how far the MoCap's noise drawn once more moved dt or T_HE, in this solve's sigmas
+    #: (the largest component, before :mod:`.correlated` adds its terms; :mod:`.spacing`):
+    #: about the bias its present noise put in them. None when the MoCap is not noisy for
+    #: its eye (a spline_share below WIDER_FROM_SHARE) or exact
+    mocap_noise_move: float | None = None
 
     @property
     def drift_std(self) -> float | None:
@@ -158,7 +165,10 @@ def refine(
     say (default: :class:`BatchOptions`'s).
 
     ``spline``: the hand's spline from an earlier solve on the same hand with the same
-    knot spacing and order (:attr:`BatchSolution.spline`): the fit is not repeated.
+    knot spacing and order (:attr:`BatchSolution.spline`): the fit is not repeated. Without
+    it, a MoCap noisy for its eye (:attr:`BatchSolution.spline_share` of at least
+    WIDER_FROM_SHARE) gets the wider spacing its eye supports and the move its noise makes
+    measured (:mod:`.spacing`).
 
     Raises
     ------
@@ -172,18 +182,71 @@ def refine(
         # it (a conjugation by a rotation about the axis of the motion itself): only the
         # translations tell it, so the rotation cannot be solved for first
         o = replace(o, decoupled=False)
+    start = (time_offset_s, q_HE, p_HE)
+    if spline is not None:  # the spline of an earlier solve on this hand: its spacing
+        return _solved(hand, eye, start, replace(o, knot_spacing=spline.dt), spline)[0]
+    asked = o.knot_spacing
+    o = replace(o, knot_spacing=supported_spacing(hand, asked))
+    sol, prob, solved = _solved(hand, eye, start, o)
+    # a spline through the samples (a MoCap too slow for the spacing asked) leaves no
+    # residual to measure the MoCap's noise by: only a wider spacing can tell it
+    noisy = sol.spline_share >= WIDER_FROM_SHARE and sol.hand_noise.rotation > EXACT_ROTATION
+    if not noisy and o.knot_spacing == asked:
+        return sol
+    return _noisy_mocap(hand, eye, start, o, asked, (sol, prob, solved))
+
+
+def _noisy_mocap(
+    hand: Trajectory,
+    eye: Trajectory,
+    start: tuple[float, Floats, Floats],
+    o: BatchOptions,
+    asked: float,
+    first: tuple[BatchSolution, BatchProblem, Solve],
+) -> BatchSolution:
+    """The solve of a MoCap that may be noisy for its eye (:mod:`.spacing`), from the ``first``
+    at ``o``'s spacing: at the spacing among WIDER times the one ``asked`` for that predicts
+    the eye best, with the move its noise drawn once more makes (unless its rotations are exact:
+    a spline through exact samples)."""
     t_start = time.perf_counter()
-    if spline is None:
-        o = replace(o, knot_spacing=supported_spacing(hand, o.knot_spacing))
-    else:  # the spline of an earlier solve on this hand: its spacing
-        o = replace(o, knot_spacing=spline.dt)
-    hand, pieces, piece_note = hand_pieces(hand, eye, time_offset_s, o.knot_spacing, o.order)
+    sol, prob, solved = first
+    fitted = MIN_SAMPLES_PER_KNOT / hand.rate_hz
+    wider = [asked * f for f in WIDER if asked * f > o.knot_spacing and asked * f >= fitted]
+
+    def problem_at(spacing: float) -> BatchProblem | None:
+        try:
+            return _problem(hand, eye, start, replace(o, knot_spacing=spacing))[0]
+        except BatchError:
+            return None
+
+    spacing = wider_spacing(prob, solved.x, solved.weights, o.huber_delta, problem_at, wider)
+    if spacing != o.knot_spacing:
+        o = replace(o, knot_spacing=spacing)
+        sol, prob, solved = _solved(hand, eye, start, o)
+    if sol.hand_noise.rotation <= EXACT_ROTATION:
+        return sol
+    noisier = fit_pieces(
+        prob.th, *noisier_hand(prob, sol.hand_noise), spacing, o.order, prob.pieces
+    )
+    again = _solved(hand, eye, start, o, noisier)[0]
+    seconds = first[0].seconds + time.perf_counter() - t_start
+    return replace(sol, mocap_noise_move=_move(sol, again), seconds=seconds)
+
+
+def _problem(
+    hand: Trajectory,
+    eye: Trajectory,
+    start: tuple[float, Floats, Floats],
+    o: BatchOptions,
+    spline: PoseSpline | None = None,
+) -> tuple[BatchProblem, str]:
+    """The problem of the module docstring from ``start`` (dt, q_HE, p_HE) with ``o``'s
+    spacing, and the note of the hand's pieces."""
+    hand, pieces, piece_note = hand_pieces(hand, eye, start[0], o.knot_spacing, o.order)
     prob = BatchProblem(
         hand,
         eye,
-        time_offset_s,
-        q_HE,
-        p_HE,
+        *start,
         o.knot_spacing,
         o.order,
         o.drift_stamp_ns,
@@ -193,11 +256,37 @@ def refine(
         None if o.held_axis is None else np.asarray(o.held_axis, float),
         o.held_rotation,
     )
+    return prob, piece_note
+
+
+def _solved(
+    hand: Trajectory,
+    eye: Trajectory,
+    start: tuple[float, Floats, Floats],
+    o: BatchOptions,
+    spline: PoseSpline | None = None,
+) -> tuple[BatchSolution, BatchProblem, Solve]:
+    """One solve with ``o``'s spacing (on ``spline`` when given): its solution, its problem
+    and what the solver found."""
+    t_start = time.perf_counter()
+    prob, piece_note = _problem(hand, eye, start, o, spline)
     hn = _hand_noise(prob, o.hand_noise)
     held = o.held_axis is not None
     layout = ParameterLayout.of(prob, o.fix_time_offset, held, held and o.held_rotation)
     solved = solve_offset_extrinsic(prob, layout, hn, o)
-    return _solution(prob, solved, solved.x, o, piece_note, time.perf_counter() - t_start)
+    sol = _solution(prob, solved, solved.x, o, piece_note, time.perf_counter() - t_start)
+    return sol, prob, solved
+
+
+def _move(sol: BatchSolution, again: BatchSolution) -> float:
+    """The largest move of dt, T_HE's translation and its rotation (per axis, the eye frame)
+    from ``sol`` to ``again``, in ``sol``'s sigmas (axes held, with no sigma, left out)."""
+    turn = Rotation.from_quat(sol.q_HE).inv() * Rotation.from_quat(again.q_HE)
+    d = np.concatenate(
+        ([again.time_offset_s - sol.time_offset_s], again.p_HE - sol.p_HE, turn.as_rotvec())
+    )
+    std = sol.std[:7]
+    return float(np.max(np.abs(d[std > 0]) / std[std > 0], initial=0.0))
 
 
 def supported_spacing(hand: Trajectory, spacing: float) -> float:

@@ -156,6 +156,7 @@ class BatchProblem:
         qh, ph = hand.q_xyzw, hand.p_xyz
         Re, pe = matrix_from_quat(eye.q_xyzw), eye.p_xyz
         pieces = pieces or [(0, len(hand))]
+        self.pieces = pieces
         if spline0 is None:
             spline0 = fit_pieces(self.th, qh, ph, knot_spacing, order, pieces)
         self.spline0 = spline0

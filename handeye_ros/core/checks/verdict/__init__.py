@@ -60,10 +60,9 @@ scale                       doubtful   without estimate_scale: a scale explains 
 residuals_not_white         doubtful   the long-run covariance is more than
                                        INFLATION_DOUBTFUL times the white one (an
                                        unmodelled effect: clock drift, scale, ...)
-noisy_mocap                 doubtful   the MoCap's spline errs by more than
-                                       SPLINE_SHARE_DOUBTFUL of the eye's noise: the
-                                       batch stage holds it as exact, so its sigmas are
-                                       too small
+noisy_mocap                 doubtful   the MoCap's noise drawn once more moves dt or T_HE
+                                       by more than NOISE_MOVE_DOUBTFUL sigmas: the spline
+                                       held through it as exact has biased them as far
 inconsistent                failed     AX = XB does not hold: over the keyframe motions
                                        (eq. 6), the median rotation error exceeds
                                        FAILED_MOTION_ROTATION_DEG, or the median translation

@@ -78,14 +78,12 @@ LOW_INLIER_FRACTION = 0.2
 WEAK_EXCITATION_DEG = 10.0
 #: Long-run over white sigma of any parameter above this.
 INFLATION_DOUBTFUL = 5.0
-#: The batch stage holds the spline fitted to the MoCap as exact (docs/method.md), which holds
-#: while the MoCap is much less noisy than the VIO: its spline's error (the MoCap's noise a pose
-#: over the square root of its poses a control pose) above this share of the eye's noise (a
-#: relative pose, rotation or translation) makes the sigmas too small and the answer biased:
-#: the spline's rotation noise is noise in the regressor of T_HE's translation (eq. 16), which
-#: draws the lever arm toward zero by about the square of that noise over the square of the
-#: rotation between eye frames (docs/method.md).
-SPLINE_SHARE_DOUBTFUL = 0.5
+#: The batch stage holds the spline fitted to the MoCap as exact (docs/method.md). Its rotation
+#: noise is noise in the regressor of T_HE's translation (eq. 16), which draws the lever arm
+#: toward zero by about the square of that noise: where the MoCap's noise drawn once more (its
+#: variance doubled) moves dt or T_HE by more than this many sigmas, the noise already in it
+#: has biased the answer about as far (:mod:`..batch.spacing`).
+NOISE_MOVE_DOUBTFUL = 1.0
 #: AX = XB fails over the keyframe motions beyond these (median errors): on the real flights
 #: of ../shared/data/real they are 0.05-0.14 deg and 3-26 mm (4-9 % of the motion).
 FAILED_MOTION_ROTATION_DEG = 2.0

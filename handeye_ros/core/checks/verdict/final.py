@@ -23,8 +23,8 @@ from .codes import (
     FAILED_MOTION_TRANSLATION_M,
     INFLATION_DOUBTFUL,
     LOW_INLIER_FRACTION,
+    NOISE_MOVE_DOUBTFUL,
     OUTLIER_FRACTION_DOUBTFUL,
-    SPLINE_SHARE_DOUBTFUL,
     WEAK_CORRELATION,
     WEAK_EXCITATION_DEG,
     Code,
@@ -274,17 +274,18 @@ def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
                 'something the model lacks (clock drift, a scale error) shapes them',
             )
         )
-    if batch.spline_share > SPLINE_SHARE_DOUBTFUL:
+    move = batch.mocap_noise_move
+    if move is not None and move > NOISE_MOVE_DOUBTFUL:
         h = batch.hand_noise
         said.append(
             Reason(
                 Code.NOISY_MOCAP,
                 f'the MoCap is noisy for the eye it calibrates ({np.degrees(h.rotation):.2g} deg '
-                f'and {h.translation * 1e3:.2g} mm a pose): the spline through it errs by '
-                f"{batch.spline_share:.0%} of the eye's own noise. The solve holds it as exact, "
-                'which draws the lever arm toward zero and the offset toward the linear '
-                "stage's, by more than the sigmas say. A MoCap body with more markers spread "
-                'wider, or a faster MoCap, narrows it',
+                f'and {h.translation * 1e3:.2g} mm a pose, its spline knotted every '
+                f'{batch.knot_spacing:.3g} s): its noise drawn once more moves the answer by '
+                f'{move:.1f} sigma, about the bias it has put in it already (the spline holds '
+                'that noise as exact, which draws the lever arm toward zero). A MoCap body with '
+                'more markers spread wider, or a faster MoCap, narrows it',
             )
         )
     return said

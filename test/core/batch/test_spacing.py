@@ -31,13 +31,14 @@ def test_a_jittery_mocap_gets_the_wider_spacing_its_eye_supports() -> None:
     held through knots every 0.0527 s, its rotation noise drew the lever arm 8.8 % short and dt
     1 ms off (20 seeds: the truth inside 3 sigmas for every component in 55 %). The eye's
     residuals pick a spacing four times wider; the truth is then inside 3 sigmas, and the
-    noise drawn once more moves the answer by under a sigma."""
+    noise drawn once more moves the answer by under a sigma, which a note says."""
     rec = recording(seed=0, level=5.0, hand_noise_deg=0.5, hand_noise_m=2e-3)
     res = calibrate(rec.hand, rec.eye)
     assert res.batch is not None and res.batch.knot_spacing > 3 * KNOT_SPACING_S
     assert _within_3_sigma(res, rec.truth)
     assert res.batch.mocap_noise_move is not None and res.batch.mocap_noise_move < 1.0
     assert res.quality.verdict == 'good'
+    assert any('its spline is knotted every 0.211 s' in n for n in res.quality.notes)
 
 
 def test_a_slow_mocap_spline_through_its_samples_only_when_they_are_exact() -> None:

@@ -275,19 +275,26 @@ def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
             )
         )
     move = batch.mocap_noise_move
-    if move is not None and move > NOISE_MOVE_DOUBTFUL:
-        h = batch.hand_noise
-        said.append(
-            Reason(
-                Code.NOISY_MOCAP,
-                f'the MoCap is noisy for the eye it calibrates ({np.degrees(h.rotation):.2g} deg '
-                f'and {h.translation * 1e3:.2g} mm a pose, its spline knotted every '
-                f'{batch.knot_spacing:.3g} s): its noise drawn once more moves the answer by '
-                f'{move:.1f} sigma, about the bias it has put in it already (the spline holds '
-                'that noise as exact, which draws the lever arm toward zero). A MoCap body with '
-                'more markers spread wider, or a faster MoCap, narrows it',
-            )
+    if move is None:
+        return said
+    h = batch.hand_noise
+    noisy = (
+        f'the MoCap is noisy for the eye it calibrates ({np.degrees(h.rotation):.2g} deg and '
+        f'{h.translation * 1e3:.2g} mm a pose; its spline is knotted every '
+        f'{batch.knot_spacing:.3g} s, the spacing that predicts the eye best): its noise drawn '
+        f'once more moves the answer by {move:.1f} sigma'
+    )
+    if move <= NOISE_MOVE_DOUBTFUL:
+        said.append(noisy)
+        return said
+    said.append(
+        Reason(
+            Code.NOISY_MOCAP,
+            f'{noisy}, about the bias it has put in it already (the spline holds that noise '
+            'as exact, which draws the lever arm toward zero). A MoCap body with more markers '
+            'spread wider, or a faster MoCap, narrows it',
         )
+    )
     return said
 
 

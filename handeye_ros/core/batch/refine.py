@@ -220,15 +220,17 @@ def _noisy_mocap(
             return None
 
     spacing = wider_spacing(prob, solved.x, solved.weights, o.huber_delta, problem_at, wider)
+    # the solves after the first start from its answer: a few steps from there, not the
+    # linear result's many
     if spacing != o.knot_spacing:
         o = replace(o, knot_spacing=spacing)
-        sol, prob, solved = _solved(hand, eye, start, o)
+        sol, prob, solved = _solved(hand, eye, (sol.time_offset_s, sol.q_HE, sol.p_HE), o)
     if sol.hand_noise.rotation <= EXACT_ROTATION:
         return sol
     noisier = fit_pieces(
         prob.th, *noisier_hand(prob, sol.hand_noise), spacing, o.order, prob.pieces
     )
-    again = _solved(hand, eye, start, o, noisier)[0]
+    again = _solved(hand, eye, (sol.time_offset_s, sol.q_HE, sol.p_HE), o, noisier)[0]
     seconds = first[0].seconds + time.perf_counter() - t_start
     return replace(sol, mocap_noise_move=_move(sol, again), seconds=seconds)
 

@@ -19,6 +19,11 @@ from ..errors import TimeAlignmentError
 from ..geometry import consecutive_rotvecs, row_norms
 from ..trajectory import Trajectory
 
+#: Angular speeds are averages over at least this interval [s] (:func:`spans`): a hand-held or
+#: flying motion's angular speed has little content above ~10 Hz, which a 25-ms average keeps
+#: (a 10 Hz sine loses 10 %), while a jittery MoCap's differenced noise falls with the interval
+#: (1 kHz with 0.1 deg a pose: some 45 deg/s over the 5 ms of a 200 Hz eye, 9 deg/s over 25 ms).
+MIN_SPEED_SPAN_S = 0.025
 #: The resampling rate is the faster stream's rate, capped here: 200 Hz resolves the shape of
 #: any hand-held motion (whose angular speed has little content above ~10 Hz) and bounds the
 #: FFT length of long recordings.
@@ -109,10 +114,10 @@ def angular_speed(traj: Trajectory, vector: bool = False, span: int = 1) -> Angu
 
 def spans(hand: Trajectory, eye: Trajectory) -> tuple[int, int]:
     """How many of its intervals each stream's angular speed spans (:func:`angular_speed`): the
-    slower stream's period, so that both are averages over one interval. The faster stream's
-    white noise, which differencing over its own short interval amplifies (1 kHz MoCap with
-    0.1 deg of jitter: 140 deg/s), is then averaged down to the slower one's."""
-    period = max(1.0 / hand.rate_hz, 1.0 / eye.rate_hz)
+    slower stream's period, at least MIN_SPEED_SPAN_S, so that both are averages over one
+    interval. A stream's white noise, which differencing over a short interval amplifies (1 kHz
+    MoCap with 0.1 deg of jitter: 140 deg/s over its own 1 ms), is then averaged down."""
+    period = max(1.0 / hand.rate_hz, 1.0 / eye.rate_hz, MIN_SPEED_SPAN_S)
     return max(1, round(period * hand.rate_hz)), max(1, round(period * eye.rate_hz))
 
 

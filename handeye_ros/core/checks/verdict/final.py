@@ -257,13 +257,14 @@ def _assess_uncertainty(
         if near and not over and batch.blocks_measured:
             said.append(near)
     if batch is not None:
-        said += _unmodelled(batch)
+        said += _unmodelled(batch, cfg.knot_spacing)
     return said
 
 
-def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
+def _unmodelled(batch: BatchSolution, asked_spacing: float) -> list[Reason | str]:
     """Stage 3's sigmas shaped by what its model lacks: residuals correlated far beyond white
-    ones, or a MoCap whose spline is not exact against the eye (see the codes)."""
+    ones, or a MoCap whose spline is not exact against the eye (see the codes; below the
+    line, a note when its spline was knotted wider than ``asked_spacing`` [s] for it)."""
     said: list[Reason | str] = []
     if float(np.max(batch.inflation)) > INFLATION_DOUBTFUL:
         said.append(
@@ -285,7 +286,7 @@ def _unmodelled(batch: BatchSolution) -> list[Reason | str]:
         f'once more moves the answer by {move:.1f} sigma'
     )
     if move <= NOISE_MOVE_DOUBTFUL:
-        said.append(noisy)
+        said += [noisy] if batch.knot_spacing > asked_spacing else []
         return said
     said.append(
         Reason(

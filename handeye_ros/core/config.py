@@ -196,7 +196,8 @@ class CalibrationConfig(Options):
         'flying motion (mostly below 5 Hz) from MoCap at >= 100 Hz; not a multiple or a '
         "divisor of the eye's frame period (at 0.05 s, a 20 Hz eye meets the knots at one "
         "phase, and the MoCap's noise biases dt); a MoCap of fewer than two samples a knot "
-        'interval gets its own sample period',
+        'interval gets its own sample period, and one noisy for its eye up to four times '
+        "the spacing where the eye's residuals say it predicts them better",
         low=0.005,
         high=1.0,
         expert=True,

@@ -70,9 +70,11 @@ def wider_spacing(
         if wide is None:
             continue
         common, i, j = np.intersect1d(at.ei, wide.ei, return_indices=True)
+        if common.size == 0:
+            continue
         d = _pair_costs(wide, y, weights, delta)[j] - base[i]
         blocks = np.floor((at.te[common] - at.te[common[0]]) / BLOCK_S).astype(np.int64)
-        per = np.bincount(blocks, weights=d)
+        per = np.bincount(blocks, weights=d)[np.bincount(blocks) > 0]  # blocks with pairs
         if per.size < 3:
             continue
         total = float(per.sum())

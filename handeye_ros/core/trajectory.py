@@ -80,10 +80,11 @@ class Trajectory:
         assumed, ...), for the result's warnings.
     keyframes : bool
         The stream holds keyframes only: no interval is a gap (see the module docstring).
-    quaternion_order : str
-        The order of the four quaternion numbers in its source, as they were read into
-        ``q_xyzw`` ('wxyz' for a EuRoC file; 'xyzw' for TUM files and messages), for messages
-        that name the source's order.
+    quaternion_order : str or None
+        The order of the four quaternion numbers in its file, as they were read into
+        ``q_xyzw`` ('wxyz' for a EuRoC file, 'xyzw' for a TUM file), for messages that name
+        the file's order; None for poses not read from a file (ROS messages, which hold x y z
+        w by definition, and arrays).
     """
 
     t_ns: Stamps
@@ -93,7 +94,7 @@ class Trajectory:
     breaks: Indices = field(default_factory=lambda: np.zeros(0, dtype=int))
     notes: tuple[str, ...] = ()
     keyframes: bool = False
-    quaternion_order: str = 'xyzw'
+    quaternion_order: str | None = None
 
     @classmethod
     def from_arrays(

@@ -59,8 +59,8 @@ class Correction:
     """A convention the data contradicted, and the reading that was applied instead.
 
     stream: 'hand' or 'eye'; what: 'stamp_unit', 'quaternion_order' or 'inverse'; assumed: the
-    reading applied, in words; option: the option that states it explicitly; message: a
-    warning for the user.
+    reading applied, in words; option: the option that states it explicitly ('' where none
+    does: quaternions of a message); message: a warning for the user.
     """
 
     stream: str

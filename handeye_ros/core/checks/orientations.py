@@ -104,7 +104,7 @@ def reread(traj: Trajectory, reading: str) -> Trajectory:
         )
     q = traj.q_xyzw[:, PERMUTATIONS[reading]]
     fixed = Trajectory.from_arrays(traj.t_ns, traj.p_xyz, q, traj.name)
-    order = source_order(traj.quaternion_order, reading)
+    order = source_order(traj.quaternion_order or 'xyzw', reading)
     return replace(fixed.with_breaks(traj.breaks).with_notes(*traj.notes), quaternion_order=order)
 
 
@@ -124,7 +124,8 @@ def in_words(reading: str, traj: Trajectory) -> str:
     values)."""
     if reading not in PERMUTATIONS:
         return 'its poses were the inverse (T_EW for T_WE, T_HG for T_GH)'
-    was, read = source_order(traj.quaternion_order, reading), traj.quaternion_order
+    read = traj.quaternion_order or 'xyzw'
+    was = source_order(read, reading)
     eigen = (
         " (as Eigen's Quaterniond(x, y, z, w), whose constructor takes w first, writes them)"
         if was == 'yzwx'
@@ -308,12 +309,19 @@ def _applied(
     fixed = reread(traj, f.reading)
     option = f'invert_{f.stream}' if what == 'inverse' else f'{f.stream}_quaternion_order'
     setting = option if what == 'inverse' else f'{option} {fixed.quaternion_order}'
+    if what != 'inverse' and traj.quaternion_order is None:
+        option = ''  # none states another order for a message
+        remedy = (
+            'fix their source: they were not read from a file, and a pose message holds x y z '
+            'w by definition (no option states another order for it)'
+        )
+    else:
+        remedy = f'say so with {setting} (the file still holds the mistake for other tools)'
     message = (
         f'{traj.name}: {in_words(f.reading, traj)}: AX = XB holds with that reading (median '
         f'residuals {np.degrees(f.rotation_rad):.2f} deg, {f.translation_m * 1e3:.1f} mm) and '
         f'not as given ({np.degrees(as_given.rotation_rad):.1f} deg, '
-        f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, '
-        f'say so with {setting} (the file still holds the mistake for other tools)'
+        f'{as_given.translation_m * 1e3:.0f} mm), so it was applied. If that is right, {remedy}'
     )
     return fixed, Correction(f.stream, what, f.reading, option, message)
 

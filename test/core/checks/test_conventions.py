@@ -86,7 +86,9 @@ def _misread(traj: Trajectory, reading: str) -> Trajectory:
 )
 def test_orientation_mistakes_are_found_and_read_right(stream: str, reading: str) -> None:
     """A quaternion order swapped or poses inverted: AX = XB holds only under the right
-    reading, which is applied, named, and leaves the verdict doubtful."""
+    reading, which is applied, named, and leaves the verdict doubtful. Poses not read from a
+    file (arrays, a bag's or a topic's messages, x y z w by definition) have no option that
+    states another order: the message says to fix their source."""
     rec = recording(seed=5, level=2.0)
     right = calibrate(rec.hand, rec.eye)
     hand = _misread(rec.hand, reading) if stream == 'hand' else rec.hand
@@ -98,6 +100,11 @@ def test_orientation_mistakes_are_found_and_read_right(stream: str, reading: str
     assert as_given.score > 10 * best.score
     res = calibrate(hand, eye)
     assert [(c.stream, c.assumed) for c in res.corrections] == [(stream, reading)]
+    if reading == 'inverse':
+        assert res.corrections[0].option == f'invert_{stream}'
+    else:
+        assert res.corrections[0].option == ''
+        assert 'fix their source: they were not read from a file' in res.corrections[0].message
     assert res.quality.verdict == 'doubtful' and 'convention_corrected' in res.quality.codes
     e = calibration_error(rec.truth, res.time_offset_s, res.q_HE, res.p_HE)
     e0 = calibration_error(rec.truth, right.time_offset_s, right.q_HE, right.p_HE)

@@ -219,16 +219,17 @@ def _noisy_mocap(
         except BatchError:
             return None
 
-    spacing = wider_spacing(prob, solved.x, solved.weights, o.huber_delta, problem_at, wider)
+    best = wider_spacing(prob, solved.x, solved.weights, o.huber_delta, problem_at, wider)
     # the solves after the first start from its answer: a few steps from there, not the
-    # linear result's many
-    if spacing != o.knot_spacing:
-        o = replace(o, knot_spacing=spacing)
-        sol, prob, solved = _solved(hand, eye, (sol.time_offset_s, sol.q_HE, sol.p_HE), o)
+    # linear result's many; at a wider spacing, on the spline its test fitted
+    if best is not prob:
+        o = replace(o, knot_spacing=best.spline0.dt)
+        answer = (sol.time_offset_s, sol.q_HE, sol.p_HE)
+        sol, prob, solved = _solved(hand, eye, answer, o, best.spline0)
     if sol.hand_noise.rotation <= EXACT_ROTATION:
         return sol
     noisier = fit_pieces(
-        prob.th, *noisier_hand(prob, sol.hand_noise), spacing, o.order, prob.pieces
+        prob.th, *noisier_hand(prob, sol.hand_noise), o.knot_spacing, o.order, prob.pieces
     )
     again = _solved(hand, eye, (sol.time_offset_s, sol.q_HE, sol.p_HE), o, noisier)[0]
     seconds = first[0].seconds + time.perf_counter() - t_start
@@ -280,14 +281,17 @@ def _solved(
     return sol, prob, solved
 
 
+def deviation(fit: BatchSolution, of: BatchSolution) -> Floats:
+    """(7,) ``fit``'s (dt, translation, rotation) from ``of``'s, the rotation in the tangent
+    of T_HE on the right (eye frame), as the covariance's."""
+    rot = (Rotation.from_quat(of.q_HE).inv() * Rotation.from_quat(fit.q_HE)).as_rotvec()
+    return np.concatenate(([fit.time_offset_s - of.time_offset_s], fit.p_HE - of.p_HE, rot))
+
+
 def _move(sol: BatchSolution, again: BatchSolution) -> float:
-    """The largest move of dt, T_HE's translation and its rotation (per axis, the eye frame)
-    from ``sol`` to ``again``, in ``sol``'s sigmas (axes held, with no sigma, left out)."""
-    turn = Rotation.from_quat(sol.q_HE).inv() * Rotation.from_quat(again.q_HE)
-    d = np.concatenate(
-        ([again.time_offset_s - sol.time_offset_s], again.p_HE - sol.p_HE, turn.as_rotvec())
-    )
-    std = sol.std[:7]
+    """The largest move of dt, T_HE's translation and its rotation (per axis) from ``sol`` to
+    ``again`` (:func:`deviation`), in ``sol``'s sigmas (axes held, with no sigma, left out)."""
+    d, std = deviation(again, sol), sol.std[:7]
     return float(np.max(np.abs(d[std > 0]) / std[std > 0], initial=0.0))
 
 

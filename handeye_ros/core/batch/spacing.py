@@ -57,14 +57,15 @@ def wider_spacing(
     delta: float,
     problem_at: Callable[[float], BatchProblem | None],
     spacings: list[float],
-) -> float:
-    """The knot spacing [s] whose spline predicts the eye's relative poses best: ``at``'s
-    unless one of ``spacings`` lowers the eye's Huber cost at y (whitened by ``weights``,
+) -> BatchProblem:
+    """The problem whose spline predicts the eye's relative poses best: ``at`` unless the one
+    at one of ``spacings`` lowers the eye's Huber cost at y (whitened by ``weights``,
     ``delta`` as the solve's) by more than SIGNIFICANT standard errors, paired pair by pair
-    and summed in blocks of BLOCK_S. ``problem_at(spacing)``: the same problem with that
-    spacing's spline (None where its pieces leave too little)."""
+    and summed in blocks of BLOCK_S (its spline is then the one to solve on).
+    ``problem_at(spacing)``: the same problem with that spacing's spline (None where its
+    pieces leave too little)."""
     base = _pair_costs(at, y, weights, delta)
-    best, best_total = at.spline0.dt, 0.0
+    best, best_total = at, 0.0
     for spacing in spacings:
         wide = problem_at(spacing)
         if wide is None:
@@ -79,7 +80,7 @@ def wider_spacing(
             continue
         total = float(per.sum())
         if total < best_total and -per.mean() > SIGNIFICANT * per.std(ddof=1) / np.sqrt(per.size):
-            best, best_total = wide.spline0.dt, total
+            best, best_total = wide, total
     return best
 
 

@@ -11,7 +11,6 @@ import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..arrays import Floats, Indices
 from ..batch.correlated import (
@@ -28,7 +27,7 @@ from ..batch.correlated import (
     without,
 )
 from ..batch.options import BatchOptions
-from ..batch.refine import BatchSolution, refine
+from ..batch.refine import BatchSolution, deviation, refine
 from ..checks.selfcheck import Hypothesis, score_candidates, scored_motions
 from ..checks.verdict import (
     Findings,
@@ -333,7 +332,7 @@ def _refitted(
     if len(fits) < len(spans) - 1:
         return None
     return Blocks(
-        deviations=np.array([_deviation(f, batch) for f, _ in fits]),
+        deviations=np.array([deviation(f, batch) for f, _ in fits]),
         covariances=np.array([f.covariance[:7, :7] for f, _ in fits]),
         shares=np.array([n for _, n in fits], dtype=float),
     )
@@ -377,13 +376,6 @@ def _aux(
     except (HandeyeError, ValueError, np.linalg.LinAlgError, RuntimeError):
         return None
     return sol if np.all(np.isfinite(sol.covariance)) else None
-
-
-def _deviation(fit: BatchSolution, of: BatchSolution) -> Floats:
-    """(7,) a refit's (dt, translation, rotation) from ``of``'s, the rotation in the tangent
-    of T_HE on the right (eye frame), as the covariance's."""
-    rot = (Rotation.from_quat(of.q_HE).inv() * Rotation.from_quat(fit.q_HE)).as_rotvec()
-    return np.concatenate(([fit.time_offset_s - of.time_offset_s], fit.p_HE - of.p_HE, rot))
 
 
 def batch_options(cfg: CalibrationConfig) -> BatchOptions:
